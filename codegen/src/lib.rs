@@ -1,0 +1,12 @@
+//! mechgen: kinematic analysis of spatial mechanisms described in Cartesian coordinates and
+//! Euler parameters (7 per body), after the thesis' program YOUNG, done right.
+//!
+//! Pipeline: a description file (`desc`, TOML or JSON) is validated into a
+//! `model::Mechanism` (`validate`), then analysed by the generic engine (`generic`), which
+//! assembles Φ, Φ_q, ν and γ at run time and solves positions by Newton–Raphson, velocities
+//! from Φ_q q̇ = ν and accelerations from Φ_q q̈ = γ. `young` imports the thesis' legacy decks;
+//! `report` writes the results as the contract's table, CSV or JSON.
+
+pub mod desc;
+pub mod diag;
+pub mod model;

@@ -1,0 +1,313 @@
+//! The validated mechanism: resolved references, normalised vectors, derived constants.
+//!
+//! A `model::Mechanism` is only built by `validate`, so every engine may rely on its
+//! invariants: names are unique, every id indexes its vector, every direction is a unit
+//! vector, reference directions are ⟂ their axis, `p` has unit norm, the time grid is
+//! non-empty and bounded.
+
+use nalgebra::{Vector3, Vector4};
+
+pub use crate::desc::{CoordinateName, DriverCoordinate, JointType, Motion};
+
+/// Index of a body in [`Mechanism::bodies`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub struct BodyId(pub usize);
+
+/// Index of a joint in [`Mechanism::joints`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub struct JointId(pub usize);
+
+/// A validated mechanism.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Mechanism {
+    /// `[a-z][a-z0-9_]*`.
+    pub name: String,
+    /// Free text from the description.
+    pub description: Option<String>,
+    /// The analysis grid.
+    pub time: TimeGrid,
+    /// Newton controls.
+    pub solver: SolverOptions,
+    /// All bodies, ground ones included, in file order.
+    pub bodies: Vec<Body>,
+    /// All joints in file order.
+    pub joints: Vec<Joint>,
+    /// `fix` and `coordinate_difference` constraints in file order.
+    pub constraints: Vec<Constraint>,
+    /// Drivers in file order.
+    pub drivers: Vec<Driver>,
+    /// Points of interest in file order.
+    pub points: Vec<Point>,
+}
+
+/// The time points `start + k·step`, `k = 0 … count − 1`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TimeGrid {
+    /// First time point.
+    pub start: f64,
+    /// Spacing (> 0).
+    pub step: f64,
+    /// Number of time points (≥ 1, ≤ 10,000,000).
+    pub count: usize,
+}
+
+impl TimeGrid {
+    /// The k-th time point, computed without accumulating sums.
+    #[must_use]
+    pub fn at(&self, k: usize) -> f64 {
+        self.start + k as f64 * self.step
+    }
+}
+
+/// Newton controls.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SolverOptions {
+    /// Converged when max |Φ_i| ≤ tolerance.
+    pub tolerance: f64,
+    /// Upper bound on iterations per time point.
+    pub max_iterations: u32,
+}
+
+impl Default for SolverOptions {
+    fn default() -> Self {
+        Self { tolerance: 1e-10, max_iterations: 25 }
+    }
+}
+
+/// A body: its initial estimate, or for a ground body its fixed placement.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Body {
+    /// Unique name.
+    pub name: String,
+    /// All 7 coordinates fixed.
+    pub ground: bool,
+    /// Origin of the body frame, global.
+    pub r: Vector3<f64>,
+    /// Euler parameters `[e0, e1, e2, e3]`, normalised.
+    pub p: Vector4<f64>,
+}
+
+/// A joint between two bodies. Which optional members are present depends on `kind`
+/// (the table of the contract): `axis` for all but spherical and distance, `reference`
+/// for prismatic and screw and for rotation-driven revolute and cylindrical joints.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Joint {
+    /// Unique name.
+    pub name: String,
+    /// First body.
+    pub body_i: BodyId,
+    /// Second body.
+    pub body_j: BodyId,
+    /// Joint point on body i, local.
+    pub point_i: Vector3<f64>,
+    /// Joint point on body j, local.
+    pub point_j: Vector3<f64>,
+    /// Unit axes `(axis_i, axis_j)`, local to their bodies.
+    pub axis: Option<(Vector3<f64>, Vector3<f64>)>,
+    /// Unit reference directions `(ref_i, ref_j)`, each ⟂ its axis, local.
+    pub reference: Option<(Vector3<f64>, Vector3<f64>)>,
+    /// The joint type and its type-specific data.
+    pub kind: JointKind,
+}
+
+/// Joint types with the data only they carry.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum JointKind {
+    /// Points coincide (3 equations).
+    Spherical,
+    /// Points coincide, axis_i ⟂ axis_j (4 equations).
+    Universal,
+    /// Points coincide, axes parallel (5 equations).
+    Revolute,
+    /// Axes parallel, P_j − P_i parallel to the axis (4 equations).
+    Cylindrical,
+    /// Cylindrical plus ref_i ⟂ ref_j (5 equations).
+    Prismatic,
+    /// Cylindrical plus d − d0 = lead·(θ − θ0)/(2π) (5 equations).
+    Screw {
+        /// Axial advance per full turn (non-zero).
+        lead: f64,
+        /// d = (P_j − P_i)·axis_i at the initial estimates.
+        d0: f64,
+        /// θ, the angle from ref_i to ref_j about axis_i, at the initial estimates, in (−π, π].
+        theta0: f64,
+    },
+    /// |P_j − P_i| = length (1 equation).
+    Distance {
+        /// The rod length (> 0).
+        length: f64,
+    },
+}
+
+impl JointKind {
+    /// The spelling used in description files.
+    #[must_use]
+    pub fn type_name(&self) -> &'static str {
+        match self {
+            Self::Spherical => "spherical",
+            Self::Universal => "universal",
+            Self::Revolute => "revolute",
+            Self::Cylindrical => "cylindrical",
+            Self::Prismatic => "prismatic",
+            Self::Screw { .. } => "screw",
+            Self::Distance { .. } => "distance",
+        }
+    }
+
+    /// Number of constraint equations the joint contributes.
+    #[must_use]
+    pub fn equations(&self) -> usize {
+        match self {
+            Self::Spherical => 3,
+            Self::Universal | Self::Cylindrical => 4,
+            Self::Revolute | Self::Prismatic | Self::Screw { .. } => 5,
+            Self::Distance { .. } => 1,
+        }
+    }
+}
+
+/// A constraint that is not a joint (one equation).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Constraint {
+    /// Unique name.
+    pub name: String,
+    /// What it constrains.
+    pub kind: ConstraintKind,
+}
+
+/// The two simplified constraints of the thesis.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum ConstraintKind {
+    /// `q_body[coordinate] = value`; `body` is never a ground body.
+    Fix {
+        /// The body.
+        body: BodyId,
+        /// The coordinate.
+        coordinate: CoordinateName,
+        /// The value.
+        value: f64,
+    },
+    /// `q_i[c] − q_j[c] = value`; at most one of the bodies is ground.
+    CoordinateDifference {
+        /// First body.
+        body_i: BodyId,
+        /// Second body.
+        body_j: BodyId,
+        /// The coordinate.
+        coordinate: CoordinateName,
+        /// The difference.
+        value: f64,
+    },
+}
+
+/// A driver: one equation `f(q) = s(t)` in the form the engines choose.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Driver {
+    /// Unique name.
+    pub name: String,
+    /// What is driven.
+    pub target: DriverTarget,
+    /// s(t).
+    pub law: Law,
+}
+
+/// What a driver moves.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum DriverTarget {
+    /// A joint's angle (revolute, cylindrical, screw; the joint has references) or
+    /// translation (prismatic, cylindrical).
+    Joint {
+        /// The joint.
+        joint: JointId,
+        /// Rotation or translation.
+        motion: Motion,
+    },
+    /// A body coordinate or a rotation about a global axis; `body` is never ground.
+    Absolute {
+        /// The body.
+        body: BodyId,
+        /// The coordinate.
+        coordinate: DriverCoordinate,
+    },
+}
+
+/// A motion law s(t).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Law {
+    /// s(t) = start + velocity·t + acceleration·t²/2 (thesis eq. 4.59).
+    Polynomial {
+        /// s0.
+        start: f64,
+        /// v0.
+        velocity: f64,
+        /// a.
+        acceleration: f64,
+    },
+    /// s(t) = offset + amplitude·sin(frequency·t + phase).
+    Harmonic {
+        /// c.
+        offset: f64,
+        /// A.
+        amplitude: f64,
+        /// w.
+        frequency: f64,
+        /// φ.
+        phase: f64,
+    },
+}
+
+impl Law {
+    /// `(s, ṡ, s̈)` at time `t`.
+    #[must_use]
+    pub fn eval(&self, t: f64) -> (f64, f64, f64) {
+        match *self {
+            Self::Polynomial { start, velocity, acceleration } => (
+                start + velocity * t + 0.5 * acceleration * t * t,
+                velocity + acceleration * t,
+                acceleration,
+            ),
+            Self::Harmonic { offset, amplitude, frequency, phase } => {
+                let (sin, cos) = (frequency * t + phase).sin_cos();
+                (
+                    offset + amplitude * sin,
+                    amplitude * frequency * cos,
+                    -amplitude * frequency * frequency * sin,
+                )
+            }
+        }
+    }
+}
+
+/// A point of interest.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Point {
+    /// Unique name.
+    pub name: String,
+    /// The body it is fixed to.
+    pub body: BodyId,
+    /// Its coordinates in the body frame.
+    pub local: Vector3<f64>,
+}
+
+impl Mechanism {
+    /// Bodies that carry unknowns (all but ground), in file order.
+    pub fn moving_bodies(&self) -> impl Iterator<Item = BodyId> + '_ {
+        self.bodies.iter().enumerate().filter(|(_, b)| !b.ground).map(|(k, _)| BodyId(k))
+    }
+
+    /// Number of unknowns: 7 per non-ground body.
+    #[must_use]
+    pub fn unknowns(&self) -> usize {
+        7 * self.moving_bodies().count()
+    }
+
+    /// Number of equations: joint rows, constraint rows, driver rows and one Euler-parameter
+    /// normalisation per non-ground body.
+    #[must_use]
+    pub fn equations(&self) -> usize {
+        self.joints.iter().map(|j| j.kind.equations()).sum::<usize>()
+            + self.constraints.len()
+            + self.drivers.len()
+            + self.moving_bodies().count()
+    }
+}
