@@ -10,3 +10,5 @@
 pub mod desc;
 pub mod diag;
 pub mod model;
+pub mod validate;
+pub mod young;

@@ -1,0 +1,1 @@
+//! Description → model: every rule of the contract's Validation section, with places.

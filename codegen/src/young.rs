@@ -1,0 +1,1 @@
+//! The thesis' legacy input decks (YOUNG) → descriptions.
