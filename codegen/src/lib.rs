@@ -12,3 +12,5 @@ pub mod diag;
 pub mod model;
 pub mod validate;
 pub mod young;
+pub mod generic;
+pub mod report;

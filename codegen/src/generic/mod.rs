@@ -1,0 +1,437 @@
+//! The generic engine: Φ, Φ_q, ν and γ assembled at run time for any mechanism.
+//!
+//! Unknowns are the 7 coordinates `[x, y, z, e0, e1, e2, e3]` of every non-ground body, in
+//! body order. Equations come in a fixed order: joint rows (joints in file order), then
+//! constraint rows, then driver rows, then one Euler-parameter normalisation per non-ground
+//! body (thesis eq. 3.13: pᵀp − 1 = 0). Each row is written once, as a function of vector
+//! primitives ([`kin`]), which carry its Jacobian and its ν and γ terms along.
+//!
+//! Row forms (all free of singularities at every relative angle):
+//! - spherical (eq. 4.11): P_j − P_i = 0, 3 rows;
+//! - universal (eq. 4.14–4.19): spherical + a_i·a_j = 0;
+//! - parallel axes (the thesis' n1/p1 conditions, eq. 4.20–4.25): b_i·a_j = 0 and
+//!   c_i·a_j = 0, where b_i, c_i are body-i unit vectors ⟂ axis_i (Haug's form, instead of
+//!   two rows of a_i × a_j, whose choice degenerates for some axis directions);
+//! - revolute: spherical + parallel axes;
+//! - cylindrical (eq. 4.26–4.31): parallel axes + b_i·d = 0, c_i·d = 0 with d = P_j − P_i;
+//! - prismatic (eq. 4.32–4.38): cylindrical + ref_i·ref_j = 0;
+//! - screw (eq. 4.40–4.56, reformulated): cylindrical + x sin φ − y cos φ = 0, where
+//!   x = ref_i·ref_j, y = (ref_i × ref_j)·a_i (so θ = atan2(y, x) is the joint angle) and
+//!   φ = θ0 + 2π (d·a_i − d0)/lead is the angle the helix demands for the current axial
+//!   position. It states θ ≡ φ (mod π) with no arccos and no stored turn count, so it holds
+//!   through any number of turns;
+//! - distance: (d·d − L²)/(2L) = 0 (≈ |d| − L near the solution, in length units);
+//! - fix (eq. 4.57): q_b[c] − value; coordinate difference: q_i[c] − q_j[c] − value;
+//! - joint rotation driver: x sin s(t) − y cos s(t) = sin(s − θ) = 0; joint translation
+//!   driver: d·a_i − s(t) = 0; absolute drivers: q_b[c] − s(t) = 0 or, for rotations about a
+//!   global axis (eq. 4.62), e_k cos(s/2) − e0 sin(s/2) = 0.
+
+pub(crate) mod kin;
+mod solve;
+#[cfg(test)]
+mod tests;
+
+use nalgebra::{DMatrix, DVector, Vector3};
+
+use crate::model::{
+    BodyId, ConstraintKind, DriverCoordinate, DriverTarget, Joint, JointKind, Mechanism, Motion,
+};
+use kin::{BodyState, Sk, Vk};
+
+pub use solve::{Analysis, Failure, FailureKind, Frame, Preparation, StepReport};
+
+/// The entity an equation belongs to, for labels and error reports.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct RowLabel {
+    /// `joint "O4"`-style entity kind: `joint`, `constraint`, `driver` or `body`.
+    pub kind: &'static str,
+    /// The entity's name.
+    pub name: String,
+    /// 1-based row within the entity (joints have several).
+    pub row: usize,
+    /// Number of rows of the entity.
+    pub rows: usize,
+}
+
+impl RowLabel {
+    /// `joint O4 row 2`, `driver motor`, `body crank normalisation`.
+    #[must_use]
+    pub fn equation(&self) -> String {
+        match self.kind {
+            "body" => format!("body {} normalisation", self.name),
+            _ if self.rows > 1 => format!("{} {} row {}", self.kind, self.name, self.row),
+            _ => format!("{} {}", self.kind, self.name),
+        }
+    }
+
+    /// `joint O4`: the entity without the row.
+    #[must_use]
+    pub fn entity(&self) -> String {
+        format!("{} {}", self.kind, self.name)
+    }
+}
+
+/// The assembled system at one evaluation.
+#[derive(Clone, Debug)]
+pub struct System {
+    /// Φ(q, t).
+    pub phi: DVector<f64>,
+    /// Φ_q, equations × unknowns.
+    pub jac: DMatrix<f64>,
+    /// ν = −Φ_t.
+    pub nu: DVector<f64>,
+    /// γ = −(Φ_q q̇)_q q̇ − 2 Φ_qt q̇ − Φ_tt, valid for the q̇ given.
+    pub gamma: DVector<f64>,
+}
+
+/// The equations of one mechanism, ready to evaluate.
+#[derive(Clone, Debug)]
+pub struct Equations<'m> {
+    mech: &'m Mechanism,
+    /// Column of each body's first coordinate; `None` for ground bodies.
+    offset: Vec<Option<usize>>,
+    labels: Vec<RowLabel>,
+    unknowns: usize,
+    /// Local unit vectors (b_i, c_i) ⟂ axis_i for each joint with an axis.
+    normals: Vec<Option<(Vector3<f64>, Vector3<f64>)>>,
+}
+
+impl<'m> Equations<'m> {
+    /// Lays out the unknowns and equations of `mech`.
+    #[must_use]
+    pub fn new(mech: &'m Mechanism) -> Self {
+        let mut offset = Vec::with_capacity(mech.bodies.len());
+        let mut unknowns = 0;
+        for body in &mech.bodies {
+            if body.ground {
+                offset.push(None);
+            } else {
+                offset.push(Some(unknowns));
+                unknowns += 7;
+            }
+        }
+        let mut labels = Vec::new();
+        let mut push = |kind: &'static str, name: &str, rows: usize| {
+            for row in 1..=rows {
+                labels.push(RowLabel {
+                    kind,
+                    name: name.to_owned(),
+                    row,
+                    rows,
+                });
+            }
+        };
+        for joint in &mech.joints {
+            push("joint", &joint.name, joint.kind.equations());
+        }
+        for c in &mech.constraints {
+            push("constraint", &c.name, 1);
+        }
+        for d in &mech.drivers {
+            push("driver", &d.name, 1);
+        }
+        for b in &mech.bodies {
+            if !b.ground {
+                push("body", &b.name, 1);
+            }
+        }
+        let normals = mech.joints.iter().map(joint_normals).collect();
+        Self {
+            mech,
+            offset,
+            labels,
+            unknowns,
+            normals,
+        }
+    }
+
+    /// The mechanism.
+    #[must_use]
+    pub fn mechanism(&self) -> &'m Mechanism {
+        self.mech
+    }
+
+    /// Number of unknowns.
+    #[must_use]
+    pub fn unknowns(&self) -> usize {
+        self.unknowns
+    }
+
+    /// Number of equations.
+    #[must_use]
+    pub fn equations(&self) -> usize {
+        self.labels.len()
+    }
+
+    /// The label of every equation, in row order.
+    #[must_use]
+    pub fn labels(&self) -> &[RowLabel] {
+        &self.labels
+    }
+
+    /// Column offset of a body's coordinates, `None` for ground.
+    #[must_use]
+    pub fn offset(&self, body: BodyId) -> Option<usize> {
+        self.offset[body.0]
+    }
+
+    /// The initial estimates as a vector of unknowns.
+    #[must_use]
+    pub fn initial_estimate(&self) -> DVector<f64> {
+        let mut q = DVector::zeros(self.unknowns);
+        for (body, off) in self.mech.bodies.iter().zip(&self.offset) {
+            if let Some(o) = *off {
+                q.fixed_rows_mut::<3>(o).copy_from(&body.r);
+                q.fixed_rows_mut::<4>(o + 3).copy_from(&body.p);
+            }
+        }
+        q
+    }
+
+    /// The state of every body for the unknowns `q` and their rates `qd`.
+    fn states(&self, q: &DVector<f64>, qd: &DVector<f64>) -> Vec<BodyState> {
+        self.mech
+            .bodies
+            .iter()
+            .zip(&self.offset)
+            .map(|(body, off)| match *off {
+                Some(o) => BodyState::new(&q.as_slice()[o..o + 7], &qd.as_slice()[o..o + 7]),
+                None => {
+                    let fixed = [
+                        body.r.x, body.r.y, body.r.z, body.p[0], body.p[1], body.p[2], body.p[3],
+                    ];
+                    BodyState::new(&fixed, &[0.0; 7])
+                }
+            })
+            .collect()
+    }
+
+    /// Evaluates Φ, Φ_q, ν and γ at `(q, t)` with rates `qd` (γ is only meaningful for the
+    /// true q̇; the other three do not depend on `qd`).
+    #[must_use]
+    pub fn evaluate(&self, q: &DVector<f64>, qd: &DVector<f64>, t: f64) -> System {
+        let m = self.equations();
+        let mut sys = System {
+            phi: DVector::zeros(m),
+            jac: DMatrix::zeros(m, self.unknowns),
+            nu: DVector::zeros(m),
+            gamma: DVector::zeros(m),
+        };
+        let states = self.states(q, qd);
+        let mut row = 0;
+        let mut emit = |bodies: [Option<usize>; 2], sk: Sk, sys: &mut System| {
+            sys.phi[row] = sk.v;
+            sys.nu[row] = -sk.t;
+            sys.gamma[row] = -sk.d2;
+            for (slot, off) in bodies.iter().enumerate() {
+                if let Some(o) = *off {
+                    for c in 0..7 {
+                        sys.jac[(row, o + c)] += sk.jac[slot][c];
+                    }
+                }
+            }
+            row += 1;
+        };
+        for (k, joint) in self.mech.joints.iter().enumerate() {
+            let pair = [self.offset[joint.body_i.0], self.offset[joint.body_j.0]];
+            let (bi, bj) = (&states[joint.body_i.0], &states[joint.body_j.0]);
+            for sk in self.joint_rows(k, joint, bi, bj) {
+                emit(pair, sk, &mut sys);
+            }
+        }
+        for c in &self.mech.constraints {
+            match c.kind {
+                ConstraintKind::Fix {
+                    body,
+                    coordinate,
+                    value,
+                } => {
+                    let sk = Sk::coordinate(0, &states[body.0], coordinate.index())
+                        .sub(&Sk::constant(value));
+                    emit([self.offset[body.0], None], sk, &mut sys);
+                }
+                ConstraintKind::CoordinateDifference {
+                    body_i,
+                    body_j,
+                    coordinate,
+                    value,
+                } => {
+                    let idx = coordinate.index();
+                    let sk = Sk::coordinate(0, &states[body_i.0], idx)
+                        .sub(&Sk::coordinate(1, &states[body_j.0], idx))
+                        .sub(&Sk::constant(value));
+                    emit([self.offset[body_i.0], self.offset[body_j.0]], sk, &mut sys);
+                }
+            }
+        }
+        for d in &self.mech.drivers {
+            let s = Sk::time(d.law.eval(t));
+            match d.target {
+                DriverTarget::Joint { joint, motion } => {
+                    let jt = &self.mech.joints[joint.0];
+                    let (bi, bj) = (&states[jt.body_i.0], &states[jt.body_j.0]);
+                    let sk = match motion {
+                        Motion::Rotation => {
+                            let (x, y) = joint_angle(jt, bi, bj);
+                            angle_residual(&x, &y, &s)
+                        }
+                        Motion::Translation => axial_position(jt, bi, bj).sub(&s),
+                    };
+                    emit(
+                        [self.offset[jt.body_i.0], self.offset[jt.body_j.0]],
+                        sk,
+                        &mut sys,
+                    );
+                }
+                DriverTarget::Absolute { body, coordinate } => {
+                    let b = &states[body.0];
+                    let sk = match coordinate {
+                        DriverCoordinate::X => Sk::coordinate(0, b, 0).sub(&s),
+                        DriverCoordinate::Y => Sk::coordinate(0, b, 1).sub(&s),
+                        DriverCoordinate::Z => Sk::coordinate(0, b, 2).sub(&s),
+                        DriverCoordinate::Rx | DriverCoordinate::Ry | DriverCoordinate::Rz => {
+                            let k = match coordinate {
+                                DriverCoordinate::Rx => 4,
+                                DriverCoordinate::Ry => 5,
+                                _ => 6,
+                            };
+                            // Thesis eq. 4.62 in the one-equation form of the contract:
+                            // e_k cos(s/2) − e0 sin(s/2) = 0.
+                            let (sin, cos) = s.scale(0.5).sin_cos();
+                            Sk::coordinate(0, b, k)
+                                .mul(&cos)
+                                .sub(&Sk::coordinate(0, b, 3).mul(&sin))
+                        }
+                    };
+                    emit([self.offset[body.0], None], sk, &mut sys);
+                }
+            }
+        }
+        for (b, off) in states.iter().zip(&self.offset) {
+            if off.is_some() {
+                // Thesis eq. 3.13: pᵀp − 1 = 0, Jacobian 2pᵀ, γ = −2ṗᵀṗ.
+                let p: Vec<Sk> = (3..7).map(|i| Sk::coordinate(0, b, i)).collect();
+                let sk = p
+                    .iter()
+                    .fold(Sk::constant(-1.0), |acc, e| acc.add(&e.mul(e)));
+                emit([*off, None], sk, &mut sys);
+            }
+        }
+        debug_assert_eq!(row, m);
+        sys
+    }
+
+    /// The rows of joint `k`.
+    fn joint_rows(&self, k: usize, joint: &Joint, bi: &BodyState, bj: &BodyState) -> Vec<Sk> {
+        let pi = Vk::point(0, bi, &joint.point_i);
+        let pj = Vk::point(1, bj, &joint.point_j);
+        let d = pj.sub(&pi);
+        let spherical = || (0..3).map(|c| d.component(c)).collect::<Vec<_>>();
+        let axes = joint
+            .axis
+            .map(|(ai, aj)| (Vk::vector(0, bi, &ai), Vk::vector(1, bj, &aj)));
+        let normals = self.normals[k].map(|(b, c)| (Vk::vector(0, bi, &b), Vk::vector(0, bi, &c)));
+        let parallel = || {
+            let (_, aj) = axes.as_ref().expect("validated: joint has axes");
+            let (b, c) = normals.as_ref().expect("validated: joint has axes");
+            vec![b.dot(aj), c.dot(aj)]
+        };
+        let cylindrical = || {
+            let (b, c) = normals.as_ref().expect("validated: joint has axes");
+            let mut rows = parallel();
+            rows.push(b.dot(&d));
+            rows.push(c.dot(&d));
+            rows
+        };
+        match joint.kind {
+            JointKind::Spherical => spherical(),
+            JointKind::Universal => {
+                let (ai, aj) = axes.as_ref().expect("validated: universal has axes");
+                let mut rows = spherical();
+                rows.push(ai.dot(aj));
+                rows
+            }
+            JointKind::Revolute => {
+                let mut rows = spherical();
+                rows.extend(parallel());
+                rows
+            }
+            JointKind::Cylindrical => cylindrical(),
+            JointKind::Prismatic => {
+                let (ri, rj) = references(joint, bi, bj);
+                let mut rows = cylindrical();
+                rows.push(ri.dot(&rj));
+                rows
+            }
+            JointKind::Screw { lead, d0, theta0 } => {
+                let (x, y) = joint_angle(joint, bi, bj);
+                let k = 2.0 * std::f64::consts::PI / lead;
+                let phi = axial_position(joint, bi, bj)
+                    .sub(&Sk::constant(d0))
+                    .scale(k)
+                    .add(&Sk::constant(theta0));
+                let mut rows = cylindrical();
+                rows.push(angle_residual(&x, &y, &phi));
+                rows
+            }
+            JointKind::Distance { length } => {
+                vec![
+                    d.dot(&d)
+                        .sub(&Sk::constant(length * length))
+                        .scale(0.5 / length),
+                ]
+            }
+        }
+    }
+}
+
+/// Body-i unit vectors (b, c) ⟂ axis_i: (ref_i, axis_i × ref_i) when the joint has
+/// references, else a fixed completion of axis_i to an orthonormal frame.
+fn joint_normals(joint: &Joint) -> Option<(Vector3<f64>, Vector3<f64>)> {
+    let (a, _) = joint.axis?;
+    let b = match joint.reference {
+        Some((r, _)) => r,
+        None => {
+            let k = a.iamin();
+            let mut e = Vector3::zeros();
+            e[k] = 1.0;
+            (e - a * a.dot(&e)).normalize()
+        }
+    };
+    Some((b, a.cross(&b)))
+}
+
+/// The global reference vectors (ref_i, ref_j) of a joint.
+fn references(joint: &Joint, bi: &BodyState, bj: &BodyState) -> (Vk, Vk) {
+    let (ri, rj) = joint.reference.expect("validated: joint has references");
+    (Vk::vector(0, bi, &ri), Vk::vector(1, bj, &rj))
+}
+
+/// (x, y) = (ref_i·ref_j, (ref_i × ref_j)·axis_i): the joint angle is θ = atan2(y, x).
+fn joint_angle(joint: &Joint, bi: &BodyState, bj: &BodyState) -> (Sk, Sk) {
+    let (ri, rj) = references(joint, bi, bj);
+    let (ai, _) = joint.axis.expect("validated: joint has axes");
+    let ai = Vk::vector(0, bi, &ai);
+    (ri.dot(&rj), ri.cross(&rj).dot(&ai))
+}
+
+/// The axial position (P_j − P_i)·axis_i.
+fn axial_position(joint: &Joint, bi: &BodyState, bj: &BodyState) -> Sk {
+    let d = Vk::point(1, bj, &joint.point_j).sub(&Vk::point(0, bi, &joint.point_i));
+    let (ai, _) = joint.axis.expect("validated: joint has axes");
+    d.dot(&Vk::vector(0, bi, &ai))
+}
+
+/// x sin s − y cos s: zero when the angle atan2(y, x) equals s (mod π).
+fn angle_residual(x: &Sk, y: &Sk, s: &Sk) -> Sk {
+    let (sin, cos) = s.sin_cos();
+    x.mul(&sin).sub(&y.mul(&cos))
+}
+
+/// cos(θ − s) for the joint angle θ of a rotation driver: positive on the intended branch,
+/// negative when Newton landed on θ = s + π.
+pub(crate) fn angle_alignment(joint: &Joint, bi: &BodyState, bj: &BodyState, s: f64) -> f64 {
+    let (x, y) = joint_angle(joint, bi, bj);
+    let (sin, cos) = s.sin_cos();
+    x.v * cos + y.v * sin
+}

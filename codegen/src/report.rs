@@ -1,0 +1,487 @@
+//! Results per time point in the contract's terms (§4), and the three output formats:
+//! JSON, CSV and the thesis-style table. Writers stream: each frame is written as soon as it
+//! is computed, so the memory used does not grow with the number of time points.
+
+use std::io::{self, Write};
+
+use nalgebra::{DVector, Vector3, Vector4};
+
+use crate::generic::kin::{g_matrix, rotation};
+use crate::generic::{Failure, Frame};
+use crate::model::Mechanism;
+
+/// One body's results at one time point (global components throughout).
+#[derive(Clone, Debug, PartialEq)]
+pub struct BodyResult {
+    /// Body name.
+    pub name: String,
+    /// Origin.
+    pub r: [f64; 3],
+    /// Euler parameters.
+    pub p: [f64; 4],
+    /// ṙ.
+    pub r_dot: [f64; 3],
+    /// ṗ.
+    pub p_dot: [f64; 4],
+    /// ω = 2 G(p) ṗ (thesis eq. 3.34).
+    pub omega: [f64; 3],
+    /// r̈.
+    pub r_ddot: [f64; 3],
+    /// p̈.
+    pub p_ddot: [f64; 4],
+    /// α = 2 G(p) p̈ (the term 2 Ġ ṗ vanishes identically).
+    pub alpha: [f64; 3],
+}
+
+/// One point of interest at one time point.
+#[derive(Clone, Debug, PartialEq)]
+pub struct PointResult {
+    /// Point name.
+    pub name: String,
+    /// r_P = r + A s'.
+    pub r: [f64; 3],
+    /// v_P = ṙ + ω × s.
+    pub v: [f64; 3],
+    /// a_P = r̈ + α × s + ω × (ω × s).
+    pub a: [f64; 3],
+}
+
+/// Everything reported at one time point.
+#[derive(Clone, Debug, PartialEq)]
+pub struct StepResult {
+    /// Time.
+    pub t: f64,
+    /// Newton iterations.
+    pub iterations: u32,
+    /// max |Φ_i| at the reported configuration.
+    pub residual: f64,
+    /// Every non-ground body, in file order.
+    pub bodies: Vec<BodyResult>,
+    /// Every point of interest, in file order.
+    pub points: Vec<PointResult>,
+}
+
+/// Where each body's 7 coordinates sit in q (`None` for ground bodies).
+#[must_use]
+pub fn layout(mech: &Mechanism) -> Vec<Option<usize>> {
+    let mut next = 0;
+    mech.bodies
+        .iter()
+        .map(|b| {
+            (!b.ground).then(|| {
+                next += 7;
+                next - 7
+            })
+        })
+        .collect()
+}
+
+fn arr3(v: &Vector3<f64>) -> [f64; 3] {
+    [v.x, v.y, v.z]
+}
+
+fn arr4(v: &Vector4<f64>) -> [f64; 4] {
+    [v[0], v[1], v[2], v[3]]
+}
+
+/// Body and point results from the coordinates of one frame.
+#[must_use]
+pub fn step_result(mech: &Mechanism, layout: &[Option<usize>], frame: &Frame) -> StepResult {
+    from_coordinates(
+        mech,
+        layout,
+        frame.t,
+        frame.iterations,
+        frame.residual,
+        &frame.q,
+        &frame.qd,
+        &frame.qdd,
+    )
+}
+
+/// Body and point results from q, q̇ and q̈ (any engine).
+#[allow(clippy::too_many_arguments)] // The seven inputs are the frame's parts; a struct would only rename them.
+#[must_use]
+pub fn from_coordinates(
+    mech: &Mechanism,
+    layout: &[Option<usize>],
+    t: f64,
+    iterations: u32,
+    residual: f64,
+    q: &DVector<f64>,
+    qd: &DVector<f64>,
+    qdd: &DVector<f64>,
+) -> StepResult {
+    struct Kin {
+        r: Vector3<f64>,
+        p: Vector4<f64>,
+        rd: Vector3<f64>,
+        rdd: Vector3<f64>,
+        omega: Vector3<f64>,
+        alpha: Vector3<f64>,
+    }
+    let kin: Vec<Kin> = mech
+        .bodies
+        .iter()
+        .zip(layout)
+        .map(|(b, off)| match *off {
+            Some(o) => {
+                let p: Vector4<f64> = q.fixed_rows::<4>(o + 3).into();
+                let g = g_matrix(&p);
+                Kin {
+                    r: q.fixed_rows::<3>(o).into(),
+                    p,
+                    rd: qd.fixed_rows::<3>(o).into(),
+                    rdd: qdd.fixed_rows::<3>(o).into(),
+                    omega: g * qd.fixed_rows::<4>(o + 3) * 2.0,
+                    alpha: g * qdd.fixed_rows::<4>(o + 3) * 2.0,
+                }
+            }
+            None => Kin {
+                r: b.r,
+                p: b.p,
+                rd: Vector3::zeros(),
+                rdd: Vector3::zeros(),
+                omega: Vector3::zeros(),
+                alpha: Vector3::zeros(),
+            },
+        })
+        .collect();
+    let bodies = mech
+        .bodies
+        .iter()
+        .zip(layout)
+        .zip(&kin)
+        .filter_map(|((b, off), k)| {
+            let o = (*off)?;
+            Some(BodyResult {
+                name: b.name.clone(),
+                r: arr3(&k.r),
+                p: arr4(&k.p),
+                r_dot: arr3(&k.rd),
+                p_dot: arr4(&qd.fixed_rows::<4>(o + 3).into()),
+                omega: arr3(&k.omega),
+                r_ddot: arr3(&k.rdd),
+                p_ddot: arr4(&qdd.fixed_rows::<4>(o + 3).into()),
+                alpha: arr3(&k.alpha),
+            })
+        })
+        .collect();
+    let points = mech
+        .points
+        .iter()
+        .map(|pt| {
+            let k = &kin[pt.body.0];
+            let s = rotation(&k.p) * pt.local;
+            PointResult {
+                name: pt.name.clone(),
+                r: arr3(&(k.r + s)),
+                v: arr3(&(k.rd + k.omega.cross(&s))),
+                a: arr3(&(k.rdd + k.alpha.cross(&s) + k.omega.cross(&k.omega.cross(&s)))),
+            }
+        })
+        .collect();
+    StepResult {
+        t,
+        iterations,
+        residual,
+        bodies,
+        points,
+    }
+}
+
+/// The output formats of `solve`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Format {
+    /// The thesis' report: POSITION / VELOCITY / ACCELERATION / POINTS OF INTEREST.
+    Table,
+    /// One row per step, one column per scalar.
+    Csv,
+    /// The contract's §4 object.
+    Json,
+}
+
+/// A streaming writer of one analysis in one format.
+pub struct Writer<W: Write> {
+    out: W,
+    format: Format,
+    steps: usize,
+}
+
+impl<W: Write> Writer<W> {
+    /// Starts the output: the JSON preamble or the CSV header.
+    ///
+    /// # Errors
+    /// Returns I/O errors of `out`.
+    pub fn begin(mut out: W, format: Format, mech: &Mechanism, engine: &str) -> io::Result<Self> {
+        match format {
+            Format::Json => {
+                write!(
+                    out,
+                    "{{\n  \"mechanism\": {},\n  \"engine\": {},\n  \"steps\": [",
+                    serde_json::to_string(&mech.name)?,
+                    serde_json::to_string(engine)?
+                )?;
+            }
+            Format::Csv => writeln!(out, "{}", csv_header(mech).join(","))?,
+            Format::Table => {
+                writeln!(
+                    out,
+                    "mechgen: kinematic analysis of {} ({engine} engine)",
+                    mech.name
+                )?;
+            }
+        }
+        Ok(Self {
+            out,
+            format,
+            steps: 0,
+        })
+    }
+
+    /// Writes one time point.
+    ///
+    /// # Errors
+    /// Returns I/O errors of `out`.
+    pub fn step(&mut self, s: &StepResult) -> io::Result<()> {
+        match self.format {
+            Format::Json => {
+                let sep = if self.steps == 0 { "\n    " } else { ",\n    " };
+                write!(self.out, "{sep}{}", serde_json::to_string(&step_json(s))?)?;
+            }
+            Format::Csv => writeln!(self.out, "{}", csv_row(s).join(","))?,
+            Format::Table => write_table_step(&mut self.out, s)?,
+        }
+        self.steps += 1;
+        Ok(())
+    }
+
+    /// Ends the output with the error, if the analysis stopped early, and returns the sink.
+    ///
+    /// # Errors
+    /// Returns I/O errors of `out`.
+    pub fn finish(mut self, failure: Option<&Failure>) -> io::Result<W> {
+        match self.format {
+            Format::Json => {
+                let close = if self.steps == 0 { "]" } else { "\n  ]" };
+                let error = failure.map_or(serde_json::Value::Null, failure_json);
+                writeln!(
+                    self.out,
+                    "{close},\n  \"error\": {}\n}}",
+                    serde_json::to_string(&error)?
+                )?;
+            }
+            Format::Csv | Format::Table => {
+                if let Some(f) = failure {
+                    // CSV readers skip comment lines; the table is for people.
+                    let lead = if self.format == Format::Csv { "# " } else { "" };
+                    writeln!(self.out, "{lead}ANALYSIS STOPPED: {}", failure_text(f))?;
+                }
+            }
+        }
+        self.out.flush()?;
+        Ok(self.out)
+    }
+}
+
+/// The contract's `error` object of a numerical failure.
+#[must_use]
+pub fn failure_json(f: &Failure) -> serde_json::Value {
+    serde_json::json!({
+        "kind": f.kind.as_str(),
+        "t": f.t,
+        "message": f.message,
+        "constraints": f.constraints,
+    })
+}
+
+/// A one-line account of a numerical failure.
+#[must_use]
+pub fn failure_text(f: &Failure) -> String {
+    let mut s = format!("{} at t = {}: {}", f.kind.as_str(), f.t, f.message);
+    if !f.constraints.is_empty() {
+        s.push_str(&format!(" (involved: {})", f.constraints.join(", ")));
+    }
+    s
+}
+
+/// The JSON object of one step (contract §4).
+#[must_use]
+pub fn step_json(s: &StepResult) -> serde_json::Value {
+    let bodies: serde_json::Map<String, serde_json::Value> = s
+        .bodies
+        .iter()
+        .map(|b| {
+            (
+                b.name.clone(),
+                serde_json::json!({
+                    "r": b.r, "p": b.p, "r_dot": b.r_dot, "p_dot": b.p_dot, "omega": b.omega,
+                    "r_ddot": b.r_ddot, "p_ddot": b.p_ddot, "alpha": b.alpha,
+                }),
+            )
+        })
+        .collect();
+    let points: serde_json::Map<String, serde_json::Value> = s
+        .points
+        .iter()
+        .map(|p| {
+            (
+                p.name.clone(),
+                serde_json::json!({ "r": p.r, "v": p.v, "a": p.a }),
+            )
+        })
+        .collect();
+    serde_json::json!({
+        "t": s.t,
+        "iterations": s.iterations,
+        "residual": s.residual,
+        "bodies": bodies,
+        "points": points,
+    })
+}
+
+const XYZ: [&str; 3] = ["x", "y", "z"];
+const E: [&str; 4] = ["e0", "e1", "e2", "e3"];
+
+/// CSV column names: `t`, `iterations`, `residual`, then `crank.r.x` … `B.a.z`.
+#[must_use]
+pub fn csv_header(mech: &Mechanism) -> Vec<String> {
+    let mut h = vec![
+        "t".to_owned(),
+        "iterations".to_owned(),
+        "residual".to_owned(),
+    ];
+    for b in mech.bodies.iter().filter(|b| !b.ground) {
+        for (q, comps) in [
+            ("r", &XYZ[..]),
+            ("p", &E[..]),
+            ("r_dot", &XYZ[..]),
+            ("p_dot", &E[..]),
+            ("omega", &XYZ[..]),
+            ("r_ddot", &XYZ[..]),
+            ("p_ddot", &E[..]),
+            ("alpha", &XYZ[..]),
+        ] {
+            h.extend(comps.iter().map(|c| format!("{}.{q}.{c}", b.name)));
+        }
+    }
+    for p in &mech.points {
+        for q in ["r", "v", "a"] {
+            h.extend(XYZ.iter().map(|c| format!("{}.{q}.{c}", p.name)));
+        }
+    }
+    h
+}
+
+/// Shortest round-trip text of a number.
+fn num(x: f64) -> String {
+    format!("{x:?}")
+}
+
+fn csv_row(s: &StepResult) -> Vec<String> {
+    let mut row = vec![num(s.t), s.iterations.to_string(), num(s.residual)];
+    for b in &s.bodies {
+        for v in [
+            &b.r[..],
+            &b.p,
+            &b.r_dot,
+            &b.p_dot,
+            &b.omega,
+            &b.r_ddot,
+            &b.p_ddot,
+            &b.alpha,
+        ] {
+            row.extend(v.iter().map(|&x| num(x)));
+        }
+    }
+    for p in &s.points {
+        for v in [&p.r, &p.v, &p.a] {
+            row.extend(v.iter().map(|&x| num(x)));
+        }
+    }
+    row
+}
+
+fn write_table_step(out: &mut impl Write, s: &StepResult) -> io::Result<()> {
+    let w = s
+        .bodies
+        .iter()
+        .map(|b| b.name.len())
+        .chain(s.points.iter().map(|p| p.name.len()));
+    let w = w.chain([5]).max().unwrap_or(5);
+    let cells = |vals: &[&[f64]]| {
+        vals.iter()
+            .flat_map(|v| v.iter())
+            .map(|x| format!(" {x:>13.6}"))
+            .collect::<String>()
+    };
+    let head = |names: &[&str]| {
+        names
+            .iter()
+            .map(|n| format!(" {n:>13}"))
+            .collect::<String>()
+    };
+    writeln!(out)?;
+    writeln!(
+        out,
+        "-----  TIME = {}  (Newton iterations {}, max |Φ| {:.1e})  -----",
+        s.t, s.iterations, s.residual
+    )?;
+    writeln!(out, "POSITION")?;
+    writeln!(
+        out,
+        "{:<w$}{}",
+        "BODY",
+        head(&["X", "Y", "Z", "e0", "e1", "e2", "e3"])
+    )?;
+    for b in &s.bodies {
+        writeln!(out, "{:<w$}{}", b.name, cells(&[&b.r, &b.p]))?;
+    }
+    writeln!(out, "VELOCITY")?;
+    writeln!(
+        out,
+        "{:<w$}{}",
+        "BODY",
+        head(&[
+            "dX", "dY", "dZ", "de0", "de1", "de2", "de3", "w-x", "w-y", "w-z"
+        ])
+    )?;
+    for b in &s.bodies {
+        writeln!(
+            out,
+            "{:<w$}{}",
+            b.name,
+            cells(&[&b.r_dot, &b.p_dot, &b.omega])
+        )?;
+    }
+    writeln!(out, "ACCELERATION")?;
+    writeln!(
+        out,
+        "{:<w$}{}",
+        "BODY",
+        head(&[
+            "ddX", "ddY", "ddZ", "dde0", "dde1", "dde2", "dde3", "dw-x", "dw-y", "dw-z"
+        ])
+    )?;
+    for b in &s.bodies {
+        writeln!(
+            out,
+            "{:<w$}{}",
+            b.name,
+            cells(&[&b.r_ddot, &b.p_ddot, &b.alpha])
+        )?;
+    }
+    if !s.points.is_empty() {
+        writeln!(out, "POINTS OF INTEREST")?;
+        writeln!(
+            out,
+            "{:<w$}{}",
+            "POINT",
+            head(&["X", "Y", "Z", "dX", "dY", "dZ", "ddX", "ddY", "ddZ"])
+        )?;
+        for p in &s.points {
+            writeln!(out, "{:<w$}{}", p.name, cells(&[&p.r, &p.v, &p.a]))?;
+        }
+    }
+    Ok(())
+}
