@@ -23,7 +23,10 @@
 //! | 12 grounded | `body x y z α β δ` | that body gets `ground = true`, `r = [x, y, z]`, `p` from the angles |
 //! | 13 time | `Ti Te dT` | `[time]` start, end, step |
 //!
-//! Joints are numbered per type in deck order. The distance constraint keeps its raw value for
+//! Joints are numbered per type in deck order. Differences such as `Q − P` are taken from the
+//! deck's decimal text and rounded once, so `−0.05 − (−0.0475)` gives `−0.0025` (plain `f64`
+//! subtraction gives `−0.0025000000000000022`); the two differ by an ulp, which does not
+//! change the mechanism, but the first is what the deck means and reads better. The distance constraint keeps its raw value for
 //! directions 4–6 because YOUNG subtracts Euler parameters directly there (young-program.md
 //! §5.8), while simplified constraints and grounded bodies take the thesis' sin(c/2) (§5.7).
 //!
@@ -103,9 +106,7 @@ pub fn import_file(path: &Path) -> Result<MechanismDesc, Diagnostic> {
         diag.file = Some(shown.clone());
         diag
     })?;
-    let file_name = path
-        .file_name()
-        .map_or(shown.clone(), |f| f.to_string_lossy().into_owned());
+    let file_name = path.file_name().map_or(shown.clone(), |f| f.to_string_lossy().into_owned());
     desc.description = Some(format!("Imported from the YOUNG deck {file_name}"));
     Ok(desc)
 }
@@ -118,10 +119,7 @@ pub fn import_file(path: &Path) -> Result<MechanismDesc, Diagnostic> {
 /// An empty result becomes `mechanism`.
 #[must_use]
 pub fn name_from_path(path: &Path) -> String {
-    let stem = path
-        .file_stem()
-        .map(|s| s.to_string_lossy().into_owned())
-        .unwrap_or_default();
+    let stem = path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
     sanitise(&stem)
 }
 
@@ -146,9 +144,7 @@ fn sanitise(raw: &str) -> String {
     if !name.starts_with(|c: char| c.is_ascii_digit()) {
         return name;
     }
-    let digits = name
-        .find(|c: char| !c.is_ascii_digit())
-        .unwrap_or(name.len());
+    let digits = name.find(|c: char| !c.is_ascii_digit()).unwrap_or(name.len());
     let rest = name[digits..].trim_start_matches('_');
     let word_follows = rest.starts_with(|c: char| c.is_ascii_lowercase());
     match number_word(&name[..digits]) {
@@ -163,10 +159,7 @@ fn number_word(digits: &str) -> Option<&'static str> {
         "zero", "one", "two", "three", "four", "five", "six", "seven", "eight", "nine", "ten",
         "eleven", "twelve",
     ];
-    digits
-        .parse::<usize>()
-        .ok()
-        .and_then(|n| WORDS.get(n).copied())
+    digits.parse::<usize>().ok().and_then(|n| WORDS.get(n).copied())
 }
 
 /// A whitespace-separated token of the deck and where it starts.
@@ -198,21 +191,13 @@ impl<'a> Lexer<'a> {
         // A byte-order mark is not part of the first token, and editors do not count it as a
         // column.
         let src = src.strip_prefix('\u{feff}').unwrap_or(src);
-        Self {
-            src,
-            pos: 0,
-            line: 1,
-            column: 1,
-            count: 0,
-        }
+        Self { src, pos: 0, line: 1, column: 1, count: 0 }
     }
 
     /// The next token, or `None` at the end of the deck (then `line`, `column` are the end).
     fn next_token(&mut self) -> Option<Token<'a>> {
         let rest = &self.src[self.pos..];
-        let blank = rest
-            .find(|c: char| !c.is_whitespace())
-            .unwrap_or(rest.len());
+        let blank = rest.find(|c: char| !c.is_whitespace()).unwrap_or(rest.len());
         for c in rest[..blank].chars() {
             if c == '\n' {
                 self.line += 1;
@@ -229,12 +214,7 @@ impl<'a> Lexer<'a> {
         let len = rest.find(char::is_whitespace).unwrap_or(rest.len());
         let text = &rest[..len];
         self.count += 1;
-        let token = Token {
-            text,
-            index: self.count,
-            line: self.line,
-            column: self.column,
-        };
+        let token = Token { text, index: self.count, line: self.line, column: self.column };
         self.column += text.chars().count();
         self.pos += len;
         Some(token)
@@ -249,15 +229,11 @@ struct Record {
 impl Record {
     /// The `k`-th item (1-based) of the record kind `what`, number `number` in the read order.
     fn new(what: &str, k: usize, number: usize) -> Self {
-        Self {
-            entity: format!("{what} {k} (record {number})"),
-        }
+        Self { entity: format!("{what} {k} (record {number})") }
     }
 
     fn named(entity: &str) -> Self {
-        Self {
-            entity: entity.to_owned(),
-        }
+        Self { entity: entity.to_owned() }
     }
 }
 
@@ -273,10 +249,7 @@ struct Parser<'a> {
 
 impl<'a> Parser<'a> {
     fn new(deck: &'a str) -> Self {
-        Self {
-            lexer: Lexer::new(deck),
-            nbody: 0,
-        }
+        Self { lexer: Lexer::new(deck), nbody: 0 }
     }
 
     /// The whole deck, up to and including the time line.
@@ -312,12 +285,7 @@ impl<'a> Parser<'a> {
                 self.real(&rec, "e2")?,
                 self.real(&rec, "e3")?,
             ];
-            bodies.push(BodyDesc {
-                name: body_name(k),
-                ground: false,
-                r: Some(r),
-                p: Some(p),
-            });
+            bodies.push(BodyDesc { name: body_name(k), ground: false, r: Some(r), p: Some(p) });
         }
 
         let mut drivers = Vec::new();
@@ -353,11 +321,7 @@ impl<'a> Parser<'a> {
             let rec = Record::new("point of interest", k, 3);
             let body = self.body(&rec, "body")?;
             let local = self.vec3(&rec, "")?;
-            points.push(PointDesc {
-                name: format!("point{k}"),
-                body: body_name(body),
-                local,
-            });
+            points.push(PointDesc { name: format!("point{k}"), body: body_name(body), local });
         }
 
         let mut joints = Vec::new();
@@ -378,15 +342,15 @@ impl<'a> Parser<'a> {
             for k in 1..=count {
                 let rec = Record::new(what, k, number);
                 let mut joint = self.joint_ends(&rec, kind, k)?;
-                let pi = self.vec3(&rec, "Pi")?;
-                let pj = self.vec3(&rec, "Pj")?;
-                joint.point_i = Some(pi);
-                joint.point_j = Some(pj);
-                joint.axis_i = Some(minus(self.vec3(&rec, "Qi")?, pi));
-                joint.axis_j = Some(minus(self.vec3(&rec, "Qj")?, pj));
+                let pi = self.vec3_read(&rec, "Pi")?;
+                let pj = self.vec3_read(&rec, "Pj")?;
+                joint.point_i = Some(pi.value);
+                joint.point_j = Some(pj.value);
+                joint.axis_i = Some(minus(&self.vec3_read(&rec, "Qi")?, &pi));
+                joint.axis_j = Some(minus(&self.vec3_read(&rec, "Qj")?, &pj));
                 if kind == JointType::Prismatic {
-                    joint.ref_i = Some(minus(self.vec3(&rec, "Hi")?, pi));
-                    joint.ref_j = Some(minus(self.vec3(&rec, "Hj")?, pj));
+                    joint.ref_i = Some(minus(&self.vec3_read(&rec, "Hi")?, &pi));
+                    joint.ref_j = Some(minus(&self.vec3_read(&rec, "Hj")?, &pj));
                 }
                 joints.push(joint);
             }
@@ -558,12 +522,11 @@ impl<'a> Parser<'a> {
         token: &Token<'_>,
         message: String,
     ) -> Box<Diagnostic> {
-        Box::new(
-            Diagnostic::error(message)
-                .entity(rec.entity.clone())
-                .field(field)
-                .at(None, token.line, token.column),
-        )
+        Box::new(Diagnostic::error(message).entity(rec.entity.clone()).field(field).at(
+            None,
+            token.line,
+            token.column,
+        ))
     }
 
     /// An integer token (counts, body numbers and directions are Pascal integers).
@@ -608,12 +571,7 @@ impl<'a> Parser<'a> {
                 )
             });
         };
-        Err(self.error(
-            rec,
-            field,
-            &token,
-            format!("token {}: {problem}", token.index),
-        ))
+        Err(self.error(rec, field, &token, format!("token {}: {problem}", token.index)))
     }
 
     /// A body number, 1 to NBODY, and its token.
@@ -662,45 +620,43 @@ impl<'a> Parser<'a> {
 
     /// A finite real number.
     fn real(&mut self, rec: &Record, field: &str) -> Parsed<f64> {
+        self.real_read(rec, field).map(|(value, _)| value)
+    }
+
+    /// A finite real number and the text it was read from.
+    fn real_read(&mut self, rec: &Record, field: &str) -> Parsed<(f64, &'a str)> {
         let token = self.token(rec, field, "a number")?;
-        match token.text.parse::<f64>() {
-            Ok(value) if value.is_finite() => Ok(value),
-            Ok(_) => Err(self.error(
-                rec,
-                field,
-                &token,
-                format!(
-                    "token {} {} is not a finite number",
-                    token.index,
-                    shown(token.text)
-                ),
-            )),
-            Err(_) => Err(self.error(
-                rec,
-                field,
-                &token,
-                format!(
-                    "token {} {} is not a number",
-                    token.index,
-                    shown(token.text)
-                ),
-            )),
-        }
+        let problem = match token.text.parse::<f64>() {
+            Ok(value) if value.is_finite() => return Ok((value, token.text)),
+            Ok(_) => "is not a finite number",
+            Err(_) => "is not a number",
+        };
+        let message = format!("token {} {} {problem}", token.index, shown(token.text));
+        Err(self.error(rec, field, &token, message))
     }
 
     /// Three reals, fields `{prefix}.x`, `.y`, `.z` (or `x`, `y`, `z` for an empty prefix).
     fn vec3(&mut self, rec: &Record, prefix: &str) -> Parsed<[f64; 3]> {
-        let mut v = [0.0; 3];
-        for (x, axis) in v.iter_mut().zip(["x", "y", "z"]) {
-            let field = if prefix.is_empty() {
-                axis.to_owned()
-            } else {
-                format!("{prefix}.{axis}")
-            };
-            *x = self.real(rec, &field)?;
-        }
-        Ok(v)
+        self.vec3_read(rec, prefix).map(|read| read.value)
     }
+
+    /// Three reals and the text they were read from.
+    fn vec3_read(&mut self, rec: &Record, prefix: &str) -> Parsed<Read3<'a>> {
+        let mut read = Read3 { value: [0.0; 3], text: [""; 3] };
+        for k in 0..3 {
+            let axis = ["x", "y", "z"][k];
+            let field =
+                if prefix.is_empty() { axis.to_owned() } else { format!("{prefix}.{axis}") };
+            (read.value[k], read.text[k]) = self.real_read(rec, &field)?;
+        }
+        Ok(read)
+    }
+}
+
+/// A vector read from the deck, with the tokens it came from.
+struct Read3<'a> {
+    value: [f64; 3],
+    text: [&'a str; 3],
 }
 
 /// The name of body `k` (1-based).
@@ -720,19 +676,60 @@ fn coordinate_name(dir: u8) -> CoordinateName {
     }
 }
 
-/// `a − b`.
-fn minus(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+/// `a − b`, computed from the decimal tokens where possible, so that the deck's
+/// `Q − P = −0.05 − (−0.0475)` becomes `−0.0025` and not `−0.0025000000000000022`.
+fn minus(a: &Read3<'_>, b: &Read3<'_>) -> [f64; 3] {
+    std::array::from_fn(|k| {
+        decimal_difference(a.text[k], b.text[k]).unwrap_or(a.value[k] - b.value[k])
+    })
+}
+
+/// The exact difference of two decimal numbers, rounded once to the nearest `f64`; `None`
+/// when either is not a plain decimal (`-1.5e-3`) or the exact difference does not fit an
+/// `i128` mantissa.
+fn decimal_difference(a: &str, b: &str) -> Option<f64> {
+    let (ma, ea) = decimal(a)?;
+    let (mb, eb) = decimal(b)?;
+    let e = ea.min(eb);
+    let scaled = |m: i128, from: i32| {
+        let shift = u32::try_from(from.checked_sub(e)?).ok()?;
+        m.checked_mul(10_i128.checked_pow(shift)?)
+    };
+    let d = scaled(ma, ea)?.checked_sub(scaled(mb, eb)?)?;
+    // Rust parses decimal text to the correctly rounded f64.
+    format!("{d}e{e}").parse().ok()
+}
+
+/// A decimal number `m·10^e` from text such as `-0.0475`, `1.`, `.5` or `2.5E-3`.
+fn decimal(text: &str) -> Option<(i128, i32)> {
+    let (mantissa, exponent) = match text.find(['e', 'E']) {
+        Some(at) => (&text[..at], text[at + 1..].parse::<i32>().ok()?),
+        None => (text, 0),
+    };
+    let (negative, digits) = match mantissa.strip_prefix('-') {
+        Some(digits) => (true, digits),
+        None => (false, mantissa.strip_prefix('+').unwrap_or(mantissa)),
+    };
+    let (whole, fraction) = digits.split_once('.').unwrap_or((digits, ""));
+    let all_digits = |s: &str| s.bytes().all(|b| b.is_ascii_digit());
+    if whole.len() + fraction.len() == 0 || !all_digits(whole) || !all_digits(fraction) {
+        return None;
+    }
+    let significant = format!("{whole}{fraction}");
+    let significant = significant.trim_start_matches('0');
+    // An i128 holds any 38-digit number; 30 leaves room for aligning two exponents.
+    if significant.len() > 30 {
+        return None;
+    }
+    let m: i128 = if significant.is_empty() { 0 } else { significant.parse().ok()? };
+    let e = exponent.checked_sub(i32::try_from(fraction.len()).ok()?)?;
+    Some((if negative { -m } else { m }, e))
 }
 
 /// A token quoted for a message, shortened when long and with control characters escaped.
 fn shown(text: &str) -> String {
     const MAX_CHARS: usize = 24;
-    let mut out: String = text
-        .chars()
-        .take(MAX_CHARS)
-        .flat_map(char::escape_debug)
-        .collect();
+    let mut out: String = text.chars().take(MAX_CHARS).flat_map(char::escape_debug).collect();
     if text.chars().nth(MAX_CHARS).is_some() {
         out.push('…');
     }

@@ -31,11 +31,7 @@ fn seed_decks() -> Vec<(String, String)> {
 
 fn import_seed(file: &str) -> MechanismDesc {
     let text = std::fs::read_to_string(deck_dir().join(file)).expect("readable deck");
-    import(
-        &text,
-        Path::new(file).file_stem().unwrap().to_str().unwrap(),
-    )
-    .expect("deck imports")
+    import(&text, Path::new(file).file_stem().unwrap().to_str().unwrap()).expect("deck imports")
 }
 
 /// Imports `deck`, which must fail, and returns the diagnostic.
@@ -83,12 +79,7 @@ fn rssr_imports_as_the_contract_maps_it() {
     assert_eq!(d.name, "rssr");
     assert_eq!(
         d.time,
-        TimeDesc {
-            start: 0.000000119,
-            end: 0.04,
-            step: Some(0.0035717333),
-            steps: None
-        }
+        TimeDesc { start: 0.000000119, end: 0.04, step: Some(0.0035717333), steps: None }
     );
     let names: Vec<&str> = d.bodies.iter().map(|b| b.name.as_str()).collect();
     assert_eq!(names, ["body1", "body2", "body3", "body4"]);
@@ -107,14 +98,7 @@ fn rssr_imports_as_the_contract_maps_it() {
     let joints: Vec<(&str, JointType, &str, &str)> = d
         .joints
         .iter()
-        .map(|j| {
-            (
-                j.name.as_str(),
-                j.kind,
-                j.body_i.as_str(),
-                j.body_j.as_str(),
-            )
-        })
+        .map(|j| (j.name.as_str(), j.kind, j.body_i.as_str(), j.body_j.as_str()))
         .collect();
     assert_eq!(
         joints,
@@ -127,27 +111,17 @@ fn rssr_imports_as_the_contract_maps_it() {
     );
     let o2 = &d.joints[2];
     assert_eq!(o2.point_i, Some([0.0, -0.06567, 0.0]));
-    assert_eq!(o2.axis_i, Some([0.0, -0.1 - -0.06567, 0.0]));
+    assert_eq!(o2.axis_i, Some([0.0, -0.03433, 0.0]));
     assert_eq!(o2.axis_j, Some([0.0, 0.1, 0.0]));
     assert_eq!((o2.ref_i, o2.ref_j, o2.lead), (None, None, None));
     let o4 = &d.joints[3];
-    assert_eq!(o4.axis_j, Some([-0.05 - -0.0475, 0.0, 0.0]));
+    assert_eq!(o4.axis_j, Some([-0.0025, 0.0, 0.0]));
 
     assert_eq!(d.constraints.len(), 1);
     let no_spin = &d.constraints[0];
     assert_eq!(
-        (
-            no_spin.name.as_str(),
-            no_spin.kind,
-            no_spin.body.as_deref(),
-            no_spin.coordinate
-        ),
-        (
-            "simplified1",
-            ConstraintType::Fix,
-            Some("body3"),
-            CoordinateName::E2
-        )
+        (no_spin.name.as_str(), no_spin.kind, no_spin.body.as_deref(), no_spin.coordinate),
+        ("simplified1", ConstraintType::Fix, Some("body3"), CoordinateName::E2)
     );
     assert_eq!(no_spin.value, 0.0);
 
@@ -167,18 +141,9 @@ fn rssr_imports_as_the_contract_maps_it() {
             ..LawDesc::default()
         }
     );
-    let points: Vec<(&str, &str, [f64; 3])> = d
-        .points
-        .iter()
-        .map(|p| (p.name.as_str(), p.body.as_str(), p.local))
-        .collect();
-    assert_eq!(
-        points,
-        [
-            ("point1", "body3", [0.0; 3]),
-            ("point2", "body3", [0.0, 0.4812, 0.0])
-        ]
-    );
+    let points: Vec<(&str, &str, [f64; 3])> =
+        d.points.iter().map(|p| (p.name.as_str(), p.body.as_str(), p.local)).collect();
+    assert_eq!(points, [("point1", "body3", [0.0; 3]), ("point2", "body3", [0.0, 0.4812, 0.0])]);
 }
 
 #[test]
@@ -197,15 +162,12 @@ fn five_body_prismatic_references_are_h_minus_p_and_the_difference_is_raw() {
         ]
     );
     let slide = &d.joints[4];
-    assert_eq!(
-        (slide.body_i.as_str(), slide.body_j.as_str()),
-        ("body4", "body5")
-    );
+    assert_eq!((slide.body_i.as_str(), slide.body_j.as_str()), ("body4", "body5"));
     assert_eq!(slide.point_j, Some([0.2, 0.0, 0.0]));
     assert_eq!(slide.axis_i, Some([1.0, 0.0, 0.0]));
-    assert_eq!(slide.axis_j, Some([1.4 - 0.2, 0.0, 0.0]));
+    assert_eq!(slide.axis_j, Some([1.2, 0.0, 0.0]));
     assert_eq!(slide.ref_i, Some([0.0, 1.0, 0.0]));
-    assert_eq!(slide.ref_j, Some([0.2 - 0.2, 0.0, 1.0]));
+    assert_eq!(slide.ref_j, Some([0.0, 0.0, 1.0]));
     let same_x = &d.constraints[0];
     assert_eq!(same_x.kind, ConstraintType::CoordinateDifference);
     assert_eq!(
@@ -242,13 +204,33 @@ fn screw_vectors_are_used_as_given_and_the_lead_is_two_pi_alpha() {
 }
 
 #[test]
+fn differences_of_deck_decimals_are_rounded_once() {
+    use super::decimal_difference;
+    assert_eq!(decimal_difference("-0.05", "-0.0475"), Some(-0.0025));
+    assert_eq!(decimal_difference("1.4", "0.4"), Some(1.0));
+    assert_eq!(decimal_difference("2.5E-3", ".5e-3"), Some(0.002));
+    assert_eq!(decimal_difference("+1.", "-1"), Some(2.0));
+    assert_eq!(decimal_difference("0", "-0"), Some(0.0));
+    // Exponents too far apart, too many digits or no plain decimal: the caller falls back to
+    // f64 subtraction.
+    assert_eq!(decimal_difference("1e30", "1e-30"), None);
+    assert_eq!(decimal_difference("0e2147483647", "0e-2147483648"), None);
+    assert_eq!(decimal_difference("0.1234567890123456789012345678901", "0"), None);
+    assert_eq!(decimal_difference("1e", "0"), None);
+    assert_eq!(decimal_difference(".", "0"), None);
+    assert_eq!(decimal_difference("inf", "0"), None);
+    let deck = "2 0 0 0 0 1 0 0 0 0 0 0  0 0 0 1 0 0 0  0 0 0 1 0 0 0
+        1 2  0 0 0  0.1 0.1 0.1  1e30 0 0  0.3 0.1 0.1  0 1 1";
+    let axes = import(deck, "far").unwrap().joints[0].clone();
+    assert_eq!(axes.axis_i, Some([1e30, 0.0, 0.0]));
+    assert_eq!(axes.axis_j, Some([0.2, 0.0, 0.0]));
+}
+
+#[test]
 fn universal_axes_are_q_minus_p() {
     let d = import_seed("2-2-1.deck");
     let cross = &d.joints[0];
-    assert_eq!(
-        (cross.name.as_str(), cross.kind),
-        ("universal1", JointType::Universal)
-    );
+    assert_eq!((cross.name.as_str(), cross.kind), ("universal1", JointType::Universal));
     assert_eq!(cross.point_j, Some([0.0, -1.0, 0.0]));
     assert_eq!(cross.axis_i, Some([0.0, 0.0, 1.0]));
     assert_eq!(cross.axis_j, Some([-1.0, 0.0, 0.0]));
@@ -265,11 +247,8 @@ fn angles_become_sines_of_half_angles_in_fixes_and_grounds_but_stay_raw_in_diffe
         1  1 2 3  0.2 0.4 0.6
         0 1 0.1";
     let d = import(deck, "angles").unwrap();
-    let fixes: Vec<(&str, CoordinateName, f64)> = d
-        .constraints
-        .iter()
-        .map(|c| (c.name.as_str(), c.coordinate, c.value))
-        .collect();
+    let fixes: Vec<(&str, CoordinateName, f64)> =
+        d.constraints.iter().map(|c| (c.name.as_str(), c.coordinate, c.value)).collect();
     assert_eq!(
         fixes,
         [
@@ -304,15 +283,7 @@ fn everything_after_the_time_line_is_ignored() {
     let deck = "1 0 0 0 0 0 0 0 0 6 0 0\n0 0 0 1 0 0 0\n1 1 0 1 2 0 1 3 0 1 4 0 1 5 0 1 6 0\n0 3 1\n\
                 first line: 1 body, no driver … ±∞ \u{0}\u{7f} 1.2.3\n";
     let d = import(deck, "static").unwrap();
-    assert_eq!(
-        d.time,
-        TimeDesc {
-            start: 0.0,
-            end: 3.0,
-            step: Some(1.0),
-            steps: None
-        }
-    );
+    assert_eq!(d.time, TimeDesc { start: 0.0, end: 3.0, step: Some(1.0), steps: None });
     assert_eq!(d.constraints.len(), 6);
 }
 
@@ -342,12 +313,7 @@ fn names_from_paths_are_sanitised() {
     for (path, expected) in cases {
         assert_eq!(name_from_path(Path::new(path)), expected, "{path}");
     }
-    assert_eq!(
-        import("0 0 0 0 0 0 0 0 0 0 0 0 0 1 1", "4-bar")
-            .unwrap()
-            .name,
-        "four_bar"
-    );
+    assert_eq!(import("0 0 0 0 0 0 0 0 0 0 0 0 0 1 1", "4-bar").unwrap().name, "four_bar");
 }
 
 #[test]
@@ -446,32 +412,21 @@ fn ground_angles_that_no_orientation_has_are_refused() {
     assert_eq!((diag.line, diag.column), (Some(3), Some(9)));
     // The sum is 2 − O(1e-11); its last digits depend on the platform's sine.
     assert!(
-        diag.message
-            .starts_with("token 24: the angles give e1² + e2² + e3² = 1.99999"),
+        diag.message.starts_with("token 24: the angles give e1² + e2² + e3² = 1.99999"),
         "{}",
         diag.message
     );
-    assert!(
-        diag.message.contains("above 1, which no orientation has"),
-        "{}",
-        diag.message
-    );
+    assert!(diag.message.contains("above 1, which no orientation has"), "{}", diag.message);
 }
 
 #[test]
 fn non_finite_numbers_are_refused() {
     for (value, column) in [("inf", 25), ("NaN", 25), ("1e999", 25)] {
-        let diag = import_error(&format!(
-            "1 0 0 0 0 0 0 0 0 0 0 0 {value} 0 0 1 0 0 0 0 1 1"
-        ));
+        let diag = import_error(&format!("1 0 0 0 0 0 0 0 0 0 0 0 {value} 0 0 1 0 0 0 0 1 1"));
         assert_eq!((diag.line, diag.column), (Some(1), Some(column)), "{value}");
         assert_eq!(diag.entity.as_deref(), Some("body 1 (record 1)"));
         assert_eq!(diag.field.as_deref(), Some("x"));
-        assert!(
-            diag.message.contains("is not a finite number"),
-            "{}",
-            diag.message
-        );
+        assert!(diag.message.contains("is not a finite number"), "{}", diag.message);
     }
 }
 
@@ -481,10 +436,7 @@ fn empty_and_blank_input_is_a_truncated_header() {
         let diag = import_error(deck);
         assert_eq!(diag.entity.as_deref(), Some("header (the 12 counts)"));
         assert_eq!(diag.field.as_deref(), Some("NBODY"));
-        assert!(
-            diag.message
-                .starts_with("the deck ends where token 1 (an integer)")
-        );
+        assert!(diag.message.starts_with("the deck ends where token 1 (an integer)"));
     }
 }
 
@@ -577,16 +529,8 @@ fn toml_writes_every_optional_field_and_escapes_strings() {
     let mut desc = import_seed("rssr.deck");
     desc.description =
         Some("quotes \" backslash \\ tab \t newline \n bell \u{7} del \u{7f} é".into());
-    desc.time = TimeDesc {
-        start: 0.0,
-        end: 1.0,
-        step: None,
-        steps: Some(40),
-    };
-    desc.solver = Some(SolverDesc {
-        tolerance: Some(1e-12),
-        max_iterations: Some(7),
-    });
+    desc.time = TimeDesc { start: 0.0, end: 1.0, step: None, steps: Some(40) };
+    desc.solver = Some(SolverDesc { tolerance: Some(1e-12), max_iterations: Some(7) });
     desc.joints[2].ref_i = Some([0.0, 0.0, 1.0]);
     desc.joints[2].ref_j = Some([0.0, 0.0, 1.0]);
     desc.joints[0].kind = JointType::Distance;
@@ -608,18 +552,12 @@ fn toml_writes_every_optional_field_and_escapes_strings() {
     second.law = LawDesc::default();
     desc.drivers.push(second);
     let text = to_toml(&desc, "first line\n\nthird line");
-    assert!(
-        text.starts_with("# first line\n#\n# third line\n\nname = \"rssr\"\n"),
-        "{text}"
-    );
+    assert!(text.starts_with("# first line\n#\n# third line\n\nname = \"rssr\"\n"), "{text}");
     assert!(
         text.contains("law = { offset = 0.5, amplitude = 1.0, frequency = 2.0, phase = -0.5 }")
     );
     assert!(text.contains("law = {}"));
-    assert!(
-        text.contains("\n[solver]\ntolerance = 1e-12\nmax_iterations = 7\n"),
-        "{text}"
-    );
+    assert!(text.contains("\n[solver]\ntolerance = 1e-12\nmax_iterations = 7\n"), "{text}");
     let back: MechanismDesc = toml::from_str(&text).unwrap_or_else(|e| panic!("{e}\n{text}"));
     assert_eq!(back, desc);
 }
@@ -664,8 +602,111 @@ body = "body2"
 coordinate = "rx"
 law = { start = 0.0, velocity = 1.047, acceleration = 0.0 }
 "#;
-    assert_eq!(
-        to_toml(&desc, "Imported from the YOUNG deck 2-3-1.deck."),
-        expected
-    );
+    assert_eq!(to_toml(&desc, "Imported from the YOUNG deck 2-3-1.deck."), expected);
+}
+
+/// Each seed deck, the name [`name_from_path`] gives its import, and the shipped example that
+/// describes the same mechanism with meaningful names.
+const SHIPPED_EXAMPLES: [(&str, &str, &str); 18] = [
+    ("1-1-1.deck", "ex_1_1_1", "static_body.toml"),
+    ("1-2-1.deck", "ex_1_2_1", "static_body_offset.toml"),
+    ("1-3-1.deck", "ex_1_3_1", "translation_y.toml"),
+    ("1-3-2.deck", "ex_1_3_2", "translation_x.toml"),
+    ("1-3-3.deck", "ex_1_3_3", "translation_xy.toml"),
+    ("1-3-4.deck", "ex_1_3_4", "translation_xyz.toml"),
+    ("1-4-1.deck", "ex_1_4_1", "rotation_about_x.toml"),
+    ("1-4-2.deck", "ex_1_4_2", "rotation_about_y.toml"),
+    ("1-4-3.deck", "ex_1_4_3", "rotation_about_y_short.toml"),
+    ("2-1-1.deck", "ex_2_1_1", "spherical_joint.toml"),
+    ("2-2-1.deck", "ex_2_2_1", "universal_joint.toml"),
+    ("2-3-1.deck", "ex_2_3_1", "revolute_joint.toml"),
+    ("2-4-1.deck", "ex_2_4_1", "cylindrical_joint.toml"),
+    ("2-5-1.deck", "ex_2_5_1", "prismatic_joint.toml"),
+    ("2-6-1.deck", "ex_2_6_1", "screw_joint.toml"),
+    ("4-bar.deck", "four_bar", "four_bar.toml"),
+    ("5body.deck", "five_body", "slider_crank_5body.toml"),
+    ("rssr.deck", "rssr", "rssr.toml"),
+];
+
+/// Where `name` stands in `names`, for comparing references up to renaming.
+fn position_of<'a>(names: impl IntoIterator<Item = &'a String>, name: &str) -> Option<usize> {
+    names.into_iter().position(|n| n == name)
+}
+
+/// Checks that `shipped` is `imported` with other entity names: the same entities in the same
+/// order with the same numbers, every reference to a body or joint pointing at the entity in
+/// the same position. The names and the description may differ.
+fn assert_same_up_to_names(shipped: &MechanismDesc, imported: &MechanismDesc, file: &str) {
+    assert_eq!(shipped.time, imported.time, "{file}: time");
+    assert_eq!(shipped.solver, imported.solver, "{file}: solver");
+    let body =
+        |desc: &MechanismDesc, name: &str| position_of(desc.bodies.iter().map(|b| &b.name), name);
+    let body_opt =
+        |desc: &MechanismDesc, name: &Option<String>| name.as_deref().map(|n| body(desc, n));
+
+    assert_eq!(shipped.bodies.len(), imported.bodies.len(), "{file}: bodies");
+    for (k, (s, i)) in shipped.bodies.iter().zip(&imported.bodies).enumerate() {
+        assert_eq!((s.ground, s.r, s.p), (i.ground, i.r, i.p), "{file}: body {k}");
+    }
+
+    assert_eq!(shipped.joints.len(), imported.joints.len(), "{file}: joints");
+    for (k, (s, i)) in shipped.joints.iter().zip(&imported.joints).enumerate() {
+        let ends = |desc: &MechanismDesc, j: &crate::desc::JointDesc| {
+            (body(desc, &j.body_i), body(desc, &j.body_j))
+        };
+        assert_eq!(ends(shipped, s), ends(imported, i), "{file}: joint {k} bodies");
+        let numbers = |j: &crate::desc::JointDesc| {
+            (j.kind, j.point_i, j.point_j, j.axis_i, j.axis_j, j.ref_i, j.ref_j, j.lead, j.distance)
+        };
+        assert_eq!(numbers(s), numbers(i), "{file}: joint {k}");
+    }
+
+    assert_eq!(shipped.constraints.len(), imported.constraints.len(), "{file}: constraints");
+    for (k, (s, i)) in shipped.constraints.iter().zip(&imported.constraints).enumerate() {
+        let numbers = |desc: &MechanismDesc, c: &crate::desc::ConstraintDesc| {
+            let bodies =
+                (body_opt(desc, &c.body), body_opt(desc, &c.body_i), body_opt(desc, &c.body_j));
+            (c.kind, bodies, c.coordinate, c.value)
+        };
+        assert_eq!(numbers(shipped, s), numbers(imported, i), "{file}: constraint {k}");
+    }
+
+    assert_eq!(shipped.drivers.len(), imported.drivers.len(), "{file}: drivers");
+    for (k, (s, i)) in shipped.drivers.iter().zip(&imported.drivers).enumerate() {
+        let numbers = |desc: &MechanismDesc, d: &crate::desc::DriverDesc| {
+            let joint =
+                d.joint.as_deref().map(|n| position_of(desc.joints.iter().map(|j| &j.name), n));
+            (joint, d.motion, body_opt(desc, &d.body), d.coordinate, d.law.clone())
+        };
+        assert_eq!(numbers(shipped, s), numbers(imported, i), "{file}: driver {k}");
+    }
+
+    assert_eq!(shipped.points.len(), imported.points.len(), "{file}: points");
+    for (k, (s, i)) in shipped.points.iter().zip(&imported.points).enumerate() {
+        assert_eq!(
+            (body(shipped, &s.body), s.local),
+            (body(imported, &i.body), i.local),
+            "{file}: point {k}"
+        );
+    }
+}
+
+#[test]
+fn shipped_examples_are_their_decks_with_meaningful_names() {
+    let examples = deck_dir().join("..");
+    for (deck, import_name, example) in SHIPPED_EXAMPLES {
+        assert_eq!(name_from_path(Path::new(deck)), import_name);
+        let imported = import_seed(deck);
+        assert_eq!(imported.name, import_name);
+        let text = std::fs::read_to_string(examples.join(example)).expect("readable example");
+        let shipped: MechanismDesc =
+            toml::from_str(&text).unwrap_or_else(|e| panic!("{example}: {e}"));
+        assert_eq!(shipped.name, example.trim_end_matches(".toml"), "{example}: name is the stem");
+        assert!(text.starts_with("# "), "{example} starts with a comment block");
+        assert_same_up_to_names(&shipped, &imported, example);
+    }
+    // Every deck has its example, and every shipped deck is in the table.
+    let decks: Vec<String> = seed_decks().into_iter().map(|(file, _)| file).collect();
+    let listed: Vec<&str> = SHIPPED_EXAMPLES.iter().map(|(deck, _, _)| *deck).collect();
+    assert_eq!(decks, listed);
 }
