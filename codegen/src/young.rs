@@ -24,11 +24,13 @@
 //! | 13 time | `Ti Te dT` | `[time]` start, end, step |
 //!
 //! Joints are numbered per type in deck order. Differences such as `Q − P` are taken from the
-//! deck's decimal text and rounded once, so `−0.05 − (−0.0475)` gives `−0.0025` (plain `f64`
-//! subtraction gives `−0.0025000000000000022`); the two differ by an ulp, which does not
-//! change the mechanism, but the first is what the deck means and reads better. The distance constraint keeps its raw value for
-//! directions 4–6 because YOUNG subtracts Euler parameters directly there (young-program.md
-//! §5.8), while simplified constraints and grounded bodies take the thesis' sin(c/2) (§5.7).
+//! deck's decimal text and rounded once, so `−0.05 − (−0.0475)` gives `−0.0025`, where plain
+//! `f64` subtraction gives `−0.0025000000000000022`: the two differ by about an ulp, which does
+//! not change the mechanism, but the first is what the deck means and reads better.
+//!
+//! The distance constraint keeps its raw value for directions 4–6 because YOUNG subtracts Euler
+//! parameters directly there (young-program.md §5.8), while simplified constraints and grounded
+//! bodies take the thesis' sin(c/2) (§5.7).
 //!
 //! A grounded body's angles α, β, δ give `e_k = sin(angle/2)` for the vector part, as YOUNG's six
 //! simplified constraints do, and `e0 = +√(1 − e1² − e2² − e3²)`. YOUNG leaves the sign of e0 to

@@ -63,6 +63,27 @@ fn all_eighteen_seed_decks_import() {
 }
 
 #[test]
+fn import_file_names_the_file_in_the_description_and_in_errors() {
+    let desc = super::import_file(&deck_dir().join("4-bar.deck")).unwrap();
+    assert_eq!(desc.name, "four_bar");
+    assert_eq!(desc.description.as_deref(), Some("Imported from the YOUNG deck 4-bar.deck"));
+
+    let missing = deck_dir().join("no-such.deck");
+    let diag = super::import_file(&missing).unwrap_err();
+    assert_eq!(diag.file, Some(missing.display().to_string()));
+    assert!(diag.message.starts_with("cannot read the deck: "), "{}", diag.message);
+
+    // Bytes that are not UTF-8 become U+FFFD and then an ordinary bad token.
+    let binary = std::env::temp_dir().join(format!("young-binary-{}.deck", std::process::id()));
+    std::fs::write(&binary, b"1 0 0 \xff\xfe 0").unwrap();
+    let diag = super::import_file(&binary).unwrap_err();
+    std::fs::remove_file(&binary).unwrap();
+    assert_eq!(diag.file, Some(binary.display().to_string()));
+    assert_eq!((diag.line, diag.column), (Some(1), Some(7)));
+    assert_eq!(diag.message, "token 4 `\u{fffd}\u{fffd}` is not an integer");
+}
+
+#[test]
 fn toml_round_trip_is_exact_for_every_seed_deck() {
     for (file, text) in seed_decks() {
         let desc = import(&text, &file).unwrap();
