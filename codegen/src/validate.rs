@@ -1,1 +1,164 @@
 //! Description → model: every rule of the contract's Validation section, with places.
+//!
+//! Loading goes in three passes, each reporting every problem it finds before the next runs:
+//! 1. syntax: the text becomes a tree of spanned nodes (`locate`), for TOML and JSON alike;
+//! 2. shape: each entity of the tree becomes its `desc` type (`de`), so an unknown field, a
+//!    wrong type or an unknown `type = "revolut"` is reported with its line and column, and one
+//!    bad joint does not hide the next;
+//! 3. meaning: the rules (`rules`) check references, vectors, the fields each joint type
+//!    needs, drivers, laws, the time grid and the equation count, and build the
+//!    `model::Mechanism`. Their diagnostics carry a key path (`joints[2].axis_i`), which the
+//!    tree turns into the line and column of the value, or of the entity's table when the
+//!    field is absent.
+//!
+//! Every diagnostic names the entity (`joint "O2"`, `time`), the field and the path. Errors
+//! come in file order; warnings never make loading fail.
+
+mod de;
+mod locate;
+mod rules;
+#[cfg(test)]
+mod tests;
+
+use std::path::Path;
+
+use crate::desc::MechanismDesc;
+use crate::diag::{Diagnostic, Severity};
+use crate::model;
+
+/// The input syntax.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Format {
+    /// TOML, the main format.
+    Toml,
+    /// JSON with the same structure.
+    Json,
+}
+
+/// A validated mechanism with the warnings found on the way.
+#[derive(Clone, Debug)]
+pub struct Loaded {
+    /// The validated model.
+    pub mechanism: model::Mechanism,
+    /// The description as written.
+    pub desc: MechanismDesc,
+    /// Warnings (for example a `p` normalised by more than 1e-6), in file order.
+    pub warnings: Vec<Diagnostic>,
+}
+
+/// Reads and validates a file; the format follows the extension (`.json` → JSON, anything
+/// else TOML). Errors carry file, line and column.
+///
+/// # Errors
+///
+/// Every problem found, in file order: an unreadable file, syntax, unknown or mistyped fields,
+/// and every rule of the contract's Validation section.
+pub fn load_file(path: &Path) -> Result<Loaded, Vec<Diagnostic>> {
+    let name = path.display().to_string();
+    let text = std::fs::read_to_string(path).map_err(|e| {
+        let mut diag = Diagnostic::error(format!("cannot read the file: {e}"));
+        diag.file = Some(name.clone());
+        vec![diag]
+    })?;
+    let json = path.extension().is_some_and(|e| e.eq_ignore_ascii_case("json"));
+    let format = if json { Format::Json } else { Format::Toml };
+    load_str(&text, format, Some(&name))
+}
+
+/// Reads and validates a description given as text; `file` is only used in messages.
+///
+/// # Errors
+///
+/// As [`load_file`].
+pub fn load_str(text: &str, format: Format, file: Option<&str>) -> Result<Loaded, Vec<Diagnostic>> {
+    let root = match locate::parse(text, format) {
+        Ok(root) => root,
+        Err(unparsed) => return Err(syntax_errors(text, format, file, unparsed)),
+    };
+    let src = de::Source { text, root: &root, file };
+    let desc = de::description(&src).map_err(in_file_order)?;
+    let (mechanism, diags) = rules::check(&desc);
+    let diags = diags.into_iter().map(|d| src.place_by_path(d)).collect();
+    finish(mechanism, desc, in_file_order(diags))
+}
+
+/// Validates an already parsed description. No places are known: `line` and `column` stay
+/// `None`, and `path` says where the problem is.
+///
+/// # Errors
+///
+/// Every rule of the contract's Validation section that `desc` breaks.
+pub fn validate(desc: &MechanismDesc) -> Result<Loaded, Vec<Diagnostic>> {
+    let (mechanism, diags) = rules::check(desc);
+    finish(mechanism, desc.clone(), diags)
+}
+
+fn finish(
+    mechanism: Option<model::Mechanism>,
+    desc: MechanismDesc,
+    diags: Vec<Diagnostic>,
+) -> Result<Loaded, Vec<Diagnostic>> {
+    let (errors, warnings): (Vec<_>, Vec<_>) =
+        diags.into_iter().partition(|d| d.severity == Severity::Error);
+    match mechanism {
+        Some(mechanism) if errors.is_empty() => Ok(Loaded { mechanism, desc, warnings }),
+        _ => Err(errors),
+    }
+}
+
+fn syntax_errors(
+    text: &str,
+    format: Format,
+    file: Option<&str>,
+    unparsed: locate::Unparsed,
+) -> Vec<Diagnostic> {
+    let empty = locate::Node { span: 0..0, value: locate::Value::Table(Vec::new()) };
+    let root = unparsed.partial.as_ref().unwrap_or(&empty);
+    let src = de::Source { text, root, file };
+    let syntax = match format {
+        Format::Toml => "TOML",
+        Format::Json => "JSON",
+    };
+    let diags = unparsed.errors.into_iter().map(|e| {
+        let diag = Diagnostic::error(format!("{syntax} syntax: {}", e.message));
+        // The entity and field come from the tree recovered around the error; a path into
+        // it may name elements that are not in the file, so none is given.
+        Diagnostic { path: None, ..src.place(diag, e.offset) }
+    });
+    in_file_order(diags.collect())
+}
+
+/// Sorts located diagnostics by place; the sort is stable, so problems found at the same
+/// place (several missing fields of one table) keep the order the rules found them in.
+fn in_file_order(mut diags: Vec<Diagnostic>) -> Vec<Diagnostic> {
+    diags.sort_by_key(|d| (d.line.unwrap_or(usize::MAX), d.column.unwrap_or(usize::MAX)));
+    diags
+}
+
+/// The candidate nearest to `name` within edit distance 2 (and nearer than a rewrite of the
+/// whole name), for "did you mean" hints; ties go to the first in order.
+fn closest<'a>(name: &str, candidates: impl IntoIterator<Item = &'a str>) -> Option<&'a str> {
+    let len = name.chars().count();
+    candidates
+        .into_iter()
+        .map(|c| (edit_distance(name, c), c))
+        .filter(|&(d, c)| d > 0 && d <= 2 && d < len.max(c.chars().count()))
+        .min_by_key(|&(d, _)| d)
+        .map(|(_, c)| c)
+}
+
+/// Levenshtein distance in characters.
+fn edit_distance(a: &str, b: &str) -> usize {
+    let b: Vec<char> = b.chars().collect();
+    let mut row: Vec<usize> = (0..=b.len()).collect();
+    for (i, ca) in a.chars().enumerate() {
+        let mut diagonal = row[0];
+        row[0] = i + 1;
+        for (j, &cb) in b.iter().enumerate() {
+            let above = row[j + 1];
+            row[j + 1] = (diagonal + usize::from(ca != cb)).min(row[j] + 1).min(above + 1);
+            diagonal = above;
+        }
+    }
+    row[b.len()]
+}
