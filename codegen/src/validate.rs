@@ -11,8 +11,10 @@
 //!    tree turns into the line and column of the value, or of the entity's table when the
 //!    field is absent.
 //!
-//! Every diagnostic names the entity (`joint "O2"`, `time`), the field and the path. Errors
-//! come in file order; warnings never make loading fail.
+//! Every diagnostic names the entity (`joint "O2"`, `time`), the field and the path; the two
+//! rules about the whole mechanism (no moving body, fewer equations than unknowns) name
+//! `mechanism "NAME"` and point at `[[bodies]]` and `[[drivers]]`. Errors come in file order;
+//! warnings never make loading fail.
 
 mod de;
 mod locate;
