@@ -14,3 +14,4 @@ pub mod validate;
 pub mod young;
 pub mod generic;
 pub mod report;
+pub mod cli;

@@ -1,1 +1,12 @@
-fn main() {}
+//! The `mechgen` binary: see `codegen::cli`.
+
+use std::io::Write;
+
+fn main() {
+    let args = std::env::args_os().collect();
+    let stdout = std::io::stdout();
+    let mut out = stdout.lock();
+    let code = codegen::cli::run(args, &mut out, &mut std::io::stderr());
+    let _ = out.flush();
+    std::process::exit(code);
+}

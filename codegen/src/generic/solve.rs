@@ -439,7 +439,7 @@ impl<'e, 'm> Analysis<'e, 'm> {
         let (min, max) = diag.iter().fold((f64::INFINITY, 0.0_f64), |(lo, hi), x| {
             (lo.min(x.abs()), hi.max(x.abs()))
         });
-        if !(min > SINGULAR_PIVOT_RATIO * max) {
+        if min.is_nan() || min <= SINGULAR_PIVOT_RATIO * max {
             let svd = SVD::new(jac.clone(), true, false);
             let u = svd.u.as_ref().expect("requested U");
             let (kmin, _) = svd.singular_values.iter().enumerate().fold(

@@ -1,0 +1,356 @@
+//! The `mechgen` command line (contract §3), as a library function so that tests can run it
+//! in process: [`run`] takes the arguments and two writers and returns the exit status.
+
+use std::ffi::OsString;
+use std::fs::File;
+use std::io::{self, BufWriter, Write};
+use std::path::{Path, PathBuf};
+
+use clap::{Parser, Subcommand, ValueEnum};
+
+use crate::diag::Diagnostic;
+use crate::generic::{Analysis, Equations};
+use crate::model::{ConstraintKind, DriverCoordinate, DriverTarget, Mechanism};
+use crate::report::{self, Writer};
+use crate::validate::{self, Loaded};
+use crate::young;
+
+#[cfg(test)]
+mod tests;
+
+/// Exit status: success.
+pub const EXIT_OK: i32 = 0;
+/// Exit status: invalid input, nothing analysed.
+pub const EXIT_INVALID: i32 = 1;
+/// Exit status: the analysis stopped (no convergence, singular, branch jump).
+pub const EXIT_STOPPED: i32 = 2;
+
+#[derive(Parser, Debug)]
+#[command(name = "mechgen", version, about = "Kinematic analysis of spatial mechanisms")]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand, Debug)]
+enum Command {
+    /// Validate a description; print its size, rank, mobility and redundant equations.
+    Check {
+        /// The description file (TOML, or JSON by extension).
+        file: PathBuf,
+        /// Output format.
+        #[arg(long, value_enum, default_value_t = CheckFormat::Text)]
+        format: CheckFormat,
+    },
+    /// Kinematic analysis over the time grid.
+    Solve {
+        /// The description file.
+        file: PathBuf,
+        /// The engine (default: generated if it can be built, else generic).
+        #[arg(long, value_enum)]
+        engine: Option<Engine>,
+        /// Output format.
+        #[arg(long, value_enum, default_value_t = SolveFormat::Table)]
+        format: SolveFormat,
+        /// Write the results here instead of standard output.
+        #[arg(short = 'o', long = "output")]
+        output: Option<PathBuf>,
+    },
+    /// Convert a legacy YOUNG input deck to a description (TOML on standard output).
+    ImportYoung {
+        /// The deck.
+        deck: PathBuf,
+        /// Write the description here instead of standard output.
+        #[arg(short = 'o', long = "output")]
+        output: Option<PathBuf>,
+    },
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+enum CheckFormat {
+    Text,
+    Json,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+enum SolveFormat {
+    Table,
+    Csv,
+    Json,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+enum Engine {
+    Generic,
+    Generated,
+}
+
+/// Whether the user asked for JSON anywhere on the command line (so that even argument
+/// errors are reported as the contract's JSON error object).
+fn wants_json(args: &[OsString]) -> bool {
+    args.windows(2).any(|w| w[0] == "--format" && w[1] == "json")
+        || args.iter().any(|a| a == "--format=json")
+}
+
+/// Runs `mechgen` with `args` (including the program name) and returns the exit status.
+pub fn run(args: Vec<OsString>, out: &mut dyn Write, err: &mut dyn Write) -> i32 {
+    let json = wants_json(&args);
+    let cli = match Cli::try_parse_from(&args) {
+        Ok(cli) => cli,
+        Err(e) => {
+            use clap::error::ErrorKind;
+            if matches!(e.kind(), ErrorKind::DisplayHelp | ErrorKind::DisplayVersion) {
+                let _ = write!(out, "{e}");
+                return EXIT_OK;
+            }
+            if json {
+                let d = Diagnostic::error(e.kind().to_string()).entity("command line");
+                let _ = writeln!(out, "{}", serde_json::json!({ "error": d.to_json() }));
+            }
+            let _ = write!(err, "{}", e.render());
+            return EXIT_INVALID;
+        }
+    };
+    let result = match cli.command {
+        Command::Check { file, format } => check(&file, format, out, err),
+        Command::Solve { file, engine, format, output } => {
+            solve(&file, engine, format, output.as_deref(), out, err)
+        }
+        Command::ImportYoung { deck, output } => import_young(&deck, output.as_deref(), out, err),
+    };
+    match result {
+        Ok(code) => code,
+        // A closed pipe (`mechgen solve … | head`) is the reader's choice, not an error.
+        Err(e) if e.kind() == io::ErrorKind::BrokenPipe => EXIT_OK,
+        Err(e) => {
+            let _ = writeln!(err, "error: {e}");
+            EXIT_INVALID
+        }
+    }
+}
+
+/// Prints diagnostics (all on stderr; the first as the JSON error object on stdout).
+fn report_invalid(
+    diags: &[Diagnostic],
+    json: bool,
+    out: &mut dyn Write,
+    err: &mut dyn Write,
+) -> i32 {
+    for d in diags {
+        let _ = writeln!(err, "{d}");
+    }
+    if json {
+        let first = diags.first().cloned().unwrap_or_else(|| Diagnostic::error("invalid input"));
+        let _ = writeln!(out, "{}", serde_json::json!({ "error": first.to_json() }));
+    }
+    EXIT_INVALID
+}
+
+/// Loads and validates a file, printing warnings; `Err` carries the exit status.
+fn load(file: &Path, json: bool, out: &mut dyn Write, err: &mut dyn Write) -> Result<Loaded, i32> {
+    match validate::load_file(file) {
+        Ok(loaded) => {
+            for w in &loaded.warnings {
+                let _ = writeln!(err, "{w}");
+            }
+            Ok(loaded)
+        }
+        Err(diags) => Err(report_invalid(&diags, json, out, err)),
+    }
+}
+
+/// The number of unknowns left once ground bodies, `fix` constraints, coordinate
+/// differences against ground and absolute coordinate drivers are eliminated (each removes
+/// one unknown and its equation).
+fn reduced_unknowns(mech: &Mechanism) -> usize {
+    let fixed = mech
+        .constraints
+        .iter()
+        .filter(|c| match c.kind {
+            ConstraintKind::Fix { .. } => true,
+            ConstraintKind::CoordinateDifference { body_i, body_j, .. } => {
+                mech.bodies[body_i.0].ground || mech.bodies[body_j.0].ground
+            }
+        })
+        .count();
+    let driven = mech
+        .drivers
+        .iter()
+        .filter(|d| {
+            matches!(
+                d.target,
+                DriverTarget::Absolute {
+                    coordinate: DriverCoordinate::X | DriverCoordinate::Y | DriverCoordinate::Z,
+                    ..
+                }
+            )
+        })
+        .count();
+    mech.unknowns().saturating_sub(fixed + driven)
+}
+
+/// The invalid-input diagnostic for an undriven degree of freedom, if Φ_q has lower column
+/// rank than the unknowns.
+fn undriven(eq: &Equations<'_>, prep: &crate::generic::Preparation) -> Option<Diagnostic> {
+    (prep.rank < eq.unknowns()).then(|| {
+        Diagnostic::error(format!(
+            "the Jacobian has rank {} for {} unknowns: {} degree(s) of freedom are not driven; \
+             bodies that can still move: {}",
+            prep.rank,
+            eq.unknowns(),
+            eq.unknowns() - prep.rank,
+            prep.free_bodies.join(", ")
+        ))
+        .entity("mechanism")
+        .field("drivers")
+    })
+}
+
+fn check(
+    file: &Path,
+    format: CheckFormat,
+    out: &mut dyn Write,
+    err: &mut dyn Write,
+) -> io::Result<i32> {
+    let json = format == CheckFormat::Json;
+    let loaded = match load(file, json, out, err) {
+        Ok(l) => l,
+        Err(code) => return Ok(code),
+    };
+    let mech = &loaded.mechanism;
+    let eq = Equations::new(mech);
+    let prep = eq.prepare();
+    if let Some(d) = undriven(&eq, &prep) {
+        return Ok(report_invalid(&[d], json, out, err));
+    }
+    let redundant: Vec<String> =
+        prep.redundant.iter().map(|&k| eq.labels()[k].equation()).collect();
+    let bodies = mech.bodies.len();
+    let grounds = mech.bodies.iter().filter(|b| b.ground).count();
+    if json {
+        let v = serde_json::json!({
+            "bodies": bodies,
+            "unknowns": eq.unknowns(),
+            "equations": eq.equations(),
+            "reduced_unknowns": reduced_unknowns(mech),
+            "rank": prep.rank,
+            "mobility": prep.mobility,
+            "drivers": mech.drivers.len(),
+            "redundant": redundant,
+        });
+        writeln!(out, "{}", serde_json::to_string_pretty(&v)?)?;
+    } else {
+        writeln!(out, "mechanism {}: {bodies} bodies ({grounds} ground)", mech.name)?;
+        writeln!(out, "unknowns:          {}", eq.unknowns())?;
+        writeln!(out, "equations:         {}", eq.equations())?;
+        writeln!(out, "reduced unknowns:  {} (generated system)", reduced_unknowns(mech))?;
+        let at = if prep.assembled {
+            "assembled at t = start"
+        } else {
+            "initial estimates, not assembled"
+        };
+        writeln!(out, "rank of Φ_q:       {} ({at})", prep.rank)?;
+        writeln!(
+            out,
+            "mobility:          {} (degrees of freedom before the drivers)",
+            prep.mobility
+        )?;
+        writeln!(out, "drivers:           {}", mech.drivers.len())?;
+        if redundant.is_empty() {
+            writeln!(out, "redundant:         none")?;
+        } else {
+            writeln!(out, "redundant:         {}", redundant.join(", "))?;
+        }
+    }
+    Ok(EXIT_OK)
+}
+
+fn solve(
+    file: &Path,
+    engine: Option<Engine>,
+    format: SolveFormat,
+    output: Option<&Path>,
+    out: &mut dyn Write,
+    err: &mut dyn Write,
+) -> io::Result<i32> {
+    let json = format == SolveFormat::Json;
+    if engine == Some(Engine::Generated) {
+        let d = Diagnostic::error(
+            "the generated engine is not available in this version; use --engine generic",
+        )
+        .entity("command line")
+        .field("engine");
+        return Ok(report_invalid(&[d], json, out, err));
+    }
+    let loaded = match load(file, json, out, err) {
+        Ok(l) => l,
+        Err(code) => return Ok(code),
+    };
+    let mech = &loaded.mechanism;
+    let eq = Equations::new(mech);
+    let prep = eq.prepare();
+    if let Some(d) = undriven(&eq, &prep) {
+        return Ok(report_invalid(&[d], json, out, err));
+    }
+    for &k in &prep.redundant {
+        writeln!(
+            err,
+            "warning: equation {} depends on the others at the initial configuration and is \
+             left out of the analysis",
+            eq.labels()[k].equation()
+        )?;
+    }
+    let fmt = match format {
+        SolveFormat::Table => report::Format::Table,
+        SolveFormat::Csv => report::Format::Csv,
+        SolveFormat::Json => report::Format::Json,
+    };
+    let sink: Box<dyn Write + '_> = match output {
+        Some(path) => Box::new(BufWriter::new(File::create(path)?)),
+        None => Box::new(BufWriter::new(out)),
+    };
+    let layout = report::layout(mech);
+    let mut writer = Writer::begin(sink, fmt, mech, "generic")?;
+    let analysis = Analysis::new(&eq, &prep);
+    let steps = analysis.run(|frame| writer.step(&report::step_result(mech, &layout, frame)))?;
+    writer.finish(steps.failure.as_ref())?;
+    if let Some(f) = &steps.failure {
+        writeln!(err, "error: {}", report::failure_text(f))?;
+        return Ok(EXIT_STOPPED);
+    }
+    Ok(EXIT_OK)
+}
+
+fn import_young(
+    deck: &Path,
+    output: Option<&Path>,
+    out: &mut dyn Write,
+    err: &mut dyn Write,
+) -> io::Result<i32> {
+    let text = match std::fs::read(deck) {
+        Ok(bytes) => String::from_utf8_lossy(&bytes).into_owned(),
+        Err(e) => {
+            let d = Diagnostic::error(format!("cannot read the deck: {e}"))
+                .entity(format!("deck {}", deck.display()));
+            return Ok(report_invalid(&[d], false, out, err));
+        }
+    };
+    let name = young::name_from_path(deck);
+    let desc = match young::import(&text, &name) {
+        Ok(d) => d,
+        Err(mut d) => {
+            d.file = Some(deck.display().to_string());
+            return Ok(report_invalid(&[d], false, out, err));
+        }
+    };
+    let file_name = deck
+        .file_name()
+        .map_or_else(|| deck.display().to_string(), |f| f.to_string_lossy().into_owned());
+    let toml =
+        young::to_toml(&desc, &format!("Imported by mechgen from the YOUNG deck {file_name}."));
+    match output {
+        Some(path) => std::fs::write(path, toml)?,
+        None => out.write_all(toml.as_bytes())?,
+    }
+    Ok(EXIT_OK)
+}

@@ -1,0 +1,253 @@
+//! The command line run in process: exit statuses, JSON shapes and messages.
+
+use std::path::PathBuf;
+
+use super::{EXIT_INVALID, EXIT_OK, EXIT_STOPPED, run};
+
+/// The shipped examples.
+fn example(name: &str) -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../examples").join(name)
+}
+
+/// Writes `text` to a fresh file in the temporary directory.
+fn temp_file(name: &str, text: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("mechgen-cli-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).expect("temporary directory");
+    let path = dir.join(name);
+    std::fs::write(&path, text).expect("temporary file");
+    path
+}
+
+/// Runs mechgen and returns (status, stdout, stderr).
+fn mechgen(args: &[&str]) -> (i32, String, String) {
+    let mut argv = vec!["mechgen".into()];
+    argv.extend(args.iter().map(Into::into));
+    let (mut out, mut err) = (Vec::new(), Vec::new());
+    let code = run(argv, &mut out, &mut err);
+    (code, String::from_utf8(out).expect("utf-8"), String::from_utf8(err).expect("utf-8"))
+}
+
+/// The RSSR with its driver replaced by `extra` (TOML appended).
+fn rssr_with(extra: &str, keep_driver: bool) -> String {
+    let text = std::fs::read_to_string(example("rssr.toml")).expect("rssr example");
+    let text = if keep_driver {
+        text
+    } else {
+        let start = text.find("[[drivers]]").expect("driver section");
+        let end = text.find("[[points]]").expect("points section");
+        format!("{}{}", &text[..start], &text[end..])
+    };
+    format!("{text}\n{extra}\n")
+}
+
+#[test]
+fn check_json_reports_the_counts_of_the_rssr() {
+    let (code, out, _) =
+        mechgen(&["check", example("rssr.toml").to_str().unwrap(), "--format", "json"]);
+    assert_eq!(code, EXIT_OK);
+    let v: serde_json::Value = serde_json::from_str(&out).expect("JSON");
+    // Three moving bodies: 21 unknowns; 2 spherical (6) + 2 revolute (10) + fix + driver +
+    // 3 normalisations = 21 equations; one crank drives a one-degree-of-freedom loop.
+    assert_eq!(v["bodies"], 4);
+    assert_eq!(v["unknowns"], 21);
+    assert_eq!(v["equations"], 21);
+    assert_eq!(v["rank"], 21);
+    assert_eq!(v["mobility"], 1);
+    assert_eq!(v["drivers"], 1);
+    // The fix constraint on e2 of the coupler is eliminated in the generated system.
+    assert_eq!(v["reduced_unknowns"], 20);
+    assert_eq!(v["redundant"], serde_json::json!([]));
+}
+
+#[test]
+fn check_names_a_redundant_equation() {
+    // The crank's y is already held by revolute O2; fixing it again is redundant.
+    let extra = "[[constraints]]\nname = \"again\"\ntype = \"fix\"\nbody = \"crank\"\ncoordinate = \"y\"\nvalue = -0.06567\n";
+    let file = temp_file("redundant.toml", &rssr_with(extra, true));
+    let (code, out, _) = mechgen(&["check", file.to_str().unwrap(), "--format", "json"]);
+    assert_eq!(code, EXIT_OK);
+    let v: serde_json::Value = serde_json::from_str(&out).expect("JSON");
+    assert_eq!(v["equations"], 22);
+    assert_eq!(v["rank"], 21);
+    assert_eq!(v["redundant"], serde_json::json!(["constraint again"]));
+}
+
+#[test]
+fn solve_handles_a_consistent_redundant_constraint() {
+    let extra = "[[constraints]]\nname = \"again\"\ntype = \"fix\"\nbody = \"crank\"\ncoordinate = \"y\"\nvalue = -0.06567\n";
+    let file = temp_file("redundant_solve.toml", &rssr_with(extra, true));
+    let (code, out, err) = mechgen(&["solve", file.to_str().unwrap(), "--format", "json"]);
+    assert_eq!(code, EXIT_OK, "{err}");
+    assert!(err.contains("constraint again"), "the dropped equation is named: {err}");
+    let v: serde_json::Value = serde_json::from_str(&out).expect("JSON");
+    assert_eq!(v["steps"].as_array().unwrap().len(), 12);
+}
+
+#[test]
+fn an_undriven_degree_of_freedom_is_invalid_input_naming_the_bodies() {
+    // Replacing the driver by a constraint the revolute already imposes keeps the counts
+    // square but leaves the crank free.
+    let extra = "[[constraints]]\nname = \"again\"\ntype = \"fix\"\nbody = \"crank\"\ncoordinate = \"y\"\nvalue = -0.06567\n";
+    let file = temp_file("undriven.toml", &rssr_with(extra, false));
+    let (code, out, _) = mechgen(&["solve", file.to_str().unwrap(), "--format", "json"]);
+    assert_eq!(code, EXIT_INVALID);
+    let v: serde_json::Value = serde_json::from_str(&out).expect("JSON");
+    assert_eq!(v["error"]["kind"], "invalid_input");
+    let msg = v["error"]["message"].as_str().unwrap();
+    // At t = 0 the rocker sits at a limit position of its swing (its rate is 4e-6 of the
+    // crank's), so to first order only the crank and the coupler move.
+    for body in ["crank", "coupler"] {
+        assert!(msg.contains(body), "{msg}");
+    }
+}
+
+#[test]
+fn solve_json_has_every_body_and_point_at_every_step() {
+    let (code, out, _) =
+        mechgen(&["solve", example("rssr.toml").to_str().unwrap(), "--format", "json"]);
+    assert_eq!(code, EXIT_OK);
+    let v: serde_json::Value = serde_json::from_str(&out).expect("JSON");
+    assert_eq!(v["mechanism"], "rssr");
+    assert_eq!(v["engine"], "generic");
+    assert!(v["error"].is_null());
+    let steps = v["steps"].as_array().unwrap();
+    // start = 1.19e-7, end = 0.04, step = 0.0035717333: 12 points (0.04 itself is not on the grid).
+    assert_eq!(steps.len(), 12);
+    for s in steps {
+        for body in ["crank", "coupler", "rocker"] {
+            for key in ["r", "p", "r_dot", "p_dot", "omega", "r_ddot", "p_ddot", "alpha"] {
+                assert!(s["bodies"][body][key].is_array(), "{body}.{key}");
+            }
+        }
+        assert!(s["bodies"].get("ground").is_none());
+        for point in ["A", "B"] {
+            for key in ["r", "v", "a"] {
+                assert_eq!(s["points"][point][key].as_array().unwrap().len(), 3);
+            }
+        }
+    }
+}
+
+#[test]
+fn solve_csv_names_columns_body_quantity_component() {
+    let (code, out, _) =
+        mechgen(&["solve", example("rssr.toml").to_str().unwrap(), "--format", "csv"]);
+    assert_eq!(code, EXIT_OK);
+    let mut lines = out.lines();
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    assert_eq!(&header[..4], ["t", "iterations", "residual", "crank.r.x"]);
+    assert!(header.contains(&"B.a.z"));
+    assert!(header.contains(&"coupler.omega.y"));
+    // 3 bodies × 27 scalars (r 3, p 4, ṙ 3, ṗ 4, ω 3, r̈ 3, p̈ 4, α 3) + 2 points × 9 + 3 leading columns.
+    assert_eq!(header.len(), 3 + 3 * 27 + 2 * 9);
+    assert_eq!(lines.count(), 12);
+}
+
+#[test]
+fn a_description_error_has_status_1_and_a_place() {
+    let text = std::fs::read_to_string(example("rssr.toml")).unwrap().replace(
+        "body_j = \"coupler\"\npoint_i = [0.0, 0.06567",
+        "body_j = \"couple\"\npoint_i = [0.0, 0.06567",
+    );
+    let file = temp_file("typo.toml", &text);
+    let (code, out, err) = mechgen(&["solve", file.to_str().unwrap(), "--format", "json"]);
+    assert_eq!(code, EXIT_INVALID);
+    let v: serde_json::Value = serde_json::from_str(&out).expect("JSON");
+    assert_eq!(v["error"]["kind"], "invalid_input");
+    assert_eq!(v["error"]["entity"], "joint \"A\"");
+    assert_eq!(v["error"]["field"], "body_j");
+    assert!(v["error"]["line"].as_u64().unwrap() > 30);
+    assert!(err.contains("couple"), "{err}");
+    assert!(!err.contains("panicked"));
+}
+
+#[test]
+fn an_impossible_motion_stops_with_status_2_after_the_valid_steps() {
+    // A rod of length 1 hinged at the origin with its end driven along x at 1 m/s: the
+    // motion exists for t < 1 and is impossible after that. The grid steps over t = 1, the
+    // singular stretched position itself (a stability case of its own).
+    let text = r#"
+name = "overstretched"
+[time]
+start = 0.0
+end = 2.0
+step = 0.3
+[[bodies]]
+name = "ground"
+ground = true
+[[bodies]]
+name = "slider"
+r = [0.0, 1.0, 0.0]
+[[joints]]
+name = "rod"
+type = "distance"
+body_i = "ground"
+body_j = "slider"
+point_i = [0.0, 0.0, 0.0]
+point_j = [0.0, 0.0, 0.0]
+distance = 1.0
+[[constraints]]
+name = "z0"
+type = "fix"
+body = "slider"
+coordinate = "z"
+value = 0.0
+[[constraints]]
+name = "e1"
+type = "fix"
+body = "slider"
+coordinate = "e1"
+value = 0.0
+[[constraints]]
+name = "e2"
+type = "fix"
+body = "slider"
+coordinate = "e2"
+value = 0.0
+[[constraints]]
+name = "e3"
+type = "fix"
+body = "slider"
+coordinate = "e3"
+value = 0.0
+[[drivers]]
+name = "push"
+body = "slider"
+coordinate = "x"
+law = { start = 0.0, velocity = 1.0 }
+"#;
+    let file = temp_file("overstretched.toml", text);
+    let (code, out, _) = mechgen(&["solve", file.to_str().unwrap(), "--format", "json"]);
+    assert_eq!(code, EXIT_STOPPED);
+    let v: serde_json::Value = serde_json::from_str(&out).expect("JSON");
+    let steps = v["steps"].as_array().unwrap();
+    // t = 0, 0.3, 0.6, 0.9 are reachable; t = 1.2 is not.
+    assert_eq!(steps.len(), 4, "{}", v["error"]);
+    let t = v["error"]["t"].as_f64().unwrap();
+    assert!((t - 1.2).abs() < 1e-12, "{t}");
+    assert!(["singular", "no_convergence"].contains(&v["error"]["kind"].as_str().unwrap()));
+    // y = sqrt(1 − x²) at each valid step, the closed form of the rod.
+    for s in steps {
+        let x = s["t"].as_f64().unwrap();
+        let y = s["bodies"]["slider"]["r"][1].as_f64().unwrap();
+        assert!((y - (1.0 - x * x).sqrt()).abs() < 1e-9, "t = {x}: y = {y}");
+    }
+}
+
+#[test]
+fn import_young_prints_a_valid_description() {
+    let deck = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("../../shared/reference/seed-examples/4-bar.deck");
+    let (code, out, err) = mechgen(&["import-young", deck.to_str().unwrap()]);
+    assert_eq!(code, EXIT_OK, "{err}");
+    let loaded = crate::validate::load_str(&out, crate::validate::Format::Toml, None)
+        .expect("the imported description validates");
+    assert_eq!(loaded.mechanism.bodies.len(), 4);
+}
+
+#[test]
+fn a_bad_command_line_is_status_1() {
+    let (code, _, err) = mechgen(&["solve"]);
+    assert_eq!(code, EXIT_INVALID);
+    assert!(err.contains("FILE") || err.contains("file"), "{err}");
+}
