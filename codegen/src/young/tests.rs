@@ -731,3 +731,25 @@ fn shipped_examples_are_their_decks_with_meaningful_names() {
     let listed: Vec<&str> = SHIPPED_EXAMPLES.iter().map(|(deck, _, _)| *deck).collect();
     assert_eq!(decks, listed);
 }
+
+#[test]
+fn every_seed_deck_imports_as_a_valid_description() {
+    for (file, text) in seed_decks() {
+        let desc = import(&text, &file).unwrap();
+        if let Err(errors) = crate::validate::validate(&desc) {
+            let errors: Vec<String> = errors.iter().map(ToString::to_string).collect();
+            panic!("{file}:\n{}", errors.join("\n"));
+        }
+    }
+}
+
+#[test]
+fn every_shipped_example_loads_and_validates() {
+    let examples = deck_dir().join("..");
+    for (_, _, example) in SHIPPED_EXAMPLES {
+        if let Err(errors) = crate::validate::load_file(&examples.join(example)) {
+            let errors: Vec<String> = errors.iter().map(ToString::to_string).collect();
+            panic!("{example}:\n{}", errors.join("\n"));
+        }
+    }
+}
