@@ -327,21 +327,9 @@ fn import_young(
     out: &mut dyn Write,
     err: &mut dyn Write,
 ) -> io::Result<i32> {
-    let text = match std::fs::read(deck) {
-        Ok(bytes) => String::from_utf8_lossy(&bytes).into_owned(),
-        Err(e) => {
-            let d = Diagnostic::error(format!("cannot read the deck: {e}"))
-                .entity(format!("deck {}", deck.display()));
-            return Ok(report_invalid(&[d], false, out, err));
-        }
-    };
-    let name = young::name_from_path(deck);
-    let desc = match young::import(&text, &name) {
+    let desc = match young::import_file(deck) {
         Ok(d) => d,
-        Err(mut d) => {
-            d.file = Some(deck.display().to_string());
-            return Ok(report_invalid(&[d], false, out, err));
-        }
+        Err(d) => return Ok(report_invalid(&[d], false, out, err)),
     };
     let file_name = deck
         .file_name()

@@ -74,11 +74,8 @@ fn zoo(seed: u64) -> Mechanism {
         r: vec3(rng),
         p: quat(rng),
     };
-    let bodies = vec![
-        body(&mut rng, "g", true),
-        body(&mut rng, "a", false),
-        body(&mut rng, "b", false),
-    ];
+    let bodies =
+        vec![body(&mut rng, "g", true), body(&mut rng, "a", false), body(&mut rng, "b", false)];
     let lead = rng.random_range(0.5..2.0);
     let joints = vec![
         joint(&mut rng, "sph", 1, 2, JointKind::Spherical),
@@ -87,80 +84,31 @@ fn zoo(seed: u64) -> Mechanism {
         joint(&mut rng, "rev2", 1, 2, JointKind::Revolute),
         joint(&mut rng, "cyl", 1, 2, JointKind::Cylindrical),
         joint(&mut rng, "pri", 2, 0, JointKind::Prismatic),
-        joint(
-            &mut rng,
-            "scr",
-            1,
-            2,
-            JointKind::Screw {
-                lead,
-                d0: 0.3,
-                theta0: 0.4,
-            },
-        ),
+        joint(&mut rng, "scr", 1, 2, JointKind::Screw { lead, d0: 0.3, theta0: 0.4 }),
         joint(&mut rng, "dst", 1, 2, JointKind::Distance { length: 1.3 }),
     ];
-    let poly = Law::Polynomial {
-        start: 0.3,
-        velocity: 1.7,
-        acceleration: -2.1,
-    };
-    let harm = Law::Harmonic {
-        offset: 0.2,
-        amplitude: 0.9,
-        frequency: 2.3,
-        phase: 0.4,
-    };
-    let driver = |name: &str, target, law| Driver {
-        name: name.to_owned(),
-        target,
-        law,
-    };
-    let absolute = |c| DriverTarget::Absolute {
-        body: BodyId(2),
-        coordinate: c,
-    };
+    let poly = Law::Polynomial { start: 0.3, velocity: 1.7, acceleration: -2.1 };
+    let harm = Law::Harmonic { offset: 0.2, amplitude: 0.9, frequency: 2.3, phase: 0.4 };
+    let driver = |name: &str, target, law| Driver { name: name.to_owned(), target, law };
+    let absolute = |c| DriverTarget::Absolute { body: BodyId(2), coordinate: c };
     let drivers = vec![
-        driver(
-            "d_rev",
-            DriverTarget::Joint {
-                joint: JointId(3),
-                motion: Motion::Rotation,
-            },
-            harm,
-        ),
+        driver("d_rev", DriverTarget::Joint { joint: JointId(3), motion: Motion::Rotation }, harm),
         driver(
             "d_cyl_r",
-            DriverTarget::Joint {
-                joint: JointId(4),
-                motion: Motion::Rotation,
-            },
+            DriverTarget::Joint { joint: JointId(4), motion: Motion::Rotation },
             poly,
         ),
         driver(
             "d_cyl_t",
-            DriverTarget::Joint {
-                joint: JointId(4),
-                motion: Motion::Translation,
-            },
+            DriverTarget::Joint { joint: JointId(4), motion: Motion::Translation },
             harm,
         ),
         driver(
             "d_pri",
-            DriverTarget::Joint {
-                joint: JointId(5),
-                motion: Motion::Translation,
-            },
+            DriverTarget::Joint { joint: JointId(5), motion: Motion::Translation },
             poly,
         ),
-        driver(
-            "d_scr",
-            DriverTarget::Joint {
-                joint: JointId(6),
-                motion: Motion::Rotation,
-            },
-            harm,
-        ),
+        driver("d_scr", DriverTarget::Joint { joint: JointId(6), motion: Motion::Rotation }, harm),
         driver("d_x", absolute(DriverCoordinate::X), poly),
         driver("d_y", absolute(DriverCoordinate::Y), harm),
         driver("d_z", absolute(DriverCoordinate::Z), poly),
@@ -199,11 +147,7 @@ fn zoo(seed: u64) -> Mechanism {
     Mechanism {
         name: "zoo".to_owned(),
         description: None,
-        time: TimeGrid {
-            start: 0.0,
-            step: 0.1,
-            count: 2,
-        },
+        time: TimeGrid { start: 0.0, step: 0.1, count: 2 },
         solver: SolverOptions::default(),
         bodies,
         joints,
@@ -267,10 +211,8 @@ fn nu_and_gamma_match_differences_along_smooth_trajectories() {
         let t0 = rng.random_range(-1.0..1.0);
         let zero = DVector::zeros(n);
         // Along q(τ) = q0 + vτ + aτ²/2, t = t0 + τ: Φ̇ = Φ_q v − ν and Φ̈ = Φ_q a − γ.
-        let phi_at = |tau: f64| {
-            eq.evaluate(&(&q0 + &v * tau + &a * (0.5 * tau * tau)), &zero, t0 + tau)
-                .phi
-        };
+        let phi_at =
+            |tau: f64| eq.evaluate(&(&q0 + &v * tau + &a * (0.5 * tau * tau)), &zero, t0 + tau).phi;
         let sys = eq.evaluate(&q0, &v, t0);
         // Second differences: truncation ~h², round-off ~ε/h²; h = 1e-4 gives ~1e-8 each.
         let h = 1e-4;
@@ -298,5 +240,224 @@ fn nu_and_gamma_match_differences_along_smooth_trajectories() {
                 gamma[r]
             );
         }
+    }
+}
+
+/// Closed-form motions of one body jointed to a ground body that is placed and turned off
+/// the global frame: each joint type driven through its joint drivers, over several turns.
+mod driven_joints {
+    use nalgebra::{Matrix3, Unit, UnitQuaternion, Vector3};
+
+    use crate::generic::{Analysis, Equations};
+    use crate::report::{self, StepResult};
+    use crate::validate::{Format, load_str};
+
+    /// The ground's placement, its local joint axis and reference, and the joint point.
+    struct Setup {
+        r_g: Vector3<f64>,
+        a_g: Matrix3<f64>,
+        p_g: [f64; 4],
+        axis: Vector3<f64>,
+        reference: Vector3<f64>,
+        point_i: Vector3<f64>,
+        point_j: Vector3<f64>,
+    }
+
+    fn setup() -> Setup {
+        let q = UnitQuaternion::from_axis_angle(
+            &Unit::new_normalize(Vector3::new(0.2, -0.3, 0.25)),
+            0.9,
+        );
+        let axis = Vector3::new(0.3, 0.5, 0.8).normalize();
+        let reference = axis.cross(&Vector3::new(1.0, -0.2, 0.1)).normalize();
+        Setup {
+            r_g: Vector3::new(0.4, -1.2, 0.7),
+            a_g: *q.to_rotation_matrix().matrix(),
+            p_g: [q.w, q.i, q.j, q.k],
+            axis,
+            reference,
+            point_i: Vector3::new(0.1, 0.2, -0.3),
+            point_j: Vector3::new(-0.5, 0.25, 0.6),
+        }
+    }
+
+    fn v(x: &Vector3<f64>) -> String {
+        format!("[{:?}, {:?}, {:?}]", x.x, x.y, x.z)
+    }
+
+    /// A description of the ground, the body (assembled at θ = d = 0 with the identity
+    /// orientation, then perturbed) and one joint with the given drivers.
+    fn description(s: &Setup, kind: &str, extra_joint: &str, drivers: &str) -> String {
+        let axis_g = s.a_g * s.axis;
+        let ref_g = s.a_g * s.reference;
+        let joint_point = s.r_g + s.a_g * s.point_i;
+        let r_j = joint_point - s.point_j;
+        // For a prismatic joint ref_i ⟂ ref_j is the equation.
+        let ref_j = if kind == "prismatic" { axis_g.cross(&ref_g) } else { ref_g };
+        // The screw measures d0 and θ0 at the initial estimates, so its estimates are exact;
+        // the other joints start Newton from perturbed ones.
+        let (perturbed, p_j) = if kind == "screw" {
+            (r_j, "[1.0, 0.0, 0.0, 0.0]")
+        } else {
+            (r_j + Vector3::new(0.01, -0.02, 0.015), "[0.999, 0.01, -0.02, 0.015]")
+        };
+        format!(
+            r#"
+name = "driven"
+[time]
+start = 0.0
+end = 3.0
+step = 0.05
+[solver]
+tolerance = 1e-12
+[[bodies]]
+name = "ground"
+ground = true
+r = {rg}
+p = [{:?}, {:?}, {:?}, {:?}]
+[[bodies]]
+name = "body"
+r = {perturbed}
+p = {p_j}
+[[joints]]
+name = "j"
+type = "{kind}"
+body_i = "ground"
+body_j = "body"
+point_i = {pi}
+point_j = {pj}
+axis_i = {ai}
+axis_j = {aj}
+ref_i = {ri}
+ref_j = {rj}
+{extra_joint}
+{drivers}
+"#,
+            s.p_g[0],
+            s.p_g[1],
+            s.p_g[2],
+            s.p_g[3],
+            rg = v(&s.r_g),
+            perturbed = v(&perturbed),
+            pi = v(&s.point_i),
+            pj = v(&s.point_j),
+            ai = v(&s.axis),
+            aj = v(&axis_g),
+            ri = v(&s.reference),
+            rj = v(&ref_j),
+        )
+    }
+
+    fn solve(text: &str) -> Vec<StepResult> {
+        let loaded = load_str(text, Format::Toml, None).expect("valid description");
+        let mech = &loaded.mechanism;
+        let eq = Equations::new(mech);
+        let prep = eq.prepare();
+        let layout = report::layout(mech);
+        let mut steps = Vec::new();
+        let r = Analysis::new(&eq, &prep)
+            .run(|f| {
+                steps.push(report::step_result(mech, &layout, f));
+                Ok::<(), ()>(())
+            })
+            .unwrap();
+        assert!(r.failure.is_none(), "{:?}", r.failure);
+        steps
+    }
+
+    /// Compares every step with the screw motion θ(t), d(t) about and along the joint axis.
+    fn check(s: &Setup, steps: &[StepResult], motion: impl Fn(f64) -> [(f64, f64, f64); 2]) {
+        let axis_g = s.a_g * s.axis;
+        let joint_point = s.r_g + s.a_g * s.point_i;
+        for st in steps {
+            let [(th, thd, thdd), (d, dd, ddd)] = motion(st.t);
+            let rot = UnitQuaternion::from_axis_angle(&Unit::new_unchecked(axis_g), th);
+            let rho = rot * (-s.point_j);
+            let omega = axis_g * thd;
+            let alpha = axis_g * thdd;
+            let r = joint_point + axis_g * d + rho;
+            let rd = axis_g * dd + omega.cross(&rho);
+            let rdd = axis_g * ddd + alpha.cross(&rho) + omega.cross(&omega.cross(&rho));
+            let b = &st.bodies[0];
+            let sign = if b.p[0] * rot.w + b.p[1] * rot.i + b.p[2] * rot.j + b.p[3] * rot.k < 0.0 {
+                -1.0
+            } else {
+                1.0
+            };
+            let p = [rot.w, rot.i, rot.j, rot.k].map(|x| sign * x);
+            let pairs: [(&str, &[f64], &[f64]); 6] = [
+                ("r", &b.r, r.as_slice()),
+                ("p", &b.p, &p),
+                ("r_dot", &b.r_dot, rd.as_slice()),
+                ("omega", &b.omega, omega.as_slice()),
+                ("r_ddot", &b.r_ddot, rdd.as_slice()),
+                ("alpha", &b.alpha, alpha.as_slice()),
+            ];
+            for (name, ours, exact) in pairs {
+                for (k, (o, e)) in ours.iter().zip(exact).enumerate() {
+                    // Newton stops at max |Φ| ≤ 1e-12; rates up to ~30 and accelerations up
+                    // to ~300 scale that error, so 1e-9 relative to the magnitude is the bound.
+                    assert!(
+                        (o - e).abs() <= 1e-9 * (1.0 + e.abs()),
+                        "t = {}: {name}[{k}] = {o}, closed form {e}",
+                        st.t
+                    );
+                }
+            }
+        }
+    }
+
+    const SPIN: &str = "law = { start = 0.0, velocity = 10.0, acceleration = -1.5 }";
+
+    fn spin(t: f64) -> (f64, f64, f64) {
+        (10.0 * t - 0.75 * t * t, 10.0 - 1.5 * t, -1.5)
+    }
+
+    #[test]
+    fn a_revolute_driven_in_rotation_turns_about_its_axis_for_several_turns() {
+        let s = setup();
+        let drivers = format!(
+            "[[drivers]]\nname = \"motor\"\njoint = \"j\"\nmotion = \"rotation\"\n{SPIN}\n"
+        );
+        let steps = solve(&description(&s, "revolute", "", &drivers));
+        check(&s, &steps, |t| [spin(t), (0.0, 0.0, 0.0)]);
+    }
+
+    #[test]
+    fn a_prismatic_driven_in_translation_slides_along_its_axis() {
+        let s = setup();
+        let drivers = "[[drivers]]\nname = \"ram\"\njoint = \"j\"\nmotion = \"translation\"\nlaw = { offset = 0.0, amplitude = 0.8, frequency = 2.0, phase = 0.0 }\n";
+        let steps = solve(&description(&s, "prismatic", "", drivers));
+        check(&s, &steps, |t| {
+            let (sn, cs) = (2.0 * t).sin_cos();
+            [(0.0, 0.0, 0.0), (0.8 * sn, 1.6 * cs, -3.2 * sn)]
+        });
+    }
+
+    #[test]
+    fn a_cylindrical_driven_in_rotation_and_translation_follows_both_laws() {
+        let s = setup();
+        let drivers = format!(
+            "[[drivers]]\nname = \"turn\"\njoint = \"j\"\nmotion = \"rotation\"\n{SPIN}\n\
+             [[drivers]]\nname = \"push\"\njoint = \"j\"\nmotion = \"translation\"\n\
+             law = {{ start = 0.0, velocity = 0.3, acceleration = 0.2 }}\n"
+        );
+        let steps = solve(&description(&s, "cylindrical", "", &drivers));
+        check(&s, &steps, |t| [spin(t), (0.3 * t + 0.1 * t * t, 0.3 + 0.2 * t, 0.2)]);
+    }
+
+    #[test]
+    fn a_screw_driven_in_rotation_advances_one_lead_per_turn_across_turns() {
+        let s = setup();
+        let drivers =
+            format!("[[drivers]]\nname = \"turn\"\njoint = \"j\"\nmotion = \"rotation\"\n{SPIN}\n");
+        let lead = 0.25;
+        let steps = solve(&description(&s, "screw", &format!("lead = {lead:?}"), &drivers));
+        let k = lead / (2.0 * std::f64::consts::PI);
+        // θ reaches 23 rad (3.7 turns) by t = 3.
+        check(&s, &steps, |t| {
+            let (th, thd, thdd) = spin(t);
+            [(th, thd, thdd), (k * th, k * thd, k * thdd)]
+        });
     }
 }
