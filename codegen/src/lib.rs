@@ -7,11 +7,11 @@
 //! from Φ_q q̇ = ν and accelerations from Φ_q q̈ = γ. `young` imports the thesis' legacy decks;
 //! `report` writes the results as the contract's table, CSV or JSON.
 
+pub mod cli;
 pub mod desc;
 pub mod diag;
+pub mod generic;
 pub mod model;
+pub mod report;
 pub mod validate;
 pub mod young;
-pub mod generic;
-pub mod report;
-pub mod cli;

@@ -181,13 +181,7 @@ pub fn from_coordinates(
             }
         })
         .collect();
-    StepResult {
-        t,
-        iterations,
-        residual,
-        bodies,
-        points,
-    }
+    StepResult { t, iterations, residual, bodies, points }
 }
 
 /// The output formats of `solve`.
@@ -225,18 +219,10 @@ impl<W: Write> Writer<W> {
             }
             Format::Csv => writeln!(out, "{}", csv_header(mech).join(","))?,
             Format::Table => {
-                writeln!(
-                    out,
-                    "mechgen: kinematic analysis of {} ({engine} engine)",
-                    mech.name
-                )?;
+                writeln!(out, "mechgen: kinematic analysis of {} ({engine} engine)", mech.name)?;
             }
         }
-        Ok(Self {
-            out,
-            format,
-            steps: 0,
-        })
+        Ok(Self { out, format, steps: 0 })
     }
 
     /// Writes one time point.
@@ -324,12 +310,7 @@ pub fn step_json(s: &StepResult) -> serde_json::Value {
     let points: serde_json::Map<String, serde_json::Value> = s
         .points
         .iter()
-        .map(|p| {
-            (
-                p.name.clone(),
-                serde_json::json!({ "r": p.r, "v": p.v, "a": p.a }),
-            )
-        })
+        .map(|p| (p.name.clone(), serde_json::json!({ "r": p.r, "v": p.v, "a": p.a })))
         .collect();
     serde_json::json!({
         "t": s.t,
@@ -346,11 +327,7 @@ const E: [&str; 4] = ["e0", "e1", "e2", "e3"];
 /// CSV column names: `t`, `iterations`, `residual`, then `crank.r.x` … `B.a.z`.
 #[must_use]
 pub fn csv_header(mech: &Mechanism) -> Vec<String> {
-    let mut h = vec![
-        "t".to_owned(),
-        "iterations".to_owned(),
-        "residual".to_owned(),
-    ];
+    let mut h = vec!["t".to_owned(), "iterations".to_owned(), "residual".to_owned()];
     for b in mech.bodies.iter().filter(|b| !b.ground) {
         for (q, comps) in [
             ("r", &XYZ[..]),
@@ -381,16 +358,7 @@ fn num(x: f64) -> String {
 fn csv_row(s: &StepResult) -> Vec<String> {
     let mut row = vec![num(s.t), s.iterations.to_string(), num(s.residual)];
     for b in &s.bodies {
-        for v in [
-            &b.r[..],
-            &b.p,
-            &b.r_dot,
-            &b.p_dot,
-            &b.omega,
-            &b.r_ddot,
-            &b.p_ddot,
-            &b.alpha,
-        ] {
+        for v in [&b.r[..], &b.p, &b.r_dot, &b.p_dot, &b.omega, &b.r_ddot, &b.p_ddot, &b.alpha] {
             row.extend(v.iter().map(|&x| num(x)));
         }
     }
@@ -403,24 +371,12 @@ fn csv_row(s: &StepResult) -> Vec<String> {
 }
 
 fn write_table_step(out: &mut impl Write, s: &StepResult) -> io::Result<()> {
-    let w = s
-        .bodies
-        .iter()
-        .map(|b| b.name.len())
-        .chain(s.points.iter().map(|p| p.name.len()));
+    let w = s.bodies.iter().map(|b| b.name.len()).chain(s.points.iter().map(|p| p.name.len()));
     let w = w.chain([5]).max().unwrap_or(5);
     let cells = |vals: &[&[f64]]| {
-        vals.iter()
-            .flat_map(|v| v.iter())
-            .map(|x| format!(" {x:>13.6}"))
-            .collect::<String>()
+        vals.iter().flat_map(|v| v.iter()).map(|x| format!(" {x:>13.6}")).collect::<String>()
     };
-    let head = |names: &[&str]| {
-        names
-            .iter()
-            .map(|n| format!(" {n:>13}"))
-            .collect::<String>()
-    };
+    let head = |names: &[&str]| names.iter().map(|n| format!(" {n:>13}")).collect::<String>();
     writeln!(out)?;
     writeln!(
         out,
@@ -428,12 +384,7 @@ fn write_table_step(out: &mut impl Write, s: &StepResult) -> io::Result<()> {
         s.t, s.iterations, s.residual
     )?;
     writeln!(out, "POSITION")?;
-    writeln!(
-        out,
-        "{:<w$}{}",
-        "BODY",
-        head(&["X", "Y", "Z", "e0", "e1", "e2", "e3"])
-    )?;
+    writeln!(out, "{:<w$}{}", "BODY", head(&["X", "Y", "Z", "e0", "e1", "e2", "e3"]))?;
     for b in &s.bodies {
         writeln!(out, "{:<w$}{}", b.name, cells(&[&b.r, &b.p]))?;
     }
@@ -442,34 +393,20 @@ fn write_table_step(out: &mut impl Write, s: &StepResult) -> io::Result<()> {
         out,
         "{:<w$}{}",
         "BODY",
-        head(&[
-            "dX", "dY", "dZ", "de0", "de1", "de2", "de3", "w-x", "w-y", "w-z"
-        ])
+        head(&["dX", "dY", "dZ", "de0", "de1", "de2", "de3", "w-x", "w-y", "w-z"])
     )?;
     for b in &s.bodies {
-        writeln!(
-            out,
-            "{:<w$}{}",
-            b.name,
-            cells(&[&b.r_dot, &b.p_dot, &b.omega])
-        )?;
+        writeln!(out, "{:<w$}{}", b.name, cells(&[&b.r_dot, &b.p_dot, &b.omega]))?;
     }
     writeln!(out, "ACCELERATION")?;
     writeln!(
         out,
         "{:<w$}{}",
         "BODY",
-        head(&[
-            "ddX", "ddY", "ddZ", "dde0", "dde1", "dde2", "dde3", "dw-x", "dw-y", "dw-z"
-        ])
+        head(&["ddX", "ddY", "ddZ", "dde0", "dde1", "dde2", "dde3", "dw-x", "dw-y", "dw-z"])
     )?;
     for b in &s.bodies {
-        writeln!(
-            out,
-            "{:<w$}{}",
-            b.name,
-            cells(&[&b.r_ddot, &b.p_ddot, &b.alpha])
-        )?;
+        writeln!(out, "{:<w$}{}", b.name, cells(&[&b.r_ddot, &b.p_ddot, &b.alpha]))?;
     }
     if !s.points.is_empty() {
         writeln!(out, "POINTS OF INTEREST")?;

@@ -54,8 +54,7 @@ pub(crate) fn g_matrix(p: &Vector4<f64>) -> SMatrix<f64, 3, 4> {
     let e = Vector3::new(p[1], p[2], p[3]);
     let mut g = SMatrix::<f64, 3, 4>::zeros();
     g.set_column(0, &(-e));
-    g.fixed_view_mut::<3, 3>(0, 1)
-        .copy_from(&(Matrix3::identity() * p[0] + skew(&e)));
+    g.fixed_view_mut::<3, 3>(0, 1).copy_from(&(Matrix3::identity() * p[0] + skew(&e)));
     g
 }
 
@@ -84,14 +83,7 @@ impl BodyState {
         let p = Vector4::new(q[3], q[4], q[5], q[6]);
         let rd = Vector3::new(qd[0], qd[1], qd[2]);
         let pd = Vector4::new(qd[3], qd[4], qd[5], qd[6]);
-        Self {
-            r,
-            p,
-            rd,
-            pd,
-            a: rotation(&p),
-            a_of_pd: rotation(&pd),
-        }
+        Self { r, p, rd, pd, a: rotation(&p), a_of_pd: rotation(&pd) }
     }
 }
 
@@ -110,12 +102,7 @@ impl Vk {
         let bm = b_matrix(&b.p, local);
         let mut jac = [Block3::zeros(); 2];
         jac[slot].fixed_view_mut::<3, 4>(0, 3).copy_from(&bm);
-        Self {
-            v: b.a * local,
-            jac,
-            d1: bm * b.pd,
-            d2: b.a_of_pd * local * 2.0,
-        }
+        Self { v: b.a * local, jac, d1: bm * b.pd, d2: b.a_of_pd * local * 2.0 }
     }
 
     /// The global position r + A s' of a body-fixed point (thesis eq. 4.9).
@@ -123,9 +110,7 @@ impl Vk {
         let mut k = Self::vector(slot, b, local);
         k.v += b.r;
         k.d1 += b.rd;
-        k.jac[slot]
-            .fixed_view_mut::<3, 3>(0, 0)
-            .copy_from(&Matrix3::identity());
+        k.jac[slot].fixed_view_mut::<3, 3>(0, 0).copy_from(&Matrix3::identity());
         k
     }
 
@@ -144,10 +129,7 @@ impl Vk {
         let (su, sw) = (skew(&self.v), skew(&w.v));
         Self {
             v: self.v.cross(&w.v),
-            jac: [
-                su * w.jac[0] - sw * self.jac[0],
-                su * w.jac[1] - sw * self.jac[1],
-            ],
+            jac: [su * w.jac[0] - sw * self.jac[0], su * w.jac[1] - sw * self.jac[1]],
             d1: self.d1.cross(&w.v) + self.v.cross(&w.d1),
             d2: self.d2.cross(&w.v) + self.d1.cross(&w.d1) * 2.0 + self.v.cross(&w.d2),
         }
@@ -171,10 +153,7 @@ impl Vk {
     pub(crate) fn component(&self, k: usize) -> Sk {
         Sk {
             v: self.v[k],
-            jac: [
-                self.jac[0].fixed_rows::<1>(k).into(),
-                self.jac[1].fixed_rows::<1>(k).into(),
-            ],
+            jac: [self.jac[0].fixed_rows::<1>(k).into(), self.jac[1].fixed_rows::<1>(k).into()],
             t: 0.0,
             d1: self.d1[k],
             d2: self.d2[k],
@@ -195,42 +174,21 @@ pub(crate) struct Sk {
 impl Sk {
     /// A constant.
     pub(crate) fn constant(v: f64) -> Self {
-        Self {
-            v,
-            jac: [Block1::zeros(); 2],
-            t: 0.0,
-            d1: 0.0,
-            d2: 0.0,
-        }
+        Self { v, jac: [Block1::zeros(); 2], t: 0.0, d1: 0.0, d2: 0.0 }
     }
 
     /// A law s(t) with its derivatives `(s, ṡ, s̈)`: a function of time only.
     pub(crate) fn time(s: (f64, f64, f64)) -> Self {
-        Self {
-            v: s.0,
-            jac: [Block1::zeros(); 2],
-            t: s.1,
-            d1: s.1,
-            d2: s.2,
-        }
+        Self { v: s.0, jac: [Block1::zeros(); 2], t: s.1, d1: s.1, d2: s.2 }
     }
 
     /// Coordinate `index` (0–6 in `[x, y, z, e0, e1, e2, e3]`) of the body in `slot`.
     pub(crate) fn coordinate(slot: usize, b: &BodyState, index: usize) -> Self {
-        let (v, d1) = if index < 3 {
-            (b.r[index], b.rd[index])
-        } else {
-            (b.p[index - 3], b.pd[index - 3])
-        };
+        let (v, d1) =
+            if index < 3 { (b.r[index], b.rd[index]) } else { (b.p[index - 3], b.pd[index - 3]) };
         let mut jac = [Block1::zeros(); 2];
         jac[slot][index] = 1.0;
-        Self {
-            v,
-            jac,
-            t: 0.0,
-            d1,
-            d2: 0.0,
-        }
+        Self { v, jac, t: 0.0, d1, d2: 0.0 }
     }
 
     /// a + b.
@@ -264,10 +222,7 @@ impl Sk {
     pub(crate) fn mul(&self, b: &Self) -> Self {
         Self {
             v: self.v * b.v,
-            jac: [
-                self.jac[0] * b.v + b.jac[0] * self.v,
-                self.jac[1] * b.v + b.jac[1] * self.v,
-            ],
+            jac: [self.jac[0] * b.v + b.jac[0] * self.v, self.jac[1] * b.v + b.jac[1] * self.v],
             t: self.t * b.v + self.v * b.t,
             d1: self.d1 * b.v + self.v * b.d1,
             d2: self.d2 * b.v + 2.0 * self.d1 * b.d1 + self.v * b.d2,

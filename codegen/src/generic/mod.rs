@@ -113,12 +113,7 @@ impl<'m> Equations<'m> {
         let mut labels = Vec::new();
         let mut push = |kind: &'static str, name: &str, rows: usize| {
             for row in 1..=rows {
-                labels.push(RowLabel {
-                    kind,
-                    name: name.to_owned(),
-                    row,
-                    rows,
-                });
+                labels.push(RowLabel { kind, name: name.to_owned(), row, rows });
             }
         };
         for joint in &mech.joints {
@@ -136,13 +131,7 @@ impl<'m> Equations<'m> {
             }
         }
         let normals = mech.joints.iter().map(joint_normals).collect();
-        Self {
-            mech,
-            offset,
-            labels,
-            unknowns,
-            normals,
-        }
+        Self { mech, offset, labels, unknowns, normals }
     }
 
     /// The mechanism.
@@ -197,9 +186,8 @@ impl<'m> Equations<'m> {
             .map(|(body, off)| match *off {
                 Some(o) => BodyState::new(&q.as_slice()[o..o + 7], &qd.as_slice()[o..o + 7]),
                 None => {
-                    let fixed = [
-                        body.r.x, body.r.y, body.r.z, body.p[0], body.p[1], body.p[2], body.p[3],
-                    ];
+                    let fixed =
+                        [body.r.x, body.r.y, body.r.z, body.p[0], body.p[1], body.p[2], body.p[3]];
                     BodyState::new(&fixed, &[0.0; 7])
                 }
             })
@@ -241,21 +229,12 @@ impl<'m> Equations<'m> {
         }
         for c in &self.mech.constraints {
             match c.kind {
-                ConstraintKind::Fix {
-                    body,
-                    coordinate,
-                    value,
-                } => {
+                ConstraintKind::Fix { body, coordinate, value } => {
                     let sk = Sk::coordinate(0, &states[body.0], coordinate.index())
                         .sub(&Sk::constant(value));
                     emit([self.offset[body.0], None], sk, &mut sys);
                 }
-                ConstraintKind::CoordinateDifference {
-                    body_i,
-                    body_j,
-                    coordinate,
-                    value,
-                } => {
+                ConstraintKind::CoordinateDifference { body_i, body_j, coordinate, value } => {
                     let idx = coordinate.index();
                     let sk = Sk::coordinate(0, &states[body_i.0], idx)
                         .sub(&Sk::coordinate(1, &states[body_j.0], idx))
@@ -277,11 +256,7 @@ impl<'m> Equations<'m> {
                         }
                         Motion::Translation => axial_position(jt, bi, bj).sub(&s),
                     };
-                    emit(
-                        [self.offset[jt.body_i.0], self.offset[jt.body_j.0]],
-                        sk,
-                        &mut sys,
-                    );
+                    emit([self.offset[jt.body_i.0], self.offset[jt.body_j.0]], sk, &mut sys);
                 }
                 DriverTarget::Absolute { body, coordinate } => {
                     let b = &states[body.0];
@@ -311,9 +286,7 @@ impl<'m> Equations<'m> {
             if off.is_some() {
                 // Thesis eq. 3.13: pᵀp − 1 = 0, Jacobian 2pᵀ, γ = −2ṗᵀṗ.
                 let p: Vec<Sk> = (3..7).map(|i| Sk::coordinate(0, b, i)).collect();
-                let sk = p
-                    .iter()
-                    .fold(Sk::constant(-1.0), |acc, e| acc.add(&e.mul(e)));
+                let sk = p.iter().fold(Sk::constant(-1.0), |acc, e| acc.add(&e.mul(e)));
                 emit([*off, None], sk, &mut sys);
             }
         }
@@ -327,9 +300,7 @@ impl<'m> Equations<'m> {
         let pj = Vk::point(1, bj, &joint.point_j);
         let d = pj.sub(&pi);
         let spherical = || (0..3).map(|c| d.component(c)).collect::<Vec<_>>();
-        let axes = joint
-            .axis
-            .map(|(ai, aj)| (Vk::vector(0, bi, &ai), Vk::vector(1, bj, &aj)));
+        let axes = joint.axis.map(|(ai, aj)| (Vk::vector(0, bi, &ai), Vk::vector(1, bj, &aj)));
         let normals = self.normals[k].map(|(b, c)| (Vk::vector(0, bi, &b), Vk::vector(0, bi, &c)));
         let parallel = || {
             let (_, aj) = axes.as_ref().expect("validated: joint has axes");
@@ -375,11 +346,7 @@ impl<'m> Equations<'m> {
                 rows
             }
             JointKind::Distance { length } => {
-                vec![
-                    d.dot(&d)
-                        .sub(&Sk::constant(length * length))
-                        .scale(0.5 / length),
-                ]
+                vec![d.dot(&d).sub(&Sk::constant(length * length)).scale(0.5 / length)]
             }
         }
     }

@@ -142,11 +142,7 @@ impl Equations<'_> {
         let jac = self.evaluate(&q, &zero, t0).jac;
         let svd = SVD::new(jac.clone(), false, true);
         let smax = svd.singular_values.max();
-        let rank = svd
-            .singular_values
-            .iter()
-            .filter(|&&s| s > RANK_TOLERANCE * smax)
-            .count();
+        let rank = svd.singular_values.iter().filter(|&&s| s > RANK_TOLERANCE * smax).count();
         let mut free_bodies = Vec::new();
         if rank < n {
             let v_t = svd.v_t.as_ref().expect("requested V");
@@ -172,9 +168,7 @@ impl Equations<'_> {
             .filter(|(_, l)| l.kind == "driver")
             .map(|(k, _)| k)
             .collect();
-        let kept: Vec<usize> = (0..self.equations())
-            .filter(|k| !driver_rows.contains(k))
-            .collect();
+        let kept: Vec<usize> = (0..self.equations()).filter(|k| !driver_rows.contains(k)).collect();
         let rank_nd = numeric_rank(&jac.select_rows(kept.iter()));
         let (active, redundant) = independent_rows(&jac);
         Preparation {
@@ -266,11 +260,7 @@ impl<'e, 'm> Analysis<'e, 'm> {
         Self {
             eq,
             active: redundant.then(|| prep.active.clone()),
-            start: if redundant && prep.assembled {
-                prep.q.clone()
-            } else {
-                eq.initial_estimate()
-            },
+            start: if redundant && prep.assembled { prep.q.clone() } else { eq.initial_estimate() },
             tolerance: mech.solver.tolerance,
             max_iterations: mech.solver.max_iterations,
         }
@@ -290,11 +280,7 @@ impl<'e, 'm> Analysis<'e, 'm> {
     /// Returns the first error of `sink`.
     pub fn run<E>(&self, mut sink: impl FnMut(&Frame) -> Result<(), E>) -> Result<StepReport, E> {
         let grid = self.eq.mechanism().time;
-        let mut report = StepReport {
-            steps: 0,
-            iterations: 0,
-            failure: None,
-        };
+        let mut report = StepReport { steps: 0, iterations: 0, failure: None };
         let mut prev: Option<Frame> = None;
         for k in 0..grid.count {
             let t = grid.at(k);
@@ -384,10 +370,7 @@ impl<'e, 'm> Analysis<'e, 'm> {
                 ));
             }
             let jac = self.restrict_mat(sys.jac);
-            let dq = self
-                .factor(&jac, t)?
-                .solve(&(-phi))
-                .expect("checked non-singular");
+            let dq = self.factor(&jac, t)?.solve(&(-phi)).expect("checked non-singular");
             q += dq;
             iterations += 1;
         }
@@ -402,9 +385,7 @@ impl<'e, 'm> Analysis<'e, 'm> {
         let residual = max_abs(&sys.phi);
         self.check_branch(&q, t)?;
         let lu = self.factor(&self.restrict_mat(sys.jac), t)?;
-        let qd = lu
-            .solve(&self.restrict_vec(sys.nu))
-            .expect("checked non-singular");
+        let qd = lu.solve(&self.restrict_vec(sys.nu)).expect("checked non-singular");
         let gamma = self.restrict_vec(self.eq.evaluate(&q, &qd, t).gamma);
         let qdd = lu.solve(&gamma).expect("checked non-singular");
         if !all_finite(&qd) || !all_finite(&qdd) {
@@ -415,15 +396,7 @@ impl<'e, 'm> Analysis<'e, 'm> {
                 Vec::new(),
             ));
         }
-        Ok(Frame {
-            index,
-            t,
-            iterations,
-            residual,
-            q,
-            qd,
-            qdd,
-        })
+        Ok(Frame { index, t, iterations, residual, q, qd, qdd })
     }
 
     /// LU with partial pivoting of the (square) Jacobian, refused when a pivot is below
@@ -436,9 +409,9 @@ impl<'e, 'm> Analysis<'e, 'm> {
         let lu = jac.clone().lu();
         let u = lu.u();
         let diag = u.diagonal();
-        let (min, max) = diag.iter().fold((f64::INFINITY, 0.0_f64), |(lo, hi), x| {
-            (lo.min(x.abs()), hi.max(x.abs()))
-        });
+        let (min, max) = diag
+            .iter()
+            .fold((f64::INFINITY, 0.0_f64), |(lo, hi), x| (lo.min(x.abs()), hi.max(x.abs())));
         if min.is_nan() || min <= SINGULAR_PIVOT_RATIO * max {
             let svd = SVD::new(jac.clone(), true, false);
             let u = svd.u.as_ref().expect("requested U");
@@ -472,11 +445,7 @@ impl<'e, 'm> Analysis<'e, 'm> {
         let mech = self.eq.mechanism();
         let states = self.eq.states(q, &DVector::zeros(q.len()));
         for d in &mech.drivers {
-            if let DriverTarget::Joint {
-                joint,
-                motion: Motion::Rotation,
-            } = d.target
-            {
+            if let DriverTarget::Joint { joint, motion: Motion::Rotation } = d.target {
                 let jt = &mech.joints[joint.0];
                 let s = d.law.eval(t).0;
                 if angle_alignment(jt, &states[jt.body_i.0], &states[jt.body_j.0], s) <= 0.0 {
@@ -523,11 +492,6 @@ impl<'e, 'm> Analysis<'e, 'm> {
     ) -> Failure {
         let mut seen = std::collections::BTreeSet::new();
         constraints.retain(|c| seen.insert(c.clone()));
-        Failure {
-            kind,
-            t,
-            message,
-            constraints,
-        }
+        Failure { kind, t, message, constraints }
     }
 }
