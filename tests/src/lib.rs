@@ -1,1 +1,10 @@
-//! x
+//! The workspace's integration tests: the thesis' seed examples against YOUNG's output, their
+//! closed forms and an independent solution, and the invariants every analysis must keep.
+//!
+//! The reference data live in `shared/reference/seed-examples` beside the workspace; the
+//! tests say, at each comparison, which reference value is trusted and how far.
+
+#[cfg(test)]
+mod harness;
+#[cfg(test)]
+mod seed_examples;
