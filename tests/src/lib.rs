@@ -1,10 +1,13 @@
 //! The workspace's integration tests: the thesis' seed examples against YOUNG's output, their
-//! closed forms and an independent solution, and the invariants every analysis must keep.
+//! closed forms and an independent solution; the RSSR against Appendix C; and the invariants
+//! every analysis must keep.
 //!
 //! The reference data live in `shared/reference/seed-examples` beside the workspace; the
 //! tests say, at each comparison, which reference value is trusted and how far.
 
 #[cfg(test)]
 mod harness;
+#[cfg(test)]
+mod rssr_reference;
 #[cfg(test)]
 mod seed_examples;
