@@ -49,16 +49,6 @@ fn euler_parameters_have_unit_norm_at_every_step_of_every_example() {
     }
 }
 
-/// Steps whose reported max |Φ| is known to exceed the solver tolerance.
-///
-/// FIXME: the generic engine (`generic/solve.rs`, `Analysis::step`) stops Newton when
-/// max |Φ| ≤ tolerance, then renormalises p and reports the residual at the renormalised q
-/// without checking it again. At the 4-bar's t = 0.8 Newton stops after 3 iterations at
-/// 6.7e-11 with |p| − 1 = 6.0e-12 (coupler) and 9.9e-12 (rocker); renormalising moves the
-/// rocker's revolute point and `revolute2` row 3 ends at 1.4e-10 > 1e-10. Remove the entry
-/// when the engine iterates (or checks) after renormalising.
-const RESIDUAL_ABOVE_TOLERANCE: [(&str, f64); 1] = [("4-bar", 0.8)];
-
 #[test]
 fn every_step_of_every_example_is_converged_within_the_solver_tolerance() {
     for example in all_examples() {
@@ -67,19 +57,6 @@ fn every_step_of_every_example_is_converged_within_the_solver_tolerance() {
         assert_eq!(run.frames.len(), run.mechanism.time.count, "{example}: the whole grid");
         let tolerance = run.mechanism.solver.tolerance;
         for frame in &run.frames {
-            let known = RESIDUAL_ABOVE_TOLERANCE
-                .iter()
-                .any(|&(e, t)| e == example && (frame.t - t).abs() < 1e-9);
-            if known {
-                assert!(
-                    frame.residual > tolerance,
-                    "{example}: t = {}: max |Φ| = {:e} is now within the tolerance; remove \
-                     the entry from RESIDUAL_ABOVE_TOLERANCE",
-                    frame.t,
-                    frame.residual
-                );
-                continue;
-            }
             assert!(
                 frame.residual <= tolerance,
                 "{example}: t = {}: max |Φ| = {:e} > tolerance {tolerance:e}",
