@@ -15,3 +15,4 @@ pub mod model;
 pub mod report;
 pub mod validate;
 pub mod young;
+pub mod expr;

@@ -1,0 +1,458 @@
+//! The expression IR of the code generator: a hash-consed arena of scalar expressions in the
+//! unknowns q, their rates q̇ and the time t.
+//!
+//! Invariants (after egg's `RecExpr`): children are interned before their parents, so node
+//! order is topological and every pass is one forward sweep; equal nodes share one id, so
+//! common subexpressions are shared across Φ, Φ_q, ν and γ for free. The smart constructors
+//! fold constants, drop neutral elements (x + 0, x·1), turn x·0 into 0 (all values are
+//! finite by construction, so IEEE's 0·∞ = NaN cannot arise) and order the operands of
+//! commutative operators by id, so that a·b and b·a are one node.
+
+use std::collections::HashMap;
+use std::fmt;
+use std::ops::Index;
+
+/// Index of a node in an [`ExprPool`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub struct ExprId(u32);
+
+impl ExprId {
+    /// The position of the node in the pool (topological order).
+    #[must_use]
+    pub fn index(self) -> usize {
+        self.0 as usize
+    }
+}
+
+/// A leaf symbol.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub enum Var {
+    /// Unknown q_k.
+    Q(u32),
+    /// Rate q̇_k (appears only in γ).
+    Qd(u32),
+    /// Time t.
+    T,
+}
+
+/// One node of the arena.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Node {
+    /// A finite constant, stored as bits with −0.0 normalised to 0.0.
+    Const(u64),
+    /// A symbol.
+    Var(Var),
+    /// −a.
+    Neg(ExprId),
+    /// a + b.
+    Add(ExprId, ExprId),
+    /// a · b.
+    Mul(ExprId, ExprId),
+    /// sin a.
+    Sin(ExprId),
+    /// cos a.
+    Cos(ExprId),
+}
+
+impl Node {
+    /// The children, in order.
+    pub fn children(&self) -> impl Iterator<Item = ExprId> {
+        let (a, b) = match *self {
+            Self::Const(_) | Self::Var(_) => (None, None),
+            Self::Neg(a) | Self::Sin(a) | Self::Cos(a) => (Some(a), None),
+            Self::Add(a, b) | Self::Mul(a, b) => (Some(a), Some(b)),
+        };
+        a.into_iter().chain(b)
+    }
+}
+
+/// The arena.
+#[derive(Clone, Debug, Default)]
+pub struct ExprPool {
+    nodes: Vec<Node>,
+    // Interning only: iteration order never reaches any output.
+    #[allow(clippy::disallowed_types)]
+    index: HashMap<Node, ExprId>,
+    #[allow(clippy::disallowed_types)]
+    derivatives: HashMap<(ExprId, Var), ExprId>,
+}
+
+impl Index<ExprId> for ExprPool {
+    type Output = Node;
+    fn index(&self, id: ExprId) -> &Node {
+        &self.nodes[id.index()]
+    }
+}
+
+impl ExprPool {
+    /// An empty pool.
+    #[must_use]
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// Number of nodes.
+    #[must_use]
+    pub fn len(&self) -> usize {
+        self.nodes.len()
+    }
+
+    /// Whether the pool is empty.
+    #[must_use]
+    pub fn is_empty(&self) -> bool {
+        self.nodes.is_empty()
+    }
+
+    /// All nodes in topological order.
+    #[must_use]
+    pub fn nodes(&self) -> &[Node] {
+        &self.nodes
+    }
+
+    fn intern(&mut self, node: Node) -> ExprId {
+        if let Some(&id) = self.index.get(&node) {
+            return id;
+        }
+        let id = ExprId(u32::try_from(self.nodes.len()).expect("fewer than 2³² nodes"));
+        self.nodes.push(node);
+        self.index.insert(node, id);
+        id
+    }
+
+    /// A constant.
+    ///
+    /// # Panics
+    /// If `v` is not finite (descriptions are validated, so this is a bug).
+    pub fn constant(&mut self, v: f64) -> ExprId {
+        assert!(v.is_finite(), "expression constants are finite");
+        let v = if v == 0.0 { 0.0 } else { v };
+        self.intern(Node::Const(v.to_bits()))
+    }
+
+    /// A symbol.
+    pub fn var(&mut self, v: Var) -> ExprId {
+        self.intern(Node::Var(v))
+    }
+
+    /// The value of a constant node.
+    #[must_use]
+    pub fn as_const(&self, id: ExprId) -> Option<f64> {
+        match self[id] {
+            Node::Const(bits) => Some(f64::from_bits(bits)),
+            _ => None,
+        }
+    }
+
+    /// −a.
+    Neg(ExprId),
+    /// a + b.
+    Add(ExprId, ExprId),
+    /// a · b.
+    Mul(ExprId, ExprId),
+    /// sin a.
+    Sin(ExprId),
+    /// cos a.
+    Cos(ExprId),
+}
+
+impl Node {
+    /// The children, in order.
+    pub fn children(&self) -> impl Iterator<Item = ExprId> {
+        let (a, b) = match *self {
+            Self::Const(_) | Self::Var(_) => (None, None),
+            Self::Neg(a) | Self::Sin(a) | Self::Cos(a) => (Some(a), None),
+            Self::Add(a, b) | Self::Mul(a, b) => (Some(a), Some(b)),
+        };
+        a.into_iter().chain(b)
+    }
+}
+
+/// The arena.
+#[derive(Clone, Debug, Default)]
+pub struct ExprPool {
+    nodes: Vec<Node>,
+    // Interning only: iteration order never reaches any output.
+    #[allow(clippy::disallowed_types)]
+    index: HashMap<Node, ExprId>,
+    #[allow(clippy::disallowed_types)]
+    derivatives: HashMap<(ExprId, Var), ExprId>,
+}
+
+impl Index<ExprId> for ExprPool {
+    type Output = Node;
+    fn index(&self, id: ExprId) -> &Node {
+        &self.nodes[id.index()]
+    }
+}
+
+impl ExprPool {
+    /// An empty pool.
+    #[must_use]
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// Number of nodes.
+    #[must_use]
+    pub fn len(&self) -> usize {
+        self.nodes.len()
+    }
+
+    /// Whether the pool is empty.
+    #[must_use]
+    pub fn is_empty(&self) -> bool {
+        self.nodes.is_empty()
+    }
+
+    /// All nodes in topological order.
+    #[must_use]
+    pub fn nodes(&self) -> &[Node] {
+        &self.nodes
+    }
+
+    fn intern(&mut self, node: Node) -> ExprId {
+        if let Some(&id) = self.index.get(&node) {
+            return id;
+        }
+        let id = ExprId(u32::try_from(self.nodes.len()).expect("fewer than 2³² nodes"));
+        self.nodes.push(node);
+        self.index.insert(node, id);
+        id
+    }
+
+    /// A constant.
+    ///
+    /// # Panics
+    /// If `v` is not finite (descriptions are validated, so this is a bug).
+    pub fn constant(&mut self, v: f64) -> ExprId {
+        assert!(v.is_finite(), "expression constants are finite");
+        let v = if v == 0.0 { 0.0 } else { v };
+        self.intern(Node::Const(v.to_bits()))
+    }
+
+    /// A symbol.
+    pub fn var(&mut self, v: Var) -> ExprId {
+        self.intern(Node::Var(v))
+    }
+
+    /// The value of a constant node.
+    #[must_use]
+    pub fn as_const(&self, id: ExprId) -> Option<f64> {
+        match self[id] {
+            Node::Const(bits) => Some(f64::from_bits(bits)),
+            _ => None,
+        }
+    }
+
+    /// Whether the node is the constant `v`.
+    fn is(&self, id: ExprId, v: f64) -> bool {
+        self.as_const(id) == Some(v)
+    }
+
+    /// −a.
+    pub fn neg(&mut self, a: ExprId) -> ExprId {
+        match self[a] {
+            Node::Const(_) => {
+                let v = self.as_const(a).expect("constant");
+                self.constant(-v)
+            }
+            Node::Neg(inner) => inner,
+            _ => self.intern(Node::Neg(a)),
+        }
+    }
+
+    /// a + b.
+    pub fn add(&mut self, a: ExprId, b: ExprId) -> ExprId {
+        match (self.as_const(a), self.as_const(b)) {
+            (Some(x), Some(y)) => return self.constant(x + y),
+            (Some(x), None) if x == 0.0 => return b,
+            (None, Some(y)) if y == 0.0 => return a,
+            _ => {}
+        }
+        // a + (−a) = 0.
+        if self[b] == Node::Neg(a) || self[a] == Node::Neg(b) {
+            return self.constant(0.0);
+        }
+        let (a, b) = if a <= b { (a, b) } else { (b, a) };
+        self.intern(Node::Add(a, b))
+    }
+
+    /// a − b.
+    pub fn sub(&mut self, a: ExprId, b: ExprId) -> ExprId {
+        let nb = self.neg(b);
+        self.add(a, nb)
+    }
+
+    /// a · b.
+    pub fn mul(&mut self, a: ExprId, b: ExprId) -> ExprId {
+        match (self.as_const(a), self.as_const(b)) {
+            (Some(x), Some(y)) => return self.constant(x * y),
+            (Some(x), _) | (_, Some(x)) if x == 0.0 => return self.constant(0.0),
+            (Some(x), None) if x == 1.0 => return b,
+            (None, Some(y)) if y == 1.0 => return a,
+            (Some(x), None) if x == -1.0 => return self.neg(b),
+            (None, Some(y)) if y == -1.0 => return self.neg(a),
+            _ => {}
+        }
+        // Pull negations out so that −a·b and a·(−b) share the node a·b.
+        match (self[a], self[b]) {
+            (Node::Neg(x), Node::Neg(y)) => return self.mul(x, y),
+            (Node::Neg(x), _) => {
+                let m = self.mul(x, b);
+                return self.neg(m);
+            }
+            (_, Node::Neg(y)) => {
+                let m = self.mul(a, y);
+                return self.neg(m);
+            }
+            _ => {}
+        }
+        // Constants times constant-scaled terms fold: c·(d·x) = (cd)·x.
+        if let (Some(c), Node::Mul(x, y)) = (self.as_const(a), self[b]) {
+            if let Some(d) = self.as_const(x) {
+                let cd = self.constant(c * d);
+                return self.mul(cd, y);
+            }
+        }
+        if let (Node::Mul(x, y), Some(c)) = (self[a], self.as_const(b)) {
+            if let Some(d) = self.as_const(x) {
+                let cd = self.constant(c * d);
+                return self.mul(cd, y);
+            }
+        }
+        let (a, b) = if a <= b { (a, b) } else { (b, a) };
+        // Keep a constant factor first (the pool orders constants by id otherwise).
+        let (a, b) = if self.as_const(b).is_some() { (b, a) } else { (a, b) };
+        self.intern(Node::Mul(a, b))
+    }
+
+    /// sin a.
+    pub fn sin(&mut self, a: ExprId) -> ExprId {
+        match self.as_const(a) {
+            Some(x) => self.constant(x.sin()),
+            None => self.intern(Node::Sin(a)),
+        }
+    }
+
+    /// cos a.
+    pub fn cos(&mut self, a: ExprId) -> ExprId {
+        match self.as_const(a) {
+            Some(x) => self.constant(x.cos()),
+            None => self.intern(Node::Cos(a)),
+        }
+    }
+
+    /// Σ terms (0 for none).
+    pub fn sum(&mut self, terms: impl IntoIterator<Item = ExprId>) -> ExprId {
+        let zero = self.constant(0.0);
+        terms.into_iter().fold(zero, |acc, t| self.add(acc, t))
+    }
+
+    /// ∂e/∂v, memoised.
+    pub fn diff(&mut self, e: ExprId, v: Var) -> ExprId {
+        if let Some(&d) = self.derivatives.get(&(e, v)) {
+            return d;
+        }
+        let d = match self[e] {
+            Node::Const(_) => self.constant(0.0),
+            Node::Var(w) => self.constant(if w == v { 1.0 } else { 0.0 }),
+            Node::Neg(a) => {
+                let da = self.diff(a, v);
+                self.neg(da)
+            }
+            Node::Add(a, b) => {
+                let (da, db) = (self.diff(a, v), self.diff(b, v));
+                self.add(da, db)
+            }
+            Node::Mul(a, b) => {
+                let (da, db) = (self.diff(a, v), self.diff(b, v));
+                let (x, y) = (self.mul(da, b), self.mul(a, db));
+                self.add(x, y)
+            }
+            Node::Sin(a) => {
+                let da = self.diff(a, v);
+                let c = self.cos(a);
+                self.mul(c, da)
+            }
+            Node::Cos(a) => {
+                let da = self.diff(a, v);
+                let s = self.sin(a);
+                let m = self.mul(s, da);
+                self.neg(m)
+            }
+        };
+        self.derivatives.insert((e, v), d);
+        d
+    }
+
+    /// Whether `e` depends on `v` (a cheap structural test used to skip zero derivatives).
+    #[must_use]
+    pub fn depends_on(&self, e: ExprId, v: Var) -> bool {
+        let mut seen = vec![false; e.index() + 1];
+        let mut stack = vec![e];
+        while let Some(x) = stack.pop() {
+            if std::mem::replace(&mut seen[x.index()], true) {
+                continue;
+            }
+            match self[x] {
+                Node::Var(w) if w == v => return true,
+                node => stack.extend(node.children()),
+            }
+        }
+        false
+    }
+
+    /// Evaluates `roots` numerically (tests and the generator's own checks).
+    #[must_use]
+    pub fn eval(&self, roots: &[ExprId], q: &[f64], qd: &[f64], t: f64) -> Vec<f64> {
+        let last = roots.iter().map(|r| r.index()).max().map_or(0, |m| m + 1);
+        let mut val = vec![0.0; last];
+        for (k, node) in self.nodes[..last].iter().enumerate() {
+            val[k] = match *node {
+                Node::Const(bits) => f64::from_bits(bits),
+                Node::Var(Var::Q(i)) => q[i as usize],
+                Node::Var(Var::Qd(i)) => qd[i as usize],
+                Node::Var(Var::T) => t,
+                Node::Neg(a) => -val[a.index()],
+                Node::Add(a, b) => val[a.index()] + val[b.index()],
+                Node::Mul(a, b) => val[a.index()] * val[b.index()],
+                Node::Sin(a) => val[a.index()].sin(),
+                Node::Cos(a) => val[a.index()].cos(),
+            };
+        }
+        roots.iter().map(|r| val[r.index()]).collect()
+    }
+
+    /// A displayable view of `e` in infix form.
+    #[must_use]
+    pub fn display(&self, e: ExprId) -> Display<'_> {
+        Display { pool: self, e }
+    }
+}
+
+/// Infix rendering of an expression (used by tests).
+pub struct Display<'p> {
+    pool: &'p ExprPool,
+    e: ExprId,
+}
+
+impl fmt::Display for Display<'_> {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let p = self.pool;
+        let sub = |e| Display { pool: p, e };
+        match p[self.e] {
+            Node::Const(bits) => write!(f, "{:?}", f64::from_bits(bits)),
+            Node::Var(Var::Q(k)) => write!(f, "q{k}"),
+            Node::Var(Var::Qd(k)) => write!(f, "qd{k}"),
+            Node::Var(Var::T) => write!(f, "t"),
+            Node::Neg(a) => write!(f, "-({})", sub(a)),
+            Node::Add(a, b) => write!(f, "({} + {})", sub(a), sub(b)),
+            Node::Mul(a, b) => write!(f, "{} * {}", sub(a), sub(b)),
+            Node::Sin(a) => write!(f, "sin({})", sub(a)),
+            Node::Cos(a) => write!(f, "cos({})", sub(a)),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests;
