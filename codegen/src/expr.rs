@@ -144,112 +144,6 @@ impl ExprPool {
     }
 
     /// −a.
-    Neg(ExprId),
-    /// a + b.
-    Add(ExprId, ExprId),
-    /// a · b.
-    Mul(ExprId, ExprId),
-    /// sin a.
-    Sin(ExprId),
-    /// cos a.
-    Cos(ExprId),
-}
-
-impl Node {
-    /// The children, in order.
-    pub fn children(&self) -> impl Iterator<Item = ExprId> {
-        let (a, b) = match *self {
-            Self::Const(_) | Self::Var(_) => (None, None),
-            Self::Neg(a) | Self::Sin(a) | Self::Cos(a) => (Some(a), None),
-            Self::Add(a, b) | Self::Mul(a, b) => (Some(a), Some(b)),
-        };
-        a.into_iter().chain(b)
-    }
-}
-
-/// The arena.
-#[derive(Clone, Debug, Default)]
-pub struct ExprPool {
-    nodes: Vec<Node>,
-    // Interning only: iteration order never reaches any output.
-    #[allow(clippy::disallowed_types)]
-    index: HashMap<Node, ExprId>,
-    #[allow(clippy::disallowed_types)]
-    derivatives: HashMap<(ExprId, Var), ExprId>,
-}
-
-impl Index<ExprId> for ExprPool {
-    type Output = Node;
-    fn index(&self, id: ExprId) -> &Node {
-        &self.nodes[id.index()]
-    }
-}
-
-impl ExprPool {
-    /// An empty pool.
-    #[must_use]
-    pub fn new() -> Self {
-        Self::default()
-    }
-
-    /// Number of nodes.
-    #[must_use]
-    pub fn len(&self) -> usize {
-        self.nodes.len()
-    }
-
-    /// Whether the pool is empty.
-    #[must_use]
-    pub fn is_empty(&self) -> bool {
-        self.nodes.is_empty()
-    }
-
-    /// All nodes in topological order.
-    #[must_use]
-    pub fn nodes(&self) -> &[Node] {
-        &self.nodes
-    }
-
-    fn intern(&mut self, node: Node) -> ExprId {
-        if let Some(&id) = self.index.get(&node) {
-            return id;
-        }
-        let id = ExprId(u32::try_from(self.nodes.len()).expect("fewer than 2³² nodes"));
-        self.nodes.push(node);
-        self.index.insert(node, id);
-        id
-    }
-
-    /// A constant.
-    ///
-    /// # Panics
-    /// If `v` is not finite (descriptions are validated, so this is a bug).
-    pub fn constant(&mut self, v: f64) -> ExprId {
-        assert!(v.is_finite(), "expression constants are finite");
-        let v = if v == 0.0 { 0.0 } else { v };
-        self.intern(Node::Const(v.to_bits()))
-    }
-
-    /// A symbol.
-    pub fn var(&mut self, v: Var) -> ExprId {
-        self.intern(Node::Var(v))
-    }
-
-    /// The value of a constant node.
-    #[must_use]
-    pub fn as_const(&self, id: ExprId) -> Option<f64> {
-        match self[id] {
-            Node::Const(bits) => Some(f64::from_bits(bits)),
-            _ => None,
-        }
-    }
-
-    /// Whether the node is the constant `v`.
-    fn is(&self, id: ExprId, v: f64) -> bool {
-        self.as_const(id) == Some(v)
-    }
-
-    /// −a.
     pub fn neg(&mut self, a: ExprId) -> ExprId {
         match self[a] {
             Node::Const(_) => {
@@ -265,8 +159,8 @@ impl ExprPool {
     pub fn add(&mut self, a: ExprId, b: ExprId) -> ExprId {
         match (self.as_const(a), self.as_const(b)) {
             (Some(x), Some(y)) => return self.constant(x + y),
-            (Some(x), None) if x == 0.0 => return b,
-            (None, Some(y)) if y == 0.0 => return a,
+            (Some(0.0), None) => return b,
+            (None, Some(0.0)) => return a,
             _ => {}
         }
         // a + (−a) = 0.
@@ -287,11 +181,11 @@ impl ExprPool {
     pub fn mul(&mut self, a: ExprId, b: ExprId) -> ExprId {
         match (self.as_const(a), self.as_const(b)) {
             (Some(x), Some(y)) => return self.constant(x * y),
-            (Some(x), _) | (_, Some(x)) if x == 0.0 => return self.constant(0.0),
-            (Some(x), None) if x == 1.0 => return b,
-            (None, Some(y)) if y == 1.0 => return a,
-            (Some(x), None) if x == -1.0 => return self.neg(b),
-            (None, Some(y)) if y == -1.0 => return self.neg(a),
+            (Some(0.0), _) | (_, Some(0.0)) => return self.constant(0.0),
+            (Some(1.0), None) => return b,
+            (None, Some(1.0)) => return a,
+            (Some(-1.0), None) => return self.neg(b),
+            (None, Some(-1.0)) => return self.neg(a),
             _ => {}
         }
         // Pull negations out so that −a·b and a·(−b) share the node a·b.
