@@ -202,14 +202,11 @@ impl ExprPool {
             _ => {}
         }
         // Constants times constant-scaled terms fold: c·(d·x) = (cd)·x.
-        if let (Some(c), Node::Mul(x, y)) = (self.as_const(a), self[b]) {
-            if let Some(d) = self.as_const(x) {
-                let cd = self.constant(c * d);
-                return self.mul(cd, y);
-            }
-        }
-        if let (Node::Mul(x, y), Some(c)) = (self[a], self.as_const(b)) {
-            if let Some(d) = self.as_const(x) {
+        for (k, m) in [(a, b), (b, a)] {
+            if let Some(c) = self.as_const(k)
+                && let Node::Mul(x, y) = self[m]
+                && let Some(d) = self.as_const(x)
+            {
                 let cd = self.constant(c * d);
                 return self.mul(cd, y);
             }
