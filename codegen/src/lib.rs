@@ -10,9 +10,9 @@
 pub mod cli;
 pub mod desc;
 pub mod diag;
+pub mod expr;
 pub mod generic;
 pub mod model;
 pub mod report;
 pub mod validate;
 pub mod young;
-pub mod expr;
