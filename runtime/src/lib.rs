@@ -1,6 +1,17 @@
-//! The no_std, allocation-free runtime that generated mechanism solvers are compiled against.
+//! The `no_std`, allocation-free runtime that generated mechanism solvers are compiled against.
 //!
-//! It will hold the `Mechanism` trait, fixed-size LU with partial pivoting and a bounded Newton
-//! iteration (issue 3). It knows nothing about symbols or descriptions.
+//! It holds the [`Mechanism`] trait that generated code implements and an in-place LU
+//! factorisation with partial pivoting ([`lu`]); the Newton iteration and the step-by-step
+//! solver follow.
+//! It knows nothing about symbols, descriptions or bodies: a mechanism is a square system of
+//! `N` equations in `N` unknowns, with `N` from 1 to several hundred.
+//!
+//! The crate has no dependencies and uses neither `alloc` nor `unsafe`, so nothing here
+//! allocates, by construction.
 
 #![no_std]
+
+pub mod lu;
+mod mechanism;
+
+pub use mechanism::Mechanism;
