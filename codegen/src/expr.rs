@@ -297,8 +297,20 @@ impl ExprPool {
     #[must_use]
     pub fn eval(&self, roots: &[ExprId], q: &[f64], qd: &[f64], t: f64) -> Vec<f64> {
         let last = roots.iter().map(|r| r.index()).max().map_or(0, |m| m + 1);
+        // Only nodes reachable from the roots are evaluated: others may name symbols (q̇)
+        // the caller does not provide.
+        let mut live = vec![false; last];
+        let mut stack: Vec<ExprId> = roots.to_vec();
+        while let Some(x) = stack.pop() {
+            if !std::mem::replace(&mut live[x.index()], true) {
+                stack.extend(self[x].children());
+            }
+        }
         let mut val = vec![0.0; last];
         for (k, node) in self.nodes[..last].iter().enumerate() {
+            if !live[k] {
+                continue;
+            }
             val[k] = match *node {
                 Node::Const(bits) => f64::from_bits(bits),
                 Node::Var(Var::Q(i)) => q[i as usize],

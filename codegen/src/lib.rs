@@ -14,5 +14,6 @@ pub mod expr;
 pub mod generic;
 pub mod model;
 pub mod report;
+pub mod symbolic;
 pub mod validate;
 pub mod young;

@@ -110,6 +110,27 @@ pub struct Joint {
     pub kind: JointKind,
 }
 
+impl Joint {
+    /// Body-i unit vectors (b, c) ⟂ axis_i used by the parallel-axis rows b·a_j = 0,
+    /// c·a_j = 0: (ref_i, axis_i × ref_i) when the joint has references, else the
+    /// completion of axis_i by the coordinate axis least aligned with it. Both engines use
+    /// these, so they write the same equations.
+    #[must_use]
+    pub fn normals(&self) -> Option<(Vector3<f64>, Vector3<f64>)> {
+        let (a, _) = self.axis?;
+        let b = match self.reference {
+            Some((r, _)) => r,
+            None => {
+                let k = a.iamin();
+                let mut e = Vector3::zeros();
+                e[k] = 1.0;
+                (e - a * a.dot(&e)).normalize()
+            }
+        };
+        Some((b, a.cross(&b)))
+    }
+}
+
 /// Joint types with the data only they carry.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum JointKind {

@@ -38,6 +38,7 @@ use crate::model::{
 };
 use kin::{BodyState, Sk, Vk};
 
+pub(crate) use solve::independent_rows;
 pub use solve::{Analysis, Failure, FailureKind, Frame, Preparation, StepReport};
 
 /// The entity an equation belongs to, for labels and error reports.
@@ -130,7 +131,7 @@ impl<'m> Equations<'m> {
                 push("body", &b.name, 1);
             }
         }
-        let normals = mech.joints.iter().map(joint_normals).collect();
+        let normals = mech.joints.iter().map(Joint::normals).collect();
         Self { mech, offset, labels, unknowns, normals }
     }
 
@@ -350,22 +351,6 @@ impl<'m> Equations<'m> {
             }
         }
     }
-}
-
-/// Body-i unit vectors (b, c) ⟂ axis_i: (ref_i, axis_i × ref_i) when the joint has
-/// references, else a fixed completion of axis_i to an orthonormal frame.
-fn joint_normals(joint: &Joint) -> Option<(Vector3<f64>, Vector3<f64>)> {
-    let (a, _) = joint.axis?;
-    let b = match joint.reference {
-        Some((r, _)) => r,
-        None => {
-            let k = a.iamin();
-            let mut e = Vector3::zeros();
-            e[k] = 1.0;
-            (e - a * a.dot(&e)).normalize()
-        }
-    };
-    Some((b, a.cross(&b)))
 }
 
 /// The global reference vectors (ref_i, ref_j) of a joint.

@@ -208,7 +208,7 @@ fn numeric_rank(m: &DMatrix<f64>) -> usize {
 
 /// Splits the rows into a maximal independent set, greedily in row order (modified
 /// Gram–Schmidt), and the rows that depend on earlier ones.
-fn independent_rows(jac: &DMatrix<f64>) -> (Vec<usize>, Vec<usize>) {
+pub(crate) fn independent_rows(jac: &DMatrix<f64>) -> (Vec<usize>, Vec<usize>) {
     let mut basis: Vec<DVector<f64>> = Vec::new();
     let (mut active, mut redundant) = (Vec::new(), Vec::new());
     for k in 0..jac.nrows() {

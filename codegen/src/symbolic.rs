@@ -1,0 +1,636 @@
+//! The mechanism as symbolic expressions: the reduced system the generator emits.
+//!
+//! "Model no more than the scene needs": ground bodies, `fix` constraints, coordinate
+//! differences against a ground body and absolute x/y/z drivers are eliminated here: the
+//! coordinate they hold becomes a constant or a function of time, and their equation
+//! disappears. What remains are the true unknowns and their equations, in the generic
+//! engine's row order.
+//!
+//! Φ is written once per row kind, with the same row forms as the generic engine (see
+//! `generic`); Φ_q, ν and γ are then obtained by symbolic differentiation (`expr::diff`):
+//! Φ_q = ∂Φ/∂q, ν = −∂Φ/∂t, and with Φ̇ = Φ_q q̇ + Φ_t (q̇ symbolic),
+//! γ = −(∂Φ̇/∂q q̇ + ∂Φ̇/∂t) = −(Φ_q q̇)_q q̇ − 2 Φ_qt q̇ − Φ_tt. The generic engine derives
+//! the same quantities by hand-written product rules, so the two are independent
+//! derivations and their agreement is a test of both.
+
+use std::collections::BTreeSet;
+
+use nalgebra::{DMatrix, DVector, Vector3};
+
+use crate::expr::{ExprId, ExprPool, Node, Var};
+use crate::generic::{Equations, RowLabel};
+use crate::model::{
+    BodyId, ConstraintKind, DriverCoordinate, DriverTarget, Joint, JointKind, Law, Mechanism,
+    Motion,
+};
+
+/// Where a body coordinate comes from in the reduced system.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Source {
+    /// Reduced unknown number k.
+    Unknown(usize),
+    /// A constant (ground bodies, `fix` constraints).
+    Fixed(f64),
+    /// A driven coordinate: index into [`Symbolic::laws`].
+    Driven(usize),
+}
+
+/// The reduced symbolic system of one mechanism.
+#[derive(Clone, Debug)]
+pub struct Symbolic {
+    /// The expression arena.
+    pub pool: ExprPool,
+    /// For every body, the source of its 7 coordinates `[x, y, z, e0, e1, e2, e3]`.
+    pub coords: Vec<[Source; 7]>,
+    /// Reduced unknown k ↔ (body, coordinate index).
+    pub unknowns: Vec<(BodyId, usize)>,
+    /// The equations kept, in row order.
+    pub rows: Vec<RowLabel>,
+    /// The equations eliminated with their coordinate.
+    pub eliminated: Vec<RowLabel>,
+    /// Equations left out because they depend on the others (redundant).
+    pub redundant: Vec<RowLabel>,
+    /// Φ, one expression per kept row.
+    pub phi: Vec<ExprId>,
+    /// Φ_q by rows: the structurally non-zero entries `(column, expression)`.
+    pub jac: Vec<Vec<(usize, ExprId)>>,
+    /// ν = −Φ_t.
+    pub nu: Vec<ExprId>,
+    /// γ, in terms of q, q̇ and t.
+    pub gamma: Vec<ExprId>,
+    /// For driven coordinates: (s, ṡ, s̈) as expressions in t.
+    pub laws: Vec<[ExprId; 3]>,
+}
+
+/// A 3-vector of expressions.
+type V3 = [ExprId; 3];
+
+/// Builds the rows of a mechanism into a pool.
+struct Builder {
+    pool: ExprPool,
+    coords: Vec<[Source; 7]>,
+    laws: Vec<[ExprId; 3]>,
+}
+
+impl Builder {
+    fn coordinate(&mut self, body: BodyId, c: usize) -> ExprId {
+        match self.coords[body.0][c] {
+            Source::Unknown(k) => self.pool.var(Var::Q(u32::try_from(k).expect("small"))),
+            Source::Fixed(v) => self.pool.constant(v),
+            Source::Driven(l) => self.laws[l][0],
+        }
+    }
+
+    fn law(&mut self, law: &Law) -> ExprId {
+        let t = self.pool.var(Var::T);
+        let p = &mut self.pool;
+        match *law {
+            Law::Polynomial { start, velocity, acceleration } => {
+                let (s0, v0, a) =
+                    (p.constant(start), p.constant(velocity), p.constant(0.5 * acceleration));
+                let vt = p.mul(v0, t);
+                let tt = p.mul(t, t);
+                let att = p.mul(a, tt);
+                let s = p.add(s0, vt);
+                p.add(s, att)
+            }
+            Law::Harmonic { offset, amplitude, frequency, phase } => {
+                let (c, amp, w, ph) = (
+                    p.constant(offset),
+                    p.constant(amplitude),
+                    p.constant(frequency),
+                    p.constant(phase),
+                );
+                let wt = p.mul(w, t);
+                let arg = p.add(wt, ph);
+                let sin = p.sin(arg);
+                let term = p.mul(amp, sin);
+                p.add(c, term)
+            }
+        }
+    }
+
+    /// A(p) for a body (thesis eq. 3.18), row-major.
+    fn rotation(&mut self, body: BodyId) -> [[ExprId; 3]; 3] {
+        let e: [ExprId; 4] = std::array::from_fn(|k| self.coordinate(body, 3 + k));
+        let p = &mut self.pool;
+        let two = p.constant(2.0);
+        let sq: [ExprId; 4] = std::array::from_fn(|k| p.mul(e[k], e[k]));
+        // Diagonal: e0² + ek² − ej² − el²; off-diagonal: 2(ei ej ∓ e0 ek).
+        let diag = |p: &mut ExprPool, k: usize| {
+            let (i, j) = ((k + 1) % 3, (k + 2) % 3);
+            let a = p.add(sq[0], sq[1 + k]);
+            let b = p.add(sq[1 + i], sq[1 + j]);
+            p.sub(a, b)
+        };
+        let off = |p: &mut ExprPool, i: usize, j: usize, k: usize, plus: bool| {
+            let a = p.mul(e[1 + i], e[1 + j]);
+            let b = p.mul(e[0], e[1 + k]);
+            let s = if plus { p.add(a, b) } else { p.sub(a, b) };
+            p.mul(two, s)
+        };
+        let d0 = diag(p, 0);
+        let d1 = diag(p, 1);
+        let d2 = diag(p, 2);
+        let a01 = off(p, 0, 1, 2, false);
+        let a02 = off(p, 0, 2, 1, true);
+        let a10 = off(p, 0, 1, 2, true);
+        let a12 = off(p, 1, 2, 0, false);
+        let a20 = off(p, 0, 2, 1, false);
+        let a21 = off(p, 1, 2, 0, true);
+        [[d0, a01, a02], [a10, d1, a12], [a20, a21, d2]]
+    }
+
+    /// A s' for a body-fixed vector.
+    fn vector(&mut self, body: BodyId, local: &Vector3<f64>) -> V3 {
+        let a = self.rotation(body);
+        let s: [ExprId; 3] = std::array::from_fn(|k| self.pool.constant(local[k]));
+        std::array::from_fn(|r| {
+            let terms: Vec<ExprId> = (0..3).map(|c| self.pool.mul(a[r][c], s[c])).collect();
+            self.pool.sum(terms)
+        })
+    }
+
+    /// r + A s' for a body-fixed point.
+    fn point(&mut self, body: BodyId, local: &Vector3<f64>) -> V3 {
+        let v = self.vector(body, local);
+        std::array::from_fn(|k| {
+            let r = self.coordinate(body, k);
+            self.pool.add(r, v[k])
+        })
+    }
+
+    fn sub(&mut self, a: &V3, b: &V3) -> V3 {
+        std::array::from_fn(|k| self.pool.sub(a[k], b[k]))
+    }
+
+    fn dot(&mut self, a: &V3, b: &V3) -> ExprId {
+        let terms: Vec<ExprId> = (0..3).map(|k| self.pool.mul(a[k], b[k])).collect();
+        self.pool.sum(terms)
+    }
+
+    fn cross(&mut self, a: &V3, b: &V3) -> V3 {
+        std::array::from_fn(|k| {
+            let (i, j) = ((k + 1) % 3, (k + 2) % 3);
+            let x = self.pool.mul(a[i], b[j]);
+            let y = self.pool.mul(a[j], b[i]);
+            self.pool.sub(x, y)
+        })
+    }
+
+    /// x sin s − y cos s.
+    fn angle_residual(&mut self, x: ExprId, y: ExprId, s: ExprId) -> ExprId {
+        let (sin, cos) = (self.pool.sin(s), self.pool.cos(s));
+        let a = self.pool.mul(x, sin);
+        let b = self.pool.mul(y, cos);
+        self.pool.sub(a, b)
+    }
+
+    /// (x, y) = (ref_i·ref_j, (ref_i × ref_j)·axis_i).
+    fn joint_angle(&mut self, j: &Joint) -> (ExprId, ExprId) {
+        let (ri, rj) = j.reference.expect("validated: joint has references");
+        let (ai, _) = j.axis.expect("validated: joint has axes");
+        let (ri, rj) = (self.vector(j.body_i, &ri), self.vector(j.body_j, &rj));
+        let ai = self.vector(j.body_i, &ai);
+        let x = self.dot(&ri, &rj);
+        let c = self.cross(&ri, &rj);
+        (x, self.dot(&c, &ai))
+    }
+
+    /// (P_j − P_i)·axis_i.
+    fn axial_position(&mut self, j: &Joint) -> ExprId {
+        let d = self.separation(j);
+        let (ai, _) = j.axis.expect("validated: joint has axes");
+        let ai = self.vector(j.body_i, &ai);
+        self.dot(&d, &ai)
+    }
+
+    /// d = P_j − P_i.
+    fn separation(&mut self, j: &Joint) -> V3 {
+        let pi = self.point(j.body_i, &j.point_i);
+        let pj = self.point(j.body_j, &j.point_j);
+        self.sub(&pj, &pi)
+    }
+
+    /// The rows of one joint (same forms and order as `generic`).
+    fn joint_rows(&mut self, j: &Joint) -> Vec<ExprId> {
+        let d = self.separation(j);
+        let mut rows = Vec::new();
+        if matches!(j.kind, JointKind::Spherical | JointKind::Universal | JointKind::Revolute) {
+            rows.extend(d);
+        }
+        let axes = j.axis.map(|(ai, aj)| (self.vector(j.body_i, &ai), self.vector(j.body_j, &aj)));
+        let normals =
+            j.normals().map(|(b, c)| (self.vector(j.body_i, &b), self.vector(j.body_i, &c)));
+        if let (Some((_, aj)), Some((b, c))) = (&axes, &normals)
+            && !matches!(j.kind, JointKind::Universal)
+        {
+            rows.push(self.dot(b, aj));
+            rows.push(self.dot(c, aj));
+            if !matches!(j.kind, JointKind::Revolute) {
+                rows.push(self.dot(b, &d));
+                rows.push(self.dot(c, &d));
+            }
+        }
+        match j.kind {
+            JointKind::Universal => {
+                let (ai, aj) = axes.expect("validated: universal has axes");
+                rows.push(self.dot(&ai, &aj));
+            }
+            JointKind::Prismatic => {
+                let (ri, rj) = j.reference.expect("validated: prismatic has references");
+                let (ri, rj) = (self.vector(j.body_i, &ri), self.vector(j.body_j, &rj));
+                rows.push(self.dot(&ri, &rj));
+            }
+            JointKind::Screw { lead, d0, theta0 } => {
+                let (x, y) = self.joint_angle(j);
+                let ax = self.axial_position(j);
+                let d0 = self.pool.constant(d0);
+                let k = self.pool.constant(2.0 * std::f64::consts::PI / lead);
+                let th0 = self.pool.constant(theta0);
+                let dd = self.pool.sub(ax, d0);
+                let kd = self.pool.mul(k, dd);
+                let phi = self.pool.add(kd, th0);
+                rows.push(self.angle_residual(x, y, phi));
+            }
+            JointKind::Distance { length } => {
+                let dd = self.dot(&d, &d);
+                let l2 = self.pool.constant(length * length);
+                let diff = self.pool.sub(dd, l2);
+                let half = self.pool.constant(0.5 / length);
+                rows.push(self.pool.mul(half, diff));
+            }
+            _ => {}
+        }
+        debug_assert_eq!(rows.len(), j.kind.equations());
+        rows
+    }
+}
+
+/// What the generator refuses.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct GenerateError {
+    /// A sentence naming the entities involved.
+    pub message: String,
+}
+
+impl std::fmt::Display for GenerateError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.message)
+    }
+}
+
+impl std::error::Error for GenerateError {}
+
+impl Symbolic {
+    /// Builds the reduced system of `mech`.
+    ///
+    /// # Errors
+    /// When the reduced system is not square with full rank at the initial configuration
+    /// (an undriven degree of freedom, or a coordinate fixed twice).
+    pub fn build(mech: &Mechanism) -> Result<Self, GenerateError> {
+        let eq = Equations::new(mech);
+        let labels = eq.labels().to_vec();
+        let placeholder = Source::Unknown(usize::MAX);
+        let mut coords: Vec<[Source; 7]> = mech
+            .bodies
+            .iter()
+            .map(|b| {
+                if b.ground {
+                    let q = [b.r.x, b.r.y, b.r.z, b.p[0], b.p[1], b.p[2], b.p[3]];
+                    q.map(Source::Fixed)
+                } else {
+                    [placeholder; 7]
+                }
+            })
+            .collect();
+        let mut builder = Builder { pool: ExprPool::new(), coords: Vec::new(), laws: Vec::new() };
+        // Row indices (into `labels`) of the eliminated equations.
+        let mut eliminated = BTreeSet::new();
+        let first_constraint = mech.joints.iter().map(|j| j.kind.equations()).sum::<usize>();
+        let first_driver = first_constraint + mech.constraints.len();
+        for (k, c) in mech.constraints.iter().enumerate() {
+            let target = match c.kind {
+                ConstraintKind::Fix { body, coordinate, value } => {
+                    Some((body, coordinate.index(), value))
+                }
+                ConstraintKind::CoordinateDifference { body_i, body_j, coordinate, value } => {
+                    let c = coordinate.index();
+                    match (&coords[body_i.0][c], &coords[body_j.0][c]) {
+                        (Source::Fixed(g), _) if mech.bodies[body_i.0].ground => {
+                            Some((body_j, c, g - value))
+                        }
+                        (_, Source::Fixed(g)) if mech.bodies[body_j.0].ground => {
+                            Some((body_i, c, g + value))
+                        }
+                        _ => None,
+                    }
+                }
+            };
+            if let Some((body, idx, value)) = target
+                && coords[body.0][idx] == placeholder
+            {
+                coords[body.0][idx] = Source::Fixed(value);
+                eliminated.insert(first_constraint + k);
+            }
+        }
+        for (k, d) in mech.drivers.iter().enumerate() {
+            if let DriverTarget::Absolute { body, coordinate } = d.target {
+                let idx = match coordinate {
+                    DriverCoordinate::X => 0,
+                    DriverCoordinate::Y => 1,
+                    DriverCoordinate::Z => 2,
+                    _ => continue,
+                };
+                if coords[body.0][idx] == placeholder {
+                    let s = builder.law(&d.law);
+                    let t = Var::T;
+                    let sd = builder.pool.diff(s, t);
+                    let sdd = builder.pool.diff(sd, t);
+                    coords[body.0][idx] = Source::Driven(builder.laws.len());
+                    builder.laws.push([s, sd, sdd]);
+                    eliminated.insert(first_driver + k);
+                }
+            }
+        }
+        let mut unknowns = Vec::new();
+        for (b, c) in coords.iter_mut().enumerate() {
+            for (i, s) in c.iter_mut().enumerate() {
+                if *s == placeholder {
+                    *s = Source::Unknown(unknowns.len());
+                    unknowns.push((BodyId(b), i));
+                }
+            }
+        }
+        builder.coords = coords;
+        // Φ for every row that is not eliminated, in the generic engine's order.
+        let mut phi_all = Vec::with_capacity(labels.len());
+        for j in &mech.joints {
+            phi_all.extend(builder.joint_rows(j));
+        }
+        for c in &mech.constraints {
+            let e = match c.kind {
+                ConstraintKind::Fix { body, coordinate, value } => {
+                    let q = builder.coordinate(body, coordinate.index());
+                    let v = builder.pool.constant(value);
+                    builder.pool.sub(q, v)
+                }
+                ConstraintKind::CoordinateDifference { body_i, body_j, coordinate, value } => {
+                    let qi = builder.coordinate(body_i, coordinate.index());
+                    let qj = builder.coordinate(body_j, coordinate.index());
+                    let v = builder.pool.constant(value);
+                    let d = builder.pool.sub(qi, qj);
+                    builder.pool.sub(d, v)
+                }
+            };
+            phi_all.push(e);
+        }
+        for d in &mech.drivers {
+            let s = builder.law(&d.law);
+            let e = match d.target {
+                DriverTarget::Joint { joint, motion } => {
+                    let j = &mech.joints[joint.0];
+                    match motion {
+                        Motion::Rotation => {
+                            let (x, y) = builder.joint_angle(j);
+                            builder.angle_residual(x, y, s)
+                        }
+                        Motion::Translation => {
+                            let ax = builder.axial_position(j);
+                            builder.pool.sub(ax, s)
+                        }
+                    }
+                }
+                DriverTarget::Absolute { body, coordinate } => {
+                    let k = match coordinate {
+                        DriverCoordinate::X => 0,
+                        DriverCoordinate::Y => 1,
+                        DriverCoordinate::Z => 2,
+                        DriverCoordinate::Rx => 4,
+                        DriverCoordinate::Ry => 5,
+                        DriverCoordinate::Rz => 6,
+                    };
+                    let q = builder.coordinate(body, k);
+                    if k < 3 {
+                        builder.pool.sub(q, s)
+                    } else {
+                        // e_k cos(s/2) − e0 sin(s/2) (thesis eq. 4.62, one-equation form).
+                        let half = builder.pool.constant(0.5);
+                        let hs = builder.pool.mul(half, s);
+                        let (sin, cos) = (builder.pool.sin(hs), builder.pool.cos(hs));
+                        let e0 = builder.coordinate(body, 3);
+                        let a = builder.pool.mul(q, cos);
+                        let b = builder.pool.mul(e0, sin);
+                        builder.pool.sub(a, b)
+                    }
+                }
+            };
+            phi_all.push(e);
+        }
+        for b in mech.moving_bodies() {
+            let terms: Vec<ExprId> = (3..7)
+                .map(|c| {
+                    let e = builder.coordinate(b, c);
+                    builder.pool.mul(e, e)
+                })
+                .collect();
+            let s = builder.pool.sum(terms);
+            let one = builder.pool.constant(1.0);
+            phi_all.push(builder.pool.sub(s, one));
+        }
+        debug_assert_eq!(phi_all.len(), labels.len());
+        let kept: Vec<usize> = (0..labels.len()).filter(|k| !eliminated.contains(k)).collect();
+        let mut sys = Self {
+            pool: builder.pool,
+            coords: builder.coords,
+            unknowns,
+            rows: Vec::new(),
+            eliminated: eliminated.iter().map(|&k| labels[k].clone()).collect(),
+            redundant: Vec::new(),
+            phi: Vec::new(),
+            jac: Vec::new(),
+            nu: Vec::new(),
+            gamma: Vec::new(),
+            laws: builder.laws,
+        };
+        // Jacobian rows of every kept equation, then the redundancy analysis on them.
+        let mut jac_rows = Vec::with_capacity(kept.len());
+        for &k in &kept {
+            jac_rows.push(sys.jacobian_row(phi_all[k]));
+        }
+        let independent = sys.independent_rows(&eq, &jac_rows);
+        for (pos, &k) in kept.iter().enumerate() {
+            if independent.contains(&pos) {
+                sys.rows.push(labels[k].clone());
+                sys.phi.push(phi_all[k]);
+                sys.jac.push(std::mem::take(&mut jac_rows[pos]));
+            } else {
+                sys.redundant.push(labels[k].clone());
+            }
+        }
+        let n = sys.unknowns.len();
+        if sys.rows.len() != n {
+            return Err(GenerateError {
+                message: format!(
+                    "the reduced system has {} independent equations for {n} unknowns at the \
+                     initial configuration: a degree of freedom is not driven or a coordinate \
+                     is held twice",
+                    sys.rows.len()
+                ),
+            });
+        }
+        sys.derive_rates();
+        Ok(sys)
+    }
+
+    /// The structurally non-zero entries of ∂e/∂q.
+    fn jacobian_row(&mut self, e: ExprId) -> Vec<(usize, ExprId)> {
+        let vars = q_vars(&self.pool, e);
+        let mut row = Vec::new();
+        for k in vars {
+            let d = self.pool.diff(e, Var::Q(k));
+            if self.pool.as_const(d) != Some(0.0) {
+                row.push((k as usize, d));
+            }
+        }
+        row
+    }
+
+    /// Rows (positions in `jac_rows`) kept after dropping those that depend on earlier ones
+    /// at the assembled initial configuration (greedy in row order, as `generic`).
+    fn independent_rows(
+        &self,
+        eq: &Equations<'_>,
+        jac_rows: &[Vec<(usize, ExprId)>],
+    ) -> BTreeSet<usize> {
+        let n = self.unknowns.len();
+        let prep = eq.prepare();
+        let q = self.reduce(eq, &prep.q);
+        let t = eq.mechanism().time.start;
+        let mut m = DMatrix::zeros(jac_rows.len(), n);
+        let roots: Vec<ExprId> = jac_rows.iter().flatten().map(|&(_, e)| e).collect();
+        let vals = self.pool.eval(&roots, q.as_slice(), &[], t);
+        let mut it = vals.into_iter();
+        for (r, row) in jac_rows.iter().enumerate() {
+            for &(c, _) in row {
+                m[(r, c)] = it.next().expect("one value per entry");
+            }
+        }
+        crate::generic::independent_rows(&m).0.into_iter().collect()
+    }
+
+    /// The reduced unknowns taken from a full coordinate vector of the generic engine.
+    #[must_use]
+    pub fn reduce(&self, eq: &Equations<'_>, full: &DVector<f64>) -> DVector<f64> {
+        DVector::from_iterator(
+            self.unknowns.len(),
+            self.unknowns.iter().map(|&(b, c)| full[eq.offset(b).expect("moving body") + c]),
+        )
+    }
+
+    /// Rescales the unknown Euler parameters of every body so that |p| = 1 given its fixed
+    /// ones (what the generated `normalize` does).
+    pub fn normalise(&self, q: &mut [f64]) {
+        for c in &self.coords {
+            let (mut fixed, mut free) = (0.0, 0.0);
+            for s in &c[3..] {
+                match *s {
+                    Source::Unknown(k) => free += q[k] * q[k],
+                    Source::Fixed(v) => fixed += v * v,
+                    Source::Driven(_) => {}
+                }
+            }
+            if free > 0.0 && fixed < 1.0 && c[3..].iter().any(|s| matches!(s, Source::Unknown(_))) {
+                let scale = ((1.0 - fixed) / free).sqrt();
+                for s in &c[3..] {
+                    if let Source::Unknown(k) = *s {
+                        q[k] *= scale;
+                    }
+                }
+            }
+        }
+    }
+
+    /// Full coordinates, rates and accelerations of the moving bodies in the generic
+    /// engine's layout, from reduced ones.
+    #[must_use]
+    pub fn expand(
+        &self,
+        eq: &Equations<'_>,
+        q: &[f64],
+        qd: &[f64],
+        qdd: &[f64],
+        t: f64,
+    ) -> [DVector<f64>; 3] {
+        let n = eq.unknowns();
+        let mut out = [DVector::zeros(n), DVector::zeros(n), DVector::zeros(n)];
+        let roots: Vec<ExprId> = self.laws.iter().flatten().copied().collect();
+        let laws = self.pool.eval(&roots, &[], &[], t);
+        for (b, c) in self.coords.iter().enumerate() {
+            let Some(o) = eq.offset(BodyId(b)) else { continue };
+            for (i, s) in c.iter().enumerate() {
+                let v = match *s {
+                    Source::Unknown(k) => [q[k], qd[k], qdd[k]],
+                    Source::Fixed(v) => [v, 0.0, 0.0],
+                    Source::Driven(l) => [laws[3 * l], laws[3 * l + 1], laws[3 * l + 2]],
+                };
+                for (d, x) in out.iter_mut().zip(v) {
+                    d[o + i] = x;
+                }
+            }
+        }
+        out
+    }
+
+    /// ν and γ from Φ and Φ_q.
+    fn derive_rates(&mut self) {
+        let t = Var::T;
+        for (i, &phi) in self.phi.iter().enumerate() {
+            let phi_t = self.pool.diff(phi, t);
+            self.nu.push(self.pool.neg(phi_t));
+            // Φ̇ = Φ_q q̇ + Φ_t with q̇ symbolic.
+            let mut terms: Vec<ExprId> = self.jac[i]
+                .iter()
+                .map(|&(k, d)| {
+                    let qd = self.pool.var(Var::Qd(u32::try_from(k).expect("small")));
+                    self.pool.mul(d, qd)
+                })
+                .collect();
+            terms.push(phi_t);
+            let phi_dot = self.pool.sum(terms);
+            // γ = −(∂Φ̇/∂q q̇ + ∂Φ̇/∂t).
+            let vars = q_vars(&self.pool, phi_dot);
+            let mut terms = Vec::new();
+            for k in vars {
+                let d = self.pool.diff(phi_dot, Var::Q(k));
+                let qd = self.pool.var(Var::Qd(k));
+                terms.push(self.pool.mul(d, qd));
+            }
+            terms.push(self.pool.diff(phi_dot, t));
+            let s = self.pool.sum(terms);
+            self.gamma.push(self.pool.neg(s));
+        }
+    }
+}
+
+/// The unknowns q_k an expression depends on, in increasing k.
+fn q_vars(pool: &ExprPool, e: ExprId) -> BTreeSet<u32> {
+    let mut seen = vec![false; e.index() + 1];
+    let mut stack = vec![e];
+    let mut vars = BTreeSet::new();
+    while let Some(x) = stack.pop() {
+        if std::mem::replace(&mut seen[x.index()], true) {
+            continue;
+        }
+        match pool[x] {
+            Node::Var(Var::Q(k)) => {
+                vars.insert(k);
+            }
+            node => stack.extend(node.children()),
+        }
+    }
+    vars
+}
+
+#[cfg(test)]
+mod tests;
