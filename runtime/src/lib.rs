@@ -1,8 +1,8 @@
 //! The `no_std`, allocation-free runtime that generated mechanism solvers are compiled against.
 //!
-//! It holds the [`Mechanism`] trait that generated code implements and an in-place LU
-//! factorisation with partial pivoting ([`lu`]); the Newton iteration and the step-by-step
-//! solver follow.
+//! It holds the [`Mechanism`] trait that generated code implements, an in-place LU
+//! factorisation with partial pivoting ([`lu`]) and a bounded Newton iteration ([`newton`]);
+//! the step-by-step solver follows.
 //! It knows nothing about symbols, descriptions or bodies: a mechanism is a square system of
 //! `N` equations in `N` unknowns, with `N` from 1 to several hundred.
 //!
@@ -13,5 +13,10 @@
 
 pub mod lu;
 mod mechanism;
+pub mod newton;
+
+#[cfg(test)]
+mod fixtures;
 
 pub use mechanism::Mechanism;
+pub use newton::{NewtonError, NewtonOptions, NewtonReport};

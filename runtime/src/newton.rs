@@ -1,0 +1,240 @@
+//! Newton–Raphson on Φ(q, t) = 0 at a fixed time, bounded and allocation-free.
+//!
+//! Each iteration evaluates Φ and Φ_q at q, stops if max |Φ_i| ≤ tolerance, and otherwise
+//! factors Φ_q, solves Φ_q Δ = −Φ and sets q ← q + Δ.
+//! Once converged, [`Mechanism::normalize`] projects q and, if that moved q, Φ and Φ_q are
+//! evaluated again, so the reported residual and the factored Jacobian left in the caller's
+//! storage belong to the final q (the velocity and acceleration solves reuse that
+//! factorisation).
+//! If the projection pushed the residual above the tolerance, the iteration simply goes on.
+//! When to stop is decided by [`status`] alone, which is tested on its own.
+
+#[cfg(test)]
+mod tests;
+
+use core::fmt;
+
+use crate::Mechanism;
+use crate::lu::{self, Singular};
+
+/// Stopping rule and pivot test of a Newton solve.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct NewtonOptions {
+    /// Converged when max |Φ_i| ≤ `tolerance`, in the units of each row of Φ.
+    pub tolerance: f64,
+    /// The most Newton steps (factor, solve, update) that one solve may take.
+    pub max_iterations: u32,
+    /// The Jacobian is singular when its smallest |pivot| ≤ `pivot_ratio` · its largest
+    /// (see [`lu::factor_with_ratio`]).
+    pub pivot_ratio: f64,
+}
+
+impl NewtonOptions {
+    /// `tolerance` 1e-10, `max_iterations` 25, `pivot_ratio` 1e-12 ([`lu::DEFAULT_PIVOT_RATIO`]).
+    ///
+    /// A tolerance of 1e-10 is about a million times the rounding error of residuals of unit
+    /// size, and a well-posed problem started within the region of quadratic convergence takes
+    /// 3 to 6 steps, so 25 leaves room for poor starting estimates without looping for long on
+    /// hopeless ones.
+    pub const DEFAULT: NewtonOptions = NewtonOptions {
+        tolerance: 1e-10,
+        max_iterations: 25,
+        pivot_ratio: lu::DEFAULT_PIVOT_RATIO,
+    };
+}
+
+impl Default for NewtonOptions {
+    /// Returns [`NewtonOptions::DEFAULT`].
+    fn default() -> Self {
+        NewtonOptions::DEFAULT
+    }
+}
+
+/// What a converged solve did.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct NewtonReport {
+    /// Newton steps taken; 0 when the starting estimate already satisfied the tolerance.
+    pub iterations: u32,
+    /// max |Φ_i| at the final, normalised q.
+    pub residual: f64,
+}
+
+/// Why a Newton solve failed.
+///
+/// `iteration` counts the Newton steps completed before the failure: 0 means at the starting
+/// estimate.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum NewtonError {
+    /// Φ_q could not be factored: its smallest |pivot| ≤ `pivot_ratio` · `largest`.
+    ///
+    /// For example a slider-crank at a dead centre, or a circle met tangentially by a line.
+    Singular {
+        /// Newton steps completed before the singular Jacobian was met.
+        iteration: u32,
+        /// The elimination step (column) with the small pivot.
+        column: usize,
+        /// That |pivot|.
+        pivot: f64,
+        /// The largest |pivot| it was compared with.
+        largest: f64,
+    },
+    /// `max_iterations` steps did not bring max |Φ_i| down to the tolerance.
+    ///
+    /// For example a start far from any solution, or a mechanism that cannot be assembled.
+    NotConverged {
+        /// Newton steps taken, equal to `max_iterations`.
+        iterations: u32,
+        /// max |Φ_i| after the last step.
+        residual: f64,
+    },
+    /// Φ, Φ_q or the Newton step contained a NaN or an infinity.
+    ///
+    /// For example t = NaN, or a Newton step so large that it overflowed.
+    NonFinite {
+        /// Newton steps completed before the non-finite value was met.
+        iteration: u32,
+    },
+}
+
+impl fmt::Display for NewtonError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match *self {
+            NewtonError::Singular { iteration, column, pivot, largest } => write!(
+                f,
+                "singular Jacobian after {iteration} Newton steps: pivot {pivot:e} in column \
+                 {column} against largest pivot {largest:e}"
+            ),
+            NewtonError::NotConverged { iterations, residual } => write!(
+                f,
+                "Newton did not converge in {iterations} steps: max residual {residual:e}"
+            ),
+            NewtonError::NonFinite { iteration } => {
+                write!(f, "non-finite residual, Jacobian or step after {iteration} Newton steps")
+            }
+        }
+    }
+}
+
+impl core::error::Error for NewtonError {}
+
+/// The verdict of the stopping rule on one evaluation of Φ.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Status {
+    /// max |Φ_i| ≤ tolerance: stop with success.
+    Converged,
+    /// Not yet converged and steps are left: take another Newton step.
+    Continue,
+    /// Not converged and `max_iterations` steps are spent: stop with
+    /// [`NewtonError::NotConverged`].
+    Exhausted,
+    /// The residual is NaN or infinite: stop with [`NewtonError::NonFinite`].
+    NonFinite,
+}
+
+/// The stopping rule: the verdict on `residual` = max |Φ_i| after `iterations` steps.
+///
+/// Convergence wins over exhaustion, so a solve whose last allowed step lands within the
+/// tolerance succeeds.
+#[must_use]
+pub fn status(residual: f64, iterations: u32, options: &NewtonOptions) -> Status {
+    if !residual.is_finite() {
+        Status::NonFinite
+    } else if residual <= options.tolerance {
+        Status::Converged
+    } else if iterations >= options.max_iterations {
+        Status::Exhausted
+    } else {
+        Status::Continue
+    }
+}
+
+/// max |x_i|, or NaN if some x_i is NaN (a plain `f64::max` fold would drop it).
+pub(crate) fn max_abs(x: &[f64]) -> f64 {
+    let mut m = 0.0_f64;
+    for &v in x {
+        let a = v.abs();
+        if a.is_nan() {
+            return f64::NAN;
+        }
+        m = m.max(a);
+    }
+    m
+}
+
+/// Solves Φ(q, t) = 0 for q by Newton's method, starting from `q`.
+///
+/// `phi`, `jac` and `perm` are scratch storage owned by the caller (so `jac`, the only `N × N`
+/// array, never lives on this function's stack).
+/// On success `q` is the normalised solution, `phi` holds Φ at it, and `jac` and `perm` hold the
+/// LU factors of Φ_q at it, ready for [`lu::solve`].
+///
+/// # Errors
+///
+/// [`NewtonError::Singular`], [`NewtonError::NotConverged`] or [`NewtonError::NonFinite`], as
+/// documented on each variant.
+/// On error `q` holds the last iterate and the contents of `phi`, `jac` and `perm` are
+/// unspecified.
+pub fn solve<M: Mechanism<N>, const N: usize>(
+    mechanism: &M,
+    q: &mut [f64; N],
+    t: f64,
+    options: &NewtonOptions,
+    phi: &mut [f64; N],
+    jac: &mut [[f64; N]; N],
+    perm: &mut [usize; N],
+) -> Result<NewtonReport, NewtonError> {
+    let mut iterations = 0;
+    // Whether q was just projected by `normalize`; a second projection in a row is skipped so
+    // that a projection that keeps moving the last bits cannot loop forever.
+    let mut normalized = false;
+    loop {
+        mechanism.residual_jacobian(q, t, phi, jac);
+        let residual = max_abs(phi);
+        match status(residual, iterations, options) {
+            Status::Converged => {
+                if !normalized {
+                    let before = *q;
+                    mechanism.normalize(q);
+                    normalized = true;
+                    if *q != before {
+                        continue;
+                    }
+                }
+                factor(jac, perm, options, iterations)?;
+                return Ok(NewtonReport { iterations, residual });
+            }
+            Status::Continue => {}
+            Status::Exhausted => return Err(NewtonError::NotConverged { iterations, residual }),
+            Status::NonFinite => return Err(NewtonError::NonFinite { iteration: iterations }),
+        }
+        factor(jac, perm, options, iterations)?;
+        for p in phi.iter_mut() {
+            *p = -*p;
+        }
+        lu::solve(jac, perm, phi);
+        if phi.iter().any(|d| !d.is_finite()) {
+            return Err(NewtonError::NonFinite { iteration: iterations });
+        }
+        for (qi, d) in q.iter_mut().zip(phi.iter()) {
+            *qi += d;
+        }
+        iterations += 1;
+        normalized = false;
+    }
+}
+
+/// [`lu::factor_with_ratio`] with its error turned into a [`NewtonError`].
+fn factor<const N: usize>(
+    jac: &mut [[f64; N]; N],
+    perm: &mut [usize; N],
+    options: &NewtonOptions,
+    iteration: u32,
+) -> Result<(), NewtonError> {
+    match lu::factor_with_ratio(jac, perm, options.pivot_ratio) {
+        Ok(_) => Ok(()),
+        Err(Singular::SmallPivot { column, pivot, largest }) => {
+            Err(NewtonError::Singular { iteration, column, pivot, largest })
+        }
+        Err(Singular::NonFinite { .. }) => Err(NewtonError::NonFinite { iteration }),
+    }
+}

@@ -1,0 +1,245 @@
+use approx::assert_relative_eq;
+
+use super::*;
+use crate::fixtures::CircleLine;
+
+/// The outcome of one Newton solve together with its storage.
+struct Run {
+    result: Result<NewtonReport, NewtonError>,
+    q: [f64; 2],
+    phi: [f64; 2],
+    jac: [[f64; 2]; 2],
+    perm: [usize; 2],
+}
+
+fn run(mechanism: &CircleLine, q: [f64; 2], t: f64, options: &NewtonOptions) -> Run {
+    let mut run = Run { q, ..BLANK };
+    run.result =
+        solve(mechanism, &mut run.q, t, options, &mut run.phi, &mut run.jac, &mut run.perm);
+    run
+}
+
+const BLANK: Run = Run {
+    result: Ok(NewtonReport { iterations: 0, residual: 0.0 }),
+    q: [0.0; 2],
+    phi: [f64::NAN; 2],
+    jac: [[f64::NAN; 2]; 2],
+    perm: [0; 2],
+};
+
+fn check_status(residual: f64, iterations: u32, expected: Status) {
+    let options = NewtonOptions { tolerance: 1e-10, max_iterations: 3, pivot_ratio: 1e-12 };
+    assert_eq!(status(residual, iterations, &options), expected, "{residual:e} after {iterations}");
+}
+
+#[test]
+fn status_converges_at_and_below_the_tolerance() {
+    check_status(0.0, 0, Status::Converged);
+    check_status(1e-10, 1, Status::Converged);
+    check_status(1e-11, 2, Status::Converged);
+}
+
+#[test]
+fn status_continues_above_the_tolerance_while_steps_are_left() {
+    check_status(1.0000001e-10, 0, Status::Continue);
+    check_status(1e3, 2, Status::Continue);
+}
+
+#[test]
+fn status_is_exhausted_after_max_iterations_unless_converged() {
+    check_status(2e-10, 3, Status::Exhausted);
+    check_status(2e-10, 4, Status::Exhausted);
+    check_status(1e-10, 3, Status::Converged);
+}
+
+#[test]
+fn status_flags_nan_and_infinity_first() {
+    check_status(f64::NAN, 0, Status::NonFinite);
+    check_status(f64::INFINITY, 3, Status::NonFinite);
+}
+
+#[test]
+fn default_options_are_the_documented_values() {
+    let options = NewtonOptions::default();
+    assert_eq!(options, NewtonOptions { tolerance: 1e-10, max_iterations: 25, pivot_ratio: 1e-12 });
+}
+
+#[test]
+fn max_abs_keeps_nan() {
+    assert_eq!(max_abs(&[1.0, -3.0, 2.0]), 3.0);
+    assert!(max_abs(&[1.0, f64::NAN, 2.0]).is_nan());
+    assert_eq!(max_abs(&[]), 0.0);
+}
+
+#[test]
+fn converges_from_perturbed_starts_to_the_closed_form() {
+    let options = NewtonOptions::default();
+    for t in [0.3, 0.8, 1.5, 2.2, 2.8] {
+        let [exact, _, _] = CircleLine::exact(t);
+        for (dx, dy) in [(0.1, -0.2), (-0.15, 0.1), (0.02, 0.3)] {
+            let m = CircleLine::default();
+            let run = run(&m, [exact[0] + dx, exact[1] + dy], t, &options);
+            let report = run.result.unwrap();
+            // Quadratic convergence from within 0.3 of the root takes a handful of steps.
+            assert!((1..=6).contains(&report.iterations), "t = {t}: {report:?}");
+            assert!(report.residual <= options.tolerance);
+            // |Δq| ≲ |Φ| / σ_min(Φ_q) ≤ 1e-10 / 0.3 here; after the last quadratic step the
+            // error is far smaller still.
+            assert_relative_eq!(run.q[0], exact[0], epsilon = 1e-9);
+            assert_relative_eq!(run.q[1], exact[1], epsilon = 1e-9);
+            // One joint evaluation per step, one at the converged q, none for normalize (a no-op
+            // here, so q does not move).
+            assert_eq!(m.jacobians.get(), report.iterations + 1);
+            assert_eq!(m.normalizations.get(), 1);
+        }
+    }
+}
+
+#[test]
+fn converged_start_takes_no_step_even_with_max_iterations_0() {
+    let t = 1.0;
+    let [exact, _, _] = CircleLine::exact(t);
+    let options = NewtonOptions { max_iterations: 0, ..NewtonOptions::default() };
+    let run = run(&CircleLine::default(), exact, t, &options);
+    let report = run.result.unwrap();
+    assert_eq!(report.iterations, 0);
+    assert!(report.residual <= 1e-15, "{report:?}");
+    assert_eq!(run.q, exact);
+}
+
+#[test]
+fn one_iteration_from_far_away_is_not_converged() {
+    let options = NewtonOptions { max_iterations: 1, ..NewtonOptions::default() };
+    let run = run(&CircleLine::default(), [3.0, 3.0], 1.0, &options);
+    let Err(NewtonError::NotConverged { iterations, residual }) = run.result else {
+        panic!("expected NotConverged, got {:?}", run.result);
+    };
+    assert_eq!(iterations, 1);
+    // One step puts x on the line (that row is linear) but leaves y ≈ 2.63, so the circle
+    // residual is still about 6.
+    assert!(residual > 1.0 && residual.is_finite(), "{residual}");
+    assert_eq!(residual, max_abs(&run.phi));
+}
+
+#[test]
+fn start_on_the_x_axis_is_singular_at_iteration_0() {
+    // Φ_q = [[2x, 0], [1, 0]] has a zero second column.
+    let run = run(&CircleLine::default(), [1.2, 0.0], 0.5, &NewtonOptions::default());
+    assert_eq!(
+        run.result,
+        Err(NewtonError::Singular { iteration: 0, column: 1, pivot: 0.0, largest: 2.4 })
+    );
+}
+
+#[test]
+fn pivot_ratio_option_decides_singularity() {
+    // Φ_q = [[2, 2e-7], [1, 0]] has pivots 2 and 1e-7, a ratio of 5e-8.
+    let start = [1.0, 1e-7];
+    let strict = NewtonOptions { pivot_ratio: 1e-6, max_iterations: 1, ..NewtonOptions::default() };
+    assert!(matches!(
+        run(&CircleLine::default(), start, 0.5, &strict).result,
+        Err(NewtonError::Singular { iteration: 0, column: 1, .. })
+    ));
+    // The default ratio accepts the Jacobian; the one allowed step, of length about 1e6, then
+    // lands far from the circle.
+    let lax = NewtonOptions { max_iterations: 1, ..NewtonOptions::default() };
+    assert!(matches!(
+        run(&CircleLine::default(), start, 0.5, &lax).result,
+        Err(NewtonError::NotConverged { iterations: 1, .. })
+    ));
+}
+
+#[test]
+fn nan_time_is_non_finite_at_iteration_0() {
+    let run = run(&CircleLine::default(), [0.5, 0.5], f64::NAN, &NewtonOptions::default());
+    assert_eq!(run.result, Err(NewtonError::NonFinite { iteration: 0 }));
+}
+
+#[test]
+fn infinite_start_is_non_finite_at_iteration_0() {
+    let run = run(&CircleLine::default(), [f64::INFINITY, 0.5], 1.0, &NewtonOptions::default());
+    assert_eq!(run.result, Err(NewtonError::NonFinite { iteration: 0 }));
+}
+
+#[test]
+fn after_normalize_residual_and_factors_belong_to_the_final_q() {
+    let t = 1.0;
+    // A loose tolerance leaves q off the circle when Newton stops, so the projection moves it.
+    let options = NewtonOptions { tolerance: 1e-3, ..NewtonOptions::default() };
+    let m = CircleLine::projected();
+    let run = run(&m, [0.6, 0.9], t, &options);
+    let report = run.result.unwrap();
+    assert_eq!(m.normalizations.get(), 1);
+    // One evaluation per step, one where Newton stopped, one again after the projection.
+    assert_eq!(m.jacobians.get(), report.iterations + 2);
+    // The projection put q on the circle, to rounding.
+    assert_relative_eq!(run.q[0].hypot(run.q[1]), 1.0, epsilon = 1e-15);
+
+    let mut phi = [0.0; 2];
+    m.residual(&run.q, t, &mut phi);
+    assert_eq!(run.phi, phi);
+    assert_eq!(report.residual, max_abs(&phi));
+
+    // The factors left in `jac` and `perm` are those of Φ_q at the final q.
+    let mut jac = [[0.0; 2]; 2];
+    m.jacobian(&run.q, t, &mut jac);
+    let mut x = [1.0, 2.0];
+    lu::solve(&run.jac, &run.perm, &mut x);
+    let back = [jac[0][0] * x[0] + jac[0][1] * x[1], jac[1][0] * x[0] + jac[1][1] * x[1]];
+    assert_relative_eq!(back[0], 1.0, epsilon = 1e-14);
+    assert_relative_eq!(back[1], 2.0, epsilon = 1e-14);
+}
+
+/// [`CircleLine`] with its line row scaled by 1e4, so that the small move of x made by the
+/// radial projection shows up as a line residual far above the tolerance.
+struct StiffLine(CircleLine);
+
+const STIFFNESS: f64 = 1e4;
+
+impl Mechanism<2> for StiffLine {
+    fn residual(&self, q: &[f64; 2], t: f64, phi: &mut [f64; 2]) {
+        self.0.residual(q, t, phi);
+        phi[1] *= STIFFNESS;
+    }
+
+    fn jacobian(&self, q: &[f64; 2], t: f64, jac: &mut [[f64; 2]; 2]) {
+        self.0.jacobian(q, t, jac);
+        jac[1] = jac[1].map(|d| d * STIFFNESS);
+    }
+
+    fn velocity_rhs(&self, q: &[f64; 2], t: f64, nu: &mut [f64; 2]) {
+        self.0.velocity_rhs(q, t, nu);
+        nu[1] *= STIFFNESS;
+    }
+
+    fn acceleration_rhs(&self, q: &[f64; 2], qd: &[f64; 2], t: f64, gamma: &mut [f64; 2]) {
+        self.0.acceleration_rhs(q, qd, t, gamma);
+        gamma[1] *= STIFFNESS;
+    }
+
+    fn normalize(&self, q: &mut [f64; 2]) {
+        self.0.normalize(q);
+    }
+}
+
+#[test]
+fn a_projection_that_breaks_the_tolerance_is_followed_by_more_steps() {
+    let t = 1.0;
+    // Newton first stops after two steps with the line row exact and the circle residual
+    // ε ≈ 1.5e-5 ≤ 1e-4; projecting then moves x by about x·ε/2 ≈ 4e-6, which the stiff line
+    // row turns into a residual of about 4e-2 > 1e-4, so Newton must step again.
+    let options = NewtonOptions { tolerance: 1e-4, ..NewtonOptions::default() };
+    let m = StiffLine(CircleLine::projected());
+    let mut run = BLANK;
+    run.q = [0.6, 0.9];
+    let report =
+        solve(&m, &mut run.q, t, &options, &mut run.phi, &mut run.jac, &mut run.perm).unwrap();
+    assert_eq!(m.0.normalizations.get(), 2);
+    assert_eq!(report.iterations, 3);
+    assert!(report.residual <= options.tolerance);
+    let mut phi = [0.0; 2];
+    m.residual(&run.q, t, &mut phi);
+    assert_eq!(report.residual, max_abs(&phi));
+    // The last thing done to q was the projection.
+    assert_relative_eq!(run.q[0].hypot(run.q[1]), 1.0, epsilon = 1e-15);
+}
