@@ -63,3 +63,13 @@ impl Mechanism<2> for CircleLine {
         }
     }
 }
+
+/// A mechanism without unknowns, as a description with only ground bodies would give.
+pub(crate) struct Empty;
+
+impl Mechanism<0> for Empty {
+    fn residual(&self, _q: &[f64; 0], _t: f64, _phi: &mut [f64; 0]) {}
+    fn jacobian(&self, _q: &[f64; 0], _t: f64, _jac: &mut [[f64; 0]; 0]) {}
+    fn velocity_rhs(&self, _q: &[f64; 0], _t: f64, _nu: &mut [f64; 0]) {}
+    fn acceleration_rhs(&self, _q: &[f64; 0], _qd: &[f64; 0], _t: f64, _gamma: &mut [f64; 0]) {}
+}

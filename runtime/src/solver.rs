@@ -1,0 +1,270 @@
+//! [`Solver`]: position, velocity and acceleration steps for a control loop.
+//!
+//! A step is up to three calls, each paying only for itself:
+//! [`Solver::position`] runs Newton at time t and keeps the LU factors of Φ_q at the converged q;
+//! [`Solver::velocity`] solves Φ_q q̇ = ν with those factors;
+//! [`Solver::acceleration`] solves Φ_q q̈ = γ with the same factors.
+//! Neither of the last two evaluates or factors Φ_q again.
+//!
+//! The solver owns the state q, q̇, q̈ and the time of the last converged position.
+//! With the predictor on, [`Solver::position`] starts Newton from the Taylor expansion
+//! q + h q̇ + h²/2 q̈ (h the time since the last step), using whichever of q̇ and q̈ were solved
+//! at that step.
+
+#[cfg(test)]
+mod tests;
+
+use core::borrow::BorrowMut;
+use core::fmt;
+
+use crate::newton::{self, NewtonError, NewtonOptions, NewtonReport};
+use crate::{Mechanism, lu};
+
+/// Kinematic analysis of one mechanism, one time step at a time, without allocation.
+///
+/// `J` is the storage of the `N × N` Jacobian and its LU factors.
+/// With the default, an owned array, the solver is self-contained: keep it in a local for small
+/// `N`, and in a `Box` or a `static` for large `N` (the constructors are `const fn`, so it can
+/// be built at compile time).
+/// [`Solver::with_storage`] takes any `J: BorrowMut<[[f64; N]; N]>` instead, such as a
+/// `&mut [[f64; N]; N]` or a `Box<[[f64; N]; N]>` built without passing through the stack.
+#[derive(Clone, Debug)]
+pub struct Solver<M, const N: usize, J = [[f64; N]; N]> {
+    mechanism: M,
+    options: NewtonOptions,
+    predictor: bool,
+    t: f64,
+    q: [f64; N],
+    qd: [f64; N],
+    qdd: [f64; N],
+    /// Φ during Newton, then ν or γ and the solutions before they are accepted.
+    scratch: [f64; N],
+    jac: J,
+    perm: [usize; N],
+    /// `jac` and `perm` hold the LU factors of Φ_q at (`q`, `t`).
+    factored: bool,
+    /// Which time derivatives were solved at (`q`, `t`).
+    known: Known,
+}
+
+/// The time derivatives solved at the solver's current (q, t).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
+enum Known {
+    Nothing,
+    Velocity,
+    Acceleration,
+}
+
+/// Why [`Solver::velocity`] or [`Solver::acceleration`] failed.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum SolveError {
+    /// There is no converged position to reuse the factors of: [`Solver::position`] was not
+    /// called since [`Solver::new`] or [`Solver::set_q`], or its last call failed.
+    NoPosition,
+    /// [`Solver::acceleration`] needs q̇ at the current position: call [`Solver::velocity`]
+    /// first.
+    NoVelocity,
+    /// ν, γ or the solution contained a NaN or an infinity; q̇ or q̈ is left unchanged.
+    NonFinite,
+}
+
+impl fmt::Display for SolveError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(match self {
+            SolveError::NoPosition => "no converged position to reuse the factorisation of",
+            SolveError::NoVelocity => "acceleration needs the velocity at the current position",
+            SolveError::NonFinite => "non-finite right-hand side or solution",
+        })
+    }
+}
+
+impl core::error::Error for SolveError {}
+
+impl<M, const N: usize> Solver<M, N> {
+    /// A solver for `mechanism` that owns its Jacobian storage, with `q` as the first estimate,
+    /// t = 0, [`NewtonOptions::DEFAULT`] and the predictor off.
+    ///
+    /// The solver holds an `N × N` array by value: for large `N`, place it in a `static` or see
+    /// [`Solver::with_storage`].
+    pub const fn new(mechanism: M, q: [f64; N]) -> Self {
+        Solver::with_storage(mechanism, q, [[0.0; N]; N])
+    }
+}
+
+impl<M, const N: usize, J> Solver<M, N, J> {
+    /// A solver for `mechanism` that keeps Φ_q and its factors in `jac`, with `q` as the first
+    /// estimate, t = 0, [`NewtonOptions::DEFAULT`] and the predictor off.
+    ///
+    /// The contents of `jac` are irrelevant; it is overwritten before it is read.
+    pub const fn with_storage(mechanism: M, q: [f64; N], jac: J) -> Self {
+        Solver {
+            mechanism,
+            options: NewtonOptions::DEFAULT,
+            predictor: false,
+            t: 0.0,
+            q,
+            qd: [0.0; N],
+            qdd: [0.0; N],
+            scratch: [0.0; N],
+            jac,
+            perm: [0; N],
+            factored: false,
+            known: Known::Nothing,
+        }
+    }
+
+    /// The mechanism.
+    pub const fn mechanism(&self) -> &M {
+        &self.mechanism
+    }
+
+    /// The Newton options used by [`Solver::position`].
+    pub const fn options(&self) -> &NewtonOptions {
+        &self.options
+    }
+
+    /// Replaces the Newton options used by [`Solver::position`].
+    pub const fn set_options(&mut self, options: NewtonOptions) {
+        self.options = options;
+    }
+
+    /// Turns the Taylor predictor of [`Solver::position`] on or off (off by default).
+    pub const fn set_predictor(&mut self, on: bool) {
+        self.predictor = on;
+    }
+
+    /// The time of the last converged position (0 before the first).
+    pub const fn t(&self) -> f64 {
+        self.t
+    }
+
+    /// The coordinates q: the last converged position, or the estimate given to
+    /// [`Solver::new`] or [`Solver::set_q`].
+    pub const fn q(&self) -> &[f64; N] {
+        &self.q
+    }
+
+    /// The velocities q̇ from the last successful [`Solver::velocity`] (zeros before the first).
+    ///
+    /// They belong to the current q only if [`Solver::velocity`] was called after the last
+    /// [`Solver::position`].
+    pub const fn qd(&self) -> &[f64; N] {
+        &self.qd
+    }
+
+    /// The accelerations q̈ from the last successful [`Solver::acceleration`] (zeros before the
+    /// first), with the same caveat as [`Solver::qd`].
+    pub const fn qdd(&self) -> &[f64; N] {
+        &self.qdd
+    }
+
+    /// Sets the estimate of q that the next [`Solver::position`] starts from.
+    ///
+    /// This forgets the factorisation and the solved q̇ and q̈, so the next step uses no
+    /// predictor, and [`Solver::velocity`] fails until a position has converged.
+    pub const fn set_q(&mut self, q: [f64; N]) {
+        self.q = q;
+        self.factored = false;
+        self.known = Known::Nothing;
+    }
+}
+
+impl<M: Mechanism<N>, const N: usize, J: BorrowMut<[[f64; N]; N]>> Solver<M, N, J> {
+    /// Solves Φ(q, t) = 0 by Newton from the current q (or from the Taylor predictor when it is
+    /// on and q̇ was solved at the last step), then normalises q.
+    ///
+    /// Keeps the LU factors of Φ_q at the converged q for [`Solver::velocity`] and
+    /// [`Solver::acceleration`].
+    ///
+    /// # Errors
+    ///
+    /// Returns the [`NewtonError`] of the failed solve.
+    /// q, q̇, q̈ and t are then left as they were before the call (the predictor's history
+    /// included), so the caller can retry, for example with a shorter step or after
+    /// [`Solver::set_q`]; velocity and acceleration fail until a position converges.
+    pub fn position(&mut self, t: f64) -> Result<NewtonReport, NewtonError> {
+        let start = self.q;
+        if self.predictor && self.known >= Known::Velocity {
+            let h = t - self.t;
+            let half_h2 = if self.known == Known::Acceleration { 0.5 * h * h } else { 0.0 };
+            for ((q, qd), qdd) in self.q.iter_mut().zip(&self.qd).zip(&self.qdd) {
+                *q += h * qd + half_h2 * qdd;
+            }
+        }
+        self.factored = false;
+        let result = newton::solve(
+            &self.mechanism,
+            &mut self.q,
+            t,
+            &self.options,
+            &mut self.scratch,
+            self.jac.borrow_mut(),
+            &mut self.perm,
+        );
+        match result {
+            Ok(_) => {
+                self.t = t;
+                self.factored = true;
+                self.known = Known::Nothing;
+            }
+            Err(_) => self.q = start,
+        }
+        result
+    }
+
+    /// Solves Φ_q q̇ = ν at the converged position, with the factors kept by
+    /// [`Solver::position`].
+    ///
+    /// Evaluates ν only: no Jacobian, no factorisation.
+    ///
+    /// # Errors
+    ///
+    /// [`SolveError::NoPosition`] without a converged position, [`SolveError::NonFinite`] if ν
+    /// or q̇ is not finite (q̇ then keeps its previous value).
+    pub fn velocity(&mut self) -> Result<(), SolveError> {
+        if !self.factored {
+            return Err(SolveError::NoPosition);
+        }
+        self.mechanism.velocity_rhs(&self.q, self.t, &mut self.scratch);
+        self.solve_scratch()?;
+        self.qd = self.scratch;
+        self.known = Known::Velocity;
+        Ok(())
+    }
+
+    /// Solves Φ_q q̈ = γ at the converged position and velocity, with the factors kept by
+    /// [`Solver::position`].
+    ///
+    /// Evaluates γ only: no Jacobian, no factorisation.
+    ///
+    /// # Errors
+    ///
+    /// [`SolveError::NoPosition`] without a converged position, [`SolveError::NoVelocity`] if
+    /// [`Solver::velocity`] has not succeeded since, [`SolveError::NonFinite`] if γ or q̈ is not
+    /// finite (q̈ then keeps its previous value).
+    pub fn acceleration(&mut self) -> Result<(), SolveError> {
+        if !self.factored {
+            return Err(SolveError::NoPosition);
+        }
+        if self.known < Known::Velocity {
+            return Err(SolveError::NoVelocity);
+        }
+        self.mechanism.acceleration_rhs(&self.q, &self.qd, self.t, &mut self.scratch);
+        self.solve_scratch()?;
+        self.qdd = self.scratch;
+        self.known = Known::Acceleration;
+        Ok(())
+    }
+
+    /// Overwrites the right-hand side in `scratch` with the solution of Φ_q x = scratch.
+    fn solve_scratch(&mut self) -> Result<(), SolveError> {
+        if self.scratch.iter().any(|v| !v.is_finite()) {
+            return Err(SolveError::NonFinite);
+        }
+        lu::solve(self.jac.borrow(), &self.perm, &mut self.scratch);
+        if self.scratch.iter().any(|v| !v.is_finite()) {
+            return Err(SolveError::NonFinite);
+        }
+        Ok(())
+    }
+}

@@ -1,0 +1,259 @@
+extern crate std;
+
+use std::boxed::Box;
+use std::vec;
+
+use approx::assert_relative_eq;
+
+use super::*;
+use crate::fixtures::{CircleLine, Empty};
+
+/// Newton's tolerance is 1e-10 on residuals of unit size and Φ_q is well conditioned away from
+/// the x axis (σ_min ≥ 0.3 for the times below), so positions, and the velocities and
+/// accelerations solved at them, are within a few 1e-10 of the closed form.
+const EPSILON: f64 = 1e-9;
+
+/// Steps the circle-line system through `times` as a control loop would, checking q, q̇ and q̈
+/// against the closed form, and returns the total number of Newton steps.
+fn check_sweep(predictor: bool, times: impl Iterator<Item = f64>) -> u32 {
+    let mut solver = Solver::new(CircleLine::default(), [0.9, 0.5]);
+    solver.set_predictor(predictor);
+    let mut steps = 0;
+    for t in times {
+        let report = solver.position(t).unwrap_or_else(|e| panic!("t = {t}: {e}"));
+        steps += report.iterations;
+        assert_eq!(solver.t(), t);
+        solver.velocity().unwrap();
+        solver.acceleration().unwrap();
+        let [q, qd, qdd] = CircleLine::exact(t);
+        for (name, got, want) in
+            [("q", solver.q(), q), ("qd", solver.qd(), qd), ("qdd", solver.qdd(), qdd)]
+        {
+            assert_relative_eq!(got[0], want[0], epsilon = EPSILON);
+            assert_relative_eq!(got[1], want[1], epsilon = EPSILON);
+            assert!(got.iter().all(|v| v.is_finite()), "{name} at t = {t}");
+        }
+    }
+    steps
+}
+
+/// 0.3, 0.35, …, 2.8: the upper half circle, away from the singular ends t = 0 and t = π.
+fn sweep() -> impl Iterator<Item = f64> {
+    (0..=50).map(|k| 0.3 + 0.05 * f64::from(k))
+}
+
+#[test]
+fn sweep_matches_the_closed_form_without_predictor() {
+    check_sweep(false, sweep());
+}
+
+#[test]
+fn sweep_matches_the_closed_form_with_predictor() {
+    check_sweep(true, sweep());
+}
+
+#[test]
+fn predictor_saves_newton_steps() {
+    let without = check_sweep(false, sweep());
+    let with = check_sweep(true, sweep());
+    // The predictor's error is O(h³) ≈ 1e-4 against O(h) ≈ 5e-2 for the previous q, which is
+    // about one Newton step per time step.
+    assert!(with + 40 <= without, "with {with}, without {without}");
+}
+
+#[test]
+fn predictor_without_solved_velocities_starts_from_the_last_q() {
+    let mut plain = Solver::new(CircleLine::default(), [0.9, 0.5]);
+    let mut predicted = Solver::new(CircleLine::default(), [0.9, 0.5]);
+    predicted.set_predictor(true);
+    for t in sweep() {
+        assert_eq!(plain.position(t), predicted.position(t));
+        assert_eq!(plain.q(), predicted.q());
+    }
+}
+
+#[test]
+fn velocity_and_acceleration_reuse_the_factorisation() {
+    let mut solver = Solver::new(CircleLine::default(), [0.9, 0.5]);
+    let report = solver.position(0.7).unwrap();
+    let jacobians = solver.mechanism().jacobians.get();
+    assert_eq!(jacobians, report.iterations + 1);
+    solver.velocity().unwrap();
+    solver.acceleration().unwrap();
+    assert_eq!(solver.mechanism().jacobians.get(), jacobians);
+}
+
+#[test]
+fn velocity_needs_a_converged_position() {
+    let mut solver = Solver::new(CircleLine::default(), [0.9, 0.5]);
+    assert_eq!(solver.velocity(), Err(SolveError::NoPosition));
+    assert_eq!(solver.acceleration(), Err(SolveError::NoPosition));
+    solver.position(0.7).unwrap();
+    solver.velocity().unwrap();
+    solver.set_q([0.8, 0.6]);
+    assert_eq!(solver.velocity(), Err(SolveError::NoPosition));
+}
+
+#[test]
+fn acceleration_needs_the_velocity_at_the_current_position() {
+    let mut solver = Solver::new(CircleLine::default(), [0.9, 0.5]);
+    solver.position(0.7).unwrap();
+    assert_eq!(solver.acceleration(), Err(SolveError::NoVelocity));
+    solver.velocity().unwrap();
+    solver.acceleration().unwrap();
+    // A new position makes the old velocity stale.
+    solver.position(0.8).unwrap();
+    assert_eq!(solver.acceleration(), Err(SolveError::NoVelocity));
+}
+
+#[test]
+fn failed_position_leaves_the_state_as_it_was() {
+    let mut solver = Solver::new(CircleLine::default(), [0.9, 0.5]);
+    solver.set_predictor(true);
+    solver.position(0.7).unwrap();
+    solver.velocity().unwrap();
+    solver.acceleration().unwrap();
+    let before = (*solver.q(), *solver.qd(), *solver.qdd(), solver.t());
+
+    // t = NaN makes Φ NaN, and the predictor's step h = NaN makes the start NaN too.
+    assert_eq!(solver.position(f64::NAN), Err(NewtonError::NonFinite { iteration: 0 }));
+    assert_eq!(before, (*solver.q(), *solver.qd(), *solver.qdd(), solver.t()));
+    assert_eq!(solver.velocity(), Err(SolveError::NoPosition));
+
+    // The predictor's history survives, so a retry at a nearby time starts close.
+    let report = solver.position(0.75).unwrap();
+    assert!(report.iterations <= 3, "{report:?}");
+}
+
+/// [`CircleLine`] whose velocity right-hand side is NaN, as a bad driver would give.
+struct NanVelocity(CircleLine);
+
+impl Mechanism<2> for NanVelocity {
+    fn residual(&self, q: &[f64; 2], t: f64, phi: &mut [f64; 2]) {
+        self.0.residual(q, t, phi);
+    }
+
+    fn jacobian(&self, q: &[f64; 2], t: f64, jac: &mut [[f64; 2]; 2]) {
+        self.0.jacobian(q, t, jac);
+    }
+
+    fn velocity_rhs(&self, _q: &[f64; 2], _t: f64, nu: &mut [f64; 2]) {
+        *nu = [0.0, f64::NAN];
+    }
+
+    fn acceleration_rhs(&self, q: &[f64; 2], qd: &[f64; 2], t: f64, gamma: &mut [f64; 2]) {
+        self.0.acceleration_rhs(q, qd, t, gamma);
+    }
+}
+
+#[test]
+fn non_finite_velocity_rhs_is_an_error_and_keeps_qd() {
+    let mut solver = Solver::new(NanVelocity(CircleLine::default()), [0.9, 0.5]);
+    solver.position(0.7).unwrap();
+    assert_eq!(solver.velocity(), Err(SolveError::NonFinite));
+    assert_eq!(solver.qd(), &[0.0, 0.0]);
+    assert_eq!(solver.acceleration(), Err(SolveError::NoVelocity));
+}
+
+/// A chain of `N` unknowns: q₀ = cos t and q_i² + q_{i−1}² = 1, so for 0 < t < π/2 the
+/// solution near the start below is cos t at even i and sin t at odd i.
+/// Φ_q is lower bidiagonal, so LU meets one nonzero multiplier per column.
+struct Chain<const N: usize>;
+
+impl<const N: usize> Chain<N> {
+    fn exact(t: f64) -> [[f64; N]; 3] {
+        let (s, c) = t.sin_cos();
+        let alternate =
+            |even: f64, odd: f64| core::array::from_fn(|i| if i % 2 == 0 { even } else { odd });
+        [alternate(c, s), alternate(-s, c), alternate(-c, -s)]
+    }
+}
+
+impl<const N: usize> Mechanism<N> for Chain<N> {
+    fn residual(&self, q: &[f64; N], t: f64, phi: &mut [f64; N]) {
+        phi[0] = q[0] - t.cos();
+        for i in 1..N {
+            phi[i] = q[i] * q[i] + q[i - 1] * q[i - 1] - 1.0;
+        }
+    }
+
+    fn jacobian(&self, q: &[f64; N], _t: f64, jac: &mut [[f64; N]; N]) {
+        for row in jac.iter_mut() {
+            row.fill(0.0);
+        }
+        jac[0][0] = 1.0;
+        for i in 1..N {
+            jac[i][i - 1] = 2.0 * q[i - 1];
+            jac[i][i] = 2.0 * q[i];
+        }
+    }
+
+    fn velocity_rhs(&self, _q: &[f64; N], t: f64, nu: &mut [f64; N]) {
+        nu.fill(0.0);
+        nu[0] = -t.sin();
+    }
+
+    fn acceleration_rhs(&self, _q: &[f64; N], qd: &[f64; N], t: f64, gamma: &mut [f64; N]) {
+        gamma[0] = -t.cos();
+        for i in 1..N {
+            gamma[i] = -2.0 * (qd[i] * qd[i] + qd[i - 1] * qd[i - 1]);
+        }
+    }
+}
+
+/// The constructors are `const fn`, so a solver can be built at compile time.
+const SMALL_CHAIN: Solver<Chain<3>, 3> = Solver::new(Chain, [0.9, 0.5, 0.9]);
+
+#[test]
+fn const_solver_runs() {
+    let mut solver = SMALL_CHAIN;
+    solver.position(0.6).unwrap();
+    let [q, _, _] = Chain::<3>::exact(0.6);
+    for (got, want) in solver.q().iter().zip(q) {
+        assert_relative_eq!(*got, want, epsilon = EPSILON);
+    }
+}
+
+#[test]
+fn borrowed_storage_gives_the_same_answers_as_owned_storage() {
+    let mut storage = [[0.0; 2]; 2];
+    let mut borrowed = Solver::with_storage(CircleLine::default(), [0.9, 0.5], &mut storage);
+    let mut owned = Solver::new(CircleLine::default(), [0.9, 0.5]);
+    for t in sweep() {
+        assert_eq!(borrowed.position(t), owned.position(t));
+        borrowed.velocity().unwrap();
+        owned.velocity().unwrap();
+        assert_eq!((borrowed.q(), borrowed.qd()), (owned.q(), owned.qd()));
+    }
+}
+
+#[test]
+fn a_700_unknown_chain_solves_with_heap_storage() {
+    const N: usize = 700;
+    // Built on the heap directly: the 3.9 MB Jacobian never passes through this thread's stack.
+    let jac: Box<[[f64; N]; N]> = vec![[0.0; N]; N].into_boxed_slice().try_into().unwrap();
+    let start = core::array::from_fn(|i| if i % 2 == 0 { 0.8 } else { 0.6 });
+    let mut solver = Box::new(Solver::with_storage(Chain::<N>, start, jac));
+    solver.set_predictor(true);
+    for t in [0.5, 0.55, 0.6] {
+        solver.position(t).unwrap();
+        solver.velocity().unwrap();
+        solver.acceleration().unwrap();
+        let [q, qd, qdd] = Chain::<N>::exact(t);
+        // Errors propagate along the chain but do not grow: each link maps (cos, sin) to
+        // (sin, cos) with Jacobian entries of order one.
+        for (got, want) in [(solver.q(), q), (solver.qd(), qd), (solver.qdd(), qdd)] {
+            for (g, w) in got.iter().zip(want) {
+                assert_relative_eq!(*g, w, epsilon = EPSILON);
+            }
+        }
+    }
+}
+
+#[test]
+fn a_mechanism_without_unknowns_is_trivially_solved() {
+    let mut solver = Solver::new(Empty, []);
+    assert_eq!(solver.position(1.0), Ok(NewtonReport { iterations: 0, residual: 0.0 }));
+    solver.velocity().unwrap();
+    solver.acceleration().unwrap();
+}
