@@ -56,6 +56,21 @@ enum Command {
         #[arg(short = 'o', long = "output")]
         output: Option<PathBuf>,
     },
+    /// Emit the specialised Rust module of a description.
+    Generate {
+        /// The description file.
+        file: PathBuf,
+        /// Write the module here instead of standard output.
+        #[arg(short = 'o', long = "output")]
+        output: Option<PathBuf>,
+    },
+    /// Regenerate `generated/src` from `examples/*.toml` (`--check`: only compare).
+    #[command(hide = true)]
+    Codegen {
+        /// Report stale files and exit 1 instead of writing.
+        #[arg(long)]
+        check: bool,
+    },
     /// Convert a legacy YOUNG input deck to a description (TOML on standard output).
     ImportYoung {
         /// The deck.
@@ -117,6 +132,8 @@ pub fn run(args: Vec<OsString>, out: &mut dyn Write, err: &mut dyn Write) -> i32
             solve(&file, engine, format, output.as_deref(), out, err)
         }
         Command::ImportYoung { deck, output } => import_young(&deck, output.as_deref(), out, err),
+        Command::Generate { file, output } => generate(&file, output.as_deref(), out, err),
+        Command::Codegen { check } => codegen(check, out, err),
     };
     match result {
         Ok(code) => code,
@@ -341,4 +358,46 @@ fn import_young(
         None => out.write_all(toml.as_bytes())?,
     }
     Ok(EXIT_OK)
+}
+
+fn generate(
+    file: &Path,
+    output: Option<&Path>,
+    out: &mut dyn Write,
+    err: &mut dyn Write,
+) -> io::Result<i32> {
+    let loaded = match load(file, false, out, err) {
+        Ok(l) => l,
+        Err(code) => return Ok(code),
+    };
+    let sys = match crate::symbolic::Symbolic::build(&loaded.mechanism) {
+        Ok(s) => s,
+        Err(e) => {
+            let d = Diagnostic::error(e.message)
+                .entity(format!("mechanism \"{}\"", loaded.mechanism.name));
+            return Ok(report_invalid(&[d], false, out, err));
+        }
+    };
+    let text = crate::emit::module(&loaded.mechanism, &sys, &file.display().to_string());
+    match output {
+        Some(path) => std::fs::write(path, text)?,
+        None => out.write_all(text.as_bytes())?,
+    }
+    Ok(EXIT_OK)
+}
+
+fn codegen(check: bool, out: &mut dyn Write, err: &mut dyn Write) -> io::Result<i32> {
+    let mode = if check { crate::sync::Mode::Check } else { crate::sync::Mode::Write };
+    match crate::sync::sync(&crate::sync::workspace_root(), mode) {
+        Ok(stale) => {
+            for s in &stale {
+                writeln!(out, "{}: {s:?}", if check { "stale" } else { "updated" })?;
+            }
+            Ok(if check && !stale.is_empty() { EXIT_INVALID } else { EXIT_OK })
+        }
+        Err(e) => {
+            writeln!(err, "error: {e}")?;
+            Ok(EXIT_INVALID)
+        }
+    }
 }

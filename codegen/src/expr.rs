@@ -22,6 +22,11 @@ impl ExprId {
     pub fn index(self) -> usize {
         self.0 as usize
     }
+
+    /// The id of the node at `index` (ids are indices).
+    pub(crate) fn from_index(index: usize) -> Self {
+        Self(u32::try_from(index).expect("fewer than 2³² nodes"))
+    }
 }
 
 /// A leaf symbol.

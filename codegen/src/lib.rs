@@ -10,10 +10,12 @@
 pub mod cli;
 pub mod desc;
 pub mod diag;
+pub mod emit;
 pub mod expr;
 pub mod generic;
 pub mod model;
 pub mod report;
 pub mod symbolic;
+pub mod sync;
 pub mod validate;
 pub mod young;

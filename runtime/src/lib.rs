@@ -122,6 +122,7 @@
 
 pub mod dynamic;
 pub mod lu;
+pub mod math;
 mod mechanism;
 pub mod newton;
 mod solver;

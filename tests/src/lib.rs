@@ -6,6 +6,8 @@
 //! tests say, at each comparison, which reference value is trusted and how far.
 
 #[cfg(test)]
+mod generated_engine;
+#[cfg(test)]
 mod harness;
 #[cfg(test)]
 mod rssr_reference;
