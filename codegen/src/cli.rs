@@ -56,6 +56,33 @@ enum Command {
         #[arg(short = 'o', long = "output")]
         output: Option<PathBuf>,
     },
+    /// Run both engines; report the largest difference of every output quantity and the
+    /// time per step of each.
+    Compare {
+        /// The description file.
+        file: PathBuf,
+        /// Output format.
+        #[arg(long, value_enum, default_value_t = CheckFormat::Text)]
+        format: CheckFormat,
+    },
+    /// Time the analysis: ns per time step (min and median over repeats), Newton
+    /// iterations per step.
+    Bench {
+        /// The description file.
+        file: PathBuf,
+        /// The engine, or both side by side.
+        #[arg(long, value_enum, default_value_t = BenchEngine::Both)]
+        engine: BenchEngine,
+        /// Newton tolerance on max |Φ_i| (default: the description's).
+        #[arg(long)]
+        tolerance: Option<f64>,
+        /// Whole passes over the grid to time.
+        #[arg(long, default_value_t = 20)]
+        repeats: usize,
+        /// Output format.
+        #[arg(long, value_enum, default_value_t = CheckFormat::Text)]
+        format: CheckFormat,
+    },
     /// Emit the specialised Rust module of a description.
     Generate {
         /// The description file.
@@ -92,6 +119,13 @@ enum SolveFormat {
     Table,
     Csv,
     Json,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+enum BenchEngine {
+    Generic,
+    Generated,
+    Both,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
@@ -133,6 +167,10 @@ pub fn run(args: Vec<OsString>, out: &mut dyn Write, err: &mut dyn Write) -> i32
         }
         Command::ImportYoung { deck, output } => import_young(&deck, output.as_deref(), out, err),
         Command::Generate { file, output } => generate(&file, output.as_deref(), out, err),
+        Command::Compare { file, format } => compare(&file, format, out, err),
+        Command::Bench { file, engine, tolerance, repeats, format } => {
+            bench(&file, engine, tolerance, repeats, format, out, err)
+        }
         Command::Codegen { check } => codegen(check, out, err),
     };
     match result {
@@ -282,6 +320,13 @@ fn check(
     Ok(EXIT_OK)
 }
 
+/// Builds the generated solver, or says why not as an invalid-input diagnostic.
+fn build_generated(mech: &Mechanism) -> Result<crate::engine::Built, Box<Diagnostic>> {
+    crate::engine::build(mech).map_err(|e| {
+        Box::new(Diagnostic::error(e.to_string()).entity(format!("mechanism \"{}\"", mech.name)))
+    })
+}
+
 fn solve(
     file: &Path,
     engine: Option<Engine>,
@@ -291,14 +336,6 @@ fn solve(
     err: &mut dyn Write,
 ) -> io::Result<i32> {
     let json = format == SolveFormat::Json;
-    if engine == Some(Engine::Generated) {
-        let d = Diagnostic::error(
-            "the generated engine is not available in this version; use --engine generic",
-        )
-        .entity("command line")
-        .field("engine");
-        return Ok(report_invalid(&[d], json, out, err));
-    }
     let loaded = match load(file, json, out, err) {
         Ok(l) => l,
         Err(code) => return Ok(code),
@@ -317,6 +354,21 @@ fn solve(
             eq.labels()[k].equation()
         )?;
     }
+    // The default engine is the generated one when it can be built, else the generic one.
+    let built = match engine {
+        Some(Engine::Generic) => None,
+        Some(Engine::Generated) => match build_generated(mech) {
+            Ok(b) => Some(b),
+            Err(d) => return Ok(report_invalid(&[*d], json, out, err)),
+        },
+        None => match build_generated(mech) {
+            Ok(b) => Some(b),
+            Err(d) => {
+                writeln!(err, "warning: using the generic engine: {}", d.message)?;
+                None
+            }
+        },
+    };
     let fmt = match format {
         SolveFormat::Table => report::Format::Table,
         SolveFormat::Csv => report::Format::Csv,
@@ -327,11 +379,27 @@ fn solve(
         None => Box::new(BufWriter::new(out)),
     };
     let layout = report::layout(mech);
-    let mut writer = Writer::begin(sink, fmt, mech, "generic")?;
-    let analysis = Analysis::new(&eq, &prep);
-    let steps = analysis.run(|frame| writer.step(&report::step_result(mech, &layout, frame)))?;
-    writer.finish(steps.failure.as_ref())?;
-    if let Some(f) = &steps.failure {
+    let name = if built.is_some() { "generated" } else { "generic" };
+    let mut writer = Writer::begin(sink, fmt, mech, name)?;
+    let failure = match &built {
+        None => {
+            let analysis = Analysis::new(&eq, &prep);
+            analysis.run(|frame| writer.step(&report::step_result(mech, &layout, frame)))?.failure
+        }
+        Some(b) => {
+            match crate::engine::run(b, None, |frame| {
+                writer.step(&report::step_result(mech, &layout, frame))
+            }) {
+                Ok(r) => r.failure,
+                Err(e) => {
+                    writeln!(err, "error: {e}")?;
+                    return Ok(EXIT_STOPPED);
+                }
+            }
+        }
+    };
+    writer.finish(failure.as_ref())?;
+    if let Some(f) = &failure {
         writeln!(err, "error: {}", report::failure_text(f))?;
         return Ok(EXIT_STOPPED);
     }
@@ -400,4 +468,194 @@ fn codegen(check: bool, out: &mut dyn Write, err: &mut dyn Write) -> io::Result<
             Ok(EXIT_INVALID)
         }
     }
+}
+
+/// Times `repeats` whole passes of the generic engine: (min, median) ns per step and
+/// Newton iterations per step; `None` when the analysis fails.
+fn time_generic(
+    eq: &Equations<'_>,
+    prep: &crate::generic::Preparation,
+    tolerance: f64,
+    repeats: usize,
+) -> Option<(f64, f64, f64)> {
+    let analysis = Analysis::new(eq, prep).with_tolerance(tolerance);
+    let mut times = Vec::with_capacity(repeats);
+    let mut iterations = 0.0;
+    for _ in 0..repeats.max(1) {
+        let start = std::time::Instant::now();
+        let r = analysis.run(|f| {
+            std::hint::black_box(&f.qdd);
+            Ok::<(), ()>(())
+        });
+        let elapsed = start.elapsed().as_nanos() as f64;
+        let r = r.ok()?;
+        if r.failure.is_some() || r.steps == 0 {
+            return None;
+        }
+        times.push(elapsed / r.steps as f64);
+        iterations = r.iterations as f64 / r.steps as f64;
+    }
+    times.sort_by(f64::total_cmp);
+    Some((times[0], times[times.len() / 2], iterations))
+}
+
+#[allow(clippy::too_many_arguments)] // One argument per command-line option.
+fn bench(
+    file: &Path,
+    engine: BenchEngine,
+    tolerance: Option<f64>,
+    repeats: usize,
+    format: CheckFormat,
+    out: &mut dyn Write,
+    err: &mut dyn Write,
+) -> io::Result<i32> {
+    let json = format == CheckFormat::Json;
+    let loaded = match load(file, json, out, err) {
+        Ok(l) => l,
+        Err(code) => return Ok(code),
+    };
+    let mech = &loaded.mechanism;
+    let tolerance = tolerance.unwrap_or(mech.solver.tolerance);
+    let eq = Equations::new(mech);
+    let prep = eq.prepare();
+    if let Some(d) = undriven(&eq, &prep) {
+        return Ok(report_invalid(&[d], json, out, err));
+    }
+    let steps = mech.time.count;
+    let mut results = Vec::new();
+    if engine != BenchEngine::Generated {
+        match time_generic(&eq, &prep, tolerance, repeats) {
+            Some(r) => results.push(("generic", r)),
+            None => {
+                writeln!(err, "error: the generic analysis failed")?;
+                return Ok(EXIT_STOPPED);
+            }
+        }
+    }
+    if engine != BenchEngine::Generic {
+        let built = match build_generated(mech) {
+            Ok(b) => b,
+            Err(d) => return Ok(report_invalid(&[*d], json, out, err)),
+        };
+        match crate::engine::bench(&built, tolerance, repeats) {
+            Ok(r) => results.push(("generated", r)),
+            Err(e) => {
+                writeln!(err, "error: {e}")?;
+                return Ok(EXIT_STOPPED);
+            }
+        }
+    }
+    let objects: Vec<serde_json::Value> = results
+        .iter()
+        .map(|(name, (min, median, iters))| {
+            serde_json::json!({
+                "mechanism": mech.name,
+                "engine": name,
+                "tolerance": tolerance,
+                "steps": steps,
+                "repeats": repeats.max(1),
+                "ns_per_step": { "min": min, "median": median },
+                "iterations_per_step": iters,
+            })
+        })
+        .collect();
+    let speedup = (results.len() == 2).then(|| results[0].1.1 / results[1].1.1);
+    if json {
+        let v = match speedup {
+            Some(s) => serde_json::json!({ "results": objects, "speedup": s }),
+            None => objects.into_iter().next().unwrap_or_default(),
+        };
+        writeln!(out, "{}", serde_json::to_string_pretty(&v)?)?;
+    } else {
+        writeln!(
+            out,
+            "{} ({steps} time points, tolerance {tolerance:e}, {} repeats)",
+            mech.name,
+            repeats.max(1)
+        )?;
+        for (name, (min, median, iters)) in &results {
+            writeln!(
+                out,
+                "{name:>10}: {min:>10.0} ns/step min, {median:>10.0} ns/step median, {iters:.2} Newton iterations/step"
+            )?;
+        }
+        if let Some(s) = speedup {
+            writeln!(out, "   speedup: {s:.1}x (generic median / generated median)")?;
+        }
+    }
+    Ok(EXIT_OK)
+}
+
+fn compare(
+    file: &Path,
+    format: CheckFormat,
+    out: &mut dyn Write,
+    err: &mut dyn Write,
+) -> io::Result<i32> {
+    let json = format == CheckFormat::Json;
+    let loaded = match load(file, json, out, err) {
+        Ok(l) => l,
+        Err(code) => return Ok(code),
+    };
+    let mech = &loaded.mechanism;
+    let eq = Equations::new(mech);
+    let prep = eq.prepare();
+    if let Some(d) = undriven(&eq, &prep) {
+        return Ok(report_invalid(&[d], json, out, err));
+    }
+    let layout = report::layout(mech);
+    let mut generic = Vec::new();
+    let r = Analysis::new(&eq, &prep).run(|f| {
+        generic.push(report::step_result(mech, &layout, f));
+        Ok::<(), ()>(())
+    });
+    let Ok(r) = r else { unreachable!("the sink never fails") };
+    if let Some(f) = &r.failure {
+        writeln!(err, "error: generic engine: {}", report::failure_text(f))?;
+        return Ok(EXIT_STOPPED);
+    }
+    let built = match build_generated(mech) {
+        Ok(b) => b,
+        Err(d) => return Ok(report_invalid(&[*d], json, out, err)),
+    };
+    let mut generated = Vec::new();
+    let r = crate::engine::run(&built, None, |f| {
+        generated.push(report::step_result(mech, &layout, f));
+        Ok(())
+    });
+    match r {
+        Ok(r) if r.failure.is_none() => {}
+        Ok(r) => {
+            let f = r.failure.expect("checked");
+            writeln!(err, "error: generated engine: {}", report::failure_text(&f))?;
+            return Ok(EXIT_STOPPED);
+        }
+        Err(e) => {
+            writeln!(err, "error: {e}")?;
+            return Ok(EXIT_STOPPED);
+        }
+    }
+    let diffs = report::differences(&generic, &generated);
+    let repeats = 10;
+    let tg = time_generic(&eq, &prep, mech.solver.tolerance, repeats).map_or(f64::NAN, |r| r.1);
+    let td = crate::engine::bench(&built, mech.solver.tolerance, repeats).map_or(f64::NAN, |r| r.1);
+    if json {
+        let v = serde_json::json!({
+            "mechanism": mech.name,
+            "steps": generic.len(),
+            "max_abs_diff": diffs.iter().map(|d| (d.0.to_owned(), serde_json::json!(d.1))).collect::<serde_json::Map<_, _>>(),
+            "max_rel_diff": diffs.iter().map(|d| (d.0.to_owned(), serde_json::json!(d.2))).collect::<serde_json::Map<_, _>>(),
+            "ns_per_step": { "generic": tg, "generated": td },
+            "speedup": tg / td,
+        });
+        writeln!(out, "{}", serde_json::to_string_pretty(&v)?)?;
+    } else {
+        writeln!(out, "{}: {} time points, generic vs generated", mech.name, generic.len())?;
+        writeln!(out, "{:>8} {:>14} {:>14}", "quantity", "max abs diff", "max rel diff")?;
+        for (name, abs, rel) in &diffs {
+            writeln!(out, "{name:>8} {abs:>14.3e} {rel:>14.3e}")?;
+        }
+        writeln!(out, "ns per step: generic {tg:.0}, generated {td:.0}; speedup {:.1}x", tg / td)?;
+    }
+    Ok(EXIT_OK)
 }

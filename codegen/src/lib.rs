@@ -11,6 +11,7 @@ pub mod cli;
 pub mod desc;
 pub mod diag;
 pub mod emit;
+pub mod engine;
 pub mod expr;
 pub mod generic;
 pub mod model;

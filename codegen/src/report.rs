@@ -422,3 +422,50 @@ fn write_table_step(out: &mut impl Write, s: &StepResult) -> io::Result<()> {
     }
     Ok(())
 }
+
+/// For each output quantity of the contract's `compare` (`r`, `p`, `r_dot`, …, `point_a`):
+/// the largest absolute difference between two runs, and that difference relative to the
+/// largest magnitude of the quantity over the first run.
+#[must_use]
+pub fn differences(a: &[StepResult], b: &[StepResult]) -> Vec<(&'static str, f64, f64)> {
+    const NAMES: [&str; 11] = [
+        "r", "p", "r_dot", "p_dot", "omega", "r_ddot", "p_ddot", "alpha", "point_r", "point_v",
+        "point_a",
+    ];
+    let values = |s: &StepResult, k: usize| -> Vec<f64> {
+        if k < 8 {
+            s.bodies
+                .iter()
+                .flat_map(|b| {
+                    let v: &[f64] = [
+                        &b.r[..],
+                        &b.p,
+                        &b.r_dot,
+                        &b.p_dot,
+                        &b.omega,
+                        &b.r_ddot,
+                        &b.p_ddot,
+                        &b.alpha,
+                    ][k];
+                    v.to_vec()
+                })
+                .collect()
+        } else {
+            s.points.iter().flat_map(|p| [p.r, p.v, p.a][k - 8]).collect()
+        }
+    };
+    NAMES
+        .iter()
+        .enumerate()
+        .map(|(k, &name)| {
+            let (mut diff, mut scale) = (0.0_f64, 0.0_f64);
+            for (x, y) in a.iter().zip(b) {
+                for (u, v) in values(x, k).into_iter().zip(values(y, k)) {
+                    diff = diff.max((u - v).abs());
+                    scale = scale.max(u.abs());
+                }
+            }
+            (name, diff, if scale > 0.0 { diff / scale } else { diff })
+        })
+        .collect()
+}

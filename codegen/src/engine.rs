@@ -1,0 +1,312 @@
+//! The generated engine for any description: generate the module, build it against the
+//! workspace's `runtime` crate (offline, in a cache keyed by content), run it, and read its
+//! frames back.
+//!
+//! The built program prints one line per time point: `step t iterations residual` followed
+//! by q, q̇ and q̈ of every moving body (7 each, body by body) in shortest round-trip form,
+//! or `error kind t message` when the analysis stops. In `bench` mode it times whole passes
+//! over the grid and prints `bench min_ns median_ns iterations_per_step`.
+
+use std::hash::{DefaultHasher, Hash, Hasher};
+use std::io::{BufRead, BufReader};
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+
+use nalgebra::DVector;
+
+use crate::emit;
+use crate::generic::{Failure, FailureKind, Frame};
+use crate::model::Mechanism;
+use crate::symbolic::Symbolic;
+
+/// The driver program compiled with each generated module.
+const DRIVER: &str = r#"//! Runs one generated mechanism over its time grid (written by mechgen; do not edit).
+
+mod mechanism;
+
+use std::io::Write;
+
+use runtime::{NewtonError, NewtonOptions, Solver};
+
+fn main() {
+    let args: Vec<String> = std::env::args().collect();
+    let mode = args.get(1).map_or("run", String::as_str);
+    let tolerance = args.get(2).and_then(|s| s.parse().ok()).unwrap_or(mechanism::TOLERANCE);
+    let repeats: usize = args.get(3).and_then(|s| s.parse().ok()).unwrap_or(1);
+    let options = NewtonOptions {
+        tolerance,
+        max_iterations: mechanism::MAX_ITERATIONS,
+        ..NewtonOptions::DEFAULT
+    };
+    // The Jacobian lives on the heap: large mechanisms would overflow the stack.
+    let jac: Box<[[f64; mechanism::N]; mechanism::N]> =
+        match vec![[0.0; mechanism::N]; mechanism::N].into_boxed_slice().try_into() {
+            Ok(b) => b,
+            Err(_) => unreachable!("the vector has N rows"),
+        };
+    let mut solver = Solver::with_storage(mechanism::__TYPE__, mechanism::Q0, jac);
+    solver.set_options(options);
+    solver.set_predictor(true);
+    let stdout = std::io::stdout();
+    let mut out = std::io::BufWriter::new(stdout.lock());
+    if mode == "bench" {
+        let mut times = Vec::with_capacity(repeats);
+        let mut iterations = 0u64;
+        for _ in 0..repeats.max(1) {
+            solver.set_q(mechanism::Q0);
+            iterations = 0;
+            let start = std::time::Instant::now();
+            for k in 0..mechanism::T_COUNT {
+                let t = mechanism::T_START + k as f64 * mechanism::T_STEP;
+                match solver.position(t) {
+                    Ok(r) => iterations += u64::from(r.iterations),
+                    Err(e) => {
+                        let _ = writeln!(out, "error bench {t:?} {e}");
+                        std::process::exit(2);
+                    }
+                }
+                let _ = solver.velocity();
+                let _ = solver.acceleration();
+            }
+            times.push(start.elapsed().as_nanos() as f64 / mechanism::T_COUNT as f64);
+            std::hint::black_box(solver.qdd());
+        }
+        times.sort_by(f64::total_cmp);
+        let _ = writeln!(
+            out,
+            "bench {:?} {:?} {:?}",
+            times[0],
+            times[times.len() / 2],
+            iterations as f64 / mechanism::T_COUNT as f64
+        );
+        return;
+    }
+    let mut full = [[[0.0; 7]; 3]; mechanism::BODIES];
+    for k in 0..mechanism::T_COUNT {
+        let t = mechanism::T_START + k as f64 * mechanism::T_STEP;
+        let report = match solver.position(t) {
+            Ok(r) => r,
+            Err(e) => {
+                let kind = match e {
+                    NewtonError::Singular { .. } => "singular",
+                    _ => "no_convergence",
+                };
+                let _ = writeln!(out, "error {kind} {t:?} {e}");
+                let _ = out.flush();
+                std::process::exit(2);
+            }
+        };
+        if let Err(e) = solver.velocity().and_then(|()| solver.acceleration()) {
+            let _ = writeln!(out, "error singular {t:?} {e}");
+            let _ = out.flush();
+            std::process::exit(2);
+        }
+        mechanism::expand(solver.q(), solver.qd(), solver.qdd(), t, &mut full);
+        let _ = write!(out, "step {t:?} {} {:?}", report.iterations, report.residual);
+        for d in 0..3 {
+            for body in &full {
+                for x in &body[d] {
+                    let _ = write!(out, " {x:?}");
+                }
+            }
+        }
+        let _ = writeln!(out);
+    }
+}
+"#;
+
+/// Why the generated engine could not run.
+#[derive(Debug)]
+pub enum EngineError {
+    /// The description cannot be generated (e.g. an undriven degree of freedom).
+    Generate(String),
+    /// Building the generated crate failed (the compiler's output is attached).
+    Build(String),
+    /// Running it failed or printed something unexpected.
+    Run(String),
+}
+
+impl std::fmt::Display for EngineError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Self::Generate(m) => write!(f, "cannot generate: {m}"),
+            Self::Build(m) => write!(f, "cannot build the generated solver: {m}"),
+            Self::Run(m) => write!(f, "cannot run the generated solver: {m}"),
+        }
+    }
+}
+
+impl std::error::Error for EngineError {}
+
+/// A generated solver, built and ready to run.
+#[derive(Clone, Debug)]
+pub struct Built {
+    /// The program.
+    pub binary: PathBuf,
+    /// Size of the reduced system.
+    pub unknowns: usize,
+}
+
+/// Where built solvers are cached: `$MECHGEN_CACHE`, else `target/mechgen-cache` in the
+/// workspace.
+#[must_use]
+pub fn cache_dir() -> PathBuf {
+    std::env::var_os("MECHGEN_CACHE")
+        .map_or_else(|| crate::sync::workspace_root().join("target/mechgen-cache"), PathBuf::from)
+}
+
+/// Generates, writes and builds the solver of `mech` (a no-op build when the cache holds it).
+///
+/// # Errors
+/// [`EngineError::Generate`] or [`EngineError::Build`].
+pub fn build(mech: &Mechanism) -> Result<Built, EngineError> {
+    let sys = Symbolic::build(mech).map_err(|e| EngineError::Generate(e.message))?;
+    let module = emit::module(mech, &sys, &format!("the description \"{}\"", mech.name));
+    let driver = DRIVER.replace("__TYPE__", &emit::type_name(&mech.name));
+    let mut hasher = DefaultHasher::new();
+    (&module, &driver).hash(&mut hasher);
+    let key = format!("{:016x}", hasher.finish());
+    let cache = cache_dir();
+    let dir = cache.join(&key);
+    let package = format!("mechgen-gen-{key}");
+    let root = crate::sync::workspace_root();
+    let write = |path: &Path, text: &str| -> Result<(), EngineError> {
+        if std::fs::read_to_string(path).is_ok_and(|t| t == text) {
+            return Ok(());
+        }
+        std::fs::create_dir_all(path.parent().expect("inside the cache"))
+            .and_then(|()| std::fs::write(path, text))
+            .map_err(|e| EngineError::Build(format!("{}: {e}", path.display())))
+    };
+    let runtime = root.join("runtime");
+    let manifest = format!(
+        "[package]\nname = \"{package}\"\nversion = \"0.0.0\"\nedition = \"2024\"\npublish = false\n\n\
+         [dependencies]\nruntime = {{ path = {:?} }}\n\n\
+         [profile.release]\ncodegen-units = 1\npanic = \"abort\"\n\n[workspace]\n",
+        runtime.display().to_string()
+    );
+    write(&dir.join("Cargo.toml"), &manifest)?;
+    write(&dir.join("src/main.rs"), &driver)?;
+    write(&dir.join("src/mechanism.rs"), &module)?;
+    if let Ok(lock) = std::fs::read_to_string(root.join("Cargo.lock")) {
+        // The workspace's lock pins libm to the version the workspace was tested with.
+        if !dir.join("Cargo.lock").exists() {
+            write(&dir.join("Cargo.lock"), &lock)?;
+        }
+    }
+    let output = Command::new(std::env::var_os("CARGO").unwrap_or_else(|| "cargo".into()))
+        .args(["build", "--release", "--offline", "--quiet", "--manifest-path"])
+        .arg(dir.join("Cargo.toml"))
+        .env("CARGO_TARGET_DIR", cache.join("target"))
+        .stdin(Stdio::null())
+        .output()
+        .map_err(|e| EngineError::Build(format!("cannot start cargo: {e}")))?;
+    if !output.status.success() {
+        return Err(EngineError::Build(String::from_utf8_lossy(&output.stderr).into_owned()));
+    }
+    let binary = cache.join("target/release").join(&package);
+    Ok(Built { binary, unknowns: sys.unknowns.len() })
+}
+
+/// The outcome of a generated run: frames were handed to the sink as they came.
+#[derive(Clone, Debug)]
+pub struct RunReport {
+    /// Time points analysed.
+    pub steps: usize,
+    /// Why the analysis stopped early, if it did.
+    pub failure: Option<Failure>,
+}
+
+/// Runs a built solver over the grid, handing each frame (full coordinates, generic layout)
+/// to `sink`.
+///
+/// # Errors
+/// [`EngineError::Run`] for an unexpected output; the sink's own errors are passed through
+/// as `Run` too.
+pub fn run(
+    built: &Built,
+    tolerance: Option<f64>,
+    mut sink: impl FnMut(&Frame) -> std::io::Result<()>,
+) -> Result<RunReport, EngineError> {
+    let mut cmd = Command::new(&built.binary);
+    cmd.arg("run");
+    if let Some(t) = tolerance {
+        cmd.arg(format!("{t:?}"));
+    }
+    let mut child = cmd
+        .stdout(Stdio::piped())
+        .stdin(Stdio::null())
+        .spawn()
+        .map_err(|e| EngineError::Run(format!("{}: {e}", built.binary.display())))?;
+    let stdout = child.stdout.take().expect("piped");
+    let mut report = RunReport { steps: 0, failure: None };
+    for line in BufReader::new(stdout).lines() {
+        let line = line.map_err(|e| EngineError::Run(e.to_string()))?;
+        let mut words = line.split(' ');
+        match words.next() {
+            Some("step") => {
+                let nums: Vec<&str> = words.collect();
+                let bad = || EngineError::Run(format!("malformed line: {line}"));
+                let parse = |s: &str| s.parse::<f64>().map_err(|_| bad());
+                if nums.len() < 3 || !(nums.len() - 3).is_multiple_of(21) {
+                    return Err(bad());
+                }
+                let m = (nums.len() - 3) / 3;
+                let values: Vec<f64> =
+                    nums[3..].iter().map(|s| parse(s)).collect::<Result<_, _>>()?;
+                let frame = Frame {
+                    index: report.steps,
+                    t: parse(nums[0])?,
+                    iterations: nums[1].parse().map_err(|_| bad())?,
+                    residual: parse(nums[2])?,
+                    q: DVector::from_column_slice(&values[..m]),
+                    qd: DVector::from_column_slice(&values[m..2 * m]),
+                    qdd: DVector::from_column_slice(&values[2 * m..]),
+                };
+                sink(&frame).map_err(|e| EngineError::Run(e.to_string()))?;
+                report.steps += 1;
+            }
+            Some("error") => {
+                let kind = match words.next() {
+                    Some("singular") => FailureKind::Singular,
+                    _ => FailureKind::NoConvergence,
+                };
+                let t = words.next().and_then(|s| s.parse().ok()).unwrap_or(f64::NAN);
+                let message = words.collect::<Vec<_>>().join(" ");
+                report.failure = Some(Failure { kind, t, message, constraints: Vec::new() });
+            }
+            _ => return Err(EngineError::Run(format!("unexpected output: {line}"))),
+        }
+    }
+    let status = child.wait().map_err(|e| EngineError::Run(e.to_string()))?;
+    if !status.success() && report.failure.is_none() {
+        return Err(EngineError::Run(format!("the solver exited with {status}")));
+    }
+    Ok(report)
+}
+
+/// Times whole passes over the grid: (min ns per step, median ns per step, Newton
+/// iterations per step).
+///
+/// # Errors
+/// [`EngineError::Run`] when the solver fails or prints something unexpected.
+pub fn bench(
+    built: &Built,
+    tolerance: f64,
+    repeats: usize,
+) -> Result<(f64, f64, f64), EngineError> {
+    let output = Command::new(&built.binary)
+        .args(["bench", &format!("{tolerance:?}"), &repeats.to_string()])
+        .stdin(Stdio::null())
+        .output()
+        .map_err(|e| EngineError::Run(format!("{}: {e}", built.binary.display())))?;
+    let text = String::from_utf8_lossy(&output.stdout);
+    let words: Vec<&str> = text.split_whitespace().collect();
+    match words.as_slice() {
+        ["bench", min, median, iters] => {
+            let p = |s: &str| s.parse::<f64>().map_err(|_| EngineError::Run(text.to_string()));
+            Ok((p(min)?, p(median)?, p(iters)?))
+        }
+        _ => Err(EngineError::Run(format!("unexpected benchmark output: {text}"))),
+    }
+}
