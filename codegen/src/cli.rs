@@ -280,6 +280,10 @@ fn check(
     }
     let redundant: Vec<String> =
         prep.redundant.iter().map(|&k| eq.labels()[k].equation()).collect();
+    // The generated system's true size; the count of eliminated coordinates when it cannot
+    // be built (its diagnostics belong to `generate`).
+    let reduced = crate::symbolic::Symbolic::build(mech)
+        .map_or_else(|_| reduced_unknowns(mech), |s| s.unknowns.len());
     let bodies = mech.bodies.len();
     let grounds = mech.bodies.iter().filter(|b| b.ground).count();
     if json {
@@ -287,7 +291,7 @@ fn check(
             "bodies": bodies,
             "unknowns": eq.unknowns(),
             "equations": eq.equations(),
-            "reduced_unknowns": reduced_unknowns(mech),
+            "reduced_unknowns": reduced,
             "rank": prep.rank,
             "mobility": prep.mobility,
             "drivers": mech.drivers.len(),
@@ -298,7 +302,7 @@ fn check(
         writeln!(out, "mechanism {}: {bodies} bodies ({grounds} ground)", mech.name)?;
         writeln!(out, "unknowns:          {}", eq.unknowns())?;
         writeln!(out, "equations:         {}", eq.equations())?;
-        writeln!(out, "reduced unknowns:  {} (generated system)", reduced_unknowns(mech))?;
+        writeln!(out, "reduced unknowns:  {reduced} (generated system)")?;
         let at = if prep.assembled {
             "assembled at t = start"
         } else {

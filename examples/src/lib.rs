@@ -1,9 +1,57 @@
-//! Shipped mechanism descriptions (`examples/*.toml`) and helpers to find them.
+//! Shipped mechanism descriptions (`examples/*.toml`) and the library side of the example
+//! programs, so that tests run exactly what the examples run.
 
 use std::path::PathBuf;
+
+use generated::rssr;
+use runtime::{NewtonError, NewtonOptions, Solver};
 
 /// The directory holding the shipped example descriptions.
 #[must_use]
 pub fn dir() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
 }
+
+/// What a control loop over the R-S-S-R observed.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct LoopSummary {
+    /// Control periods run.
+    pub periods: usize,
+    /// Newton iterations over all periods.
+    pub iterations: u64,
+    /// Largest |q̇| of the rocker's e1 (its rotation rate about x, halved), as a sanity value.
+    pub max_rocker_rate: f64,
+    /// Largest max |Φ_i| after a period.
+    pub max_residual: f64,
+}
+
+/// A control loop on the generated R-S-S-R solver: every period of `dt` seconds the crank
+/// angle advances, the loop asks for the position and velocity only (no acceleration is
+/// computed or paid for) and reads the rocker's rate. Nothing here allocates: the solver,
+/// its Jacobian and its factors live on the stack.
+///
+/// # Errors
+/// The Newton failure, if the mechanism cannot follow.
+pub fn rssr_control_loop(periods: usize, dt: f64) -> Result<LoopSummary, NewtonError> {
+    let mut solver = Solver::new(rssr::Rssr, rssr::Q0);
+    solver.set_options(NewtonOptions { tolerance: 1e-12, ..NewtonOptions::DEFAULT });
+    solver.set_predictor(true);
+    let mut summary =
+        LoopSummary { periods: 0, iterations: 0, max_rocker_rate: 0.0, max_residual: 0.0 };
+    // The rocker's e1 is unknown number 17 (see `rssr::UNKNOWNS`).
+    let e1 = rssr::UNKNOWNS.iter().position(|u| *u == "rocker.e1").unwrap_or(17);
+    for k in 0..periods {
+        let report = solver.position(k as f64 * dt)?;
+        if solver.velocity().is_err() {
+            break;
+        }
+        summary.periods += 1;
+        summary.iterations += u64::from(report.iterations);
+        summary.max_residual = summary.max_residual.max(report.residual);
+        summary.max_rocker_rate = summary.max_rocker_rate.max(solver.qd()[e1].abs());
+    }
+    Ok(summary)
+}
+
+#[cfg(test)]
+mod tests;
