@@ -83,6 +83,17 @@ enum Command {
         #[arg(long, value_enum, default_value_t = CheckFormat::Text)]
         format: CheckFormat,
     },
+    /// Chart speed against accuracy: one mark per engine and setting (SVG).
+    Chart {
+        /// The description file.
+        file: PathBuf,
+        /// The SVG file to write.
+        #[arg(short = 'o', long = "output")]
+        output: PathBuf,
+        /// Whole passes over the grid timed per mark.
+        #[arg(long, default_value_t = 10)]
+        repeats: usize,
+    },
     /// Emit the specialised Rust module of a description.
     Generate {
         /// The description file.
@@ -167,6 +178,7 @@ pub fn run(args: Vec<OsString>, out: &mut dyn Write, err: &mut dyn Write) -> i32
         }
         Command::ImportYoung { deck, output } => import_young(&deck, output.as_deref(), out, err),
         Command::Generate { file, output } => generate(&file, output.as_deref(), out, err),
+        Command::Chart { file, output, repeats } => chart(&file, &output, repeats, out, err),
         Command::Compare { file, format } => compare(&file, format, out, err),
         Command::Bench { file, engine, tolerance, repeats, format } => {
             bench(&file, engine, tolerance, repeats, format, out, err)
@@ -474,33 +486,14 @@ fn codegen(check: bool, out: &mut dyn Write, err: &mut dyn Write) -> io::Result<
     }
 }
 
-/// Times `repeats` whole passes of the generic engine: (min, median) ns per step and
-/// Newton iterations per step; `None` when the analysis fails.
+/// Times `repeats` whole passes of the generic engine.
 fn time_generic(
     eq: &Equations<'_>,
     prep: &crate::generic::Preparation,
     tolerance: f64,
     repeats: usize,
 ) -> Option<(f64, f64, f64)> {
-    let analysis = Analysis::new(eq, prep).with_tolerance(tolerance);
-    let mut times = Vec::with_capacity(repeats);
-    let mut iterations = 0.0;
-    for _ in 0..repeats.max(1) {
-        let start = std::time::Instant::now();
-        let r = analysis.run(|f| {
-            std::hint::black_box(&f.qdd);
-            Ok::<(), ()>(())
-        });
-        let elapsed = start.elapsed().as_nanos() as f64;
-        let r = r.ok()?;
-        if r.failure.is_some() || r.steps == 0 {
-            return None;
-        }
-        times.push(elapsed / r.steps as f64);
-        iterations = r.iterations as f64 / r.steps as f64;
-    }
-    times.sort_by(f64::total_cmp);
-    Some((times[0], times[times.len() / 2], iterations))
+    Analysis::new(eq, prep).with_tolerance(tolerance).time(repeats)
 }
 
 #[allow(clippy::too_many_arguments)] // One argument per command-line option.
@@ -661,5 +654,48 @@ fn compare(
         }
         writeln!(out, "ns per step: generic {tg:.0}, generated {td:.0}; speedup {:.1}x", tg / td)?;
     }
+    Ok(EXIT_OK)
+}
+
+fn chart(
+    file: &Path,
+    output: &Path,
+    repeats: usize,
+    out: &mut dyn Write,
+    err: &mut dyn Write,
+) -> io::Result<i32> {
+    let loaded = match load(file, false, out, err) {
+        Ok(l) => l,
+        Err(code) => return Ok(code),
+    };
+    let mech = &loaded.mechanism;
+    let (marks, skipped) = match crate::chart::measure(mech, repeats) {
+        Ok(m) => m,
+        Err(e) => {
+            writeln!(err, "error: {e}")?;
+            return Ok(EXIT_STOPPED);
+        }
+    };
+    writeln!(
+        out,
+        "{:<24} {:>9} {:>12} {:>10} {:>12}",
+        "series", "tolerance", "ns/step", "iter/step", "max rel err"
+    )?;
+    for m in &marks {
+        writeln!(
+            out,
+            "{:<24} {:>9.0e} {:>12.0} {:>10.2} {:>12.2e}",
+            m.series, m.tolerance, m.ns_per_step, m.iterations, m.error
+        )?;
+    }
+    for s in &skipped {
+        writeln!(err, "note: no mark for {s} (the run failed)")?;
+    }
+    let title = format!("{}: speed against accuracy ({} time points)", mech.name, mech.time.count);
+    if let Err(e) = crate::chart::draw(&marks, &title, output) {
+        writeln!(err, "error: {e}")?;
+        return Ok(EXIT_INVALID);
+    }
+    writeln!(out, "wrote {}", output.display())?;
     Ok(EXIT_OK)
 }

@@ -249,6 +249,8 @@ pub struct Analysis<'e, 'm> {
     start: DVector<f64>,
     tolerance: f64,
     max_iterations: u32,
+    /// Whether Newton starts from the Taylor predictor (else from the previous q).
+    predictor: bool,
 }
 
 impl<'e, 'm> Analysis<'e, 'm> {
@@ -263,7 +265,39 @@ impl<'e, 'm> Analysis<'e, 'm> {
             start: if redundant && prep.assembled { prep.q.clone() } else { eq.initial_estimate() },
             tolerance: mech.solver.tolerance,
             max_iterations: mech.solver.max_iterations,
+            predictor: true,
         }
+    }
+
+    /// Turns the Taylor predictor off (Newton then starts from the previous positions).
+    #[must_use]
+    pub fn with_predictor(mut self, on: bool) -> Self {
+        self.predictor = on;
+        self
+    }
+
+    /// Times `repeats` whole passes over the grid: (min, median) ns per time point and
+    /// Newton iterations per time point; `None` when the analysis fails.
+    #[must_use]
+    pub fn time(&self, repeats: usize) -> Option<(f64, f64, f64)> {
+        let mut times = Vec::with_capacity(repeats.max(1));
+        let mut iterations = 0.0;
+        for _ in 0..repeats.max(1) {
+            let start = std::time::Instant::now();
+            let r = self.run(|f| {
+                std::hint::black_box(&f.qdd);
+                Ok::<(), ()>(())
+            });
+            let elapsed = start.elapsed().as_nanos() as f64;
+            let r = r.ok()?;
+            if r.failure.is_some() || r.steps == 0 {
+                return None;
+            }
+            times.push(elapsed / r.steps as f64);
+            iterations = r.iterations as f64 / r.steps as f64;
+        }
+        times.sort_by(f64::total_cmp);
+        Some((times[0], times[times.len() / 2], iterations))
     }
 
     /// Overrides the Newton tolerance (benchmarks and accuracy charts).
@@ -285,6 +319,7 @@ impl<'e, 'm> Analysis<'e, 'm> {
         for k in 0..grid.count {
             let t = grid.at(k);
             let guess = match &prev {
+                Some(f) if !self.predictor => f.q.clone(),
                 // Taylor predictor q + h q̇ + h²/2 q̈ from the previous time point.
                 Some(f) => {
                     let h = t - f.t;

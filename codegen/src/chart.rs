@@ -1,0 +1,208 @@
+//! Speed against accuracy: every engine and setting of one mechanism as a mark on a log–log
+//! chart of ns per time point against the error to a reference solution.
+//!
+//! The reference is the generic engine at a Newton tolerance of 1e-13 (tight enough that its
+//! own error is at round-off level for the shipped mechanisms). The error of a run is the
+//! largest difference from the reference over all time points, taken separately for
+//! positions, velocities and accelerations, each relative to the largest magnitude of that
+//! quantity in the reference, and then the largest of the three.
+
+use std::path::Path;
+
+use plotters::prelude::*;
+
+use crate::generic::{Analysis, Equations, Frame};
+use crate::model::Mechanism;
+
+/// Tolerances swept for every engine.
+pub const TOLERANCES: [f64; 6] = [1e-4, 1e-6, 1e-8, 1e-10, 1e-12, 1e-14];
+
+/// Tolerance of the reference run (see the module docs).
+const REFERENCE_TOLERANCE: f64 = 1e-13;
+
+/// One engine and setting.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Mark {
+    /// The series it belongs to: engine and options, e.g. `generic, no predictor`.
+    pub series: String,
+    /// The Newton tolerance.
+    pub tolerance: f64,
+    /// Median ns per time point.
+    pub ns_per_step: f64,
+    /// Newton iterations per time point.
+    pub iterations: f64,
+    /// Largest relative error to the reference (see the module docs).
+    pub error: f64,
+}
+
+/// Largest relative difference of `run` from `reference` (see the module docs).
+fn error(reference: &[Frame], run: &[Frame]) -> f64 {
+    let parts: [fn(&Frame) -> &nalgebra::DVector<f64>; 3] = [|f| &f.q, |f| &f.qd, |f| &f.qdd];
+    parts
+        .iter()
+        .map(|get| {
+            let scale = reference.iter().map(|f| get(f).amax()).fold(f64::MIN_POSITIVE, f64::max);
+            let diff = reference
+                .iter()
+                .zip(run)
+                .map(|(a, b)| (get(a) - get(b)).amax())
+                .fold(0.0, f64::max);
+            diff / scale
+        })
+        .fold(0.0, f64::max)
+}
+
+/// Frames of one generic run, `None` if it fails.
+fn generic_frames(eq: &Equations<'_>, analysis: &Analysis<'_, '_>) -> Option<Vec<Frame>> {
+    let mut frames = Vec::new();
+    let r = analysis
+        .run(|f| {
+            frames.push(f.clone());
+            Ok::<(), ()>(())
+        })
+        .ok()?;
+    (r.failure.is_none() && frames.len() == eq.mechanism().time.count).then_some(frames)
+}
+
+/// Measures every mark of `mech`: the generic engine with and without its predictor, and
+/// the generated engine (when it can be built), at every tolerance of [`TOLERANCES`]. Runs
+/// that fail (no convergence at a tolerance below round-off, say) are left out and named in
+/// the second list.
+///
+/// # Errors
+/// When the reference run itself fails.
+pub fn measure(mech: &Mechanism, repeats: usize) -> Result<(Vec<Mark>, Vec<String>), String> {
+    let eq = Equations::new(mech);
+    let prep = eq.prepare();
+    let reference =
+        generic_frames(&eq, &Analysis::new(&eq, &prep).with_tolerance(REFERENCE_TOLERANCE))
+            .ok_or("the reference run (generic, tolerance 1e-13) failed")?;
+    let mut marks = Vec::new();
+    let mut skipped = Vec::new();
+    for predictor in [true, false] {
+        let series =
+            if predictor { "generic".to_owned() } else { "generic, no predictor".to_owned() };
+        for &tolerance in &TOLERANCES {
+            let analysis =
+                Analysis::new(&eq, &prep).with_tolerance(tolerance).with_predictor(predictor);
+            match (generic_frames(&eq, &analysis), analysis.time(repeats)) {
+                (Some(frames), Some((_, median, iterations))) => marks.push(Mark {
+                    series: series.clone(),
+                    tolerance,
+                    ns_per_step: median,
+                    iterations,
+                    error: error(&reference, &frames),
+                }),
+                _ => skipped.push(format!("{series} at tolerance {tolerance:e}")),
+            }
+        }
+    }
+    match crate::engine::build(mech) {
+        Ok(built) => {
+            for &tolerance in &TOLERANCES {
+                let mut frames = Vec::new();
+                let run = crate::engine::run(&built, Some(tolerance), |f| {
+                    frames.push(f.clone());
+                    Ok(())
+                });
+                let timing = crate::engine::bench(&built, tolerance, repeats);
+                match (run, timing) {
+                    (Ok(r), Ok((_, median, iterations)))
+                        if r.failure.is_none() && frames.len() == reference.len() =>
+                    {
+                        marks.push(Mark {
+                            series: "generated".to_owned(),
+                            tolerance,
+                            ns_per_step: median,
+                            iterations,
+                            error: error(&reference, &frames),
+                        });
+                    }
+                    _ => skipped.push(format!("generated at tolerance {tolerance:e}")),
+                }
+            }
+        }
+        Err(e) => skipped.push(format!("generated: {e}")),
+    }
+    Ok((marks, skipped))
+}
+
+/// Draws the marks as an SVG chart at `path`.
+///
+/// # Errors
+/// Drawing or I/O failures, as text.
+pub fn draw(marks: &[Mark], title: &str, path: &Path) -> Result<(), String> {
+    let floor = 1e-17;
+    let (mut x0, mut x1, mut y0, mut y1) = (f64::MAX, f64::MIN, f64::MAX, f64::MIN);
+    for m in marks {
+        x0 = x0.min(m.ns_per_step);
+        x1 = x1.max(m.ns_per_step);
+        y0 = y0.min(m.error.max(floor));
+        y1 = y1.max(m.error.max(floor));
+    }
+    if marks.is_empty() {
+        return Err("nothing to draw".to_owned());
+    }
+    let root = SVGBackend::new(path, (900, 600)).into_drawing_area();
+    let e = |e: &dyn std::fmt::Display| e.to_string();
+    root.fill(&WHITE).map_err(|x| e(&x))?;
+    let mut chart = ChartBuilder::on(&root)
+        .caption(title, ("sans-serif", 22))
+        .margin(15)
+        .x_label_area_size(50)
+        .y_label_area_size(80)
+        .build_cartesian_2d((x0 / 1.5..x1 * 1.5).log_scale(), (y0 / 10.0..y1 * 10.0).log_scale())
+        .map_err(|x| e(&x))?;
+    chart
+        .configure_mesh()
+        .x_labels(12)
+        .y_labels(12)
+        .x_desc("time per step (ns, median; log scale)")
+        .y_desc("max relative error vs reference (log; below 1e-17 drawn at 1e-17)")
+        .y_label_formatter(&|v| format!("{v:.0e}"))
+        .x_label_formatter(&|v| format!("{v:.0}"))
+        .draw()
+        .map_err(|x| e(&x))?;
+    let mut series: Vec<&str> = marks.iter().map(|m| m.series.as_str()).collect();
+    series.dedup();
+    let colors = [
+        RGBColor(31, 119, 180),
+        RGBColor(255, 127, 14),
+        RGBColor(44, 160, 44),
+        RGBColor(214, 39, 40),
+    ];
+    for (k, name) in series.iter().enumerate() {
+        let color = colors[k % colors.len()];
+        let points: Vec<(f64, f64)> = marks
+            .iter()
+            .filter(|m| m.series == *name)
+            .map(|m| (m.ns_per_step, m.error.max(floor)))
+            .collect();
+        chart
+            .draw_series(LineSeries::new(points.clone(), color.stroke_width(1)))
+            .map_err(|x| e(&x))?
+            .label(*name)
+            .legend(move |(x, y)| Circle::new((x + 10, y), 4, color.filled()));
+        chart
+            .draw_series(points.iter().map(|&p| Circle::new(p, 4, color.filled())))
+            .map_err(|x| e(&x))?;
+        chart
+            .draw_series(marks.iter().filter(|m| m.series == *name).map(|m| {
+                Text::new(
+                    format!("{:.0e}", m.tolerance),
+                    (m.ns_per_step * 1.04, m.error.max(floor) * 1.6),
+                    ("sans-serif", 11).into_font().color(&color),
+                )
+            }))
+            .map_err(|x| e(&x))?;
+    }
+    chart
+        .configure_series_labels()
+        .background_style(WHITE.mix(0.8))
+        .border_style(BLACK)
+        .position(SeriesLabelPosition::UpperRight)
+        .draw()
+        .map_err(|x| e(&x))?;
+    root.present().map_err(|x| e(&x))?;
+    Ok(())
+}
