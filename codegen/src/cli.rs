@@ -94,6 +94,17 @@ enum Command {
         #[arg(long, default_value_t = 10)]
         repeats: usize,
     },
+    /// Scaling study: generation time, generated lines, build time and ns per step for
+    /// chains and multi-loop mechanisms of the given sizes (bodies).
+    #[command(hide = true)]
+    Scaling {
+        /// Body counts to measure.
+        #[arg(long, value_delimiter = ',', default_value = "5,20,50,100")]
+        bodies: Vec<usize>,
+        /// Whole passes timed per engine.
+        #[arg(long, default_value_t = 3)]
+        repeats: usize,
+    },
     /// Emit the specialised Rust module of a description.
     Generate {
         /// The description file.
@@ -179,6 +190,7 @@ pub fn run(args: Vec<OsString>, out: &mut dyn Write, err: &mut dyn Write) -> i32
         Command::ImportYoung { deck, output } => import_young(&deck, output.as_deref(), out, err),
         Command::Generate { file, output } => generate(&file, output.as_deref(), out, err),
         Command::Chart { file, output, repeats } => chart(&file, &output, repeats, out, err),
+        Command::Scaling { bodies, repeats } => scaling(&bodies, repeats, out, err),
         Command::Compare { file, format } => compare(&file, format, out, err),
         Command::Bench { file, engine, tolerance, repeats, format } => {
             bench(&file, engine, tolerance, repeats, format, out, err)
@@ -697,5 +709,64 @@ fn chart(
         return Ok(EXIT_INVALID);
     }
     writeln!(out, "wrote {}", output.display())?;
+    Ok(EXIT_OK)
+}
+
+fn scaling(
+    sizes: &[usize],
+    repeats: usize,
+    out: &mut dyn Write,
+    err: &mut dyn Write,
+) -> io::Result<i32> {
+    writeln!(
+        out,
+        "| mechanism | bodies | unknowns (reduced) | generate (s) | lines | build (s) | generic ns/step | generated ns/step | speedup |"
+    )?;
+    writeln!(out, "|---|---|---|---|---|---|---|---|---|")?;
+    for &n in sizes {
+        for text in [crate::scale::chain(n, 20), crate::scale::rssr_loops(n.div_ceil(3), 20)] {
+            let loaded = match validate::load_str(&text, validate::Format::Toml, None) {
+                Ok(l) => l,
+                Err(d) => return Ok(report_invalid(&d, false, out, err)),
+            };
+            let mech = &loaded.mechanism;
+            let start = std::time::Instant::now();
+            let sys = match crate::symbolic::Symbolic::build(mech) {
+                Ok(s) => s,
+                Err(e) => {
+                    writeln!(err, "{}: {e}", mech.name)?;
+                    continue;
+                }
+            };
+            let module = crate::emit::module(mech, &sys, "scaling");
+            let generate = start.elapsed().as_secs_f64();
+            let lines = module.lines().count();
+            let start = std::time::Instant::now();
+            let built = match crate::engine::build(mech) {
+                Ok(b) => b,
+                Err(e) => {
+                    writeln!(err, "{}: {e}", mech.name)?;
+                    continue;
+                }
+            };
+            let build = start.elapsed().as_secs_f64();
+            let eq = Equations::new(mech);
+            let prep = eq.prepare();
+            let generic =
+                time_generic(&eq, &prep, mech.solver.tolerance, repeats).map_or(f64::NAN, |r| r.1);
+            let generated = crate::engine::bench(&built, mech.solver.tolerance, repeats)
+                .map_or(f64::NAN, |r| r.1);
+            writeln!(
+                out,
+                "| {} | {} | {} ({}) | {generate:.2} | {lines} | {build:.1} | {generic:.0} | {generated:.0} | {:.1} |",
+                mech.name,
+                mech.bodies.len() - 1,
+                eq.unknowns(),
+                sys.unknowns.len(),
+                generic / generated
+            )?;
+            out.flush()?;
+        }
+    }
     Ok(EXIT_OK)
 }

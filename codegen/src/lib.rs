@@ -17,6 +17,7 @@ pub mod expr;
 pub mod generic;
 pub mod model;
 pub mod report;
+pub mod scale;
 pub mod symbolic;
 pub mod sync;
 pub mod validate;

@@ -1,0 +1,79 @@
+//! Families of mechanisms of any size, for the scaling study (`mechgen scaling`): an open
+//! chain of driven revolute links, and a row of independent R-S-S-R loops. Both are written
+//! as description text with initial estimates that satisfy every joint exactly.
+
+use std::fmt::Write;
+
+/// Common header: a ground body and a short time grid.
+fn header(name: &str, steps: usize) -> String {
+    format!(
+        "name = \"{name}\"\n\n[time]\nstart = 0.0\nend = 0.02\nsteps = {steps}\n\n\
+         [[bodies]]\nname = \"ground\"\nground = true\n\n"
+    )
+}
+
+/// An open chain of `n` links of length 0.5 along x, each joined to the previous one (the
+/// first to ground) by a revolute about global z and driven by a small harmonic rotation.
+#[must_use]
+pub fn chain(n: usize, steps: usize) -> String {
+    let mut s = header(&format!("chain_{n}"), steps);
+    for k in 1..=n {
+        let x = 0.5 * (k as f64 - 1.0) + 0.25;
+        let _ = write!(s, "[[bodies]]\nname = \"link{k}\"\nr = [{x:?}, 0.0, 0.0]\n\n");
+    }
+    for k in 1..=n {
+        let (prev, point_i) = if k == 1 {
+            ("ground".to_owned(), "[0.0, 0.0, 0.0]".to_owned())
+        } else {
+            (format!("link{}", k - 1), "[0.25, 0.0, 0.0]".to_owned())
+        };
+        let _ = write!(
+            s,
+            "[[joints]]\nname = \"hinge{k}\"\ntype = \"revolute\"\nbody_i = \"{prev}\"\n\
+             body_j = \"link{k}\"\npoint_i = {point_i}\npoint_j = [-0.25, 0.0, 0.0]\n\
+             axis_i = [0.0, 0.0, 1.0]\naxis_j = [0.0, 0.0, 1.0]\nref_i = [1.0, 0.0, 0.0]\n\
+             ref_j = [1.0, 0.0, 0.0]\n\n\
+             [[drivers]]\nname = \"motor{k}\"\njoint = \"hinge{k}\"\nmotion = \"rotation\"\n\
+             law = {{ offset = 0.0, amplitude = 0.3, frequency = {:?}, phase = 0.0 }}\n\n",
+            10.0 + k as f64
+        );
+    }
+    s
+}
+
+/// `k` copies of the thesis' R-S-S-R (examples/rssr.toml), 0.3 apart along x, each with its
+/// own crank driver: 3k bodies, k closed loops.
+#[must_use]
+pub fn rssr_loops(k: usize, steps: usize) -> String {
+    let mut s = header(&format!("rssr_loops_{k}"), steps);
+    for c in 0..k {
+        let dx = 0.3 * c as f64;
+        let _ = write!(
+            s,
+            "[[bodies]]\nname = \"crank{c}\"\nr = [{dx:?}, -0.06567, 0.0]\n\n\
+             [[bodies]]\nname = \"coupler{c}\"\nr = [{dx:?}, 0.0, 0.1]\n\n\
+             [[bodies]]\nname = \"rocker{c}\"\nr = [{:?}, 0.49977, 0.0]\n\n",
+            dx - 0.0475
+        );
+        let _ = write!(
+            s,
+            "[[joints]]\nname = \"A{c}\"\ntype = \"spherical\"\nbody_i = \"crank{c}\"\n\
+             body_j = \"coupler{c}\"\npoint_i = [0.0, 0.06567, 0.1]\npoint_j = [0.0, 0.0, 0.0]\n\n\
+             [[joints]]\nname = \"B{c}\"\ntype = \"spherical\"\nbody_i = \"coupler{c}\"\n\
+             body_j = \"rocker{c}\"\npoint_i = [0.0, 0.4812, 0.0]\npoint_j = [0.0475, -0.01857, 0.1]\n\n\
+             [[joints]]\nname = \"O2_{c}\"\ntype = \"revolute\"\nbody_i = \"ground\"\n\
+             body_j = \"crank{c}\"\npoint_i = [{dx:?}, -0.06567, 0.0]\npoint_j = [0.0, 0.0, 0.0]\n\
+             axis_i = [0.0, 1.0, 0.0]\naxis_j = [0.0, 1.0, 0.0]\nref_i = [0.0, 0.0, 1.0]\n\
+             ref_j = [0.0, 0.0, 1.0]\n\n\
+             [[joints]]\nname = \"O4_{c}\"\ntype = \"revolute\"\nbody_i = \"rocker{c}\"\n\
+             body_j = \"ground\"\npoint_i = [0.0, 0.0, 0.0]\npoint_j = [{:?}, 0.49977, 0.0]\n\
+             axis_i = [1.0, 0.0, 0.0]\naxis_j = [1.0, 0.0, 0.0]\n\n\
+             [[constraints]]\nname = \"no_spin{c}\"\ntype = \"fix\"\nbody = \"coupler{c}\"\n\
+             coordinate = \"e2\"\nvalue = 0.0\n\n\
+             [[drivers]]\nname = \"motor{c}\"\njoint = \"O2_{c}\"\nmotion = \"rotation\"\n\
+             law = {{ start = 0.0, velocity = 146.6 }}\n\n",
+            dx - 0.0475
+        );
+    }
+    s
+}
