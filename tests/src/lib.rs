@@ -10,6 +10,8 @@ mod generated_engine;
 #[cfg(test)]
 mod harness;
 #[cfg(test)]
+mod random_mechanisms;
+#[cfg(test)]
 mod rssr_reference;
 #[cfg(test)]
 mod seed_examples;
