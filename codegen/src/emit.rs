@@ -14,6 +14,8 @@ use crate::expr::{ExprId, ExprPool, Node, Var};
 use crate::model::Mechanism;
 use crate::symbolic::{Source, Symbolic};
 
+pub mod lu;
+
 /// Binding strength of an emitted expression.
 #[derive(Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
 enum Prec {
@@ -436,6 +438,25 @@ pub fn module(mech: &Mechanism, sys: &Symbolic, source: &str) -> String {
             #(#stmts)*
         }
     });
+    let doc = format!(
+        " Φ and the {nnz} structurally non-zero entries of Φ_q, the others of `jac` left as they were: what the `factor_k` functions read.\n\n {} operations, {} shared subexpressions.",
+        f.ops, f.shared
+    );
+    items.push(parse_quote! {
+        #[doc = #doc]
+        pub fn residual_jacobian_structural(#qn: &[f64; N], #tn: f64, phi: &mut [f64; N], jac: &mut [[f64; N]; N]) {
+            #(#stmts)*
+        }
+    });
+
+    // The structured LU: static pivot orders over the description's motion.
+    let orders = if n == 0 { Vec::new() } else { lu::plan(sys, &lu::motion(mech, sys)) };
+    let structure = lu::structure(sys);
+    for (k, order) in orders.iter().enumerate() {
+        let e = lu::emit(order, &structure, k);
+        items.push(e.factor);
+        items.push(e.solve);
+    }
 
     // ν.
     let outputs: Vec<(Expr, ExprId)> = sys
@@ -566,6 +587,54 @@ pub fn module(mech: &Mechanism, sys: &Symbolic, source: &str) -> String {
         #[derive(Clone, Copy, Debug, Default)]
         pub struct #ty;
     });
+    let count = index(orders.len());
+    let factor_arms = (0..orders.len()).map(|k| {
+        let (lit, f) = (index(k), ident(&format!("factor_{k}")));
+        quote::quote!(#lit => #f(jac),)
+    });
+    let solve_arms = (0..orders.len()).map(|k| {
+        let (lit, f) = (index(k), ident(&format!("solve_{k}")));
+        quote::quote!(#lit => #f(lu, b),)
+    });
+    let structured: Vec<syn::ImplItem> = if orders.is_empty() {
+        Vec::new()
+    } else {
+        let solve: syn::ImplItem = if orders.len() == 1 {
+            parse_quote! {
+                fn solve_structured(&self, order: usize, lu: &[[f64; N]; N], b: &mut [f64; N]) {
+                    if order == 0 {
+                        solve_0(lu, b);
+                    }
+                }
+            }
+        } else {
+            parse_quote! {
+                fn solve_structured(&self, order: usize, lu: &[[f64; N]; N], b: &mut [f64; N]) {
+                    match order {
+                        #(#solve_arms)*
+                        _ => {}
+                    }
+                }
+            }
+        };
+        vec![
+            parse_quote!(const PIVOT_ORDERS: usize = #count;),
+            parse_quote! {
+                fn residual_jacobian_structural(&self, q: &[f64; N], t: f64, phi: &mut [f64; N], jac: &mut [[f64; N]; N]) {
+                    residual_jacobian_structural(q, t, phi, jac);
+                }
+            },
+            parse_quote! {
+                fn factor_structured(&self, order: usize, jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
+                    match order {
+                        #(#factor_arms)*
+                        _ => None,
+                    }
+                }
+            },
+            solve,
+        ]
+    };
     items.push(parse_quote! {
         impl runtime::Mechanism<N> for #ty {
             fn residual(&self, q: &[f64; N], t: f64, phi: &mut [f64; N]) {
@@ -586,6 +655,7 @@ pub fn module(mech: &Mechanism, sys: &Symbolic, source: &str) -> String {
             fn normalize(&self, q: &mut [f64; N]) {
                 normalize(q);
             }
+            #(#structured)*
         }
     });
 

@@ -191,6 +191,370 @@ pub fn residual_jacobian(
     jac[6][6] = t19;
 }
 
+/** Φ and the 29 structurally non-zero entries of Φ_q, the others of `jac` left as they were: what the `factor_k` functions read.
+
+ 58 operations, 20 shared subexpressions.*/
+pub fn residual_jacobian_structural(
+    q: &[f64; N],
+    t: f64,
+    phi: &mut [f64; N],
+    jac: &mut [[f64; N]; N],
+) {
+    let [q0, q1, q2, q3, q4, q5, q6] = *q;
+    let t0 = q3 * q3;
+    let t1 = q4 * q4;
+    let t2 = q5 * q5;
+    let t3 = q6 * q6;
+    let t4 = q4 * q5;
+    let t5 = q3 * q6;
+    let t6 = f64::from_bits(4602890488355133325) * t;
+    let t7 = runtime::math::sin(t6);
+    let t8 = runtime::math::cos(t6);
+    let t9 = 2.0 * q6;
+    let t10 = -t9;
+    let t11 = 2.0 * q5;
+    let t12 = -t11;
+    let t13 = -(2.0 * q4);
+    let t14 = 2.0 * q3;
+    let t15 = -t14;
+    let t16 = q3 + q3;
+    let t17 = q4 + q4;
+    let t18 = q5 + q5;
+    let t19 = q6 + q6;
+    phi[0] = q0 - 2.0 * (t4 - t5);
+    phi[1] = q1 - (t0 + t2 - (t1 + t3));
+    phi[2] = q2 - 2.0 * (q5 * q6 + q3 * q4);
+    phi[3] = -(2.0 * (t4 + t5));
+    phi[4] = -(2.0 * (q4 * q6 - q3 * q5));
+    phi[5] = q4 * t8 - q3 * t7;
+    phi[6] = t3 + (t2 + (t0 + t1)) - 1.0;
+    jac[0][0] = 1.0;
+    jac[0][3] = t9;
+    jac[0][4] = t12;
+    jac[0][5] = t13;
+    jac[0][6] = t14;
+    jac[1][1] = 1.0;
+    jac[1][3] = -t16;
+    jac[1][4] = t17;
+    jac[1][5] = -t18;
+    jac[1][6] = t19;
+    jac[2][2] = 1.0;
+    jac[2][3] = t13;
+    jac[2][4] = t15;
+    jac[2][5] = t10;
+    jac[2][6] = t12;
+    jac[3][3] = t10;
+    jac[3][4] = t12;
+    jac[3][5] = t13;
+    jac[3][6] = t15;
+    jac[4][3] = t11;
+    jac[4][4] = t10;
+    jac[4][5] = t14;
+    jac[4][6] = t13;
+    jac[5][3] = -t7;
+    jac[5][4] = t8;
+    jac[6][3] = t16;
+    jac[6][4] = t17;
+    jac[6][5] = t18;
+    jac[6][6] = t19;
+}
+
+/** Factors Φ_q in place with static pivot order 0: step k pivots on row `[0, 1, 2, 5, 6, 4, 3][k]` and column `[0, 1, 2, 4, 3, 5, 6][k]`.
+
+ L and U have 29 entries (0 of them fill-in); 29 operations. The reciprocals of the pivots are stored on the diagonal.
+
+ Returns the smallest and largest |pivot|, or `None` (with `jac` unchanged) when a pivot is not finite or a multiplier exceeds [`runtime::lu::MAX_MULTIPLIER`] in magnitude.*/
+#[must_use]
+pub fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
+    let u0_3 = jac[0][4];
+    let u0_4 = jac[0][3];
+    let u0_5 = jac[0][5];
+    let u0_6 = jac[0][6];
+    let p0 = jac[0][0];
+    let d0 = 1.0 / p0;
+    if !(p0.is_finite()) {
+        return None;
+    }
+    let u1_3 = jac[1][4];
+    let u1_4 = jac[1][3];
+    let u1_5 = jac[1][5];
+    let u1_6 = jac[1][6];
+    let p1 = jac[1][1];
+    let d1 = 1.0 / p1;
+    if !(p1.is_finite()) {
+        return None;
+    }
+    let u2_3 = jac[2][4];
+    let u2_4 = jac[2][3];
+    let u2_5 = jac[2][5];
+    let u2_6 = jac[2][6];
+    let p2 = jac[2][2];
+    let d2 = 1.0 / p2;
+    if !(p2.is_finite()) {
+        return None;
+    }
+    let u3_4 = jac[5][3];
+    let p3 = jac[5][4];
+    let d3 = 1.0 / p3;
+    let l4_3 = jac[6][4] * d3;
+    let l5_3 = jac[4][4] * d3;
+    let l6_3 = jac[3][4] * d3;
+    if !(p3.is_finite() && l4_3.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l5_3.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l6_3.abs() <= runtime::lu::MAX_MULTIPLIER)
+    {
+        return None;
+    }
+    let u4_5 = jac[6][5];
+    let u4_6 = jac[6][6];
+    let p4 = jac[6][3] - l4_3 * u3_4;
+    let d4 = 1.0 / p4;
+    let l5_4 = (jac[4][3] - l5_3 * u3_4) * d4;
+    let l6_4 = (jac[3][3] - l6_3 * u3_4) * d4;
+    if !(p4.is_finite() && l5_4.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l6_4.abs() <= runtime::lu::MAX_MULTIPLIER)
+    {
+        return None;
+    }
+    let u5_6 = jac[4][6] - l5_4 * u4_6;
+    let p5 = jac[4][5] - l5_4 * u4_5;
+    let d5 = 1.0 / p5;
+    let l6_5 = (jac[3][5] - l6_4 * u4_5) * d5;
+    if !(p5.is_finite() && l6_5.abs() <= runtime::lu::MAX_MULTIPLIER) {
+        return None;
+    }
+    let p6 = jac[3][6] - l6_4 * u4_6 - l6_5 * u5_6;
+    let d6 = 1.0 / p6;
+    if !(p6.is_finite()) {
+        return None;
+    }
+    jac[0][0] = d0;
+    jac[0][4] = u0_3;
+    jac[0][3] = u0_4;
+    jac[0][5] = u0_5;
+    jac[0][6] = u0_6;
+    jac[1][1] = d1;
+    jac[1][4] = u1_3;
+    jac[1][3] = u1_4;
+    jac[1][5] = u1_5;
+    jac[1][6] = u1_6;
+    jac[2][2] = d2;
+    jac[2][4] = u2_3;
+    jac[2][3] = u2_4;
+    jac[2][5] = u2_5;
+    jac[2][6] = u2_6;
+    jac[5][4] = d3;
+    jac[5][3] = u3_4;
+    jac[6][4] = l4_3;
+    jac[6][3] = d4;
+    jac[6][5] = u4_5;
+    jac[6][6] = u4_6;
+    jac[4][4] = l5_3;
+    jac[4][3] = l5_4;
+    jac[4][5] = d5;
+    jac[4][6] = u5_6;
+    jac[3][4] = l6_3;
+    jac[3][3] = l6_4;
+    jac[3][5] = l6_5;
+    jac[3][6] = d6;
+    Some(runtime::lu::PivotInfo {
+        smallest: p0
+            .abs()
+            .min(p1.abs())
+            .min(p2.abs())
+            .min(p3.abs())
+            .min(p4.abs())
+            .min(p5.abs())
+            .min(p6.abs()),
+        largest: p0
+            .abs()
+            .max(p1.abs())
+            .max(p2.abs())
+            .max(p3.abs())
+            .max(p4.abs())
+            .max(p5.abs())
+            .max(p6.abs()),
+    })
+}
+
+/** Solves Φ_q x = b in place with the factors [`factor_0`] left in `lu`.
+
+ 51 operations.*/
+pub fn solve_0(lu: &[[f64; N]; N], b: &mut [f64; N]) {
+    let y0 = b[0];
+    let y1 = b[1];
+    let y2 = b[2];
+    let y3 = b[5];
+    let y4 = b[6] - lu[6][4] * y3;
+    let y5 = b[4] - lu[4][4] * y3 - lu[4][3] * y4;
+    let y6 = b[3] - lu[3][4] * y3 - lu[3][3] * y4 - lu[3][5] * y5;
+    let x6 = y6 * lu[3][6];
+    let x5 = (y5 - lu[4][6] * x6) * lu[4][5];
+    let x4 = (y4 - lu[6][5] * x5 - lu[6][6] * x6) * lu[6][3];
+    let x3 = (y3 - lu[5][3] * x4) * lu[5][4];
+    let x2 = (y2 - lu[2][4] * x3 - lu[2][3] * x4 - lu[2][5] * x5 - lu[2][6] * x6)
+        * lu[2][2];
+    let x1 = (y1 - lu[1][4] * x3 - lu[1][3] * x4 - lu[1][5] * x5 - lu[1][6] * x6)
+        * lu[1][1];
+    let x0 = (y0 - lu[0][4] * x3 - lu[0][3] * x4 - lu[0][5] * x5 - lu[0][6] * x6)
+        * lu[0][0];
+    b[0] = x0;
+    b[1] = x1;
+    b[2] = x2;
+    b[4] = x3;
+    b[3] = x4;
+    b[5] = x5;
+    b[6] = x6;
+}
+
+/** Factors Φ_q in place with static pivot order 1: step k pivots on row `[0, 1, 2, 5, 6, 3, 4][k]` and column `[0, 1, 2, 3, 4, 5, 6][k]`.
+
+ L and U have 29 entries (0 of them fill-in); 29 operations. The reciprocals of the pivots are stored on the diagonal.
+
+ Returns the smallest and largest |pivot|, or `None` (with `jac` unchanged) when a pivot is not finite or a multiplier exceeds [`runtime::lu::MAX_MULTIPLIER`] in magnitude.*/
+#[must_use]
+pub fn factor_1(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
+    let u0_3 = jac[0][3];
+    let u0_4 = jac[0][4];
+    let u0_5 = jac[0][5];
+    let u0_6 = jac[0][6];
+    let p0 = jac[0][0];
+    let d0 = 1.0 / p0;
+    if !(p0.is_finite()) {
+        return None;
+    }
+    let u1_3 = jac[1][3];
+    let u1_4 = jac[1][4];
+    let u1_5 = jac[1][5];
+    let u1_6 = jac[1][6];
+    let p1 = jac[1][1];
+    let d1 = 1.0 / p1;
+    if !(p1.is_finite()) {
+        return None;
+    }
+    let u2_3 = jac[2][3];
+    let u2_4 = jac[2][4];
+    let u2_5 = jac[2][5];
+    let u2_6 = jac[2][6];
+    let p2 = jac[2][2];
+    let d2 = 1.0 / p2;
+    if !(p2.is_finite()) {
+        return None;
+    }
+    let u3_4 = jac[5][4];
+    let p3 = jac[5][3];
+    let d3 = 1.0 / p3;
+    let l4_3 = jac[6][3] * d3;
+    let l5_3 = jac[3][3] * d3;
+    let l6_3 = jac[4][3] * d3;
+    if !(p3.is_finite() && l4_3.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l5_3.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l6_3.abs() <= runtime::lu::MAX_MULTIPLIER)
+    {
+        return None;
+    }
+    let u4_5 = jac[6][5];
+    let u4_6 = jac[6][6];
+    let p4 = jac[6][4] - l4_3 * u3_4;
+    let d4 = 1.0 / p4;
+    let l5_4 = (jac[3][4] - l5_3 * u3_4) * d4;
+    let l6_4 = (jac[4][4] - l6_3 * u3_4) * d4;
+    if !(p4.is_finite() && l5_4.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l6_4.abs() <= runtime::lu::MAX_MULTIPLIER)
+    {
+        return None;
+    }
+    let u5_6 = jac[3][6] - l5_4 * u4_6;
+    let p5 = jac[3][5] - l5_4 * u4_5;
+    let d5 = 1.0 / p5;
+    let l6_5 = (jac[4][5] - l6_4 * u4_5) * d5;
+    if !(p5.is_finite() && l6_5.abs() <= runtime::lu::MAX_MULTIPLIER) {
+        return None;
+    }
+    let p6 = jac[4][6] - l6_4 * u4_6 - l6_5 * u5_6;
+    let d6 = 1.0 / p6;
+    if !(p6.is_finite()) {
+        return None;
+    }
+    jac[0][0] = d0;
+    jac[0][3] = u0_3;
+    jac[0][4] = u0_4;
+    jac[0][5] = u0_5;
+    jac[0][6] = u0_6;
+    jac[1][1] = d1;
+    jac[1][3] = u1_3;
+    jac[1][4] = u1_4;
+    jac[1][5] = u1_5;
+    jac[1][6] = u1_6;
+    jac[2][2] = d2;
+    jac[2][3] = u2_3;
+    jac[2][4] = u2_4;
+    jac[2][5] = u2_5;
+    jac[2][6] = u2_6;
+    jac[5][3] = d3;
+    jac[5][4] = u3_4;
+    jac[6][3] = l4_3;
+    jac[6][4] = d4;
+    jac[6][5] = u4_5;
+    jac[6][6] = u4_6;
+    jac[3][3] = l5_3;
+    jac[3][4] = l5_4;
+    jac[3][5] = d5;
+    jac[3][6] = u5_6;
+    jac[4][3] = l6_3;
+    jac[4][4] = l6_4;
+    jac[4][5] = l6_5;
+    jac[4][6] = d6;
+    Some(runtime::lu::PivotInfo {
+        smallest: p0
+            .abs()
+            .min(p1.abs())
+            .min(p2.abs())
+            .min(p3.abs())
+            .min(p4.abs())
+            .min(p5.abs())
+            .min(p6.abs()),
+        largest: p0
+            .abs()
+            .max(p1.abs())
+            .max(p2.abs())
+            .max(p3.abs())
+            .max(p4.abs())
+            .max(p5.abs())
+            .max(p6.abs()),
+    })
+}
+
+/** Solves Φ_q x = b in place with the factors [`factor_1`] left in `lu`.
+
+ 51 operations.*/
+pub fn solve_1(lu: &[[f64; N]; N], b: &mut [f64; N]) {
+    let y0 = b[0];
+    let y1 = b[1];
+    let y2 = b[2];
+    let y3 = b[5];
+    let y4 = b[6] - lu[6][3] * y3;
+    let y5 = b[3] - lu[3][3] * y3 - lu[3][4] * y4;
+    let y6 = b[4] - lu[4][3] * y3 - lu[4][4] * y4 - lu[4][5] * y5;
+    let x6 = y6 * lu[4][6];
+    let x5 = (y5 - lu[3][6] * x6) * lu[3][5];
+    let x4 = (y4 - lu[6][5] * x5 - lu[6][6] * x6) * lu[6][4];
+    let x3 = (y3 - lu[5][4] * x4) * lu[5][3];
+    let x2 = (y2 - lu[2][3] * x3 - lu[2][4] * x4 - lu[2][5] * x5 - lu[2][6] * x6)
+        * lu[2][2];
+    let x1 = (y1 - lu[1][3] * x3 - lu[1][4] * x4 - lu[1][5] * x5 - lu[1][6] * x6)
+        * lu[1][1];
+    let x0 = (y0 - lu[0][3] * x3 - lu[0][4] * x4 - lu[0][5] * x5 - lu[0][6] * x6)
+        * lu[0][0];
+    b[0] = x0;
+    b[1] = x1;
+    b[2] = x2;
+    b[3] = x3;
+    b[4] = x4;
+    b[5] = x5;
+    b[6] = x6;
+}
+
 /** Velocity right-hand side ν = −Φ_t.
 
  11 operations, 1 shared subexpressions.*/
@@ -322,5 +686,33 @@ impl runtime::Mechanism<N> for RevoluteJoint {
     }
     fn normalize(&self, q: &mut [f64; N]) {
         normalize(q);
+    }
+    const PIVOT_ORDERS: usize = 2;
+    fn residual_jacobian_structural(
+        &self,
+        q: &[f64; N],
+        t: f64,
+        phi: &mut [f64; N],
+        jac: &mut [[f64; N]; N],
+    ) {
+        residual_jacobian_structural(q, t, phi, jac);
+    }
+    fn factor_structured(
+        &self,
+        order: usize,
+        jac: &mut [[f64; N]; N],
+    ) -> Option<runtime::lu::PivotInfo> {
+        match order {
+            0 => factor_0(jac),
+            1 => factor_1(jac),
+            _ => None,
+        }
+    }
+    fn solve_structured(&self, order: usize, lu: &[[f64; N]; N], b: &mut [f64; N]) {
+        match order {
+            0 => solve_0(lu, b),
+            1 => solve_1(lu, b),
+            _ => {}
+        }
     }
 }

@@ -81,6 +81,109 @@ pub fn residual_jacobian(
     jac[1][1] = q1 + q1;
 }
 
+/** Φ and the 4 structurally non-zero entries of Φ_q, the others of `jac` left as they were: what the `factor_k` functions read.
+
+ 14 operations, 3 shared subexpressions.*/
+pub fn residual_jacobian_structural(
+    q: &[f64; N],
+    t: f64,
+    phi: &mut [f64; N],
+    jac: &mut [[f64; N]; N],
+) {
+    let [q0, q1] = *q;
+    let t0 = f64::from_bits(4602890488355133325) * t;
+    let t1 = runtime::math::sin(t0);
+    let t2 = runtime::math::cos(t0);
+    phi[0] = q1 * t2 - t1 * q0;
+    phi[1] = q0 * q0 + q1 * q1 - 1.0;
+    jac[0][0] = -t1;
+    jac[0][1] = t2;
+    jac[1][0] = q0 + q0;
+    jac[1][1] = q1 + q1;
+}
+
+/** Factors Φ_q in place with static pivot order 0: step k pivots on row `[1, 0][k]` and column `[0, 1][k]`.
+
+ L and U have 4 entries (0 of them fill-in); 5 operations. The reciprocals of the pivots are stored on the diagonal.
+
+ Returns the smallest and largest |pivot|, or `None` (with `jac` unchanged) when a pivot is not finite or a multiplier exceeds [`runtime::lu::MAX_MULTIPLIER`] in magnitude.*/
+#[must_use]
+pub fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
+    let u0_1 = jac[1][1];
+    let p0 = jac[1][0];
+    let d0 = 1.0 / p0;
+    let l1_0 = jac[0][0] * d0;
+    if !(p0.is_finite() && l1_0.abs() <= runtime::lu::MAX_MULTIPLIER) {
+        return None;
+    }
+    let p1 = jac[0][1] - l1_0 * u0_1;
+    let d1 = 1.0 / p1;
+    if !(p1.is_finite()) {
+        return None;
+    }
+    jac[1][0] = d0;
+    jac[1][1] = u0_1;
+    jac[0][0] = l1_0;
+    jac[0][1] = d1;
+    Some(runtime::lu::PivotInfo {
+        smallest: p0.abs().min(p1.abs()),
+        largest: p0.abs().max(p1.abs()),
+    })
+}
+
+/** Solves Φ_q x = b in place with the factors [`factor_0`] left in `lu`.
+
+ 6 operations.*/
+pub fn solve_0(lu: &[[f64; N]; N], b: &mut [f64; N]) {
+    let y0 = b[1];
+    let y1 = b[0] - lu[0][0] * y0;
+    let x1 = y1 * lu[0][1];
+    let x0 = (y0 - lu[1][1] * x1) * lu[1][0];
+    b[0] = x0;
+    b[1] = x1;
+}
+
+/** Factors Φ_q in place with static pivot order 1: step k pivots on row `[0, 1][k]` and column `[0, 1][k]`.
+
+ L and U have 4 entries (0 of them fill-in); 5 operations. The reciprocals of the pivots are stored on the diagonal.
+
+ Returns the smallest and largest |pivot|, or `None` (with `jac` unchanged) when a pivot is not finite or a multiplier exceeds [`runtime::lu::MAX_MULTIPLIER`] in magnitude.*/
+#[must_use]
+pub fn factor_1(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
+    let u0_1 = jac[0][1];
+    let p0 = jac[0][0];
+    let d0 = 1.0 / p0;
+    let l1_0 = jac[1][0] * d0;
+    if !(p0.is_finite() && l1_0.abs() <= runtime::lu::MAX_MULTIPLIER) {
+        return None;
+    }
+    let p1 = jac[1][1] - l1_0 * u0_1;
+    let d1 = 1.0 / p1;
+    if !(p1.is_finite()) {
+        return None;
+    }
+    jac[0][0] = d0;
+    jac[0][1] = u0_1;
+    jac[1][0] = l1_0;
+    jac[1][1] = d1;
+    Some(runtime::lu::PivotInfo {
+        smallest: p0.abs().min(p1.abs()),
+        largest: p0.abs().max(p1.abs()),
+    })
+}
+
+/** Solves Φ_q x = b in place with the factors [`factor_1`] left in `lu`.
+
+ 6 operations.*/
+pub fn solve_1(lu: &[[f64; N]; N], b: &mut [f64; N]) {
+    let y0 = b[0];
+    let y1 = b[1] - lu[1][0] * y0;
+    let x1 = y1 * lu[1][1];
+    let x0 = (y0 - lu[0][1] * x1) * lu[0][0];
+    b[0] = x0;
+    b[1] = x1;
+}
+
 /** Velocity right-hand side ν = −Φ_t.
 
  11 operations, 1 shared subexpressions.*/
@@ -188,5 +291,33 @@ impl runtime::Mechanism<N> for RotationAboutYShort {
     }
     fn normalize(&self, q: &mut [f64; N]) {
         normalize(q);
+    }
+    const PIVOT_ORDERS: usize = 2;
+    fn residual_jacobian_structural(
+        &self,
+        q: &[f64; N],
+        t: f64,
+        phi: &mut [f64; N],
+        jac: &mut [[f64; N]; N],
+    ) {
+        residual_jacobian_structural(q, t, phi, jac);
+    }
+    fn factor_structured(
+        &self,
+        order: usize,
+        jac: &mut [[f64; N]; N],
+    ) -> Option<runtime::lu::PivotInfo> {
+        match order {
+            0 => factor_0(jac),
+            1 => factor_1(jac),
+            _ => None,
+        }
+    }
+    fn solve_structured(&self, order: usize, lu: &[[f64; N]; N], b: &mut [f64; N]) {
+        match order {
+            0 => solve_0(lu, b),
+            1 => solve_1(lu, b),
+            _ => {}
+        }
     }
 }

@@ -178,6 +178,327 @@ pub fn residual_jacobian(
     jac[6][6] = t20;
 }
 
+/** Φ and the 21 structurally non-zero entries of Φ_q, the others of `jac` left as they were: what the `factor_k` functions read.
+
+ 76 operations, 21 shared subexpressions.*/
+pub fn residual_jacobian_structural(
+    q: &[f64; N],
+    t: f64,
+    phi: &mut [f64; N],
+    jac: &mut [[f64; N]; N],
+) {
+    let [q0, q1, q2, q3, q4, q5, q6] = *q;
+    let t0 = q5 * q5;
+    let t1 = q6 * q6;
+    let t2 = q3 * q3 + q4 * q4;
+    let t3 = t2 - (t0 + t1);
+    let t4 = 2.0 * (q4 * q6 - q3 * q5);
+    let t5 = 2.0 * (q1 - 2.0);
+    let t6 = runtime::math::sin(t5);
+    let t7 = runtime::math::cos(t5);
+    let t8 = f64::from_bits(4602890488355133325) * t;
+    let t9 = runtime::math::sin(t8);
+    let t10 = runtime::math::cos(t8);
+    let t11 = 2.0 * q6;
+    let t12 = -t11;
+    let t13 = 2.0 * q5;
+    let t14 = 2.0 * q4;
+    let t15 = 2.0 * q3;
+    let t16 = -t15;
+    let t17 = q3 + q3;
+    let t18 = q4 + q4;
+    let t19 = q5 + q5;
+    let t20 = q6 + q6;
+    phi[0] = 2.0 * (q4 * q5 - q3 * q6);
+    phi[1] = -(2.0 * (q5 * q6 + q3 * q4));
+    phi[2] = q0;
+    phi[3] = -q2;
+    phi[4] = t3 * t6 + t4 * t7;
+    phi[5] = q5 * t10 - q3 * t9;
+    phi[6] = t1 + (t0 + t2) - 1.0;
+    jac[0][3] = t12;
+    jac[0][4] = t13;
+    jac[0][5] = t14;
+    jac[0][6] = t16;
+    jac[1][3] = -t14;
+    jac[1][4] = t16;
+    jac[1][5] = t12;
+    jac[1][6] = -t13;
+    jac[2][0] = 1.0;
+    jac[3][2] = -1.0;
+    jac[4][1] = t3 * (2.0 * t7) - t4 * (2.0 * t6);
+    jac[4][3] = t6 * t17 - t7 * t13;
+    jac[4][4] = t6 * t18 + t7 * t11;
+    jac[4][5] = -(t6 * t19) - t7 * t15;
+    jac[4][6] = t7 * t14 - t6 * t20;
+    jac[5][3] = -t9;
+    jac[5][5] = t10;
+    jac[6][3] = t17;
+    jac[6][4] = t18;
+    jac[6][5] = t19;
+    jac[6][6] = t20;
+}
+
+/** Factors Φ_q in place with static pivot order 0: step k pivots on row `[2, 4, 3, 5, 6, 1, 0][k]` and column `[0, 1, 2, 5, 3, 4, 6][k]`.
+
+ L and U have 21 entries (0 of them fill-in); 29 operations. The reciprocals of the pivots are stored on the diagonal.
+
+ Returns the smallest and largest |pivot|, or `None` (with `jac` unchanged) when a pivot is not finite or a multiplier exceeds [`runtime::lu::MAX_MULTIPLIER`] in magnitude.*/
+#[must_use]
+pub fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
+    let p0 = jac[2][0];
+    let d0 = 1.0 / p0;
+    if !(p0.is_finite()) {
+        return None;
+    }
+    let u1_3 = jac[4][5];
+    let u1_4 = jac[4][3];
+    let u1_5 = jac[4][4];
+    let u1_6 = jac[4][6];
+    let p1 = jac[4][1];
+    let d1 = 1.0 / p1;
+    if !(p1.is_finite()) {
+        return None;
+    }
+    let p2 = jac[3][2];
+    let d2 = 1.0 / p2;
+    if !(p2.is_finite()) {
+        return None;
+    }
+    let u3_4 = jac[5][3];
+    let p3 = jac[5][5];
+    let d3 = 1.0 / p3;
+    let l4_3 = jac[6][5] * d3;
+    let l5_3 = jac[1][5] * d3;
+    let l6_3 = jac[0][5] * d3;
+    if !(p3.is_finite() && l4_3.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l5_3.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l6_3.abs() <= runtime::lu::MAX_MULTIPLIER)
+    {
+        return None;
+    }
+    let u4_5 = jac[6][4];
+    let u4_6 = jac[6][6];
+    let p4 = jac[6][3] - l4_3 * u3_4;
+    let d4 = 1.0 / p4;
+    let l5_4 = (jac[1][3] - l5_3 * u3_4) * d4;
+    let l6_4 = (jac[0][3] - l6_3 * u3_4) * d4;
+    if !(p4.is_finite() && l5_4.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l6_4.abs() <= runtime::lu::MAX_MULTIPLIER)
+    {
+        return None;
+    }
+    let u5_6 = jac[1][6] - l5_4 * u4_6;
+    let p5 = jac[1][4] - l5_4 * u4_5;
+    let d5 = 1.0 / p5;
+    let l6_5 = (jac[0][4] - l6_4 * u4_5) * d5;
+    if !(p5.is_finite() && l6_5.abs() <= runtime::lu::MAX_MULTIPLIER) {
+        return None;
+    }
+    let p6 = jac[0][6] - l6_4 * u4_6 - l6_5 * u5_6;
+    let d6 = 1.0 / p6;
+    if !(p6.is_finite()) {
+        return None;
+    }
+    jac[2][0] = d0;
+    jac[4][1] = d1;
+    jac[4][5] = u1_3;
+    jac[4][3] = u1_4;
+    jac[4][4] = u1_5;
+    jac[4][6] = u1_6;
+    jac[3][2] = d2;
+    jac[5][5] = d3;
+    jac[5][3] = u3_4;
+    jac[6][5] = l4_3;
+    jac[6][3] = d4;
+    jac[6][4] = u4_5;
+    jac[6][6] = u4_6;
+    jac[1][5] = l5_3;
+    jac[1][3] = l5_4;
+    jac[1][4] = d5;
+    jac[1][6] = u5_6;
+    jac[0][5] = l6_3;
+    jac[0][3] = l6_4;
+    jac[0][4] = l6_5;
+    jac[0][6] = d6;
+    Some(runtime::lu::PivotInfo {
+        smallest: p0
+            .abs()
+            .min(p1.abs())
+            .min(p2.abs())
+            .min(p3.abs())
+            .min(p4.abs())
+            .min(p5.abs())
+            .min(p6.abs()),
+        largest: p0
+            .abs()
+            .max(p1.abs())
+            .max(p2.abs())
+            .max(p3.abs())
+            .max(p4.abs())
+            .max(p5.abs())
+            .max(p6.abs()),
+    })
+}
+
+/** Solves Φ_q x = b in place with the factors [`factor_0`] left in `lu`.
+
+ 35 operations.*/
+pub fn solve_0(lu: &[[f64; N]; N], b: &mut [f64; N]) {
+    let y0 = b[2];
+    let y1 = b[4];
+    let y2 = b[3];
+    let y3 = b[5];
+    let y4 = b[6] - lu[6][5] * y3;
+    let y5 = b[1] - lu[1][5] * y3 - lu[1][3] * y4;
+    let y6 = b[0] - lu[0][5] * y3 - lu[0][3] * y4 - lu[0][4] * y5;
+    let x6 = y6 * lu[0][6];
+    let x5 = (y5 - lu[1][6] * x6) * lu[1][4];
+    let x4 = (y4 - lu[6][4] * x5 - lu[6][6] * x6) * lu[6][3];
+    let x3 = (y3 - lu[5][3] * x4) * lu[5][5];
+    let x2 = y2 * lu[3][2];
+    let x1 = (y1 - lu[4][5] * x3 - lu[4][3] * x4 - lu[4][4] * x5 - lu[4][6] * x6)
+        * lu[4][1];
+    let x0 = y0 * lu[2][0];
+    b[0] = x0;
+    b[1] = x1;
+    b[2] = x2;
+    b[5] = x3;
+    b[3] = x4;
+    b[4] = x5;
+    b[6] = x6;
+}
+
+/** Factors Φ_q in place with static pivot order 1: step k pivots on row `[2, 4, 3, 5, 0, 6, 1][k]` and column `[0, 1, 2, 3, 4, 5, 6][k]`.
+
+ L and U have 21 entries (0 of them fill-in); 29 operations. The reciprocals of the pivots are stored on the diagonal.
+
+ Returns the smallest and largest |pivot|, or `None` (with `jac` unchanged) when a pivot is not finite or a multiplier exceeds [`runtime::lu::MAX_MULTIPLIER`] in magnitude.*/
+#[must_use]
+pub fn factor_1(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
+    let p0 = jac[2][0];
+    let d0 = 1.0 / p0;
+    if !(p0.is_finite()) {
+        return None;
+    }
+    let u1_3 = jac[4][3];
+    let u1_4 = jac[4][4];
+    let u1_5 = jac[4][5];
+    let u1_6 = jac[4][6];
+    let p1 = jac[4][1];
+    let d1 = 1.0 / p1;
+    if !(p1.is_finite()) {
+        return None;
+    }
+    let p2 = jac[3][2];
+    let d2 = 1.0 / p2;
+    if !(p2.is_finite()) {
+        return None;
+    }
+    let u3_5 = jac[5][5];
+    let p3 = jac[5][3];
+    let d3 = 1.0 / p3;
+    let l4_3 = jac[0][3] * d3;
+    let l5_3 = jac[6][3] * d3;
+    let l6_3 = jac[1][3] * d3;
+    if !(p3.is_finite() && l4_3.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l5_3.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l6_3.abs() <= runtime::lu::MAX_MULTIPLIER)
+    {
+        return None;
+    }
+    let u4_5 = jac[0][5] - l4_3 * u3_5;
+    let u4_6 = jac[0][6];
+    let p4 = jac[0][4];
+    let d4 = 1.0 / p4;
+    let l5_4 = jac[6][4] * d4;
+    let l6_4 = jac[1][4] * d4;
+    if !(p4.is_finite() && l5_4.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l6_4.abs() <= runtime::lu::MAX_MULTIPLIER)
+    {
+        return None;
+    }
+    let u5_6 = jac[6][6] - l5_4 * u4_6;
+    let p5 = jac[6][5] - l5_3 * u3_5 - l5_4 * u4_5;
+    let d5 = 1.0 / p5;
+    let l6_5 = (jac[1][5] - l6_3 * u3_5 - l6_4 * u4_5) * d5;
+    if !(p5.is_finite() && l6_5.abs() <= runtime::lu::MAX_MULTIPLIER) {
+        return None;
+    }
+    let p6 = jac[1][6] - l6_4 * u4_6 - l6_5 * u5_6;
+    let d6 = 1.0 / p6;
+    if !(p6.is_finite()) {
+        return None;
+    }
+    jac[2][0] = d0;
+    jac[4][1] = d1;
+    jac[4][3] = u1_3;
+    jac[4][4] = u1_4;
+    jac[4][5] = u1_5;
+    jac[4][6] = u1_6;
+    jac[3][2] = d2;
+    jac[5][3] = d3;
+    jac[5][5] = u3_5;
+    jac[0][3] = l4_3;
+    jac[0][4] = d4;
+    jac[0][5] = u4_5;
+    jac[0][6] = u4_6;
+    jac[6][3] = l5_3;
+    jac[6][4] = l5_4;
+    jac[6][5] = d5;
+    jac[6][6] = u5_6;
+    jac[1][3] = l6_3;
+    jac[1][4] = l6_4;
+    jac[1][5] = l6_5;
+    jac[1][6] = d6;
+    Some(runtime::lu::PivotInfo {
+        smallest: p0
+            .abs()
+            .min(p1.abs())
+            .min(p2.abs())
+            .min(p3.abs())
+            .min(p4.abs())
+            .min(p5.abs())
+            .min(p6.abs()),
+        largest: p0
+            .abs()
+            .max(p1.abs())
+            .max(p2.abs())
+            .max(p3.abs())
+            .max(p4.abs())
+            .max(p5.abs())
+            .max(p6.abs()),
+    })
+}
+
+/** Solves Φ_q x = b in place with the factors [`factor_1`] left in `lu`.
+
+ 35 operations.*/
+pub fn solve_1(lu: &[[f64; N]; N], b: &mut [f64; N]) {
+    let y0 = b[2];
+    let y1 = b[4];
+    let y2 = b[3];
+    let y3 = b[5];
+    let y4 = b[0] - lu[0][3] * y3;
+    let y5 = b[6] - lu[6][3] * y3 - lu[6][4] * y4;
+    let y6 = b[1] - lu[1][3] * y3 - lu[1][4] * y4 - lu[1][5] * y5;
+    let x6 = y6 * lu[1][6];
+    let x5 = (y5 - lu[6][6] * x6) * lu[6][5];
+    let x4 = (y4 - lu[0][5] * x5 - lu[0][6] * x6) * lu[0][4];
+    let x3 = (y3 - lu[5][5] * x5) * lu[5][3];
+    let x2 = y2 * lu[3][2];
+    let x1 = (y1 - lu[4][3] * x3 - lu[4][4] * x4 - lu[4][5] * x5 - lu[4][6] * x6)
+        * lu[4][1];
+    let x0 = y0 * lu[2][0];
+    b[0] = x0;
+    b[1] = x1;
+    b[2] = x2;
+    b[3] = x3;
+    b[4] = x4;
+    b[5] = x5;
+    b[6] = x6;
+}
+
 /** Velocity right-hand side ν = −Φ_t.
 
  11 operations, 1 shared subexpressions.*/
@@ -320,5 +641,33 @@ impl runtime::Mechanism<N> for ScrewJoint {
     }
     fn normalize(&self, q: &mut [f64; N]) {
         normalize(q);
+    }
+    const PIVOT_ORDERS: usize = 2;
+    fn residual_jacobian_structural(
+        &self,
+        q: &[f64; N],
+        t: f64,
+        phi: &mut [f64; N],
+        jac: &mut [[f64; N]; N],
+    ) {
+        residual_jacobian_structural(q, t, phi, jac);
+    }
+    fn factor_structured(
+        &self,
+        order: usize,
+        jac: &mut [[f64; N]; N],
+    ) -> Option<runtime::lu::PivotInfo> {
+        match order {
+            0 => factor_0(jac),
+            1 => factor_1(jac),
+            _ => None,
+        }
+    }
+    fn solve_structured(&self, order: usize, lu: &[[f64; N]; N], b: &mut [f64; N]) {
+        match order {
+            0 => solve_0(lu, b),
+            1 => solve_1(lu, b),
+            _ => {}
+        }
     }
 }

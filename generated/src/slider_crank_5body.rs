@@ -942,6 +942,2570 @@ pub fn residual_jacobian(
     jac[27][27] = t145;
 }
 
+/** Φ and the 165 structurally non-zero entries of Φ_q, the others of `jac` left as they were: what the `factor_k` functions read.
+
+ 791 operations, 170 shared subexpressions.*/
+pub fn residual_jacobian_structural(
+    q: &[f64; N],
+    t: f64,
+    phi: &mut [f64; N],
+    jac: &mut [[f64; N]; N],
+) {
+    let [q0, q1, q2, q3, q4, q5, q6, q7, q8, q9, q10, q11, q12, q13, q14, q15, q16, q17,
+    q18, q19, q20, q21, q22, q23, q24, q25, q26, q27] = *q;
+    let t0 = q3 * q3;
+    let t1 = q4 * q4;
+    let t2 = q5 * q5;
+    let t3 = q6 * q6;
+    let t4 = q4 * q5 - q3 * q6;
+    let t5 = q10 * q10;
+    let t6 = q11 * q11;
+    let t7 = q12 * q12;
+    let t8 = q13 * q13;
+    let t9 = t5 + t6;
+    let t10 = t9 - (t7 + t8);
+    let t11 = t5 + t8 - (t6 + t7);
+    let t12 = q11 * q13;
+    let t13 = q10 * q12;
+    let t14 = 2.0 * (t12 + t13);
+    let t15 = q11 * q12 + q10 * q13;
+    let t16 = 2.0 * t15;
+    let t17 = 2.0 * (q12 * q13 - q10 * q11);
+    let t18 = t12 - t13;
+    let t19 = 2.0 * t18;
+    let t20 = q17 * q17;
+    let t21 = q18 * q18;
+    let t22 = q19 * q19;
+    let t23 = q20 * q20;
+    let t24 = t20 + t21;
+    let t25 = t20 + t22 - (t21 + t23);
+    let t26 = t20 + t23 - (t21 + t22);
+    let t27 = q18 * q19;
+    let t28 = q17 * q20;
+    let t29 = t27 - t28;
+    let t30 = 2.0 * t29;
+    let t31 = q18 * q20;
+    let t32 = q17 * q19;
+    let t33 = t31 + t32;
+    let t34 = 2.0 * t33;
+    let t35 = q19 * q20;
+    let t36 = q17 * q18;
+    let t37 = t35 - t36;
+    let t38 = 2.0 * t37;
+    let t39 = t35 + t36;
+    let t40 = 2.0 * t39;
+    let t41 = 1.783831760903418 * t29 + -0.9044027027780329 * t33;
+    let t42 = 0.891915880451709 * t25 + -0.9044027027780329 * t37;
+    let t43 = 1.783831760903418 * t39 + -0.45220135138901646 * t26;
+    let t44 = q24 * q24;
+    let t45 = q25 * q25;
+    let t46 = q26 * q26;
+    let t47 = q27 * q27;
+    let t48 = t44 + t45;
+    let t49 = t48 - (t46 + t47);
+    let t50 = t44 + t46 - (t45 + t47);
+    let t51 = t44 + t47 - (t45 + t46);
+    let t52 = q25 * q26;
+    let t53 = q24 * q27;
+    let t54 = 2.0 * (t52 - t53);
+    let t55 = q25 * q27;
+    let t56 = q24 * q26;
+    let t57 = 2.0 * (t55 + t56);
+    let t58 = t52 + t53;
+    let t59 = 2.0 * t58;
+    let t60 = q26 * q27;
+    let t61 = q24 * q25;
+    let t62 = 2.0 * (t60 - t61);
+    let t63 = t55 - t56;
+    let t64 = 2.0 * t63;
+    let t65 = 2.0 * (t60 + t61);
+    let t66 = 0.4 * t49 + q21 - (q14 + 0.2 * (t24 - (t22 + t23)));
+    let t67 = 0.8 * t58 + q22 - (q15 + 0.4 * (t27 + t28));
+    let t68 = 0.8 * t63 + q23 - (q16 + 0.4 * (t31 - t32));
+    let t69 = -q21;
+    let t70 = 0.2 + t69;
+    let t71 = 0.5 * (1.52 + -6.2831852 * t);
+    let t72 = runtime::math::sin(t71);
+    let t73 = runtime::math::cos(t71);
+    let t74 = 0.16 * q6;
+    let t75 = -(0.16 * q5);
+    let t76 = -(0.16 * q4);
+    let t77 = 0.16 * q3;
+    let t78 = q10 + q10;
+    let t79 = q11 + q11;
+    let t80 = q12 + q12;
+    let t81 = q13 + q13;
+    let t82 = q3 + q3;
+    let t83 = q4 + q4;
+    let t84 = q5 + q5;
+    let t85 = q6 + q6;
+    let t86 = -0.3 * q13;
+    let t87 = -0.3 * q12;
+    let t88 = -0.3 * q11;
+    let t89 = -0.3 * q10;
+    let t90 = 2.0 * q6;
+    let t91 = 2.0 * q5;
+    let t92 = 2.0 * q4;
+    let t93 = 2.0 * q3;
+    let t94 = -(0.3 * q13);
+    let t95 = 0.3 * q12;
+    let t96 = -(0.3 * q11);
+    let t97 = 0.3 * q10;
+    let t98 = 2.0 * q12;
+    let t99 = 2.0 * q13;
+    let t100 = t42 * t99;
+    let t101 = t42 * t98;
+    let t102 = 2.0 * q10;
+    let t103 = 2.0 * q11;
+    let t104 = t42 * t103;
+    let t105 = t42 * t102;
+    let t106 = 1.783831760903418 * q18;
+    let t107 = q17 + q17;
+    let t108 = t106 + -0.45220135138901646 * t107;
+    let t109 = 1.783831760903418 * q20;
+    let t110 = -0.9044027027780329 * q19;
+    let t111 = t110 - t109;
+    let t112 = -0.9044027027780329 * q18;
+    let t113 = 0.891915880451709 * t107 - t112;
+    let t114 = 1.783831760903418 * q17;
+    let t115 = q18 + q18;
+    let t116 = t114 - -0.45220135138901646 * t115;
+    let t117 = 1.783831760903418 * q19;
+    let t118 = -0.9044027027780329 * q20;
+    let t119 = t117 + t118;
+    let t120 = -0.9044027027780329 * q17;
+    let t121 = -(0.891915880451709 * t115) - t120;
+    let t122 = q19 + q19;
+    let t123 = t109 - -0.45220135138901646 * t122;
+    let t124 = t106 + t120;
+    let t125 = t118 + 0.891915880451709 * t122;
+    let t126 = q20 + q20;
+    let t127 = t117 + -0.45220135138901646 * t126;
+    let t128 = t112 - t114;
+    let t129 = t110 - 0.891915880451709 * t126;
+    let t130 = 2.0 * q18;
+    let t131 = 2.0 * q20;
+    let t132 = t49 * t131;
+    let t133 = 2.0 * q17;
+    let t134 = 2.0 * q19;
+    let t135 = t49 * t134;
+    let t136 = t49 * t130;
+    let t137 = t49 * t133;
+    let t138 = 2.0 * q26;
+    let t139 = q24 + q24;
+    let t140 = 2.0 * q27;
+    let t141 = q25 + q25;
+    let t142 = 2.0 * q24;
+    let t143 = q26 + q26;
+    let t144 = 2.0 * q25;
+    let t145 = q27 + q27;
+    let t146 = 0.4 * q19;
+    let t147 = 0.2 * t107;
+    let t148 = t66 * t131;
+    let t149 = 0.4 * q20;
+    let t150 = 0.2 * t115;
+    let t151 = t66 * t134;
+    let t152 = 0.4 * q17;
+    let t153 = 0.2 * t122;
+    let t154 = t66 * t130;
+    let t155 = 0.4 * q18;
+    let t156 = 0.2 * t126;
+    let t157 = t66 * t133;
+    let t158 = 0.8 * q26;
+    let t159 = 0.4 * t139;
+    let t160 = 0.8 * q27;
+    let t161 = 0.4 * t141;
+    let t162 = 0.8 * q24;
+    let t163 = 0.4 * t143;
+    let t164 = 0.8 * q25;
+    let t165 = 0.4 * t145;
+    let t166 = t70 * t140;
+    let t167 = t70 * t138;
+    let t168 = t70 * t144;
+    let t169 = t70 * t142;
+    phi[0] = -0.15 * t10 + q7 - (0.16 * t4 + q0);
+    phi[1] = -0.3 * t15 + q8 - (0.08 * (t0 + t2 - (t1 + t3)) + q1);
+    phi[2] = -0.3 * t18 + q9 - (0.16 * (q5 * q6 + q3 * q4) + q2);
+    phi[3] = -q0;
+    phi[4] = 0.1 - q1;
+    phi[5] = 0.12 - q2;
+    phi[6] = 2.0 * t4;
+    phi[7] = 2.0 * (q4 * q6 + q3 * q5);
+    phi[8] = q14 - (q7 + 0.15 * t10);
+    phi[9] = q15 - (q8 + 0.3 * t15);
+    phi[10] = q16 - (q9 + 0.3 * t18);
+    phi[11] = t19 * t43 + (t10 * t41 + t16 * t42);
+    phi[12] = -(t14 * t41) - t17 * t42 - t11 * t43;
+    phi[13] = t40 * t64 + (t30 * t49 + t25 * t59);
+    phi[14] = t26 * t64 + (t34 * t49 + t38 * t59);
+    phi[15] = t40 * t68 + (t30 * t66 + t25 * t67);
+    phi[16] = t26 * t68 + (t34 * t66 + t38 * t67);
+    phi[17] = t54;
+    phi[18] = t57;
+    phi[19] = t54 * t70 - t50 * q22 - t65 * q23;
+    phi[20] = t57 * t70 - t62 * q22 - t51 * q23;
+    phi[21] = t65;
+    phi[22] = q14 + t69;
+    phi[23] = q4 * t73 - q3 * t72;
+    phi[24] = t3 + (t2 + (t0 + t1)) - 1.0;
+    phi[25] = t8 + (t7 + t9) - 1.0;
+    phi[26] = t23 + (t22 + t24) - 1.0;
+    phi[27] = t47 + (t46 + t48) - 1.0;
+    jac[0][0] = -1.0;
+    jac[0][3] = t74;
+    jac[0][4] = t75;
+    jac[0][5] = t76;
+    jac[0][6] = t77;
+    jac[0][7] = 1.0;
+    jac[0][10] = -0.15 * t78;
+    jac[0][11] = -0.15 * t79;
+    jac[0][12] = -(-0.15 * t80);
+    jac[0][13] = -(-0.15 * t81);
+    jac[1][1] = -1.0;
+    jac[1][3] = -(0.08 * t82);
+    jac[1][4] = 0.08 * t83;
+    jac[1][5] = -(0.08 * t84);
+    jac[1][6] = 0.08 * t85;
+    jac[1][8] = 1.0;
+    jac[1][10] = t86;
+    jac[1][11] = t87;
+    jac[1][12] = t88;
+    jac[1][13] = t89;
+    jac[2][2] = -1.0;
+    jac[2][3] = t76;
+    jac[2][4] = -t77;
+    jac[2][5] = -t74;
+    jac[2][6] = t75;
+    jac[2][9] = 1.0;
+    jac[2][10] = -t87;
+    jac[2][11] = t86;
+    jac[2][12] = -t89;
+    jac[2][13] = t88;
+    jac[3][0] = -1.0;
+    jac[4][1] = -1.0;
+    jac[5][2] = -1.0;
+    jac[6][3] = -t90;
+    jac[6][4] = t91;
+    jac[6][5] = t92;
+    jac[6][6] = -t93;
+    jac[7][3] = t91;
+    jac[7][4] = t90;
+    jac[7][5] = t93;
+    jac[7][6] = t92;
+    jac[8][7] = -1.0;
+    jac[8][10] = -(0.15 * t78);
+    jac[8][11] = -(0.15 * t79);
+    jac[8][12] = 0.15 * t80;
+    jac[8][13] = 0.15 * t81;
+    jac[8][14] = 1.0;
+    jac[9][8] = -1.0;
+    jac[9][10] = t94;
+    jac[9][11] = -t95;
+    jac[9][12] = t96;
+    jac[9][13] = -t97;
+    jac[9][15] = 1.0;
+    jac[10][9] = -1.0;
+    jac[10][10] = t95;
+    jac[10][11] = t94;
+    jac[10][12] = t97;
+    jac[10][13] = t96;
+    jac[10][16] = 1.0;
+    jac[11][10] = t41 * t78 + t100 - t43 * t98;
+    jac[11][11] = t43 * t99 + (t41 * t79 + t101);
+    jac[11][12] = t104 - t41 * t80 - t43 * t102;
+    jac[11][13] = t43 * t103 + (t105 - t41 * t81);
+    jac[11][17] = t19 * t108 + (t10 * t111 + t16 * t113);
+    jac[11][18] = t19 * t116 + (t10 * t119 + t16 * t121);
+    jac[11][19] = t19 * t123 + (t10 * t124 + t16 * t125);
+    jac[11][20] = t19 * t127 + (t10 * t128 + t16 * t129);
+    jac[12][10] = t104 - t41 * t98 - t43 * t78;
+    jac[12][11] = t43 * t79 + (t105 - t41 * t99);
+    jac[12][12] = t43 * t80 + (-(t41 * t102) - t100);
+    jac[12][13] = -(t41 * t103) - t101 - t43 * t81;
+    jac[12][17] = -(t14 * t111) - t17 * t113 - t11 * t108;
+    jac[12][18] = -(t14 * t119) - t17 * t121 - t11 * t116;
+    jac[12][19] = -(t14 * t124) - t17 * t125 - t11 * t123;
+    jac[12][20] = -(t14 * t128) - t17 * t129 - t11 * t127;
+    jac[13][17] = t64 * t130 + (t59 * t107 - t132);
+    jac[13][18] = t64 * t133 + (t135 - t59 * t115);
+    jac[13][19] = t64 * t131 + (t136 + t59 * t122);
+    jac[13][20] = t64 * t134 + (-t137 - t59 * t126);
+    jac[13][24] = t30 * t139 + t25 * t140 - t40 * t138;
+    jac[13][25] = t40 * t140 + (t30 * t141 + t25 * t138);
+    jac[13][26] = t25 * t144 - t30 * t143 - t40 * t142;
+    jac[13][27] = t40 * t144 + (t25 * t142 - t30 * t145);
+    jac[14][17] = t64 * t107 + (t135 - t59 * t130);
+    jac[14][18] = t132 - t59 * t133 - t64 * t115;
+    jac[14][19] = t137 + t59 * t131 - t64 * t122;
+    jac[14][20] = t64 * t126 + (t136 + t59 * t134);
+    jac[14][24] = t34 * t139 + t38 * t140 - t26 * t138;
+    jac[14][25] = t26 * t140 + (t34 * t141 + t38 * t138);
+    jac[14][26] = t38 * t144 - t34 * t143 - t26 * t142;
+    jac[14][27] = t26 * t144 + (t38 * t142 - t34 * t145);
+    jac[15][14] = -t30;
+    jac[15][15] = -t25;
+    jac[15][16] = -t40;
+    jac[15][17] = t68 * t130 + t40 * t146
+        + (-t148 - t30 * t147 + (t67 * t107 - t25 * t149));
+    jac[15][18] = t68 * t133 - t40 * t149
+        + (t151 - t30 * t150 + (-(t67 * t115) - t25 * t146));
+    jac[15][19] = t68 * t131 + t40 * t152
+        + (t154 + t30 * t153 + (t67 * t122 - t25 * t155));
+    jac[15][20] = t68 * t134 - t40 * t155
+        + (t30 * t156 - t157 + (-(t67 * t126) - t25 * t152));
+    jac[15][21] = t30;
+    jac[15][22] = t25;
+    jac[15][23] = t40;
+    jac[15][24] = t30 * t159 + t25 * t160 - t40 * t158;
+    jac[15][25] = t40 * t160 + (t30 * t161 + t25 * t158);
+    jac[15][26] = t25 * t164 - t30 * t163 - t40 * t162;
+    jac[15][27] = t40 * t164 + (t25 * t162 - t30 * t165);
+    jac[16][14] = -t34;
+    jac[16][15] = -t38;
+    jac[16][16] = -t26;
+    jac[16][17] = t68 * t107 + t26 * t146
+        + (t151 - t34 * t147 + (-(t67 * t130) - t38 * t149));
+    jac[16][18] = -(t68 * t115) - t26 * t149
+        + (t148 - t34 * t150 + (-(t67 * t133) - t38 * t146));
+    jac[16][19] = t26 * t152 - t68 * t122
+        + (t157 + t34 * t153 + (t67 * t131 - t38 * t155));
+    jac[16][20] = t68 * t126 - t26 * t155
+        + (t154 + t34 * t156 + (t67 * t134 - t38 * t152));
+    jac[16][21] = t34;
+    jac[16][22] = t38;
+    jac[16][23] = t26;
+    jac[16][24] = t34 * t159 + t38 * t160 - t26 * t158;
+    jac[16][25] = t26 * t160 + (t34 * t161 + t38 * t158);
+    jac[16][26] = t38 * t164 - t34 * t163 - t26 * t162;
+    jac[16][27] = t26 * t164 + (t38 * t162 - t34 * t165);
+    jac[17][24] = -t140;
+    jac[17][25] = t138;
+    jac[17][26] = t144;
+    jac[17][27] = -t142;
+    jac[18][24] = t138;
+    jac[18][25] = t140;
+    jac[18][26] = t142;
+    jac[18][27] = t144;
+    jac[19][21] = -t54;
+    jac[19][22] = -t50;
+    jac[19][23] = -t65;
+    jac[19][24] = -t166 - q22 * t139 - q23 * t144;
+    jac[19][25] = t167 + q22 * t141 - q23 * t142;
+    jac[19][26] = t168 - q22 * t143 - q23 * t140;
+    jac[19][27] = q22 * t145 - t169 - q23 * t138;
+    jac[20][21] = -t57;
+    jac[20][22] = -t62;
+    jac[20][23] = -t51;
+    jac[20][24] = t167 + q22 * t144 - q23 * t139;
+    jac[20][25] = q23 * t141 + (t166 + q22 * t142);
+    jac[20][26] = q23 * t143 + (t169 - q22 * t140);
+    jac[20][27] = t168 - q22 * t138 - q23 * t145;
+    jac[21][24] = t144;
+    jac[21][25] = t142;
+    jac[21][26] = t140;
+    jac[21][27] = t138;
+    jac[22][14] = 1.0;
+    jac[22][21] = -1.0;
+    jac[23][3] = -t72;
+    jac[23][4] = t73;
+    jac[24][3] = t82;
+    jac[24][4] = t83;
+    jac[24][5] = t84;
+    jac[24][6] = t85;
+    jac[25][10] = t78;
+    jac[25][11] = t79;
+    jac[25][12] = t80;
+    jac[25][13] = t81;
+    jac[26][17] = t107;
+    jac[26][18] = t115;
+    jac[26][19] = t122;
+    jac[26][20] = t126;
+    jac[27][24] = t139;
+    jac[27][25] = t141;
+    jac[27][26] = t143;
+    jac[27][27] = t145;
+}
+
+/** Factors Φ_q in place with static pivot order 0: step k pivots on row `[3, 4, 5, 22, 8, 9, 10, 23, 24, 7, 6, 1, 2, 25, 0, 12, 11, 26, 14, 13, 15, 16, 19, 20, 27, 21, 18, 17][k]` and column `[0, 1, 2, 14, 7, 8, 9, 4, 3, 5, 6, 15, 16, 10, 12, 11, 13, 17, 19, 20, 18, 21, 22, 23, 24, 25, 26, 27][k]`.
+
+ L and U have 179 entries (14 of them fill-in); 466 operations. The reciprocals of the pivots are stored on the diagonal.
+
+ Returns the smallest and largest |pivot|, or `None` (with `jac` unchanged) when a pivot is not finite or a multiplier exceeds [`runtime::lu::MAX_MULTIPLIER`] in magnitude.*/
+#[must_use]
+pub fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
+    let p0 = jac[3][0];
+    let d0 = 1.0 / p0;
+    let l14_0 = jac[0][0] * d0;
+    if !(p0.is_finite() && l14_0.abs() <= runtime::lu::MAX_MULTIPLIER) {
+        return None;
+    }
+    let p1 = jac[4][1];
+    let d1 = 1.0 / p1;
+    let l11_1 = jac[1][1] * d1;
+    if !(p1.is_finite() && l11_1.abs() <= runtime::lu::MAX_MULTIPLIER) {
+        return None;
+    }
+    let p2 = jac[5][2];
+    let d2 = 1.0 / p2;
+    let l12_2 = jac[2][2] * d2;
+    if !(p2.is_finite() && l12_2.abs() <= runtime::lu::MAX_MULTIPLIER) {
+        return None;
+    }
+    let u3_21 = jac[22][21];
+    let p3 = jac[22][14];
+    let d3 = 1.0 / p3;
+    let l4_3 = jac[8][14] * d3;
+    let l20_3 = jac[15][14] * d3;
+    let l21_3 = jac[16][14] * d3;
+    if !(p3.is_finite() && l4_3.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l20_3.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l21_3.abs() <= runtime::lu::MAX_MULTIPLIER)
+    {
+        return None;
+    }
+    let u4_13 = jac[8][10];
+    let u4_14 = jac[8][12];
+    let u4_15 = jac[8][11];
+    let u4_16 = jac[8][13];
+    let u4_21 = -(l4_3 * u3_21);
+    let p4 = jac[8][7];
+    let d4 = 1.0 / p4;
+    let l14_4 = jac[0][7] * d4;
+    if !(p4.is_finite() && l14_4.abs() <= runtime::lu::MAX_MULTIPLIER) {
+        return None;
+    }
+    let u5_11 = jac[9][15];
+    let u5_13 = jac[9][10];
+    let u5_14 = jac[9][12];
+    let u5_15 = jac[9][11];
+    let u5_16 = jac[9][13];
+    let p5 = jac[9][8];
+    let d5 = 1.0 / p5;
+    let l11_5 = jac[1][8] * d5;
+    if !(p5.is_finite() && l11_5.abs() <= runtime::lu::MAX_MULTIPLIER) {
+        return None;
+    }
+    let u6_12 = jac[10][16];
+    let u6_13 = jac[10][10];
+    let u6_14 = jac[10][12];
+    let u6_15 = jac[10][11];
+    let u6_16 = jac[10][13];
+    let p6 = jac[10][9];
+    let d6 = 1.0 / p6;
+    let l12_6 = jac[2][9] * d6;
+    if !(p6.is_finite() && l12_6.abs() <= runtime::lu::MAX_MULTIPLIER) {
+        return None;
+    }
+    let u7_8 = jac[23][3];
+    let p7 = jac[23][4];
+    let d7 = 1.0 / p7;
+    let l8_7 = jac[24][4] * d7;
+    let l9_7 = jac[7][4] * d7;
+    let l10_7 = jac[6][4] * d7;
+    let l11_7 = jac[1][4] * d7;
+    let l12_7 = jac[2][4] * d7;
+    let l14_7 = jac[0][4] * d7;
+    if !(p7.is_finite() && l8_7.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l9_7.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l10_7.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l11_7.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l12_7.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l14_7.abs() <= runtime::lu::MAX_MULTIPLIER)
+    {
+        return None;
+    }
+    let u8_9 = jac[24][5];
+    let u8_10 = jac[24][6];
+    let p8 = jac[24][3] - l8_7 * u7_8;
+    let d8 = 1.0 / p8;
+    let l9_8 = (jac[7][3] - l9_7 * u7_8) * d8;
+    let l10_8 = (jac[6][3] - l10_7 * u7_8) * d8;
+    let l11_8 = (jac[1][3] - l11_7 * u7_8) * d8;
+    let l12_8 = (jac[2][3] - l12_7 * u7_8) * d8;
+    let l14_8 = (jac[0][3] - l14_7 * u7_8) * d8;
+    if !(p8.is_finite() && l9_8.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l10_8.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l11_8.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l12_8.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l14_8.abs() <= runtime::lu::MAX_MULTIPLIER)
+    {
+        return None;
+    }
+    let u9_10 = jac[7][6] - l9_8 * u8_10;
+    let p9 = jac[7][5] - l9_8 * u8_9;
+    let d9 = 1.0 / p9;
+    let l10_9 = (jac[6][5] - l10_8 * u8_9) * d9;
+    let l11_9 = (jac[1][5] - l11_8 * u8_9) * d9;
+    let l12_9 = (jac[2][5] - l12_8 * u8_9) * d9;
+    let l14_9 = (jac[0][5] - l14_8 * u8_9) * d9;
+    if !(p9.is_finite() && l10_9.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l11_9.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l12_9.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l14_9.abs() <= runtime::lu::MAX_MULTIPLIER)
+    {
+        return None;
+    }
+    let p10 = jac[6][6] - l10_8 * u8_10 - l10_9 * u9_10;
+    let d10 = 1.0 / p10;
+    let l11_10 = (jac[1][6] - l11_8 * u8_10 - l11_9 * u9_10) * d10;
+    let l12_10 = (jac[2][6] - l12_8 * u8_10 - l12_9 * u9_10) * d10;
+    let l14_10 = (jac[0][6] - l14_8 * u8_10 - l14_9 * u9_10) * d10;
+    if !(p10.is_finite() && l11_10.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l12_10.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l14_10.abs() <= runtime::lu::MAX_MULTIPLIER)
+    {
+        return None;
+    }
+    let u11_13 = jac[1][10] - l11_5 * u5_13;
+    let u11_14 = jac[1][12] - l11_5 * u5_14;
+    let u11_15 = jac[1][11] - l11_5 * u5_15;
+    let u11_16 = jac[1][13] - l11_5 * u5_16;
+    let p11 = -(l11_5 * u5_11);
+    let d11 = 1.0 / p11;
+    let l20_11 = jac[15][15] * d11;
+    let l21_11 = jac[16][15] * d11;
+    if !(p11.is_finite() && l20_11.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l21_11.abs() <= runtime::lu::MAX_MULTIPLIER)
+    {
+        return None;
+    }
+    let u12_13 = jac[2][10] - l12_6 * u6_13;
+    let u12_14 = jac[2][12] - l12_6 * u6_14;
+    let u12_15 = jac[2][11] - l12_6 * u6_15;
+    let u12_16 = jac[2][13] - l12_6 * u6_16;
+    let p12 = -(l12_6 * u6_12);
+    let d12 = 1.0 / p12;
+    let l20_12 = jac[15][16] * d12;
+    let l21_12 = jac[16][16] * d12;
+    if !(p12.is_finite() && l20_12.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l21_12.abs() <= runtime::lu::MAX_MULTIPLIER)
+    {
+        return None;
+    }
+    let u13_14 = jac[25][12];
+    let u13_15 = jac[25][11];
+    let u13_16 = jac[25][13];
+    let p13 = jac[25][10];
+    let d13 = 1.0 / p13;
+    let l14_13 = (jac[0][10] - l14_4 * u4_13) * d13;
+    let l15_13 = jac[12][10] * d13;
+    let l16_13 = jac[11][10] * d13;
+    let l20_13 = (-(l20_11 * u11_13) - l20_12 * u12_13) * d13;
+    let l21_13 = (-(l21_11 * u11_13) - l21_12 * u12_13) * d13;
+    if !(p13.is_finite() && l14_13.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l15_13.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l16_13.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l20_13.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l21_13.abs() <= runtime::lu::MAX_MULTIPLIER)
+    {
+        return None;
+    }
+    let u14_15 = jac[0][11] - l14_4 * u4_15 - l14_13 * u13_15;
+    let u14_16 = jac[0][13] - l14_4 * u4_16 - l14_13 * u13_16;
+    let u14_21 = -(l14_4 * u4_21);
+    let p14 = jac[0][12] - l14_4 * u4_14 - l14_13 * u13_14;
+    let d14 = 1.0 / p14;
+    let l15_14 = (jac[12][12] - l15_13 * u13_14) * d14;
+    let l16_14 = (jac[11][12] - l16_13 * u13_14) * d14;
+    let l20_14 = (-(l20_11 * u11_14) - l20_12 * u12_14 - l20_13 * u13_14) * d14;
+    let l21_14 = (-(l21_11 * u11_14) - l21_12 * u12_14 - l21_13 * u13_14) * d14;
+    if !(p14.is_finite() && l15_14.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l16_14.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l20_14.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l21_14.abs() <= runtime::lu::MAX_MULTIPLIER)
+    {
+        return None;
+    }
+    let u15_16 = jac[12][13] - l15_13 * u13_16 - l15_14 * u14_16;
+    let u15_17 = jac[12][17];
+    let u15_18 = jac[12][19];
+    let u15_19 = jac[12][20];
+    let u15_20 = jac[12][18];
+    let u15_21 = -(l15_14 * u14_21);
+    let p15 = jac[12][11] - l15_13 * u13_15 - l15_14 * u14_15;
+    let d15 = 1.0 / p15;
+    let l16_15 = (jac[11][11] - l16_13 * u13_15 - l16_14 * u14_15) * d15;
+    let l20_15 = (-(l20_11 * u11_15) - l20_12 * u12_15 - l20_13 * u13_15
+        - l20_14 * u14_15) * d15;
+    let l21_15 = (-(l21_11 * u11_15) - l21_12 * u12_15 - l21_13 * u13_15
+        - l21_14 * u14_15) * d15;
+    if !(p15.is_finite() && l16_15.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l20_15.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l21_15.abs() <= runtime::lu::MAX_MULTIPLIER)
+    {
+        return None;
+    }
+    let u16_17 = jac[11][17] - l16_15 * u15_17;
+    let u16_18 = jac[11][19] - l16_15 * u15_18;
+    let u16_19 = jac[11][20] - l16_15 * u15_19;
+    let u16_20 = jac[11][18] - l16_15 * u15_20;
+    let u16_21 = -(l16_14 * u14_21) - l16_15 * u15_21;
+    let p16 = jac[11][13] - l16_13 * u13_16 - l16_14 * u14_16 - l16_15 * u15_16;
+    let d16 = 1.0 / p16;
+    let l20_16 = (-(l20_11 * u11_16) - l20_12 * u12_16 - l20_13 * u13_16
+        - l20_14 * u14_16 - l20_15 * u15_16) * d16;
+    let l21_16 = (-(l21_11 * u11_16) - l21_12 * u12_16 - l21_13 * u13_16
+        - l21_14 * u14_16 - l21_15 * u15_16) * d16;
+    if !(p16.is_finite() && l20_16.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l21_16.abs() <= runtime::lu::MAX_MULTIPLIER)
+    {
+        return None;
+    }
+    let u17_18 = jac[26][19];
+    let u17_19 = jac[26][20];
+    let u17_20 = jac[26][18];
+    let p17 = jac[26][17];
+    let d17 = 1.0 / p17;
+    let l18_17 = jac[14][17] * d17;
+    let l19_17 = jac[13][17] * d17;
+    let l20_17 = (jac[15][17] - l20_15 * u15_17 - l20_16 * u16_17) * d17;
+    let l21_17 = (jac[16][17] - l21_15 * u15_17 - l21_16 * u16_17) * d17;
+    if !(p17.is_finite() && l18_17.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l19_17.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l20_17.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l21_17.abs() <= runtime::lu::MAX_MULTIPLIER)
+    {
+        return None;
+    }
+    let u18_19 = jac[14][20] - l18_17 * u17_19;
+    let u18_20 = jac[14][18] - l18_17 * u17_20;
+    let u18_24 = jac[14][24];
+    let u18_25 = jac[14][25];
+    let u18_26 = jac[14][26];
+    let u18_27 = jac[14][27];
+    let p18 = jac[14][19] - l18_17 * u17_18;
+    let d18 = 1.0 / p18;
+    let l19_18 = (jac[13][19] - l19_17 * u17_18) * d18;
+    let l20_18 = (jac[15][19] - l20_15 * u15_18 - l20_16 * u16_18 - l20_17 * u17_18)
+        * d18;
+    let l21_18 = (jac[16][19] - l21_15 * u15_18 - l21_16 * u16_18 - l21_17 * u17_18)
+        * d18;
+    if !(p18.is_finite() && l19_18.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l20_18.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l21_18.abs() <= runtime::lu::MAX_MULTIPLIER)
+    {
+        return None;
+    }
+    let u19_20 = jac[13][18] - l19_17 * u17_20 - l19_18 * u18_20;
+    let u19_24 = jac[13][24] - l19_18 * u18_24;
+    let u19_25 = jac[13][25] - l19_18 * u18_25;
+    let u19_26 = jac[13][26] - l19_18 * u18_26;
+    let u19_27 = jac[13][27] - l19_18 * u18_27;
+    let p19 = jac[13][20] - l19_17 * u17_19 - l19_18 * u18_19;
+    let d19 = 1.0 / p19;
+    let l20_19 = (jac[15][20] - l20_15 * u15_19 - l20_16 * u16_19 - l20_17 * u17_19
+        - l20_18 * u18_19) * d19;
+    let l21_19 = (jac[16][20] - l21_15 * u15_19 - l21_16 * u16_19 - l21_17 * u17_19
+        - l21_18 * u18_19) * d19;
+    if !(p19.is_finite() && l20_19.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l21_19.abs() <= runtime::lu::MAX_MULTIPLIER)
+    {
+        return None;
+    }
+    let u20_21 = jac[15][21] - l20_3 * u3_21 - l20_14 * u14_21 - l20_15 * u15_21
+        - l20_16 * u16_21;
+    let u20_22 = jac[15][22];
+    let u20_23 = jac[15][23];
+    let u20_24 = jac[15][24] - l20_18 * u18_24 - l20_19 * u19_24;
+    let u20_25 = jac[15][25] - l20_18 * u18_25 - l20_19 * u19_25;
+    let u20_26 = jac[15][26] - l20_18 * u18_26 - l20_19 * u19_26;
+    let u20_27 = jac[15][27] - l20_18 * u18_27 - l20_19 * u19_27;
+    let p20 = jac[15][18] - l20_15 * u15_20 - l20_16 * u16_20 - l20_17 * u17_20
+        - l20_18 * u18_20 - l20_19 * u19_20;
+    let d20 = 1.0 / p20;
+    let l21_20 = (jac[16][18] - l21_15 * u15_20 - l21_16 * u16_20 - l21_17 * u17_20
+        - l21_18 * u18_20 - l21_19 * u19_20) * d20;
+    if !(p20.is_finite() && l21_20.abs() <= runtime::lu::MAX_MULTIPLIER) {
+        return None;
+    }
+    let u21_22 = jac[16][22] - l21_20 * u20_22;
+    let u21_23 = jac[16][23] - l21_20 * u20_23;
+    let u21_24 = jac[16][24] - l21_18 * u18_24 - l21_19 * u19_24 - l21_20 * u20_24;
+    let u21_25 = jac[16][25] - l21_18 * u18_25 - l21_19 * u19_25 - l21_20 * u20_25;
+    let u21_26 = jac[16][26] - l21_18 * u18_26 - l21_19 * u19_26 - l21_20 * u20_26;
+    let u21_27 = jac[16][27] - l21_18 * u18_27 - l21_19 * u19_27 - l21_20 * u20_27;
+    let p21 = jac[16][21] - l21_3 * u3_21 - l21_14 * u14_21 - l21_15 * u15_21
+        - l21_16 * u16_21 - l21_20 * u20_21;
+    let d21 = 1.0 / p21;
+    let l22_21 = jac[19][21] * d21;
+    let l23_21 = jac[20][21] * d21;
+    if !(p21.is_finite() && l22_21.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l23_21.abs() <= runtime::lu::MAX_MULTIPLIER)
+    {
+        return None;
+    }
+    let u22_23 = jac[19][23] - l22_21 * u21_23;
+    let u22_24 = jac[19][24] - l22_21 * u21_24;
+    let u22_25 = jac[19][25] - l22_21 * u21_25;
+    let u22_26 = jac[19][26] - l22_21 * u21_26;
+    let u22_27 = jac[19][27] - l22_21 * u21_27;
+    let p22 = jac[19][22] - l22_21 * u21_22;
+    let d22 = 1.0 / p22;
+    let l23_22 = (jac[20][22] - l23_21 * u21_22) * d22;
+    if !(p22.is_finite() && l23_22.abs() <= runtime::lu::MAX_MULTIPLIER) {
+        return None;
+    }
+    let u23_24 = jac[20][24] - l23_21 * u21_24 - l23_22 * u22_24;
+    let u23_25 = jac[20][25] - l23_21 * u21_25 - l23_22 * u22_25;
+    let u23_26 = jac[20][26] - l23_21 * u21_26 - l23_22 * u22_26;
+    let u23_27 = jac[20][27] - l23_21 * u21_27 - l23_22 * u22_27;
+    let p23 = jac[20][23] - l23_21 * u21_23 - l23_22 * u22_23;
+    let d23 = 1.0 / p23;
+    if !(p23.is_finite()) {
+        return None;
+    }
+    let u24_25 = jac[27][25];
+    let u24_26 = jac[27][26];
+    let u24_27 = jac[27][27];
+    let p24 = jac[27][24];
+    let d24 = 1.0 / p24;
+    let l25_24 = jac[21][24] * d24;
+    let l26_24 = jac[18][24] * d24;
+    let l27_24 = jac[17][24] * d24;
+    if !(p24.is_finite() && l25_24.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l26_24.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l27_24.abs() <= runtime::lu::MAX_MULTIPLIER)
+    {
+        return None;
+    }
+    let u25_26 = jac[21][26] - l25_24 * u24_26;
+    let u25_27 = jac[21][27] - l25_24 * u24_27;
+    let p25 = jac[21][25] - l25_24 * u24_25;
+    let d25 = 1.0 / p25;
+    let l26_25 = (jac[18][25] - l26_24 * u24_25) * d25;
+    let l27_25 = (jac[17][25] - l27_24 * u24_25) * d25;
+    if !(p25.is_finite() && l26_25.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l27_25.abs() <= runtime::lu::MAX_MULTIPLIER)
+    {
+        return None;
+    }
+    let u26_27 = jac[18][27] - l26_24 * u24_27 - l26_25 * u25_27;
+    let p26 = jac[18][26] - l26_24 * u24_26 - l26_25 * u25_26;
+    let d26 = 1.0 / p26;
+    let l27_26 = (jac[17][26] - l27_24 * u24_26 - l27_25 * u25_26) * d26;
+    if !(p26.is_finite() && l27_26.abs() <= runtime::lu::MAX_MULTIPLIER) {
+        return None;
+    }
+    let p27 = jac[17][27] - l27_24 * u24_27 - l27_25 * u25_27 - l27_26 * u26_27;
+    let d27 = 1.0 / p27;
+    if !(p27.is_finite()) {
+        return None;
+    }
+    jac[3][0] = d0;
+    jac[4][1] = d1;
+    jac[5][2] = d2;
+    jac[22][14] = d3;
+    jac[22][21] = u3_21;
+    jac[8][14] = l4_3;
+    jac[8][7] = d4;
+    jac[8][10] = u4_13;
+    jac[8][12] = u4_14;
+    jac[8][11] = u4_15;
+    jac[8][13] = u4_16;
+    jac[8][21] = u4_21;
+    jac[9][8] = d5;
+    jac[9][15] = u5_11;
+    jac[9][10] = u5_13;
+    jac[9][12] = u5_14;
+    jac[9][11] = u5_15;
+    jac[9][13] = u5_16;
+    jac[10][9] = d6;
+    jac[10][16] = u6_12;
+    jac[10][10] = u6_13;
+    jac[10][12] = u6_14;
+    jac[10][11] = u6_15;
+    jac[10][13] = u6_16;
+    jac[23][4] = d7;
+    jac[23][3] = u7_8;
+    jac[24][4] = l8_7;
+    jac[24][3] = d8;
+    jac[24][5] = u8_9;
+    jac[24][6] = u8_10;
+    jac[7][4] = l9_7;
+    jac[7][3] = l9_8;
+    jac[7][5] = d9;
+    jac[7][6] = u9_10;
+    jac[6][4] = l10_7;
+    jac[6][3] = l10_8;
+    jac[6][5] = l10_9;
+    jac[6][6] = d10;
+    jac[1][1] = l11_1;
+    jac[1][8] = l11_5;
+    jac[1][4] = l11_7;
+    jac[1][3] = l11_8;
+    jac[1][5] = l11_9;
+    jac[1][6] = l11_10;
+    jac[1][15] = d11;
+    jac[1][10] = u11_13;
+    jac[1][12] = u11_14;
+    jac[1][11] = u11_15;
+    jac[1][13] = u11_16;
+    jac[2][2] = l12_2;
+    jac[2][9] = l12_6;
+    jac[2][4] = l12_7;
+    jac[2][3] = l12_8;
+    jac[2][5] = l12_9;
+    jac[2][6] = l12_10;
+    jac[2][16] = d12;
+    jac[2][10] = u12_13;
+    jac[2][12] = u12_14;
+    jac[2][11] = u12_15;
+    jac[2][13] = u12_16;
+    jac[25][10] = d13;
+    jac[25][12] = u13_14;
+    jac[25][11] = u13_15;
+    jac[25][13] = u13_16;
+    jac[0][0] = l14_0;
+    jac[0][7] = l14_4;
+    jac[0][4] = l14_7;
+    jac[0][3] = l14_8;
+    jac[0][5] = l14_9;
+    jac[0][6] = l14_10;
+    jac[0][10] = l14_13;
+    jac[0][12] = d14;
+    jac[0][11] = u14_15;
+    jac[0][13] = u14_16;
+    jac[0][21] = u14_21;
+    jac[12][10] = l15_13;
+    jac[12][12] = l15_14;
+    jac[12][11] = d15;
+    jac[12][13] = u15_16;
+    jac[12][17] = u15_17;
+    jac[12][19] = u15_18;
+    jac[12][20] = u15_19;
+    jac[12][18] = u15_20;
+    jac[12][21] = u15_21;
+    jac[11][10] = l16_13;
+    jac[11][12] = l16_14;
+    jac[11][11] = l16_15;
+    jac[11][13] = d16;
+    jac[11][17] = u16_17;
+    jac[11][19] = u16_18;
+    jac[11][20] = u16_19;
+    jac[11][18] = u16_20;
+    jac[11][21] = u16_21;
+    jac[26][17] = d17;
+    jac[26][19] = u17_18;
+    jac[26][20] = u17_19;
+    jac[26][18] = u17_20;
+    jac[14][17] = l18_17;
+    jac[14][19] = d18;
+    jac[14][20] = u18_19;
+    jac[14][18] = u18_20;
+    jac[14][24] = u18_24;
+    jac[14][25] = u18_25;
+    jac[14][26] = u18_26;
+    jac[14][27] = u18_27;
+    jac[13][17] = l19_17;
+    jac[13][19] = l19_18;
+    jac[13][20] = d19;
+    jac[13][18] = u19_20;
+    jac[13][24] = u19_24;
+    jac[13][25] = u19_25;
+    jac[13][26] = u19_26;
+    jac[13][27] = u19_27;
+    jac[15][14] = l20_3;
+    jac[15][15] = l20_11;
+    jac[15][16] = l20_12;
+    jac[15][10] = l20_13;
+    jac[15][12] = l20_14;
+    jac[15][11] = l20_15;
+    jac[15][13] = l20_16;
+    jac[15][17] = l20_17;
+    jac[15][19] = l20_18;
+    jac[15][20] = l20_19;
+    jac[15][18] = d20;
+    jac[15][21] = u20_21;
+    jac[15][22] = u20_22;
+    jac[15][23] = u20_23;
+    jac[15][24] = u20_24;
+    jac[15][25] = u20_25;
+    jac[15][26] = u20_26;
+    jac[15][27] = u20_27;
+    jac[16][14] = l21_3;
+    jac[16][15] = l21_11;
+    jac[16][16] = l21_12;
+    jac[16][10] = l21_13;
+    jac[16][12] = l21_14;
+    jac[16][11] = l21_15;
+    jac[16][13] = l21_16;
+    jac[16][17] = l21_17;
+    jac[16][19] = l21_18;
+    jac[16][20] = l21_19;
+    jac[16][18] = l21_20;
+    jac[16][21] = d21;
+    jac[16][22] = u21_22;
+    jac[16][23] = u21_23;
+    jac[16][24] = u21_24;
+    jac[16][25] = u21_25;
+    jac[16][26] = u21_26;
+    jac[16][27] = u21_27;
+    jac[19][21] = l22_21;
+    jac[19][22] = d22;
+    jac[19][23] = u22_23;
+    jac[19][24] = u22_24;
+    jac[19][25] = u22_25;
+    jac[19][26] = u22_26;
+    jac[19][27] = u22_27;
+    jac[20][21] = l23_21;
+    jac[20][22] = l23_22;
+    jac[20][23] = d23;
+    jac[20][24] = u23_24;
+    jac[20][25] = u23_25;
+    jac[20][26] = u23_26;
+    jac[20][27] = u23_27;
+    jac[27][24] = d24;
+    jac[27][25] = u24_25;
+    jac[27][26] = u24_26;
+    jac[27][27] = u24_27;
+    jac[21][24] = l25_24;
+    jac[21][25] = d25;
+    jac[21][26] = u25_26;
+    jac[21][27] = u25_27;
+    jac[18][24] = l26_24;
+    jac[18][25] = l26_25;
+    jac[18][26] = d26;
+    jac[18][27] = u26_27;
+    jac[17][24] = l27_24;
+    jac[17][25] = l27_25;
+    jac[17][26] = l27_26;
+    jac[17][27] = d27;
+    Some(runtime::lu::PivotInfo {
+        smallest: p0
+            .abs()
+            .min(p1.abs())
+            .min(p2.abs())
+            .min(p3.abs())
+            .min(p4.abs())
+            .min(p5.abs())
+            .min(p6.abs())
+            .min(p7.abs())
+            .min(p8.abs())
+            .min(p9.abs())
+            .min(p10.abs())
+            .min(p11.abs())
+            .min(p12.abs())
+            .min(p13.abs())
+            .min(p14.abs())
+            .min(p15.abs())
+            .min(p16.abs())
+            .min(p17.abs())
+            .min(p18.abs())
+            .min(p19.abs())
+            .min(p20.abs())
+            .min(p21.abs())
+            .min(p22.abs())
+            .min(p23.abs())
+            .min(p24.abs())
+            .min(p25.abs())
+            .min(p26.abs())
+            .min(p27.abs()),
+        largest: p0
+            .abs()
+            .max(p1.abs())
+            .max(p2.abs())
+            .max(p3.abs())
+            .max(p4.abs())
+            .max(p5.abs())
+            .max(p6.abs())
+            .max(p7.abs())
+            .max(p8.abs())
+            .max(p9.abs())
+            .max(p10.abs())
+            .max(p11.abs())
+            .max(p12.abs())
+            .max(p13.abs())
+            .max(p14.abs())
+            .max(p15.abs())
+            .max(p16.abs())
+            .max(p17.abs())
+            .max(p18.abs())
+            .max(p19.abs())
+            .max(p20.abs())
+            .max(p21.abs())
+            .max(p22.abs())
+            .max(p23.abs())
+            .max(p24.abs())
+            .max(p25.abs())
+            .max(p26.abs())
+            .max(p27.abs()),
+    })
+}
+
+/** Solves Φ_q x = b in place with the factors [`factor_0`] left in `lu`.
+
+ 330 operations.*/
+pub fn solve_0(lu: &[[f64; N]; N], b: &mut [f64; N]) {
+    let y0 = b[3];
+    let y1 = b[4];
+    let y2 = b[5];
+    let y3 = b[22];
+    let y4 = b[8] - lu[8][14] * y3;
+    let y5 = b[9];
+    let y6 = b[10];
+    let y7 = b[23];
+    let y8 = b[24] - lu[24][4] * y7;
+    let y9 = b[7] - lu[7][4] * y7 - lu[7][3] * y8;
+    let y10 = b[6] - lu[6][4] * y7 - lu[6][3] * y8 - lu[6][5] * y9;
+    let y11 = b[1] - lu[1][1] * y1 - lu[1][8] * y5 - lu[1][4] * y7 - lu[1][3] * y8
+        - lu[1][5] * y9 - lu[1][6] * y10;
+    let y12 = b[2] - lu[2][2] * y2 - lu[2][9] * y6 - lu[2][4] * y7 - lu[2][3] * y8
+        - lu[2][5] * y9 - lu[2][6] * y10;
+    let y13 = b[25];
+    let y14 = b[0] - lu[0][0] * y0 - lu[0][7] * y4 - lu[0][4] * y7 - lu[0][3] * y8
+        - lu[0][5] * y9 - lu[0][6] * y10 - lu[0][10] * y13;
+    let y15 = b[12] - lu[12][10] * y13 - lu[12][12] * y14;
+    let y16 = b[11] - lu[11][10] * y13 - lu[11][12] * y14 - lu[11][11] * y15;
+    let y17 = b[26];
+    let y18 = b[14] - lu[14][17] * y17;
+    let y19 = b[13] - lu[13][17] * y17 - lu[13][19] * y18;
+    let y20 = b[15] - lu[15][14] * y3 - lu[15][15] * y11 - lu[15][16] * y12
+        - lu[15][10] * y13 - lu[15][12] * y14 - lu[15][11] * y15 - lu[15][13] * y16
+        - lu[15][17] * y17 - lu[15][19] * y18 - lu[15][20] * y19;
+    let y21 = b[16] - lu[16][14] * y3 - lu[16][15] * y11 - lu[16][16] * y12
+        - lu[16][10] * y13 - lu[16][12] * y14 - lu[16][11] * y15 - lu[16][13] * y16
+        - lu[16][17] * y17 - lu[16][19] * y18 - lu[16][20] * y19 - lu[16][18] * y20;
+    let y22 = b[19] - lu[19][21] * y21;
+    let y23 = b[20] - lu[20][21] * y21 - lu[20][22] * y22;
+    let y24 = b[27];
+    let y25 = b[21] - lu[21][24] * y24;
+    let y26 = b[18] - lu[18][24] * y24 - lu[18][25] * y25;
+    let y27 = b[17] - lu[17][24] * y24 - lu[17][25] * y25 - lu[17][26] * y26;
+    let x27 = y27 * lu[17][27];
+    let x26 = (y26 - lu[18][27] * x27) * lu[18][26];
+    let x25 = (y25 - lu[21][26] * x26 - lu[21][27] * x27) * lu[21][25];
+    let x24 = (y24 - lu[27][25] * x25 - lu[27][26] * x26 - lu[27][27] * x27)
+        * lu[27][24];
+    let x23 = (y23 - lu[20][24] * x24 - lu[20][25] * x25 - lu[20][26] * x26
+        - lu[20][27] * x27) * lu[20][23];
+    let x22 = (y22 - lu[19][23] * x23 - lu[19][24] * x24 - lu[19][25] * x25
+        - lu[19][26] * x26 - lu[19][27] * x27) * lu[19][22];
+    let x21 = (y21 - lu[16][22] * x22 - lu[16][23] * x23 - lu[16][24] * x24
+        - lu[16][25] * x25 - lu[16][26] * x26 - lu[16][27] * x27) * lu[16][21];
+    let x20 = (y20 - lu[15][21] * x21 - lu[15][22] * x22 - lu[15][23] * x23
+        - lu[15][24] * x24 - lu[15][25] * x25 - lu[15][26] * x26 - lu[15][27] * x27)
+        * lu[15][18];
+    let x19 = (y19 - lu[13][18] * x20 - lu[13][24] * x24 - lu[13][25] * x25
+        - lu[13][26] * x26 - lu[13][27] * x27) * lu[13][20];
+    let x18 = (y18 - lu[14][20] * x19 - lu[14][18] * x20 - lu[14][24] * x24
+        - lu[14][25] * x25 - lu[14][26] * x26 - lu[14][27] * x27) * lu[14][19];
+    let x17 = (y17 - lu[26][19] * x18 - lu[26][20] * x19 - lu[26][18] * x20)
+        * lu[26][17];
+    let x16 = (y16 - lu[11][17] * x17 - lu[11][19] * x18 - lu[11][20] * x19
+        - lu[11][18] * x20 - lu[11][21] * x21) * lu[11][13];
+    let x15 = (y15 - lu[12][13] * x16 - lu[12][17] * x17 - lu[12][19] * x18
+        - lu[12][20] * x19 - lu[12][18] * x20 - lu[12][21] * x21) * lu[12][11];
+    let x14 = (y14 - lu[0][11] * x15 - lu[0][13] * x16 - lu[0][21] * x21) * lu[0][12];
+    let x13 = (y13 - lu[25][12] * x14 - lu[25][11] * x15 - lu[25][13] * x16)
+        * lu[25][10];
+    let x12 = (y12 - lu[2][10] * x13 - lu[2][12] * x14 - lu[2][11] * x15
+        - lu[2][13] * x16) * lu[2][16];
+    let x11 = (y11 - lu[1][10] * x13 - lu[1][12] * x14 - lu[1][11] * x15
+        - lu[1][13] * x16) * lu[1][15];
+    let x10 = y10 * lu[6][6];
+    let x9 = (y9 - lu[7][6] * x10) * lu[7][5];
+    let x8 = (y8 - lu[24][5] * x9 - lu[24][6] * x10) * lu[24][3];
+    let x7 = (y7 - lu[23][3] * x8) * lu[23][4];
+    let x6 = (y6 - lu[10][16] * x12 - lu[10][10] * x13 - lu[10][12] * x14
+        - lu[10][11] * x15 - lu[10][13] * x16) * lu[10][9];
+    let x5 = (y5 - lu[9][15] * x11 - lu[9][10] * x13 - lu[9][12] * x14 - lu[9][11] * x15
+        - lu[9][13] * x16) * lu[9][8];
+    let x4 = (y4 - lu[8][10] * x13 - lu[8][12] * x14 - lu[8][11] * x15 - lu[8][13] * x16
+        - lu[8][21] * x21) * lu[8][7];
+    let x3 = (y3 - lu[22][21] * x21) * lu[22][14];
+    let x2 = y2 * lu[5][2];
+    let x1 = y1 * lu[4][1];
+    let x0 = y0 * lu[3][0];
+    b[0] = x0;
+    b[1] = x1;
+    b[2] = x2;
+    b[14] = x3;
+    b[7] = x4;
+    b[8] = x5;
+    b[9] = x6;
+    b[4] = x7;
+    b[3] = x8;
+    b[5] = x9;
+    b[6] = x10;
+    b[15] = x11;
+    b[16] = x12;
+    b[10] = x13;
+    b[12] = x14;
+    b[11] = x15;
+    b[13] = x16;
+    b[17] = x17;
+    b[19] = x18;
+    b[20] = x19;
+    b[18] = x20;
+    b[21] = x21;
+    b[22] = x22;
+    b[23] = x23;
+    b[24] = x24;
+    b[25] = x25;
+    b[26] = x26;
+    b[27] = x27;
+}
+
+/** Factors Φ_q in place with static pivot order 1: step k pivots on row `[3, 4, 5, 22, 8, 9, 10, 23, 24, 7, 6, 1, 2, 25, 0, 26, 19, 20, 12, 11, 16, 15, 14, 13, 27, 21, 18, 17][k]` and column `[0, 1, 2, 14, 7, 8, 9, 4, 3, 5, 6, 15, 16, 10, 21, 17, 22, 23, 11, 12, 13, 18, 19, 20, 24, 25, 26, 27][k]`.
+
+ L and U have 183 entries (18 of them fill-in); 490 operations. The reciprocals of the pivots are stored on the diagonal.
+
+ Returns the smallest and largest |pivot|, or `None` (with `jac` unchanged) when a pivot is not finite or a multiplier exceeds [`runtime::lu::MAX_MULTIPLIER`] in magnitude.*/
+#[must_use]
+pub fn factor_1(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
+    let p0 = jac[3][0];
+    let d0 = 1.0 / p0;
+    let l14_0 = jac[0][0] * d0;
+    if !(p0.is_finite() && l14_0.abs() <= runtime::lu::MAX_MULTIPLIER) {
+        return None;
+    }
+    let p1 = jac[4][1];
+    let d1 = 1.0 / p1;
+    let l11_1 = jac[1][1] * d1;
+    if !(p1.is_finite() && l11_1.abs() <= runtime::lu::MAX_MULTIPLIER) {
+        return None;
+    }
+    let p2 = jac[5][2];
+    let d2 = 1.0 / p2;
+    let l12_2 = jac[2][2] * d2;
+    if !(p2.is_finite() && l12_2.abs() <= runtime::lu::MAX_MULTIPLIER) {
+        return None;
+    }
+    let u3_14 = jac[22][21];
+    let p3 = jac[22][14];
+    let d3 = 1.0 / p3;
+    let l4_3 = jac[8][14] * d3;
+    let l20_3 = jac[16][14] * d3;
+    let l21_3 = jac[15][14] * d3;
+    if !(p3.is_finite() && l4_3.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l20_3.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l21_3.abs() <= runtime::lu::MAX_MULTIPLIER)
+    {
+        return None;
+    }
+    let u4_13 = jac[8][10];
+    let u4_14 = -(l4_3 * u3_14);
+    let u4_18 = jac[8][11];
+    let u4_19 = jac[8][12];
+    let u4_20 = jac[8][13];
+    let p4 = jac[8][7];
+    let d4 = 1.0 / p4;
+    let l14_4 = jac[0][7] * d4;
+    if !(p4.is_finite() && l14_4.abs() <= runtime::lu::MAX_MULTIPLIER) {
+        return None;
+    }
+    let u5_11 = jac[9][15];
+    let u5_13 = jac[9][10];
+    let u5_18 = jac[9][11];
+    let u5_19 = jac[9][12];
+    let u5_20 = jac[9][13];
+    let p5 = jac[9][8];
+    let d5 = 1.0 / p5;
+    let l11_5 = jac[1][8] * d5;
+    if !(p5.is_finite() && l11_5.abs() <= runtime::lu::MAX_MULTIPLIER) {
+        return None;
+    }
+    let u6_12 = jac[10][16];
+    let u6_13 = jac[10][10];
+    let u6_18 = jac[10][11];
+    let u6_19 = jac[10][12];
+    let u6_20 = jac[10][13];
+    let p6 = jac[10][9];
+    let d6 = 1.0 / p6;
+    let l12_6 = jac[2][9] * d6;
+    if !(p6.is_finite() && l12_6.abs() <= runtime::lu::MAX_MULTIPLIER) {
+        return None;
+    }
+    let u7_8 = jac[23][3];
+    let p7 = jac[23][4];
+    let d7 = 1.0 / p7;
+    let l8_7 = jac[24][4] * d7;
+    let l9_7 = jac[7][4] * d7;
+    let l10_7 = jac[6][4] * d7;
+    let l11_7 = jac[1][4] * d7;
+    let l12_7 = jac[2][4] * d7;
+    let l14_7 = jac[0][4] * d7;
+    if !(p7.is_finite() && l8_7.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l9_7.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l10_7.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l11_7.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l12_7.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l14_7.abs() <= runtime::lu::MAX_MULTIPLIER)
+    {
+        return None;
+    }
+    let u8_9 = jac[24][5];
+    let u8_10 = jac[24][6];
+    let p8 = jac[24][3] - l8_7 * u7_8;
+    let d8 = 1.0 / p8;
+    let l9_8 = (jac[7][3] - l9_7 * u7_8) * d8;
+    let l10_8 = (jac[6][3] - l10_7 * u7_8) * d8;
+    let l11_8 = (jac[1][3] - l11_7 * u7_8) * d8;
+    let l12_8 = (jac[2][3] - l12_7 * u7_8) * d8;
+    let l14_8 = (jac[0][3] - l14_7 * u7_8) * d8;
+    if !(p8.is_finite() && l9_8.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l10_8.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l11_8.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l12_8.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l14_8.abs() <= runtime::lu::MAX_MULTIPLIER)
+    {
+        return None;
+    }
+    let u9_10 = jac[7][6] - l9_8 * u8_10;
+    let p9 = jac[7][5] - l9_8 * u8_9;
+    let d9 = 1.0 / p9;
+    let l10_9 = (jac[6][5] - l10_8 * u8_9) * d9;
+    let l11_9 = (jac[1][5] - l11_8 * u8_9) * d9;
+    let l12_9 = (jac[2][5] - l12_8 * u8_9) * d9;
+    let l14_9 = (jac[0][5] - l14_8 * u8_9) * d9;
+    if !(p9.is_finite() && l10_9.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l11_9.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l12_9.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l14_9.abs() <= runtime::lu::MAX_MULTIPLIER)
+    {
+        return None;
+    }
+    let p10 = jac[6][6] - l10_8 * u8_10 - l10_9 * u9_10;
+    let d10 = 1.0 / p10;
+    let l11_10 = (jac[1][6] - l11_8 * u8_10 - l11_9 * u9_10) * d10;
+    let l12_10 = (jac[2][6] - l12_8 * u8_10 - l12_9 * u9_10) * d10;
+    let l14_10 = (jac[0][6] - l14_8 * u8_10 - l14_9 * u9_10) * d10;
+    if !(p10.is_finite() && l11_10.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l12_10.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l14_10.abs() <= runtime::lu::MAX_MULTIPLIER)
+    {
+        return None;
+    }
+    let u11_13 = jac[1][10] - l11_5 * u5_13;
+    let u11_18 = jac[1][11] - l11_5 * u5_18;
+    let u11_19 = jac[1][12] - l11_5 * u5_19;
+    let u11_20 = jac[1][13] - l11_5 * u5_20;
+    let p11 = -(l11_5 * u5_11);
+    let d11 = 1.0 / p11;
+    let l20_11 = jac[16][15] * d11;
+    let l21_11 = jac[15][15] * d11;
+    if !(p11.is_finite() && l20_11.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l21_11.abs() <= runtime::lu::MAX_MULTIPLIER)
+    {
+        return None;
+    }
+    let u12_13 = jac[2][10] - l12_6 * u6_13;
+    let u12_18 = jac[2][11] - l12_6 * u6_18;
+    let u12_19 = jac[2][12] - l12_6 * u6_19;
+    let u12_20 = jac[2][13] - l12_6 * u6_20;
+    let p12 = -(l12_6 * u6_12);
+    let d12 = 1.0 / p12;
+    let l20_12 = jac[16][16] * d12;
+    let l21_12 = jac[15][16] * d12;
+    if !(p12.is_finite() && l20_12.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l21_12.abs() <= runtime::lu::MAX_MULTIPLIER)
+    {
+        return None;
+    }
+    let u13_18 = jac[25][11];
+    let u13_19 = jac[25][12];
+    let u13_20 = jac[25][13];
+    let p13 = jac[25][10];
+    let d13 = 1.0 / p13;
+    let l14_13 = (jac[0][10] - l14_4 * u4_13) * d13;
+    let l18_13 = jac[12][10] * d13;
+    let l19_13 = jac[11][10] * d13;
+    let l20_13 = (-(l20_11 * u11_13) - l20_12 * u12_13) * d13;
+    let l21_13 = (-(l21_11 * u11_13) - l21_12 * u12_13) * d13;
+    if !(p13.is_finite() && l14_13.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l18_13.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l19_13.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l20_13.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l21_13.abs() <= runtime::lu::MAX_MULTIPLIER)
+    {
+        return None;
+    }
+    let u14_18 = jac[0][11] - l14_4 * u4_18 - l14_13 * u13_18;
+    let u14_19 = jac[0][12] - l14_4 * u4_19 - l14_13 * u13_19;
+    let u14_20 = jac[0][13] - l14_4 * u4_20 - l14_13 * u13_20;
+    let p14 = -(l14_4 * u4_14);
+    let d14 = 1.0 / p14;
+    let l16_14 = jac[19][21] * d14;
+    let l17_14 = jac[20][21] * d14;
+    let l20_14 = (jac[16][21] - l20_3 * u3_14) * d14;
+    let l21_14 = (jac[15][21] - l21_3 * u3_14) * d14;
+    if !(p14.is_finite() && l16_14.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l17_14.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l20_14.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l21_14.abs() <= runtime::lu::MAX_MULTIPLIER)
+    {
+        return None;
+    }
+    let u15_21 = jac[26][18];
+    let u15_22 = jac[26][19];
+    let u15_23 = jac[26][20];
+    let p15 = jac[26][17];
+    let d15 = 1.0 / p15;
+    let l18_15 = jac[12][17] * d15;
+    let l19_15 = jac[11][17] * d15;
+    let l20_15 = jac[16][17] * d15;
+    let l21_15 = jac[15][17] * d15;
+    let l22_15 = jac[14][17] * d15;
+    let l23_15 = jac[13][17] * d15;
+    if !(p15.is_finite() && l18_15.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l19_15.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l20_15.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l21_15.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l22_15.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l23_15.abs() <= runtime::lu::MAX_MULTIPLIER)
+    {
+        return None;
+    }
+    let u16_17 = jac[19][23];
+    let u16_18 = -(l16_14 * u14_18);
+    let u16_19 = -(l16_14 * u14_19);
+    let u16_20 = -(l16_14 * u14_20);
+    let u16_24 = jac[19][24];
+    let u16_25 = jac[19][25];
+    let u16_26 = jac[19][26];
+    let u16_27 = jac[19][27];
+    let p16 = jac[19][22];
+    let d16 = 1.0 / p16;
+    let l17_16 = jac[20][22] * d16;
+    let l20_16 = jac[16][22] * d16;
+    let l21_16 = jac[15][22] * d16;
+    if !(p16.is_finite() && l17_16.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l20_16.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l21_16.abs() <= runtime::lu::MAX_MULTIPLIER)
+    {
+        return None;
+    }
+    let u17_18 = -(l17_14 * u14_18) - l17_16 * u16_18;
+    let u17_19 = -(l17_14 * u14_19) - l17_16 * u16_19;
+    let u17_20 = -(l17_14 * u14_20) - l17_16 * u16_20;
+    let u17_24 = jac[20][24] - l17_16 * u16_24;
+    let u17_25 = jac[20][25] - l17_16 * u16_25;
+    let u17_26 = jac[20][26] - l17_16 * u16_26;
+    let u17_27 = jac[20][27] - l17_16 * u16_27;
+    let p17 = jac[20][23] - l17_16 * u16_17;
+    let d17 = 1.0 / p17;
+    let l20_17 = (jac[16][23] - l20_16 * u16_17) * d17;
+    let l21_17 = (jac[15][23] - l21_16 * u16_17) * d17;
+    if !(p17.is_finite() && l20_17.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l21_17.abs() <= runtime::lu::MAX_MULTIPLIER)
+    {
+        return None;
+    }
+    let u18_19 = jac[12][12] - l18_13 * u13_19;
+    let u18_20 = jac[12][13] - l18_13 * u13_20;
+    let u18_21 = jac[12][18] - l18_15 * u15_21;
+    let u18_22 = jac[12][19] - l18_15 * u15_22;
+    let u18_23 = jac[12][20] - l18_15 * u15_23;
+    let p18 = jac[12][11] - l18_13 * u13_18;
+    let d18 = 1.0 / p18;
+    let l19_18 = (jac[11][11] - l19_13 * u13_18) * d18;
+    let l20_18 = (-(l20_11 * u11_18) - l20_12 * u12_18 - l20_13 * u13_18
+        - l20_14 * u14_18 - l20_16 * u16_18 - l20_17 * u17_18) * d18;
+    let l21_18 = (-(l21_11 * u11_18) - l21_12 * u12_18 - l21_13 * u13_18
+        - l21_14 * u14_18 - l21_16 * u16_18 - l21_17 * u17_18) * d18;
+    if !(p18.is_finite() && l19_18.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l20_18.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l21_18.abs() <= runtime::lu::MAX_MULTIPLIER)
+    {
+        return None;
+    }
+    let u19_20 = jac[11][13] - l19_13 * u13_20 - l19_18 * u18_20;
+    let u19_21 = jac[11][18] - l19_15 * u15_21 - l19_18 * u18_21;
+    let u19_22 = jac[11][19] - l19_15 * u15_22 - l19_18 * u18_22;
+    let u19_23 = jac[11][20] - l19_15 * u15_23 - l19_18 * u18_23;
+    let p19 = jac[11][12] - l19_13 * u13_19 - l19_18 * u18_19;
+    let d19 = 1.0 / p19;
+    let l20_19 = (-(l20_11 * u11_19) - l20_12 * u12_19 - l20_13 * u13_19
+        - l20_14 * u14_19 - l20_16 * u16_19 - l20_17 * u17_19 - l20_18 * u18_19) * d19;
+    let l21_19 = (-(l21_11 * u11_19) - l21_12 * u12_19 - l21_13 * u13_19
+        - l21_14 * u14_19 - l21_16 * u16_19 - l21_17 * u17_19 - l21_18 * u18_19) * d19;
+    if !(p19.is_finite() && l20_19.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l21_19.abs() <= runtime::lu::MAX_MULTIPLIER)
+    {
+        return None;
+    }
+    let u20_21 = jac[16][18] - l20_15 * u15_21 - l20_18 * u18_21 - l20_19 * u19_21;
+    let u20_22 = jac[16][19] - l20_15 * u15_22 - l20_18 * u18_22 - l20_19 * u19_22;
+    let u20_23 = jac[16][20] - l20_15 * u15_23 - l20_18 * u18_23 - l20_19 * u19_23;
+    let u20_24 = jac[16][24] - l20_16 * u16_24 - l20_17 * u17_24;
+    let u20_25 = jac[16][25] - l20_16 * u16_25 - l20_17 * u17_25;
+    let u20_26 = jac[16][26] - l20_16 * u16_26 - l20_17 * u17_26;
+    let u20_27 = jac[16][27] - l20_16 * u16_27 - l20_17 * u17_27;
+    let p20 = -(l20_11 * u11_20) - l20_12 * u12_20 - l20_13 * u13_20 - l20_14 * u14_20
+        - l20_16 * u16_20 - l20_17 * u17_20 - l20_18 * u18_20 - l20_19 * u19_20;
+    let d20 = 1.0 / p20;
+    let l21_20 = (-(l21_11 * u11_20) - l21_12 * u12_20 - l21_13 * u13_20
+        - l21_14 * u14_20 - l21_16 * u16_20 - l21_17 * u17_20 - l21_18 * u18_20
+        - l21_19 * u19_20) * d20;
+    if !(p20.is_finite() && l21_20.abs() <= runtime::lu::MAX_MULTIPLIER) {
+        return None;
+    }
+    let u21_22 = jac[15][19] - l21_15 * u15_22 - l21_18 * u18_22 - l21_19 * u19_22
+        - l21_20 * u20_22;
+    let u21_23 = jac[15][20] - l21_15 * u15_23 - l21_18 * u18_23 - l21_19 * u19_23
+        - l21_20 * u20_23;
+    let u21_24 = jac[15][24] - l21_16 * u16_24 - l21_17 * u17_24 - l21_20 * u20_24;
+    let u21_25 = jac[15][25] - l21_16 * u16_25 - l21_17 * u17_25 - l21_20 * u20_25;
+    let u21_26 = jac[15][26] - l21_16 * u16_26 - l21_17 * u17_26 - l21_20 * u20_26;
+    let u21_27 = jac[15][27] - l21_16 * u16_27 - l21_17 * u17_27 - l21_20 * u20_27;
+    let p21 = jac[15][18] - l21_15 * u15_21 - l21_18 * u18_21 - l21_19 * u19_21
+        - l21_20 * u20_21;
+    let d21 = 1.0 / p21;
+    let l22_21 = (jac[14][18] - l22_15 * u15_21) * d21;
+    let l23_21 = (jac[13][18] - l23_15 * u15_21) * d21;
+    if !(p21.is_finite() && l22_21.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l23_21.abs() <= runtime::lu::MAX_MULTIPLIER)
+    {
+        return None;
+    }
+    let u22_23 = jac[14][20] - l22_15 * u15_23 - l22_21 * u21_23;
+    let u22_24 = jac[14][24] - l22_21 * u21_24;
+    let u22_25 = jac[14][25] - l22_21 * u21_25;
+    let u22_26 = jac[14][26] - l22_21 * u21_26;
+    let u22_27 = jac[14][27] - l22_21 * u21_27;
+    let p22 = jac[14][19] - l22_15 * u15_22 - l22_21 * u21_22;
+    let d22 = 1.0 / p22;
+    let l23_22 = (jac[13][19] - l23_15 * u15_22 - l23_21 * u21_22) * d22;
+    if !(p22.is_finite() && l23_22.abs() <= runtime::lu::MAX_MULTIPLIER) {
+        return None;
+    }
+    let u23_24 = jac[13][24] - l23_21 * u21_24 - l23_22 * u22_24;
+    let u23_25 = jac[13][25] - l23_21 * u21_25 - l23_22 * u22_25;
+    let u23_26 = jac[13][26] - l23_21 * u21_26 - l23_22 * u22_26;
+    let u23_27 = jac[13][27] - l23_21 * u21_27 - l23_22 * u22_27;
+    let p23 = jac[13][20] - l23_15 * u15_23 - l23_21 * u21_23 - l23_22 * u22_23;
+    let d23 = 1.0 / p23;
+    if !(p23.is_finite()) {
+        return None;
+    }
+    let u24_25 = jac[27][25];
+    let u24_26 = jac[27][26];
+    let u24_27 = jac[27][27];
+    let p24 = jac[27][24];
+    let d24 = 1.0 / p24;
+    let l25_24 = jac[21][24] * d24;
+    let l26_24 = jac[18][24] * d24;
+    let l27_24 = jac[17][24] * d24;
+    if !(p24.is_finite() && l25_24.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l26_24.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l27_24.abs() <= runtime::lu::MAX_MULTIPLIER)
+    {
+        return None;
+    }
+    let u25_26 = jac[21][26] - l25_24 * u24_26;
+    let u25_27 = jac[21][27] - l25_24 * u24_27;
+    let p25 = jac[21][25] - l25_24 * u24_25;
+    let d25 = 1.0 / p25;
+    let l26_25 = (jac[18][25] - l26_24 * u24_25) * d25;
+    let l27_25 = (jac[17][25] - l27_24 * u24_25) * d25;
+    if !(p25.is_finite() && l26_25.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l27_25.abs() <= runtime::lu::MAX_MULTIPLIER)
+    {
+        return None;
+    }
+    let u26_27 = jac[18][27] - l26_24 * u24_27 - l26_25 * u25_27;
+    let p26 = jac[18][26] - l26_24 * u24_26 - l26_25 * u25_26;
+    let d26 = 1.0 / p26;
+    let l27_26 = (jac[17][26] - l27_24 * u24_26 - l27_25 * u25_26) * d26;
+    if !(p26.is_finite() && l27_26.abs() <= runtime::lu::MAX_MULTIPLIER) {
+        return None;
+    }
+    let p27 = jac[17][27] - l27_24 * u24_27 - l27_25 * u25_27 - l27_26 * u26_27;
+    let d27 = 1.0 / p27;
+    if !(p27.is_finite()) {
+        return None;
+    }
+    jac[3][0] = d0;
+    jac[4][1] = d1;
+    jac[5][2] = d2;
+    jac[22][14] = d3;
+    jac[22][21] = u3_14;
+    jac[8][14] = l4_3;
+    jac[8][7] = d4;
+    jac[8][10] = u4_13;
+    jac[8][21] = u4_14;
+    jac[8][11] = u4_18;
+    jac[8][12] = u4_19;
+    jac[8][13] = u4_20;
+    jac[9][8] = d5;
+    jac[9][15] = u5_11;
+    jac[9][10] = u5_13;
+    jac[9][11] = u5_18;
+    jac[9][12] = u5_19;
+    jac[9][13] = u5_20;
+    jac[10][9] = d6;
+    jac[10][16] = u6_12;
+    jac[10][10] = u6_13;
+    jac[10][11] = u6_18;
+    jac[10][12] = u6_19;
+    jac[10][13] = u6_20;
+    jac[23][4] = d7;
+    jac[23][3] = u7_8;
+    jac[24][4] = l8_7;
+    jac[24][3] = d8;
+    jac[24][5] = u8_9;
+    jac[24][6] = u8_10;
+    jac[7][4] = l9_7;
+    jac[7][3] = l9_8;
+    jac[7][5] = d9;
+    jac[7][6] = u9_10;
+    jac[6][4] = l10_7;
+    jac[6][3] = l10_8;
+    jac[6][5] = l10_9;
+    jac[6][6] = d10;
+    jac[1][1] = l11_1;
+    jac[1][8] = l11_5;
+    jac[1][4] = l11_7;
+    jac[1][3] = l11_8;
+    jac[1][5] = l11_9;
+    jac[1][6] = l11_10;
+    jac[1][15] = d11;
+    jac[1][10] = u11_13;
+    jac[1][11] = u11_18;
+    jac[1][12] = u11_19;
+    jac[1][13] = u11_20;
+    jac[2][2] = l12_2;
+    jac[2][9] = l12_6;
+    jac[2][4] = l12_7;
+    jac[2][3] = l12_8;
+    jac[2][5] = l12_9;
+    jac[2][6] = l12_10;
+    jac[2][16] = d12;
+    jac[2][10] = u12_13;
+    jac[2][11] = u12_18;
+    jac[2][12] = u12_19;
+    jac[2][13] = u12_20;
+    jac[25][10] = d13;
+    jac[25][11] = u13_18;
+    jac[25][12] = u13_19;
+    jac[25][13] = u13_20;
+    jac[0][0] = l14_0;
+    jac[0][7] = l14_4;
+    jac[0][4] = l14_7;
+    jac[0][3] = l14_8;
+    jac[0][5] = l14_9;
+    jac[0][6] = l14_10;
+    jac[0][10] = l14_13;
+    jac[0][21] = d14;
+    jac[0][11] = u14_18;
+    jac[0][12] = u14_19;
+    jac[0][13] = u14_20;
+    jac[26][17] = d15;
+    jac[26][18] = u15_21;
+    jac[26][19] = u15_22;
+    jac[26][20] = u15_23;
+    jac[19][21] = l16_14;
+    jac[19][22] = d16;
+    jac[19][23] = u16_17;
+    jac[19][11] = u16_18;
+    jac[19][12] = u16_19;
+    jac[19][13] = u16_20;
+    jac[19][24] = u16_24;
+    jac[19][25] = u16_25;
+    jac[19][26] = u16_26;
+    jac[19][27] = u16_27;
+    jac[20][21] = l17_14;
+    jac[20][22] = l17_16;
+    jac[20][23] = d17;
+    jac[20][11] = u17_18;
+    jac[20][12] = u17_19;
+    jac[20][13] = u17_20;
+    jac[20][24] = u17_24;
+    jac[20][25] = u17_25;
+    jac[20][26] = u17_26;
+    jac[20][27] = u17_27;
+    jac[12][10] = l18_13;
+    jac[12][17] = l18_15;
+    jac[12][11] = d18;
+    jac[12][12] = u18_19;
+    jac[12][13] = u18_20;
+    jac[12][18] = u18_21;
+    jac[12][19] = u18_22;
+    jac[12][20] = u18_23;
+    jac[11][10] = l19_13;
+    jac[11][17] = l19_15;
+    jac[11][11] = l19_18;
+    jac[11][12] = d19;
+    jac[11][13] = u19_20;
+    jac[11][18] = u19_21;
+    jac[11][19] = u19_22;
+    jac[11][20] = u19_23;
+    jac[16][14] = l20_3;
+    jac[16][15] = l20_11;
+    jac[16][16] = l20_12;
+    jac[16][10] = l20_13;
+    jac[16][21] = l20_14;
+    jac[16][17] = l20_15;
+    jac[16][22] = l20_16;
+    jac[16][23] = l20_17;
+    jac[16][11] = l20_18;
+    jac[16][12] = l20_19;
+    jac[16][13] = d20;
+    jac[16][18] = u20_21;
+    jac[16][19] = u20_22;
+    jac[16][20] = u20_23;
+    jac[16][24] = u20_24;
+    jac[16][25] = u20_25;
+    jac[16][26] = u20_26;
+    jac[16][27] = u20_27;
+    jac[15][14] = l21_3;
+    jac[15][15] = l21_11;
+    jac[15][16] = l21_12;
+    jac[15][10] = l21_13;
+    jac[15][21] = l21_14;
+    jac[15][17] = l21_15;
+    jac[15][22] = l21_16;
+    jac[15][23] = l21_17;
+    jac[15][11] = l21_18;
+    jac[15][12] = l21_19;
+    jac[15][13] = l21_20;
+    jac[15][18] = d21;
+    jac[15][19] = u21_22;
+    jac[15][20] = u21_23;
+    jac[15][24] = u21_24;
+    jac[15][25] = u21_25;
+    jac[15][26] = u21_26;
+    jac[15][27] = u21_27;
+    jac[14][17] = l22_15;
+    jac[14][18] = l22_21;
+    jac[14][19] = d22;
+    jac[14][20] = u22_23;
+    jac[14][24] = u22_24;
+    jac[14][25] = u22_25;
+    jac[14][26] = u22_26;
+    jac[14][27] = u22_27;
+    jac[13][17] = l23_15;
+    jac[13][18] = l23_21;
+    jac[13][19] = l23_22;
+    jac[13][20] = d23;
+    jac[13][24] = u23_24;
+    jac[13][25] = u23_25;
+    jac[13][26] = u23_26;
+    jac[13][27] = u23_27;
+    jac[27][24] = d24;
+    jac[27][25] = u24_25;
+    jac[27][26] = u24_26;
+    jac[27][27] = u24_27;
+    jac[21][24] = l25_24;
+    jac[21][25] = d25;
+    jac[21][26] = u25_26;
+    jac[21][27] = u25_27;
+    jac[18][24] = l26_24;
+    jac[18][25] = l26_25;
+    jac[18][26] = d26;
+    jac[18][27] = u26_27;
+    jac[17][24] = l27_24;
+    jac[17][25] = l27_25;
+    jac[17][26] = l27_26;
+    jac[17][27] = d27;
+    Some(runtime::lu::PivotInfo {
+        smallest: p0
+            .abs()
+            .min(p1.abs())
+            .min(p2.abs())
+            .min(p3.abs())
+            .min(p4.abs())
+            .min(p5.abs())
+            .min(p6.abs())
+            .min(p7.abs())
+            .min(p8.abs())
+            .min(p9.abs())
+            .min(p10.abs())
+            .min(p11.abs())
+            .min(p12.abs())
+            .min(p13.abs())
+            .min(p14.abs())
+            .min(p15.abs())
+            .min(p16.abs())
+            .min(p17.abs())
+            .min(p18.abs())
+            .min(p19.abs())
+            .min(p20.abs())
+            .min(p21.abs())
+            .min(p22.abs())
+            .min(p23.abs())
+            .min(p24.abs())
+            .min(p25.abs())
+            .min(p26.abs())
+            .min(p27.abs()),
+        largest: p0
+            .abs()
+            .max(p1.abs())
+            .max(p2.abs())
+            .max(p3.abs())
+            .max(p4.abs())
+            .max(p5.abs())
+            .max(p6.abs())
+            .max(p7.abs())
+            .max(p8.abs())
+            .max(p9.abs())
+            .max(p10.abs())
+            .max(p11.abs())
+            .max(p12.abs())
+            .max(p13.abs())
+            .max(p14.abs())
+            .max(p15.abs())
+            .max(p16.abs())
+            .max(p17.abs())
+            .max(p18.abs())
+            .max(p19.abs())
+            .max(p20.abs())
+            .max(p21.abs())
+            .max(p22.abs())
+            .max(p23.abs())
+            .max(p24.abs())
+            .max(p25.abs())
+            .max(p26.abs())
+            .max(p27.abs()),
+    })
+}
+
+/** Solves Φ_q x = b in place with the factors [`factor_1`] left in `lu`.
+
+ 338 operations.*/
+pub fn solve_1(lu: &[[f64; N]; N], b: &mut [f64; N]) {
+    let y0 = b[3];
+    let y1 = b[4];
+    let y2 = b[5];
+    let y3 = b[22];
+    let y4 = b[8] - lu[8][14] * y3;
+    let y5 = b[9];
+    let y6 = b[10];
+    let y7 = b[23];
+    let y8 = b[24] - lu[24][4] * y7;
+    let y9 = b[7] - lu[7][4] * y7 - lu[7][3] * y8;
+    let y10 = b[6] - lu[6][4] * y7 - lu[6][3] * y8 - lu[6][5] * y9;
+    let y11 = b[1] - lu[1][1] * y1 - lu[1][8] * y5 - lu[1][4] * y7 - lu[1][3] * y8
+        - lu[1][5] * y9 - lu[1][6] * y10;
+    let y12 = b[2] - lu[2][2] * y2 - lu[2][9] * y6 - lu[2][4] * y7 - lu[2][3] * y8
+        - lu[2][5] * y9 - lu[2][6] * y10;
+    let y13 = b[25];
+    let y14 = b[0] - lu[0][0] * y0 - lu[0][7] * y4 - lu[0][4] * y7 - lu[0][3] * y8
+        - lu[0][5] * y9 - lu[0][6] * y10 - lu[0][10] * y13;
+    let y15 = b[26];
+    let y16 = b[19] - lu[19][21] * y14;
+    let y17 = b[20] - lu[20][21] * y14 - lu[20][22] * y16;
+    let y18 = b[12] - lu[12][10] * y13 - lu[12][17] * y15;
+    let y19 = b[11] - lu[11][10] * y13 - lu[11][17] * y15 - lu[11][11] * y18;
+    let y20 = b[16] - lu[16][14] * y3 - lu[16][15] * y11 - lu[16][16] * y12
+        - lu[16][10] * y13 - lu[16][21] * y14 - lu[16][17] * y15 - lu[16][22] * y16
+        - lu[16][23] * y17 - lu[16][11] * y18 - lu[16][12] * y19;
+    let y21 = b[15] - lu[15][14] * y3 - lu[15][15] * y11 - lu[15][16] * y12
+        - lu[15][10] * y13 - lu[15][21] * y14 - lu[15][17] * y15 - lu[15][22] * y16
+        - lu[15][23] * y17 - lu[15][11] * y18 - lu[15][12] * y19 - lu[15][13] * y20;
+    let y22 = b[14] - lu[14][17] * y15 - lu[14][18] * y21;
+    let y23 = b[13] - lu[13][17] * y15 - lu[13][18] * y21 - lu[13][19] * y22;
+    let y24 = b[27];
+    let y25 = b[21] - lu[21][24] * y24;
+    let y26 = b[18] - lu[18][24] * y24 - lu[18][25] * y25;
+    let y27 = b[17] - lu[17][24] * y24 - lu[17][25] * y25 - lu[17][26] * y26;
+    let x27 = y27 * lu[17][27];
+    let x26 = (y26 - lu[18][27] * x27) * lu[18][26];
+    let x25 = (y25 - lu[21][26] * x26 - lu[21][27] * x27) * lu[21][25];
+    let x24 = (y24 - lu[27][25] * x25 - lu[27][26] * x26 - lu[27][27] * x27)
+        * lu[27][24];
+    let x23 = (y23 - lu[13][24] * x24 - lu[13][25] * x25 - lu[13][26] * x26
+        - lu[13][27] * x27) * lu[13][20];
+    let x22 = (y22 - lu[14][20] * x23 - lu[14][24] * x24 - lu[14][25] * x25
+        - lu[14][26] * x26 - lu[14][27] * x27) * lu[14][19];
+    let x21 = (y21 - lu[15][19] * x22 - lu[15][20] * x23 - lu[15][24] * x24
+        - lu[15][25] * x25 - lu[15][26] * x26 - lu[15][27] * x27) * lu[15][18];
+    let x20 = (y20 - lu[16][18] * x21 - lu[16][19] * x22 - lu[16][20] * x23
+        - lu[16][24] * x24 - lu[16][25] * x25 - lu[16][26] * x26 - lu[16][27] * x27)
+        * lu[16][13];
+    let x19 = (y19 - lu[11][13] * x20 - lu[11][18] * x21 - lu[11][19] * x22
+        - lu[11][20] * x23) * lu[11][12];
+    let x18 = (y18 - lu[12][12] * x19 - lu[12][13] * x20 - lu[12][18] * x21
+        - lu[12][19] * x22 - lu[12][20] * x23) * lu[12][11];
+    let x17 = (y17 - lu[20][11] * x18 - lu[20][12] * x19 - lu[20][13] * x20
+        - lu[20][24] * x24 - lu[20][25] * x25 - lu[20][26] * x26 - lu[20][27] * x27)
+        * lu[20][23];
+    let x16 = (y16 - lu[19][23] * x17 - lu[19][11] * x18 - lu[19][12] * x19
+        - lu[19][13] * x20 - lu[19][24] * x24 - lu[19][25] * x25 - lu[19][26] * x26
+        - lu[19][27] * x27) * lu[19][22];
+    let x15 = (y15 - lu[26][18] * x21 - lu[26][19] * x22 - lu[26][20] * x23)
+        * lu[26][17];
+    let x14 = (y14 - lu[0][11] * x18 - lu[0][12] * x19 - lu[0][13] * x20) * lu[0][21];
+    let x13 = (y13 - lu[25][11] * x18 - lu[25][12] * x19 - lu[25][13] * x20)
+        * lu[25][10];
+    let x12 = (y12 - lu[2][10] * x13 - lu[2][11] * x18 - lu[2][12] * x19
+        - lu[2][13] * x20) * lu[2][16];
+    let x11 = (y11 - lu[1][10] * x13 - lu[1][11] * x18 - lu[1][12] * x19
+        - lu[1][13] * x20) * lu[1][15];
+    let x10 = y10 * lu[6][6];
+    let x9 = (y9 - lu[7][6] * x10) * lu[7][5];
+    let x8 = (y8 - lu[24][5] * x9 - lu[24][6] * x10) * lu[24][3];
+    let x7 = (y7 - lu[23][3] * x8) * lu[23][4];
+    let x6 = (y6 - lu[10][16] * x12 - lu[10][10] * x13 - lu[10][11] * x18
+        - lu[10][12] * x19 - lu[10][13] * x20) * lu[10][9];
+    let x5 = (y5 - lu[9][15] * x11 - lu[9][10] * x13 - lu[9][11] * x18 - lu[9][12] * x19
+        - lu[9][13] * x20) * lu[9][8];
+    let x4 = (y4 - lu[8][10] * x13 - lu[8][21] * x14 - lu[8][11] * x18 - lu[8][12] * x19
+        - lu[8][13] * x20) * lu[8][7];
+    let x3 = (y3 - lu[22][21] * x14) * lu[22][14];
+    let x2 = y2 * lu[5][2];
+    let x1 = y1 * lu[4][1];
+    let x0 = y0 * lu[3][0];
+    b[0] = x0;
+    b[1] = x1;
+    b[2] = x2;
+    b[14] = x3;
+    b[7] = x4;
+    b[8] = x5;
+    b[9] = x6;
+    b[4] = x7;
+    b[3] = x8;
+    b[5] = x9;
+    b[6] = x10;
+    b[15] = x11;
+    b[16] = x12;
+    b[10] = x13;
+    b[21] = x14;
+    b[17] = x15;
+    b[22] = x16;
+    b[23] = x17;
+    b[11] = x18;
+    b[12] = x19;
+    b[13] = x20;
+    b[18] = x21;
+    b[19] = x22;
+    b[20] = x23;
+    b[24] = x24;
+    b[25] = x25;
+    b[26] = x26;
+    b[27] = x27;
+}
+
+/** Factors Φ_q in place with static pivot order 2: step k pivots on row `[3, 4, 5, 22, 8, 9, 10, 23, 24, 6, 7, 1, 2, 25, 0, 26, 19, 20, 12, 11, 16, 15, 14, 13, 27, 21, 18, 17][k]` and column `[0, 1, 2, 14, 7, 8, 9, 3, 4, 5, 6, 15, 16, 10, 21, 17, 22, 23, 11, 12, 13, 18, 19, 20, 24, 25, 26, 27][k]`.
+
+ L and U have 183 entries (18 of them fill-in); 490 operations. The reciprocals of the pivots are stored on the diagonal.
+
+ Returns the smallest and largest |pivot|, or `None` (with `jac` unchanged) when a pivot is not finite or a multiplier exceeds [`runtime::lu::MAX_MULTIPLIER`] in magnitude.*/
+#[must_use]
+pub fn factor_2(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
+    let p0 = jac[3][0];
+    let d0 = 1.0 / p0;
+    let l14_0 = jac[0][0] * d0;
+    if !(p0.is_finite() && l14_0.abs() <= runtime::lu::MAX_MULTIPLIER) {
+        return None;
+    }
+    let p1 = jac[4][1];
+    let d1 = 1.0 / p1;
+    let l11_1 = jac[1][1] * d1;
+    if !(p1.is_finite() && l11_1.abs() <= runtime::lu::MAX_MULTIPLIER) {
+        return None;
+    }
+    let p2 = jac[5][2];
+    let d2 = 1.0 / p2;
+    let l12_2 = jac[2][2] * d2;
+    if !(p2.is_finite() && l12_2.abs() <= runtime::lu::MAX_MULTIPLIER) {
+        return None;
+    }
+    let u3_14 = jac[22][21];
+    let p3 = jac[22][14];
+    let d3 = 1.0 / p3;
+    let l4_3 = jac[8][14] * d3;
+    let l20_3 = jac[16][14] * d3;
+    let l21_3 = jac[15][14] * d3;
+    if !(p3.is_finite() && l4_3.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l20_3.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l21_3.abs() <= runtime::lu::MAX_MULTIPLIER)
+    {
+        return None;
+    }
+    let u4_13 = jac[8][10];
+    let u4_14 = -(l4_3 * u3_14);
+    let u4_18 = jac[8][11];
+    let u4_19 = jac[8][12];
+    let u4_20 = jac[8][13];
+    let p4 = jac[8][7];
+    let d4 = 1.0 / p4;
+    let l14_4 = jac[0][7] * d4;
+    if !(p4.is_finite() && l14_4.abs() <= runtime::lu::MAX_MULTIPLIER) {
+        return None;
+    }
+    let u5_11 = jac[9][15];
+    let u5_13 = jac[9][10];
+    let u5_18 = jac[9][11];
+    let u5_19 = jac[9][12];
+    let u5_20 = jac[9][13];
+    let p5 = jac[9][8];
+    let d5 = 1.0 / p5;
+    let l11_5 = jac[1][8] * d5;
+    if !(p5.is_finite() && l11_5.abs() <= runtime::lu::MAX_MULTIPLIER) {
+        return None;
+    }
+    let u6_12 = jac[10][16];
+    let u6_13 = jac[10][10];
+    let u6_18 = jac[10][11];
+    let u6_19 = jac[10][12];
+    let u6_20 = jac[10][13];
+    let p6 = jac[10][9];
+    let d6 = 1.0 / p6;
+    let l12_6 = jac[2][9] * d6;
+    if !(p6.is_finite() && l12_6.abs() <= runtime::lu::MAX_MULTIPLIER) {
+        return None;
+    }
+    let u7_8 = jac[23][4];
+    let p7 = jac[23][3];
+    let d7 = 1.0 / p7;
+    let l8_7 = jac[24][3] * d7;
+    let l9_7 = jac[6][3] * d7;
+    let l10_7 = jac[7][3] * d7;
+    let l11_7 = jac[1][3] * d7;
+    let l12_7 = jac[2][3] * d7;
+    let l14_7 = jac[0][3] * d7;
+    if !(p7.is_finite() && l8_7.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l9_7.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l10_7.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l11_7.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l12_7.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l14_7.abs() <= runtime::lu::MAX_MULTIPLIER)
+    {
+        return None;
+    }
+    let u8_9 = jac[24][5];
+    let u8_10 = jac[24][6];
+    let p8 = jac[24][4] - l8_7 * u7_8;
+    let d8 = 1.0 / p8;
+    let l9_8 = (jac[6][4] - l9_7 * u7_8) * d8;
+    let l10_8 = (jac[7][4] - l10_7 * u7_8) * d8;
+    let l11_8 = (jac[1][4] - l11_7 * u7_8) * d8;
+    let l12_8 = (jac[2][4] - l12_7 * u7_8) * d8;
+    let l14_8 = (jac[0][4] - l14_7 * u7_8) * d8;
+    if !(p8.is_finite() && l9_8.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l10_8.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l11_8.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l12_8.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l14_8.abs() <= runtime::lu::MAX_MULTIPLIER)
+    {
+        return None;
+    }
+    let u9_10 = jac[6][6] - l9_8 * u8_10;
+    let p9 = jac[6][5] - l9_8 * u8_9;
+    let d9 = 1.0 / p9;
+    let l10_9 = (jac[7][5] - l10_8 * u8_9) * d9;
+    let l11_9 = (jac[1][5] - l11_8 * u8_9) * d9;
+    let l12_9 = (jac[2][5] - l12_8 * u8_9) * d9;
+    let l14_9 = (jac[0][5] - l14_8 * u8_9) * d9;
+    if !(p9.is_finite() && l10_9.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l11_9.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l12_9.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l14_9.abs() <= runtime::lu::MAX_MULTIPLIER)
+    {
+        return None;
+    }
+    let p10 = jac[7][6] - l10_8 * u8_10 - l10_9 * u9_10;
+    let d10 = 1.0 / p10;
+    let l11_10 = (jac[1][6] - l11_8 * u8_10 - l11_9 * u9_10) * d10;
+    let l12_10 = (jac[2][6] - l12_8 * u8_10 - l12_9 * u9_10) * d10;
+    let l14_10 = (jac[0][6] - l14_8 * u8_10 - l14_9 * u9_10) * d10;
+    if !(p10.is_finite() && l11_10.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l12_10.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l14_10.abs() <= runtime::lu::MAX_MULTIPLIER)
+    {
+        return None;
+    }
+    let u11_13 = jac[1][10] - l11_5 * u5_13;
+    let u11_18 = jac[1][11] - l11_5 * u5_18;
+    let u11_19 = jac[1][12] - l11_5 * u5_19;
+    let u11_20 = jac[1][13] - l11_5 * u5_20;
+    let p11 = -(l11_5 * u5_11);
+    let d11 = 1.0 / p11;
+    let l20_11 = jac[16][15] * d11;
+    let l21_11 = jac[15][15] * d11;
+    if !(p11.is_finite() && l20_11.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l21_11.abs() <= runtime::lu::MAX_MULTIPLIER)
+    {
+        return None;
+    }
+    let u12_13 = jac[2][10] - l12_6 * u6_13;
+    let u12_18 = jac[2][11] - l12_6 * u6_18;
+    let u12_19 = jac[2][12] - l12_6 * u6_19;
+    let u12_20 = jac[2][13] - l12_6 * u6_20;
+    let p12 = -(l12_6 * u6_12);
+    let d12 = 1.0 / p12;
+    let l20_12 = jac[16][16] * d12;
+    let l21_12 = jac[15][16] * d12;
+    if !(p12.is_finite() && l20_12.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l21_12.abs() <= runtime::lu::MAX_MULTIPLIER)
+    {
+        return None;
+    }
+    let u13_18 = jac[25][11];
+    let u13_19 = jac[25][12];
+    let u13_20 = jac[25][13];
+    let p13 = jac[25][10];
+    let d13 = 1.0 / p13;
+    let l14_13 = (jac[0][10] - l14_4 * u4_13) * d13;
+    let l18_13 = jac[12][10] * d13;
+    let l19_13 = jac[11][10] * d13;
+    let l20_13 = (-(l20_11 * u11_13) - l20_12 * u12_13) * d13;
+    let l21_13 = (-(l21_11 * u11_13) - l21_12 * u12_13) * d13;
+    if !(p13.is_finite() && l14_13.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l18_13.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l19_13.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l20_13.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l21_13.abs() <= runtime::lu::MAX_MULTIPLIER)
+    {
+        return None;
+    }
+    let u14_18 = jac[0][11] - l14_4 * u4_18 - l14_13 * u13_18;
+    let u14_19 = jac[0][12] - l14_4 * u4_19 - l14_13 * u13_19;
+    let u14_20 = jac[0][13] - l14_4 * u4_20 - l14_13 * u13_20;
+    let p14 = -(l14_4 * u4_14);
+    let d14 = 1.0 / p14;
+    let l16_14 = jac[19][21] * d14;
+    let l17_14 = jac[20][21] * d14;
+    let l20_14 = (jac[16][21] - l20_3 * u3_14) * d14;
+    let l21_14 = (jac[15][21] - l21_3 * u3_14) * d14;
+    if !(p14.is_finite() && l16_14.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l17_14.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l20_14.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l21_14.abs() <= runtime::lu::MAX_MULTIPLIER)
+    {
+        return None;
+    }
+    let u15_21 = jac[26][18];
+    let u15_22 = jac[26][19];
+    let u15_23 = jac[26][20];
+    let p15 = jac[26][17];
+    let d15 = 1.0 / p15;
+    let l18_15 = jac[12][17] * d15;
+    let l19_15 = jac[11][17] * d15;
+    let l20_15 = jac[16][17] * d15;
+    let l21_15 = jac[15][17] * d15;
+    let l22_15 = jac[14][17] * d15;
+    let l23_15 = jac[13][17] * d15;
+    if !(p15.is_finite() && l18_15.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l19_15.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l20_15.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l21_15.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l22_15.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l23_15.abs() <= runtime::lu::MAX_MULTIPLIER)
+    {
+        return None;
+    }
+    let u16_17 = jac[19][23];
+    let u16_18 = -(l16_14 * u14_18);
+    let u16_19 = -(l16_14 * u14_19);
+    let u16_20 = -(l16_14 * u14_20);
+    let u16_24 = jac[19][24];
+    let u16_25 = jac[19][25];
+    let u16_26 = jac[19][26];
+    let u16_27 = jac[19][27];
+    let p16 = jac[19][22];
+    let d16 = 1.0 / p16;
+    let l17_16 = jac[20][22] * d16;
+    let l20_16 = jac[16][22] * d16;
+    let l21_16 = jac[15][22] * d16;
+    if !(p16.is_finite() && l17_16.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l20_16.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l21_16.abs() <= runtime::lu::MAX_MULTIPLIER)
+    {
+        return None;
+    }
+    let u17_18 = -(l17_14 * u14_18) - l17_16 * u16_18;
+    let u17_19 = -(l17_14 * u14_19) - l17_16 * u16_19;
+    let u17_20 = -(l17_14 * u14_20) - l17_16 * u16_20;
+    let u17_24 = jac[20][24] - l17_16 * u16_24;
+    let u17_25 = jac[20][25] - l17_16 * u16_25;
+    let u17_26 = jac[20][26] - l17_16 * u16_26;
+    let u17_27 = jac[20][27] - l17_16 * u16_27;
+    let p17 = jac[20][23] - l17_16 * u16_17;
+    let d17 = 1.0 / p17;
+    let l20_17 = (jac[16][23] - l20_16 * u16_17) * d17;
+    let l21_17 = (jac[15][23] - l21_16 * u16_17) * d17;
+    if !(p17.is_finite() && l20_17.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l21_17.abs() <= runtime::lu::MAX_MULTIPLIER)
+    {
+        return None;
+    }
+    let u18_19 = jac[12][12] - l18_13 * u13_19;
+    let u18_20 = jac[12][13] - l18_13 * u13_20;
+    let u18_21 = jac[12][18] - l18_15 * u15_21;
+    let u18_22 = jac[12][19] - l18_15 * u15_22;
+    let u18_23 = jac[12][20] - l18_15 * u15_23;
+    let p18 = jac[12][11] - l18_13 * u13_18;
+    let d18 = 1.0 / p18;
+    let l19_18 = (jac[11][11] - l19_13 * u13_18) * d18;
+    let l20_18 = (-(l20_11 * u11_18) - l20_12 * u12_18 - l20_13 * u13_18
+        - l20_14 * u14_18 - l20_16 * u16_18 - l20_17 * u17_18) * d18;
+    let l21_18 = (-(l21_11 * u11_18) - l21_12 * u12_18 - l21_13 * u13_18
+        - l21_14 * u14_18 - l21_16 * u16_18 - l21_17 * u17_18) * d18;
+    if !(p18.is_finite() && l19_18.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l20_18.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l21_18.abs() <= runtime::lu::MAX_MULTIPLIER)
+    {
+        return None;
+    }
+    let u19_20 = jac[11][13] - l19_13 * u13_20 - l19_18 * u18_20;
+    let u19_21 = jac[11][18] - l19_15 * u15_21 - l19_18 * u18_21;
+    let u19_22 = jac[11][19] - l19_15 * u15_22 - l19_18 * u18_22;
+    let u19_23 = jac[11][20] - l19_15 * u15_23 - l19_18 * u18_23;
+    let p19 = jac[11][12] - l19_13 * u13_19 - l19_18 * u18_19;
+    let d19 = 1.0 / p19;
+    let l20_19 = (-(l20_11 * u11_19) - l20_12 * u12_19 - l20_13 * u13_19
+        - l20_14 * u14_19 - l20_16 * u16_19 - l20_17 * u17_19 - l20_18 * u18_19) * d19;
+    let l21_19 = (-(l21_11 * u11_19) - l21_12 * u12_19 - l21_13 * u13_19
+        - l21_14 * u14_19 - l21_16 * u16_19 - l21_17 * u17_19 - l21_18 * u18_19) * d19;
+    if !(p19.is_finite() && l20_19.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l21_19.abs() <= runtime::lu::MAX_MULTIPLIER)
+    {
+        return None;
+    }
+    let u20_21 = jac[16][18] - l20_15 * u15_21 - l20_18 * u18_21 - l20_19 * u19_21;
+    let u20_22 = jac[16][19] - l20_15 * u15_22 - l20_18 * u18_22 - l20_19 * u19_22;
+    let u20_23 = jac[16][20] - l20_15 * u15_23 - l20_18 * u18_23 - l20_19 * u19_23;
+    let u20_24 = jac[16][24] - l20_16 * u16_24 - l20_17 * u17_24;
+    let u20_25 = jac[16][25] - l20_16 * u16_25 - l20_17 * u17_25;
+    let u20_26 = jac[16][26] - l20_16 * u16_26 - l20_17 * u17_26;
+    let u20_27 = jac[16][27] - l20_16 * u16_27 - l20_17 * u17_27;
+    let p20 = -(l20_11 * u11_20) - l20_12 * u12_20 - l20_13 * u13_20 - l20_14 * u14_20
+        - l20_16 * u16_20 - l20_17 * u17_20 - l20_18 * u18_20 - l20_19 * u19_20;
+    let d20 = 1.0 / p20;
+    let l21_20 = (-(l21_11 * u11_20) - l21_12 * u12_20 - l21_13 * u13_20
+        - l21_14 * u14_20 - l21_16 * u16_20 - l21_17 * u17_20 - l21_18 * u18_20
+        - l21_19 * u19_20) * d20;
+    if !(p20.is_finite() && l21_20.abs() <= runtime::lu::MAX_MULTIPLIER) {
+        return None;
+    }
+    let u21_22 = jac[15][19] - l21_15 * u15_22 - l21_18 * u18_22 - l21_19 * u19_22
+        - l21_20 * u20_22;
+    let u21_23 = jac[15][20] - l21_15 * u15_23 - l21_18 * u18_23 - l21_19 * u19_23
+        - l21_20 * u20_23;
+    let u21_24 = jac[15][24] - l21_16 * u16_24 - l21_17 * u17_24 - l21_20 * u20_24;
+    let u21_25 = jac[15][25] - l21_16 * u16_25 - l21_17 * u17_25 - l21_20 * u20_25;
+    let u21_26 = jac[15][26] - l21_16 * u16_26 - l21_17 * u17_26 - l21_20 * u20_26;
+    let u21_27 = jac[15][27] - l21_16 * u16_27 - l21_17 * u17_27 - l21_20 * u20_27;
+    let p21 = jac[15][18] - l21_15 * u15_21 - l21_18 * u18_21 - l21_19 * u19_21
+        - l21_20 * u20_21;
+    let d21 = 1.0 / p21;
+    let l22_21 = (jac[14][18] - l22_15 * u15_21) * d21;
+    let l23_21 = (jac[13][18] - l23_15 * u15_21) * d21;
+    if !(p21.is_finite() && l22_21.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l23_21.abs() <= runtime::lu::MAX_MULTIPLIER)
+    {
+        return None;
+    }
+    let u22_23 = jac[14][20] - l22_15 * u15_23 - l22_21 * u21_23;
+    let u22_24 = jac[14][24] - l22_21 * u21_24;
+    let u22_25 = jac[14][25] - l22_21 * u21_25;
+    let u22_26 = jac[14][26] - l22_21 * u21_26;
+    let u22_27 = jac[14][27] - l22_21 * u21_27;
+    let p22 = jac[14][19] - l22_15 * u15_22 - l22_21 * u21_22;
+    let d22 = 1.0 / p22;
+    let l23_22 = (jac[13][19] - l23_15 * u15_22 - l23_21 * u21_22) * d22;
+    if !(p22.is_finite() && l23_22.abs() <= runtime::lu::MAX_MULTIPLIER) {
+        return None;
+    }
+    let u23_24 = jac[13][24] - l23_21 * u21_24 - l23_22 * u22_24;
+    let u23_25 = jac[13][25] - l23_21 * u21_25 - l23_22 * u22_25;
+    let u23_26 = jac[13][26] - l23_21 * u21_26 - l23_22 * u22_26;
+    let u23_27 = jac[13][27] - l23_21 * u21_27 - l23_22 * u22_27;
+    let p23 = jac[13][20] - l23_15 * u15_23 - l23_21 * u21_23 - l23_22 * u22_23;
+    let d23 = 1.0 / p23;
+    if !(p23.is_finite()) {
+        return None;
+    }
+    let u24_25 = jac[27][25];
+    let u24_26 = jac[27][26];
+    let u24_27 = jac[27][27];
+    let p24 = jac[27][24];
+    let d24 = 1.0 / p24;
+    let l25_24 = jac[21][24] * d24;
+    let l26_24 = jac[18][24] * d24;
+    let l27_24 = jac[17][24] * d24;
+    if !(p24.is_finite() && l25_24.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l26_24.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l27_24.abs() <= runtime::lu::MAX_MULTIPLIER)
+    {
+        return None;
+    }
+    let u25_26 = jac[21][26] - l25_24 * u24_26;
+    let u25_27 = jac[21][27] - l25_24 * u24_27;
+    let p25 = jac[21][25] - l25_24 * u24_25;
+    let d25 = 1.0 / p25;
+    let l26_25 = (jac[18][25] - l26_24 * u24_25) * d25;
+    let l27_25 = (jac[17][25] - l27_24 * u24_25) * d25;
+    if !(p25.is_finite() && l26_25.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l27_25.abs() <= runtime::lu::MAX_MULTIPLIER)
+    {
+        return None;
+    }
+    let u26_27 = jac[18][27] - l26_24 * u24_27 - l26_25 * u25_27;
+    let p26 = jac[18][26] - l26_24 * u24_26 - l26_25 * u25_26;
+    let d26 = 1.0 / p26;
+    let l27_26 = (jac[17][26] - l27_24 * u24_26 - l27_25 * u25_26) * d26;
+    if !(p26.is_finite() && l27_26.abs() <= runtime::lu::MAX_MULTIPLIER) {
+        return None;
+    }
+    let p27 = jac[17][27] - l27_24 * u24_27 - l27_25 * u25_27 - l27_26 * u26_27;
+    let d27 = 1.0 / p27;
+    if !(p27.is_finite()) {
+        return None;
+    }
+    jac[3][0] = d0;
+    jac[4][1] = d1;
+    jac[5][2] = d2;
+    jac[22][14] = d3;
+    jac[22][21] = u3_14;
+    jac[8][14] = l4_3;
+    jac[8][7] = d4;
+    jac[8][10] = u4_13;
+    jac[8][21] = u4_14;
+    jac[8][11] = u4_18;
+    jac[8][12] = u4_19;
+    jac[8][13] = u4_20;
+    jac[9][8] = d5;
+    jac[9][15] = u5_11;
+    jac[9][10] = u5_13;
+    jac[9][11] = u5_18;
+    jac[9][12] = u5_19;
+    jac[9][13] = u5_20;
+    jac[10][9] = d6;
+    jac[10][16] = u6_12;
+    jac[10][10] = u6_13;
+    jac[10][11] = u6_18;
+    jac[10][12] = u6_19;
+    jac[10][13] = u6_20;
+    jac[23][3] = d7;
+    jac[23][4] = u7_8;
+    jac[24][3] = l8_7;
+    jac[24][4] = d8;
+    jac[24][5] = u8_9;
+    jac[24][6] = u8_10;
+    jac[6][3] = l9_7;
+    jac[6][4] = l9_8;
+    jac[6][5] = d9;
+    jac[6][6] = u9_10;
+    jac[7][3] = l10_7;
+    jac[7][4] = l10_8;
+    jac[7][5] = l10_9;
+    jac[7][6] = d10;
+    jac[1][1] = l11_1;
+    jac[1][8] = l11_5;
+    jac[1][3] = l11_7;
+    jac[1][4] = l11_8;
+    jac[1][5] = l11_9;
+    jac[1][6] = l11_10;
+    jac[1][15] = d11;
+    jac[1][10] = u11_13;
+    jac[1][11] = u11_18;
+    jac[1][12] = u11_19;
+    jac[1][13] = u11_20;
+    jac[2][2] = l12_2;
+    jac[2][9] = l12_6;
+    jac[2][3] = l12_7;
+    jac[2][4] = l12_8;
+    jac[2][5] = l12_9;
+    jac[2][6] = l12_10;
+    jac[2][16] = d12;
+    jac[2][10] = u12_13;
+    jac[2][11] = u12_18;
+    jac[2][12] = u12_19;
+    jac[2][13] = u12_20;
+    jac[25][10] = d13;
+    jac[25][11] = u13_18;
+    jac[25][12] = u13_19;
+    jac[25][13] = u13_20;
+    jac[0][0] = l14_0;
+    jac[0][7] = l14_4;
+    jac[0][3] = l14_7;
+    jac[0][4] = l14_8;
+    jac[0][5] = l14_9;
+    jac[0][6] = l14_10;
+    jac[0][10] = l14_13;
+    jac[0][21] = d14;
+    jac[0][11] = u14_18;
+    jac[0][12] = u14_19;
+    jac[0][13] = u14_20;
+    jac[26][17] = d15;
+    jac[26][18] = u15_21;
+    jac[26][19] = u15_22;
+    jac[26][20] = u15_23;
+    jac[19][21] = l16_14;
+    jac[19][22] = d16;
+    jac[19][23] = u16_17;
+    jac[19][11] = u16_18;
+    jac[19][12] = u16_19;
+    jac[19][13] = u16_20;
+    jac[19][24] = u16_24;
+    jac[19][25] = u16_25;
+    jac[19][26] = u16_26;
+    jac[19][27] = u16_27;
+    jac[20][21] = l17_14;
+    jac[20][22] = l17_16;
+    jac[20][23] = d17;
+    jac[20][11] = u17_18;
+    jac[20][12] = u17_19;
+    jac[20][13] = u17_20;
+    jac[20][24] = u17_24;
+    jac[20][25] = u17_25;
+    jac[20][26] = u17_26;
+    jac[20][27] = u17_27;
+    jac[12][10] = l18_13;
+    jac[12][17] = l18_15;
+    jac[12][11] = d18;
+    jac[12][12] = u18_19;
+    jac[12][13] = u18_20;
+    jac[12][18] = u18_21;
+    jac[12][19] = u18_22;
+    jac[12][20] = u18_23;
+    jac[11][10] = l19_13;
+    jac[11][17] = l19_15;
+    jac[11][11] = l19_18;
+    jac[11][12] = d19;
+    jac[11][13] = u19_20;
+    jac[11][18] = u19_21;
+    jac[11][19] = u19_22;
+    jac[11][20] = u19_23;
+    jac[16][14] = l20_3;
+    jac[16][15] = l20_11;
+    jac[16][16] = l20_12;
+    jac[16][10] = l20_13;
+    jac[16][21] = l20_14;
+    jac[16][17] = l20_15;
+    jac[16][22] = l20_16;
+    jac[16][23] = l20_17;
+    jac[16][11] = l20_18;
+    jac[16][12] = l20_19;
+    jac[16][13] = d20;
+    jac[16][18] = u20_21;
+    jac[16][19] = u20_22;
+    jac[16][20] = u20_23;
+    jac[16][24] = u20_24;
+    jac[16][25] = u20_25;
+    jac[16][26] = u20_26;
+    jac[16][27] = u20_27;
+    jac[15][14] = l21_3;
+    jac[15][15] = l21_11;
+    jac[15][16] = l21_12;
+    jac[15][10] = l21_13;
+    jac[15][21] = l21_14;
+    jac[15][17] = l21_15;
+    jac[15][22] = l21_16;
+    jac[15][23] = l21_17;
+    jac[15][11] = l21_18;
+    jac[15][12] = l21_19;
+    jac[15][13] = l21_20;
+    jac[15][18] = d21;
+    jac[15][19] = u21_22;
+    jac[15][20] = u21_23;
+    jac[15][24] = u21_24;
+    jac[15][25] = u21_25;
+    jac[15][26] = u21_26;
+    jac[15][27] = u21_27;
+    jac[14][17] = l22_15;
+    jac[14][18] = l22_21;
+    jac[14][19] = d22;
+    jac[14][20] = u22_23;
+    jac[14][24] = u22_24;
+    jac[14][25] = u22_25;
+    jac[14][26] = u22_26;
+    jac[14][27] = u22_27;
+    jac[13][17] = l23_15;
+    jac[13][18] = l23_21;
+    jac[13][19] = l23_22;
+    jac[13][20] = d23;
+    jac[13][24] = u23_24;
+    jac[13][25] = u23_25;
+    jac[13][26] = u23_26;
+    jac[13][27] = u23_27;
+    jac[27][24] = d24;
+    jac[27][25] = u24_25;
+    jac[27][26] = u24_26;
+    jac[27][27] = u24_27;
+    jac[21][24] = l25_24;
+    jac[21][25] = d25;
+    jac[21][26] = u25_26;
+    jac[21][27] = u25_27;
+    jac[18][24] = l26_24;
+    jac[18][25] = l26_25;
+    jac[18][26] = d26;
+    jac[18][27] = u26_27;
+    jac[17][24] = l27_24;
+    jac[17][25] = l27_25;
+    jac[17][26] = l27_26;
+    jac[17][27] = d27;
+    Some(runtime::lu::PivotInfo {
+        smallest: p0
+            .abs()
+            .min(p1.abs())
+            .min(p2.abs())
+            .min(p3.abs())
+            .min(p4.abs())
+            .min(p5.abs())
+            .min(p6.abs())
+            .min(p7.abs())
+            .min(p8.abs())
+            .min(p9.abs())
+            .min(p10.abs())
+            .min(p11.abs())
+            .min(p12.abs())
+            .min(p13.abs())
+            .min(p14.abs())
+            .min(p15.abs())
+            .min(p16.abs())
+            .min(p17.abs())
+            .min(p18.abs())
+            .min(p19.abs())
+            .min(p20.abs())
+            .min(p21.abs())
+            .min(p22.abs())
+            .min(p23.abs())
+            .min(p24.abs())
+            .min(p25.abs())
+            .min(p26.abs())
+            .min(p27.abs()),
+        largest: p0
+            .abs()
+            .max(p1.abs())
+            .max(p2.abs())
+            .max(p3.abs())
+            .max(p4.abs())
+            .max(p5.abs())
+            .max(p6.abs())
+            .max(p7.abs())
+            .max(p8.abs())
+            .max(p9.abs())
+            .max(p10.abs())
+            .max(p11.abs())
+            .max(p12.abs())
+            .max(p13.abs())
+            .max(p14.abs())
+            .max(p15.abs())
+            .max(p16.abs())
+            .max(p17.abs())
+            .max(p18.abs())
+            .max(p19.abs())
+            .max(p20.abs())
+            .max(p21.abs())
+            .max(p22.abs())
+            .max(p23.abs())
+            .max(p24.abs())
+            .max(p25.abs())
+            .max(p26.abs())
+            .max(p27.abs()),
+    })
+}
+
+/** Solves Φ_q x = b in place with the factors [`factor_2`] left in `lu`.
+
+ 338 operations.*/
+pub fn solve_2(lu: &[[f64; N]; N], b: &mut [f64; N]) {
+    let y0 = b[3];
+    let y1 = b[4];
+    let y2 = b[5];
+    let y3 = b[22];
+    let y4 = b[8] - lu[8][14] * y3;
+    let y5 = b[9];
+    let y6 = b[10];
+    let y7 = b[23];
+    let y8 = b[24] - lu[24][3] * y7;
+    let y9 = b[6] - lu[6][3] * y7 - lu[6][4] * y8;
+    let y10 = b[7] - lu[7][3] * y7 - lu[7][4] * y8 - lu[7][5] * y9;
+    let y11 = b[1] - lu[1][1] * y1 - lu[1][8] * y5 - lu[1][3] * y7 - lu[1][4] * y8
+        - lu[1][5] * y9 - lu[1][6] * y10;
+    let y12 = b[2] - lu[2][2] * y2 - lu[2][9] * y6 - lu[2][3] * y7 - lu[2][4] * y8
+        - lu[2][5] * y9 - lu[2][6] * y10;
+    let y13 = b[25];
+    let y14 = b[0] - lu[0][0] * y0 - lu[0][7] * y4 - lu[0][3] * y7 - lu[0][4] * y8
+        - lu[0][5] * y9 - lu[0][6] * y10 - lu[0][10] * y13;
+    let y15 = b[26];
+    let y16 = b[19] - lu[19][21] * y14;
+    let y17 = b[20] - lu[20][21] * y14 - lu[20][22] * y16;
+    let y18 = b[12] - lu[12][10] * y13 - lu[12][17] * y15;
+    let y19 = b[11] - lu[11][10] * y13 - lu[11][17] * y15 - lu[11][11] * y18;
+    let y20 = b[16] - lu[16][14] * y3 - lu[16][15] * y11 - lu[16][16] * y12
+        - lu[16][10] * y13 - lu[16][21] * y14 - lu[16][17] * y15 - lu[16][22] * y16
+        - lu[16][23] * y17 - lu[16][11] * y18 - lu[16][12] * y19;
+    let y21 = b[15] - lu[15][14] * y3 - lu[15][15] * y11 - lu[15][16] * y12
+        - lu[15][10] * y13 - lu[15][21] * y14 - lu[15][17] * y15 - lu[15][22] * y16
+        - lu[15][23] * y17 - lu[15][11] * y18 - lu[15][12] * y19 - lu[15][13] * y20;
+    let y22 = b[14] - lu[14][17] * y15 - lu[14][18] * y21;
+    let y23 = b[13] - lu[13][17] * y15 - lu[13][18] * y21 - lu[13][19] * y22;
+    let y24 = b[27];
+    let y25 = b[21] - lu[21][24] * y24;
+    let y26 = b[18] - lu[18][24] * y24 - lu[18][25] * y25;
+    let y27 = b[17] - lu[17][24] * y24 - lu[17][25] * y25 - lu[17][26] * y26;
+    let x27 = y27 * lu[17][27];
+    let x26 = (y26 - lu[18][27] * x27) * lu[18][26];
+    let x25 = (y25 - lu[21][26] * x26 - lu[21][27] * x27) * lu[21][25];
+    let x24 = (y24 - lu[27][25] * x25 - lu[27][26] * x26 - lu[27][27] * x27)
+        * lu[27][24];
+    let x23 = (y23 - lu[13][24] * x24 - lu[13][25] * x25 - lu[13][26] * x26
+        - lu[13][27] * x27) * lu[13][20];
+    let x22 = (y22 - lu[14][20] * x23 - lu[14][24] * x24 - lu[14][25] * x25
+        - lu[14][26] * x26 - lu[14][27] * x27) * lu[14][19];
+    let x21 = (y21 - lu[15][19] * x22 - lu[15][20] * x23 - lu[15][24] * x24
+        - lu[15][25] * x25 - lu[15][26] * x26 - lu[15][27] * x27) * lu[15][18];
+    let x20 = (y20 - lu[16][18] * x21 - lu[16][19] * x22 - lu[16][20] * x23
+        - lu[16][24] * x24 - lu[16][25] * x25 - lu[16][26] * x26 - lu[16][27] * x27)
+        * lu[16][13];
+    let x19 = (y19 - lu[11][13] * x20 - lu[11][18] * x21 - lu[11][19] * x22
+        - lu[11][20] * x23) * lu[11][12];
+    let x18 = (y18 - lu[12][12] * x19 - lu[12][13] * x20 - lu[12][18] * x21
+        - lu[12][19] * x22 - lu[12][20] * x23) * lu[12][11];
+    let x17 = (y17 - lu[20][11] * x18 - lu[20][12] * x19 - lu[20][13] * x20
+        - lu[20][24] * x24 - lu[20][25] * x25 - lu[20][26] * x26 - lu[20][27] * x27)
+        * lu[20][23];
+    let x16 = (y16 - lu[19][23] * x17 - lu[19][11] * x18 - lu[19][12] * x19
+        - lu[19][13] * x20 - lu[19][24] * x24 - lu[19][25] * x25 - lu[19][26] * x26
+        - lu[19][27] * x27) * lu[19][22];
+    let x15 = (y15 - lu[26][18] * x21 - lu[26][19] * x22 - lu[26][20] * x23)
+        * lu[26][17];
+    let x14 = (y14 - lu[0][11] * x18 - lu[0][12] * x19 - lu[0][13] * x20) * lu[0][21];
+    let x13 = (y13 - lu[25][11] * x18 - lu[25][12] * x19 - lu[25][13] * x20)
+        * lu[25][10];
+    let x12 = (y12 - lu[2][10] * x13 - lu[2][11] * x18 - lu[2][12] * x19
+        - lu[2][13] * x20) * lu[2][16];
+    let x11 = (y11 - lu[1][10] * x13 - lu[1][11] * x18 - lu[1][12] * x19
+        - lu[1][13] * x20) * lu[1][15];
+    let x10 = y10 * lu[7][6];
+    let x9 = (y9 - lu[6][6] * x10) * lu[6][5];
+    let x8 = (y8 - lu[24][5] * x9 - lu[24][6] * x10) * lu[24][4];
+    let x7 = (y7 - lu[23][4] * x8) * lu[23][3];
+    let x6 = (y6 - lu[10][16] * x12 - lu[10][10] * x13 - lu[10][11] * x18
+        - lu[10][12] * x19 - lu[10][13] * x20) * lu[10][9];
+    let x5 = (y5 - lu[9][15] * x11 - lu[9][10] * x13 - lu[9][11] * x18 - lu[9][12] * x19
+        - lu[9][13] * x20) * lu[9][8];
+    let x4 = (y4 - lu[8][10] * x13 - lu[8][21] * x14 - lu[8][11] * x18 - lu[8][12] * x19
+        - lu[8][13] * x20) * lu[8][7];
+    let x3 = (y3 - lu[22][21] * x14) * lu[22][14];
+    let x2 = y2 * lu[5][2];
+    let x1 = y1 * lu[4][1];
+    let x0 = y0 * lu[3][0];
+    b[0] = x0;
+    b[1] = x1;
+    b[2] = x2;
+    b[14] = x3;
+    b[7] = x4;
+    b[8] = x5;
+    b[9] = x6;
+    b[3] = x7;
+    b[4] = x8;
+    b[5] = x9;
+    b[6] = x10;
+    b[15] = x11;
+    b[16] = x12;
+    b[10] = x13;
+    b[21] = x14;
+    b[17] = x15;
+    b[22] = x16;
+    b[23] = x17;
+    b[11] = x18;
+    b[12] = x19;
+    b[13] = x20;
+    b[18] = x21;
+    b[19] = x22;
+    b[20] = x23;
+    b[24] = x24;
+    b[25] = x25;
+    b[26] = x26;
+    b[27] = x27;
+}
+
 /** Velocity right-hand side ν = −Φ_t.
 
  13 operations, 1 shared subexpressions.*/
@@ -2051,5 +4615,35 @@ impl runtime::Mechanism<N> for SliderCrank5body {
     }
     fn normalize(&self, q: &mut [f64; N]) {
         normalize(q);
+    }
+    const PIVOT_ORDERS: usize = 3;
+    fn residual_jacobian_structural(
+        &self,
+        q: &[f64; N],
+        t: f64,
+        phi: &mut [f64; N],
+        jac: &mut [[f64; N]; N],
+    ) {
+        residual_jacobian_structural(q, t, phi, jac);
+    }
+    fn factor_structured(
+        &self,
+        order: usize,
+        jac: &mut [[f64; N]; N],
+    ) -> Option<runtime::lu::PivotInfo> {
+        match order {
+            0 => factor_0(jac),
+            1 => factor_1(jac),
+            2 => factor_2(jac),
+            _ => None,
+        }
+    }
+    fn solve_structured(&self, order: usize, lu: &[[f64; N]; N], b: &mut [f64; N]) {
+        match order {
+            0 => solve_0(lu, b),
+            1 => solve_1(lu, b),
+            2 => solve_2(lu, b),
+            _ => {}
+        }
     }
 }

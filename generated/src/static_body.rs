@@ -68,6 +68,48 @@ pub fn residual_jacobian(
     jac[0][0] = q0 + q0;
 }
 
+/** Φ and the 1 structurally non-zero entries of Φ_q, the others of `jac` left as they were: what the `factor_k` functions read.
+
+ 3 operations, 0 shared subexpressions.*/
+pub fn residual_jacobian_structural(
+    q: &[f64; N],
+    _t: f64,
+    phi: &mut [f64; N],
+    jac: &mut [[f64; N]; N],
+) {
+    let [q0] = *q;
+    phi[0] = q0 * q0 - 1.0;
+    jac[0][0] = q0 + q0;
+}
+
+/** Factors Φ_q in place with static pivot order 0: step k pivots on row `[0][k]` and column `[0][k]`.
+
+ L and U have 1 entries (0 of them fill-in); 1 operations. The reciprocals of the pivots are stored on the diagonal.
+
+ Returns the smallest and largest |pivot|, or `None` (with `jac` unchanged) when a pivot is not finite or a multiplier exceeds [`runtime::lu::MAX_MULTIPLIER`] in magnitude.*/
+#[must_use]
+pub fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
+    let p0 = jac[0][0];
+    let d0 = 1.0 / p0;
+    if !(p0.is_finite()) {
+        return None;
+    }
+    jac[0][0] = d0;
+    Some(runtime::lu::PivotInfo {
+        smallest: p0.abs(),
+        largest: p0.abs(),
+    })
+}
+
+/** Solves Φ_q x = b in place with the factors [`factor_0`] left in `lu`.
+
+ 1 operations.*/
+pub fn solve_0(lu: &[[f64; N]; N], b: &mut [f64; N]) {
+    let y0 = b[0];
+    let x0 = y0 * lu[0][0];
+    b[0] = x0;
+}
+
 /** Velocity right-hand side ν = −Φ_t.
 
  0 operations, 0 shared subexpressions.*/
@@ -162,5 +204,30 @@ impl runtime::Mechanism<N> for StaticBody {
     }
     fn normalize(&self, q: &mut [f64; N]) {
         normalize(q);
+    }
+    const PIVOT_ORDERS: usize = 1;
+    fn residual_jacobian_structural(
+        &self,
+        q: &[f64; N],
+        t: f64,
+        phi: &mut [f64; N],
+        jac: &mut [[f64; N]; N],
+    ) {
+        residual_jacobian_structural(q, t, phi, jac);
+    }
+    fn factor_structured(
+        &self,
+        order: usize,
+        jac: &mut [[f64; N]; N],
+    ) -> Option<runtime::lu::PivotInfo> {
+        match order {
+            0 => factor_0(jac),
+            _ => None,
+        }
+    }
+    fn solve_structured(&self, order: usize, lu: &[[f64; N]; N], b: &mut [f64; N]) {
+        if order == 0 {
+            solve_0(lu, b);
+        }
     }
 }

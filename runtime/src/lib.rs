@@ -1,7 +1,9 @@
 //! The `no_std`, allocation-free runtime that generated mechanism solvers are compiled against.
 //!
 //! It holds the [`Mechanism`] trait that generated code implements, an in-place LU
-//! factorisation with partial pivoting ([`lu`]), a bounded Newton iteration ([`newton`]), the
+//! factorisation with partial pivoting ([`lu`]), the choice between a mechanism's own
+//! structured factorisation and that dense one ([`factors`]), a bounded Newton iteration
+//! ([`newton`]), the
 //! step-by-step [`Solver`] for positions, velocities and accelerations, and a slice-based view
 //! of mechanisms ([`dynamic`]).
 //! It knows nothing about symbols, descriptions or bodies: a mechanism is a square system of
@@ -121,6 +123,7 @@
 #![no_std]
 
 pub mod dynamic;
+pub mod factors;
 pub mod lu;
 pub mod math;
 mod mechanism;

@@ -36,4 +36,56 @@ pub trait Mechanism<const N: usize> {
     /// reported residual and the factored Jacobian belong to the projected `q`.
     /// The default does nothing.
     fn normalize(&self, _q: &mut [f64; N]) {}
+
+    /// The number of static pivot orders [`Mechanism::factor_structured`] knows.
+    ///
+    /// The default, 0, means none: the solvers then evaluate Φ_q with
+    /// [`Mechanism::residual_jacobian`] and factor it by dense LU with partial pivoting
+    /// ([`lu`](crate::lu)).
+    const PIVOT_ORDERS: usize = 0;
+
+    /// Writes Φ(q, t) into `phi` and the structurally non-zero entries of Φ_q(q, t) into `jac`,
+    /// leaving the other entries of `jac` as they were.
+    ///
+    /// This is what [`Mechanism::factor_structured`] reads; the solvers call it instead of
+    /// [`Mechanism::residual_jacobian`] when [`Mechanism::PIVOT_ORDERS`] is not 0, and call
+    /// [`Mechanism::jacobian`] again before falling back to dense LU.
+    /// The default calls [`Mechanism::residual_jacobian`].
+    fn residual_jacobian_structural(
+        &self,
+        q: &[f64; N],
+        t: f64,
+        phi: &mut [f64; N],
+        jac: &mut [[f64; N]; N],
+    ) {
+        self.residual_jacobian(q, t, phi, jac);
+    }
+
+    /// Factors Φ_q in place with static pivot order `order` (below [`Mechanism::PIVOT_ORDERS`]),
+    /// reading only the entries [`Mechanism::residual_jacobian_structural`] writes.
+    ///
+    /// A pivot is accepted only if it is finite and every multiplier of its column is at most
+    /// [`lu::MAX_MULTIPLIER`](crate::lu::MAX_MULTIPLIER) in magnitude (threshold partial
+    /// pivoting).
+    /// Returns the smallest and largest |pivot|, which the caller compares as for dense LU, or
+    /// `None`, with `jac` unchanged, when a pivot is refused or `order` is out of range.
+    /// The layout of the factors in `jac` is the mechanism's own: only
+    /// [`Mechanism::solve_structured`] with the same `order` may read them.
+    /// The default has no orders and returns `None`.
+    fn factor_structured(
+        &self,
+        order: usize,
+        jac: &mut [[f64; N]; N],
+    ) -> Option<crate::lu::PivotInfo> {
+        let _ = (order, jac);
+        None
+    }
+
+    /// Solves Φ_q x = b in place with the factors a successful
+    /// [`Mechanism::factor_structured`]`(order, lu)` left in `lu`.
+    ///
+    /// The default, for mechanisms without orders, does nothing.
+    fn solve_structured(&self, order: usize, lu: &[[f64; N]; N], b: &mut [f64; N]) {
+        let _ = (order, lu, b);
+    }
 }

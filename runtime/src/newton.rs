@@ -1,7 +1,8 @@
 //! Newton–Raphson on Φ(q, t) = 0 at a fixed time, bounded and allocation-free.
 //!
 //! Each iteration evaluates Φ and Φ_q at q, stops if max |Φ_i| ≤ tolerance, and otherwise
-//! factors Φ_q, solves Φ_q Δ = −Φ and sets q ← q + Δ.
+//! factors Φ_q ([`Factors`]: the mechanism's static pivot orders, else dense LU), solves
+//! Φ_q Δ = −Φ and sets q ← q + Δ.
 //! Once converged, [`Mechanism::normalize`] projects q and, if that moved q, Φ and Φ_q are
 //! evaluated again, so the reported residual and the factored Jacobian left in the caller's
 //! storage belong to the final q (the velocity and acceleration solves reuse that
@@ -15,6 +16,7 @@ mod tests;
 use core::fmt;
 
 use crate::Mechanism;
+use crate::factors::Factors;
 use crate::lu::{self, Singular};
 
 /// Stopping rule and pivot test of a Newton solve.
@@ -163,17 +165,17 @@ pub(crate) fn max_abs(x: &[f64]) -> f64 {
 
 /// Solves Φ(q, t) = 0 for q by Newton's method, starting from `q`.
 ///
-/// `phi`, `jac` and `perm` are scratch storage owned by the caller (so `jac`, the only `N × N`
+/// `phi`, `jac` and `factors` are scratch storage owned by the caller (so `jac`, the only `N × N`
 /// array, never lives on this function's stack).
-/// On success `q` is the normalised solution, `phi` holds Φ at it, and `jac` and `perm` hold the
-/// LU factors of Φ_q at it, ready for [`lu::solve`].
+/// On success `q` is the normalised solution, `phi` holds Φ at it, and `jac` and `factors` hold
+/// the factors of Φ_q at it, ready for [`Factors::solve`].
 ///
 /// # Errors
 ///
 /// [`NewtonError::Singular`], [`NewtonError::NotConverged`] or [`NewtonError::NonFinite`], as
 /// documented on each variant.
-/// On error `q` holds the last iterate and the contents of `phi`, `jac` and `perm` are
-/// unspecified.
+/// On error `q` holds the last iterate, the contents of `phi` and `jac` are unspecified, and
+/// `factors` holds no factors.
 pub fn solve<M: Mechanism<N>, const N: usize>(
     mechanism: &M,
     q: &mut [f64; N],
@@ -181,14 +183,14 @@ pub fn solve<M: Mechanism<N>, const N: usize>(
     options: &NewtonOptions,
     phi: &mut [f64; N],
     jac: &mut [[f64; N]; N],
-    perm: &mut [usize; N],
+    factors: &mut Factors<N>,
 ) -> Result<NewtonReport, NewtonError> {
     let mut iterations = 0;
     // Whether q was just projected by `normalize`; a second projection in a row is skipped so
     // that a projection that keeps moving the last bits cannot loop forever.
     let mut normalized = false;
     loop {
-        mechanism.residual_jacobian(q, t, phi, jac);
+        factors.evaluate(mechanism, q, t, phi, jac);
         let residual = max_abs(phi);
         match status(residual, iterations, options) {
             Status::Converged => {
@@ -200,18 +202,18 @@ pub fn solve<M: Mechanism<N>, const N: usize>(
                         continue;
                     }
                 }
-                factor(jac, perm, options, iterations)?;
+                factor(mechanism, q, t, jac, factors, options, iterations)?;
                 return Ok(NewtonReport { iterations, residual });
             }
             Status::Continue => {}
             Status::Exhausted => return Err(NewtonError::NotConverged { iterations, residual }),
             Status::NonFinite => return Err(NewtonError::NonFinite { iteration: iterations }),
         }
-        factor(jac, perm, options, iterations)?;
+        factor(mechanism, q, t, jac, factors, options, iterations)?;
         for p in phi.iter_mut() {
             *p = -*p;
         }
-        lu::solve(jac, perm, phi);
+        factors.solve(mechanism, jac, phi);
         if phi.iter().any(|d| !d.is_finite()) {
             return Err(NewtonError::NonFinite { iteration: iterations });
         }
@@ -223,14 +225,17 @@ pub fn solve<M: Mechanism<N>, const N: usize>(
     }
 }
 
-/// [`lu::factor_with_ratio`] with its error turned into a [`NewtonError`].
-fn factor<const N: usize>(
+/// [`Factors::factor`] with its error turned into a [`NewtonError`].
+fn factor<M: Mechanism<N>, const N: usize>(
+    mechanism: &M,
+    q: &[f64; N],
+    t: f64,
     jac: &mut [[f64; N]; N],
-    perm: &mut [usize; N],
+    factors: &mut Factors<N>,
     options: &NewtonOptions,
     iteration: u32,
 ) -> Result<(), NewtonError> {
-    match lu::factor_with_ratio(jac, perm, options.pivot_ratio) {
+    match factors.factor(mechanism, q, t, jac, options.pivot_ratio) {
         Ok(_) => Ok(()),
         Err(Singular::SmallPivot { column, pivot, largest }) => {
             Err(NewtonError::Singular { iteration, column, pivot, largest })

@@ -17,8 +17,9 @@ mod tests;
 use core::borrow::BorrowMut;
 use core::fmt;
 
+use crate::Mechanism;
+use crate::factors::{FactorCounts, Factors};
 use crate::newton::{self, NewtonError, NewtonOptions, NewtonReport};
-use crate::{Mechanism, lu};
 
 /// Kinematic analysis of one mechanism, one time step at a time, without allocation.
 ///
@@ -40,8 +41,9 @@ pub struct Solver<M, const N: usize, J = [[f64; N]; N]> {
     /// Φ during Newton, then ν or γ and the solutions before they are accepted.
     scratch: [f64; N],
     jac: J,
-    perm: [usize; N],
-    /// `jac` and `perm` hold the LU factors of Φ_q at (`q`, `t`).
+    /// How `jac` was factored.
+    factors: Factors<N>,
+    /// `jac` and `factors` hold the factors of Φ_q at (`q`, `t`).
     factored: bool,
     /// Which time derivatives were solved at (`q`, `t`).
     known: Known,
@@ -107,7 +109,7 @@ impl<M, const N: usize, J> Solver<M, N, J> {
             qdd: [0.0; N],
             scratch: [0.0; N],
             jac,
-            perm: [0; N],
+            factors: Factors::new(),
             factored: false,
             known: Known::Nothing,
         }
@@ -158,6 +160,12 @@ impl<M, const N: usize, J> Solver<M, N, J> {
         &self.qdd
     }
 
+    /// How many factorisations of Φ_q used a static pivot order of the mechanism, how many fell
+    /// back to dense LU, and how many static orders were refused on the way.
+    pub const fn factor_counts(&self) -> FactorCounts {
+        self.factors.counts()
+    }
+
     /// Sets the estimate of q that the next [`Solver::position`] starts from.
     ///
     /// This forgets the factorisation and the solved q̇ and q̈, so the next step uses no
@@ -199,7 +207,7 @@ impl<M: Mechanism<N>, const N: usize, J: BorrowMut<[[f64; N]; N]>> Solver<M, N, 
             &self.options,
             &mut self.scratch,
             self.jac.borrow_mut(),
-            &mut self.perm,
+            &mut self.factors,
         );
         match result {
             Ok(_) => {
@@ -261,7 +269,7 @@ impl<M: Mechanism<N>, const N: usize, J: BorrowMut<[[f64; N]; N]>> Solver<M, N, 
         if self.scratch.iter().any(|v| !v.is_finite()) {
             return Err(SolveError::NonFinite);
         }
-        lu::solve(self.jac.borrow(), &self.perm, &mut self.scratch);
+        self.factors.solve(&self.mechanism, self.jac.borrow(), &mut self.scratch);
         if self.scratch.iter().any(|v| !v.is_finite()) {
             return Err(SolveError::NonFinite);
         }

@@ -15,3 +15,5 @@ mod random_mechanisms;
 mod rssr_reference;
 #[cfg(test)]
 mod seed_examples;
+#[cfg(test)]
+mod structured_lu;

@@ -9,13 +9,13 @@ struct Run {
     q: [f64; 2],
     phi: [f64; 2],
     jac: [[f64; 2]; 2],
-    perm: [usize; 2],
+    factors: Factors<2>,
 }
 
 fn run(mechanism: &CircleLine, q: [f64; 2], t: f64, options: &NewtonOptions) -> Run {
     let mut run = Run { q, ..BLANK };
     run.result =
-        solve(mechanism, &mut run.q, t, options, &mut run.phi, &mut run.jac, &mut run.perm);
+        solve(mechanism, &mut run.q, t, options, &mut run.phi, &mut run.jac, &mut run.factors);
     run
 }
 
@@ -24,7 +24,7 @@ const BLANK: Run = Run {
     q: [0.0; 2],
     phi: [f64::NAN; 2],
     jac: [[f64::NAN; 2]; 2],
-    perm: [0; 2],
+    factors: Factors::new(),
 };
 
 fn check_status(residual: f64, iterations: u32, expected: Status) {
@@ -180,11 +180,11 @@ fn after_normalize_residual_and_factors_belong_to_the_final_q() {
     assert_eq!(run.phi, phi);
     assert_eq!(report.residual, max_abs(&phi));
 
-    // The factors left in `jac` and `perm` are those of Φ_q at the final q.
+    // The factors left in `jac` and `factors` are those of Φ_q at the final q.
     let mut jac = [[0.0; 2]; 2];
     m.jacobian(&run.q, t, &mut jac);
     let mut x = [1.0, 2.0];
-    lu::solve(&run.jac, &run.perm, &mut x);
+    run.factors.solve(&m, &run.jac, &mut x);
     let back = [jac[0][0] * x[0] + jac[0][1] * x[1], jac[1][0] * x[0] + jac[1][1] * x[1]];
     assert_relative_eq!(back[0], 1.0, epsilon = 1e-14);
     assert_relative_eq!(back[1], 2.0, epsilon = 1e-14);
@@ -233,7 +233,7 @@ fn a_projection_that_breaks_the_tolerance_is_followed_by_more_steps() {
     let mut run = BLANK;
     run.q = [0.6, 0.9];
     let report =
-        solve(&m, &mut run.q, t, &options, &mut run.phi, &mut run.jac, &mut run.perm).unwrap();
+        solve(&m, &mut run.q, t, &options, &mut run.phi, &mut run.jac, &mut run.factors).unwrap();
     assert_eq!(m.0.normalizations.get(), 2);
     assert_eq!(report.iterations, 3);
     assert!(report.residual <= options.tolerance);

@@ -1,0 +1,424 @@
+//! The structured LU of Φ_q: static pivot orders chosen at generation time, emitted as
+//! straight-line `factor` and `solve` functions that touch only the entries of L and U.
+//!
+//! An order is a sequence of pivots (row, column) of Φ_q. It is chosen by Markowitz's rule
+//! with threshold pivoting (as in Harwell's MA28 and MA48) on the numeric Jacobian at one
+//! configuration: at every step of the elimination the pivot is, among the entries whose
+//! magnitude is at least [`CHOICE_THRESHOLD`] of the largest in their column of the active
+//! submatrix, one with the smallest (r − 1)(c − 1), r and c being the structurally non-zero
+//! entries in its row and column, which bounds the fill-in the step creates. The fill-in
+//! is tracked structurally, so the emitted code is valid for every value of q.
+//!
+//! A static order is only safe where its pivots stay large, and over a motion an entry that is
+//! a fine pivot at one crank angle passes through zero at another. The generator therefore
+//! walks the configurations the generic engine computes over the description's time grid,
+//! and whenever no order chosen so far passes the run-time guard with a margin there
+//! ([`COVER_THRESHOLD`]), it chooses a new one at that configuration, up to [`MAX_ORDERS`].
+//! At run time the guard decides (see `runtime::lu::MAX_MULTIPLIER`), and a factorisation
+//! that no order passes falls back to dense LU with partial pivoting.
+
+use syn::{Expr, Ident, parse_quote};
+
+use super::{binary, ident, index, neg, paren};
+use crate::generic::{Analysis, Equations};
+use crate::model::Mechanism;
+use crate::symbolic::Symbolic;
+
+/// A candidate pivot qualifies when its magnitude is at least this fraction of the largest in
+/// its column of the active submatrix at the configuration the order is chosen at.
+///
+/// The run-time guard accepts multipliers up to 10 (a fraction of 0.1); choosing with 0.5
+/// leaves a factor of 5 for the entries to change along the motion before the guard refuses
+/// the order, while still leaving Markowitz's rule several candidates to pick the sparsest.
+pub const CHOICE_THRESHOLD: f64 = 0.5;
+
+/// A configuration is covered by an order whose multipliers there are at most 1 / this
+/// fraction (|l| ≤ 4): a margin of 2.5 below the run-time bound of 10, so that the Newton
+/// iterates near a sampled configuration pass the guard too.
+pub const COVER_THRESHOLD: f64 = 0.25;
+
+/// At most this many orders are emitted. Each costs one factor and one solve function; a
+/// configuration none of them covers is factored by the dense fallback.
+pub const MAX_ORDERS: usize = 4;
+
+/// The bound on |l| that the run-time guard applies (`runtime::lu::MAX_MULTIPLIER`), used here
+/// to count the configurations the emitted orders leave to the fallback.
+pub const RUNTIME_MAX_MULTIPLIER: f64 = 10.0;
+
+/// A static pivot order for Φ_q and the structure of its L and U factors.
+///
+/// Step coordinates: step k pivots on row `rows[k]` and column `cols[k]` of Φ_q, so the
+/// permuted matrix B = P Φ_q Q has B[k][l] = Φ_q[rows[k]][cols[l]], and B = L U.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Order {
+    /// The row of Φ_q pivoted at each step.
+    pub rows: Vec<usize>,
+    /// The column of Φ_q pivoted at each step.
+    pub cols: Vec<usize>,
+    /// For each step k, the steps l (ascending) where B[k][l] is a structural non-zero of L
+    /// (l < k) or of U (l ≥ k).
+    pub pattern: Vec<Vec<usize>>,
+}
+
+impl Order {
+    /// The number of entries of L and U (the unit diagonal of L not counted).
+    #[must_use]
+    pub fn entries(&self) -> usize {
+        self.pattern.iter().map(Vec::len).sum()
+    }
+}
+
+/// The structure of Φ_q: `structure[i][j]` when entry (i, j) is not identically zero.
+#[must_use]
+pub fn structure(sys: &Symbolic) -> Vec<Vec<bool>> {
+    let n = sys.unknowns.len();
+    let mut s = vec![vec![false; n]; n];
+    for (i, row) in sys.jac.iter().enumerate() {
+        for &(j, _) in row {
+            s[i][j] = true;
+        }
+    }
+    s
+}
+
+/// Φ_q at (q, t) as a dense matrix.
+#[must_use]
+pub fn numeric(sys: &Symbolic, q: &[f64], t: f64) -> Vec<Vec<f64>> {
+    let n = sys.unknowns.len();
+    let roots: Vec<_> = sys.jac.iter().flatten().map(|&(_, e)| e).collect();
+    let mut vals = sys.pool.eval(&roots, q, &[], t).into_iter();
+    let mut m = vec![vec![0.0; n]; n];
+    for (i, row) in sys.jac.iter().enumerate() {
+        for &(j, _) in row {
+            m[i][j] = vals.next().expect("one value per entry");
+        }
+    }
+    m
+}
+
+/// The order Markowitz's rule with threshold pivoting picks for `a` (structure `s`), or `None`
+/// when some step finds no non-zero candidate (`a` is singular).
+#[must_use]
+pub fn choose(s: &[Vec<bool>], a: &[Vec<f64>]) -> Option<Order> {
+    let n = a.len();
+    let mut s = s.to_vec();
+    let mut v = a.to_vec();
+    let (mut row_done, mut col_done) = (vec![false; n], vec![false; n]);
+    let (mut rows, mut cols) = (Vec::with_capacity(n), Vec::with_capacity(n));
+    for _ in 0..n {
+        let active = |done: &[bool]| (0..n).filter(|&k| !done[k]).collect::<Vec<_>>();
+        let (ar, ac) = (active(&row_done), active(&col_done));
+        let row_count: Vec<usize> =
+            (0..n).map(|i| ac.iter().filter(|&&j| s[i][j]).count()).collect();
+        let mut best: Option<(usize, f64, usize, usize)> = None;
+        for &j in &ac {
+            let in_col: Vec<usize> = ar.iter().copied().filter(|&i| s[i][j]).collect();
+            let big = in_col.iter().map(|&i| v[i][j].abs()).fold(0.0, f64::max);
+            if big == 0.0 || !big.is_finite() {
+                continue;
+            }
+            for &i in &in_col {
+                let m = v[i][j].abs();
+                if m < CHOICE_THRESHOLD * big {
+                    continue;
+                }
+                let cost = (row_count[i] - 1) * (in_col.len() - 1);
+                let ratio = m / big;
+                // Fewest fill-in first, then the largest entry relative to its column (the most
+                // margin along the motion), then the lowest column and row.
+                let better = best.is_none_or(|(bc, br, bj, bi)| {
+                    cost.cmp(&bc).then(br.total_cmp(&ratio)).then(j.cmp(&bj)).then(i.cmp(&bi))
+                        == std::cmp::Ordering::Less
+                });
+                if better {
+                    best = Some((cost, ratio, j, i));
+                }
+            }
+        }
+        let (_, _, pc, pr) = best?;
+        for &i in &ar {
+            if i == pr || !s[i][pc] {
+                continue;
+            }
+            let l = v[i][pc] / v[pr][pc];
+            for &j in &ac {
+                if j != pc && s[pr][j] {
+                    s[i][j] = true;
+                    v[i][j] -= l * v[pr][j];
+                }
+            }
+            v[i][pc] = l;
+        }
+        row_done[pr] = true;
+        col_done[pc] = true;
+        rows.push(pr);
+        cols.push(pc);
+    }
+    let pattern = (0..n).map(|k| (0..n).filter(|&l| s[rows[k]][cols[l]]).collect()).collect();
+    Some(Order { rows, cols, pattern })
+}
+
+/// The largest |multiplier| when `a` is factored with `order`, or `None` when a pivot is zero
+/// or not finite.
+#[must_use]
+pub fn largest_multiplier(order: &Order, a: &[Vec<f64>]) -> Option<f64> {
+    let n = a.len();
+    let mut b: Vec<Vec<f64>> =
+        (0..n).map(|k| (0..n).map(|l| a[order.rows[k]][order.cols[l]]).collect()).collect();
+    let mut worst = 0.0_f64;
+    for k in 0..n {
+        let p = b[k][k];
+        if p == 0.0 || !p.is_finite() {
+            return None;
+        }
+        for i in k + 1..n {
+            if !order.pattern[i].contains(&k) {
+                continue;
+            }
+            let l = b[i][k] / p;
+            worst = worst.max(l.abs());
+            for &j in order.pattern[k].iter().filter(|&&j| j > k) {
+                b[i][j] -= l * b[k][j];
+            }
+            b[i][k] = l;
+        }
+    }
+    worst.is_finite().then_some(worst)
+}
+
+/// The configurations (t, reduced q) the generic engine computes over the description's grid,
+/// or the assembled initial configuration when the analysis stops at once.
+#[must_use]
+pub fn motion(mech: &Mechanism, sys: &Symbolic) -> Vec<(f64, Vec<f64>)> {
+    let eq = Equations::new(mech);
+    let prep = eq.prepare();
+    let mut out = Vec::new();
+    let _ = Analysis::new(&eq, &prep).run(|f| {
+        out.push((f.t, sys.reduce(&eq, &f.q).as_slice().to_vec()));
+        Ok::<(), ()>(())
+    });
+    if out.is_empty() {
+        out.push((mech.time.start, sys.reduce(&eq, &prep.q).as_slice().to_vec()));
+    }
+    out
+}
+
+/// The static orders for the configurations `samples`: the first chosen at the first sample,
+/// each further one at the first sample the orders so far do not cover.
+#[must_use]
+pub fn plan(sys: &Symbolic, samples: &[(f64, Vec<f64>)]) -> Vec<Order> {
+    let s = structure(sys);
+    let mut orders: Vec<Order> = Vec::new();
+    for (t, q) in samples {
+        if orders.len() == MAX_ORDERS {
+            break;
+        }
+        let a = numeric(sys, q, *t);
+        let covered = orders
+            .iter()
+            .any(|o| largest_multiplier(o, &a).is_some_and(|m| m <= 1.0 / COVER_THRESHOLD));
+        if !covered && let Some(o) = choose(&s, &a) {
+            orders.push(o);
+        }
+    }
+    orders
+}
+
+/// `jac[r][c]` (or `lu[r][c]`).
+fn entry(array: &str, r: usize, c: usize) -> Expr {
+    let (a, r, c) = (ident(array), index(r), index(c));
+    parse_quote!(#a[#r][#c])
+}
+
+/// The local holding entry (k, l) of L or U in step coordinates.
+fn local(k: usize, l: usize) -> Ident {
+    if k == l {
+        ident(&format!("d{k}"))
+    } else if k > l {
+        ident(&format!("l{k}_{l}"))
+    } else {
+        ident(&format!("u{k}_{l}"))
+    }
+}
+
+fn var(name: &Ident) -> Expr {
+    parse_quote!(#name)
+}
+
+/// `start − Σ l[k][m] u[m][l]` over the m < min(k, l) where both are structural non-zeros, in
+/// ascending m (the order in which right-looking elimination applies the updates).
+fn eliminated(order: &Order, k: usize, l: usize, original: bool) -> Expr {
+    let below = k.min(l);
+    let terms: Vec<Expr> = order.pattern[k]
+        .iter()
+        .copied()
+        .filter(|&m| m < below && order.pattern[m].contains(&l))
+        .map(|m| {
+            let (lk, um) = (local(k, m), local(m, l));
+            parse_quote!(#lk * #um)
+        })
+        .collect();
+    let mut terms = terms.into_iter();
+    let mut e = if original {
+        entry("jac", order.rows[k], order.cols[l])
+    } else {
+        // A fill-in entry starts at 0 and 0 − x = −x exactly.
+        let first = terms.next().expect("fill-in has an update");
+        neg(paren(first))
+    };
+    for t in terms {
+        e = binary(e, syn::BinOp::Sub(Default::default()), t);
+    }
+    e
+}
+
+/// The straight-line factor and solve functions of one order.
+pub struct Emitted {
+    /// `factor_k`.
+    pub factor: syn::Item,
+    /// `solve_k`.
+    pub solve: syn::Item,
+}
+
+/// Emits `factor_{which}` and `solve_{which}` for `order` (of at least one step) of the
+/// Jacobian with structure `s`.
+#[must_use]
+pub fn emit(order: &Order, s: &[Vec<bool>], which: usize) -> Emitted {
+    let n = order.rows.len();
+    let original = |k: usize, l: usize| s[order.rows[k]][order.cols[l]];
+    let mut stmts: Vec<syn::Stmt> = Vec::new();
+    let mut pivots: Vec<Expr> = Vec::new();
+    let mut flops = 0usize;
+    let mut fill = 0usize;
+    let count = |order: &Order, k: usize, l: usize| {
+        order.pattern[k].iter().filter(|&&m| m < k.min(l) && order.pattern[m].contains(&l)).count()
+    };
+    for k in 0..n {
+        // Row k of U (right of the pivot), then the pivot, then column k of L: every entry
+        // read has been computed at an earlier step.
+        for &l in order.pattern[k].iter().filter(|&&l| l > k) {
+            let name = local(k, l);
+            let e = eliminated(order, k, l, original(k, l));
+            flops += 2 * count(order, k, l);
+            fill += usize::from(!original(k, l));
+            stmts.push(parse_quote!(let #name = #e;));
+        }
+        let p = ident(&format!("p{k}"));
+        let d = local(k, k);
+        let e = eliminated(order, k, k, original(k, k));
+        flops += 2 * count(order, k, k) + 1;
+        fill += usize::from(!original(k, k));
+        stmts.push(parse_quote!(let #p = #e;));
+        stmts.push(parse_quote!(let #d = 1.0 / #p;));
+        pivots.push(var(&p));
+        let mut checks: Vec<Expr> = vec![parse_quote!(#p.is_finite())];
+        for i in (k + 1..n).filter(|&i| order.pattern[i].contains(&k)) {
+            let name = local(i, k);
+            let e = eliminated(order, i, k, original(i, k));
+            flops += 2 * count(order, i, k) + 1;
+            fill += usize::from(!original(i, k));
+            let e = if matches!(e, Expr::Binary(_)) { paren(e) } else { e };
+            stmts.push(parse_quote!(let #name = #e * #d;));
+            checks.push(parse_quote!(#name.abs() <= runtime::lu::MAX_MULTIPLIER));
+        }
+        let ok = checks
+            .into_iter()
+            .reduce(|a, b| binary(a, syn::BinOp::And(Default::default()), b))
+            .expect("the pivot is checked");
+        stmts.push(parse_quote! {
+            if !(#ok) {
+                return None;
+            }
+        });
+    }
+    let fold = |method: &str| -> Expr {
+        let m = ident(method);
+        let mut it = pivots.iter().map(|p| -> Expr { parse_quote!(#p.abs()) });
+        let first = it.next().expect("at least one step");
+        it.fold(first, |acc, x| parse_quote!(#acc.#m(#x)))
+    };
+    let (smallest, largest) = (fold("min"), fold("max"));
+    let stores: Vec<syn::Stmt> = (0..n)
+        .flat_map(|k| order.pattern[k].iter().map(move |&l| (k, l)))
+        .map(|(k, l)| {
+            let target = entry("jac", order.rows[k], order.cols[l]);
+            let v = local(k, l);
+            parse_quote!(#target = #v;)
+        })
+        .collect();
+    let name = ident(&format!("factor_{which}"));
+    let nnz = order.entries();
+    let rows = list(&order.rows);
+    let cols = list(&order.cols);
+    let doc = format!(
+        " Factors Φ_q in place with static pivot order {which}: step k pivots on row `[{rows}][k]` and column `[{cols}][k]`.\n\n L and U have {nnz} entries ({fill} of them fill-in); {flops} operations. The reciprocals of the pivots are stored on the diagonal.\n\n Returns the smallest and largest |pivot|, or `None` (with `jac` unchanged) when a pivot is not finite or a multiplier exceeds [`runtime::lu::MAX_MULTIPLIER`] in magnitude."
+    );
+    let factor: syn::Item = parse_quote! {
+        #[doc = #doc]
+        #[must_use]
+        pub fn #name(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
+            #(#stmts)*
+            #(#stores)*
+            Some(runtime::lu::PivotInfo { smallest: #smallest, largest: #largest })
+        }
+    };
+
+    // Solve: y = L⁻¹ P b, then x = Q U⁻¹ y.
+    let mut stmts: Vec<syn::Stmt> = Vec::new();
+    let mut ops = 0usize;
+    for k in 0..n {
+        let y = ident(&format!("y{k}"));
+        let r = index(order.rows[k]);
+        let mut e: Expr = parse_quote!(b[#r]);
+        for &l in order.pattern[k].iter().filter(|&&l| l < k) {
+            let yl = ident(&format!("y{l}"));
+            let lkl = entry("lu", order.rows[k], order.cols[l]);
+            e = binary(e, syn::BinOp::Sub(Default::default()), parse_quote!(#lkl * #yl));
+            ops += 2;
+        }
+        stmts.push(parse_quote!(let #y = #e;));
+    }
+    for k in (0..n).rev() {
+        let x = ident(&format!("x{k}"));
+        let mut e: Expr = {
+            let y = ident(&format!("y{k}"));
+            parse_quote!(#y)
+        };
+        let uppers: Vec<usize> = order.pattern[k].iter().copied().filter(|&l| l > k).collect();
+        for &l in &uppers {
+            let xl = ident(&format!("x{l}"));
+            let ukl = entry("lu", order.rows[k], order.cols[l]);
+            e = binary(e, syn::BinOp::Sub(Default::default()), parse_quote!(#ukl * #xl));
+            ops += 2;
+        }
+        if !uppers.is_empty() {
+            e = paren(e);
+        }
+        let d = entry("lu", order.rows[k], order.cols[k]);
+        ops += 1;
+        stmts.push(parse_quote!(let #x = #e * #d;));
+    }
+    for k in 0..n {
+        let x = ident(&format!("x{k}"));
+        let c = index(order.cols[k]);
+        stmts.push(parse_quote!(b[#c] = #x;));
+    }
+    let name = ident(&format!("solve_{which}"));
+    let doc = format!(
+        " Solves Φ_q x = b in place with the factors [`factor_{which}`] left in `lu`.\n\n {ops} operations."
+    );
+    let solve: syn::Item = parse_quote! {
+        #[doc = #doc]
+        pub fn #name(lu: &[[f64; N]; N], b: &mut [f64; N]) {
+            #(#stmts)*
+        }
+    };
+    Emitted { factor, solve }
+}
+
+fn list(v: &[usize]) -> String {
+    v.iter().map(ToString::to_string).collect::<Vec<_>>().join(", ")
+}
+
+#[cfg(test)]
+mod tests;

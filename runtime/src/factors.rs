@@ -1,0 +1,203 @@
+//! [`Factors`]: the factorisation of Φ_q kept in a solver's Jacobian storage, by a
+//! mechanism's static pivot orders when one passes its guard, else by dense LU with partial
+//! pivoting.
+//!
+//! Generated mechanisms know the structure of Φ_q and emit straight-line factor and solve
+//! functions for a few static pivot orders ([`Mechanism::factor_structured`]).
+//! A static order is refused at a configuration where one of its pivots is small next to the
+//! entries below it ([`lu::MAX_MULTIPLIER`]); [`Factors::factor`] then tries the mechanism's
+//! other orders, starting from the one that last succeeded, and if none passes it evaluates Φ_q
+//! in full again and factors it by [`lu::factor_with_ratio`].
+//! Either way the factors are refused as singular by the same test as dense LU: the smallest
+//! |pivot| must exceed `ratio` times the largest; a static order that fails it falls back to
+//! dense LU, whose verdict is final.
+
+#[cfg(test)]
+mod tests;
+
+use crate::Mechanism;
+use crate::lu::{self, PivotInfo, Singular};
+
+/// How often each kind of factorisation was used, for tests and benchmarks.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct FactorCounts {
+    /// Factorisations done with a static pivot order.
+    pub structured: u64,
+    /// Factorisations done by dense LU (all of them for mechanisms without static orders).
+    pub dense: u64,
+    /// Static orders tried and refused (by the pivot guard or the pivot ratio).
+    pub refused: u64,
+}
+
+/// Which factors the Jacobian storage holds and how to solve with them.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Held {
+    /// Nothing usable: no factorisation yet, or the last one failed.
+    Nothing,
+    /// The factors of static order `k`.
+    Structured(usize),
+    /// Dense LU factors with the row permutation in [`Factors::perm`].
+    Dense,
+}
+
+/// The pivoting side of a factorisation of Φ_q held in a separate `[[f64; N]; N]`.
+///
+/// ```
+/// use runtime::Mechanism;
+/// use runtime::factors::Factors;
+///
+/// // Φ = (x + 2y − 5, 3x + 4y − 11): no static orders, so dense LU.
+/// struct Pair;
+/// impl Mechanism<2> for Pair {
+///     fn residual(&self, q: &[f64; 2], _t: f64, phi: &mut [f64; 2]) {
+///         *phi = [q[0] + 2.0 * q[1] - 5.0, 3.0 * q[0] + 4.0 * q[1] - 11.0];
+///     }
+///     fn jacobian(&self, _q: &[f64; 2], _t: f64, jac: &mut [[f64; 2]; 2]) {
+///         *jac = [[1.0, 2.0], [3.0, 4.0]];
+///     }
+///     fn velocity_rhs(&self, _q: &[f64; 2], _t: f64, nu: &mut [f64; 2]) {
+///         *nu = [0.0; 2];
+///     }
+///     fn acceleration_rhs(&self, _q: &[f64; 2], _qd: &[f64; 2], _t: f64, g: &mut [f64; 2]) {
+///         *g = [0.0; 2];
+///     }
+/// }
+///
+/// let (q, mut phi, mut jac) = ([0.0; 2], [0.0; 2], [[0.0; 2]; 2]);
+/// let mut factors = Factors::new();
+/// factors.evaluate(&Pair, &q, 0.0, &mut phi, &mut jac);
+/// factors.factor(&Pair, &q, 0.0, &mut jac, runtime::lu::DEFAULT_PIVOT_RATIO)?;
+/// let mut x = [5.0, 11.0];
+/// factors.solve(&Pair, &jac, &mut x);
+/// assert!((x[0] - 1.0).abs() < 1e-15 && (x[1] - 2.0).abs() < 1e-15);
+/// assert_eq!(factors.counts().dense, 1);
+/// # Ok::<(), runtime::lu::Singular>(())
+/// ```
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Factors<const N: usize> {
+    held: Held,
+    /// The row permutation of dense factors.
+    perm: [usize; N],
+    /// The static order to try first: the last one that succeeded.
+    next: usize,
+    counts: FactorCounts,
+}
+
+impl<const N: usize> Default for Factors<N> {
+    fn default() -> Self {
+        Factors::new()
+    }
+}
+
+impl<const N: usize> Factors<N> {
+    /// No factors held yet; static order 0 is tried first.
+    #[must_use]
+    pub const fn new() -> Self {
+        Factors {
+            held: Held::Nothing,
+            perm: [0; N],
+            next: 0,
+            counts: FactorCounts { structured: 0, dense: 0, refused: 0 },
+        }
+    }
+
+    /// How many factorisations of each kind were done, and how many static orders refused.
+    #[must_use]
+    pub const fn counts(&self) -> FactorCounts {
+        self.counts
+    }
+
+    /// Whether the storage holds usable factors (the last [`Factors::factor`] succeeded).
+    #[must_use]
+    pub const fn holds_factors(&self) -> bool {
+        !matches!(self.held, Held::Nothing)
+    }
+
+    /// Forgets the factors (the storage is about to be overwritten).
+    pub const fn forget(&mut self) {
+        self.held = Held::Nothing;
+    }
+
+    /// Writes Φ(q, t) into `phi` and Φ_q(q, t) into `jac`, as [`Factors::factor`] reads it:
+    /// only the structural non-zeros when the mechanism has static orders, in full otherwise.
+    ///
+    /// The factors held before are lost.
+    pub fn evaluate<M: Mechanism<N>>(
+        &mut self,
+        mechanism: &M,
+        q: &[f64; N],
+        t: f64,
+        phi: &mut [f64; N],
+        jac: &mut [[f64; N]; N],
+    ) {
+        self.held = Held::Nothing;
+        if M::PIVOT_ORDERS > 0 {
+            mechanism.residual_jacobian_structural(q, t, phi, jac);
+        } else {
+            mechanism.residual_jacobian(q, t, phi, jac);
+        }
+    }
+
+    /// Factors Φ_q(q, t), written into `jac` by [`Factors::evaluate`] at the same (q, t), in
+    /// place.
+    ///
+    /// Tries the mechanism's static orders, the last successful one first; when every one is
+    /// refused, or the smallest |pivot| of the one that passed is at most `ratio` times the
+    /// largest, evaluates Φ_q(q, t) in full into `jac` and factors it by
+    /// [`lu::factor_with_ratio`].
+    ///
+    /// # Errors
+    ///
+    /// The [`Singular`] of the dense factorisation; `jac` then holds no usable factors.
+    pub fn factor<M: Mechanism<N>>(
+        &mut self,
+        mechanism: &M,
+        q: &[f64; N],
+        t: f64,
+        jac: &mut [[f64; N]; N],
+        ratio: f64,
+    ) -> Result<PivotInfo, Singular> {
+        let orders = M::PIVOT_ORDERS;
+        for attempt in 0..orders {
+            let order = (self.next + attempt) % orders;
+            match mechanism.factor_structured(order, jac) {
+                Some(p) if p.smallest > ratio * p.largest => {
+                    self.held = Held::Structured(order);
+                    self.next = order;
+                    self.counts.structured += 1;
+                    return Ok(p);
+                }
+                Some(_) => {
+                    // The order's pivots passed the guard but look singular: the storage now
+                    // holds its factors, so the dense fallback below must evaluate again, and
+                    // dense LU's own verdict decides.
+                    self.counts.refused += 1;
+                    break;
+                }
+                None => self.counts.refused += 1,
+            }
+        }
+        if orders > 0 {
+            // The structural evaluation left the other entries of `jac` as they were.
+            mechanism.jacobian(q, t, jac);
+        }
+        self.held = Held::Nothing;
+        self.counts.dense += 1;
+        let pivots = lu::factor_with_ratio(jac, &mut self.perm, ratio)?;
+        self.held = Held::Dense;
+        Ok(pivots)
+    }
+
+    /// Solves Φ_q x = b in place with the factors in `lu` from the last successful
+    /// [`Factors::factor`].
+    ///
+    /// Without usable factors (see [`Factors::holds_factors`]) x is all NaN, so the caller's
+    /// finiteness check catches the mistake.
+    pub fn solve<M: Mechanism<N>>(&self, mechanism: &M, lu: &[[f64; N]; N], b: &mut [f64; N]) {
+        match self.held {
+            Held::Structured(order) => mechanism.solve_structured(order, lu, b),
+            Held::Dense => lu::solve(lu, &self.perm, b),
+            Held::Nothing => *b = [f64::NAN; N],
+        }
+    }
+}
