@@ -80,6 +80,8 @@ pub struct ExprPool {
     index: HashMap<Node, ExprId>,
     #[allow(clippy::disallowed_types)]
     derivatives: HashMap<(ExprId, Var), ExprId>,
+    #[allow(clippy::disallowed_types)]
+    rates: HashMap<ExprId, ExprId>,
 }
 
 impl Index<ExprId> for ExprPool {
@@ -278,6 +280,47 @@ impl ExprPool {
             }
         };
         self.derivatives.insert((e, v), d);
+        d
+    }
+
+    /// The total time derivative of `e` along the motion with q̈ = 0: q_k ↦ q̇_k, q̇_k ↦ 0,
+    /// t ↦ 1, by the chain rule node by node (forward mode), memoised. One derivative node
+    /// per node of `e`, so Φ̇ = Φ_q q̇ + Φ_t and Φ̈* = (Φ_q q̇)_q q̇ + 2 Φ_qt q̇ + Φ_tt stay the size
+    /// of Φ instead of growing with the number of unknowns.
+    pub fn rate(&mut self, e: ExprId) -> ExprId {
+        if let Some(&d) = self.rates.get(&e) {
+            return d;
+        }
+        let d = match self[e] {
+            Node::Const(_) | Node::Var(Var::Qd(_)) => self.constant(0.0),
+            Node::Var(Var::Q(k)) => self.var(Var::Qd(k)),
+            Node::Var(Var::T) => self.constant(1.0),
+            Node::Neg(a) => {
+                let da = self.rate(a);
+                self.neg(da)
+            }
+            Node::Add(a, b) => {
+                let (da, db) = (self.rate(a), self.rate(b));
+                self.add(da, db)
+            }
+            Node::Mul(a, b) => {
+                let (da, db) = (self.rate(a), self.rate(b));
+                let (x, y) = (self.mul(da, b), self.mul(a, db));
+                self.add(x, y)
+            }
+            Node::Sin(a) => {
+                let da = self.rate(a);
+                let c = self.cos(a);
+                self.mul(c, da)
+            }
+            Node::Cos(a) => {
+                let da = self.rate(a);
+                let s = self.sin(a);
+                let m = self.mul(s, da);
+                self.neg(m)
+            }
+        };
+        self.rates.insert(e, d);
         d
     }
 

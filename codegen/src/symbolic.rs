@@ -582,32 +582,16 @@ impl Symbolic {
         out
     }
 
-    /// ν and γ from Φ and Φ_q.
+    /// ν and γ from Φ.
     fn derive_rates(&mut self) {
         let t = Var::T;
-        for (i, &phi) in self.phi.iter().enumerate() {
+        for &phi in &self.phi {
             let phi_t = self.pool.diff(phi, t);
             self.nu.push(self.pool.neg(phi_t));
-            // Φ̇ = Φ_q q̇ + Φ_t with q̇ symbolic.
-            let mut terms: Vec<ExprId> = self.jac[i]
-                .iter()
-                .map(|&(k, d)| {
-                    let qd = self.pool.var(Var::Qd(u32::try_from(k).expect("small")));
-                    self.pool.mul(d, qd)
-                })
-                .collect();
-            terms.push(phi_t);
-            let phi_dot = self.pool.sum(terms);
-            // γ = −(∂Φ̇/∂q q̇ + ∂Φ̇/∂t).
-            let vars = q_vars(&self.pool, phi_dot);
-            let mut terms = Vec::new();
-            for k in vars {
-                let d = self.pool.diff(phi_dot, Var::Q(k));
-                let qd = self.pool.var(Var::Qd(k));
-                terms.push(self.pool.mul(d, qd));
-            }
-            terms.push(self.pool.diff(phi_dot, t));
-            let s = self.pool.sum(terms);
+            // Φ̇ = Φ_q q̇ + Φ_t and Φ̈* = (Φ_q q̇)_q q̇ + 2 Φ_qt q̇ + Φ_tt (q̈ = 0), both by
+            // forward-mode differentiation along the motion; γ = −Φ̈*.
+            let phi_dot = self.pool.rate(phi);
+            let s = self.pool.rate(phi_dot);
             self.gamma.push(self.pool.neg(s));
         }
     }

@@ -3148,205 +3148,146 @@ pub fn velocity_rhs(q: &[f64; N], t: f64, nu: &mut [f64; N]) {
 
 /** Acceleration right-hand side γ = −(Φ_q q̇)_q q̇ − 2Φ_qt q̇ − Φ_tt.
 
- 604 operations, 106 shared subexpressions.*/
+ 330 operations, 87 shared subexpressions.*/
 pub fn acceleration_rhs(q: &[f64; N], qd: &[f64; N], t: f64, gamma: &mut [f64; N]) {
     let [_q0, _q1, _q2, q3, q4, q5, q6, _q7, _q8, _q9, q10, q11, q12, q13, _q14, _q15,
     _q16, _q17, _q18, _q19, _q20] = *q;
     let [_qd0, _qd1, _qd2, qd3, qd4, qd5, qd6, _qd7, _qd8, _qd9, qd10, qd11, qd12, qd13,
     _qd14, _qd15, _qd16, qd17, qd18, qd19, qd20] = *qd;
-    let t0 = q10 * q10 + q13 * q13 - (q11 * q11 + q12 * q12);
-    let t1 = q11 * q13 + q10 * q12;
-    let t2 = q12 * q13 - q10 * q11;
-    let t3 = q3 * q3;
-    let t4 = q4 * q4;
-    let t5 = q5 * q5;
-    let t6 = q6 * q6;
-    let t7 = q4 * q5;
-    let t8 = q3 * q6;
-    let t9 = 1.570796325 * t;
-    let t10 = runtime::math::sin(t9);
-    let t11 = runtime::math::cos(t9);
-    let t12 = q10 + q10;
-    let t13 = q11 + q11;
-    let t14 = q12 + q12;
-    let t15 = q13 + q13;
-    let t16 = q3 + q3;
-    let t17 = q4 + q4;
-    let t18 = q5 + q5;
-    let t19 = q6 + q6;
-    let t20 = 1.5014270338455107 * q5;
-    let t21 = -1.3212557897840493 * q4;
-    let t22 = t21 - t20;
-    let t23 = -1.3212557897840493 * q6;
-    let t24 = 0.7507135169227553 * t16 - t23;
-    let t25 = 1.5014270338455107 * q6;
-    let t26 = t25 + -0.6606278948920247 * t16;
-    let t27 = -1.3212557897840493 * q3;
-    let t28 = t25 + t27;
-    let t29 = -1.3212557897840493 * q5;
-    let t30 = 0.7507135169227553 * t17 + t29;
-    let t31 = t20 - -0.6606278948920247 * t17;
-    let t32 = 1.5014270338455107 * q3;
-    let t33 = t23 - t32;
-    let t34 = t21 - 0.7507135169227553 * t18;
-    let t35 = 1.5014270338455107 * q4;
-    let t36 = t35 + -0.6606278948920247 * t18;
-    let t37 = t29 + t35;
-    let t38 = -(0.7507135169227553 * t19) - t27;
-    let t39 = t32 - -0.6606278948920247 * t19;
-    let t40 = 2.0 * q12;
-    let t41 = 2.0 * q11;
-    let t42 = 2.0 * q13;
-    let t43 = 2.0 * q10;
-    let t44 = -12.2 * qd13;
-    let t45 = -12.2 * qd12;
-    let t46 = -12.2 * qd11;
-    let t47 = -12.2 * qd10;
-    let t48 = -7.4 * qd20;
-    let t49 = -7.4 * qd19;
-    let t50 = -7.4 * qd18;
-    let t51 = -7.4 * qd17;
-    let t52 = 4.0 * qd5;
-    let t53 = 4.0 * qd6;
-    let t54 = 4.0 * qd3;
-    let t55 = 4.0 * qd4;
-    let t56 = 12.2 * qd13;
-    let t57 = 12.2 * qd12;
-    let t58 = 12.2 * qd11;
-    let t59 = 12.2 * qd10;
-    let t60 = t15 * t22 + (t24 * t41 + t26 * t40);
-    let t61 = t24 * t43 + t26 * t42 - t14 * t22;
-    let t62 = t24 * t42 - t26 * t43 - t13 * t22;
-    let t63 = t12 * t22 + (t24 * t40 - t26 * t41);
-    let t64 = 3.0028540676910214 * t2;
-    let t65 = 2.6425115795680987 * t1 + t64;
-    let t66 = -1.5014270338455107 * t0;
-    let t67 = 3.0028540676910214 * t1;
-    let t68 = -2.6425115795680987 * t2;
-    let t69 = -1.3212557897840493 * t0;
-    let t70 = t15 * t28 + (t30 * t41 + t31 * t40);
-    let t71 = t30 * t43 + t31 * t42 - t14 * t28;
-    let t72 = t30 * t42 - t31 * t43 - t13 * t28;
-    let t73 = t12 * t28 + (t30 * t40 - t31 * t41);
-    let t74 = 1.5014270338455107 * t0;
-    let t75 = t64 + -2.6425115795680987 * t1;
-    let t76 = 2.6425115795680987 * t2;
-    let t77 = t15 * t33 + (t34 * t41 + t36 * t40);
-    let t78 = t34 * t43 + t36 * t42 - t14 * t33;
-    let t79 = t34 * t42 - t36 * t43 - t13 * t33;
-    let t80 = t12 * t33 + (t34 * t40 - t36 * t41);
-    let t81 = -3.0028540676910214 * t1;
-    let t82 = t15 * t37 + (t38 * t41 + t39 * t40);
-    let t83 = t38 * t43 + t39 * t42 - t14 * t37;
-    let t84 = t38 * t42 - t39 * t43 - t13 * t37;
-    let t85 = t12 * t37 + (t38 * t40 - t39 * t41);
-    let t86 = 2.0
-        * (0.7507135169227553 * (t3 + t4 - (t5 + t6)) + -1.3212557897840493 * (t7 - t8));
-    let t87 = 2.0
-        * (1.5014270338455107 * (t7 + t8) + -0.6606278948920247 * (t3 + t5 - (t4 + t6)));
-    let t88 = 2.0
-        * (1.5014270338455107 * (q4 * q6 - q3 * q5)
-            + -1.3212557897840493 * (q5 * q6 + q3 * q4));
-    let t89 = 2.0 * qd6;
-    let t90 = 2.0 * qd5;
-    let t91 = 2.0 * qd4;
-    let t92 = 2.0 * qd3;
-    let t93 = 7.4 * qd20;
-    let t94 = 7.4 * qd19;
-    let t95 = 7.4 * qd18;
-    let t96 = 7.4 * qd17;
-    let t97 = 2.0 * qd17;
-    let t98 = qd17 * t97;
-    let t99 = 2.0 * qd18;
-    let t100 = qd18 * t99;
-    let t101 = 2.0 * qd19;
-    let t102 = qd19 * t101;
-    let t103 = 2.0 * qd20;
-    let t104 = qd20 * t103;
-    let t105 = -(qd3 * (1.570796325 * t11)) - qd4 * (1.570796325 * t10);
-    gamma[0] = -(qd19 * t50
-        + (qd18 * t49
-            + (qd13 * t47 + (qd10 * t44 - qd11 * t45 - qd12 * t46) - qd17 * t48))
-        - qd20 * t51);
-    gamma[1] = -(qd19 * t49
-        + (qd17 * t51 + (qd13 * t44 + (qd11 * t46 - qd10 * t47 - qd12 * t45))
-            - qd18 * t50) - qd20 * t48);
-    gamma[2] = -(qd20 * t49
-        + (qd19 * t48
-            + (qd18 * t51
-                + (qd17 * t50
-                    + (-(qd10 * t46) - qd11 * t47 - qd12 * t44 - qd13 * t45)))));
-    gamma[3] = -(qd12 * t58
-        + (qd11 * t57 + (-(qd3 * t52) - qd4 * t53 - qd5 * t54 - qd6 * t55 - qd10 * t56))
-        - qd13 * t59);
-    gamma[4] = -(qd12 * t57
-        + (qd10 * t59 + (qd3 * t55 + qd4 * t54 - qd5 * t53 - qd6 * t52) - qd11 * t58)
-        - qd13 * t56);
-    gamma[5] = -(qd13 * t57
-        + (qd12 * t56
-            + (qd11 * t59
-                + (qd10 * t58 + (qd5 * t52 + (qd4 * t55 - qd3 * t54) - qd6 * t53)))));
-    gamma[6] = -(qd13
-        * (qd13 * t88
-            + (qd12 * t87
-                + (qd11 * t86 + (qd6 * t82 + (qd5 * t77 + (qd3 * t60 + qd4 * t70))))))
-        + (qd12
-            * (qd13 * t87
-                + (qd10 * t86 + (qd6 * t83 + (qd5 * t78 + (qd3 * t61 + qd4 * t71)))
-                    - qd12 * t88))
-            + (qd11
-                * (qd13 * t86
-                    + (qd6 * t84 + (qd5 * t79 + (qd3 * t62 + qd4 * t72)) - qd10 * t87
-                        - qd11 * t88))
-                + (qd10
-                    * (qd12 * t86
-                        + (qd10 * t88
-                            + (qd6 * t85 + (qd5 * t80 + (qd3 * t63 + qd4 * t73)))
-                            - qd11 * t87))
-                    + (qd6
-                        * (qd13 * t82
-                            + (qd12 * t83
-                                + (qd11 * t84
-                                    + (qd10 * t85
-                                        + (qd6 * (t76 + t81)
-                                            + (qd5 * t69 + (qd3 * t65 + qd4 * t74)))))))
-                        + (qd5
-                            * (qd13 * t77
-                                + (qd12 * t78
-                                    + (qd11 * t79
-                                        + (qd10 * t80
-                                            + (qd6 * t69
-                                                + (qd5 * (t68 + t81) + (qd3 * t66 + qd4 * t75)))))))
-                            + (qd3
-                                * (qd13 * t60
-                                    + (qd12 * t61
-                                        + (qd11 * t62
-                                            + (qd10 * t63
-                                                + (qd6 * t65
-                                                    + (qd5 * t66 + (qd3 * (t67 + t68) + qd4 * t69)))))))
-                                + qd4
-                                    * (qd13 * t70
-                                        + (qd12 * t71
-                                            + (qd11 * t72
-                                                + (qd10 * t73
-                                                    + (qd6 * t74
-                                                        + (qd5 * t75 + (qd3 * t69 + qd4 * (t67 + t76)))))))))))))));
+    let t0 = q3 * q3;
+    let t1 = q4 * q4;
+    let t2 = q5 * q5;
+    let t3 = q6 * q6;
+    let t4 = q4 * q5;
+    let t5 = q3 * q6;
+    let t6 = 1.570796325 * t;
+    let t7 = runtime::math::sin(t6);
+    let t8 = runtime::math::cos(t6);
+    let t9 = qd18 * qd19;
+    let t10 = qd17 * qd20;
+    let t11 = t9 + t9 - (t10 + t10);
+    let t12 = qd11 * qd12;
+    let t13 = qd10 * qd13;
+    let t14 = t12 + t12 - (t13 + t13);
+    let t15 = q10 * qd10;
+    let t16 = q12 * qd12;
+    let t17 = q11 * qd11;
+    let t18 = q13 * qd13;
+    let t19 = qd17 * qd17;
+    let t20 = t19 + t19;
+    let t21 = qd19 * qd19;
+    let t22 = t21 + t21;
+    let t23 = qd18 * qd18;
+    let t24 = t23 + t23;
+    let t25 = qd20 * qd20;
+    let t26 = t25 + t25;
+    let t27 = t20 + t22 - (t24 + t26);
+    let t28 = qd10 * qd10;
+    let t29 = t28 + t28;
+    let t30 = qd12 * qd12;
+    let t31 = t30 + t30;
+    let t32 = qd11 * qd11;
+    let t33 = t32 + t32;
+    let t34 = qd13 * qd13;
+    let t35 = t34 + t34;
+    let t36 = t29 + t31 - (t33 + t35);
+    let t37 = qd19 * qd20;
+    let t38 = t37 + t37;
+    let t39 = qd18 * qd17;
+    let t40 = t39 + t39;
+    let t41 = t38 + t40;
+    let t42 = qd12 * qd13;
+    let t43 = t42 + t42;
+    let t44 = qd11 * qd10;
+    let t45 = t44 + t44;
+    let t46 = t43 + t45;
+    let t47 = qd4 * qd6;
+    let t48 = t47 + t47;
+    let t49 = qd3 * qd5;
+    let t50 = t49 + t49;
+    let t51 = t48 + t50;
+    let t52 = qd6 * qd5;
+    let t53 = t52 + t52;
+    let t54 = qd4 * qd3;
+    let t55 = t54 + t54;
+    let t56 = q3 * qd3;
+    let t57 = t56 + t56;
+    let t58 = q6 * qd6;
+    let t59 = t58 + t58;
+    let t60 = q4 * qd4;
+    let t61 = t60 + t60;
+    let t62 = q5 * qd5;
+    let t63 = t62 + t62;
+    let t64 = qd3 * qd3;
+    let t65 = t64 + t64;
+    let t66 = qd6 * qd6;
+    let t67 = t66 + t66;
+    let t68 = qd4 * qd4;
+    let t69 = t68 + t68;
+    let t70 = qd5 * qd5;
+    let t71 = t70 + t70;
+    let t72 = q5 * qd4 + q4 * qd5;
+    let t73 = q6 * qd3 + q3 * qd6;
+    let t74 = (t15 + t15 + (t18 + t18) - (t16 + t16 + (t17 + t17)))
+        * (1.5014270338455107 * (q6 * qd4 + q4 * qd6 - (q5 * qd3 + q3 * qd5))
+            + -1.3212557897840493 * (q6 * qd5 + q5 * qd6 + (q4 * qd3 + q3 * qd4)));
+    let t75 = qd11 * qd13;
+    let t76 = qd12 * qd10;
+    let t77 = 2.0 * (q13 * qd11 + q11 * qd13 + (q12 * qd10 + q10 * qd12))
+        * (0.7507135169227553 * (t57 + t61 - (t59 + t63))
+            + -1.3212557897840493 * (t72 - t73));
+    let t78 = t65 + t69;
+    let t79 = qd4 * qd5;
+    let t80 = t79 + t79;
+    let t81 = qd6 * qd3;
+    let t82 = t81 + t81;
+    let t83 = t80 - t82;
+    let t84 = 2.0 * (q13 * qd12 + q12 * qd13 - (q11 * qd10 + q10 * qd11))
+        * (1.5014270338455107 * (t72 + t73)
+            + -0.6606278948920247 * (t57 + t63 - (t59 + t61)));
+    let t85 = qd4 * (1.570796325 * t7);
+    let t86 = qd3 * (1.570796325 * t8);
+    gamma[0] = -(-7.4 * t11 - -12.2 * t14);
+    gamma[1] = -(-3.7 * t27 - -6.1 * t36);
+    gamma[2] = -(-7.4 * t41 - -12.2 * t46);
+    gamma[3] = -(12.2 * t14 - 4.0 * t51);
+    gamma[4] = -(6.1 * t36 - 4.0 * (t53 - t55));
+    gamma[5] = -(12.2 * t46 - 2.0 * (t65 + t67 - (t69 + t71)));
+    gamma[6] = -(t74
+        + (1.5014270338455107 * (q4 * q6 - q3 * q5)
+            + -1.3212557897840493 * (q5 * q6 + q3 * q4)) * (t29 + t35 - (t31 + t33))
+        + (t74
+            + (q10 * q10 + q13 * q13 - (q11 * q11 + q12 * q12))
+                * (1.5014270338455107 * (t48 - t50) + -1.3212557897840493 * (t53 + t55)))
+        + (t77
+            + (0.7507135169227553 * (t0 + t1 - (t2 + t3))
+                + -1.3212557897840493 * (t4 - t5)) * (2.0 * (t75 + t75 + (t76 + t76)))
+            + (t77
+                + 2.0 * (q11 * q13 + q10 * q12)
+                    * (0.7507135169227553 * (t78 - (t67 + t71))
+                        + -1.3212557897840493 * t83))
+            + (t84
+                + (1.5014270338455107 * (t4 + t5)
+                    + -0.6606278948920247 * (t0 + t2 - (t1 + t3))) * (2.0 * (t43 - t45))
+                + (t84
+                    + 2.0 * (q12 * q13 - q10 * q11)
+                        * (1.5014270338455107 * (t80 + t82)
+                            + -0.6606278948920247 * (t65 + t71 - (t67 + t69)))))));
     gamma[7] = 0.0;
     gamma[8] = 0.0;
     gamma[9] = 0.0;
-    gamma[10] = -(qd5 * t91 + (qd4 * t90 - qd3 * t89) - qd6 * t92);
-    gamma[11] = -(qd6 * t91 + (qd5 * t92 + (qd3 * t90 + qd4 * t89)));
-    gamma[12] = -(qd20 * t96 + (qd17 * t93 - qd18 * t94 - qd19 * t95));
-    gamma[13] = -(qd20 * t93 + (qd18 * t95 - qd17 * t96 - qd19 * t94));
-    gamma[14] = -(-(qd17 * t95) - qd18 * t96 - qd19 * t93 - qd20 * t94);
-    gamma[15] = -(t104 + (t100 - t98 - t102));
-    gamma[16] = -(qd17 * t99 + qd18 * t97 - qd19 * t103 - qd20 * t101);
-    gamma[17] = -(t105
-        + (q3 * (2.467401094633506 * t10) - q4 * (2.467401094633506 * t11) + t105));
-    gamma[18] = -(qd6 * t89 + (qd5 * t90 + (qd3 * t92 + qd4 * t91)));
-    gamma[19] = -(qd13 * (2.0 * qd13)
-        + (qd12 * (2.0 * qd12) + (qd10 * (2.0 * qd10) + qd11 * (2.0 * qd11))));
-    gamma[20] = -(t104 + (t102 + (t98 + t100)));
+    gamma[10] = -(2.0 * t83);
+    gamma[11] = -(2.0 * t51);
+    gamma[12] = 7.4 * t11;
+    gamma[13] = 3.7 * t27;
+    gamma[14] = 7.4 * t41;
+    gamma[15] = t27;
+    gamma[16] = 2.0 * (t38 - t40);
+    gamma[17] = -(-(t85 + q4 * (2.467401094633506 * t8)) - t85
+        - (t86 + (t86 - q3 * (2.467401094633506 * t7))));
+    gamma[18] = -(t67 + (t71 + t78));
+    gamma[19] = -(t35 + (t31 + (t29 + t33)));
+    gamma[20] = -(t26 + (t22 + (t20 + t24)));
 }
 
 /// Rescales the unknown Euler parameters of each body so that |p| = 1 (the fixed

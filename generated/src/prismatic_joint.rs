@@ -308,19 +308,25 @@ pub fn velocity_rhs(_q: &[f64; N], _t: f64, nu: &mut [f64; N]) {
 
 /** Acceleration right-hand side γ = −(Φ_q q̇)_q q̇ − 2Φ_qt q̇ − Φ_tt.
 
- 42 operations, 4 shared subexpressions.*/
+ 33 operations, 10 shared subexpressions.*/
 pub fn acceleration_rhs(_q: &[f64; N], qd: &[f64; N], _t: f64, gamma: &mut [f64; N]) {
     let [_qd0, _qd1, qd2, qd3, qd4, qd5] = *qd;
-    let t0 = 2.0 * qd5;
-    let t1 = 2.0 * qd4;
-    let t2 = 2.0 * qd3;
-    let t3 = 2.0 * qd2;
-    gamma[0] = -(qd4 * t2 + (qd3 * t1 - qd2 * t0) - qd5 * t3);
-    gamma[1] = -(-(qd2 * t2) - qd3 * t3 - qd4 * t0 - qd5 * t1);
+    let t0 = qd3 * qd4;
+    let t1 = qd2 * qd5;
+    let t2 = qd4 * qd5;
+    let t3 = qd3 * qd2;
+    let t4 = qd3 * qd5;
+    let t5 = qd4 * qd2;
+    let t6 = qd5 * qd5;
+    let t7 = qd4 * qd4;
+    let t8 = qd2 * qd2;
+    let t9 = qd3 * qd3;
+    gamma[0] = -(2.0 * (t0 + t0 - (t1 + t1)));
+    gamma[1] = 2.0 * (t2 + t2 + (t3 + t3));
     gamma[2] = 0.0;
     gamma[3] = 0.0;
-    gamma[4] = -(qd5 * t2 + (qd4 * t3 + (qd2 * t1 + qd3 * t0)));
-    gamma[5] = -(qd5 * t0 + (qd4 * t1 + (qd2 * t3 + qd3 * t2)));
+    gamma[4] = -(2.0 * (t4 + t4 + (t5 + t5)));
+    gamma[5] = -(t6 + t6 + (t7 + t7 + (t8 + t8 + (t9 + t9))));
 }
 
 /// Rescales the unknown Euler parameters of each body so that |p| = 1 (the fixed

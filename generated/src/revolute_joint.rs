@@ -573,35 +573,39 @@ pub fn velocity_rhs(q: &[f64; N], t: f64, nu: &mut [f64; N]) {
 
 /** Acceleration right-hand side γ = −(Φ_q q̇)_q q̇ − 2Φ_qt q̇ − Φ_tt.
 
- 75 operations, 16 shared subexpressions.*/
+ 59 operations, 21 shared subexpressions.*/
 pub fn acceleration_rhs(q: &[f64; N], qd: &[f64; N], t: f64, gamma: &mut [f64; N]) {
     let [_q0, _q1, _q2, q3, q4, _q5, _q6] = *q;
     let [_qd0, _qd1, _qd2, qd3, qd4, qd5, qd6] = *qd;
     let t0 = f64::from_bits(4602890488355133325) * t;
     let t1 = runtime::math::sin(t0);
     let t2 = runtime::math::cos(t0);
-    let t3 = 2.0 * qd6;
-    let t4 = qd3 * t3;
-    let t5 = 2.0 * qd5;
-    let t6 = -(qd4 * t5);
-    let t7 = 2.0 * qd4;
-    let t8 = -(qd5 * t7);
-    let t9 = 2.0 * qd3;
-    let t10 = qd6 * t9;
-    let t11 = qd3 * t9;
-    let t12 = qd4 * t7;
-    let t13 = qd5 * t5;
-    let t14 = qd6 * t3;
-    let t15 = -(qd3 * (f64::from_bits(4602890488355133325) * t2))
-        - qd4 * (f64::from_bits(4602890488355133325) * t1);
-    gamma[0] = -(t10 + (t8 + (t4 + t6)));
-    gamma[1] = -(t14 + (t12 - t11 - t13));
-    gamma[2] = -(-(qd3 * t7) - qd4 * t9 - qd5 * t3 - qd6 * t5);
-    gamma[3] = -(t8 + (t6 - t4) - t10);
-    gamma[4] = -(qd5 * t9 + (qd3 * t5 - qd4 * t3) - qd6 * t7);
-    gamma[5] = -(t15
-        + (q3 * (0.27405224999999994 * t1) - q4 * (0.27405224999999994 * t2) + t15));
-    gamma[6] = -(t14 + (t13 + (t11 + t12)));
+    let t3 = qd4 * qd5;
+    let t4 = t3 + t3;
+    let t5 = qd3 * qd6;
+    let t6 = t5 + t5;
+    let t7 = qd3 * qd3;
+    let t8 = t7 + t7;
+    let t9 = qd5 * qd5;
+    let t10 = t9 + t9;
+    let t11 = qd4 * qd4;
+    let t12 = t11 + t11;
+    let t13 = qd6 * qd6;
+    let t14 = t13 + t13;
+    let t15 = qd5 * qd6;
+    let t16 = qd4 * qd3;
+    let t17 = qd4 * qd6;
+    let t18 = qd5 * qd3;
+    let t19 = qd4 * (f64::from_bits(4602890488355133325) * t1);
+    let t20 = qd3 * (f64::from_bits(4602890488355133325) * t2);
+    gamma[0] = 2.0 * (t4 - t6);
+    gamma[1] = t8 + t10 - (t12 + t14);
+    gamma[2] = 2.0 * (t15 + t15 + (t16 + t16));
+    gamma[3] = 2.0 * (t4 + t6);
+    gamma[4] = 2.0 * (t17 + t17 - (t18 + t18));
+    gamma[5] = -(-(t19 + q4 * (0.27405224999999994 * t2)) - t19
+        - (t20 + (t20 - q3 * (0.27405224999999994 * t1))));
+    gamma[6] = -(t14 + (t10 + (t8 + t12)));
 }
 
 /// Rescales the unknown Euler parameters of each body so that |p| = 1 (the fixed

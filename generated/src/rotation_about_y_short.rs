@@ -197,18 +197,20 @@ pub fn velocity_rhs(q: &[f64; N], t: f64, nu: &mut [f64; N]) {
 
 /** Acceleration right-hand side γ = −(Φ_q q̇)_q q̇ − 2Φ_qt q̇ − Φ_tt.
 
- 25 operations, 4 shared subexpressions.*/
+ 27 operations, 7 shared subexpressions.*/
 pub fn acceleration_rhs(q: &[f64; N], qd: &[f64; N], t: f64, gamma: &mut [f64; N]) {
     let [q0, q1] = *q;
     let [qd0, qd1] = *qd;
     let t0 = f64::from_bits(4602890488355133325) * t;
     let t1 = runtime::math::sin(t0);
     let t2 = runtime::math::cos(t0);
-    let t3 = -(f64::from_bits(4602890488355133325) * t2 * qd0)
-        - f64::from_bits(4602890488355133325) * t1 * qd1;
-    gamma[0] = -(t3
-        + (q0 * (0.27405224999999994 * t1) - q1 * (0.27405224999999994 * t2) + t3));
-    gamma[1] = -(qd0 * (2.0 * qd0) + qd1 * (2.0 * qd1));
+    let t3 = f64::from_bits(4602890488355133325) * t1 * qd1;
+    let t4 = f64::from_bits(4602890488355133325) * t2 * qd0;
+    let t5 = qd0 * qd0;
+    let t6 = qd1 * qd1;
+    gamma[0] = -(-(t3 + q1 * (0.27405224999999994 * t2)) - t3
+        - (t4 + (t4 - q0 * (0.27405224999999994 * t1))));
+    gamma[1] = -(t5 + t5 + (t6 + t6));
 }
 
 /// Rescales the unknown Euler parameters of each body so that |p| = 1 (the fixed

@@ -1526,7 +1526,7 @@ pub fn velocity_rhs(q: &[f64; N], t: f64, nu: &mut [f64; N]) {
 
 /** Acceleration right-hand side γ = −(Φ_q q̇)_q q̇ − 2Φ_qt q̇ − Φ_tt.
 
- 230 operations, 23 shared subexpressions.*/
+ 160 operations, 54 shared subexpressions.*/
 pub fn acceleration_rhs(q: &[f64; N], qd: &[f64; N], t: f64, gamma: &mut [f64; N]) {
     let [_q0, _q1, _q2, q3, _q4, q5, _q6, _q7, _q8, _q9, _q10, _q11, _q12, _q13, _q14,
     _q15, _q16, _q17, _q18, _q19] = *q;
@@ -1535,56 +1535,82 @@ pub fn acceleration_rhs(q: &[f64; N], qd: &[f64; N], t: f64, gamma: &mut [f64; N
     let t0 = 73.3 * t;
     let t1 = runtime::math::sin(t0);
     let t2 = runtime::math::cos(t0);
-    let t3 = -(-0.13134 * qd6) - 0.2 * qd5;
-    let t4 = -(0.2 * qd6) - 0.13134 * qd5;
-    let t5 = -(0.13134 * qd4) - 0.2 * qd3;
-    let t6 = -(-0.2 * qd4) - 0.13134 * qd3;
-    let t7 = 0.9624 * qd12;
-    let t8 = 0.9624 * qd10;
-    let t9 = 0.03714 * qd19 + (0.2 * qd18 + 0.095 * qd16);
-    let t10 = 0.2 * qd19 + (-0.03714 * qd18 + 0.095 * qd17);
-    let t11 = -0.095 * qd18 + (-0.03714 * qd17 + 0.2 * qd16);
-    let t12 = 0.9624 * qd11;
-    let t13 = 0.095 * qd19 + (-0.2 * qd17 + -0.03714 * qd16);
-    let t14 = 2.0 * qd6;
-    let t15 = 2.0 * qd5;
-    let t16 = 2.0 * qd4;
-    let t17 = 2.0 * qd3;
-    let t18 = 2.0 * qd19;
-    let t19 = 2.0 * qd18;
-    let t20 = 2.0 * qd17;
-    let t21 = 2.0 * qd16;
-    let t22 = -(qd3 * (73.3 * t2)) - qd5 * (73.3 * t1);
-    gamma[0] = -(qd6 * (-(0.2 * qd4) - -0.13134 * qd3)
-        + (qd5 * t5 + (qd3 * t3 + qd4 * t4)));
-    gamma[1] = -(qd6 * t3
-        + (qd5 * t4 + (qd3 * t6 + qd4 * (-(-0.13134 * qd4) - -0.2 * qd3))));
-    gamma[2] = -(qd6 * t4
-        + (qd5 * (-(0.13134 * qd6) - -0.2 * qd5) + (qd3 * t5 + qd4 * t6)));
-    gamma[3] = -(qd19 * (-0.095 * qd19 + (0.2 * qd17 + 0.03714 * qd16))
-        + (qd18 * t11 + (qd17 * t10 + (qd16 * t9 + (qd10 * t7 + qd12 * t8)))));
-    gamma[4] = -(qd19 * t9
-        + (qd18 * t10
-            + (qd17 * (0.095 * qd18 + (0.03714 * qd17 + -0.2 * qd16))
-                + (qd16 * t13 + (qd12 * t7 + (qd11 * t12 - qd10 * t8))))));
-    gamma[5] = -(qd19 * t10
-        + (qd18 * (-0.03714 * qd19 + (-0.2 * qd18 + -0.095 * qd16))
-            + (qd17 * t13 + (qd16 * t11 + (-(qd10 * t12) - t8 * qd11)))));
+    let t3 = qd4 * qd5;
+    let t4 = qd3 * qd6;
+    let t5 = t3 + t3 - (t4 + t4);
+    let t6 = qd4 * qd6;
+    let t7 = qd5 * qd3;
+    let t8 = qd3 * qd3;
+    let t9 = t8 + t8;
+    let t10 = qd5 * qd5;
+    let t11 = t10 + t10;
+    let t12 = qd4 * qd4;
+    let t13 = t12 + t12;
+    let t14 = qd6 * qd6;
+    let t15 = t14 + t14;
+    let t16 = qd5 * qd6;
+    let t17 = t16 + t16;
+    let t18 = qd4 * qd3;
+    let t19 = t18 + t18;
+    let t20 = t17 + t19;
+    let t21 = qd17 * qd19;
+    let t22 = t21 + t21;
+    let t23 = qd16 * qd18;
+    let t24 = t23 + t23;
+    let t25 = t22 + t24;
+    let t26 = qd16 * qd16;
+    let t27 = t26 + t26;
+    let t28 = qd17 * qd17;
+    let t29 = t28 + t28;
+    let t30 = t27 + t29;
+    let t31 = qd18 * qd18;
+    let t32 = t31 + t31;
+    let t33 = qd19 * qd19;
+    let t34 = t33 + t33;
+    let t35 = qd17 * qd18;
+    let t36 = t35 + t35;
+    let t37 = qd19 * qd16;
+    let t38 = t37 + t37;
+    let t39 = t36 - t38;
+    let t40 = qd10 * qd12;
+    let t41 = qd19 * qd18;
+    let t42 = t41 + t41;
+    let t43 = qd17 * qd16;
+    let t44 = t43 + t43;
+    let t45 = qd10 * qd10;
+    let t46 = t45 + t45;
+    let t47 = qd11 * qd11;
+    let t48 = t47 + t47;
+    let t49 = qd12 * qd12;
+    let t50 = t49 + t49;
+    let t51 = qd10 * qd11;
+    let t52 = qd5 * (73.3 * t1);
+    let t53 = qd3 * (73.3 * t2);
+    gamma[0] = 0.13134 * t5 + 0.2 * (t6 + t6 + (t7 + t7));
+    gamma[1] = 0.06567 * (t9 + t11 - (t13 + t15)) + 0.2 * (t17 - t19);
+    gamma[2] = 0.13134 * t20 + 0.1 * (t9 + t15 - (t11 + t13));
+    gamma[3] = -(0.2 * t25 + (0.0475 * (t30 - (t32 + t34)) + -0.03714 * t39)
+        + 0.9624 * (t40 + t40));
+    gamma[4] = -(0.2 * (t42 - t44)
+        + (0.095 * (t36 + t38) + -0.01857 * (t27 + t32 - (t29 + t34)))
+        - 0.4812 * (t46 - (t48 + t50)));
+    gamma[5] = -(0.1 * (t27 + t34 - (t29 + t32))
+        + (0.095 * (t22 - t24) + -0.03714 * (t42 + t44)) - 0.9624 * (t51 + t51));
     gamma[6] = 0.0;
     gamma[7] = 0.0;
     gamma[8] = 0.0;
-    gamma[9] = -(qd5 * t16 + (qd4 * t15 - qd3 * t14) - qd6 * t17);
-    gamma[10] = -(qd6 * t15 + (qd5 * t14 + (qd3 * t16 + qd4 * t17)));
+    gamma[9] = -(2.0 * t5);
+    gamma[10] = -(2.0 * t20);
     gamma[11] = 0.0;
     gamma[12] = 0.0;
     gamma[13] = 0.0;
-    gamma[14] = -(qd19 * t21 + (qd16 * t18 - qd17 * t19 - qd18 * t20));
-    gamma[15] = -(-(qd16 * t19) - qd17 * t18 - qd18 * t21 - qd19 * t20);
-    gamma[16] = -(t22
-        + (q3 * (5372.889999999999 * t1) - q5 * (5372.889999999999 * t2) + t22));
-    gamma[17] = -(qd6 * t14 + (qd5 * t15 + (qd3 * t17 + qd4 * t16)));
-    gamma[18] = -(qd12 * (2.0 * qd12) + (qd10 * (2.0 * qd10) + qd11 * (2.0 * qd11)));
-    gamma[19] = -(qd19 * t18 + (qd18 * t19 + (qd16 * t21 + qd17 * t20)));
+    gamma[14] = 2.0 * t39;
+    gamma[15] = 2.0 * t25;
+    gamma[16] = -(-(t52 + q5 * (5372.889999999999 * t2)) - t52
+        - (t53 + (t53 - q3 * (5372.889999999999 * t1))));
+    gamma[17] = -(t15 + (t11 + (t9 + t13)));
+    gamma[18] = -(t50 + (t46 + t48));
+    gamma[19] = -(t34 + (t30 + t32));
 }
 
 /// Rescales the unknown Euler parameters of each body so that |p| = 1 (the fixed

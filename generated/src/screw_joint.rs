@@ -517,7 +517,7 @@ pub fn velocity_rhs(q: &[f64; N], t: f64, nu: &mut [f64; N]) {
 
 /** Acceleration right-hand side γ = −(Φ_q q̇)_q q̇ − 2Φ_qt q̇ − Φ_tt.
 
- 146 operations, 17 shared subexpressions.*/
+ 117 operations, 30 shared subexpressions.*/
 pub fn acceleration_rhs(q: &[f64; N], qd: &[f64; N], t: f64, gamma: &mut [f64; N]) {
     let [_q0, q1, _q2, q3, q4, q5, q6] = *q;
     let [_qd0, qd1, _qd2, qd3, qd4, qd5, qd6] = *qd;
@@ -527,36 +527,41 @@ pub fn acceleration_rhs(q: &[f64; N], qd: &[f64; N], t: f64, gamma: &mut [f64; N
     let t3 = f64::from_bits(4602890488355133325) * t;
     let t4 = runtime::math::sin(t3);
     let t5 = runtime::math::cos(t3);
-    let t6 = 2.0 * t2;
-    let t7 = 2.0 * t1;
-    let t8 = 2.0 * qd6;
-    let t9 = 2.0 * qd5;
-    let t10 = 2.0 * qd4;
-    let t11 = 2.0 * qd3;
-    let t12 = -(t6 * (q6 + q6)) - 2.0 * q4 * t7;
-    let t13 = 2.0 * q3 * t7 - t6 * (q5 + q5);
-    let t14 = t6 * (q4 + q4) - 2.0 * q6 * t7;
-    let t15 = t6 * (q3 + q3) + 2.0 * q5 * t7;
-    let t16 = -(qd3 * (f64::from_bits(4602890488355133325) * t5))
-        - qd5 * (f64::from_bits(4602890488355133325) * t4);
-    gamma[0] = -(qd5 * t10 + (qd4 * t9 - qd3 * t8) - qd6 * t11);
-    gamma[1] = -(-(qd3 * t10) - qd4 * t11 - qd5 * t8 - qd6 * t9);
+    let t6 = qd4 * qd5;
+    let t7 = qd3 * qd6;
+    let t8 = qd5 * qd6;
+    let t9 = qd4 * qd3;
+    let t10 = q3 * qd3;
+    let t11 = q4 * qd4;
+    let t12 = q5 * qd5;
+    let t13 = q6 * qd6;
+    let t14 = 2.0 * qd1;
+    let t15 = t2 * t14;
+    let t16 = t1 * t14;
+    let t17 = qd3 * qd3;
+    let t18 = qd4 * qd4;
+    let t19 = t17 + t17 + (t18 + t18);
+    let t20 = qd5 * qd5;
+    let t21 = t20 + t20;
+    let t22 = qd6 * qd6;
+    let t23 = t22 + t22;
+    let t24 = (t10 + t10 + (t11 + t11) - (t12 + t12 + (t13 + t13))) * t15;
+    let t25 = qd4 * qd6;
+    let t26 = qd5 * qd3;
+    let t27 = 2.0 * (q6 * qd4 + q4 * qd6 - (q5 * qd3 + q3 * qd5)) * t16;
+    let t28 = qd5 * (f64::from_bits(4602890488355133325) * t4);
+    let t29 = qd3 * (f64::from_bits(4602890488355133325) * t5);
+    gamma[0] = -(2.0 * (t6 + t6 - (t7 + t7)));
+    gamma[1] = 2.0 * (t8 + t8 + (t9 + t9));
     gamma[2] = 0.0;
     gamma[3] = 0.0;
-    gamma[4] = -(qd6 * (t6 * qd4 + qd1 * t12 - t7 * qd6)
-        + (qd5 * (qd1 * t13 - t6 * qd3 - t7 * qd5)
-            + (qd4 * (t6 * qd6 + (t7 * qd4 + qd1 * t14))
-                + (qd1
-                    * (qd6 * t12
-                        + (qd5 * t13
-                            + (qd4 * t14
-                                + (qd1
-                                    * (-((q3 * q3 + q4 * q4 - (q5 * q5 + q6 * q6)) * (4.0 * t1))
-                                        - 2.0 * (q4 * q6 - q3 * q5) * (4.0 * t2)) + qd3 * t15))))
-                    + qd3 * (qd1 * t15 + t7 * qd3 - t6 * qd5)))));
-    gamma[5] = -(t16
-        + (q3 * (0.27405224999999994 * t4) - q5 * (0.27405224999999994 * t5) + t16));
-    gamma[6] = -(qd6 * t8 + (qd5 * t9 + (qd3 * t11 + qd4 * t10)));
+    gamma[4] = -(t24 + t1 * (t19 - (t21 + t23))
+        + (t24 - (q3 * q3 + q4 * q4 - (q5 * q5 + q6 * q6)) * (t14 * t16))
+        + (t2 * (2.0 * (t25 + t25 - (t26 + t26))) - t27
+            - (t27 + 2.0 * (q4 * q6 - q3 * q5) * (t14 * t15))));
+    gamma[5] = -(-(t28 + q5 * (0.27405224999999994 * t5)) - t28
+        - (t29 + (t29 - q3 * (0.27405224999999994 * t4))));
+    gamma[6] = -(t23 + (t19 + t21));
 }
 
 /// Rescales the unknown Euler parameters of each body so that |p| = 1 (the fixed

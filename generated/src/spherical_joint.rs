@@ -318,24 +318,25 @@ pub fn velocity_rhs(q: &[f64; N], t: f64, nu: &mut [f64; N]) {
 
 /** Acceleration right-hand side γ = −(Φ_q q̇)_q q̇ − 2Φ_qt q̇ − Φ_tt.
 
- 32 operations, 8 shared subexpressions.*/
+ 33 operations, 10 shared subexpressions.*/
 pub fn acceleration_rhs(q: &[f64; N], qd: &[f64; N], t: f64, gamma: &mut [f64; N]) {
     let [_q0, _q1, _q2, q3, q4] = *q;
     let [_qd0, _qd1, _qd2, qd3, qd4] = *qd;
     let t0 = f64::from_bits(4602890488355133325) * t;
     let t1 = runtime::math::sin(t0);
     let t2 = runtime::math::cos(t0);
-    let t3 = 2.0 * qd3;
-    let t4 = qd3 * t3;
-    let t5 = 2.0 * qd4;
-    let t6 = qd4 * t5;
-    let t7 = -(qd3 * (f64::from_bits(4602890488355133325) * t2))
-        - qd4 * (f64::from_bits(4602890488355133325) * t1);
-    gamma[0] = -(t6 - t4);
+    let t3 = qd3 * qd3;
+    let t4 = t3 + t3;
+    let t5 = qd4 * qd4;
+    let t6 = t5 + t5;
+    let t7 = qd3 * qd4;
+    let t8 = qd4 * (f64::from_bits(4602890488355133325) * t1);
+    let t9 = qd3 * (f64::from_bits(4602890488355133325) * t2);
+    gamma[0] = t4 - t6;
     gamma[1] = 0.0;
-    gamma[2] = -(qd3 * t5 + qd4 * t3);
-    gamma[3] = -(t7
-        + (q3 * (0.27405224999999994 * t1) - q4 * (0.27405224999999994 * t2) + t7));
+    gamma[2] = -(2.0 * (t7 + t7));
+    gamma[3] = -(-(t8 + q4 * (0.27405224999999994 * t2)) - t8
+        - (t9 + (t9 - q3 * (0.27405224999999994 * t1))));
     gamma[4] = -(t4 + t6);
 }
 

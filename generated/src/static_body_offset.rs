@@ -119,10 +119,11 @@ pub fn velocity_rhs(_q: &[f64; N], _t: f64, nu: &mut [f64; N]) {
 
 /** Acceleration right-hand side γ = −(Φ_q q̇)_q q̇ − 2Φ_qt q̇ − Φ_tt.
 
- 3 operations, 0 shared subexpressions.*/
+ 3 operations, 1 shared subexpressions.*/
 pub fn acceleration_rhs(_q: &[f64; N], qd: &[f64; N], _t: f64, gamma: &mut [f64; N]) {
     let [qd0] = *qd;
-    gamma[0] = -(qd0 * (2.0 * qd0));
+    let t0 = qd0 * qd0;
+    gamma[0] = -(t0 + t0);
 }
 
 /// Rescales the unknown Euler parameters of each body so that |p| = 1 (the fixed

@@ -425,28 +425,31 @@ pub fn velocity_rhs(q: &[f64; N], t: f64, nu: &mut [f64; N]) {
 
 /** Acceleration right-hand side γ = −(Φ_q q̇)_q q̇ − 2Φ_qt q̇ − Φ_tt.
 
- 49 operations, 10 shared subexpressions.*/
+ 43 operations, 14 shared subexpressions.*/
 pub fn acceleration_rhs(q: &[f64; N], qd: &[f64; N], t: f64, gamma: &mut [f64; N]) {
     let [_q0, _q1, _q2, q3, q4, _q5] = *q;
     let [_qd0, _qd1, _qd2, qd3, qd4, qd5] = *qd;
     let t0 = f64::from_bits(4602890488355133325) * t;
     let t1 = runtime::math::sin(t0);
     let t2 = runtime::math::cos(t0);
-    let t3 = 2.0 * qd5;
-    let t4 = 2.0 * qd4;
-    let t5 = 2.0 * qd3;
-    let t6 = qd3 * t5;
-    let t7 = qd4 * t4;
-    let t8 = qd5 * t3;
-    let t9 = -(qd3 * (f64::from_bits(4602890488355133325) * t2))
-        - qd4 * (f64::from_bits(4602890488355133325) * t1);
-    gamma[0] = -(-(qd4 * t3) - qd5 * t4);
-    gamma[1] = -(t7 - t6 - t8);
-    gamma[2] = -(-(t4 * qd3) - qd4 * t5);
-    gamma[3] = -(t3 * qd3 + qd5 * t5);
-    gamma[4] = -(t9
-        + (q3 * (0.27405224999999994 * t1) - q4 * (0.27405224999999994 * t2) + t9));
-    gamma[5] = -(t8 + (t6 + t7));
+    let t3 = qd4 * qd5;
+    let t4 = qd3 * qd3;
+    let t5 = t4 + t4;
+    let t6 = qd5 * qd5;
+    let t7 = t6 + t6;
+    let t8 = qd4 * qd4;
+    let t9 = t8 + t8;
+    let t10 = qd4 * qd3;
+    let t11 = qd5 * qd3;
+    let t12 = qd4 * (f64::from_bits(4602890488355133325) * t1);
+    let t13 = qd3 * (f64::from_bits(4602890488355133325) * t2);
+    gamma[0] = 2.0 * (t3 + t3);
+    gamma[1] = t5 + t7 - t9;
+    gamma[2] = 2.0 * (t10 + t10);
+    gamma[3] = -(2.0 * (t11 + t11));
+    gamma[4] = -(-(t12 + q4 * (0.27405224999999994 * t2)) - t12
+        - (t13 + (t13 - q3 * (0.27405224999999994 * t1))));
+    gamma[5] = -(t7 + (t5 + t9));
 }
 
 /// Rescales the unknown Euler parameters of each body so that |p| = 1 (the fixed
