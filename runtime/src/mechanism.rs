@@ -33,7 +33,8 @@ pub trait Mechanism<const N: usize> {
     ///
     /// Generated code renormalises Euler parameters here (p ← p / |p|).
     /// The solvers call it once Newton has converged and then evaluate Φ and Φ_q again, so the
-    /// reported residual and the factored Jacobian belong to the projected `q`.
+    /// reported residual and the factored Jacobian belong to the projected `q` (unless it moved
+    /// `q` by a few ulps only, see [`newton::moved_by_round_off`](crate::newton::moved_by_round_off)).
     /// The default does nothing.
     fn normalize(&self, _q: &mut [f64; N]) {}
 

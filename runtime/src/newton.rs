@@ -3,10 +3,10 @@
 //! Each iteration evaluates Φ and Φ_q at q, stops if max |Φ_i| ≤ tolerance, and otherwise
 //! factors Φ_q ([`Factors`]: the mechanism's static pivot orders, else dense LU), solves
 //! Φ_q Δ = −Φ and sets q ← q + Δ.
-//! Once converged, [`Mechanism::normalize`] projects q and, if that moved q, Φ and Φ_q are
-//! evaluated again, so the reported residual and the factored Jacobian left in the caller's
-//! storage belong to the final q (the velocity and acceleration solves reuse that
-//! factorisation).
+//! Once converged, [`Mechanism::normalize`] projects q and, if that moved q by more than
+//! round-off ([`moved_by_round_off`]), Φ and Φ_q are evaluated again, so the reported residual
+//! and the factored Jacobian left in the caller's storage belong to the final q (the velocity
+//! and acceleration solves reuse that factorisation).
 //! If the projection pushed the residual above the tolerance, the iteration simply goes on.
 //! When to stop is decided by [`status`] alone, which is tested on its own.
 
@@ -168,7 +168,8 @@ pub(crate) fn max_abs(x: &[f64]) -> f64 {
 /// `phi`, `jac` and `factors` are scratch storage owned by the caller (so `jac`, the only `N × N`
 /// array, never lives on this function's stack).
 /// On success `q` is the normalised solution, `phi` holds Φ at it, and `jac` and `factors` hold
-/// the factors of Φ_q at it, ready for [`Factors::solve`].
+/// the factors of Φ_q at it, ready for [`Factors::solve`] (when the normalisation moved q by
+/// round-off only, Φ and Φ_q are those of q before that move: see [`moved_by_round_off`]).
 ///
 /// # Errors
 ///
@@ -198,7 +199,7 @@ pub fn solve<M: Mechanism<N>, const N: usize>(
                     let before = *q;
                     mechanism.normalize(q);
                     normalized = true;
-                    if *q != before {
+                    if !moved_by_round_off(&before, q) {
                         continue;
                     }
                 }
@@ -224,6 +225,30 @@ pub fn solve<M: Mechanism<N>, const N: usize>(
         normalized = false;
     }
 }
+
+/// Whether the projection moved every coordinate by at most [`ROUND_OFF_MOVE`] ulps of itself.
+///
+/// Newton converges quadratically, so the normalisation rows are satisfied to about the square
+/// of the last step when it stops, and projecting then typically rescales the Euler parameters
+/// by 1 ± 1e-16: a move of an ulp or two. Φ and Φ_q at the projected q then differ from their
+/// values before the projection by less than the rounding error of evaluating them, and
+/// evaluating them again would only repeat that rounding error.
+#[must_use]
+pub fn moved_by_round_off<const N: usize>(before: &[f64; N], after: &[f64; N]) -> bool {
+    before
+        .iter()
+        .zip(after)
+        .all(|(b, a)| (a - b).abs() <= ROUND_OFF_MOVE * f64::EPSILON * b.abs())
+}
+
+/// A projection that moves each coordinate by at most this many units of its own last place
+/// (f64::EPSILON relative) counts as round-off (see [`moved_by_round_off`]).
+///
+/// Scaling a coordinate by 1 + δ moves it by |δ| of itself plus at most half an ulp of
+/// rounding, so a bound of 4 ε accepts scale factors within about 3.5 ε of 1, that is
+/// normalisation residuals |p|² − 1 below about 7 ε ≈ 1.6e-15, and evaluates again after
+/// anything larger.
+pub const ROUND_OFF_MOVE: f64 = 4.0;
 
 /// [`Factors::factor`] with its error turned into a [`NewtonError`].
 fn factor<M: Mechanism<N>, const N: usize>(

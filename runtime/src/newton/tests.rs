@@ -243,3 +243,35 @@ fn a_projection_that_breaks_the_tolerance_is_followed_by_more_steps() {
     // The last thing done to q was the projection.
     assert_relative_eq!(run.q[0].hypot(run.q[1]), 1.0, epsilon = 1e-15);
 }
+
+#[test]
+fn moves_of_a_few_ulps_are_round_off() {
+    let e = f64::EPSILON;
+    let before = [1.0, 0.0, -2.0, 0.5];
+    assert!(moved_by_round_off(&before, &before));
+    assert!(moved_by_round_off(&before, &[1.0 + 2.0 * e, 0.0, -2.0 * (1.0 + e), 0.5 * (1.0 - e)]));
+    assert!(!moved_by_round_off(&before, &[1.0 + 8.0 * e, 0.0, -2.0, 0.5]));
+    // A zero coordinate may not move at all.
+    assert!(!moved_by_round_off(&before, &[1.0, 1e-300, -2.0, 0.5]));
+    assert!(!moved_by_round_off(&before, &[1.0, 0.0, f64::NAN, 0.5]));
+}
+
+#[test]
+fn a_projection_by_round_off_is_not_followed_by_another_evaluation() {
+    let t = 1.0;
+    let [exact, _, _] = CircleLine::exact(t);
+    // A tight tolerance makes Newton step until the circle row is exact to rounding, so the
+    // projection then moves q by an ulp at most.
+    let options = NewtonOptions { tolerance: 1e-14, ..NewtonOptions::default() };
+    let m = CircleLine::projected();
+    let run = run(&m, [exact[0] + 1e-3, exact[1] - 1e-3], t, &options);
+    let report = run.result.unwrap();
+    assert_eq!(m.normalizations.get(), 1);
+    assert_eq!(m.jacobians.get(), report.iterations + 1);
+    assert!(report.residual <= options.tolerance);
+    let mut phi = [0.0; 2];
+    m.residual(&run.q, t, &mut phi);
+    // The reported residual is that of q before its round-off move; Φ at the final q is as
+    // small, to rounding.
+    assert!(max_abs(&phi) <= options.tolerance, "{phi:?}");
+}
