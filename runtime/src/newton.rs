@@ -235,10 +235,7 @@ pub fn solve<M: Mechanism<N>, const N: usize>(
 /// evaluating them again would only repeat that rounding error.
 #[must_use]
 pub fn moved_by_round_off<const N: usize>(before: &[f64; N], after: &[f64; N]) -> bool {
-    before
-        .iter()
-        .zip(after)
-        .all(|(b, a)| (a - b).abs() <= ROUND_OFF_MOVE * f64::EPSILON * b.abs())
+    before.iter().zip(after).all(|(b, a)| (a - b).abs() <= ROUND_OFF_MOVE * f64::EPSILON * b.abs())
 }
 
 /// A projection that moves each coordinate by at most this many units of its own last place
