@@ -104,6 +104,9 @@ enum Command {
         /// Whole passes timed per engine.
         #[arg(long, default_value_t = 3)]
         repeats: usize,
+        /// Also write each description into this directory.
+        #[arg(long)]
+        write: Option<PathBuf>,
     },
     /// Emit the specialised Rust module of a description.
     Generate {
@@ -190,7 +193,9 @@ pub fn run(args: Vec<OsString>, out: &mut dyn Write, err: &mut dyn Write) -> i32
         Command::ImportYoung { deck, output } => import_young(&deck, output.as_deref(), out, err),
         Command::Generate { file, output } => generate(&file, output.as_deref(), out, err),
         Command::Chart { file, output, repeats } => chart(&file, &output, repeats, out, err),
-        Command::Scaling { bodies, repeats } => scaling(&bodies, repeats, out, err),
+        Command::Scaling { bodies, repeats, write } => {
+            scaling(&bodies, repeats, write.as_deref(), out, err)
+        }
         Command::Compare { file, format } => compare(&file, format, out, err),
         Command::Bench { file, engine, tolerance, repeats, format } => {
             bench(&file, engine, tolerance, repeats, format, out, err)
@@ -715,6 +720,7 @@ fn chart(
 fn scaling(
     sizes: &[usize],
     repeats: usize,
+    dump: Option<&Path>,
     out: &mut dyn Write,
     err: &mut dyn Write,
 ) -> io::Result<i32> {
@@ -730,6 +736,10 @@ fn scaling(
                 Err(d) => return Ok(report_invalid(&d, false, out, err)),
             };
             let mech = &loaded.mechanism;
+            if let Some(dir) = dump {
+                std::fs::create_dir_all(dir)?;
+                std::fs::write(dir.join(format!("{}.toml", mech.name)), &text)?;
+            }
             let start = std::time::Instant::now();
             let sys = match crate::symbolic::Symbolic::build(mech) {
                 Ok(s) => s,
