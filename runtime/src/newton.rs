@@ -8,6 +8,8 @@
 //! and the factored Jacobian left in the caller's storage belong to the final q (the velocity
 //! and acceleration solves reuse that factorisation).
 //! If the projection pushed the residual above the tolerance, the iteration simply goes on.
+//! [`solve_with_chord`] first corrects a start that already meets the tolerance (a good
+//! prediction) by one chord step with factors kept from a nearby configuration.
 //! When to stop is decided by [`status`] alone, which is tested on its own.
 
 #[cfg(test)]
@@ -186,14 +188,114 @@ pub fn solve<M: Mechanism<N>, const N: usize>(
     jac: &mut [[f64; N]; N],
     factors: &mut Factors<N>,
 ) -> Result<NewtonReport, NewtonError> {
-    let mut iterations = 0;
+    iterate(mechanism, q, t, options, Scratch { phi, jac, factors }, None)
+}
+
+/// [`solve`] for a start that is a prediction: when q already meets the tolerance, `jac` and
+/// `factors` hold factors (of Φ_q at a nearby configuration, such as the converged position of
+/// the previous time step) and `max_iterations` allows a step, q is corrected by one chord
+/// step with those factors, q ← q − Φ_q(q_old)⁻¹ Φ(q), instead of being accepted as it is.
+///
+/// A prediction that meets the tolerance may still be off by up to the tolerance over the
+/// smallest singular value of Φ_q, where Newton from a worse start would have landed within
+/// round-off; the chord step closes that gap for an evaluation of Φ alone and a solve, where a
+/// Newton step costs an evaluation of Φ and Φ_q and a factorisation. From an error e it lands
+/// within about ρ e of the solution, ρ = |Φ_q(q_old)⁻¹ (Φ_q(q) − Φ_q(q_old))|.
+/// It ends the iteration only when its estimated remaining error (r₁ / r₀) |Δ| is below
+/// [`CHORD_ROUND_OFF`] ε |q| (r₀ and r₁ the max |Φ_i| before and after it, Δ the step);
+/// otherwise a Newton step follows, with the Φ_q evaluated after the chord step.
+/// A chord step that does not reduce max |Φ_i| is undone, and Newton proceeds from the start.
+/// Either way it counts as one step.
+/// A start that does not meet the tolerance is solved by [`solve`] from the start.
+///
+/// # Errors
+///
+/// As [`solve`].
+pub fn solve_with_chord<M: Mechanism<N>, const N: usize>(
+    mechanism: &M,
+    q: &mut [f64; N],
+    t: f64,
+    options: &NewtonOptions,
+    phi: &mut [f64; N],
+    jac: &mut [[f64; N]; N],
+    factors: &mut Factors<N>,
+) -> Result<NewtonReport, NewtonError> {
+    let mut chord = None;
+    if factors.holds_factors() && options.max_iterations > 0 {
+        mechanism.residual(q, t, phi);
+        let before = max_abs(phi);
+        if before <= options.tolerance {
+            for p in phi.iter_mut() {
+                *p = -*p;
+            }
+            factors.solve(mechanism, jac, phi);
+            if phi.iter().all(|d| d.is_finite()) {
+                chord = Some(Chord { start: *q, before, step: max_abs(phi) });
+                for (qi, d) in q.iter_mut().zip(phi.iter()) {
+                    *qi += d;
+                }
+            }
+        }
+    }
+    iterate(mechanism, q, t, options, Scratch { phi, jac, factors }, chord)
+}
+
+/// The remaining error a chord step may leave and still end the iteration, in units of
+/// f64::EPSILON times max |q_k| (see [`solve_with_chord`]).
+///
+/// 32 ε ≈ 7e-15 relative: the level of the rounding errors of the Newton step itself, so that
+/// the answer agrees with full Newton's to round-off.
+pub const CHORD_ROUND_OFF: f64 = 32.0;
+
+/// The caller's storage for one solve.
+struct Scratch<'a, const N: usize> {
+    phi: &'a mut [f64; N],
+    jac: &'a mut [[f64; N]; N],
+    factors: &'a mut Factors<N>,
+}
+
+/// A chord step taken, awaiting its verdict at the first evaluation after it.
+struct Chord<const N: usize> {
+    /// Where it started.
+    start: [f64; N],
+    /// max |Φ_i| at the start.
+    before: f64,
+    /// max |Δ_k| of the step.
+    step: f64,
+}
+
+/// Newton's iteration, after a chord step when `chord` is set.
+fn iterate<M: Mechanism<N>, const N: usize>(
+    mechanism: &M,
+    q: &mut [f64; N],
+    t: f64,
+    options: &NewtonOptions,
+    scratch: Scratch<'_, N>,
+    mut chord: Option<Chord<N>>,
+) -> Result<NewtonReport, NewtonError> {
+    let Scratch { phi, jac, factors } = scratch;
+    let mut iterations = u32::from(chord.is_some());
     // Whether q was just projected by `normalize`; a second projection in a row is skipped so
     // that a projection that keeps moving the last bits cannot loop forever.
     let mut normalized = false;
     loop {
         factors.evaluate(mechanism, q, t, phi, jac);
         let residual = max_abs(phi);
-        match status(residual, iterations, options) {
+        let mut verdict = status(residual, iterations, options);
+        if let Some(c) = chord.take() {
+            if residual.is_nan() || residual > c.before {
+                *q = c.start;
+                continue;
+            }
+            let scale = CHORD_ROUND_OFF * f64::EPSILON * max_abs(q);
+            if verdict == Status::Converged
+                && residual * c.step > c.before * scale
+                && iterations < options.max_iterations
+            {
+                verdict = Status::Continue;
+            }
+        }
+        match verdict {
             Status::Converged => {
                 if !normalized {
                     let before = *q;

@@ -275,3 +275,74 @@ fn a_projection_by_round_off_is_not_followed_by_another_evaluation() {
     // small, to rounding.
     assert!(max_abs(&phi) <= options.tolerance, "{phi:?}");
 }
+
+/// Converges at `t_old` from its exact solution (leaving the factors of Φ_q there in the run's
+/// storage), then solves at `t` from `start` with a chord step first.
+fn chord_run(m: &CircleLine, t_old: f64, t: f64, start: [f64; 2], options: &NewtonOptions) -> Run {
+    let mut run = run(m, CircleLine::exact(t_old)[0], t_old, options);
+    run.result.unwrap();
+    run.q = start;
+    m.jacobians.set(0);
+    run.result =
+        solve_with_chord(m, &mut run.q, t, options, &mut run.phi, &mut run.jac, &mut run.factors);
+    run
+}
+
+#[test]
+fn a_chord_step_corrects_only_starts_that_meet_the_tolerance() {
+    let options = NewtonOptions { tolerance: 1e-8, ..NewtonOptions::default() };
+    let (t_old, t) = (1.0, 1.01);
+    let exact = CircleLine::exact(t)[0];
+    // 1e-7 off, the start does not meet the tolerance: plain Newton, Φ_q evaluated at every
+    // step and at the end.
+    let m = CircleLine::default();
+    let run = chord_run(&m, t_old, t, [exact[0] + 1e-7, exact[1] - 1e-7], &options);
+    let report = run.result.unwrap();
+    assert_eq!(m.jacobians.get(), report.iterations + 1);
+    // An exact start is corrected by one chord step (which does no harm) ...
+    let run = chord_run(&CircleLine::default(), t_old, t, exact, &options);
+    assert_eq!(run.result.unwrap().iterations, 1);
+    assert_eq!(run.q, exact);
+    // ... but not when no step is allowed.
+    let none = NewtonOptions { max_iterations: 0, ..options };
+    let run = chord_run(&CircleLine::default(), t_old, t, exact, &none);
+    assert_eq!(run.result.unwrap().iterations, 0);
+}
+
+#[test]
+fn a_chord_step_that_does_not_reduce_the_residual_is_undone() {
+    // Factors from the lower half of the circle (t = −0.5, y < 0) point the chord step the
+    // wrong way at t = 0.5: from 1e-4 above the solution, where the circle row is off by about
+    // 1e-4 (within the tolerance 1e-3), it moves y up by as much again. The start is then
+    // accepted as plain Newton accepts it, after the one (undone) step.
+    let options = NewtonOptions { tolerance: 1e-3, ..NewtonOptions::default() };
+    let exact = CircleLine::exact(0.5)[0];
+    let start = [exact[0], exact[1] + 1e-4];
+    let chord = chord_run(&CircleLine::default(), -0.5, 0.5, start, &options);
+    let plain = run(&CircleLine::default(), start, 0.5, &options);
+    let (c, p) = (chord.result.unwrap(), plain.result.unwrap());
+    assert_eq!((c.iterations, p.iterations), (1, 0));
+    assert_eq!(chord.q, start);
+    assert_eq!(chord.q, plain.q);
+}
+
+#[test]
+fn a_chord_step_ends_the_iteration_only_when_it_leaves_round_off() {
+    let (t_old, t) = (1.0, 1.01);
+    let exact = CircleLine::exact(t)[0];
+    let options = NewtonOptions { tolerance: 1e-8, ..NewtonOptions::default() };
+    // The chord step contracts the error by about |ΔΦ_q| ≈ 0.01 per step here. From 1e-13 off
+    // it leaves about 1e-15 < 32 ε: done, with Φ_q evaluated and factored once.
+    let m = CircleLine::default();
+    let run = chord_run(&m, t_old, t, [exact[0] + 1e-13, exact[1] - 1e-13], &options);
+    assert_eq!(run.result.unwrap().iterations, 1);
+    assert_eq!(m.jacobians.get(), 1);
+    // From 1e-9 off it leaves about 1e-11: within the tolerance, but not round-off, so a Newton
+    // step follows.
+    let m = CircleLine::default();
+    let run = chord_run(&m, t_old, t, [exact[0] + 1e-9, exact[1] - 1e-9], &options);
+    assert_eq!(run.result.unwrap().iterations, 2);
+    assert_eq!(m.jacobians.get(), 2);
+    assert_relative_eq!(run.q[0], exact[0], epsilon = 1e-15);
+    assert_relative_eq!(run.q[1], exact[1], epsilon = 1e-15);
+}

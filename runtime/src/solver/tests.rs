@@ -61,6 +61,74 @@ fn predictor_saves_newton_steps() {
     assert!(with + 40 <= without, "with {with}, without {without}");
 }
 
+/// Steps the circle-line system at the times `times` with the predictor on and Newton allowed no
+/// step at all, so a position succeeds only where the predictor alone meets the tolerance;
+/// returns the indices of the times where it did not.
+fn misses_without_newton(tolerance: f64, times: &[f64]) -> std::vec::Vec<usize> {
+    let mut solver = Solver::new(CircleLine::default(), CircleLine::exact(times[0])[0]);
+    solver.set_predictor(true);
+    let mut misses = vec![];
+    for (k, &t) in times.iter().enumerate() {
+        solver.set_options(NewtonOptions {
+            tolerance,
+            max_iterations: 0,
+            ..NewtonOptions::DEFAULT
+        });
+        if solver.position(t).is_err() {
+            misses.push(k);
+            // Converge properly, so the next step starts from the solution again.
+            solver.set_options(NewtonOptions { tolerance: 1e-15, ..NewtonOptions::DEFAULT });
+            solver.position(t).unwrap();
+        }
+        solver.velocity().unwrap();
+        solver.acceleration().unwrap();
+    }
+    misses
+}
+
+#[test]
+fn predictor_order_grows_with_the_accelerations_solved() {
+    // With h = 0.01 and derivatives of order 1, the residual at the predictor is about 8e-8
+    // with q, q̇ and q̈ alone (error O(h³)), 2.5e-9 with the line through two accelerations
+    // (O(h⁴)) and 5e-12 with the parabola through three (O(h⁵): 1.6e-13 at h = 0.005).
+    let times: std::vec::Vec<f64> = (0..40).map(|k| 0.5 + 0.01 * f64::from(k)).collect();
+    // Below the parabola's error, Newton is needed at every step after the start.
+    assert_eq!(misses_without_newton(1e-12, &times).len(), times.len() - 1);
+    // Above it, only at step 1 (one acceleration behind it) and step 2 (two), and at a few
+    // steps where the errors left by uncorrected predictions have added up.
+    let misses = misses_without_newton(1e-10, &times);
+    assert_eq!(misses[..2], [1, 2]);
+    assert!(misses.len() <= 6, "{misses:?}");
+    // Above the line's error, step 2 is met too.
+    let misses = misses_without_newton(1e-8, &times);
+    assert_eq!(misses[0], 1);
+    assert!(misses.len() <= 5 && !misses.contains(&2), "{misses:?}");
+}
+
+#[test]
+fn predictor_handles_uneven_and_repeated_times() {
+    // Alternating steps of 0.01 and 0.02: the divided differences take the spacing into
+    // account, so the predictor alone still meets 1e-8 after the first two steps (its error is
+    // about 2e-10 after a step of 0.02).
+    let mut times: std::vec::Vec<f64> = vec![0.5];
+    for k in 0..30 {
+        let h = if k % 2 == 0 { 0.01 } else { 0.02 };
+        times.push(times[k] + h);
+    }
+    assert_eq!(misses_without_newton(1e-8, &times), [1, 2]);
+    // A repeated time has no usable spacing behind it; the predictor then drops the history
+    // terms rather than dividing by zero.
+    let repeated = [0.5, 0.51, 0.52, 0.52, 0.53, 0.54];
+    let mut solver = Solver::new(CircleLine::default(), CircleLine::exact(0.5)[0]);
+    solver.set_predictor(true);
+    for t in repeated {
+        solver.position(t).unwrap();
+        solver.velocity().unwrap();
+        solver.acceleration().unwrap();
+        assert!(solver.q().iter().all(|x| x.is_finite()));
+    }
+}
+
 #[test]
 fn predictor_without_solved_velocities_starts_from_the_last_q() {
     let mut plain = Solver::new(CircleLine::default(), [0.9, 0.5]);
