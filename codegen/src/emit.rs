@@ -438,9 +438,17 @@ pub fn module(mech: &Mechanism, sys: &Symbolic, source: &str) -> String {
             #(#stmts)*
         }
     });
+    // Φ and the entries of Φ_q that vary: the constant ones are literals in `factor_k`.
+    let mut varying = outputs.clone();
+    varying.extend(jac_outputs.iter().filter(|(_, e)| pool.as_const(*e).is_none()).cloned());
+    let count = varying.len() - outputs.len();
+    let f = function(pool, n, &varying);
+    let (qn, tn, stmts) = (param("q", f.uses_q), param("t", f.uses_t), &f.stmts);
     let doc = format!(
-        " Φ and the {nnz} structurally non-zero entries of Φ_q, the others of `jac` left as they were: what the `factor_k` functions read.\n\n {} operations, {} shared subexpressions.",
-        f.ops, f.shared
+        " Φ and the {count} entries of Φ_q that depend on q or t, the others of `jac` left as they were: what the `factor_k` functions read ({} of the {nnz} structurally non-zero entries are constants, which they know).\n\n {} operations, {} shared subexpressions.",
+        nnz - count,
+        f.ops,
+        f.shared
     );
     items.push(parse_quote! {
         #[doc = #doc]
@@ -452,8 +460,9 @@ pub fn module(mech: &Mechanism, sys: &Symbolic, source: &str) -> String {
     // The structured LU: static pivot orders over the description's motion.
     let orders = if n == 0 { Vec::new() } else { lu::plan(sys, &lu::motion(mech, sys)) };
     let structure = lu::structure(sys);
+    let constant = lu::constants(sys);
     for (k, order) in orders.iter().enumerate() {
-        let e = lu::emit(order, &structure, k);
+        let e = lu::emit(order, &structure, &constant, k);
         items.push(e.factor);
         items.push(e.solve);
     }

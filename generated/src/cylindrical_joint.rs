@@ -106,7 +106,7 @@ pub fn residual_jacobian(
     jac[4][4] = q4 + q4;
 }
 
-/** Φ and the 9 structurally non-zero entries of Φ_q, the others of `jac` left as they were: what the `factor_k` functions read.
+/** Φ and the 7 entries of Φ_q that depend on q or t, the others of `jac` left as they were: what the `factor_k` functions read (2 of the 9 structurally non-zero entries are constants, which they know).
 
  22 operations, 1 shared subexpressions.*/
 pub fn residual_jacobian_structural(
@@ -126,8 +126,6 @@ pub fn residual_jacobian_structural(
     jac[0][4] = t0;
     jac[1][2] = -(2.0 * q3);
     jac[1][3] = t0;
-    jac[2][0] = 1.0;
-    jac[3][1] = -1.0;
     jac[4][2] = q2 + q2;
     jac[4][3] = q3 + q3;
     jac[4][4] = q4 + q4;
@@ -135,58 +133,42 @@ pub fn residual_jacobian_structural(
 
 /** Factors Φ_q in place with static pivot order 0: step k pivots on row `[2, 3, 1, 4, 0][k]` and column `[0, 1, 3, 2, 4][k]`.
 
- L and U have 9 entries (0 of them fill-in); 11 operations. The reciprocals of the pivots are stored on the diagonal.
+ L and U have 9 entries (0 of them fill-in, 2 known when generated); 9 operations. The others are in `jac`: 5 stored there, with the reciprocals of the pivots on the diagonal, and 2 left as Φ_q had them.
 
  Returns the smallest and largest |pivot|, or `None` (with `jac` unchanged) when a pivot is not finite or a multiplier exceeds [`runtime::lu::MAX_MULTIPLIER`] in magnitude.*/
 #[must_use]
 pub fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
-    let p0 = jac[2][0];
-    let d0 = 1.0 / p0;
-    if !(p0.is_finite()) {
-        return None;
-    }
-    let p1 = jac[3][1];
-    let d1 = 1.0 / p1;
-    if !(p1.is_finite()) {
-        return None;
-    }
-    let u2_3 = jac[1][2];
     let p2 = jac[1][3];
     let d2 = 1.0 / p2;
     let l3_2 = jac[4][3] * d2;
     if !(p2.is_finite() && l3_2.abs() <= runtime::lu::MAX_MULTIPLIER) {
         return None;
     }
-    let u3_4 = jac[4][4];
-    let p3 = jac[4][2] - l3_2 * u2_3;
+    let p3 = jac[4][2] - l3_2 * jac[1][2];
     let d3 = 1.0 / p3;
     let l4_3 = jac[0][2] * d3;
     if !(p3.is_finite() && l4_3.abs() <= runtime::lu::MAX_MULTIPLIER) {
         return None;
     }
-    let p4 = jac[0][4] - l4_3 * u3_4;
+    let p4 = jac[0][4] - l4_3 * jac[4][4];
     let d4 = 1.0 / p4;
-    if !(p4.is_finite()) {
+    if !p4.is_finite() {
         return None;
     }
-    jac[2][0] = d0;
-    jac[3][1] = d1;
     jac[1][3] = d2;
-    jac[1][2] = u2_3;
     jac[4][3] = l3_2;
     jac[4][2] = d3;
-    jac[4][4] = u3_4;
     jac[0][2] = l4_3;
     jac[0][4] = d4;
     Some(runtime::lu::PivotInfo {
-        smallest: p0.abs().min(p1.abs()).min(p2.abs()).min(p3.abs()).min(p4.abs()),
-        largest: p0.abs().max(p1.abs()).max(p2.abs()).max(p3.abs()).max(p4.abs()),
+        smallest: p2.abs().min(p3.abs()).min(p4.abs()).min(1.0),
+        largest: p2.abs().max(p3.abs()).max(p4.abs()).max(1.0),
     })
 }
 
 /** Solves Φ_q x = b in place with the factors [`factor_0`] left in `lu`.
 
- 13 operations.*/
+ 12 operations.*/
 pub fn solve_0(lu: &[[f64; N]; N], b: &mut [f64; N]) {
     let y0 = b[2];
     let y1 = b[3];
@@ -196,8 +178,8 @@ pub fn solve_0(lu: &[[f64; N]; N], b: &mut [f64; N]) {
     let x4 = y4 * lu[0][4];
     let x3 = (y3 - lu[4][4] * x4) * lu[4][2];
     let x2 = (y2 - lu[1][2] * x3) * lu[1][3];
-    let x1 = y1 * lu[3][1];
-    let x0 = y0 * lu[2][0];
+    let x1 = -y1;
+    let x0 = y0;
     b[0] = x0;
     b[1] = x1;
     b[3] = x2;

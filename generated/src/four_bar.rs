@@ -614,7 +614,7 @@ pub fn residual_jacobian(
     jac[20][20] = t55;
 }
 
-/** Φ and the 116 structurally non-zero entries of Φ_q, the others of `jac` left as they were: what the `factor_k` functions read.
+/** Φ and the 98 entries of Φ_q that depend on q or t, the others of `jac` left as they were: what the `factor_k` functions read (18 of the 116 structurally non-zero entries are constants, which they know).
 
  338 operations, 88 shared subexpressions.*/
 pub fn residual_jacobian_structural(
@@ -735,62 +735,50 @@ pub fn residual_jacobian_structural(
     phi[18] = t24 + (t23 + t25) - 1.0;
     phi[19] = t3 + (t2 + (t0 + t1)) - 1.0;
     phi[20] = t15 + (t14 + (t12 + t13)) - 1.0;
-    jac[0][7] = -1.0;
     jac[0][10] = t40;
     jac[0][11] = t41;
     jac[0][12] = t42;
     jac[0][13] = t43;
-    jac[0][14] = 1.0;
     jac[0][17] = -t44;
     jac[0][18] = t45;
     jac[0][19] = t46;
     jac[0][20] = -t47;
-    jac[1][8] = -1.0;
     jac[1][10] = -(-6.1 * t48);
     jac[1][11] = -6.1 * t49;
     jac[1][12] = -(-6.1 * t50);
     jac[1][13] = -6.1 * t51;
-    jac[1][15] = 1.0;
     jac[1][17] = -3.7 * t52;
     jac[1][18] = -(-3.7 * t53);
     jac[1][19] = -3.7 * t54;
     jac[1][20] = -(-3.7 * t55);
-    jac[2][9] = -1.0;
     jac[2][10] = t42;
     jac[2][11] = -t43;
     jac[2][12] = -t40;
     jac[2][13] = t41;
-    jac[2][16] = 1.0;
     jac[2][17] = t46;
     jac[2][18] = t47;
     jac[2][19] = t44;
     jac[2][20] = t45;
-    jac[3][0] = -1.0;
     jac[3][3] = t56;
     jac[3][4] = t57;
     jac[3][5] = -t58;
     jac[3][6] = -t59;
-    jac[3][7] = 1.0;
     jac[3][10] = -t60;
     jac[3][11] = t61;
     jac[3][12] = t62;
     jac[3][13] = -t63;
-    jac[4][1] = -1.0;
     jac[4][3] = t59;
     jac[4][4] = t58;
     jac[4][5] = t57;
     jac[4][6] = t56;
-    jac[4][8] = 1.0;
     jac[4][10] = 6.1 * t48;
     jac[4][11] = -(6.1 * t49);
     jac[4][12] = 6.1 * t50;
     jac[4][13] = -(6.1 * t51);
-    jac[5][2] = -1.0;
     jac[5][3] = -(2.0 * t64);
     jac[5][4] = 2.0 * t65;
     jac[5][5] = 2.0 * t66;
     jac[5][6] = -(2.0 * t67);
-    jac[5][9] = 1.0;
     jac[5][10] = t62;
     jac[5][11] = t63;
     jac[5][12] = t60;
@@ -811,9 +799,6 @@ pub fn residual_jacobian_structural(
     jac[6][11] = t34 * t78 - t35 * t79 - t36 * t49;
     jac[6][12] = t34 * t79 + t35 * t78 - t36 * t50;
     jac[6][13] = t36 * t51 + (t34 * t77 + t35 * t76);
-    jac[7][0] = -1.0;
-    jac[8][1] = -1.0;
-    jac[9][2] = -1.0;
     jac[10][3] = -t80;
     jac[10][4] = t81;
     jac[10][5] = t82;
@@ -822,17 +807,14 @@ pub fn residual_jacobian_structural(
     jac[11][4] = t80;
     jac[11][5] = t83;
     jac[11][6] = t82;
-    jac[12][14] = -1.0;
     jac[12][17] = t84;
     jac[12][18] = t85;
     jac[12][19] = t86;
     jac[12][20] = t87;
-    jac[13][15] = -1.0;
     jac[13][17] = -(3.7 * t52);
     jac[13][18] = 3.7 * t53;
     jac[13][19] = -(3.7 * t54);
     jac[13][20] = 3.7 * t55;
-    jac[14][16] = -1.0;
     jac[14][17] = t86;
     jac[14][18] = -t87;
     jac[14][19] = -t84;
@@ -863,104 +845,23 @@ pub fn residual_jacobian_structural(
 
 /** Factors Φ_q in place with static pivot order 0: step k pivots on row `[7, 8, 9, 12, 13, 14, 0, 1, 2, 10, 11, 18, 4, 3, 5, 6, 17, 15, 16, 20, 19][k]` and column `[0, 1, 2, 14, 15, 16, 7, 8, 9, 6, 5, 3, 4, 10, 11, 12, 13, 17, 18, 19, 20][k]`.
 
- L and U have 144 entries (28 of them fill-in); 416 operations. The reciprocals of the pivots are stored on the diagonal.
+ L and U have 144 entries (28 of them fill-in, 18 known when generated); 350 operations. The others are in `jac`: 96 stored there, with the reciprocals of the pivots on the diagonal, and 30 left as Φ_q had them.
 
  Returns the smallest and largest |pivot|, or `None` (with `jac` unchanged) when a pivot is not finite or a multiplier exceeds [`runtime::lu::MAX_MULTIPLIER`] in magnitude.*/
 #[must_use]
 pub fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
-    let p0 = jac[7][0];
-    let d0 = 1.0 / p0;
-    let l13_0 = jac[3][0] * d0;
-    if !(p0.is_finite() && l13_0.abs() <= runtime::lu::MAX_MULTIPLIER) {
-        return None;
-    }
-    let p1 = jac[8][1];
-    let d1 = 1.0 / p1;
-    let l12_1 = jac[4][1] * d1;
-    if !(p1.is_finite() && l12_1.abs() <= runtime::lu::MAX_MULTIPLIER) {
-        return None;
-    }
-    let p2 = jac[9][2];
-    let d2 = 1.0 / p2;
-    let l14_2 = jac[5][2] * d2;
-    if !(p2.is_finite() && l14_2.abs() <= runtime::lu::MAX_MULTIPLIER) {
-        return None;
-    }
-    let u3_17 = jac[12][17];
-    let u3_18 = jac[12][18];
-    let u3_19 = jac[12][19];
-    let u3_20 = jac[12][20];
-    let p3 = jac[12][14];
-    let d3 = 1.0 / p3;
-    let l6_3 = jac[0][14] * d3;
-    if !(p3.is_finite() && l6_3.abs() <= runtime::lu::MAX_MULTIPLIER) {
-        return None;
-    }
-    let u4_17 = jac[13][17];
-    let u4_18 = jac[13][18];
-    let u4_19 = jac[13][19];
-    let u4_20 = jac[13][20];
-    let p4 = jac[13][15];
-    let d4 = 1.0 / p4;
-    let l7_4 = jac[1][15] * d4;
-    if !(p4.is_finite() && l7_4.abs() <= runtime::lu::MAX_MULTIPLIER) {
-        return None;
-    }
-    let u5_17 = jac[14][17];
-    let u5_18 = jac[14][18];
-    let u5_19 = jac[14][19];
-    let u5_20 = jac[14][20];
-    let p5 = jac[14][16];
-    let d5 = 1.0 / p5;
-    let l8_5 = jac[2][16] * d5;
-    if !(p5.is_finite() && l8_5.abs() <= runtime::lu::MAX_MULTIPLIER) {
-        return None;
-    }
-    let u6_13 = jac[0][10];
-    let u6_14 = jac[0][11];
-    let u6_15 = jac[0][12];
-    let u6_16 = jac[0][13];
-    let u6_17 = jac[0][17] - l6_3 * u3_17;
-    let u6_18 = jac[0][18] - l6_3 * u3_18;
-    let u6_19 = jac[0][19] - l6_3 * u3_19;
-    let u6_20 = jac[0][20] - l6_3 * u3_20;
-    let p6 = jac[0][7];
-    let d6 = 1.0 / p6;
-    let l13_6 = jac[3][7] * d6;
-    if !(p6.is_finite() && l13_6.abs() <= runtime::lu::MAX_MULTIPLIER) {
-        return None;
-    }
-    let u7_13 = jac[1][10];
-    let u7_14 = jac[1][11];
-    let u7_15 = jac[1][12];
-    let u7_16 = jac[1][13];
-    let u7_17 = jac[1][17] - l7_4 * u4_17;
-    let u7_18 = jac[1][18] - l7_4 * u4_18;
-    let u7_19 = jac[1][19] - l7_4 * u4_19;
-    let u7_20 = jac[1][20] - l7_4 * u4_20;
-    let p7 = jac[1][8];
-    let d7 = 1.0 / p7;
-    let l12_7 = jac[4][8] * d7;
-    if !(p7.is_finite() && l12_7.abs() <= runtime::lu::MAX_MULTIPLIER) {
-        return None;
-    }
-    let u8_13 = jac[2][10];
-    let u8_14 = jac[2][11];
-    let u8_15 = jac[2][12];
-    let u8_16 = jac[2][13];
-    let u8_17 = jac[2][17] - l8_5 * u5_17;
-    let u8_18 = jac[2][18] - l8_5 * u5_18;
-    let u8_19 = jac[2][19] - l8_5 * u5_19;
-    let u8_20 = jac[2][20] - l8_5 * u5_20;
-    let p8 = jac[2][9];
-    let d8 = 1.0 / p8;
-    let l14_8 = jac[5][9] * d8;
-    if !(p8.is_finite() && l14_8.abs() <= runtime::lu::MAX_MULTIPLIER) {
-        return None;
-    }
-    let u9_10 = jac[10][5];
-    let u9_11 = jac[10][3];
-    let u9_12 = jac[10][4];
+    let u6_17 = jac[0][17] + jac[12][17];
+    let u6_18 = jac[0][18] + jac[12][18];
+    let u6_19 = jac[0][19] + jac[12][19];
+    let u6_20 = jac[0][20] + jac[12][20];
+    let u7_17 = jac[1][17] + jac[13][17];
+    let u7_18 = jac[1][18] + jac[13][18];
+    let u7_19 = jac[1][19] + jac[13][19];
+    let u7_20 = jac[1][20] + jac[13][20];
+    let u8_17 = jac[2][17] + jac[14][17];
+    let u8_18 = jac[2][18] + jac[14][18];
+    let u8_19 = jac[2][19] + jac[14][19];
+    let u8_20 = jac[2][20] + jac[14][20];
     let p9 = jac[10][6];
     let d9 = 1.0 / p9;
     let l10_9 = jac[11][6] * d9;
@@ -978,15 +879,15 @@ pub fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     {
         return None;
     }
-    let u10_11 = jac[11][3] - l10_9 * u9_11;
-    let u10_12 = jac[11][4] - l10_9 * u9_12;
-    let p10 = jac[11][5] - l10_9 * u9_10;
+    let u10_11 = jac[11][3] - l10_9 * jac[10][3];
+    let u10_12 = jac[11][4] - l10_9 * jac[10][4];
+    let p10 = jac[11][5] - l10_9 * jac[10][5];
     let d10 = 1.0 / p10;
-    let l11_10 = (jac[18][5] - l11_9 * u9_10) * d10;
-    let l12_10 = (jac[4][5] - l12_9 * u9_10) * d10;
-    let l13_10 = (jac[3][5] - l13_9 * u9_10) * d10;
-    let l14_10 = (jac[5][5] - l14_9 * u9_10) * d10;
-    let l15_10 = (jac[6][5] - l15_9 * u9_10) * d10;
+    let l11_10 = (jac[18][5] - l11_9 * jac[10][5]) * d10;
+    let l12_10 = (jac[4][5] - l12_9 * jac[10][5]) * d10;
+    let l13_10 = (jac[3][5] - l13_9 * jac[10][5]) * d10;
+    let l14_10 = (jac[5][5] - l14_9 * jac[10][5]) * d10;
+    let l15_10 = (jac[6][5] - l15_9 * jac[10][5]) * d10;
     if !(p10.is_finite() && l11_10.abs() <= runtime::lu::MAX_MULTIPLIER
         && l12_10.abs() <= runtime::lu::MAX_MULTIPLIER
         && l13_10.abs() <= runtime::lu::MAX_MULTIPLIER
@@ -995,13 +896,13 @@ pub fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     {
         return None;
     }
-    let u11_12 = jac[18][4] - l11_9 * u9_12 - l11_10 * u10_12;
-    let p11 = jac[18][3] - l11_9 * u9_11 - l11_10 * u10_11;
+    let u11_12 = jac[18][4] - l11_9 * jac[10][4] - l11_10 * u10_12;
+    let p11 = jac[18][3] - l11_9 * jac[10][3] - l11_10 * u10_11;
     let d11 = 1.0 / p11;
-    let l12_11 = (jac[4][3] - l12_9 * u9_11 - l12_10 * u10_11) * d11;
-    let l13_11 = (jac[3][3] - l13_9 * u9_11 - l13_10 * u10_11) * d11;
-    let l14_11 = (jac[5][3] - l14_9 * u9_11 - l14_10 * u10_11) * d11;
-    let l15_11 = (jac[6][3] - l15_9 * u9_11 - l15_10 * u10_11) * d11;
+    let l12_11 = (jac[4][3] - l12_9 * jac[10][3] - l12_10 * u10_11) * d11;
+    let l13_11 = (jac[3][3] - l13_9 * jac[10][3] - l13_10 * u10_11) * d11;
+    let l14_11 = (jac[5][3] - l14_9 * jac[10][3] - l14_10 * u10_11) * d11;
+    let l15_11 = (jac[6][3] - l15_9 * jac[10][3] - l15_10 * u10_11) * d11;
     let l16_11 = jac[17][3] * d11;
     if !(p11.is_finite() && l12_11.abs() <= runtime::lu::MAX_MULTIPLIER
         && l13_11.abs() <= runtime::lu::MAX_MULTIPLIER
@@ -1011,19 +912,22 @@ pub fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     {
         return None;
     }
-    let u12_13 = jac[4][10] - l12_7 * u7_13;
-    let u12_14 = jac[4][11] - l12_7 * u7_14;
-    let u12_15 = jac[4][12] - l12_7 * u7_15;
-    let u12_16 = jac[4][13] - l12_7 * u7_16;
-    let u12_17 = -(l12_7 * u7_17);
-    let u12_18 = -(l12_7 * u7_18);
-    let u12_19 = -(l12_7 * u7_19);
-    let u12_20 = -(l12_7 * u7_20);
-    let p12 = jac[4][4] - l12_9 * u9_12 - l12_10 * u10_12 - l12_11 * u11_12;
+    let u12_13 = jac[4][10] + jac[1][10];
+    let u12_14 = jac[4][11] + jac[1][11];
+    let u12_15 = jac[4][12] + jac[1][12];
+    let u12_16 = jac[4][13] + jac[1][13];
+    let u12_17 = u7_17;
+    let u12_18 = u7_18;
+    let u12_19 = u7_19;
+    let u12_20 = u7_20;
+    let p12 = jac[4][4] - l12_9 * jac[10][4] - l12_10 * u10_12 - l12_11 * u11_12;
     let d12 = 1.0 / p12;
-    let l13_12 = (jac[3][4] - l13_9 * u9_12 - l13_10 * u10_12 - l13_11 * u11_12) * d12;
-    let l14_12 = (jac[5][4] - l14_9 * u9_12 - l14_10 * u10_12 - l14_11 * u11_12) * d12;
-    let l15_12 = (jac[6][4] - l15_9 * u9_12 - l15_10 * u10_12 - l15_11 * u11_12) * d12;
+    let l13_12 = (jac[3][4] - l13_9 * jac[10][4] - l13_10 * u10_12 - l13_11 * u11_12)
+        * d12;
+    let l14_12 = (jac[5][4] - l14_9 * jac[10][4] - l14_10 * u10_12 - l14_11 * u11_12)
+        * d12;
+    let l15_12 = (jac[6][4] - l15_9 * jac[10][4] - l15_10 * u10_12 - l15_11 * u11_12)
+        * d12;
     let l16_12 = (jac[17][4] - l16_11 * u11_12) * d12;
     if !(p12.is_finite() && l13_12.abs() <= runtime::lu::MAX_MULTIPLIER
         && l14_12.abs() <= runtime::lu::MAX_MULTIPLIER
@@ -1032,16 +936,16 @@ pub fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     {
         return None;
     }
-    let u13_14 = jac[3][11] - l13_6 * u6_14 - l13_12 * u12_14;
-    let u13_15 = jac[3][12] - l13_6 * u6_15 - l13_12 * u12_15;
-    let u13_16 = jac[3][13] - l13_6 * u6_16 - l13_12 * u12_16;
-    let u13_17 = -(l13_6 * u6_17) - l13_12 * u12_17;
-    let u13_18 = -(l13_6 * u6_18) - l13_12 * u12_18;
-    let u13_19 = -(l13_6 * u6_19) - l13_12 * u12_19;
-    let u13_20 = -(l13_6 * u6_20) - l13_12 * u12_20;
-    let p13 = jac[3][10] - l13_6 * u6_13 - l13_12 * u12_13;
+    let u13_14 = jac[3][11] + jac[0][11] - l13_12 * u12_14;
+    let u13_15 = jac[3][12] + jac[0][12] - l13_12 * u12_15;
+    let u13_16 = jac[3][13] + jac[0][13] - l13_12 * u12_16;
+    let u13_17 = u6_17 - l13_12 * u12_17;
+    let u13_18 = u6_18 - l13_12 * u12_18;
+    let u13_19 = u6_19 - l13_12 * u12_19;
+    let u13_20 = u6_20 - l13_12 * u12_20;
+    let p13 = jac[3][10] + jac[0][10] - l13_12 * u12_13;
     let d13 = 1.0 / p13;
-    let l14_13 = (jac[5][10] - l14_8 * u8_13 - l14_12 * u12_13) * d13;
+    let l14_13 = (jac[5][10] + jac[2][10] - l14_12 * u12_13) * d13;
     let l15_13 = (jac[6][10] - l15_12 * u12_13) * d13;
     let l16_13 = -(l16_12 * u12_13) * d13;
     let l20_13 = jac[19][10] * d13;
@@ -1052,13 +956,13 @@ pub fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     {
         return None;
     }
-    let u14_15 = jac[5][12] - l14_8 * u8_15 - l14_12 * u12_15 - l14_13 * u13_15;
-    let u14_16 = jac[5][13] - l14_8 * u8_16 - l14_12 * u12_16 - l14_13 * u13_16;
-    let u14_17 = -(l14_8 * u8_17) - l14_12 * u12_17 - l14_13 * u13_17;
-    let u14_18 = -(l14_8 * u8_18) - l14_12 * u12_18 - l14_13 * u13_18;
-    let u14_19 = -(l14_8 * u8_19) - l14_12 * u12_19 - l14_13 * u13_19;
-    let u14_20 = -(l14_8 * u8_20) - l14_12 * u12_20 - l14_13 * u13_20;
-    let p14 = jac[5][11] - l14_8 * u8_14 - l14_12 * u12_14 - l14_13 * u13_14;
+    let u14_15 = jac[5][12] + jac[2][12] - l14_12 * u12_15 - l14_13 * u13_15;
+    let u14_16 = jac[5][13] + jac[2][13] - l14_12 * u12_16 - l14_13 * u13_16;
+    let u14_17 = u8_17 - l14_12 * u12_17 - l14_13 * u13_17;
+    let u14_18 = u8_18 - l14_12 * u12_18 - l14_13 * u13_18;
+    let u14_19 = u8_19 - l14_12 * u12_19 - l14_13 * u13_19;
+    let u14_20 = u8_20 - l14_12 * u12_20 - l14_13 * u13_20;
+    let p14 = jac[5][11] + jac[2][11] - l14_12 * u12_14 - l14_13 * u13_14;
     let d14 = 1.0 / p14;
     let l15_14 = (jac[6][11] - l15_12 * u12_14 - l15_13 * u13_14) * d14;
     let l16_14 = (-(l16_12 * u12_14) - l16_13 * u13_14) * d14;
@@ -1098,9 +1002,6 @@ pub fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     if !(p16.is_finite() && l20_16.abs() <= runtime::lu::MAX_MULTIPLIER) {
         return None;
     }
-    let u17_18 = jac[15][18];
-    let u17_19 = jac[15][19];
-    let u17_20 = jac[15][20];
     let p17 = jac[15][17];
     let d17 = 1.0 / p17;
     let l18_17 = jac[16][17] * d17;
@@ -1113,84 +1014,45 @@ pub fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     {
         return None;
     }
-    let u18_19 = jac[16][19] - l18_17 * u17_19;
-    let u18_20 = jac[16][20] - l18_17 * u17_20;
-    let p18 = jac[16][18] - l18_17 * u17_18;
+    let u18_19 = jac[16][19] - l18_17 * jac[15][19];
+    let u18_20 = jac[16][20] - l18_17 * jac[15][20];
+    let p18 = jac[16][18] - l18_17 * jac[15][18];
     let d18 = 1.0 / p18;
-    let l19_18 = (jac[20][18] - l19_17 * u17_18) * d18;
+    let l19_18 = (jac[20][18] - l19_17 * jac[15][18]) * d18;
     let l20_18 = (-(l20_13 * u13_18) - l20_14 * u14_18 - l20_15 * u15_18
-        - l20_16 * u16_18 - l20_17 * u17_18) * d18;
+        - l20_16 * u16_18 - l20_17 * jac[15][18]) * d18;
     if !(p18.is_finite() && l19_18.abs() <= runtime::lu::MAX_MULTIPLIER
         && l20_18.abs() <= runtime::lu::MAX_MULTIPLIER)
     {
         return None;
     }
-    let u19_20 = jac[20][20] - l19_17 * u17_20 - l19_18 * u18_20;
-    let p19 = jac[20][19] - l19_17 * u17_19 - l19_18 * u18_19;
+    let u19_20 = jac[20][20] - l19_17 * jac[15][20] - l19_18 * u18_20;
+    let p19 = jac[20][19] - l19_17 * jac[15][19] - l19_18 * u18_19;
     let d19 = 1.0 / p19;
     let l20_19 = (-(l20_13 * u13_19) - l20_14 * u14_19 - l20_15 * u15_19
-        - l20_16 * u16_19 - l20_17 * u17_19 - l20_18 * u18_19) * d19;
+        - l20_16 * u16_19 - l20_17 * jac[15][19] - l20_18 * u18_19) * d19;
     if !(p19.is_finite() && l20_19.abs() <= runtime::lu::MAX_MULTIPLIER) {
         return None;
     }
     let p20 = -(l20_13 * u13_20) - l20_14 * u14_20 - l20_15 * u15_20 - l20_16 * u16_20
-        - l20_17 * u17_20 - l20_18 * u18_20 - l20_19 * u19_20;
+        - l20_17 * jac[15][20] - l20_18 * u18_20 - l20_19 * u19_20;
     let d20 = 1.0 / p20;
-    if !(p20.is_finite()) {
+    if !p20.is_finite() {
         return None;
     }
-    jac[7][0] = d0;
-    jac[8][1] = d1;
-    jac[9][2] = d2;
-    jac[12][14] = d3;
-    jac[12][17] = u3_17;
-    jac[12][18] = u3_18;
-    jac[12][19] = u3_19;
-    jac[12][20] = u3_20;
-    jac[13][15] = d4;
-    jac[13][17] = u4_17;
-    jac[13][18] = u4_18;
-    jac[13][19] = u4_19;
-    jac[13][20] = u4_20;
-    jac[14][16] = d5;
-    jac[14][17] = u5_17;
-    jac[14][18] = u5_18;
-    jac[14][19] = u5_19;
-    jac[14][20] = u5_20;
-    jac[0][14] = l6_3;
-    jac[0][7] = d6;
-    jac[0][10] = u6_13;
-    jac[0][11] = u6_14;
-    jac[0][12] = u6_15;
-    jac[0][13] = u6_16;
     jac[0][17] = u6_17;
     jac[0][18] = u6_18;
     jac[0][19] = u6_19;
     jac[0][20] = u6_20;
-    jac[1][15] = l7_4;
-    jac[1][8] = d7;
-    jac[1][10] = u7_13;
-    jac[1][11] = u7_14;
-    jac[1][12] = u7_15;
-    jac[1][13] = u7_16;
     jac[1][17] = u7_17;
     jac[1][18] = u7_18;
     jac[1][19] = u7_19;
     jac[1][20] = u7_20;
-    jac[2][16] = l8_5;
-    jac[2][9] = d8;
-    jac[2][10] = u8_13;
-    jac[2][11] = u8_14;
-    jac[2][12] = u8_15;
-    jac[2][13] = u8_16;
     jac[2][17] = u8_17;
     jac[2][18] = u8_18;
     jac[2][19] = u8_19;
     jac[2][20] = u8_20;
     jac[10][6] = d9;
-    jac[10][5] = u9_10;
-    jac[10][3] = u9_11;
-    jac[10][4] = u9_12;
     jac[11][6] = l10_9;
     jac[11][5] = d10;
     jac[11][3] = u10_11;
@@ -1199,8 +1061,6 @@ pub fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     jac[18][5] = l11_10;
     jac[18][3] = d11;
     jac[18][4] = u11_12;
-    jac[4][1] = l12_1;
-    jac[4][8] = l12_7;
     jac[4][6] = l12_9;
     jac[4][5] = l12_10;
     jac[4][3] = l12_11;
@@ -1213,8 +1073,6 @@ pub fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     jac[4][18] = u12_18;
     jac[4][19] = u12_19;
     jac[4][20] = u12_20;
-    jac[3][0] = l13_0;
-    jac[3][7] = l13_6;
     jac[3][6] = l13_9;
     jac[3][5] = l13_10;
     jac[3][3] = l13_11;
@@ -1227,8 +1085,6 @@ pub fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     jac[3][18] = u13_18;
     jac[3][19] = u13_19;
     jac[3][20] = u13_20;
-    jac[5][2] = l14_2;
-    jac[5][9] = l14_8;
     jac[5][6] = l14_9;
     jac[5][5] = l14_10;
     jac[5][3] = l14_11;
@@ -1264,9 +1120,6 @@ pub fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     jac[17][19] = u16_19;
     jac[17][20] = u16_20;
     jac[15][17] = d17;
-    jac[15][18] = u17_18;
-    jac[15][19] = u17_19;
-    jac[15][20] = u17_20;
     jac[16][17] = l18_17;
     jac[16][18] = d18;
     jac[16][19] = u18_19;
@@ -1284,17 +1137,8 @@ pub fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     jac[19][19] = l20_19;
     jac[19][20] = d20;
     Some(runtime::lu::PivotInfo {
-        smallest: p0
+        smallest: p9
             .abs()
-            .min(p1.abs())
-            .min(p2.abs())
-            .min(p3.abs())
-            .min(p4.abs())
-            .min(p5.abs())
-            .min(p6.abs())
-            .min(p7.abs())
-            .min(p8.abs())
-            .min(p9.abs())
             .min(p10.abs())
             .min(p11.abs())
             .min(p12.abs())
@@ -1305,18 +1149,10 @@ pub fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
             .min(p17.abs())
             .min(p18.abs())
             .min(p19.abs())
-            .min(p20.abs()),
-        largest: p0
+            .min(p20.abs())
+            .min(1.0),
+        largest: p9
             .abs()
-            .max(p1.abs())
-            .max(p2.abs())
-            .max(p3.abs())
-            .max(p4.abs())
-            .max(p5.abs())
-            .max(p6.abs())
-            .max(p7.abs())
-            .max(p8.abs())
-            .max(p9.abs())
             .max(p10.abs())
             .max(p11.abs())
             .max(p12.abs())
@@ -1327,13 +1163,14 @@ pub fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
             .max(p17.abs())
             .max(p18.abs())
             .max(p19.abs())
-            .max(p20.abs()),
+            .max(p20.abs())
+            .max(1.0),
     })
 }
 
 /** Solves Φ_q x = b in place with the factors [`factor_0`] left in `lu`.
 
- 267 operations.*/
+ 258 operations.*/
 pub fn solve_0(lu: &[[f64; N]; N], b: &mut [f64; N]) {
     let y0 = b[7];
     let y1 = b[8];
@@ -1341,18 +1178,17 @@ pub fn solve_0(lu: &[[f64; N]; N], b: &mut [f64; N]) {
     let y3 = b[12];
     let y4 = b[13];
     let y5 = b[14];
-    let y6 = b[0] - lu[0][14] * y3;
-    let y7 = b[1] - lu[1][15] * y4;
-    let y8 = b[2] - lu[2][16] * y5;
+    let y6 = b[0] + y3;
+    let y7 = b[1] + y4;
+    let y8 = b[2] + y5;
     let y9 = b[10];
     let y10 = b[11] - lu[11][6] * y9;
     let y11 = b[18] - lu[18][6] * y9 - lu[18][5] * y10;
-    let y12 = b[4] - lu[4][1] * y1 - lu[4][8] * y7 - lu[4][6] * y9 - lu[4][5] * y10
-        - lu[4][3] * y11;
-    let y13 = b[3] - lu[3][0] * y0 - lu[3][7] * y6 - lu[3][6] * y9 - lu[3][5] * y10
-        - lu[3][3] * y11 - lu[3][4] * y12;
-    let y14 = b[5] - lu[5][2] * y2 - lu[5][9] * y8 - lu[5][6] * y9 - lu[5][5] * y10
-        - lu[5][3] * y11 - lu[5][4] * y12 - lu[5][10] * y13;
+    let y12 = b[4] - y1 + y7 - lu[4][6] * y9 - lu[4][5] * y10 - lu[4][3] * y11;
+    let y13 = b[3] - y0 + y6 - lu[3][6] * y9 - lu[3][5] * y10 - lu[3][3] * y11
+        - lu[3][4] * y12;
+    let y14 = b[5] - y2 + y8 - lu[5][6] * y9 - lu[5][5] * y10 - lu[5][3] * y11
+        - lu[5][4] * y12 - lu[5][10] * y13;
     let y15 = b[6] - lu[6][6] * y9 - lu[6][5] * y10 - lu[6][3] * y11 - lu[6][4] * y12
         - lu[6][10] * y13 - lu[6][11] * y14;
     let y16 = b[17] - lu[17][3] * y11 - lu[17][4] * y12 - lu[17][10] * y13
@@ -1382,24 +1218,21 @@ pub fn solve_0(lu: &[[f64; N]; N], b: &mut [f64; N]) {
     let x11 = (y11 - lu[18][4] * x12) * lu[18][3];
     let x10 = (y10 - lu[11][3] * x11 - lu[11][4] * x12) * lu[11][5];
     let x9 = (y9 - lu[10][5] * x10 - lu[10][3] * x11 - lu[10][4] * x12) * lu[10][6];
-    let x8 = (y8 - lu[2][10] * x13 - lu[2][11] * x14 - lu[2][12] * x15 - lu[2][13] * x16
-        - lu[2][17] * x17 - lu[2][18] * x18 - lu[2][19] * x19 - lu[2][20] * x20)
-        * lu[2][9];
-    let x7 = (y7 - lu[1][10] * x13 - lu[1][11] * x14 - lu[1][12] * x15 - lu[1][13] * x16
-        - lu[1][17] * x17 - lu[1][18] * x18 - lu[1][19] * x19 - lu[1][20] * x20)
-        * lu[1][8];
-    let x6 = (y6 - lu[0][10] * x13 - lu[0][11] * x14 - lu[0][12] * x15 - lu[0][13] * x16
-        - lu[0][17] * x17 - lu[0][18] * x18 - lu[0][19] * x19 - lu[0][20] * x20)
-        * lu[0][7];
-    let x5 = (y5 - lu[14][17] * x17 - lu[14][18] * x18 - lu[14][19] * x19
-        - lu[14][20] * x20) * lu[14][16];
-    let x4 = (y4 - lu[13][17] * x17 - lu[13][18] * x18 - lu[13][19] * x19
-        - lu[13][20] * x20) * lu[13][15];
-    let x3 = (y3 - lu[12][17] * x17 - lu[12][18] * x18 - lu[12][19] * x19
-        - lu[12][20] * x20) * lu[12][14];
-    let x2 = y2 * lu[9][2];
-    let x1 = y1 * lu[8][1];
-    let x0 = y0 * lu[7][0];
+    let x8 = -(y8 - lu[2][10] * x13 - lu[2][11] * x14 - lu[2][12] * x15 - lu[2][13] * x16
+        - lu[2][17] * x17 - lu[2][18] * x18 - lu[2][19] * x19 - lu[2][20] * x20);
+    let x7 = -(y7 - lu[1][10] * x13 - lu[1][11] * x14 - lu[1][12] * x15 - lu[1][13] * x16
+        - lu[1][17] * x17 - lu[1][18] * x18 - lu[1][19] * x19 - lu[1][20] * x20);
+    let x6 = -(y6 - lu[0][10] * x13 - lu[0][11] * x14 - lu[0][12] * x15 - lu[0][13] * x16
+        - lu[0][17] * x17 - lu[0][18] * x18 - lu[0][19] * x19 - lu[0][20] * x20);
+    let x5 = -(y5 - lu[14][17] * x17 - lu[14][18] * x18 - lu[14][19] * x19
+        - lu[14][20] * x20);
+    let x4 = -(y4 - lu[13][17] * x17 - lu[13][18] * x18 - lu[13][19] * x19
+        - lu[13][20] * x20);
+    let x3 = -(y3 - lu[12][17] * x17 - lu[12][18] * x18 - lu[12][19] * x19
+        - lu[12][20] * x20);
+    let x2 = -y2;
+    let x1 = -y1;
+    let x0 = -y0;
     b[0] = x0;
     b[1] = x1;
     b[2] = x2;
@@ -1425,104 +1258,23 @@ pub fn solve_0(lu: &[[f64; N]; N], b: &mut [f64; N]) {
 
 /** Factors Φ_q in place with static pivot order 1: step k pivots on row `[7, 8, 9, 12, 13, 14, 0, 1, 2, 10, 11, 18, 5, 4, 3, 6, 17, 15, 16, 20, 19][k]` and column `[0, 1, 2, 14, 15, 16, 7, 8, 9, 6, 5, 3, 4, 10, 11, 12, 13, 17, 18, 19, 20][k]`.
 
- L and U have 144 entries (28 of them fill-in); 416 operations. The reciprocals of the pivots are stored on the diagonal.
+ L and U have 144 entries (28 of them fill-in, 18 known when generated); 350 operations. The others are in `jac`: 96 stored there, with the reciprocals of the pivots on the diagonal, and 30 left as Φ_q had them.
 
  Returns the smallest and largest |pivot|, or `None` (with `jac` unchanged) when a pivot is not finite or a multiplier exceeds [`runtime::lu::MAX_MULTIPLIER`] in magnitude.*/
 #[must_use]
 pub fn factor_1(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
-    let p0 = jac[7][0];
-    let d0 = 1.0 / p0;
-    let l14_0 = jac[3][0] * d0;
-    if !(p0.is_finite() && l14_0.abs() <= runtime::lu::MAX_MULTIPLIER) {
-        return None;
-    }
-    let p1 = jac[8][1];
-    let d1 = 1.0 / p1;
-    let l13_1 = jac[4][1] * d1;
-    if !(p1.is_finite() && l13_1.abs() <= runtime::lu::MAX_MULTIPLIER) {
-        return None;
-    }
-    let p2 = jac[9][2];
-    let d2 = 1.0 / p2;
-    let l12_2 = jac[5][2] * d2;
-    if !(p2.is_finite() && l12_2.abs() <= runtime::lu::MAX_MULTIPLIER) {
-        return None;
-    }
-    let u3_17 = jac[12][17];
-    let u3_18 = jac[12][18];
-    let u3_19 = jac[12][19];
-    let u3_20 = jac[12][20];
-    let p3 = jac[12][14];
-    let d3 = 1.0 / p3;
-    let l6_3 = jac[0][14] * d3;
-    if !(p3.is_finite() && l6_3.abs() <= runtime::lu::MAX_MULTIPLIER) {
-        return None;
-    }
-    let u4_17 = jac[13][17];
-    let u4_18 = jac[13][18];
-    let u4_19 = jac[13][19];
-    let u4_20 = jac[13][20];
-    let p4 = jac[13][15];
-    let d4 = 1.0 / p4;
-    let l7_4 = jac[1][15] * d4;
-    if !(p4.is_finite() && l7_4.abs() <= runtime::lu::MAX_MULTIPLIER) {
-        return None;
-    }
-    let u5_17 = jac[14][17];
-    let u5_18 = jac[14][18];
-    let u5_19 = jac[14][19];
-    let u5_20 = jac[14][20];
-    let p5 = jac[14][16];
-    let d5 = 1.0 / p5;
-    let l8_5 = jac[2][16] * d5;
-    if !(p5.is_finite() && l8_5.abs() <= runtime::lu::MAX_MULTIPLIER) {
-        return None;
-    }
-    let u6_13 = jac[0][10];
-    let u6_14 = jac[0][11];
-    let u6_15 = jac[0][12];
-    let u6_16 = jac[0][13];
-    let u6_17 = jac[0][17] - l6_3 * u3_17;
-    let u6_18 = jac[0][18] - l6_3 * u3_18;
-    let u6_19 = jac[0][19] - l6_3 * u3_19;
-    let u6_20 = jac[0][20] - l6_3 * u3_20;
-    let p6 = jac[0][7];
-    let d6 = 1.0 / p6;
-    let l14_6 = jac[3][7] * d6;
-    if !(p6.is_finite() && l14_6.abs() <= runtime::lu::MAX_MULTIPLIER) {
-        return None;
-    }
-    let u7_13 = jac[1][10];
-    let u7_14 = jac[1][11];
-    let u7_15 = jac[1][12];
-    let u7_16 = jac[1][13];
-    let u7_17 = jac[1][17] - l7_4 * u4_17;
-    let u7_18 = jac[1][18] - l7_4 * u4_18;
-    let u7_19 = jac[1][19] - l7_4 * u4_19;
-    let u7_20 = jac[1][20] - l7_4 * u4_20;
-    let p7 = jac[1][8];
-    let d7 = 1.0 / p7;
-    let l13_7 = jac[4][8] * d7;
-    if !(p7.is_finite() && l13_7.abs() <= runtime::lu::MAX_MULTIPLIER) {
-        return None;
-    }
-    let u8_13 = jac[2][10];
-    let u8_14 = jac[2][11];
-    let u8_15 = jac[2][12];
-    let u8_16 = jac[2][13];
-    let u8_17 = jac[2][17] - l8_5 * u5_17;
-    let u8_18 = jac[2][18] - l8_5 * u5_18;
-    let u8_19 = jac[2][19] - l8_5 * u5_19;
-    let u8_20 = jac[2][20] - l8_5 * u5_20;
-    let p8 = jac[2][9];
-    let d8 = 1.0 / p8;
-    let l12_8 = jac[5][9] * d8;
-    if !(p8.is_finite() && l12_8.abs() <= runtime::lu::MAX_MULTIPLIER) {
-        return None;
-    }
-    let u9_10 = jac[10][5];
-    let u9_11 = jac[10][3];
-    let u9_12 = jac[10][4];
+    let u6_17 = jac[0][17] + jac[12][17];
+    let u6_18 = jac[0][18] + jac[12][18];
+    let u6_19 = jac[0][19] + jac[12][19];
+    let u6_20 = jac[0][20] + jac[12][20];
+    let u7_17 = jac[1][17] + jac[13][17];
+    let u7_18 = jac[1][18] + jac[13][18];
+    let u7_19 = jac[1][19] + jac[13][19];
+    let u7_20 = jac[1][20] + jac[13][20];
+    let u8_17 = jac[2][17] + jac[14][17];
+    let u8_18 = jac[2][18] + jac[14][18];
+    let u8_19 = jac[2][19] + jac[14][19];
+    let u8_20 = jac[2][20] + jac[14][20];
     let p9 = jac[10][6];
     let d9 = 1.0 / p9;
     let l10_9 = jac[11][6] * d9;
@@ -1540,15 +1292,15 @@ pub fn factor_1(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     {
         return None;
     }
-    let u10_11 = jac[11][3] - l10_9 * u9_11;
-    let u10_12 = jac[11][4] - l10_9 * u9_12;
-    let p10 = jac[11][5] - l10_9 * u9_10;
+    let u10_11 = jac[11][3] - l10_9 * jac[10][3];
+    let u10_12 = jac[11][4] - l10_9 * jac[10][4];
+    let p10 = jac[11][5] - l10_9 * jac[10][5];
     let d10 = 1.0 / p10;
-    let l11_10 = (jac[18][5] - l11_9 * u9_10) * d10;
-    let l12_10 = (jac[5][5] - l12_9 * u9_10) * d10;
-    let l13_10 = (jac[4][5] - l13_9 * u9_10) * d10;
-    let l14_10 = (jac[3][5] - l14_9 * u9_10) * d10;
-    let l15_10 = (jac[6][5] - l15_9 * u9_10) * d10;
+    let l11_10 = (jac[18][5] - l11_9 * jac[10][5]) * d10;
+    let l12_10 = (jac[5][5] - l12_9 * jac[10][5]) * d10;
+    let l13_10 = (jac[4][5] - l13_9 * jac[10][5]) * d10;
+    let l14_10 = (jac[3][5] - l14_9 * jac[10][5]) * d10;
+    let l15_10 = (jac[6][5] - l15_9 * jac[10][5]) * d10;
     if !(p10.is_finite() && l11_10.abs() <= runtime::lu::MAX_MULTIPLIER
         && l12_10.abs() <= runtime::lu::MAX_MULTIPLIER
         && l13_10.abs() <= runtime::lu::MAX_MULTIPLIER
@@ -1557,13 +1309,13 @@ pub fn factor_1(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     {
         return None;
     }
-    let u11_12 = jac[18][4] - l11_9 * u9_12 - l11_10 * u10_12;
-    let p11 = jac[18][3] - l11_9 * u9_11 - l11_10 * u10_11;
+    let u11_12 = jac[18][4] - l11_9 * jac[10][4] - l11_10 * u10_12;
+    let p11 = jac[18][3] - l11_9 * jac[10][3] - l11_10 * u10_11;
     let d11 = 1.0 / p11;
-    let l12_11 = (jac[5][3] - l12_9 * u9_11 - l12_10 * u10_11) * d11;
-    let l13_11 = (jac[4][3] - l13_9 * u9_11 - l13_10 * u10_11) * d11;
-    let l14_11 = (jac[3][3] - l14_9 * u9_11 - l14_10 * u10_11) * d11;
-    let l15_11 = (jac[6][3] - l15_9 * u9_11 - l15_10 * u10_11) * d11;
+    let l12_11 = (jac[5][3] - l12_9 * jac[10][3] - l12_10 * u10_11) * d11;
+    let l13_11 = (jac[4][3] - l13_9 * jac[10][3] - l13_10 * u10_11) * d11;
+    let l14_11 = (jac[3][3] - l14_9 * jac[10][3] - l14_10 * u10_11) * d11;
+    let l15_11 = (jac[6][3] - l15_9 * jac[10][3] - l15_10 * u10_11) * d11;
     let l16_11 = jac[17][3] * d11;
     if !(p11.is_finite() && l12_11.abs() <= runtime::lu::MAX_MULTIPLIER
         && l13_11.abs() <= runtime::lu::MAX_MULTIPLIER
@@ -1573,19 +1325,22 @@ pub fn factor_1(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     {
         return None;
     }
-    let u12_13 = jac[5][10] - l12_8 * u8_13;
-    let u12_14 = jac[5][11] - l12_8 * u8_14;
-    let u12_15 = jac[5][12] - l12_8 * u8_15;
-    let u12_16 = jac[5][13] - l12_8 * u8_16;
-    let u12_17 = -(l12_8 * u8_17);
-    let u12_18 = -(l12_8 * u8_18);
-    let u12_19 = -(l12_8 * u8_19);
-    let u12_20 = -(l12_8 * u8_20);
-    let p12 = jac[5][4] - l12_9 * u9_12 - l12_10 * u10_12 - l12_11 * u11_12;
+    let u12_13 = jac[5][10] + jac[2][10];
+    let u12_14 = jac[5][11] + jac[2][11];
+    let u12_15 = jac[5][12] + jac[2][12];
+    let u12_16 = jac[5][13] + jac[2][13];
+    let u12_17 = u8_17;
+    let u12_18 = u8_18;
+    let u12_19 = u8_19;
+    let u12_20 = u8_20;
+    let p12 = jac[5][4] - l12_9 * jac[10][4] - l12_10 * u10_12 - l12_11 * u11_12;
     let d12 = 1.0 / p12;
-    let l13_12 = (jac[4][4] - l13_9 * u9_12 - l13_10 * u10_12 - l13_11 * u11_12) * d12;
-    let l14_12 = (jac[3][4] - l14_9 * u9_12 - l14_10 * u10_12 - l14_11 * u11_12) * d12;
-    let l15_12 = (jac[6][4] - l15_9 * u9_12 - l15_10 * u10_12 - l15_11 * u11_12) * d12;
+    let l13_12 = (jac[4][4] - l13_9 * jac[10][4] - l13_10 * u10_12 - l13_11 * u11_12)
+        * d12;
+    let l14_12 = (jac[3][4] - l14_9 * jac[10][4] - l14_10 * u10_12 - l14_11 * u11_12)
+        * d12;
+    let l15_12 = (jac[6][4] - l15_9 * jac[10][4] - l15_10 * u10_12 - l15_11 * u11_12)
+        * d12;
     let l16_12 = (jac[17][4] - l16_11 * u11_12) * d12;
     if !(p12.is_finite() && l13_12.abs() <= runtime::lu::MAX_MULTIPLIER
         && l14_12.abs() <= runtime::lu::MAX_MULTIPLIER
@@ -1594,16 +1349,16 @@ pub fn factor_1(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     {
         return None;
     }
-    let u13_14 = jac[4][11] - l13_7 * u7_14 - l13_12 * u12_14;
-    let u13_15 = jac[4][12] - l13_7 * u7_15 - l13_12 * u12_15;
-    let u13_16 = jac[4][13] - l13_7 * u7_16 - l13_12 * u12_16;
-    let u13_17 = -(l13_7 * u7_17) - l13_12 * u12_17;
-    let u13_18 = -(l13_7 * u7_18) - l13_12 * u12_18;
-    let u13_19 = -(l13_7 * u7_19) - l13_12 * u12_19;
-    let u13_20 = -(l13_7 * u7_20) - l13_12 * u12_20;
-    let p13 = jac[4][10] - l13_7 * u7_13 - l13_12 * u12_13;
+    let u13_14 = jac[4][11] + jac[1][11] - l13_12 * u12_14;
+    let u13_15 = jac[4][12] + jac[1][12] - l13_12 * u12_15;
+    let u13_16 = jac[4][13] + jac[1][13] - l13_12 * u12_16;
+    let u13_17 = u7_17 - l13_12 * u12_17;
+    let u13_18 = u7_18 - l13_12 * u12_18;
+    let u13_19 = u7_19 - l13_12 * u12_19;
+    let u13_20 = u7_20 - l13_12 * u12_20;
+    let p13 = jac[4][10] + jac[1][10] - l13_12 * u12_13;
     let d13 = 1.0 / p13;
-    let l14_13 = (jac[3][10] - l14_6 * u6_13 - l14_12 * u12_13) * d13;
+    let l14_13 = (jac[3][10] + jac[0][10] - l14_12 * u12_13) * d13;
     let l15_13 = (jac[6][10] - l15_12 * u12_13) * d13;
     let l16_13 = -(l16_12 * u12_13) * d13;
     let l20_13 = jac[19][10] * d13;
@@ -1614,13 +1369,13 @@ pub fn factor_1(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     {
         return None;
     }
-    let u14_15 = jac[3][12] - l14_6 * u6_15 - l14_12 * u12_15 - l14_13 * u13_15;
-    let u14_16 = jac[3][13] - l14_6 * u6_16 - l14_12 * u12_16 - l14_13 * u13_16;
-    let u14_17 = -(l14_6 * u6_17) - l14_12 * u12_17 - l14_13 * u13_17;
-    let u14_18 = -(l14_6 * u6_18) - l14_12 * u12_18 - l14_13 * u13_18;
-    let u14_19 = -(l14_6 * u6_19) - l14_12 * u12_19 - l14_13 * u13_19;
-    let u14_20 = -(l14_6 * u6_20) - l14_12 * u12_20 - l14_13 * u13_20;
-    let p14 = jac[3][11] - l14_6 * u6_14 - l14_12 * u12_14 - l14_13 * u13_14;
+    let u14_15 = jac[3][12] + jac[0][12] - l14_12 * u12_15 - l14_13 * u13_15;
+    let u14_16 = jac[3][13] + jac[0][13] - l14_12 * u12_16 - l14_13 * u13_16;
+    let u14_17 = u6_17 - l14_12 * u12_17 - l14_13 * u13_17;
+    let u14_18 = u6_18 - l14_12 * u12_18 - l14_13 * u13_18;
+    let u14_19 = u6_19 - l14_12 * u12_19 - l14_13 * u13_19;
+    let u14_20 = u6_20 - l14_12 * u12_20 - l14_13 * u13_20;
+    let p14 = jac[3][11] + jac[0][11] - l14_12 * u12_14 - l14_13 * u13_14;
     let d14 = 1.0 / p14;
     let l15_14 = (jac[6][11] - l15_12 * u12_14 - l15_13 * u13_14) * d14;
     let l16_14 = (-(l16_12 * u12_14) - l16_13 * u13_14) * d14;
@@ -1660,9 +1415,6 @@ pub fn factor_1(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     if !(p16.is_finite() && l20_16.abs() <= runtime::lu::MAX_MULTIPLIER) {
         return None;
     }
-    let u17_18 = jac[15][18];
-    let u17_19 = jac[15][19];
-    let u17_20 = jac[15][20];
     let p17 = jac[15][17];
     let d17 = 1.0 / p17;
     let l18_17 = jac[16][17] * d17;
@@ -1675,84 +1427,45 @@ pub fn factor_1(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     {
         return None;
     }
-    let u18_19 = jac[16][19] - l18_17 * u17_19;
-    let u18_20 = jac[16][20] - l18_17 * u17_20;
-    let p18 = jac[16][18] - l18_17 * u17_18;
+    let u18_19 = jac[16][19] - l18_17 * jac[15][19];
+    let u18_20 = jac[16][20] - l18_17 * jac[15][20];
+    let p18 = jac[16][18] - l18_17 * jac[15][18];
     let d18 = 1.0 / p18;
-    let l19_18 = (jac[20][18] - l19_17 * u17_18) * d18;
+    let l19_18 = (jac[20][18] - l19_17 * jac[15][18]) * d18;
     let l20_18 = (-(l20_13 * u13_18) - l20_14 * u14_18 - l20_15 * u15_18
-        - l20_16 * u16_18 - l20_17 * u17_18) * d18;
+        - l20_16 * u16_18 - l20_17 * jac[15][18]) * d18;
     if !(p18.is_finite() && l19_18.abs() <= runtime::lu::MAX_MULTIPLIER
         && l20_18.abs() <= runtime::lu::MAX_MULTIPLIER)
     {
         return None;
     }
-    let u19_20 = jac[20][20] - l19_17 * u17_20 - l19_18 * u18_20;
-    let p19 = jac[20][19] - l19_17 * u17_19 - l19_18 * u18_19;
+    let u19_20 = jac[20][20] - l19_17 * jac[15][20] - l19_18 * u18_20;
+    let p19 = jac[20][19] - l19_17 * jac[15][19] - l19_18 * u18_19;
     let d19 = 1.0 / p19;
     let l20_19 = (-(l20_13 * u13_19) - l20_14 * u14_19 - l20_15 * u15_19
-        - l20_16 * u16_19 - l20_17 * u17_19 - l20_18 * u18_19) * d19;
+        - l20_16 * u16_19 - l20_17 * jac[15][19] - l20_18 * u18_19) * d19;
     if !(p19.is_finite() && l20_19.abs() <= runtime::lu::MAX_MULTIPLIER) {
         return None;
     }
     let p20 = -(l20_13 * u13_20) - l20_14 * u14_20 - l20_15 * u15_20 - l20_16 * u16_20
-        - l20_17 * u17_20 - l20_18 * u18_20 - l20_19 * u19_20;
+        - l20_17 * jac[15][20] - l20_18 * u18_20 - l20_19 * u19_20;
     let d20 = 1.0 / p20;
-    if !(p20.is_finite()) {
+    if !p20.is_finite() {
         return None;
     }
-    jac[7][0] = d0;
-    jac[8][1] = d1;
-    jac[9][2] = d2;
-    jac[12][14] = d3;
-    jac[12][17] = u3_17;
-    jac[12][18] = u3_18;
-    jac[12][19] = u3_19;
-    jac[12][20] = u3_20;
-    jac[13][15] = d4;
-    jac[13][17] = u4_17;
-    jac[13][18] = u4_18;
-    jac[13][19] = u4_19;
-    jac[13][20] = u4_20;
-    jac[14][16] = d5;
-    jac[14][17] = u5_17;
-    jac[14][18] = u5_18;
-    jac[14][19] = u5_19;
-    jac[14][20] = u5_20;
-    jac[0][14] = l6_3;
-    jac[0][7] = d6;
-    jac[0][10] = u6_13;
-    jac[0][11] = u6_14;
-    jac[0][12] = u6_15;
-    jac[0][13] = u6_16;
     jac[0][17] = u6_17;
     jac[0][18] = u6_18;
     jac[0][19] = u6_19;
     jac[0][20] = u6_20;
-    jac[1][15] = l7_4;
-    jac[1][8] = d7;
-    jac[1][10] = u7_13;
-    jac[1][11] = u7_14;
-    jac[1][12] = u7_15;
-    jac[1][13] = u7_16;
     jac[1][17] = u7_17;
     jac[1][18] = u7_18;
     jac[1][19] = u7_19;
     jac[1][20] = u7_20;
-    jac[2][16] = l8_5;
-    jac[2][9] = d8;
-    jac[2][10] = u8_13;
-    jac[2][11] = u8_14;
-    jac[2][12] = u8_15;
-    jac[2][13] = u8_16;
     jac[2][17] = u8_17;
     jac[2][18] = u8_18;
     jac[2][19] = u8_19;
     jac[2][20] = u8_20;
     jac[10][6] = d9;
-    jac[10][5] = u9_10;
-    jac[10][3] = u9_11;
-    jac[10][4] = u9_12;
     jac[11][6] = l10_9;
     jac[11][5] = d10;
     jac[11][3] = u10_11;
@@ -1761,8 +1474,6 @@ pub fn factor_1(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     jac[18][5] = l11_10;
     jac[18][3] = d11;
     jac[18][4] = u11_12;
-    jac[5][2] = l12_2;
-    jac[5][9] = l12_8;
     jac[5][6] = l12_9;
     jac[5][5] = l12_10;
     jac[5][3] = l12_11;
@@ -1775,8 +1486,6 @@ pub fn factor_1(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     jac[5][18] = u12_18;
     jac[5][19] = u12_19;
     jac[5][20] = u12_20;
-    jac[4][1] = l13_1;
-    jac[4][8] = l13_7;
     jac[4][6] = l13_9;
     jac[4][5] = l13_10;
     jac[4][3] = l13_11;
@@ -1789,8 +1498,6 @@ pub fn factor_1(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     jac[4][18] = u13_18;
     jac[4][19] = u13_19;
     jac[4][20] = u13_20;
-    jac[3][0] = l14_0;
-    jac[3][7] = l14_6;
     jac[3][6] = l14_9;
     jac[3][5] = l14_10;
     jac[3][3] = l14_11;
@@ -1826,9 +1533,6 @@ pub fn factor_1(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     jac[17][19] = u16_19;
     jac[17][20] = u16_20;
     jac[15][17] = d17;
-    jac[15][18] = u17_18;
-    jac[15][19] = u17_19;
-    jac[15][20] = u17_20;
     jac[16][17] = l18_17;
     jac[16][18] = d18;
     jac[16][19] = u18_19;
@@ -1846,17 +1550,8 @@ pub fn factor_1(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     jac[19][19] = l20_19;
     jac[19][20] = d20;
     Some(runtime::lu::PivotInfo {
-        smallest: p0
+        smallest: p9
             .abs()
-            .min(p1.abs())
-            .min(p2.abs())
-            .min(p3.abs())
-            .min(p4.abs())
-            .min(p5.abs())
-            .min(p6.abs())
-            .min(p7.abs())
-            .min(p8.abs())
-            .min(p9.abs())
             .min(p10.abs())
             .min(p11.abs())
             .min(p12.abs())
@@ -1867,18 +1562,10 @@ pub fn factor_1(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
             .min(p17.abs())
             .min(p18.abs())
             .min(p19.abs())
-            .min(p20.abs()),
-        largest: p0
+            .min(p20.abs())
+            .min(1.0),
+        largest: p9
             .abs()
-            .max(p1.abs())
-            .max(p2.abs())
-            .max(p3.abs())
-            .max(p4.abs())
-            .max(p5.abs())
-            .max(p6.abs())
-            .max(p7.abs())
-            .max(p8.abs())
-            .max(p9.abs())
             .max(p10.abs())
             .max(p11.abs())
             .max(p12.abs())
@@ -1889,13 +1576,14 @@ pub fn factor_1(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
             .max(p17.abs())
             .max(p18.abs())
             .max(p19.abs())
-            .max(p20.abs()),
+            .max(p20.abs())
+            .max(1.0),
     })
 }
 
 /** Solves Φ_q x = b in place with the factors [`factor_1`] left in `lu`.
 
- 267 operations.*/
+ 258 operations.*/
 pub fn solve_1(lu: &[[f64; N]; N], b: &mut [f64; N]) {
     let y0 = b[7];
     let y1 = b[8];
@@ -1903,18 +1591,17 @@ pub fn solve_1(lu: &[[f64; N]; N], b: &mut [f64; N]) {
     let y3 = b[12];
     let y4 = b[13];
     let y5 = b[14];
-    let y6 = b[0] - lu[0][14] * y3;
-    let y7 = b[1] - lu[1][15] * y4;
-    let y8 = b[2] - lu[2][16] * y5;
+    let y6 = b[0] + y3;
+    let y7 = b[1] + y4;
+    let y8 = b[2] + y5;
     let y9 = b[10];
     let y10 = b[11] - lu[11][6] * y9;
     let y11 = b[18] - lu[18][6] * y9 - lu[18][5] * y10;
-    let y12 = b[5] - lu[5][2] * y2 - lu[5][9] * y8 - lu[5][6] * y9 - lu[5][5] * y10
-        - lu[5][3] * y11;
-    let y13 = b[4] - lu[4][1] * y1 - lu[4][8] * y7 - lu[4][6] * y9 - lu[4][5] * y10
-        - lu[4][3] * y11 - lu[4][4] * y12;
-    let y14 = b[3] - lu[3][0] * y0 - lu[3][7] * y6 - lu[3][6] * y9 - lu[3][5] * y10
-        - lu[3][3] * y11 - lu[3][4] * y12 - lu[3][10] * y13;
+    let y12 = b[5] - y2 + y8 - lu[5][6] * y9 - lu[5][5] * y10 - lu[5][3] * y11;
+    let y13 = b[4] - y1 + y7 - lu[4][6] * y9 - lu[4][5] * y10 - lu[4][3] * y11
+        - lu[4][4] * y12;
+    let y14 = b[3] - y0 + y6 - lu[3][6] * y9 - lu[3][5] * y10 - lu[3][3] * y11
+        - lu[3][4] * y12 - lu[3][10] * y13;
     let y15 = b[6] - lu[6][6] * y9 - lu[6][5] * y10 - lu[6][3] * y11 - lu[6][4] * y12
         - lu[6][10] * y13 - lu[6][11] * y14;
     let y16 = b[17] - lu[17][3] * y11 - lu[17][4] * y12 - lu[17][10] * y13
@@ -1944,24 +1631,21 @@ pub fn solve_1(lu: &[[f64; N]; N], b: &mut [f64; N]) {
     let x11 = (y11 - lu[18][4] * x12) * lu[18][3];
     let x10 = (y10 - lu[11][3] * x11 - lu[11][4] * x12) * lu[11][5];
     let x9 = (y9 - lu[10][5] * x10 - lu[10][3] * x11 - lu[10][4] * x12) * lu[10][6];
-    let x8 = (y8 - lu[2][10] * x13 - lu[2][11] * x14 - lu[2][12] * x15 - lu[2][13] * x16
-        - lu[2][17] * x17 - lu[2][18] * x18 - lu[2][19] * x19 - lu[2][20] * x20)
-        * lu[2][9];
-    let x7 = (y7 - lu[1][10] * x13 - lu[1][11] * x14 - lu[1][12] * x15 - lu[1][13] * x16
-        - lu[1][17] * x17 - lu[1][18] * x18 - lu[1][19] * x19 - lu[1][20] * x20)
-        * lu[1][8];
-    let x6 = (y6 - lu[0][10] * x13 - lu[0][11] * x14 - lu[0][12] * x15 - lu[0][13] * x16
-        - lu[0][17] * x17 - lu[0][18] * x18 - lu[0][19] * x19 - lu[0][20] * x20)
-        * lu[0][7];
-    let x5 = (y5 - lu[14][17] * x17 - lu[14][18] * x18 - lu[14][19] * x19
-        - lu[14][20] * x20) * lu[14][16];
-    let x4 = (y4 - lu[13][17] * x17 - lu[13][18] * x18 - lu[13][19] * x19
-        - lu[13][20] * x20) * lu[13][15];
-    let x3 = (y3 - lu[12][17] * x17 - lu[12][18] * x18 - lu[12][19] * x19
-        - lu[12][20] * x20) * lu[12][14];
-    let x2 = y2 * lu[9][2];
-    let x1 = y1 * lu[8][1];
-    let x0 = y0 * lu[7][0];
+    let x8 = -(y8 - lu[2][10] * x13 - lu[2][11] * x14 - lu[2][12] * x15 - lu[2][13] * x16
+        - lu[2][17] * x17 - lu[2][18] * x18 - lu[2][19] * x19 - lu[2][20] * x20);
+    let x7 = -(y7 - lu[1][10] * x13 - lu[1][11] * x14 - lu[1][12] * x15 - lu[1][13] * x16
+        - lu[1][17] * x17 - lu[1][18] * x18 - lu[1][19] * x19 - lu[1][20] * x20);
+    let x6 = -(y6 - lu[0][10] * x13 - lu[0][11] * x14 - lu[0][12] * x15 - lu[0][13] * x16
+        - lu[0][17] * x17 - lu[0][18] * x18 - lu[0][19] * x19 - lu[0][20] * x20);
+    let x5 = -(y5 - lu[14][17] * x17 - lu[14][18] * x18 - lu[14][19] * x19
+        - lu[14][20] * x20);
+    let x4 = -(y4 - lu[13][17] * x17 - lu[13][18] * x18 - lu[13][19] * x19
+        - lu[13][20] * x20);
+    let x3 = -(y3 - lu[12][17] * x17 - lu[12][18] * x18 - lu[12][19] * x19
+        - lu[12][20] * x20);
+    let x2 = -y2;
+    let x1 = -y1;
+    let x0 = -y0;
     b[0] = x0;
     b[1] = x1;
     b[2] = x2;
@@ -1987,104 +1671,23 @@ pub fn solve_1(lu: &[[f64; N]; N], b: &mut [f64; N]) {
 
 /** Factors Φ_q in place with static pivot order 2: step k pivots on row `[7, 8, 9, 12, 13, 14, 0, 1, 2, 10, 11, 18, 5, 4, 17, 3, 6, 15, 16, 20, 19][k]` and column `[0, 1, 2, 14, 15, 16, 7, 8, 9, 5, 6, 4, 3, 10, 11, 12, 13, 17, 18, 19, 20][k]`.
 
- L and U have 144 entries (28 of them fill-in); 416 operations. The reciprocals of the pivots are stored on the diagonal.
+ L and U have 144 entries (28 of them fill-in, 18 known when generated); 350 operations. The others are in `jac`: 96 stored there, with the reciprocals of the pivots on the diagonal, and 30 left as Φ_q had them.
 
  Returns the smallest and largest |pivot|, or `None` (with `jac` unchanged) when a pivot is not finite or a multiplier exceeds [`runtime::lu::MAX_MULTIPLIER`] in magnitude.*/
 #[must_use]
 pub fn factor_2(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
-    let p0 = jac[7][0];
-    let d0 = 1.0 / p0;
-    let l15_0 = jac[3][0] * d0;
-    if !(p0.is_finite() && l15_0.abs() <= runtime::lu::MAX_MULTIPLIER) {
-        return None;
-    }
-    let p1 = jac[8][1];
-    let d1 = 1.0 / p1;
-    let l13_1 = jac[4][1] * d1;
-    if !(p1.is_finite() && l13_1.abs() <= runtime::lu::MAX_MULTIPLIER) {
-        return None;
-    }
-    let p2 = jac[9][2];
-    let d2 = 1.0 / p2;
-    let l12_2 = jac[5][2] * d2;
-    if !(p2.is_finite() && l12_2.abs() <= runtime::lu::MAX_MULTIPLIER) {
-        return None;
-    }
-    let u3_17 = jac[12][17];
-    let u3_18 = jac[12][18];
-    let u3_19 = jac[12][19];
-    let u3_20 = jac[12][20];
-    let p3 = jac[12][14];
-    let d3 = 1.0 / p3;
-    let l6_3 = jac[0][14] * d3;
-    if !(p3.is_finite() && l6_3.abs() <= runtime::lu::MAX_MULTIPLIER) {
-        return None;
-    }
-    let u4_17 = jac[13][17];
-    let u4_18 = jac[13][18];
-    let u4_19 = jac[13][19];
-    let u4_20 = jac[13][20];
-    let p4 = jac[13][15];
-    let d4 = 1.0 / p4;
-    let l7_4 = jac[1][15] * d4;
-    if !(p4.is_finite() && l7_4.abs() <= runtime::lu::MAX_MULTIPLIER) {
-        return None;
-    }
-    let u5_17 = jac[14][17];
-    let u5_18 = jac[14][18];
-    let u5_19 = jac[14][19];
-    let u5_20 = jac[14][20];
-    let p5 = jac[14][16];
-    let d5 = 1.0 / p5;
-    let l8_5 = jac[2][16] * d5;
-    if !(p5.is_finite() && l8_5.abs() <= runtime::lu::MAX_MULTIPLIER) {
-        return None;
-    }
-    let u6_13 = jac[0][10];
-    let u6_14 = jac[0][11];
-    let u6_15 = jac[0][12];
-    let u6_16 = jac[0][13];
-    let u6_17 = jac[0][17] - l6_3 * u3_17;
-    let u6_18 = jac[0][18] - l6_3 * u3_18;
-    let u6_19 = jac[0][19] - l6_3 * u3_19;
-    let u6_20 = jac[0][20] - l6_3 * u3_20;
-    let p6 = jac[0][7];
-    let d6 = 1.0 / p6;
-    let l15_6 = jac[3][7] * d6;
-    if !(p6.is_finite() && l15_6.abs() <= runtime::lu::MAX_MULTIPLIER) {
-        return None;
-    }
-    let u7_13 = jac[1][10];
-    let u7_14 = jac[1][11];
-    let u7_15 = jac[1][12];
-    let u7_16 = jac[1][13];
-    let u7_17 = jac[1][17] - l7_4 * u4_17;
-    let u7_18 = jac[1][18] - l7_4 * u4_18;
-    let u7_19 = jac[1][19] - l7_4 * u4_19;
-    let u7_20 = jac[1][20] - l7_4 * u4_20;
-    let p7 = jac[1][8];
-    let d7 = 1.0 / p7;
-    let l13_7 = jac[4][8] * d7;
-    if !(p7.is_finite() && l13_7.abs() <= runtime::lu::MAX_MULTIPLIER) {
-        return None;
-    }
-    let u8_13 = jac[2][10];
-    let u8_14 = jac[2][11];
-    let u8_15 = jac[2][12];
-    let u8_16 = jac[2][13];
-    let u8_17 = jac[2][17] - l8_5 * u5_17;
-    let u8_18 = jac[2][18] - l8_5 * u5_18;
-    let u8_19 = jac[2][19] - l8_5 * u5_19;
-    let u8_20 = jac[2][20] - l8_5 * u5_20;
-    let p8 = jac[2][9];
-    let d8 = 1.0 / p8;
-    let l12_8 = jac[5][9] * d8;
-    if !(p8.is_finite() && l12_8.abs() <= runtime::lu::MAX_MULTIPLIER) {
-        return None;
-    }
-    let u9_10 = jac[10][6];
-    let u9_11 = jac[10][4];
-    let u9_12 = jac[10][3];
+    let u6_17 = jac[0][17] + jac[12][17];
+    let u6_18 = jac[0][18] + jac[12][18];
+    let u6_19 = jac[0][19] + jac[12][19];
+    let u6_20 = jac[0][20] + jac[12][20];
+    let u7_17 = jac[1][17] + jac[13][17];
+    let u7_18 = jac[1][18] + jac[13][18];
+    let u7_19 = jac[1][19] + jac[13][19];
+    let u7_20 = jac[1][20] + jac[13][20];
+    let u8_17 = jac[2][17] + jac[14][17];
+    let u8_18 = jac[2][18] + jac[14][18];
+    let u8_19 = jac[2][19] + jac[14][19];
+    let u8_20 = jac[2][20] + jac[14][20];
     let p9 = jac[10][5];
     let d9 = 1.0 / p9;
     let l10_9 = jac[11][5] * d9;
@@ -2102,15 +1705,15 @@ pub fn factor_2(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     {
         return None;
     }
-    let u10_11 = jac[11][4] - l10_9 * u9_11;
-    let u10_12 = jac[11][3] - l10_9 * u9_12;
-    let p10 = jac[11][6] - l10_9 * u9_10;
+    let u10_11 = jac[11][4] - l10_9 * jac[10][4];
+    let u10_12 = jac[11][3] - l10_9 * jac[10][3];
+    let p10 = jac[11][6] - l10_9 * jac[10][6];
     let d10 = 1.0 / p10;
-    let l11_10 = (jac[18][6] - l11_9 * u9_10) * d10;
-    let l12_10 = (jac[5][6] - l12_9 * u9_10) * d10;
-    let l13_10 = (jac[4][6] - l13_9 * u9_10) * d10;
-    let l15_10 = (jac[3][6] - l15_9 * u9_10) * d10;
-    let l16_10 = (jac[6][6] - l16_9 * u9_10) * d10;
+    let l11_10 = (jac[18][6] - l11_9 * jac[10][6]) * d10;
+    let l12_10 = (jac[5][6] - l12_9 * jac[10][6]) * d10;
+    let l13_10 = (jac[4][6] - l13_9 * jac[10][6]) * d10;
+    let l15_10 = (jac[3][6] - l15_9 * jac[10][6]) * d10;
+    let l16_10 = (jac[6][6] - l16_9 * jac[10][6]) * d10;
     if !(p10.is_finite() && l11_10.abs() <= runtime::lu::MAX_MULTIPLIER
         && l12_10.abs() <= runtime::lu::MAX_MULTIPLIER
         && l13_10.abs() <= runtime::lu::MAX_MULTIPLIER
@@ -2119,14 +1722,14 @@ pub fn factor_2(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     {
         return None;
     }
-    let u11_12 = jac[18][3] - l11_9 * u9_12 - l11_10 * u10_12;
-    let p11 = jac[18][4] - l11_9 * u9_11 - l11_10 * u10_11;
+    let u11_12 = jac[18][3] - l11_9 * jac[10][3] - l11_10 * u10_12;
+    let p11 = jac[18][4] - l11_9 * jac[10][4] - l11_10 * u10_11;
     let d11 = 1.0 / p11;
-    let l12_11 = (jac[5][4] - l12_9 * u9_11 - l12_10 * u10_11) * d11;
-    let l13_11 = (jac[4][4] - l13_9 * u9_11 - l13_10 * u10_11) * d11;
+    let l12_11 = (jac[5][4] - l12_9 * jac[10][4] - l12_10 * u10_11) * d11;
+    let l13_11 = (jac[4][4] - l13_9 * jac[10][4] - l13_10 * u10_11) * d11;
     let l14_11 = jac[17][4] * d11;
-    let l15_11 = (jac[3][4] - l15_9 * u9_11 - l15_10 * u10_11) * d11;
-    let l16_11 = (jac[6][4] - l16_9 * u9_11 - l16_10 * u10_11) * d11;
+    let l15_11 = (jac[3][4] - l15_9 * jac[10][4] - l15_10 * u10_11) * d11;
+    let l16_11 = (jac[6][4] - l16_9 * jac[10][4] - l16_10 * u10_11) * d11;
     if !(p11.is_finite() && l12_11.abs() <= runtime::lu::MAX_MULTIPLIER
         && l13_11.abs() <= runtime::lu::MAX_MULTIPLIER
         && l14_11.abs() <= runtime::lu::MAX_MULTIPLIER
@@ -2135,20 +1738,23 @@ pub fn factor_2(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     {
         return None;
     }
-    let u12_13 = jac[5][10] - l12_8 * u8_13;
-    let u12_14 = jac[5][11] - l12_8 * u8_14;
-    let u12_15 = jac[5][12] - l12_8 * u8_15;
-    let u12_16 = jac[5][13] - l12_8 * u8_16;
-    let u12_17 = -(l12_8 * u8_17);
-    let u12_18 = -(l12_8 * u8_18);
-    let u12_19 = -(l12_8 * u8_19);
-    let u12_20 = -(l12_8 * u8_20);
-    let p12 = jac[5][3] - l12_9 * u9_12 - l12_10 * u10_12 - l12_11 * u11_12;
+    let u12_13 = jac[5][10] + jac[2][10];
+    let u12_14 = jac[5][11] + jac[2][11];
+    let u12_15 = jac[5][12] + jac[2][12];
+    let u12_16 = jac[5][13] + jac[2][13];
+    let u12_17 = u8_17;
+    let u12_18 = u8_18;
+    let u12_19 = u8_19;
+    let u12_20 = u8_20;
+    let p12 = jac[5][3] - l12_9 * jac[10][3] - l12_10 * u10_12 - l12_11 * u11_12;
     let d12 = 1.0 / p12;
-    let l13_12 = (jac[4][3] - l13_9 * u9_12 - l13_10 * u10_12 - l13_11 * u11_12) * d12;
+    let l13_12 = (jac[4][3] - l13_9 * jac[10][3] - l13_10 * u10_12 - l13_11 * u11_12)
+        * d12;
     let l14_12 = (jac[17][3] - l14_11 * u11_12) * d12;
-    let l15_12 = (jac[3][3] - l15_9 * u9_12 - l15_10 * u10_12 - l15_11 * u11_12) * d12;
-    let l16_12 = (jac[6][3] - l16_9 * u9_12 - l16_10 * u10_12 - l16_11 * u11_12) * d12;
+    let l15_12 = (jac[3][3] - l15_9 * jac[10][3] - l15_10 * u10_12 - l15_11 * u11_12)
+        * d12;
+    let l16_12 = (jac[6][3] - l16_9 * jac[10][3] - l16_10 * u10_12 - l16_11 * u11_12)
+        * d12;
     if !(p12.is_finite() && l13_12.abs() <= runtime::lu::MAX_MULTIPLIER
         && l14_12.abs() <= runtime::lu::MAX_MULTIPLIER
         && l15_12.abs() <= runtime::lu::MAX_MULTIPLIER
@@ -2156,17 +1762,17 @@ pub fn factor_2(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     {
         return None;
     }
-    let u13_14 = jac[4][11] - l13_7 * u7_14 - l13_12 * u12_14;
-    let u13_15 = jac[4][12] - l13_7 * u7_15 - l13_12 * u12_15;
-    let u13_16 = jac[4][13] - l13_7 * u7_16 - l13_12 * u12_16;
-    let u13_17 = -(l13_7 * u7_17) - l13_12 * u12_17;
-    let u13_18 = -(l13_7 * u7_18) - l13_12 * u12_18;
-    let u13_19 = -(l13_7 * u7_19) - l13_12 * u12_19;
-    let u13_20 = -(l13_7 * u7_20) - l13_12 * u12_20;
-    let p13 = jac[4][10] - l13_7 * u7_13 - l13_12 * u12_13;
+    let u13_14 = jac[4][11] + jac[1][11] - l13_12 * u12_14;
+    let u13_15 = jac[4][12] + jac[1][12] - l13_12 * u12_15;
+    let u13_16 = jac[4][13] + jac[1][13] - l13_12 * u12_16;
+    let u13_17 = u7_17 - l13_12 * u12_17;
+    let u13_18 = u7_18 - l13_12 * u12_18;
+    let u13_19 = u7_19 - l13_12 * u12_19;
+    let u13_20 = u7_20 - l13_12 * u12_20;
+    let p13 = jac[4][10] + jac[1][10] - l13_12 * u12_13;
     let d13 = 1.0 / p13;
     let l14_13 = -(l14_12 * u12_13) * d13;
-    let l15_13 = (jac[3][10] - l15_6 * u6_13 - l15_12 * u12_13) * d13;
+    let l15_13 = (jac[3][10] + jac[0][10] - l15_12 * u12_13) * d13;
     let l16_13 = (jac[6][10] - l16_12 * u12_13) * d13;
     let l20_13 = jac[19][10] * d13;
     if !(p13.is_finite() && l14_13.abs() <= runtime::lu::MAX_MULTIPLIER
@@ -2184,7 +1790,7 @@ pub fn factor_2(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     let u14_20 = -(l14_12 * u12_20) - l14_13 * u13_20;
     let p14 = -(l14_12 * u12_14) - l14_13 * u13_14;
     let d14 = 1.0 / p14;
-    let l15_14 = (jac[3][11] - l15_6 * u6_14 - l15_12 * u12_14 - l15_13 * u13_14) * d14;
+    let l15_14 = (jac[3][11] + jac[0][11] - l15_12 * u12_14 - l15_13 * u13_14) * d14;
     let l16_14 = (jac[6][11] - l16_12 * u12_14 - l16_13 * u13_14) * d14;
     let l20_14 = (jac[19][11] - l20_13 * u13_14) * d14;
     if !(p14.is_finite() && l15_14.abs() <= runtime::lu::MAX_MULTIPLIER
@@ -2193,13 +1799,13 @@ pub fn factor_2(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     {
         return None;
     }
-    let u15_16 = jac[3][13] - l15_6 * u6_16 - l15_12 * u12_16 - l15_13 * u13_16
+    let u15_16 = jac[3][13] + jac[0][13] - l15_12 * u12_16 - l15_13 * u13_16
         - l15_14 * u14_16;
-    let u15_17 = -(l15_6 * u6_17) - l15_12 * u12_17 - l15_13 * u13_17 - l15_14 * u14_17;
-    let u15_18 = -(l15_6 * u6_18) - l15_12 * u12_18 - l15_13 * u13_18 - l15_14 * u14_18;
-    let u15_19 = -(l15_6 * u6_19) - l15_12 * u12_19 - l15_13 * u13_19 - l15_14 * u14_19;
-    let u15_20 = -(l15_6 * u6_20) - l15_12 * u12_20 - l15_13 * u13_20 - l15_14 * u14_20;
-    let p15 = jac[3][12] - l15_6 * u6_15 - l15_12 * u12_15 - l15_13 * u13_15
+    let u15_17 = u6_17 - l15_12 * u12_17 - l15_13 * u13_17 - l15_14 * u14_17;
+    let u15_18 = u6_18 - l15_12 * u12_18 - l15_13 * u13_18 - l15_14 * u14_18;
+    let u15_19 = u6_19 - l15_12 * u12_19 - l15_13 * u13_19 - l15_14 * u14_19;
+    let u15_20 = u6_20 - l15_12 * u12_20 - l15_13 * u13_20 - l15_14 * u14_20;
+    let p15 = jac[3][12] + jac[0][12] - l15_12 * u12_15 - l15_13 * u13_15
         - l15_14 * u14_15;
     let d15 = 1.0 / p15;
     let l16_15 = (jac[6][12] - l16_12 * u12_15 - l16_13 * u13_15 - l16_14 * u14_15)
@@ -2226,9 +1832,6 @@ pub fn factor_2(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     if !(p16.is_finite() && l20_16.abs() <= runtime::lu::MAX_MULTIPLIER) {
         return None;
     }
-    let u17_18 = jac[15][18];
-    let u17_19 = jac[15][19];
-    let u17_20 = jac[15][20];
     let p17 = jac[15][17];
     let d17 = 1.0 / p17;
     let l18_17 = jac[16][17] * d17;
@@ -2241,84 +1844,45 @@ pub fn factor_2(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     {
         return None;
     }
-    let u18_19 = jac[16][19] - l18_17 * u17_19;
-    let u18_20 = jac[16][20] - l18_17 * u17_20;
-    let p18 = jac[16][18] - l18_17 * u17_18;
+    let u18_19 = jac[16][19] - l18_17 * jac[15][19];
+    let u18_20 = jac[16][20] - l18_17 * jac[15][20];
+    let p18 = jac[16][18] - l18_17 * jac[15][18];
     let d18 = 1.0 / p18;
-    let l19_18 = (jac[20][18] - l19_17 * u17_18) * d18;
+    let l19_18 = (jac[20][18] - l19_17 * jac[15][18]) * d18;
     let l20_18 = (-(l20_13 * u13_18) - l20_14 * u14_18 - l20_15 * u15_18
-        - l20_16 * u16_18 - l20_17 * u17_18) * d18;
+        - l20_16 * u16_18 - l20_17 * jac[15][18]) * d18;
     if !(p18.is_finite() && l19_18.abs() <= runtime::lu::MAX_MULTIPLIER
         && l20_18.abs() <= runtime::lu::MAX_MULTIPLIER)
     {
         return None;
     }
-    let u19_20 = jac[20][20] - l19_17 * u17_20 - l19_18 * u18_20;
-    let p19 = jac[20][19] - l19_17 * u17_19 - l19_18 * u18_19;
+    let u19_20 = jac[20][20] - l19_17 * jac[15][20] - l19_18 * u18_20;
+    let p19 = jac[20][19] - l19_17 * jac[15][19] - l19_18 * u18_19;
     let d19 = 1.0 / p19;
     let l20_19 = (-(l20_13 * u13_19) - l20_14 * u14_19 - l20_15 * u15_19
-        - l20_16 * u16_19 - l20_17 * u17_19 - l20_18 * u18_19) * d19;
+        - l20_16 * u16_19 - l20_17 * jac[15][19] - l20_18 * u18_19) * d19;
     if !(p19.is_finite() && l20_19.abs() <= runtime::lu::MAX_MULTIPLIER) {
         return None;
     }
     let p20 = -(l20_13 * u13_20) - l20_14 * u14_20 - l20_15 * u15_20 - l20_16 * u16_20
-        - l20_17 * u17_20 - l20_18 * u18_20 - l20_19 * u19_20;
+        - l20_17 * jac[15][20] - l20_18 * u18_20 - l20_19 * u19_20;
     let d20 = 1.0 / p20;
-    if !(p20.is_finite()) {
+    if !p20.is_finite() {
         return None;
     }
-    jac[7][0] = d0;
-    jac[8][1] = d1;
-    jac[9][2] = d2;
-    jac[12][14] = d3;
-    jac[12][17] = u3_17;
-    jac[12][18] = u3_18;
-    jac[12][19] = u3_19;
-    jac[12][20] = u3_20;
-    jac[13][15] = d4;
-    jac[13][17] = u4_17;
-    jac[13][18] = u4_18;
-    jac[13][19] = u4_19;
-    jac[13][20] = u4_20;
-    jac[14][16] = d5;
-    jac[14][17] = u5_17;
-    jac[14][18] = u5_18;
-    jac[14][19] = u5_19;
-    jac[14][20] = u5_20;
-    jac[0][14] = l6_3;
-    jac[0][7] = d6;
-    jac[0][10] = u6_13;
-    jac[0][11] = u6_14;
-    jac[0][12] = u6_15;
-    jac[0][13] = u6_16;
     jac[0][17] = u6_17;
     jac[0][18] = u6_18;
     jac[0][19] = u6_19;
     jac[0][20] = u6_20;
-    jac[1][15] = l7_4;
-    jac[1][8] = d7;
-    jac[1][10] = u7_13;
-    jac[1][11] = u7_14;
-    jac[1][12] = u7_15;
-    jac[1][13] = u7_16;
     jac[1][17] = u7_17;
     jac[1][18] = u7_18;
     jac[1][19] = u7_19;
     jac[1][20] = u7_20;
-    jac[2][16] = l8_5;
-    jac[2][9] = d8;
-    jac[2][10] = u8_13;
-    jac[2][11] = u8_14;
-    jac[2][12] = u8_15;
-    jac[2][13] = u8_16;
     jac[2][17] = u8_17;
     jac[2][18] = u8_18;
     jac[2][19] = u8_19;
     jac[2][20] = u8_20;
     jac[10][5] = d9;
-    jac[10][6] = u9_10;
-    jac[10][4] = u9_11;
-    jac[10][3] = u9_12;
     jac[11][5] = l10_9;
     jac[11][6] = d10;
     jac[11][4] = u10_11;
@@ -2327,8 +1891,6 @@ pub fn factor_2(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     jac[18][6] = l11_10;
     jac[18][4] = d11;
     jac[18][3] = u11_12;
-    jac[5][2] = l12_2;
-    jac[5][9] = l12_8;
     jac[5][5] = l12_9;
     jac[5][6] = l12_10;
     jac[5][4] = l12_11;
@@ -2341,8 +1903,6 @@ pub fn factor_2(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     jac[5][18] = u12_18;
     jac[5][19] = u12_19;
     jac[5][20] = u12_20;
-    jac[4][1] = l13_1;
-    jac[4][8] = l13_7;
     jac[4][5] = l13_9;
     jac[4][6] = l13_10;
     jac[4][4] = l13_11;
@@ -2365,8 +1925,6 @@ pub fn factor_2(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     jac[17][18] = u14_18;
     jac[17][19] = u14_19;
     jac[17][20] = u14_20;
-    jac[3][0] = l15_0;
-    jac[3][7] = l15_6;
     jac[3][5] = l15_9;
     jac[3][6] = l15_10;
     jac[3][4] = l15_11;
@@ -2392,9 +1950,6 @@ pub fn factor_2(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     jac[6][19] = u16_19;
     jac[6][20] = u16_20;
     jac[15][17] = d17;
-    jac[15][18] = u17_18;
-    jac[15][19] = u17_19;
-    jac[15][20] = u17_20;
     jac[16][17] = l18_17;
     jac[16][18] = d18;
     jac[16][19] = u18_19;
@@ -2412,17 +1967,8 @@ pub fn factor_2(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     jac[19][19] = l20_19;
     jac[19][20] = d20;
     Some(runtime::lu::PivotInfo {
-        smallest: p0
+        smallest: p9
             .abs()
-            .min(p1.abs())
-            .min(p2.abs())
-            .min(p3.abs())
-            .min(p4.abs())
-            .min(p5.abs())
-            .min(p6.abs())
-            .min(p7.abs())
-            .min(p8.abs())
-            .min(p9.abs())
             .min(p10.abs())
             .min(p11.abs())
             .min(p12.abs())
@@ -2433,18 +1979,10 @@ pub fn factor_2(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
             .min(p17.abs())
             .min(p18.abs())
             .min(p19.abs())
-            .min(p20.abs()),
-        largest: p0
+            .min(p20.abs())
+            .min(1.0),
+        largest: p9
             .abs()
-            .max(p1.abs())
-            .max(p2.abs())
-            .max(p3.abs())
-            .max(p4.abs())
-            .max(p5.abs())
-            .max(p6.abs())
-            .max(p7.abs())
-            .max(p8.abs())
-            .max(p9.abs())
             .max(p10.abs())
             .max(p11.abs())
             .max(p12.abs())
@@ -2455,13 +1993,14 @@ pub fn factor_2(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
             .max(p17.abs())
             .max(p18.abs())
             .max(p19.abs())
-            .max(p20.abs()),
+            .max(p20.abs())
+            .max(1.0),
     })
 }
 
 /** Solves Φ_q x = b in place with the factors [`factor_2`] left in `lu`.
 
- 267 operations.*/
+ 258 operations.*/
 pub fn solve_2(lu: &[[f64; N]; N], b: &mut [f64; N]) {
     let y0 = b[7];
     let y1 = b[8];
@@ -2469,19 +2008,18 @@ pub fn solve_2(lu: &[[f64; N]; N], b: &mut [f64; N]) {
     let y3 = b[12];
     let y4 = b[13];
     let y5 = b[14];
-    let y6 = b[0] - lu[0][14] * y3;
-    let y7 = b[1] - lu[1][15] * y4;
-    let y8 = b[2] - lu[2][16] * y5;
+    let y6 = b[0] + y3;
+    let y7 = b[1] + y4;
+    let y8 = b[2] + y5;
     let y9 = b[10];
     let y10 = b[11] - lu[11][5] * y9;
     let y11 = b[18] - lu[18][5] * y9 - lu[18][6] * y10;
-    let y12 = b[5] - lu[5][2] * y2 - lu[5][9] * y8 - lu[5][5] * y9 - lu[5][6] * y10
-        - lu[5][4] * y11;
-    let y13 = b[4] - lu[4][1] * y1 - lu[4][8] * y7 - lu[4][5] * y9 - lu[4][6] * y10
-        - lu[4][4] * y11 - lu[4][3] * y12;
+    let y12 = b[5] - y2 + y8 - lu[5][5] * y9 - lu[5][6] * y10 - lu[5][4] * y11;
+    let y13 = b[4] - y1 + y7 - lu[4][5] * y9 - lu[4][6] * y10 - lu[4][4] * y11
+        - lu[4][3] * y12;
     let y14 = b[17] - lu[17][4] * y11 - lu[17][3] * y12 - lu[17][10] * y13;
-    let y15 = b[3] - lu[3][0] * y0 - lu[3][7] * y6 - lu[3][5] * y9 - lu[3][6] * y10
-        - lu[3][4] * y11 - lu[3][3] * y12 - lu[3][10] * y13 - lu[3][11] * y14;
+    let y15 = b[3] - y0 + y6 - lu[3][5] * y9 - lu[3][6] * y10 - lu[3][4] * y11
+        - lu[3][3] * y12 - lu[3][10] * y13 - lu[3][11] * y14;
     let y16 = b[6] - lu[6][5] * y9 - lu[6][6] * y10 - lu[6][4] * y11 - lu[6][3] * y12
         - lu[6][10] * y13 - lu[6][11] * y14 - lu[6][12] * y15;
     let y17 = b[15];
@@ -2509,24 +2047,21 @@ pub fn solve_2(lu: &[[f64; N]; N], b: &mut [f64; N]) {
     let x11 = (y11 - lu[18][3] * x12) * lu[18][4];
     let x10 = (y10 - lu[11][4] * x11 - lu[11][3] * x12) * lu[11][6];
     let x9 = (y9 - lu[10][6] * x10 - lu[10][4] * x11 - lu[10][3] * x12) * lu[10][5];
-    let x8 = (y8 - lu[2][10] * x13 - lu[2][11] * x14 - lu[2][12] * x15 - lu[2][13] * x16
-        - lu[2][17] * x17 - lu[2][18] * x18 - lu[2][19] * x19 - lu[2][20] * x20)
-        * lu[2][9];
-    let x7 = (y7 - lu[1][10] * x13 - lu[1][11] * x14 - lu[1][12] * x15 - lu[1][13] * x16
-        - lu[1][17] * x17 - lu[1][18] * x18 - lu[1][19] * x19 - lu[1][20] * x20)
-        * lu[1][8];
-    let x6 = (y6 - lu[0][10] * x13 - lu[0][11] * x14 - lu[0][12] * x15 - lu[0][13] * x16
-        - lu[0][17] * x17 - lu[0][18] * x18 - lu[0][19] * x19 - lu[0][20] * x20)
-        * lu[0][7];
-    let x5 = (y5 - lu[14][17] * x17 - lu[14][18] * x18 - lu[14][19] * x19
-        - lu[14][20] * x20) * lu[14][16];
-    let x4 = (y4 - lu[13][17] * x17 - lu[13][18] * x18 - lu[13][19] * x19
-        - lu[13][20] * x20) * lu[13][15];
-    let x3 = (y3 - lu[12][17] * x17 - lu[12][18] * x18 - lu[12][19] * x19
-        - lu[12][20] * x20) * lu[12][14];
-    let x2 = y2 * lu[9][2];
-    let x1 = y1 * lu[8][1];
-    let x0 = y0 * lu[7][0];
+    let x8 = -(y8 - lu[2][10] * x13 - lu[2][11] * x14 - lu[2][12] * x15 - lu[2][13] * x16
+        - lu[2][17] * x17 - lu[2][18] * x18 - lu[2][19] * x19 - lu[2][20] * x20);
+    let x7 = -(y7 - lu[1][10] * x13 - lu[1][11] * x14 - lu[1][12] * x15 - lu[1][13] * x16
+        - lu[1][17] * x17 - lu[1][18] * x18 - lu[1][19] * x19 - lu[1][20] * x20);
+    let x6 = -(y6 - lu[0][10] * x13 - lu[0][11] * x14 - lu[0][12] * x15 - lu[0][13] * x16
+        - lu[0][17] * x17 - lu[0][18] * x18 - lu[0][19] * x19 - lu[0][20] * x20);
+    let x5 = -(y5 - lu[14][17] * x17 - lu[14][18] * x18 - lu[14][19] * x19
+        - lu[14][20] * x20);
+    let x4 = -(y4 - lu[13][17] * x17 - lu[13][18] * x18 - lu[13][19] * x19
+        - lu[13][20] * x20);
+    let x3 = -(y3 - lu[12][17] * x17 - lu[12][18] * x18 - lu[12][19] * x19
+        - lu[12][20] * x20);
+    let x2 = -y2;
+    let x1 = -y1;
+    let x0 = -y0;
     b[0] = x0;
     b[1] = x1;
     b[2] = x2;
@@ -2552,104 +2087,23 @@ pub fn solve_2(lu: &[[f64; N]; N], b: &mut [f64; N]) {
 
 /** Factors Φ_q in place with static pivot order 3: step k pivots on row `[7, 8, 9, 12, 13, 14, 0, 1, 2, 10, 11, 18, 4, 5, 17, 3, 6, 16, 15, 20, 19][k]` and column `[0, 1, 2, 14, 15, 16, 7, 8, 9, 5, 6, 4, 3, 10, 11, 12, 13, 17, 18, 19, 20][k]`.
 
- L and U have 144 entries (28 of them fill-in); 416 operations. The reciprocals of the pivots are stored on the diagonal.
+ L and U have 144 entries (28 of them fill-in, 18 known when generated); 350 operations. The others are in `jac`: 96 stored there, with the reciprocals of the pivots on the diagonal, and 30 left as Φ_q had them.
 
  Returns the smallest and largest |pivot|, or `None` (with `jac` unchanged) when a pivot is not finite or a multiplier exceeds [`runtime::lu::MAX_MULTIPLIER`] in magnitude.*/
 #[must_use]
 pub fn factor_3(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
-    let p0 = jac[7][0];
-    let d0 = 1.0 / p0;
-    let l15_0 = jac[3][0] * d0;
-    if !(p0.is_finite() && l15_0.abs() <= runtime::lu::MAX_MULTIPLIER) {
-        return None;
-    }
-    let p1 = jac[8][1];
-    let d1 = 1.0 / p1;
-    let l12_1 = jac[4][1] * d1;
-    if !(p1.is_finite() && l12_1.abs() <= runtime::lu::MAX_MULTIPLIER) {
-        return None;
-    }
-    let p2 = jac[9][2];
-    let d2 = 1.0 / p2;
-    let l13_2 = jac[5][2] * d2;
-    if !(p2.is_finite() && l13_2.abs() <= runtime::lu::MAX_MULTIPLIER) {
-        return None;
-    }
-    let u3_17 = jac[12][17];
-    let u3_18 = jac[12][18];
-    let u3_19 = jac[12][19];
-    let u3_20 = jac[12][20];
-    let p3 = jac[12][14];
-    let d3 = 1.0 / p3;
-    let l6_3 = jac[0][14] * d3;
-    if !(p3.is_finite() && l6_3.abs() <= runtime::lu::MAX_MULTIPLIER) {
-        return None;
-    }
-    let u4_17 = jac[13][17];
-    let u4_18 = jac[13][18];
-    let u4_19 = jac[13][19];
-    let u4_20 = jac[13][20];
-    let p4 = jac[13][15];
-    let d4 = 1.0 / p4;
-    let l7_4 = jac[1][15] * d4;
-    if !(p4.is_finite() && l7_4.abs() <= runtime::lu::MAX_MULTIPLIER) {
-        return None;
-    }
-    let u5_17 = jac[14][17];
-    let u5_18 = jac[14][18];
-    let u5_19 = jac[14][19];
-    let u5_20 = jac[14][20];
-    let p5 = jac[14][16];
-    let d5 = 1.0 / p5;
-    let l8_5 = jac[2][16] * d5;
-    if !(p5.is_finite() && l8_5.abs() <= runtime::lu::MAX_MULTIPLIER) {
-        return None;
-    }
-    let u6_13 = jac[0][10];
-    let u6_14 = jac[0][11];
-    let u6_15 = jac[0][12];
-    let u6_16 = jac[0][13];
-    let u6_17 = jac[0][17] - l6_3 * u3_17;
-    let u6_18 = jac[0][18] - l6_3 * u3_18;
-    let u6_19 = jac[0][19] - l6_3 * u3_19;
-    let u6_20 = jac[0][20] - l6_3 * u3_20;
-    let p6 = jac[0][7];
-    let d6 = 1.0 / p6;
-    let l15_6 = jac[3][7] * d6;
-    if !(p6.is_finite() && l15_6.abs() <= runtime::lu::MAX_MULTIPLIER) {
-        return None;
-    }
-    let u7_13 = jac[1][10];
-    let u7_14 = jac[1][11];
-    let u7_15 = jac[1][12];
-    let u7_16 = jac[1][13];
-    let u7_17 = jac[1][17] - l7_4 * u4_17;
-    let u7_18 = jac[1][18] - l7_4 * u4_18;
-    let u7_19 = jac[1][19] - l7_4 * u4_19;
-    let u7_20 = jac[1][20] - l7_4 * u4_20;
-    let p7 = jac[1][8];
-    let d7 = 1.0 / p7;
-    let l12_7 = jac[4][8] * d7;
-    if !(p7.is_finite() && l12_7.abs() <= runtime::lu::MAX_MULTIPLIER) {
-        return None;
-    }
-    let u8_13 = jac[2][10];
-    let u8_14 = jac[2][11];
-    let u8_15 = jac[2][12];
-    let u8_16 = jac[2][13];
-    let u8_17 = jac[2][17] - l8_5 * u5_17;
-    let u8_18 = jac[2][18] - l8_5 * u5_18;
-    let u8_19 = jac[2][19] - l8_5 * u5_19;
-    let u8_20 = jac[2][20] - l8_5 * u5_20;
-    let p8 = jac[2][9];
-    let d8 = 1.0 / p8;
-    let l13_8 = jac[5][9] * d8;
-    if !(p8.is_finite() && l13_8.abs() <= runtime::lu::MAX_MULTIPLIER) {
-        return None;
-    }
-    let u9_10 = jac[10][6];
-    let u9_11 = jac[10][4];
-    let u9_12 = jac[10][3];
+    let u6_17 = jac[0][17] + jac[12][17];
+    let u6_18 = jac[0][18] + jac[12][18];
+    let u6_19 = jac[0][19] + jac[12][19];
+    let u6_20 = jac[0][20] + jac[12][20];
+    let u7_17 = jac[1][17] + jac[13][17];
+    let u7_18 = jac[1][18] + jac[13][18];
+    let u7_19 = jac[1][19] + jac[13][19];
+    let u7_20 = jac[1][20] + jac[13][20];
+    let u8_17 = jac[2][17] + jac[14][17];
+    let u8_18 = jac[2][18] + jac[14][18];
+    let u8_19 = jac[2][19] + jac[14][19];
+    let u8_20 = jac[2][20] + jac[14][20];
     let p9 = jac[10][5];
     let d9 = 1.0 / p9;
     let l10_9 = jac[11][5] * d9;
@@ -2667,15 +2121,15 @@ pub fn factor_3(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     {
         return None;
     }
-    let u10_11 = jac[11][4] - l10_9 * u9_11;
-    let u10_12 = jac[11][3] - l10_9 * u9_12;
-    let p10 = jac[11][6] - l10_9 * u9_10;
+    let u10_11 = jac[11][4] - l10_9 * jac[10][4];
+    let u10_12 = jac[11][3] - l10_9 * jac[10][3];
+    let p10 = jac[11][6] - l10_9 * jac[10][6];
     let d10 = 1.0 / p10;
-    let l11_10 = (jac[18][6] - l11_9 * u9_10) * d10;
-    let l12_10 = (jac[4][6] - l12_9 * u9_10) * d10;
-    let l13_10 = (jac[5][6] - l13_9 * u9_10) * d10;
-    let l15_10 = (jac[3][6] - l15_9 * u9_10) * d10;
-    let l16_10 = (jac[6][6] - l16_9 * u9_10) * d10;
+    let l11_10 = (jac[18][6] - l11_9 * jac[10][6]) * d10;
+    let l12_10 = (jac[4][6] - l12_9 * jac[10][6]) * d10;
+    let l13_10 = (jac[5][6] - l13_9 * jac[10][6]) * d10;
+    let l15_10 = (jac[3][6] - l15_9 * jac[10][6]) * d10;
+    let l16_10 = (jac[6][6] - l16_9 * jac[10][6]) * d10;
     if !(p10.is_finite() && l11_10.abs() <= runtime::lu::MAX_MULTIPLIER
         && l12_10.abs() <= runtime::lu::MAX_MULTIPLIER
         && l13_10.abs() <= runtime::lu::MAX_MULTIPLIER
@@ -2684,14 +2138,14 @@ pub fn factor_3(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     {
         return None;
     }
-    let u11_12 = jac[18][3] - l11_9 * u9_12 - l11_10 * u10_12;
-    let p11 = jac[18][4] - l11_9 * u9_11 - l11_10 * u10_11;
+    let u11_12 = jac[18][3] - l11_9 * jac[10][3] - l11_10 * u10_12;
+    let p11 = jac[18][4] - l11_9 * jac[10][4] - l11_10 * u10_11;
     let d11 = 1.0 / p11;
-    let l12_11 = (jac[4][4] - l12_9 * u9_11 - l12_10 * u10_11) * d11;
-    let l13_11 = (jac[5][4] - l13_9 * u9_11 - l13_10 * u10_11) * d11;
+    let l12_11 = (jac[4][4] - l12_9 * jac[10][4] - l12_10 * u10_11) * d11;
+    let l13_11 = (jac[5][4] - l13_9 * jac[10][4] - l13_10 * u10_11) * d11;
     let l14_11 = jac[17][4] * d11;
-    let l15_11 = (jac[3][4] - l15_9 * u9_11 - l15_10 * u10_11) * d11;
-    let l16_11 = (jac[6][4] - l16_9 * u9_11 - l16_10 * u10_11) * d11;
+    let l15_11 = (jac[3][4] - l15_9 * jac[10][4] - l15_10 * u10_11) * d11;
+    let l16_11 = (jac[6][4] - l16_9 * jac[10][4] - l16_10 * u10_11) * d11;
     if !(p11.is_finite() && l12_11.abs() <= runtime::lu::MAX_MULTIPLIER
         && l13_11.abs() <= runtime::lu::MAX_MULTIPLIER
         && l14_11.abs() <= runtime::lu::MAX_MULTIPLIER
@@ -2700,20 +2154,23 @@ pub fn factor_3(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     {
         return None;
     }
-    let u12_13 = jac[4][10] - l12_7 * u7_13;
-    let u12_14 = jac[4][11] - l12_7 * u7_14;
-    let u12_15 = jac[4][12] - l12_7 * u7_15;
-    let u12_16 = jac[4][13] - l12_7 * u7_16;
-    let u12_17 = -(l12_7 * u7_17);
-    let u12_18 = -(l12_7 * u7_18);
-    let u12_19 = -(l12_7 * u7_19);
-    let u12_20 = -(l12_7 * u7_20);
-    let p12 = jac[4][3] - l12_9 * u9_12 - l12_10 * u10_12 - l12_11 * u11_12;
+    let u12_13 = jac[4][10] + jac[1][10];
+    let u12_14 = jac[4][11] + jac[1][11];
+    let u12_15 = jac[4][12] + jac[1][12];
+    let u12_16 = jac[4][13] + jac[1][13];
+    let u12_17 = u7_17;
+    let u12_18 = u7_18;
+    let u12_19 = u7_19;
+    let u12_20 = u7_20;
+    let p12 = jac[4][3] - l12_9 * jac[10][3] - l12_10 * u10_12 - l12_11 * u11_12;
     let d12 = 1.0 / p12;
-    let l13_12 = (jac[5][3] - l13_9 * u9_12 - l13_10 * u10_12 - l13_11 * u11_12) * d12;
+    let l13_12 = (jac[5][3] - l13_9 * jac[10][3] - l13_10 * u10_12 - l13_11 * u11_12)
+        * d12;
     let l14_12 = (jac[17][3] - l14_11 * u11_12) * d12;
-    let l15_12 = (jac[3][3] - l15_9 * u9_12 - l15_10 * u10_12 - l15_11 * u11_12) * d12;
-    let l16_12 = (jac[6][3] - l16_9 * u9_12 - l16_10 * u10_12 - l16_11 * u11_12) * d12;
+    let l15_12 = (jac[3][3] - l15_9 * jac[10][3] - l15_10 * u10_12 - l15_11 * u11_12)
+        * d12;
+    let l16_12 = (jac[6][3] - l16_9 * jac[10][3] - l16_10 * u10_12 - l16_11 * u11_12)
+        * d12;
     if !(p12.is_finite() && l13_12.abs() <= runtime::lu::MAX_MULTIPLIER
         && l14_12.abs() <= runtime::lu::MAX_MULTIPLIER
         && l15_12.abs() <= runtime::lu::MAX_MULTIPLIER
@@ -2721,17 +2178,17 @@ pub fn factor_3(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     {
         return None;
     }
-    let u13_14 = jac[5][11] - l13_8 * u8_14 - l13_12 * u12_14;
-    let u13_15 = jac[5][12] - l13_8 * u8_15 - l13_12 * u12_15;
-    let u13_16 = jac[5][13] - l13_8 * u8_16 - l13_12 * u12_16;
-    let u13_17 = -(l13_8 * u8_17) - l13_12 * u12_17;
-    let u13_18 = -(l13_8 * u8_18) - l13_12 * u12_18;
-    let u13_19 = -(l13_8 * u8_19) - l13_12 * u12_19;
-    let u13_20 = -(l13_8 * u8_20) - l13_12 * u12_20;
-    let p13 = jac[5][10] - l13_8 * u8_13 - l13_12 * u12_13;
+    let u13_14 = jac[5][11] + jac[2][11] - l13_12 * u12_14;
+    let u13_15 = jac[5][12] + jac[2][12] - l13_12 * u12_15;
+    let u13_16 = jac[5][13] + jac[2][13] - l13_12 * u12_16;
+    let u13_17 = u8_17 - l13_12 * u12_17;
+    let u13_18 = u8_18 - l13_12 * u12_18;
+    let u13_19 = u8_19 - l13_12 * u12_19;
+    let u13_20 = u8_20 - l13_12 * u12_20;
+    let p13 = jac[5][10] + jac[2][10] - l13_12 * u12_13;
     let d13 = 1.0 / p13;
     let l14_13 = -(l14_12 * u12_13) * d13;
-    let l15_13 = (jac[3][10] - l15_6 * u6_13 - l15_12 * u12_13) * d13;
+    let l15_13 = (jac[3][10] + jac[0][10] - l15_12 * u12_13) * d13;
     let l16_13 = (jac[6][10] - l16_12 * u12_13) * d13;
     let l20_13 = jac[19][10] * d13;
     if !(p13.is_finite() && l14_13.abs() <= runtime::lu::MAX_MULTIPLIER
@@ -2749,7 +2206,7 @@ pub fn factor_3(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     let u14_20 = -(l14_12 * u12_20) - l14_13 * u13_20;
     let p14 = -(l14_12 * u12_14) - l14_13 * u13_14;
     let d14 = 1.0 / p14;
-    let l15_14 = (jac[3][11] - l15_6 * u6_14 - l15_12 * u12_14 - l15_13 * u13_14) * d14;
+    let l15_14 = (jac[3][11] + jac[0][11] - l15_12 * u12_14 - l15_13 * u13_14) * d14;
     let l16_14 = (jac[6][11] - l16_12 * u12_14 - l16_13 * u13_14) * d14;
     let l20_14 = (jac[19][11] - l20_13 * u13_14) * d14;
     if !(p14.is_finite() && l15_14.abs() <= runtime::lu::MAX_MULTIPLIER
@@ -2758,13 +2215,13 @@ pub fn factor_3(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     {
         return None;
     }
-    let u15_16 = jac[3][13] - l15_6 * u6_16 - l15_12 * u12_16 - l15_13 * u13_16
+    let u15_16 = jac[3][13] + jac[0][13] - l15_12 * u12_16 - l15_13 * u13_16
         - l15_14 * u14_16;
-    let u15_17 = -(l15_6 * u6_17) - l15_12 * u12_17 - l15_13 * u13_17 - l15_14 * u14_17;
-    let u15_18 = -(l15_6 * u6_18) - l15_12 * u12_18 - l15_13 * u13_18 - l15_14 * u14_18;
-    let u15_19 = -(l15_6 * u6_19) - l15_12 * u12_19 - l15_13 * u13_19 - l15_14 * u14_19;
-    let u15_20 = -(l15_6 * u6_20) - l15_12 * u12_20 - l15_13 * u13_20 - l15_14 * u14_20;
-    let p15 = jac[3][12] - l15_6 * u6_15 - l15_12 * u12_15 - l15_13 * u13_15
+    let u15_17 = u6_17 - l15_12 * u12_17 - l15_13 * u13_17 - l15_14 * u14_17;
+    let u15_18 = u6_18 - l15_12 * u12_18 - l15_13 * u13_18 - l15_14 * u14_18;
+    let u15_19 = u6_19 - l15_12 * u12_19 - l15_13 * u13_19 - l15_14 * u14_19;
+    let u15_20 = u6_20 - l15_12 * u12_20 - l15_13 * u13_20 - l15_14 * u14_20;
+    let p15 = jac[3][12] + jac[0][12] - l15_12 * u12_15 - l15_13 * u13_15
         - l15_14 * u14_15;
     let d15 = 1.0 / p15;
     let l16_15 = (jac[6][12] - l16_12 * u12_15 - l16_13 * u13_15 - l16_14 * u14_15)
@@ -2791,9 +2248,6 @@ pub fn factor_3(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     if !(p16.is_finite() && l20_16.abs() <= runtime::lu::MAX_MULTIPLIER) {
         return None;
     }
-    let u17_18 = jac[16][18];
-    let u17_19 = jac[16][19];
-    let u17_20 = jac[16][20];
     let p17 = jac[16][17];
     let d17 = 1.0 / p17;
     let l18_17 = jac[15][17] * d17;
@@ -2806,84 +2260,45 @@ pub fn factor_3(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     {
         return None;
     }
-    let u18_19 = jac[15][19] - l18_17 * u17_19;
-    let u18_20 = jac[15][20] - l18_17 * u17_20;
-    let p18 = jac[15][18] - l18_17 * u17_18;
+    let u18_19 = jac[15][19] - l18_17 * jac[16][19];
+    let u18_20 = jac[15][20] - l18_17 * jac[16][20];
+    let p18 = jac[15][18] - l18_17 * jac[16][18];
     let d18 = 1.0 / p18;
-    let l19_18 = (jac[20][18] - l19_17 * u17_18) * d18;
+    let l19_18 = (jac[20][18] - l19_17 * jac[16][18]) * d18;
     let l20_18 = (-(l20_13 * u13_18) - l20_14 * u14_18 - l20_15 * u15_18
-        - l20_16 * u16_18 - l20_17 * u17_18) * d18;
+        - l20_16 * u16_18 - l20_17 * jac[16][18]) * d18;
     if !(p18.is_finite() && l19_18.abs() <= runtime::lu::MAX_MULTIPLIER
         && l20_18.abs() <= runtime::lu::MAX_MULTIPLIER)
     {
         return None;
     }
-    let u19_20 = jac[20][20] - l19_17 * u17_20 - l19_18 * u18_20;
-    let p19 = jac[20][19] - l19_17 * u17_19 - l19_18 * u18_19;
+    let u19_20 = jac[20][20] - l19_17 * jac[16][20] - l19_18 * u18_20;
+    let p19 = jac[20][19] - l19_17 * jac[16][19] - l19_18 * u18_19;
     let d19 = 1.0 / p19;
     let l20_19 = (-(l20_13 * u13_19) - l20_14 * u14_19 - l20_15 * u15_19
-        - l20_16 * u16_19 - l20_17 * u17_19 - l20_18 * u18_19) * d19;
+        - l20_16 * u16_19 - l20_17 * jac[16][19] - l20_18 * u18_19) * d19;
     if !(p19.is_finite() && l20_19.abs() <= runtime::lu::MAX_MULTIPLIER) {
         return None;
     }
     let p20 = -(l20_13 * u13_20) - l20_14 * u14_20 - l20_15 * u15_20 - l20_16 * u16_20
-        - l20_17 * u17_20 - l20_18 * u18_20 - l20_19 * u19_20;
+        - l20_17 * jac[16][20] - l20_18 * u18_20 - l20_19 * u19_20;
     let d20 = 1.0 / p20;
-    if !(p20.is_finite()) {
+    if !p20.is_finite() {
         return None;
     }
-    jac[7][0] = d0;
-    jac[8][1] = d1;
-    jac[9][2] = d2;
-    jac[12][14] = d3;
-    jac[12][17] = u3_17;
-    jac[12][18] = u3_18;
-    jac[12][19] = u3_19;
-    jac[12][20] = u3_20;
-    jac[13][15] = d4;
-    jac[13][17] = u4_17;
-    jac[13][18] = u4_18;
-    jac[13][19] = u4_19;
-    jac[13][20] = u4_20;
-    jac[14][16] = d5;
-    jac[14][17] = u5_17;
-    jac[14][18] = u5_18;
-    jac[14][19] = u5_19;
-    jac[14][20] = u5_20;
-    jac[0][14] = l6_3;
-    jac[0][7] = d6;
-    jac[0][10] = u6_13;
-    jac[0][11] = u6_14;
-    jac[0][12] = u6_15;
-    jac[0][13] = u6_16;
     jac[0][17] = u6_17;
     jac[0][18] = u6_18;
     jac[0][19] = u6_19;
     jac[0][20] = u6_20;
-    jac[1][15] = l7_4;
-    jac[1][8] = d7;
-    jac[1][10] = u7_13;
-    jac[1][11] = u7_14;
-    jac[1][12] = u7_15;
-    jac[1][13] = u7_16;
     jac[1][17] = u7_17;
     jac[1][18] = u7_18;
     jac[1][19] = u7_19;
     jac[1][20] = u7_20;
-    jac[2][16] = l8_5;
-    jac[2][9] = d8;
-    jac[2][10] = u8_13;
-    jac[2][11] = u8_14;
-    jac[2][12] = u8_15;
-    jac[2][13] = u8_16;
     jac[2][17] = u8_17;
     jac[2][18] = u8_18;
     jac[2][19] = u8_19;
     jac[2][20] = u8_20;
     jac[10][5] = d9;
-    jac[10][6] = u9_10;
-    jac[10][4] = u9_11;
-    jac[10][3] = u9_12;
     jac[11][5] = l10_9;
     jac[11][6] = d10;
     jac[11][4] = u10_11;
@@ -2892,8 +2307,6 @@ pub fn factor_3(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     jac[18][6] = l11_10;
     jac[18][4] = d11;
     jac[18][3] = u11_12;
-    jac[4][1] = l12_1;
-    jac[4][8] = l12_7;
     jac[4][5] = l12_9;
     jac[4][6] = l12_10;
     jac[4][4] = l12_11;
@@ -2906,8 +2319,6 @@ pub fn factor_3(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     jac[4][18] = u12_18;
     jac[4][19] = u12_19;
     jac[4][20] = u12_20;
-    jac[5][2] = l13_2;
-    jac[5][9] = l13_8;
     jac[5][5] = l13_9;
     jac[5][6] = l13_10;
     jac[5][4] = l13_11;
@@ -2930,8 +2341,6 @@ pub fn factor_3(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     jac[17][18] = u14_18;
     jac[17][19] = u14_19;
     jac[17][20] = u14_20;
-    jac[3][0] = l15_0;
-    jac[3][7] = l15_6;
     jac[3][5] = l15_9;
     jac[3][6] = l15_10;
     jac[3][4] = l15_11;
@@ -2957,9 +2366,6 @@ pub fn factor_3(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     jac[6][19] = u16_19;
     jac[6][20] = u16_20;
     jac[16][17] = d17;
-    jac[16][18] = u17_18;
-    jac[16][19] = u17_19;
-    jac[16][20] = u17_20;
     jac[15][17] = l18_17;
     jac[15][18] = d18;
     jac[15][19] = u18_19;
@@ -2977,17 +2383,8 @@ pub fn factor_3(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     jac[19][19] = l20_19;
     jac[19][20] = d20;
     Some(runtime::lu::PivotInfo {
-        smallest: p0
+        smallest: p9
             .abs()
-            .min(p1.abs())
-            .min(p2.abs())
-            .min(p3.abs())
-            .min(p4.abs())
-            .min(p5.abs())
-            .min(p6.abs())
-            .min(p7.abs())
-            .min(p8.abs())
-            .min(p9.abs())
             .min(p10.abs())
             .min(p11.abs())
             .min(p12.abs())
@@ -2998,18 +2395,10 @@ pub fn factor_3(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
             .min(p17.abs())
             .min(p18.abs())
             .min(p19.abs())
-            .min(p20.abs()),
-        largest: p0
+            .min(p20.abs())
+            .min(1.0),
+        largest: p9
             .abs()
-            .max(p1.abs())
-            .max(p2.abs())
-            .max(p3.abs())
-            .max(p4.abs())
-            .max(p5.abs())
-            .max(p6.abs())
-            .max(p7.abs())
-            .max(p8.abs())
-            .max(p9.abs())
             .max(p10.abs())
             .max(p11.abs())
             .max(p12.abs())
@@ -3020,13 +2409,14 @@ pub fn factor_3(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
             .max(p17.abs())
             .max(p18.abs())
             .max(p19.abs())
-            .max(p20.abs()),
+            .max(p20.abs())
+            .max(1.0),
     })
 }
 
 /** Solves Φ_q x = b in place with the factors [`factor_3`] left in `lu`.
 
- 267 operations.*/
+ 258 operations.*/
 pub fn solve_3(lu: &[[f64; N]; N], b: &mut [f64; N]) {
     let y0 = b[7];
     let y1 = b[8];
@@ -3034,19 +2424,18 @@ pub fn solve_3(lu: &[[f64; N]; N], b: &mut [f64; N]) {
     let y3 = b[12];
     let y4 = b[13];
     let y5 = b[14];
-    let y6 = b[0] - lu[0][14] * y3;
-    let y7 = b[1] - lu[1][15] * y4;
-    let y8 = b[2] - lu[2][16] * y5;
+    let y6 = b[0] + y3;
+    let y7 = b[1] + y4;
+    let y8 = b[2] + y5;
     let y9 = b[10];
     let y10 = b[11] - lu[11][5] * y9;
     let y11 = b[18] - lu[18][5] * y9 - lu[18][6] * y10;
-    let y12 = b[4] - lu[4][1] * y1 - lu[4][8] * y7 - lu[4][5] * y9 - lu[4][6] * y10
-        - lu[4][4] * y11;
-    let y13 = b[5] - lu[5][2] * y2 - lu[5][9] * y8 - lu[5][5] * y9 - lu[5][6] * y10
-        - lu[5][4] * y11 - lu[5][3] * y12;
+    let y12 = b[4] - y1 + y7 - lu[4][5] * y9 - lu[4][6] * y10 - lu[4][4] * y11;
+    let y13 = b[5] - y2 + y8 - lu[5][5] * y9 - lu[5][6] * y10 - lu[5][4] * y11
+        - lu[5][3] * y12;
     let y14 = b[17] - lu[17][4] * y11 - lu[17][3] * y12 - lu[17][10] * y13;
-    let y15 = b[3] - lu[3][0] * y0 - lu[3][7] * y6 - lu[3][5] * y9 - lu[3][6] * y10
-        - lu[3][4] * y11 - lu[3][3] * y12 - lu[3][10] * y13 - lu[3][11] * y14;
+    let y15 = b[3] - y0 + y6 - lu[3][5] * y9 - lu[3][6] * y10 - lu[3][4] * y11
+        - lu[3][3] * y12 - lu[3][10] * y13 - lu[3][11] * y14;
     let y16 = b[6] - lu[6][5] * y9 - lu[6][6] * y10 - lu[6][4] * y11 - lu[6][3] * y12
         - lu[6][10] * y13 - lu[6][11] * y14 - lu[6][12] * y15;
     let y17 = b[16];
@@ -3074,24 +2463,21 @@ pub fn solve_3(lu: &[[f64; N]; N], b: &mut [f64; N]) {
     let x11 = (y11 - lu[18][3] * x12) * lu[18][4];
     let x10 = (y10 - lu[11][4] * x11 - lu[11][3] * x12) * lu[11][6];
     let x9 = (y9 - lu[10][6] * x10 - lu[10][4] * x11 - lu[10][3] * x12) * lu[10][5];
-    let x8 = (y8 - lu[2][10] * x13 - lu[2][11] * x14 - lu[2][12] * x15 - lu[2][13] * x16
-        - lu[2][17] * x17 - lu[2][18] * x18 - lu[2][19] * x19 - lu[2][20] * x20)
-        * lu[2][9];
-    let x7 = (y7 - lu[1][10] * x13 - lu[1][11] * x14 - lu[1][12] * x15 - lu[1][13] * x16
-        - lu[1][17] * x17 - lu[1][18] * x18 - lu[1][19] * x19 - lu[1][20] * x20)
-        * lu[1][8];
-    let x6 = (y6 - lu[0][10] * x13 - lu[0][11] * x14 - lu[0][12] * x15 - lu[0][13] * x16
-        - lu[0][17] * x17 - lu[0][18] * x18 - lu[0][19] * x19 - lu[0][20] * x20)
-        * lu[0][7];
-    let x5 = (y5 - lu[14][17] * x17 - lu[14][18] * x18 - lu[14][19] * x19
-        - lu[14][20] * x20) * lu[14][16];
-    let x4 = (y4 - lu[13][17] * x17 - lu[13][18] * x18 - lu[13][19] * x19
-        - lu[13][20] * x20) * lu[13][15];
-    let x3 = (y3 - lu[12][17] * x17 - lu[12][18] * x18 - lu[12][19] * x19
-        - lu[12][20] * x20) * lu[12][14];
-    let x2 = y2 * lu[9][2];
-    let x1 = y1 * lu[8][1];
-    let x0 = y0 * lu[7][0];
+    let x8 = -(y8 - lu[2][10] * x13 - lu[2][11] * x14 - lu[2][12] * x15 - lu[2][13] * x16
+        - lu[2][17] * x17 - lu[2][18] * x18 - lu[2][19] * x19 - lu[2][20] * x20);
+    let x7 = -(y7 - lu[1][10] * x13 - lu[1][11] * x14 - lu[1][12] * x15 - lu[1][13] * x16
+        - lu[1][17] * x17 - lu[1][18] * x18 - lu[1][19] * x19 - lu[1][20] * x20);
+    let x6 = -(y6 - lu[0][10] * x13 - lu[0][11] * x14 - lu[0][12] * x15 - lu[0][13] * x16
+        - lu[0][17] * x17 - lu[0][18] * x18 - lu[0][19] * x19 - lu[0][20] * x20);
+    let x5 = -(y5 - lu[14][17] * x17 - lu[14][18] * x18 - lu[14][19] * x19
+        - lu[14][20] * x20);
+    let x4 = -(y4 - lu[13][17] * x17 - lu[13][18] * x18 - lu[13][19] * x19
+        - lu[13][20] * x20);
+    let x3 = -(y3 - lu[12][17] * x17 - lu[12][18] * x18 - lu[12][19] * x19
+        - lu[12][20] * x20);
+    let x2 = -y2;
+    let x1 = -y1;
+    let x0 = -y0;
     b[0] = x0;
     b[1] = x1;
     b[2] = x2;

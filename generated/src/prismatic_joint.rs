@@ -138,7 +138,7 @@ pub fn residual_jacobian(
     jac[5][5] = q5 + q5;
 }
 
-/** Φ and the 18 structurally non-zero entries of Φ_q, the others of `jac` left as they were: what the `factor_k` functions read.
+/** Φ and the 16 entries of Φ_q that depend on q or t, the others of `jac` left as they were: what the `factor_k` functions read (2 of the 18 structurally non-zero entries are constants, which they know).
 
  35 operations, 6 shared subexpressions.*/
 pub fn residual_jacobian_structural(
@@ -168,8 +168,6 @@ pub fn residual_jacobian_structural(
     jac[1][3] = t5;
     jac[1][4] = t1;
     jac[1][5] = -t2;
-    jac[2][0] = 1.0;
-    jac[3][1] = -1.0;
     jac[4][2] = t2;
     jac[4][3] = t0;
     jac[4][4] = t4;
@@ -182,24 +180,11 @@ pub fn residual_jacobian_structural(
 
 /** Factors Φ_q in place with static pivot order 0: step k pivots on row `[2, 3, 5, 1, 4, 0][k]` and column `[0, 1, 2, 3, 4, 5][k]`.
 
- L and U have 18 entries (0 of them fill-in); 40 operations. The reciprocals of the pivots are stored on the diagonal.
+ L and U have 18 entries (0 of them fill-in, 2 known when generated); 38 operations. The others are in `jac`: 13 stored there, with the reciprocals of the pivots on the diagonal, and 3 left as Φ_q had them.
 
  Returns the smallest and largest |pivot|, or `None` (with `jac` unchanged) when a pivot is not finite or a multiplier exceeds [`runtime::lu::MAX_MULTIPLIER`] in magnitude.*/
 #[must_use]
 pub fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
-    let p0 = jac[2][0];
-    let d0 = 1.0 / p0;
-    if !(p0.is_finite()) {
-        return None;
-    }
-    let p1 = jac[3][1];
-    let d1 = 1.0 / p1;
-    if !(p1.is_finite()) {
-        return None;
-    }
-    let u2_3 = jac[5][3];
-    let u2_4 = jac[5][4];
-    let u2_5 = jac[5][5];
     let p2 = jac[5][2];
     let d2 = 1.0 / p2;
     let l3_2 = jac[1][2] * d2;
@@ -211,35 +196,30 @@ pub fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     {
         return None;
     }
-    let u3_4 = jac[1][4] - l3_2 * u2_4;
-    let u3_5 = jac[1][5] - l3_2 * u2_5;
-    let p3 = jac[1][3] - l3_2 * u2_3;
+    let u3_4 = jac[1][4] - l3_2 * jac[5][4];
+    let u3_5 = jac[1][5] - l3_2 * jac[5][5];
+    let p3 = jac[1][3] - l3_2 * jac[5][3];
     let d3 = 1.0 / p3;
-    let l4_3 = (jac[4][3] - l4_2 * u2_3) * d3;
-    let l5_3 = (jac[0][3] - l5_2 * u2_3) * d3;
+    let l4_3 = (jac[4][3] - l4_2 * jac[5][3]) * d3;
+    let l5_3 = (jac[0][3] - l5_2 * jac[5][3]) * d3;
     if !(p3.is_finite() && l4_3.abs() <= runtime::lu::MAX_MULTIPLIER
         && l5_3.abs() <= runtime::lu::MAX_MULTIPLIER)
     {
         return None;
     }
-    let u4_5 = jac[4][5] - l4_2 * u2_5 - l4_3 * u3_5;
-    let p4 = jac[4][4] - l4_2 * u2_4 - l4_3 * u3_4;
+    let u4_5 = jac[4][5] - l4_2 * jac[5][5] - l4_3 * u3_5;
+    let p4 = jac[4][4] - l4_2 * jac[5][4] - l4_3 * u3_4;
     let d4 = 1.0 / p4;
-    let l5_4 = (jac[0][4] - l5_2 * u2_4 - l5_3 * u3_4) * d4;
+    let l5_4 = (jac[0][4] - l5_2 * jac[5][4] - l5_3 * u3_4) * d4;
     if !(p4.is_finite() && l5_4.abs() <= runtime::lu::MAX_MULTIPLIER) {
         return None;
     }
-    let p5 = jac[0][5] - l5_2 * u2_5 - l5_3 * u3_5 - l5_4 * u4_5;
+    let p5 = jac[0][5] - l5_2 * jac[5][5] - l5_3 * u3_5 - l5_4 * u4_5;
     let d5 = 1.0 / p5;
-    if !(p5.is_finite()) {
+    if !p5.is_finite() {
         return None;
     }
-    jac[2][0] = d0;
-    jac[3][1] = d1;
     jac[5][2] = d2;
-    jac[5][3] = u2_3;
-    jac[5][4] = u2_4;
-    jac[5][5] = u2_5;
     jac[1][2] = l3_2;
     jac[1][3] = d3;
     jac[1][4] = u3_4;
@@ -253,26 +233,14 @@ pub fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     jac[0][4] = l5_4;
     jac[0][5] = d5;
     Some(runtime::lu::PivotInfo {
-        smallest: p0
-            .abs()
-            .min(p1.abs())
-            .min(p2.abs())
-            .min(p3.abs())
-            .min(p4.abs())
-            .min(p5.abs()),
-        largest: p0
-            .abs()
-            .max(p1.abs())
-            .max(p2.abs())
-            .max(p3.abs())
-            .max(p4.abs())
-            .max(p5.abs()),
+        smallest: p2.abs().min(p3.abs()).min(p4.abs()).min(p5.abs()).min(1.0),
+        largest: p2.abs().max(p3.abs()).max(p4.abs()).max(p5.abs()).max(1.0),
     })
 }
 
 /** Solves Φ_q x = b in place with the factors [`factor_0`] left in `lu`.
 
- 30 operations.*/
+ 29 operations.*/
 pub fn solve_0(lu: &[[f64; N]; N], b: &mut [f64; N]) {
     let y0 = b[2];
     let y1 = b[3];
@@ -284,8 +252,8 @@ pub fn solve_0(lu: &[[f64; N]; N], b: &mut [f64; N]) {
     let x4 = (y4 - lu[4][5] * x5) * lu[4][4];
     let x3 = (y3 - lu[1][4] * x4 - lu[1][5] * x5) * lu[1][3];
     let x2 = (y2 - lu[5][3] * x3 - lu[5][4] * x4 - lu[5][5] * x5) * lu[5][2];
-    let x1 = y1 * lu[3][1];
-    let x0 = y0 * lu[2][0];
+    let x1 = -y1;
+    let x0 = y0;
     b[0] = x0;
     b[1] = x1;
     b[2] = x2;

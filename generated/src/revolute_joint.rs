@@ -191,7 +191,7 @@ pub fn residual_jacobian(
     jac[6][6] = t19;
 }
 
-/** Φ and the 29 structurally non-zero entries of Φ_q, the others of `jac` left as they were: what the `factor_k` functions read.
+/** Φ and the 26 entries of Φ_q that depend on q or t, the others of `jac` left as they were: what the `factor_k` functions read (3 of the 29 structurally non-zero entries are constants, which they know).
 
  58 operations, 20 shared subexpressions.*/
 pub fn residual_jacobian_structural(
@@ -228,17 +228,14 @@ pub fn residual_jacobian_structural(
     phi[4] = -(2.0 * (q4 * q6 - q3 * q5));
     phi[5] = q4 * t8 - q3 * t7;
     phi[6] = t3 + (t2 + (t0 + t1)) - 1.0;
-    jac[0][0] = 1.0;
     jac[0][3] = t9;
     jac[0][4] = t12;
     jac[0][5] = t13;
     jac[0][6] = t14;
-    jac[1][1] = 1.0;
     jac[1][3] = -t16;
     jac[1][4] = t17;
     jac[1][5] = -t18;
     jac[1][6] = t19;
-    jac[2][2] = 1.0;
     jac[2][3] = t13;
     jac[2][4] = t15;
     jac[2][5] = t10;
@@ -261,39 +258,11 @@ pub fn residual_jacobian_structural(
 
 /** Factors Φ_q in place with static pivot order 0: step k pivots on row `[0, 1, 2, 5, 6, 4, 3][k]` and column `[0, 1, 2, 4, 3, 5, 6][k]`.
 
- L and U have 29 entries (0 of them fill-in); 29 operations. The reciprocals of the pivots are stored on the diagonal.
+ L and U have 29 entries (0 of them fill-in, 3 known when generated); 26 operations. The others are in `jac`: 11 stored there, with the reciprocals of the pivots on the diagonal, and 15 left as Φ_q had them.
 
  Returns the smallest and largest |pivot|, or `None` (with `jac` unchanged) when a pivot is not finite or a multiplier exceeds [`runtime::lu::MAX_MULTIPLIER`] in magnitude.*/
 #[must_use]
 pub fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
-    let u0_3 = jac[0][4];
-    let u0_4 = jac[0][3];
-    let u0_5 = jac[0][5];
-    let u0_6 = jac[0][6];
-    let p0 = jac[0][0];
-    let d0 = 1.0 / p0;
-    if !(p0.is_finite()) {
-        return None;
-    }
-    let u1_3 = jac[1][4];
-    let u1_4 = jac[1][3];
-    let u1_5 = jac[1][5];
-    let u1_6 = jac[1][6];
-    let p1 = jac[1][1];
-    let d1 = 1.0 / p1;
-    if !(p1.is_finite()) {
-        return None;
-    }
-    let u2_3 = jac[2][4];
-    let u2_4 = jac[2][3];
-    let u2_5 = jac[2][5];
-    let u2_6 = jac[2][6];
-    let p2 = jac[2][2];
-    let d2 = 1.0 / p2;
-    if !(p2.is_finite()) {
-        return None;
-    }
-    let u3_4 = jac[5][3];
     let p3 = jac[5][4];
     let d3 = 1.0 / p3;
     let l4_3 = jac[6][4] * d3;
@@ -305,50 +274,30 @@ pub fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     {
         return None;
     }
-    let u4_5 = jac[6][5];
-    let u4_6 = jac[6][6];
-    let p4 = jac[6][3] - l4_3 * u3_4;
+    let p4 = jac[6][3] - l4_3 * jac[5][3];
     let d4 = 1.0 / p4;
-    let l5_4 = (jac[4][3] - l5_3 * u3_4) * d4;
-    let l6_4 = (jac[3][3] - l6_3 * u3_4) * d4;
+    let l5_4 = (jac[4][3] - l5_3 * jac[5][3]) * d4;
+    let l6_4 = (jac[3][3] - l6_3 * jac[5][3]) * d4;
     if !(p4.is_finite() && l5_4.abs() <= runtime::lu::MAX_MULTIPLIER
         && l6_4.abs() <= runtime::lu::MAX_MULTIPLIER)
     {
         return None;
     }
-    let u5_6 = jac[4][6] - l5_4 * u4_6;
-    let p5 = jac[4][5] - l5_4 * u4_5;
+    let u5_6 = jac[4][6] - l5_4 * jac[6][6];
+    let p5 = jac[4][5] - l5_4 * jac[6][5];
     let d5 = 1.0 / p5;
-    let l6_5 = (jac[3][5] - l6_4 * u4_5) * d5;
+    let l6_5 = (jac[3][5] - l6_4 * jac[6][5]) * d5;
     if !(p5.is_finite() && l6_5.abs() <= runtime::lu::MAX_MULTIPLIER) {
         return None;
     }
-    let p6 = jac[3][6] - l6_4 * u4_6 - l6_5 * u5_6;
+    let p6 = jac[3][6] - l6_4 * jac[6][6] - l6_5 * u5_6;
     let d6 = 1.0 / p6;
-    if !(p6.is_finite()) {
+    if !p6.is_finite() {
         return None;
     }
-    jac[0][0] = d0;
-    jac[0][4] = u0_3;
-    jac[0][3] = u0_4;
-    jac[0][5] = u0_5;
-    jac[0][6] = u0_6;
-    jac[1][1] = d1;
-    jac[1][4] = u1_3;
-    jac[1][3] = u1_4;
-    jac[1][5] = u1_5;
-    jac[1][6] = u1_6;
-    jac[2][2] = d2;
-    jac[2][4] = u2_3;
-    jac[2][3] = u2_4;
-    jac[2][5] = u2_5;
-    jac[2][6] = u2_6;
     jac[5][4] = d3;
-    jac[5][3] = u3_4;
     jac[6][4] = l4_3;
     jac[6][3] = d4;
-    jac[6][5] = u4_5;
-    jac[6][6] = u4_6;
     jac[4][4] = l5_3;
     jac[4][3] = l5_4;
     jac[4][5] = d5;
@@ -358,28 +307,14 @@ pub fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     jac[3][5] = l6_5;
     jac[3][6] = d6;
     Some(runtime::lu::PivotInfo {
-        smallest: p0
-            .abs()
-            .min(p1.abs())
-            .min(p2.abs())
-            .min(p3.abs())
-            .min(p4.abs())
-            .min(p5.abs())
-            .min(p6.abs()),
-        largest: p0
-            .abs()
-            .max(p1.abs())
-            .max(p2.abs())
-            .max(p3.abs())
-            .max(p4.abs())
-            .max(p5.abs())
-            .max(p6.abs()),
+        smallest: p3.abs().min(p4.abs()).min(p5.abs()).min(p6.abs()).min(1.0),
+        largest: p3.abs().max(p4.abs()).max(p5.abs()).max(p6.abs()).max(1.0),
     })
 }
 
 /** Solves Φ_q x = b in place with the factors [`factor_0`] left in `lu`.
 
- 51 operations.*/
+ 48 operations.*/
 pub fn solve_0(lu: &[[f64; N]; N], b: &mut [f64; N]) {
     let y0 = b[0];
     let y1 = b[1];
@@ -392,12 +327,9 @@ pub fn solve_0(lu: &[[f64; N]; N], b: &mut [f64; N]) {
     let x5 = (y5 - lu[4][6] * x6) * lu[4][5];
     let x4 = (y4 - lu[6][5] * x5 - lu[6][6] * x6) * lu[6][3];
     let x3 = (y3 - lu[5][3] * x4) * lu[5][4];
-    let x2 = (y2 - lu[2][4] * x3 - lu[2][3] * x4 - lu[2][5] * x5 - lu[2][6] * x6)
-        * lu[2][2];
-    let x1 = (y1 - lu[1][4] * x3 - lu[1][3] * x4 - lu[1][5] * x5 - lu[1][6] * x6)
-        * lu[1][1];
-    let x0 = (y0 - lu[0][4] * x3 - lu[0][3] * x4 - lu[0][5] * x5 - lu[0][6] * x6)
-        * lu[0][0];
+    let x2 = y2 - lu[2][4] * x3 - lu[2][3] * x4 - lu[2][5] * x5 - lu[2][6] * x6;
+    let x1 = y1 - lu[1][4] * x3 - lu[1][3] * x4 - lu[1][5] * x5 - lu[1][6] * x6;
+    let x0 = y0 - lu[0][4] * x3 - lu[0][3] * x4 - lu[0][5] * x5 - lu[0][6] * x6;
     b[0] = x0;
     b[1] = x1;
     b[2] = x2;
@@ -409,39 +341,11 @@ pub fn solve_0(lu: &[[f64; N]; N], b: &mut [f64; N]) {
 
 /** Factors Φ_q in place with static pivot order 1: step k pivots on row `[0, 1, 2, 5, 6, 3, 4][k]` and column `[0, 1, 2, 3, 4, 5, 6][k]`.
 
- L and U have 29 entries (0 of them fill-in); 29 operations. The reciprocals of the pivots are stored on the diagonal.
+ L and U have 29 entries (0 of them fill-in, 3 known when generated); 26 operations. The others are in `jac`: 11 stored there, with the reciprocals of the pivots on the diagonal, and 15 left as Φ_q had them.
 
  Returns the smallest and largest |pivot|, or `None` (with `jac` unchanged) when a pivot is not finite or a multiplier exceeds [`runtime::lu::MAX_MULTIPLIER`] in magnitude.*/
 #[must_use]
 pub fn factor_1(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
-    let u0_3 = jac[0][3];
-    let u0_4 = jac[0][4];
-    let u0_5 = jac[0][5];
-    let u0_6 = jac[0][6];
-    let p0 = jac[0][0];
-    let d0 = 1.0 / p0;
-    if !(p0.is_finite()) {
-        return None;
-    }
-    let u1_3 = jac[1][3];
-    let u1_4 = jac[1][4];
-    let u1_5 = jac[1][5];
-    let u1_6 = jac[1][6];
-    let p1 = jac[1][1];
-    let d1 = 1.0 / p1;
-    if !(p1.is_finite()) {
-        return None;
-    }
-    let u2_3 = jac[2][3];
-    let u2_4 = jac[2][4];
-    let u2_5 = jac[2][5];
-    let u2_6 = jac[2][6];
-    let p2 = jac[2][2];
-    let d2 = 1.0 / p2;
-    if !(p2.is_finite()) {
-        return None;
-    }
-    let u3_4 = jac[5][4];
     let p3 = jac[5][3];
     let d3 = 1.0 / p3;
     let l4_3 = jac[6][3] * d3;
@@ -453,50 +357,30 @@ pub fn factor_1(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     {
         return None;
     }
-    let u4_5 = jac[6][5];
-    let u4_6 = jac[6][6];
-    let p4 = jac[6][4] - l4_3 * u3_4;
+    let p4 = jac[6][4] - l4_3 * jac[5][4];
     let d4 = 1.0 / p4;
-    let l5_4 = (jac[3][4] - l5_3 * u3_4) * d4;
-    let l6_4 = (jac[4][4] - l6_3 * u3_4) * d4;
+    let l5_4 = (jac[3][4] - l5_3 * jac[5][4]) * d4;
+    let l6_4 = (jac[4][4] - l6_3 * jac[5][4]) * d4;
     if !(p4.is_finite() && l5_4.abs() <= runtime::lu::MAX_MULTIPLIER
         && l6_4.abs() <= runtime::lu::MAX_MULTIPLIER)
     {
         return None;
     }
-    let u5_6 = jac[3][6] - l5_4 * u4_6;
-    let p5 = jac[3][5] - l5_4 * u4_5;
+    let u5_6 = jac[3][6] - l5_4 * jac[6][6];
+    let p5 = jac[3][5] - l5_4 * jac[6][5];
     let d5 = 1.0 / p5;
-    let l6_5 = (jac[4][5] - l6_4 * u4_5) * d5;
+    let l6_5 = (jac[4][5] - l6_4 * jac[6][5]) * d5;
     if !(p5.is_finite() && l6_5.abs() <= runtime::lu::MAX_MULTIPLIER) {
         return None;
     }
-    let p6 = jac[4][6] - l6_4 * u4_6 - l6_5 * u5_6;
+    let p6 = jac[4][6] - l6_4 * jac[6][6] - l6_5 * u5_6;
     let d6 = 1.0 / p6;
-    if !(p6.is_finite()) {
+    if !p6.is_finite() {
         return None;
     }
-    jac[0][0] = d0;
-    jac[0][3] = u0_3;
-    jac[0][4] = u0_4;
-    jac[0][5] = u0_5;
-    jac[0][6] = u0_6;
-    jac[1][1] = d1;
-    jac[1][3] = u1_3;
-    jac[1][4] = u1_4;
-    jac[1][5] = u1_5;
-    jac[1][6] = u1_6;
-    jac[2][2] = d2;
-    jac[2][3] = u2_3;
-    jac[2][4] = u2_4;
-    jac[2][5] = u2_5;
-    jac[2][6] = u2_6;
     jac[5][3] = d3;
-    jac[5][4] = u3_4;
     jac[6][3] = l4_3;
     jac[6][4] = d4;
-    jac[6][5] = u4_5;
-    jac[6][6] = u4_6;
     jac[3][3] = l5_3;
     jac[3][4] = l5_4;
     jac[3][5] = d5;
@@ -506,28 +390,14 @@ pub fn factor_1(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     jac[4][5] = l6_5;
     jac[4][6] = d6;
     Some(runtime::lu::PivotInfo {
-        smallest: p0
-            .abs()
-            .min(p1.abs())
-            .min(p2.abs())
-            .min(p3.abs())
-            .min(p4.abs())
-            .min(p5.abs())
-            .min(p6.abs()),
-        largest: p0
-            .abs()
-            .max(p1.abs())
-            .max(p2.abs())
-            .max(p3.abs())
-            .max(p4.abs())
-            .max(p5.abs())
-            .max(p6.abs()),
+        smallest: p3.abs().min(p4.abs()).min(p5.abs()).min(p6.abs()).min(1.0),
+        largest: p3.abs().max(p4.abs()).max(p5.abs()).max(p6.abs()).max(1.0),
     })
 }
 
 /** Solves Φ_q x = b in place with the factors [`factor_1`] left in `lu`.
 
- 51 operations.*/
+ 48 operations.*/
 pub fn solve_1(lu: &[[f64; N]; N], b: &mut [f64; N]) {
     let y0 = b[0];
     let y1 = b[1];
@@ -540,12 +410,9 @@ pub fn solve_1(lu: &[[f64; N]; N], b: &mut [f64; N]) {
     let x5 = (y5 - lu[3][6] * x6) * lu[3][5];
     let x4 = (y4 - lu[6][5] * x5 - lu[6][6] * x6) * lu[6][4];
     let x3 = (y3 - lu[5][4] * x4) * lu[5][3];
-    let x2 = (y2 - lu[2][3] * x3 - lu[2][4] * x4 - lu[2][5] * x5 - lu[2][6] * x6)
-        * lu[2][2];
-    let x1 = (y1 - lu[1][3] * x3 - lu[1][4] * x4 - lu[1][5] * x5 - lu[1][6] * x6)
-        * lu[1][1];
-    let x0 = (y0 - lu[0][3] * x3 - lu[0][4] * x4 - lu[0][5] * x5 - lu[0][6] * x6)
-        * lu[0][0];
+    let x2 = y2 - lu[2][3] * x3 - lu[2][4] * x4 - lu[2][5] * x5 - lu[2][6] * x6;
+    let x1 = y1 - lu[1][3] * x3 - lu[1][4] * x4 - lu[1][5] * x5 - lu[1][6] * x6;
+    let x0 = y0 - lu[0][3] * x3 - lu[0][4] * x4 - lu[0][5] * x5 - lu[0][6] * x6;
     b[0] = x0;
     b[1] = x1;
     b[2] = x2;

@@ -81,7 +81,7 @@ pub fn residual_jacobian(
     jac[1][1] = q1 + q1;
 }
 
-/** Φ and the 4 structurally non-zero entries of Φ_q, the others of `jac` left as they were: what the `factor_k` functions read.
+/** Φ and the 4 entries of Φ_q that depend on q or t, the others of `jac` left as they were: what the `factor_k` functions read (0 of the 4 structurally non-zero entries are constants, which they know).
 
  14 operations, 3 shared subexpressions.*/
 pub fn residual_jacobian_structural(
@@ -104,25 +104,23 @@ pub fn residual_jacobian_structural(
 
 /** Factors Φ_q in place with static pivot order 0: step k pivots on row `[1, 0][k]` and column `[0, 1][k]`.
 
- L and U have 4 entries (0 of them fill-in); 5 operations. The reciprocals of the pivots are stored on the diagonal.
+ L and U have 4 entries (0 of them fill-in, 0 known when generated); 5 operations. The others are in `jac`: 3 stored there, with the reciprocals of the pivots on the diagonal, and 1 left as Φ_q had them.
 
  Returns the smallest and largest |pivot|, or `None` (with `jac` unchanged) when a pivot is not finite or a multiplier exceeds [`runtime::lu::MAX_MULTIPLIER`] in magnitude.*/
 #[must_use]
 pub fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
-    let u0_1 = jac[1][1];
     let p0 = jac[1][0];
     let d0 = 1.0 / p0;
     let l1_0 = jac[0][0] * d0;
     if !(p0.is_finite() && l1_0.abs() <= runtime::lu::MAX_MULTIPLIER) {
         return None;
     }
-    let p1 = jac[0][1] - l1_0 * u0_1;
+    let p1 = jac[0][1] - l1_0 * jac[1][1];
     let d1 = 1.0 / p1;
-    if !(p1.is_finite()) {
+    if !p1.is_finite() {
         return None;
     }
     jac[1][0] = d0;
-    jac[1][1] = u0_1;
     jac[0][0] = l1_0;
     jac[0][1] = d1;
     Some(runtime::lu::PivotInfo {
@@ -145,25 +143,23 @@ pub fn solve_0(lu: &[[f64; N]; N], b: &mut [f64; N]) {
 
 /** Factors Φ_q in place with static pivot order 1: step k pivots on row `[0, 1][k]` and column `[0, 1][k]`.
 
- L and U have 4 entries (0 of them fill-in); 5 operations. The reciprocals of the pivots are stored on the diagonal.
+ L and U have 4 entries (0 of them fill-in, 0 known when generated); 5 operations. The others are in `jac`: 3 stored there, with the reciprocals of the pivots on the diagonal, and 1 left as Φ_q had them.
 
  Returns the smallest and largest |pivot|, or `None` (with `jac` unchanged) when a pivot is not finite or a multiplier exceeds [`runtime::lu::MAX_MULTIPLIER`] in magnitude.*/
 #[must_use]
 pub fn factor_1(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
-    let u0_1 = jac[0][1];
     let p0 = jac[0][0];
     let d0 = 1.0 / p0;
     let l1_0 = jac[1][0] * d0;
     if !(p0.is_finite() && l1_0.abs() <= runtime::lu::MAX_MULTIPLIER) {
         return None;
     }
-    let p1 = jac[1][1] - l1_0 * u0_1;
+    let p1 = jac[1][1] - l1_0 * jac[0][1];
     let d1 = 1.0 / p1;
-    if !(p1.is_finite()) {
+    if !p1.is_finite() {
         return None;
     }
     jac[0][0] = d0;
-    jac[0][1] = u0_1;
     jac[1][0] = l1_0;
     jac[1][1] = d1;
     Some(runtime::lu::PivotInfo {

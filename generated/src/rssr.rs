@@ -469,7 +469,7 @@ pub fn residual_jacobian(
     jac[19][19] = t50;
 }
 
-/** Φ and the 78 structurally non-zero entries of Φ_q, the others of `jac` left as they were: what the `factor_k` functions read.
+/** Φ and the 60 entries of Φ_q that depend on q or t, the others of `jac` left as they were: what the `factor_k` functions read (18 of the 78 structurally non-zero entries are constants, which they know).
 
  284 operations, 67 shared subexpressions.*/
 pub fn residual_jacobian_structural(
@@ -572,52 +572,37 @@ pub fn residual_jacobian_structural(
     phi[17] = t3 + (t2 + (t0 + t1)) - 1.0;
     phi[18] = t10 + (t8 + t9) - 1.0;
     phi[19] = t14 + (t13 + t15) - 1.0;
-    jac[0][0] = -1.0;
     jac[0][3] = -(t28 - t27);
     jac[0][4] = -(t29 + t30);
     jac[0][5] = -(t31 + t32);
     jac[0][6] = -(t34 - t33);
-    jac[0][7] = 1.0;
-    jac[1][1] = -1.0;
     jac[1][3] = -(0.06567 * t35 - t34);
     jac[1][4] = -(-(0.06567 * t36) - t32);
     jac[1][5] = -(t30 + 0.06567 * t37);
     jac[1][6] = -(t28 - 0.06567 * t38);
-    jac[1][8] = 1.0;
-    jac[2][2] = -1.0;
     jac[2][3] = -(t31 + 0.1 * t35);
     jac[2][4] = -(t33 - 0.1 * t36);
     jac[2][5] = -(t27 - 0.1 * t37);
     jac[2][6] = -(t29 + 0.1 * t38);
-    jac[2][9] = 1.0;
-    jac[3][7] = -1.0;
     jac[3][10] = 0.9624 * q12;
     jac[3][12] = t39;
-    jac[3][13] = 1.0;
     jac[3][16] = t40 + (0.0475 * t41 - t42);
     jac[3][17] = t43 + (0.0475 * t44 + t45);
     jac[3][18] = t46 + (t48 - 0.0475 * t47);
     jac[3][19] = t49 + (-(0.0475 * t50) - t51);
-    jac[4][8] = -1.0;
     jac[4][10] = -(0.4812 * t52);
     jac[4][11] = 0.4812 * t53;
     jac[4][12] = 0.4812 * t54;
-    jac[4][14] = 1.0;
     jac[4][16] = t55 + -0.01857 * t41 - t49;
     jac[4][17] = t56 - -0.01857 * t44 - t46;
     jac[4][18] = t43 + (t57 + -0.01857 * t47);
     jac[4][19] = t40 + (t58 - -0.01857 * t50);
-    jac[5][9] = -1.0;
     jac[5][10] = -(0.9624 * q11);
     jac[5][11] = -t39;
-    jac[5][15] = 1.0;
     jac[5][16] = 0.1 * t41 + (t48 - t56);
     jac[5][17] = t51 + t55 - 0.1 * t44;
     jac[5][18] = t42 - t58 - 0.1 * t47;
     jac[5][19] = 0.1 * t50 + (t45 + t57);
-    jac[6][0] = 1.0;
-    jac[7][1] = 1.0;
-    jac[8][2] = 1.0;
     jac[9][3] = -t59;
     jac[9][4] = t60;
     jac[9][5] = t61;
@@ -626,9 +611,6 @@ pub fn residual_jacobian_structural(
     jac[10][4] = t62;
     jac[10][5] = t59;
     jac[10][6] = t60;
-    jac[11][13] = -1.0;
-    jac[12][14] = -1.0;
-    jac[13][15] = -1.0;
     jac[14][16] = t63;
     jac[14][17] = t64;
     jac[14][18] = t65;
@@ -654,86 +636,19 @@ pub fn residual_jacobian_structural(
 
 /** Factors Φ_q in place with static pivot order 0: step k pivots on row `[6, 7, 8, 11, 12, 13, 0, 1, 2, 16, 18, 17, 10, 9, 5, 3, 19, 4, 15, 14][k]` and column `[0, 1, 2, 13, 14, 15, 7, 8, 9, 5, 10, 3, 4, 6, 11, 12, 16, 17, 18, 19][k]`.
 
- L and U have 92 entries (14 of them fill-in); 191 operations. The reciprocals of the pivots are stored on the diagonal.
+ L and U have 92 entries (14 of them fill-in, 18 known when generated); 149 operations. The others are in `jac`: 50 stored there, with the reciprocals of the pivots on the diagonal, and 24 left as Φ_q had them.
 
  Returns the smallest and largest |pivot|, or `None` (with `jac` unchanged) when a pivot is not finite or a multiplier exceeds [`runtime::lu::MAX_MULTIPLIER`] in magnitude.*/
 #[must_use]
 pub fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
-    let p0 = jac[6][0];
-    let d0 = 1.0 / p0;
-    let l6_0 = jac[0][0] * d0;
-    if !(p0.is_finite() && l6_0.abs() <= runtime::lu::MAX_MULTIPLIER) {
-        return None;
-    }
-    let p1 = jac[7][1];
-    let d1 = 1.0 / p1;
-    let l7_1 = jac[1][1] * d1;
-    if !(p1.is_finite() && l7_1.abs() <= runtime::lu::MAX_MULTIPLIER) {
-        return None;
-    }
-    let p2 = jac[8][2];
-    let d2 = 1.0 / p2;
-    let l8_2 = jac[2][2] * d2;
-    if !(p2.is_finite() && l8_2.abs() <= runtime::lu::MAX_MULTIPLIER) {
-        return None;
-    }
-    let p3 = jac[11][13];
-    let d3 = 1.0 / p3;
-    let l15_3 = jac[3][13] * d3;
-    if !(p3.is_finite() && l15_3.abs() <= runtime::lu::MAX_MULTIPLIER) {
-        return None;
-    }
-    let p4 = jac[12][14];
-    let d4 = 1.0 / p4;
-    let l17_4 = jac[4][14] * d4;
-    if !(p4.is_finite() && l17_4.abs() <= runtime::lu::MAX_MULTIPLIER) {
-        return None;
-    }
-    let p5 = jac[13][15];
-    let d5 = 1.0 / p5;
-    let l14_5 = jac[5][15] * d5;
-    if !(p5.is_finite() && l14_5.abs() <= runtime::lu::MAX_MULTIPLIER) {
-        return None;
-    }
-    let u6_9 = jac[0][5];
-    let u6_11 = jac[0][3];
-    let u6_12 = jac[0][4];
-    let u6_13 = jac[0][6];
-    let p6 = jac[0][7];
-    let d6 = 1.0 / p6;
-    let l15_6 = jac[3][7] * d6;
-    if !(p6.is_finite() && l15_6.abs() <= runtime::lu::MAX_MULTIPLIER) {
-        return None;
-    }
-    let u7_9 = jac[1][5];
-    let u7_11 = jac[1][3];
-    let u7_12 = jac[1][4];
-    let u7_13 = jac[1][6];
-    let p7 = jac[1][8];
-    let d7 = 1.0 / p7;
-    let l17_7 = jac[4][8] * d7;
-    if !(p7.is_finite() && l17_7.abs() <= runtime::lu::MAX_MULTIPLIER) {
-        return None;
-    }
-    let u8_9 = jac[2][5];
-    let u8_11 = jac[2][3];
-    let u8_12 = jac[2][4];
-    let u8_13 = jac[2][6];
-    let p8 = jac[2][9];
-    let d8 = 1.0 / p8;
-    let l14_8 = jac[5][9] * d8;
-    if !(p8.is_finite() && l14_8.abs() <= runtime::lu::MAX_MULTIPLIER) {
-        return None;
-    }
-    let u9_11 = jac[16][3];
     let p9 = jac[16][5];
     let d9 = 1.0 / p9;
     let l11_9 = jac[17][5] * d9;
     let l12_9 = jac[10][5] * d9;
     let l13_9 = jac[9][5] * d9;
-    let l14_9 = -(l14_8 * u8_9) * d9;
-    let l15_9 = -(l15_6 * u6_9) * d9;
-    let l17_9 = -(l17_7 * u7_9) * d9;
+    let l14_9 = jac[2][5] * d9;
+    let l15_9 = jac[0][5] * d9;
+    let l17_9 = jac[1][5] * d9;
     if !(p9.is_finite() && l11_9.abs() <= runtime::lu::MAX_MULTIPLIER
         && l12_9.abs() <= runtime::lu::MAX_MULTIPLIER
         && l13_9.abs() <= runtime::lu::MAX_MULTIPLIER
@@ -743,8 +658,6 @@ pub fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     {
         return None;
     }
-    let u10_14 = jac[18][11];
-    let u10_15 = jac[18][12];
     let p10 = jac[18][10];
     let d10 = 1.0 / p10;
     let l14_10 = jac[5][10] * d10;
@@ -756,15 +669,13 @@ pub fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     {
         return None;
     }
-    let u11_12 = jac[17][4];
-    let u11_13 = jac[17][6];
-    let p11 = jac[17][3] - l11_9 * u9_11;
+    let p11 = jac[17][3] - l11_9 * jac[16][3];
     let d11 = 1.0 / p11;
-    let l12_11 = (jac[10][3] - l12_9 * u9_11) * d11;
-    let l13_11 = (jac[9][3] - l13_9 * u9_11) * d11;
-    let l14_11 = (-(l14_8 * u8_11) - l14_9 * u9_11) * d11;
-    let l15_11 = (-(l15_6 * u6_11) - l15_9 * u9_11) * d11;
-    let l17_11 = (-(l17_7 * u7_11) - l17_9 * u9_11) * d11;
+    let l12_11 = (jac[10][3] - l12_9 * jac[16][3]) * d11;
+    let l13_11 = (jac[9][3] - l13_9 * jac[16][3]) * d11;
+    let l14_11 = (jac[2][3] - l14_9 * jac[16][3]) * d11;
+    let l15_11 = (jac[0][3] - l15_9 * jac[16][3]) * d11;
+    let l17_11 = (jac[1][3] - l17_9 * jac[16][3]) * d11;
     if !(p11.is_finite() && l12_11.abs() <= runtime::lu::MAX_MULTIPLIER
         && l13_11.abs() <= runtime::lu::MAX_MULTIPLIER
         && l14_11.abs() <= runtime::lu::MAX_MULTIPLIER
@@ -773,13 +684,13 @@ pub fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     {
         return None;
     }
-    let u12_13 = jac[10][6] - l12_11 * u11_13;
-    let p12 = jac[10][4] - l12_11 * u11_12;
+    let u12_13 = jac[10][6] - l12_11 * jac[17][6];
+    let p12 = jac[10][4] - l12_11 * jac[17][4];
     let d12 = 1.0 / p12;
-    let l13_12 = (jac[9][4] - l13_11 * u11_12) * d12;
-    let l14_12 = (-(l14_8 * u8_12) - l14_11 * u11_12) * d12;
-    let l15_12 = (-(l15_6 * u6_12) - l15_11 * u11_12) * d12;
-    let l17_12 = (-(l17_7 * u7_12) - l17_11 * u11_12) * d12;
+    let l13_12 = (jac[9][4] - l13_11 * jac[17][4]) * d12;
+    let l14_12 = (jac[2][4] - l14_11 * jac[17][4]) * d12;
+    let l15_12 = (jac[0][4] - l15_11 * jac[17][4]) * d12;
+    let l17_12 = (jac[1][4] - l17_11 * jac[17][4]) * d12;
     if !(p12.is_finite() && l13_12.abs() <= runtime::lu::MAX_MULTIPLIER
         && l14_12.abs() <= runtime::lu::MAX_MULTIPLIER
         && l15_12.abs() <= runtime::lu::MAX_MULTIPLIER
@@ -787,47 +698,40 @@ pub fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     {
         return None;
     }
-    let p13 = jac[9][6] - l13_11 * u11_13 - l13_12 * u12_13;
+    let p13 = jac[9][6] - l13_11 * jac[17][6] - l13_12 * u12_13;
     let d13 = 1.0 / p13;
-    let l14_13 = (-(l14_8 * u8_13) - l14_11 * u11_13 - l14_12 * u12_13) * d13;
-    let l15_13 = (-(l15_6 * u6_13) - l15_11 * u11_13 - l15_12 * u12_13) * d13;
-    let l17_13 = (-(l17_7 * u7_13) - l17_11 * u11_13 - l17_12 * u12_13) * d13;
+    let l14_13 = (jac[2][6] - l14_11 * jac[17][6] - l14_12 * u12_13) * d13;
+    let l15_13 = (jac[0][6] - l15_11 * jac[17][6] - l15_12 * u12_13) * d13;
+    let l17_13 = (jac[1][6] - l17_11 * jac[17][6] - l17_12 * u12_13) * d13;
     if !(p13.is_finite() && l14_13.abs() <= runtime::lu::MAX_MULTIPLIER
         && l15_13.abs() <= runtime::lu::MAX_MULTIPLIER
         && l17_13.abs() <= runtime::lu::MAX_MULTIPLIER)
     {
         return None;
     }
-    let u14_15 = -(l14_10 * u10_15);
-    let u14_16 = jac[5][16];
-    let u14_17 = jac[5][17];
-    let u14_18 = jac[5][18];
-    let u14_19 = jac[5][19];
-    let p14 = jac[5][11] - l14_10 * u10_14;
+    let u14_15 = -(l14_10 * jac[18][12]);
+    let p14 = jac[5][11] - l14_10 * jac[18][11];
     let d14 = 1.0 / p14;
-    let l15_14 = -(l15_10 * u10_14) * d14;
-    let l17_14 = (jac[4][11] - l17_10 * u10_14) * d14;
+    let l15_14 = -(l15_10 * jac[18][11]) * d14;
+    let l17_14 = (jac[4][11] - l17_10 * jac[18][11]) * d14;
     if !(p14.is_finite() && l15_14.abs() <= runtime::lu::MAX_MULTIPLIER
         && l17_14.abs() <= runtime::lu::MAX_MULTIPLIER)
     {
         return None;
     }
-    let u15_16 = jac[3][16] - l15_14 * u14_16;
-    let u15_17 = jac[3][17] - l15_14 * u14_17;
-    let u15_18 = jac[3][18] - l15_14 * u14_18;
-    let u15_19 = jac[3][19] - l15_14 * u14_19;
-    let p15 = jac[3][12] - l15_10 * u10_15 - l15_14 * u14_15;
+    let u15_16 = jac[3][16] - l15_14 * jac[5][16];
+    let u15_17 = jac[3][17] - l15_14 * jac[5][17];
+    let u15_18 = jac[3][18] - l15_14 * jac[5][18];
+    let u15_19 = jac[3][19] - l15_14 * jac[5][19];
+    let p15 = jac[3][12] - l15_10 * jac[18][12] - l15_14 * u14_15;
     let d15 = 1.0 / p15;
-    let l17_15 = (jac[4][12] - l17_10 * u10_15 - l17_14 * u14_15) * d15;
+    let l17_15 = (jac[4][12] - l17_10 * jac[18][12] - l17_14 * u14_15) * d15;
     if !(p15.is_finite() && l17_15.abs() <= runtime::lu::MAX_MULTIPLIER) {
         return None;
     }
-    let u16_17 = jac[19][17];
-    let u16_18 = jac[19][18];
-    let u16_19 = jac[19][19];
     let p16 = jac[19][16];
     let d16 = 1.0 / p16;
-    let l17_16 = (jac[4][16] - l17_14 * u14_16 - l17_15 * u15_16) * d16;
+    let l17_16 = (jac[4][16] - l17_14 * jac[5][16] - l17_15 * u15_16) * d16;
     let l18_16 = jac[15][16] * d16;
     let l19_16 = jac[14][16] * d16;
     if !(p16.is_finite() && l17_16.abs() <= runtime::lu::MAX_MULTIPLIER
@@ -836,62 +740,35 @@ pub fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     {
         return None;
     }
-    let u17_18 = jac[4][18] - l17_14 * u14_18 - l17_15 * u15_18 - l17_16 * u16_18;
-    let u17_19 = jac[4][19] - l17_14 * u14_19 - l17_15 * u15_19 - l17_16 * u16_19;
-    let p17 = jac[4][17] - l17_14 * u14_17 - l17_15 * u15_17 - l17_16 * u16_17;
+    let u17_18 = jac[4][18] - l17_14 * jac[5][18] - l17_15 * u15_18
+        - l17_16 * jac[19][18];
+    let u17_19 = jac[4][19] - l17_14 * jac[5][19] - l17_15 * u15_19
+        - l17_16 * jac[19][19];
+    let p17 = jac[4][17] - l17_14 * jac[5][17] - l17_15 * u15_17 - l17_16 * jac[19][17];
     let d17 = 1.0 / p17;
-    let l18_17 = (jac[15][17] - l18_16 * u16_17) * d17;
-    let l19_17 = (jac[14][17] - l19_16 * u16_17) * d17;
+    let l18_17 = (jac[15][17] - l18_16 * jac[19][17]) * d17;
+    let l19_17 = (jac[14][17] - l19_16 * jac[19][17]) * d17;
     if !(p17.is_finite() && l18_17.abs() <= runtime::lu::MAX_MULTIPLIER
         && l19_17.abs() <= runtime::lu::MAX_MULTIPLIER)
     {
         return None;
     }
-    let u18_19 = jac[15][19] - l18_16 * u16_19 - l18_17 * u17_19;
-    let p18 = jac[15][18] - l18_16 * u16_18 - l18_17 * u17_18;
+    let u18_19 = jac[15][19] - l18_16 * jac[19][19] - l18_17 * u17_19;
+    let p18 = jac[15][18] - l18_16 * jac[19][18] - l18_17 * u17_18;
     let d18 = 1.0 / p18;
-    let l19_18 = (jac[14][18] - l19_16 * u16_18 - l19_17 * u17_18) * d18;
+    let l19_18 = (jac[14][18] - l19_16 * jac[19][18] - l19_17 * u17_18) * d18;
     if !(p18.is_finite() && l19_18.abs() <= runtime::lu::MAX_MULTIPLIER) {
         return None;
     }
-    let p19 = jac[14][19] - l19_16 * u16_19 - l19_17 * u17_19 - l19_18 * u18_19;
+    let p19 = jac[14][19] - l19_16 * jac[19][19] - l19_17 * u17_19 - l19_18 * u18_19;
     let d19 = 1.0 / p19;
-    if !(p19.is_finite()) {
+    if !p19.is_finite() {
         return None;
     }
-    jac[6][0] = d0;
-    jac[7][1] = d1;
-    jac[8][2] = d2;
-    jac[11][13] = d3;
-    jac[12][14] = d4;
-    jac[13][15] = d5;
-    jac[0][0] = l6_0;
-    jac[0][7] = d6;
-    jac[0][5] = u6_9;
-    jac[0][3] = u6_11;
-    jac[0][4] = u6_12;
-    jac[0][6] = u6_13;
-    jac[1][1] = l7_1;
-    jac[1][8] = d7;
-    jac[1][5] = u7_9;
-    jac[1][3] = u7_11;
-    jac[1][4] = u7_12;
-    jac[1][6] = u7_13;
-    jac[2][2] = l8_2;
-    jac[2][9] = d8;
-    jac[2][5] = u8_9;
-    jac[2][3] = u8_11;
-    jac[2][4] = u8_12;
-    jac[2][6] = u8_13;
     jac[16][5] = d9;
-    jac[16][3] = u9_11;
     jac[18][10] = d10;
-    jac[18][11] = u10_14;
-    jac[18][12] = u10_15;
     jac[17][5] = l11_9;
     jac[17][3] = d11;
-    jac[17][4] = u11_12;
-    jac[17][6] = u11_13;
     jac[10][5] = l12_9;
     jac[10][3] = l12_11;
     jac[10][4] = d12;
@@ -900,8 +777,6 @@ pub fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     jac[9][3] = l13_11;
     jac[9][4] = l13_12;
     jac[9][6] = d13;
-    jac[5][15] = l14_5;
-    jac[5][9] = l14_8;
     jac[5][5] = l14_9;
     jac[5][10] = l14_10;
     jac[5][3] = l14_11;
@@ -909,12 +784,6 @@ pub fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     jac[5][6] = l14_13;
     jac[5][11] = d14;
     jac[5][12] = u14_15;
-    jac[5][16] = u14_16;
-    jac[5][17] = u14_17;
-    jac[5][18] = u14_18;
-    jac[5][19] = u14_19;
-    jac[3][13] = l15_3;
-    jac[3][7] = l15_6;
     jac[3][5] = l15_9;
     jac[3][10] = l15_10;
     jac[3][3] = l15_11;
@@ -927,11 +796,6 @@ pub fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     jac[3][18] = u15_18;
     jac[3][19] = u15_19;
     jac[19][16] = d16;
-    jac[19][17] = u16_17;
-    jac[19][18] = u16_18;
-    jac[19][19] = u16_19;
-    jac[4][14] = l17_4;
-    jac[4][8] = l17_7;
     jac[4][5] = l17_9;
     jac[4][10] = l17_10;
     jac[4][3] = l17_11;
@@ -952,17 +816,8 @@ pub fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     jac[14][18] = l19_18;
     jac[14][19] = d19;
     Some(runtime::lu::PivotInfo {
-        smallest: p0
+        smallest: p9
             .abs()
-            .min(p1.abs())
-            .min(p2.abs())
-            .min(p3.abs())
-            .min(p4.abs())
-            .min(p5.abs())
-            .min(p6.abs())
-            .min(p7.abs())
-            .min(p8.abs())
-            .min(p9.abs())
             .min(p10.abs())
             .min(p11.abs())
             .min(p12.abs())
@@ -972,18 +827,10 @@ pub fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
             .min(p16.abs())
             .min(p17.abs())
             .min(p18.abs())
-            .min(p19.abs()),
-        largest: p0
+            .min(p19.abs())
+            .min(1.0),
+        largest: p9
             .abs()
-            .max(p1.abs())
-            .max(p2.abs())
-            .max(p3.abs())
-            .max(p4.abs())
-            .max(p5.abs())
-            .max(p6.abs())
-            .max(p7.abs())
-            .max(p8.abs())
-            .max(p9.abs())
             .max(p10.abs())
             .max(p11.abs())
             .max(p12.abs())
@@ -993,13 +840,14 @@ pub fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
             .max(p16.abs())
             .max(p17.abs())
             .max(p18.abs())
-            .max(p19.abs()),
+            .max(p19.abs())
+            .max(1.0),
     })
 }
 
 /** Solves Φ_q x = b in place with the factors [`factor_0`] left in `lu`.
 
- 164 operations.*/
+ 149 operations.*/
 pub fn solve_0(lu: &[[f64; N]; N], b: &mut [f64; N]) {
     let y0 = b[6];
     let y1 = b[7];
@@ -1007,22 +855,22 @@ pub fn solve_0(lu: &[[f64; N]; N], b: &mut [f64; N]) {
     let y3 = b[11];
     let y4 = b[12];
     let y5 = b[13];
-    let y6 = b[0] - lu[0][0] * y0;
-    let y7 = b[1] - lu[1][1] * y1;
-    let y8 = b[2] - lu[2][2] * y2;
+    let y6 = b[0] + y0;
+    let y7 = b[1] + y1;
+    let y8 = b[2] + y2;
     let y9 = b[16];
     let y10 = b[18];
     let y11 = b[17] - lu[17][5] * y9;
     let y12 = b[10] - lu[10][5] * y9 - lu[10][3] * y11;
     let y13 = b[9] - lu[9][5] * y9 - lu[9][3] * y11 - lu[9][4] * y12;
-    let y14 = b[5] - lu[5][15] * y5 - lu[5][9] * y8 - lu[5][5] * y9 - lu[5][10] * y10
-        - lu[5][3] * y11 - lu[5][4] * y12 - lu[5][6] * y13;
-    let y15 = b[3] - lu[3][13] * y3 - lu[3][7] * y6 - lu[3][5] * y9 - lu[3][10] * y10
-        - lu[3][3] * y11 - lu[3][4] * y12 - lu[3][6] * y13 - lu[3][11] * y14;
+    let y14 = b[5] + y5 + y8 - lu[5][5] * y9 - lu[5][10] * y10 - lu[5][3] * y11
+        - lu[5][4] * y12 - lu[5][6] * y13;
+    let y15 = b[3] + y3 + y6 - lu[3][5] * y9 - lu[3][10] * y10 - lu[3][3] * y11
+        - lu[3][4] * y12 - lu[3][6] * y13 - lu[3][11] * y14;
     let y16 = b[19];
-    let y17 = b[4] - lu[4][14] * y4 - lu[4][8] * y7 - lu[4][5] * y9 - lu[4][10] * y10
-        - lu[4][3] * y11 - lu[4][4] * y12 - lu[4][6] * y13 - lu[4][11] * y14
-        - lu[4][12] * y15 - lu[4][16] * y16;
+    let y17 = b[4] + y4 + y7 - lu[4][5] * y9 - lu[4][10] * y10 - lu[4][3] * y11
+        - lu[4][4] * y12 - lu[4][6] * y13 - lu[4][11] * y14 - lu[4][12] * y15
+        - lu[4][16] * y16;
     let y18 = b[15] - lu[15][16] * y16 - lu[15][17] * y17;
     let y19 = b[14] - lu[14][16] * y16 - lu[14][17] * y17 - lu[14][18] * y18;
     let x19 = y19 * lu[14][19];
@@ -1039,18 +887,15 @@ pub fn solve_0(lu: &[[f64; N]; N], b: &mut [f64; N]) {
     let x11 = (y11 - lu[17][4] * x12 - lu[17][6] * x13) * lu[17][3];
     let x10 = (y10 - lu[18][11] * x14 - lu[18][12] * x15) * lu[18][10];
     let x9 = (y9 - lu[16][3] * x11) * lu[16][5];
-    let x8 = (y8 - lu[2][5] * x9 - lu[2][3] * x11 - lu[2][4] * x12 - lu[2][6] * x13)
-        * lu[2][9];
-    let x7 = (y7 - lu[1][5] * x9 - lu[1][3] * x11 - lu[1][4] * x12 - lu[1][6] * x13)
-        * lu[1][8];
-    let x6 = (y6 - lu[0][5] * x9 - lu[0][3] * x11 - lu[0][4] * x12 - lu[0][6] * x13)
-        * lu[0][7];
-    let x5 = y5 * lu[13][15];
-    let x4 = y4 * lu[12][14];
-    let x3 = y3 * lu[11][13];
-    let x2 = y2 * lu[8][2];
-    let x1 = y1 * lu[7][1];
-    let x0 = y0 * lu[6][0];
+    let x8 = y8 - lu[2][5] * x9 - lu[2][3] * x11 - lu[2][4] * x12 - lu[2][6] * x13;
+    let x7 = y7 - lu[1][5] * x9 - lu[1][3] * x11 - lu[1][4] * x12 - lu[1][6] * x13;
+    let x6 = y6 - lu[0][5] * x9 - lu[0][3] * x11 - lu[0][4] * x12 - lu[0][6] * x13;
+    let x5 = -y5;
+    let x4 = -y4;
+    let x3 = -y3;
+    let x2 = y2;
+    let x1 = y1;
+    let x0 = y0;
     b[0] = x0;
     b[1] = x1;
     b[2] = x2;
@@ -1075,86 +920,19 @@ pub fn solve_0(lu: &[[f64; N]; N], b: &mut [f64; N]) {
 
 /** Factors Φ_q in place with static pivot order 1: step k pivots on row `[6, 7, 8, 11, 12, 13, 0, 1, 2, 16, 18, 9, 17, 10, 5, 3, 19, 4, 15, 14][k]` and column `[0, 1, 2, 13, 14, 15, 7, 8, 9, 3, 10, 4, 5, 6, 11, 12, 16, 17, 18, 19][k]`.
 
- L and U have 92 entries (14 of them fill-in); 191 operations. The reciprocals of the pivots are stored on the diagonal.
+ L and U have 92 entries (14 of them fill-in, 18 known when generated); 149 operations. The others are in `jac`: 51 stored there, with the reciprocals of the pivots on the diagonal, and 23 left as Φ_q had them.
 
  Returns the smallest and largest |pivot|, or `None` (with `jac` unchanged) when a pivot is not finite or a multiplier exceeds [`runtime::lu::MAX_MULTIPLIER`] in magnitude.*/
 #[must_use]
 pub fn factor_1(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
-    let p0 = jac[6][0];
-    let d0 = 1.0 / p0;
-    let l6_0 = jac[0][0] * d0;
-    if !(p0.is_finite() && l6_0.abs() <= runtime::lu::MAX_MULTIPLIER) {
-        return None;
-    }
-    let p1 = jac[7][1];
-    let d1 = 1.0 / p1;
-    let l7_1 = jac[1][1] * d1;
-    if !(p1.is_finite() && l7_1.abs() <= runtime::lu::MAX_MULTIPLIER) {
-        return None;
-    }
-    let p2 = jac[8][2];
-    let d2 = 1.0 / p2;
-    let l8_2 = jac[2][2] * d2;
-    if !(p2.is_finite() && l8_2.abs() <= runtime::lu::MAX_MULTIPLIER) {
-        return None;
-    }
-    let p3 = jac[11][13];
-    let d3 = 1.0 / p3;
-    let l15_3 = jac[3][13] * d3;
-    if !(p3.is_finite() && l15_3.abs() <= runtime::lu::MAX_MULTIPLIER) {
-        return None;
-    }
-    let p4 = jac[12][14];
-    let d4 = 1.0 / p4;
-    let l17_4 = jac[4][14] * d4;
-    if !(p4.is_finite() && l17_4.abs() <= runtime::lu::MAX_MULTIPLIER) {
-        return None;
-    }
-    let p5 = jac[13][15];
-    let d5 = 1.0 / p5;
-    let l14_5 = jac[5][15] * d5;
-    if !(p5.is_finite() && l14_5.abs() <= runtime::lu::MAX_MULTIPLIER) {
-        return None;
-    }
-    let u6_9 = jac[0][3];
-    let u6_11 = jac[0][4];
-    let u6_12 = jac[0][5];
-    let u6_13 = jac[0][6];
-    let p6 = jac[0][7];
-    let d6 = 1.0 / p6;
-    let l15_6 = jac[3][7] * d6;
-    if !(p6.is_finite() && l15_6.abs() <= runtime::lu::MAX_MULTIPLIER) {
-        return None;
-    }
-    let u7_9 = jac[1][3];
-    let u7_11 = jac[1][4];
-    let u7_12 = jac[1][5];
-    let u7_13 = jac[1][6];
-    let p7 = jac[1][8];
-    let d7 = 1.0 / p7;
-    let l17_7 = jac[4][8] * d7;
-    if !(p7.is_finite() && l17_7.abs() <= runtime::lu::MAX_MULTIPLIER) {
-        return None;
-    }
-    let u8_9 = jac[2][3];
-    let u8_11 = jac[2][4];
-    let u8_12 = jac[2][5];
-    let u8_13 = jac[2][6];
-    let p8 = jac[2][9];
-    let d8 = 1.0 / p8;
-    let l14_8 = jac[5][9] * d8;
-    if !(p8.is_finite() && l14_8.abs() <= runtime::lu::MAX_MULTIPLIER) {
-        return None;
-    }
-    let u9_12 = jac[16][5];
     let p9 = jac[16][3];
     let d9 = 1.0 / p9;
     let l11_9 = jac[9][3] * d9;
     let l12_9 = jac[17][3] * d9;
     let l13_9 = jac[10][3] * d9;
-    let l14_9 = -(l14_8 * u8_9) * d9;
-    let l15_9 = -(l15_6 * u6_9) * d9;
-    let l17_9 = -(l17_7 * u7_9) * d9;
+    let l14_9 = jac[2][3] * d9;
+    let l15_9 = jac[0][3] * d9;
+    let l17_9 = jac[1][3] * d9;
     if !(p9.is_finite() && l11_9.abs() <= runtime::lu::MAX_MULTIPLIER
         && l12_9.abs() <= runtime::lu::MAX_MULTIPLIER
         && l13_9.abs() <= runtime::lu::MAX_MULTIPLIER
@@ -1164,8 +942,6 @@ pub fn factor_1(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     {
         return None;
     }
-    let u10_14 = jac[18][11];
-    let u10_15 = jac[18][12];
     let p10 = jac[18][10];
     let d10 = 1.0 / p10;
     let l14_10 = jac[5][10] * d10;
@@ -1177,15 +953,14 @@ pub fn factor_1(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     {
         return None;
     }
-    let u11_12 = jac[9][5] - l11_9 * u9_12;
-    let u11_13 = jac[9][6];
+    let u11_12 = jac[9][5] - l11_9 * jac[16][5];
     let p11 = jac[9][4];
     let d11 = 1.0 / p11;
     let l12_11 = jac[17][4] * d11;
     let l13_11 = jac[10][4] * d11;
-    let l14_11 = -(l14_8 * u8_11) * d11;
-    let l15_11 = -(l15_6 * u6_11) * d11;
-    let l17_11 = -(l17_7 * u7_11) * d11;
+    let l14_11 = jac[2][4] * d11;
+    let l15_11 = jac[0][4] * d11;
+    let l17_11 = jac[1][4] * d11;
     if !(p11.is_finite() && l12_11.abs() <= runtime::lu::MAX_MULTIPLIER
         && l13_11.abs() <= runtime::lu::MAX_MULTIPLIER
         && l14_11.abs() <= runtime::lu::MAX_MULTIPLIER
@@ -1194,13 +969,13 @@ pub fn factor_1(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     {
         return None;
     }
-    let u12_13 = jac[17][6] - l12_11 * u11_13;
-    let p12 = jac[17][5] - l12_9 * u9_12 - l12_11 * u11_12;
+    let u12_13 = jac[17][6] - l12_11 * jac[9][6];
+    let p12 = jac[17][5] - l12_9 * jac[16][5] - l12_11 * u11_12;
     let d12 = 1.0 / p12;
-    let l13_12 = (jac[10][5] - l13_9 * u9_12 - l13_11 * u11_12) * d12;
-    let l14_12 = (-(l14_8 * u8_12) - l14_9 * u9_12 - l14_11 * u11_12) * d12;
-    let l15_12 = (-(l15_6 * u6_12) - l15_9 * u9_12 - l15_11 * u11_12) * d12;
-    let l17_12 = (-(l17_7 * u7_12) - l17_9 * u9_12 - l17_11 * u11_12) * d12;
+    let l13_12 = (jac[10][5] - l13_9 * jac[16][5] - l13_11 * u11_12) * d12;
+    let l14_12 = (jac[2][5] - l14_9 * jac[16][5] - l14_11 * u11_12) * d12;
+    let l15_12 = (jac[0][5] - l15_9 * jac[16][5] - l15_11 * u11_12) * d12;
+    let l17_12 = (jac[1][5] - l17_9 * jac[16][5] - l17_11 * u11_12) * d12;
     if !(p12.is_finite() && l13_12.abs() <= runtime::lu::MAX_MULTIPLIER
         && l14_12.abs() <= runtime::lu::MAX_MULTIPLIER
         && l15_12.abs() <= runtime::lu::MAX_MULTIPLIER
@@ -1208,47 +983,40 @@ pub fn factor_1(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     {
         return None;
     }
-    let p13 = jac[10][6] - l13_11 * u11_13 - l13_12 * u12_13;
+    let p13 = jac[10][6] - l13_11 * jac[9][6] - l13_12 * u12_13;
     let d13 = 1.0 / p13;
-    let l14_13 = (-(l14_8 * u8_13) - l14_11 * u11_13 - l14_12 * u12_13) * d13;
-    let l15_13 = (-(l15_6 * u6_13) - l15_11 * u11_13 - l15_12 * u12_13) * d13;
-    let l17_13 = (-(l17_7 * u7_13) - l17_11 * u11_13 - l17_12 * u12_13) * d13;
+    let l14_13 = (jac[2][6] - l14_11 * jac[9][6] - l14_12 * u12_13) * d13;
+    let l15_13 = (jac[0][6] - l15_11 * jac[9][6] - l15_12 * u12_13) * d13;
+    let l17_13 = (jac[1][6] - l17_11 * jac[9][6] - l17_12 * u12_13) * d13;
     if !(p13.is_finite() && l14_13.abs() <= runtime::lu::MAX_MULTIPLIER
         && l15_13.abs() <= runtime::lu::MAX_MULTIPLIER
         && l17_13.abs() <= runtime::lu::MAX_MULTIPLIER)
     {
         return None;
     }
-    let u14_15 = -(l14_10 * u10_15);
-    let u14_16 = jac[5][16];
-    let u14_17 = jac[5][17];
-    let u14_18 = jac[5][18];
-    let u14_19 = jac[5][19];
-    let p14 = jac[5][11] - l14_10 * u10_14;
+    let u14_15 = -(l14_10 * jac[18][12]);
+    let p14 = jac[5][11] - l14_10 * jac[18][11];
     let d14 = 1.0 / p14;
-    let l15_14 = -(l15_10 * u10_14) * d14;
-    let l17_14 = (jac[4][11] - l17_10 * u10_14) * d14;
+    let l15_14 = -(l15_10 * jac[18][11]) * d14;
+    let l17_14 = (jac[4][11] - l17_10 * jac[18][11]) * d14;
     if !(p14.is_finite() && l15_14.abs() <= runtime::lu::MAX_MULTIPLIER
         && l17_14.abs() <= runtime::lu::MAX_MULTIPLIER)
     {
         return None;
     }
-    let u15_16 = jac[3][16] - l15_14 * u14_16;
-    let u15_17 = jac[3][17] - l15_14 * u14_17;
-    let u15_18 = jac[3][18] - l15_14 * u14_18;
-    let u15_19 = jac[3][19] - l15_14 * u14_19;
-    let p15 = jac[3][12] - l15_10 * u10_15 - l15_14 * u14_15;
+    let u15_16 = jac[3][16] - l15_14 * jac[5][16];
+    let u15_17 = jac[3][17] - l15_14 * jac[5][17];
+    let u15_18 = jac[3][18] - l15_14 * jac[5][18];
+    let u15_19 = jac[3][19] - l15_14 * jac[5][19];
+    let p15 = jac[3][12] - l15_10 * jac[18][12] - l15_14 * u14_15;
     let d15 = 1.0 / p15;
-    let l17_15 = (jac[4][12] - l17_10 * u10_15 - l17_14 * u14_15) * d15;
+    let l17_15 = (jac[4][12] - l17_10 * jac[18][12] - l17_14 * u14_15) * d15;
     if !(p15.is_finite() && l17_15.abs() <= runtime::lu::MAX_MULTIPLIER) {
         return None;
     }
-    let u16_17 = jac[19][17];
-    let u16_18 = jac[19][18];
-    let u16_19 = jac[19][19];
     let p16 = jac[19][16];
     let d16 = 1.0 / p16;
-    let l17_16 = (jac[4][16] - l17_14 * u14_16 - l17_15 * u15_16) * d16;
+    let l17_16 = (jac[4][16] - l17_14 * jac[5][16] - l17_15 * u15_16) * d16;
     let l18_16 = jac[15][16] * d16;
     let l19_16 = jac[14][16] * d16;
     if !(p16.is_finite() && l17_16.abs() <= runtime::lu::MAX_MULTIPLIER
@@ -1257,62 +1025,36 @@ pub fn factor_1(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     {
         return None;
     }
-    let u17_18 = jac[4][18] - l17_14 * u14_18 - l17_15 * u15_18 - l17_16 * u16_18;
-    let u17_19 = jac[4][19] - l17_14 * u14_19 - l17_15 * u15_19 - l17_16 * u16_19;
-    let p17 = jac[4][17] - l17_14 * u14_17 - l17_15 * u15_17 - l17_16 * u16_17;
+    let u17_18 = jac[4][18] - l17_14 * jac[5][18] - l17_15 * u15_18
+        - l17_16 * jac[19][18];
+    let u17_19 = jac[4][19] - l17_14 * jac[5][19] - l17_15 * u15_19
+        - l17_16 * jac[19][19];
+    let p17 = jac[4][17] - l17_14 * jac[5][17] - l17_15 * u15_17 - l17_16 * jac[19][17];
     let d17 = 1.0 / p17;
-    let l18_17 = (jac[15][17] - l18_16 * u16_17) * d17;
-    let l19_17 = (jac[14][17] - l19_16 * u16_17) * d17;
+    let l18_17 = (jac[15][17] - l18_16 * jac[19][17]) * d17;
+    let l19_17 = (jac[14][17] - l19_16 * jac[19][17]) * d17;
     if !(p17.is_finite() && l18_17.abs() <= runtime::lu::MAX_MULTIPLIER
         && l19_17.abs() <= runtime::lu::MAX_MULTIPLIER)
     {
         return None;
     }
-    let u18_19 = jac[15][19] - l18_16 * u16_19 - l18_17 * u17_19;
-    let p18 = jac[15][18] - l18_16 * u16_18 - l18_17 * u17_18;
+    let u18_19 = jac[15][19] - l18_16 * jac[19][19] - l18_17 * u17_19;
+    let p18 = jac[15][18] - l18_16 * jac[19][18] - l18_17 * u17_18;
     let d18 = 1.0 / p18;
-    let l19_18 = (jac[14][18] - l19_16 * u16_18 - l19_17 * u17_18) * d18;
+    let l19_18 = (jac[14][18] - l19_16 * jac[19][18] - l19_17 * u17_18) * d18;
     if !(p18.is_finite() && l19_18.abs() <= runtime::lu::MAX_MULTIPLIER) {
         return None;
     }
-    let p19 = jac[14][19] - l19_16 * u16_19 - l19_17 * u17_19 - l19_18 * u18_19;
+    let p19 = jac[14][19] - l19_16 * jac[19][19] - l19_17 * u17_19 - l19_18 * u18_19;
     let d19 = 1.0 / p19;
-    if !(p19.is_finite()) {
+    if !p19.is_finite() {
         return None;
     }
-    jac[6][0] = d0;
-    jac[7][1] = d1;
-    jac[8][2] = d2;
-    jac[11][13] = d3;
-    jac[12][14] = d4;
-    jac[13][15] = d5;
-    jac[0][0] = l6_0;
-    jac[0][7] = d6;
-    jac[0][3] = u6_9;
-    jac[0][4] = u6_11;
-    jac[0][5] = u6_12;
-    jac[0][6] = u6_13;
-    jac[1][1] = l7_1;
-    jac[1][8] = d7;
-    jac[1][3] = u7_9;
-    jac[1][4] = u7_11;
-    jac[1][5] = u7_12;
-    jac[1][6] = u7_13;
-    jac[2][2] = l8_2;
-    jac[2][9] = d8;
-    jac[2][3] = u8_9;
-    jac[2][4] = u8_11;
-    jac[2][5] = u8_12;
-    jac[2][6] = u8_13;
     jac[16][3] = d9;
-    jac[16][5] = u9_12;
     jac[18][10] = d10;
-    jac[18][11] = u10_14;
-    jac[18][12] = u10_15;
     jac[9][3] = l11_9;
     jac[9][4] = d11;
     jac[9][5] = u11_12;
-    jac[9][6] = u11_13;
     jac[17][3] = l12_9;
     jac[17][4] = l12_11;
     jac[17][5] = d12;
@@ -1321,8 +1063,6 @@ pub fn factor_1(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     jac[10][4] = l13_11;
     jac[10][5] = l13_12;
     jac[10][6] = d13;
-    jac[5][15] = l14_5;
-    jac[5][9] = l14_8;
     jac[5][3] = l14_9;
     jac[5][10] = l14_10;
     jac[5][4] = l14_11;
@@ -1330,12 +1070,6 @@ pub fn factor_1(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     jac[5][6] = l14_13;
     jac[5][11] = d14;
     jac[5][12] = u14_15;
-    jac[5][16] = u14_16;
-    jac[5][17] = u14_17;
-    jac[5][18] = u14_18;
-    jac[5][19] = u14_19;
-    jac[3][13] = l15_3;
-    jac[3][7] = l15_6;
     jac[3][3] = l15_9;
     jac[3][10] = l15_10;
     jac[3][4] = l15_11;
@@ -1348,11 +1082,6 @@ pub fn factor_1(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     jac[3][18] = u15_18;
     jac[3][19] = u15_19;
     jac[19][16] = d16;
-    jac[19][17] = u16_17;
-    jac[19][18] = u16_18;
-    jac[19][19] = u16_19;
-    jac[4][14] = l17_4;
-    jac[4][8] = l17_7;
     jac[4][3] = l17_9;
     jac[4][10] = l17_10;
     jac[4][4] = l17_11;
@@ -1373,17 +1102,8 @@ pub fn factor_1(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     jac[14][18] = l19_18;
     jac[14][19] = d19;
     Some(runtime::lu::PivotInfo {
-        smallest: p0
+        smallest: p9
             .abs()
-            .min(p1.abs())
-            .min(p2.abs())
-            .min(p3.abs())
-            .min(p4.abs())
-            .min(p5.abs())
-            .min(p6.abs())
-            .min(p7.abs())
-            .min(p8.abs())
-            .min(p9.abs())
             .min(p10.abs())
             .min(p11.abs())
             .min(p12.abs())
@@ -1393,18 +1113,10 @@ pub fn factor_1(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
             .min(p16.abs())
             .min(p17.abs())
             .min(p18.abs())
-            .min(p19.abs()),
-        largest: p0
+            .min(p19.abs())
+            .min(1.0),
+        largest: p9
             .abs()
-            .max(p1.abs())
-            .max(p2.abs())
-            .max(p3.abs())
-            .max(p4.abs())
-            .max(p5.abs())
-            .max(p6.abs())
-            .max(p7.abs())
-            .max(p8.abs())
-            .max(p9.abs())
             .max(p10.abs())
             .max(p11.abs())
             .max(p12.abs())
@@ -1414,13 +1126,14 @@ pub fn factor_1(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
             .max(p16.abs())
             .max(p17.abs())
             .max(p18.abs())
-            .max(p19.abs()),
+            .max(p19.abs())
+            .max(1.0),
     })
 }
 
 /** Solves Φ_q x = b in place with the factors [`factor_1`] left in `lu`.
 
- 164 operations.*/
+ 149 operations.*/
 pub fn solve_1(lu: &[[f64; N]; N], b: &mut [f64; N]) {
     let y0 = b[6];
     let y1 = b[7];
@@ -1428,22 +1141,22 @@ pub fn solve_1(lu: &[[f64; N]; N], b: &mut [f64; N]) {
     let y3 = b[11];
     let y4 = b[12];
     let y5 = b[13];
-    let y6 = b[0] - lu[0][0] * y0;
-    let y7 = b[1] - lu[1][1] * y1;
-    let y8 = b[2] - lu[2][2] * y2;
+    let y6 = b[0] + y0;
+    let y7 = b[1] + y1;
+    let y8 = b[2] + y2;
     let y9 = b[16];
     let y10 = b[18];
     let y11 = b[9] - lu[9][3] * y9;
     let y12 = b[17] - lu[17][3] * y9 - lu[17][4] * y11;
     let y13 = b[10] - lu[10][3] * y9 - lu[10][4] * y11 - lu[10][5] * y12;
-    let y14 = b[5] - lu[5][15] * y5 - lu[5][9] * y8 - lu[5][3] * y9 - lu[5][10] * y10
-        - lu[5][4] * y11 - lu[5][5] * y12 - lu[5][6] * y13;
-    let y15 = b[3] - lu[3][13] * y3 - lu[3][7] * y6 - lu[3][3] * y9 - lu[3][10] * y10
-        - lu[3][4] * y11 - lu[3][5] * y12 - lu[3][6] * y13 - lu[3][11] * y14;
+    let y14 = b[5] + y5 + y8 - lu[5][3] * y9 - lu[5][10] * y10 - lu[5][4] * y11
+        - lu[5][5] * y12 - lu[5][6] * y13;
+    let y15 = b[3] + y3 + y6 - lu[3][3] * y9 - lu[3][10] * y10 - lu[3][4] * y11
+        - lu[3][5] * y12 - lu[3][6] * y13 - lu[3][11] * y14;
     let y16 = b[19];
-    let y17 = b[4] - lu[4][14] * y4 - lu[4][8] * y7 - lu[4][3] * y9 - lu[4][10] * y10
-        - lu[4][4] * y11 - lu[4][5] * y12 - lu[4][6] * y13 - lu[4][11] * y14
-        - lu[4][12] * y15 - lu[4][16] * y16;
+    let y17 = b[4] + y4 + y7 - lu[4][3] * y9 - lu[4][10] * y10 - lu[4][4] * y11
+        - lu[4][5] * y12 - lu[4][6] * y13 - lu[4][11] * y14 - lu[4][12] * y15
+        - lu[4][16] * y16;
     let y18 = b[15] - lu[15][16] * y16 - lu[15][17] * y17;
     let y19 = b[14] - lu[14][16] * y16 - lu[14][17] * y17 - lu[14][18] * y18;
     let x19 = y19 * lu[14][19];
@@ -1460,18 +1173,15 @@ pub fn solve_1(lu: &[[f64; N]; N], b: &mut [f64; N]) {
     let x11 = (y11 - lu[9][5] * x12 - lu[9][6] * x13) * lu[9][4];
     let x10 = (y10 - lu[18][11] * x14 - lu[18][12] * x15) * lu[18][10];
     let x9 = (y9 - lu[16][5] * x12) * lu[16][3];
-    let x8 = (y8 - lu[2][3] * x9 - lu[2][4] * x11 - lu[2][5] * x12 - lu[2][6] * x13)
-        * lu[2][9];
-    let x7 = (y7 - lu[1][3] * x9 - lu[1][4] * x11 - lu[1][5] * x12 - lu[1][6] * x13)
-        * lu[1][8];
-    let x6 = (y6 - lu[0][3] * x9 - lu[0][4] * x11 - lu[0][5] * x12 - lu[0][6] * x13)
-        * lu[0][7];
-    let x5 = y5 * lu[13][15];
-    let x4 = y4 * lu[12][14];
-    let x3 = y3 * lu[11][13];
-    let x2 = y2 * lu[8][2];
-    let x1 = y1 * lu[7][1];
-    let x0 = y0 * lu[6][0];
+    let x8 = y8 - lu[2][3] * x9 - lu[2][4] * x11 - lu[2][5] * x12 - lu[2][6] * x13;
+    let x7 = y7 - lu[1][3] * x9 - lu[1][4] * x11 - lu[1][5] * x12 - lu[1][6] * x13;
+    let x6 = y6 - lu[0][3] * x9 - lu[0][4] * x11 - lu[0][5] * x12 - lu[0][6] * x13;
+    let x5 = -y5;
+    let x4 = -y4;
+    let x3 = -y3;
+    let x2 = y2;
+    let x1 = y1;
+    let x0 = y0;
     b[0] = x0;
     b[1] = x1;
     b[2] = x2;

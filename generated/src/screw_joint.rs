@@ -178,7 +178,7 @@ pub fn residual_jacobian(
     jac[6][6] = t20;
 }
 
-/** Φ and the 21 structurally non-zero entries of Φ_q, the others of `jac` left as they were: what the `factor_k` functions read.
+/** Φ and the 19 entries of Φ_q that depend on q or t, the others of `jac` left as they were: what the `factor_k` functions read (2 of the 21 structurally non-zero entries are constants, which they know).
 
  76 operations, 21 shared subexpressions.*/
 pub fn residual_jacobian_structural(
@@ -224,8 +224,6 @@ pub fn residual_jacobian_structural(
     jac[1][4] = t16;
     jac[1][5] = t12;
     jac[1][6] = -t13;
-    jac[2][0] = 1.0;
-    jac[3][2] = -1.0;
     jac[4][1] = t3 * (2.0 * t7) - t4 * (2.0 * t6);
     jac[4][3] = t6 * t17 - t7 * t13;
     jac[4][4] = t6 * t18 + t7 * t11;
@@ -241,31 +239,16 @@ pub fn residual_jacobian_structural(
 
 /** Factors Φ_q in place with static pivot order 0: step k pivots on row `[2, 4, 3, 5, 6, 1, 0][k]` and column `[0, 1, 2, 5, 3, 4, 6][k]`.
 
- L and U have 21 entries (0 of them fill-in); 29 operations. The reciprocals of the pivots are stored on the diagonal.
+ L and U have 21 entries (0 of them fill-in, 2 known when generated); 27 operations. The others are in `jac`: 12 stored there, with the reciprocals of the pivots on the diagonal, and 7 left as Φ_q had them.
 
  Returns the smallest and largest |pivot|, or `None` (with `jac` unchanged) when a pivot is not finite or a multiplier exceeds [`runtime::lu::MAX_MULTIPLIER`] in magnitude.*/
 #[must_use]
 pub fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
-    let p0 = jac[2][0];
-    let d0 = 1.0 / p0;
-    if !(p0.is_finite()) {
-        return None;
-    }
-    let u1_3 = jac[4][5];
-    let u1_4 = jac[4][3];
-    let u1_5 = jac[4][4];
-    let u1_6 = jac[4][6];
     let p1 = jac[4][1];
     let d1 = 1.0 / p1;
-    if !(p1.is_finite()) {
+    if !p1.is_finite() {
         return None;
     }
-    let p2 = jac[3][2];
-    let d2 = 1.0 / p2;
-    if !(p2.is_finite()) {
-        return None;
-    }
-    let u3_4 = jac[5][3];
     let p3 = jac[5][5];
     let d3 = 1.0 / p3;
     let l4_3 = jac[6][5] * d3;
@@ -277,42 +260,31 @@ pub fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     {
         return None;
     }
-    let u4_5 = jac[6][4];
-    let u4_6 = jac[6][6];
-    let p4 = jac[6][3] - l4_3 * u3_4;
+    let p4 = jac[6][3] - l4_3 * jac[5][3];
     let d4 = 1.0 / p4;
-    let l5_4 = (jac[1][3] - l5_3 * u3_4) * d4;
-    let l6_4 = (jac[0][3] - l6_3 * u3_4) * d4;
+    let l5_4 = (jac[1][3] - l5_3 * jac[5][3]) * d4;
+    let l6_4 = (jac[0][3] - l6_3 * jac[5][3]) * d4;
     if !(p4.is_finite() && l5_4.abs() <= runtime::lu::MAX_MULTIPLIER
         && l6_4.abs() <= runtime::lu::MAX_MULTIPLIER)
     {
         return None;
     }
-    let u5_6 = jac[1][6] - l5_4 * u4_6;
-    let p5 = jac[1][4] - l5_4 * u4_5;
+    let u5_6 = jac[1][6] - l5_4 * jac[6][6];
+    let p5 = jac[1][4] - l5_4 * jac[6][4];
     let d5 = 1.0 / p5;
-    let l6_5 = (jac[0][4] - l6_4 * u4_5) * d5;
+    let l6_5 = (jac[0][4] - l6_4 * jac[6][4]) * d5;
     if !(p5.is_finite() && l6_5.abs() <= runtime::lu::MAX_MULTIPLIER) {
         return None;
     }
-    let p6 = jac[0][6] - l6_4 * u4_6 - l6_5 * u5_6;
+    let p6 = jac[0][6] - l6_4 * jac[6][6] - l6_5 * u5_6;
     let d6 = 1.0 / p6;
-    if !(p6.is_finite()) {
+    if !p6.is_finite() {
         return None;
     }
-    jac[2][0] = d0;
     jac[4][1] = d1;
-    jac[4][5] = u1_3;
-    jac[4][3] = u1_4;
-    jac[4][4] = u1_5;
-    jac[4][6] = u1_6;
-    jac[3][2] = d2;
     jac[5][5] = d3;
-    jac[5][3] = u3_4;
     jac[6][5] = l4_3;
     jac[6][3] = d4;
-    jac[6][4] = u4_5;
-    jac[6][6] = u4_6;
     jac[1][5] = l5_3;
     jac[1][3] = l5_4;
     jac[1][4] = d5;
@@ -322,28 +294,26 @@ pub fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     jac[0][4] = l6_5;
     jac[0][6] = d6;
     Some(runtime::lu::PivotInfo {
-        smallest: p0
+        smallest: p1
             .abs()
-            .min(p1.abs())
-            .min(p2.abs())
             .min(p3.abs())
             .min(p4.abs())
             .min(p5.abs())
-            .min(p6.abs()),
-        largest: p0
+            .min(p6.abs())
+            .min(1.0),
+        largest: p1
             .abs()
-            .max(p1.abs())
-            .max(p2.abs())
             .max(p3.abs())
             .max(p4.abs())
             .max(p5.abs())
-            .max(p6.abs()),
+            .max(p6.abs())
+            .max(1.0),
     })
 }
 
 /** Solves Φ_q x = b in place with the factors [`factor_0`] left in `lu`.
 
- 35 operations.*/
+ 34 operations.*/
 pub fn solve_0(lu: &[[f64; N]; N], b: &mut [f64; N]) {
     let y0 = b[2];
     let y1 = b[4];
@@ -356,10 +326,10 @@ pub fn solve_0(lu: &[[f64; N]; N], b: &mut [f64; N]) {
     let x5 = (y5 - lu[1][6] * x6) * lu[1][4];
     let x4 = (y4 - lu[6][4] * x5 - lu[6][6] * x6) * lu[6][3];
     let x3 = (y3 - lu[5][3] * x4) * lu[5][5];
-    let x2 = y2 * lu[3][2];
+    let x2 = -y2;
     let x1 = (y1 - lu[4][5] * x3 - lu[4][3] * x4 - lu[4][4] * x5 - lu[4][6] * x6)
         * lu[4][1];
-    let x0 = y0 * lu[2][0];
+    let x0 = y0;
     b[0] = x0;
     b[1] = x1;
     b[2] = x2;
@@ -371,31 +341,16 @@ pub fn solve_0(lu: &[[f64; N]; N], b: &mut [f64; N]) {
 
 /** Factors Φ_q in place with static pivot order 1: step k pivots on row `[2, 4, 3, 5, 0, 6, 1][k]` and column `[0, 1, 2, 3, 4, 5, 6][k]`.
 
- L and U have 21 entries (0 of them fill-in); 29 operations. The reciprocals of the pivots are stored on the diagonal.
+ L and U have 21 entries (0 of them fill-in, 2 known when generated); 27 operations. The others are in `jac`: 13 stored there, with the reciprocals of the pivots on the diagonal, and 6 left as Φ_q had them.
 
  Returns the smallest and largest |pivot|, or `None` (with `jac` unchanged) when a pivot is not finite or a multiplier exceeds [`runtime::lu::MAX_MULTIPLIER`] in magnitude.*/
 #[must_use]
 pub fn factor_1(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
-    let p0 = jac[2][0];
-    let d0 = 1.0 / p0;
-    if !(p0.is_finite()) {
-        return None;
-    }
-    let u1_3 = jac[4][3];
-    let u1_4 = jac[4][4];
-    let u1_5 = jac[4][5];
-    let u1_6 = jac[4][6];
     let p1 = jac[4][1];
     let d1 = 1.0 / p1;
-    if !(p1.is_finite()) {
+    if !p1.is_finite() {
         return None;
     }
-    let p2 = jac[3][2];
-    let d2 = 1.0 / p2;
-    if !(p2.is_finite()) {
-        return None;
-    }
-    let u3_5 = jac[5][5];
     let p3 = jac[5][3];
     let d3 = 1.0 / p3;
     let l4_3 = jac[0][3] * d3;
@@ -407,8 +362,7 @@ pub fn factor_1(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     {
         return None;
     }
-    let u4_5 = jac[0][5] - l4_3 * u3_5;
-    let u4_6 = jac[0][6];
+    let u4_5 = jac[0][5] - l4_3 * jac[5][5];
     let p4 = jac[0][4];
     let d4 = 1.0 / p4;
     let l5_4 = jac[6][4] * d4;
@@ -418,31 +372,23 @@ pub fn factor_1(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     {
         return None;
     }
-    let u5_6 = jac[6][6] - l5_4 * u4_6;
-    let p5 = jac[6][5] - l5_3 * u3_5 - l5_4 * u4_5;
+    let u5_6 = jac[6][6] - l5_4 * jac[0][6];
+    let p5 = jac[6][5] - l5_3 * jac[5][5] - l5_4 * u4_5;
     let d5 = 1.0 / p5;
-    let l6_5 = (jac[1][5] - l6_3 * u3_5 - l6_4 * u4_5) * d5;
+    let l6_5 = (jac[1][5] - l6_3 * jac[5][5] - l6_4 * u4_5) * d5;
     if !(p5.is_finite() && l6_5.abs() <= runtime::lu::MAX_MULTIPLIER) {
         return None;
     }
-    let p6 = jac[1][6] - l6_4 * u4_6 - l6_5 * u5_6;
+    let p6 = jac[1][6] - l6_4 * jac[0][6] - l6_5 * u5_6;
     let d6 = 1.0 / p6;
-    if !(p6.is_finite()) {
+    if !p6.is_finite() {
         return None;
     }
-    jac[2][0] = d0;
     jac[4][1] = d1;
-    jac[4][3] = u1_3;
-    jac[4][4] = u1_4;
-    jac[4][5] = u1_5;
-    jac[4][6] = u1_6;
-    jac[3][2] = d2;
     jac[5][3] = d3;
-    jac[5][5] = u3_5;
     jac[0][3] = l4_3;
     jac[0][4] = d4;
     jac[0][5] = u4_5;
-    jac[0][6] = u4_6;
     jac[6][3] = l5_3;
     jac[6][4] = l5_4;
     jac[6][5] = d5;
@@ -452,28 +398,26 @@ pub fn factor_1(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     jac[1][5] = l6_5;
     jac[1][6] = d6;
     Some(runtime::lu::PivotInfo {
-        smallest: p0
+        smallest: p1
             .abs()
-            .min(p1.abs())
-            .min(p2.abs())
             .min(p3.abs())
             .min(p4.abs())
             .min(p5.abs())
-            .min(p6.abs()),
-        largest: p0
+            .min(p6.abs())
+            .min(1.0),
+        largest: p1
             .abs()
-            .max(p1.abs())
-            .max(p2.abs())
             .max(p3.abs())
             .max(p4.abs())
             .max(p5.abs())
-            .max(p6.abs()),
+            .max(p6.abs())
+            .max(1.0),
     })
 }
 
 /** Solves Φ_q x = b in place with the factors [`factor_1`] left in `lu`.
 
- 35 operations.*/
+ 34 operations.*/
 pub fn solve_1(lu: &[[f64; N]; N], b: &mut [f64; N]) {
     let y0 = b[2];
     let y1 = b[4];
@@ -486,10 +430,10 @@ pub fn solve_1(lu: &[[f64; N]; N], b: &mut [f64; N]) {
     let x5 = (y5 - lu[6][6] * x6) * lu[6][5];
     let x4 = (y4 - lu[0][5] * x5 - lu[0][6] * x6) * lu[0][4];
     let x3 = (y3 - lu[5][5] * x5) * lu[5][3];
-    let x2 = y2 * lu[3][2];
+    let x2 = -y2;
     let x1 = (y1 - lu[4][3] * x3 - lu[4][4] * x4 - lu[4][5] * x5 - lu[4][6] * x6)
         * lu[4][1];
-    let x0 = y0 * lu[2][0];
+    let x0 = y0;
     b[0] = x0;
     b[1] = x1;
     b[2] = x2;

@@ -942,7 +942,7 @@ pub fn residual_jacobian(
     jac[27][27] = t145;
 }
 
-/** Φ and the 165 structurally non-zero entries of Φ_q, the others of `jac` left as they were: what the `factor_k` functions read.
+/** Φ and the 148 entries of Φ_q that depend on q or t, the others of `jac` left as they were: what the `factor_k` functions read (17 of the 165 structurally non-zero entries are constants, which they know).
 
  791 operations, 170 shared subexpressions.*/
 pub fn residual_jacobian_structural(
@@ -1151,39 +1151,30 @@ pub fn residual_jacobian_structural(
     phi[25] = t8 + (t7 + t9) - 1.0;
     phi[26] = t23 + (t22 + t24) - 1.0;
     phi[27] = t47 + (t46 + t48) - 1.0;
-    jac[0][0] = -1.0;
     jac[0][3] = t74;
     jac[0][4] = t75;
     jac[0][5] = t76;
     jac[0][6] = t77;
-    jac[0][7] = 1.0;
     jac[0][10] = -0.15 * t78;
     jac[0][11] = -0.15 * t79;
     jac[0][12] = -(-0.15 * t80);
     jac[0][13] = -(-0.15 * t81);
-    jac[1][1] = -1.0;
     jac[1][3] = -(0.08 * t82);
     jac[1][4] = 0.08 * t83;
     jac[1][5] = -(0.08 * t84);
     jac[1][6] = 0.08 * t85;
-    jac[1][8] = 1.0;
     jac[1][10] = t86;
     jac[1][11] = t87;
     jac[1][12] = t88;
     jac[1][13] = t89;
-    jac[2][2] = -1.0;
     jac[2][3] = t76;
     jac[2][4] = -t77;
     jac[2][5] = -t74;
     jac[2][6] = t75;
-    jac[2][9] = 1.0;
     jac[2][10] = -t87;
     jac[2][11] = t86;
     jac[2][12] = -t89;
     jac[2][13] = t88;
-    jac[3][0] = -1.0;
-    jac[4][1] = -1.0;
-    jac[5][2] = -1.0;
     jac[6][3] = -t90;
     jac[6][4] = t91;
     jac[6][5] = t92;
@@ -1192,24 +1183,18 @@ pub fn residual_jacobian_structural(
     jac[7][4] = t90;
     jac[7][5] = t93;
     jac[7][6] = t92;
-    jac[8][7] = -1.0;
     jac[8][10] = -(0.15 * t78);
     jac[8][11] = -(0.15 * t79);
     jac[8][12] = 0.15 * t80;
     jac[8][13] = 0.15 * t81;
-    jac[8][14] = 1.0;
-    jac[9][8] = -1.0;
     jac[9][10] = t94;
     jac[9][11] = -t95;
     jac[9][12] = t96;
     jac[9][13] = -t97;
-    jac[9][15] = 1.0;
-    jac[10][9] = -1.0;
     jac[10][10] = t95;
     jac[10][11] = t94;
     jac[10][12] = t97;
     jac[10][13] = t96;
-    jac[10][16] = 1.0;
     jac[11][10] = t41 * t78 + t100 - t43 * t98;
     jac[11][11] = t43 * t99 + (t41 * t79 + t101);
     jac[11][12] = t104 - t41 * t80 - t43 * t102;
@@ -1304,8 +1289,6 @@ pub fn residual_jacobian_structural(
     jac[21][25] = t142;
     jac[21][26] = t140;
     jac[21][27] = t138;
-    jac[22][14] = 1.0;
-    jac[22][21] = -1.0;
     jac[23][3] = -t72;
     jac[23][4] = t73;
     jac[24][3] = t82;
@@ -1328,75 +1311,16 @@ pub fn residual_jacobian_structural(
 
 /** Factors Φ_q in place with static pivot order 0: step k pivots on row `[3, 4, 5, 22, 8, 9, 10, 23, 24, 7, 6, 1, 2, 25, 0, 12, 11, 26, 14, 13, 15, 16, 19, 20, 27, 21, 18, 17][k]` and column `[0, 1, 2, 14, 7, 8, 9, 4, 3, 5, 6, 15, 16, 10, 12, 11, 13, 17, 19, 20, 18, 21, 22, 23, 24, 25, 26, 27][k]`.
 
- L and U have 179 entries (14 of them fill-in); 466 operations. The reciprocals of the pivots are stored on the diagonal.
+ L and U have 179 entries (14 of them fill-in, 21 known when generated); 418 operations. The others are in `jac`: 118 stored there, with the reciprocals of the pivots on the diagonal, and 40 left as Φ_q had them.
 
  Returns the smallest and largest |pivot|, or `None` (with `jac` unchanged) when a pivot is not finite or a multiplier exceeds [`runtime::lu::MAX_MULTIPLIER`] in magnitude.*/
 #[must_use]
 pub fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
-    let p0 = jac[3][0];
-    let d0 = 1.0 / p0;
-    let l14_0 = jac[0][0] * d0;
-    if !(p0.is_finite() && l14_0.abs() <= runtime::lu::MAX_MULTIPLIER) {
-        return None;
-    }
-    let p1 = jac[4][1];
-    let d1 = 1.0 / p1;
-    let l11_1 = jac[1][1] * d1;
-    if !(p1.is_finite() && l11_1.abs() <= runtime::lu::MAX_MULTIPLIER) {
-        return None;
-    }
-    let p2 = jac[5][2];
-    let d2 = 1.0 / p2;
-    let l12_2 = jac[2][2] * d2;
-    if !(p2.is_finite() && l12_2.abs() <= runtime::lu::MAX_MULTIPLIER) {
-        return None;
-    }
-    let u3_21 = jac[22][21];
-    let p3 = jac[22][14];
-    let d3 = 1.0 / p3;
-    let l4_3 = jac[8][14] * d3;
-    let l20_3 = jac[15][14] * d3;
-    let l21_3 = jac[16][14] * d3;
-    if !(p3.is_finite() && l4_3.abs() <= runtime::lu::MAX_MULTIPLIER
-        && l20_3.abs() <= runtime::lu::MAX_MULTIPLIER
-        && l21_3.abs() <= runtime::lu::MAX_MULTIPLIER)
+    if !(jac[15][14].abs() <= runtime::lu::MAX_MULTIPLIER
+        && jac[16][14].abs() <= runtime::lu::MAX_MULTIPLIER)
     {
         return None;
     }
-    let u4_13 = jac[8][10];
-    let u4_14 = jac[8][12];
-    let u4_15 = jac[8][11];
-    let u4_16 = jac[8][13];
-    let u4_21 = -(l4_3 * u3_21);
-    let p4 = jac[8][7];
-    let d4 = 1.0 / p4;
-    let l14_4 = jac[0][7] * d4;
-    if !(p4.is_finite() && l14_4.abs() <= runtime::lu::MAX_MULTIPLIER) {
-        return None;
-    }
-    let u5_11 = jac[9][15];
-    let u5_13 = jac[9][10];
-    let u5_14 = jac[9][12];
-    let u5_15 = jac[9][11];
-    let u5_16 = jac[9][13];
-    let p5 = jac[9][8];
-    let d5 = 1.0 / p5;
-    let l11_5 = jac[1][8] * d5;
-    if !(p5.is_finite() && l11_5.abs() <= runtime::lu::MAX_MULTIPLIER) {
-        return None;
-    }
-    let u6_12 = jac[10][16];
-    let u6_13 = jac[10][10];
-    let u6_14 = jac[10][12];
-    let u6_15 = jac[10][11];
-    let u6_16 = jac[10][13];
-    let p6 = jac[10][9];
-    let d6 = 1.0 / p6;
-    let l12_6 = jac[2][9] * d6;
-    if !(p6.is_finite() && l12_6.abs() <= runtime::lu::MAX_MULTIPLIER) {
-        return None;
-    }
-    let u7_8 = jac[23][3];
     let p7 = jac[23][4];
     let d7 = 1.0 / p7;
     let l8_7 = jac[24][4] * d7;
@@ -1414,15 +1338,13 @@ pub fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     {
         return None;
     }
-    let u8_9 = jac[24][5];
-    let u8_10 = jac[24][6];
-    let p8 = jac[24][3] - l8_7 * u7_8;
+    let p8 = jac[24][3] - l8_7 * jac[23][3];
     let d8 = 1.0 / p8;
-    let l9_8 = (jac[7][3] - l9_7 * u7_8) * d8;
-    let l10_8 = (jac[6][3] - l10_7 * u7_8) * d8;
-    let l11_8 = (jac[1][3] - l11_7 * u7_8) * d8;
-    let l12_8 = (jac[2][3] - l12_7 * u7_8) * d8;
-    let l14_8 = (jac[0][3] - l14_7 * u7_8) * d8;
+    let l9_8 = (jac[7][3] - l9_7 * jac[23][3]) * d8;
+    let l10_8 = (jac[6][3] - l10_7 * jac[23][3]) * d8;
+    let l11_8 = (jac[1][3] - l11_7 * jac[23][3]) * d8;
+    let l12_8 = (jac[2][3] - l12_7 * jac[23][3]) * d8;
+    let l14_8 = (jac[0][3] - l14_7 * jac[23][3]) * d8;
     if !(p8.is_finite() && l9_8.abs() <= runtime::lu::MAX_MULTIPLIER
         && l10_8.abs() <= runtime::lu::MAX_MULTIPLIER
         && l11_8.abs() <= runtime::lu::MAX_MULTIPLIER
@@ -1431,13 +1353,13 @@ pub fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     {
         return None;
     }
-    let u9_10 = jac[7][6] - l9_8 * u8_10;
-    let p9 = jac[7][5] - l9_8 * u8_9;
+    let u9_10 = jac[7][6] - l9_8 * jac[24][6];
+    let p9 = jac[7][5] - l9_8 * jac[24][5];
     let d9 = 1.0 / p9;
-    let l10_9 = (jac[6][5] - l10_8 * u8_9) * d9;
-    let l11_9 = (jac[1][5] - l11_8 * u8_9) * d9;
-    let l12_9 = (jac[2][5] - l12_8 * u8_9) * d9;
-    let l14_9 = (jac[0][5] - l14_8 * u8_9) * d9;
+    let l10_9 = (jac[6][5] - l10_8 * jac[24][5]) * d9;
+    let l11_9 = (jac[1][5] - l11_8 * jac[24][5]) * d9;
+    let l12_9 = (jac[2][5] - l12_8 * jac[24][5]) * d9;
+    let l14_9 = (jac[0][5] - l14_8 * jac[24][5]) * d9;
     if !(p9.is_finite() && l10_9.abs() <= runtime::lu::MAX_MULTIPLIER
         && l11_9.abs() <= runtime::lu::MAX_MULTIPLIER
         && l12_9.abs() <= runtime::lu::MAX_MULTIPLIER
@@ -1445,53 +1367,42 @@ pub fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     {
         return None;
     }
-    let p10 = jac[6][6] - l10_8 * u8_10 - l10_9 * u9_10;
+    let p10 = jac[6][6] - l10_8 * jac[24][6] - l10_9 * u9_10;
     let d10 = 1.0 / p10;
-    let l11_10 = (jac[1][6] - l11_8 * u8_10 - l11_9 * u9_10) * d10;
-    let l12_10 = (jac[2][6] - l12_8 * u8_10 - l12_9 * u9_10) * d10;
-    let l14_10 = (jac[0][6] - l14_8 * u8_10 - l14_9 * u9_10) * d10;
+    let l11_10 = (jac[1][6] - l11_8 * jac[24][6] - l11_9 * u9_10) * d10;
+    let l12_10 = (jac[2][6] - l12_8 * jac[24][6] - l12_9 * u9_10) * d10;
+    let l14_10 = (jac[0][6] - l14_8 * jac[24][6] - l14_9 * u9_10) * d10;
     if !(p10.is_finite() && l11_10.abs() <= runtime::lu::MAX_MULTIPLIER
         && l12_10.abs() <= runtime::lu::MAX_MULTIPLIER
         && l14_10.abs() <= runtime::lu::MAX_MULTIPLIER)
     {
         return None;
     }
-    let u11_13 = jac[1][10] - l11_5 * u5_13;
-    let u11_14 = jac[1][12] - l11_5 * u5_14;
-    let u11_15 = jac[1][11] - l11_5 * u5_15;
-    let u11_16 = jac[1][13] - l11_5 * u5_16;
-    let p11 = -(l11_5 * u5_11);
-    let d11 = 1.0 / p11;
-    let l20_11 = jac[15][15] * d11;
-    let l21_11 = jac[16][15] * d11;
-    if !(p11.is_finite() && l20_11.abs() <= runtime::lu::MAX_MULTIPLIER
-        && l21_11.abs() <= runtime::lu::MAX_MULTIPLIER)
+    let u11_13 = jac[1][10] + jac[9][10];
+    let u11_14 = jac[1][12] + jac[9][12];
+    let u11_15 = jac[1][11] + jac[9][11];
+    let u11_16 = jac[1][13] + jac[9][13];
+    if !(jac[15][15].abs() <= runtime::lu::MAX_MULTIPLIER
+        && jac[16][15].abs() <= runtime::lu::MAX_MULTIPLIER)
     {
         return None;
     }
-    let u12_13 = jac[2][10] - l12_6 * u6_13;
-    let u12_14 = jac[2][12] - l12_6 * u6_14;
-    let u12_15 = jac[2][11] - l12_6 * u6_15;
-    let u12_16 = jac[2][13] - l12_6 * u6_16;
-    let p12 = -(l12_6 * u6_12);
-    let d12 = 1.0 / p12;
-    let l20_12 = jac[15][16] * d12;
-    let l21_12 = jac[16][16] * d12;
-    if !(p12.is_finite() && l20_12.abs() <= runtime::lu::MAX_MULTIPLIER
-        && l21_12.abs() <= runtime::lu::MAX_MULTIPLIER)
+    let u12_13 = jac[2][10] + jac[10][10];
+    let u12_14 = jac[2][12] + jac[10][12];
+    let u12_15 = jac[2][11] + jac[10][11];
+    let u12_16 = jac[2][13] + jac[10][13];
+    if !(jac[15][16].abs() <= runtime::lu::MAX_MULTIPLIER
+        && jac[16][16].abs() <= runtime::lu::MAX_MULTIPLIER)
     {
         return None;
     }
-    let u13_14 = jac[25][12];
-    let u13_15 = jac[25][11];
-    let u13_16 = jac[25][13];
     let p13 = jac[25][10];
     let d13 = 1.0 / p13;
-    let l14_13 = (jac[0][10] - l14_4 * u4_13) * d13;
+    let l14_13 = (jac[0][10] + jac[8][10]) * d13;
     let l15_13 = jac[12][10] * d13;
     let l16_13 = jac[11][10] * d13;
-    let l20_13 = (-(l20_11 * u11_13) - l20_12 * u12_13) * d13;
-    let l21_13 = (-(l21_11 * u11_13) - l21_12 * u12_13) * d13;
+    let l20_13 = (-(jac[15][15] * u11_13) - jac[15][16] * u12_13) * d13;
+    let l21_13 = (-(jac[16][15] * u11_13) - jac[16][16] * u12_13) * d13;
     if !(p13.is_finite() && l14_13.abs() <= runtime::lu::MAX_MULTIPLIER
         && l15_13.abs() <= runtime::lu::MAX_MULTIPLIER
         && l16_13.abs() <= runtime::lu::MAX_MULTIPLIER
@@ -1500,15 +1411,16 @@ pub fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     {
         return None;
     }
-    let u14_15 = jac[0][11] - l14_4 * u4_15 - l14_13 * u13_15;
-    let u14_16 = jac[0][13] - l14_4 * u4_16 - l14_13 * u13_16;
-    let u14_21 = -(l14_4 * u4_21);
-    let p14 = jac[0][12] - l14_4 * u4_14 - l14_13 * u13_14;
+    let u14_15 = jac[0][11] + jac[8][11] - l14_13 * jac[25][11];
+    let u14_16 = jac[0][13] + jac[8][13] - l14_13 * jac[25][13];
+    let p14 = jac[0][12] + jac[8][12] - l14_13 * jac[25][12];
     let d14 = 1.0 / p14;
-    let l15_14 = (jac[12][12] - l15_13 * u13_14) * d14;
-    let l16_14 = (jac[11][12] - l16_13 * u13_14) * d14;
-    let l20_14 = (-(l20_11 * u11_14) - l20_12 * u12_14 - l20_13 * u13_14) * d14;
-    let l21_14 = (-(l21_11 * u11_14) - l21_12 * u12_14 - l21_13 * u13_14) * d14;
+    let l15_14 = (jac[12][12] - l15_13 * jac[25][12]) * d14;
+    let l16_14 = (jac[11][12] - l16_13 * jac[25][12]) * d14;
+    let l20_14 = (-(jac[15][15] * u11_14) - jac[15][16] * u12_14 - l20_13 * jac[25][12])
+        * d14;
+    let l21_14 = (-(jac[16][15] * u11_14) - jac[16][16] * u12_14 - l21_13 * jac[25][12])
+        * d14;
     if !(p14.is_finite() && l15_14.abs() <= runtime::lu::MAX_MULTIPLIER
         && l16_14.abs() <= runtime::lu::MAX_MULTIPLIER
         && l20_14.abs() <= runtime::lu::MAX_MULTIPLIER
@@ -1516,18 +1428,14 @@ pub fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     {
         return None;
     }
-    let u15_16 = jac[12][13] - l15_13 * u13_16 - l15_14 * u14_16;
-    let u15_17 = jac[12][17];
-    let u15_18 = jac[12][19];
-    let u15_19 = jac[12][20];
-    let u15_20 = jac[12][18];
-    let u15_21 = -(l15_14 * u14_21);
-    let p15 = jac[12][11] - l15_13 * u13_15 - l15_14 * u14_15;
+    let u15_16 = jac[12][13] - l15_13 * jac[25][13] - l15_14 * u14_16;
+    let u15_21 = -l15_14;
+    let p15 = jac[12][11] - l15_13 * jac[25][11] - l15_14 * u14_15;
     let d15 = 1.0 / p15;
-    let l16_15 = (jac[11][11] - l16_13 * u13_15 - l16_14 * u14_15) * d15;
-    let l20_15 = (-(l20_11 * u11_15) - l20_12 * u12_15 - l20_13 * u13_15
+    let l16_15 = (jac[11][11] - l16_13 * jac[25][11] - l16_14 * u14_15) * d15;
+    let l20_15 = (-(jac[15][15] * u11_15) - jac[15][16] * u12_15 - l20_13 * jac[25][11]
         - l20_14 * u14_15) * d15;
-    let l21_15 = (-(l21_11 * u11_15) - l21_12 * u12_15 - l21_13 * u13_15
+    let l21_15 = (-(jac[16][15] * u11_15) - jac[16][16] * u12_15 - l21_13 * jac[25][11]
         - l21_14 * u14_15) * d15;
     if !(p15.is_finite() && l16_15.abs() <= runtime::lu::MAX_MULTIPLIER
         && l20_15.abs() <= runtime::lu::MAX_MULTIPLIER
@@ -1535,31 +1443,28 @@ pub fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     {
         return None;
     }
-    let u16_17 = jac[11][17] - l16_15 * u15_17;
-    let u16_18 = jac[11][19] - l16_15 * u15_18;
-    let u16_19 = jac[11][20] - l16_15 * u15_19;
-    let u16_20 = jac[11][18] - l16_15 * u15_20;
-    let u16_21 = -(l16_14 * u14_21) - l16_15 * u15_21;
-    let p16 = jac[11][13] - l16_13 * u13_16 - l16_14 * u14_16 - l16_15 * u15_16;
+    let u16_17 = jac[11][17] - l16_15 * jac[12][17];
+    let u16_18 = jac[11][19] - l16_15 * jac[12][19];
+    let u16_19 = jac[11][20] - l16_15 * jac[12][20];
+    let u16_20 = jac[11][18] - l16_15 * jac[12][18];
+    let u16_21 = -l16_14 - l16_15 * u15_21;
+    let p16 = jac[11][13] - l16_13 * jac[25][13] - l16_14 * u14_16 - l16_15 * u15_16;
     let d16 = 1.0 / p16;
-    let l20_16 = (-(l20_11 * u11_16) - l20_12 * u12_16 - l20_13 * u13_16
+    let l20_16 = (-(jac[15][15] * u11_16) - jac[15][16] * u12_16 - l20_13 * jac[25][13]
         - l20_14 * u14_16 - l20_15 * u15_16) * d16;
-    let l21_16 = (-(l21_11 * u11_16) - l21_12 * u12_16 - l21_13 * u13_16
+    let l21_16 = (-(jac[16][15] * u11_16) - jac[16][16] * u12_16 - l21_13 * jac[25][13]
         - l21_14 * u14_16 - l21_15 * u15_16) * d16;
     if !(p16.is_finite() && l20_16.abs() <= runtime::lu::MAX_MULTIPLIER
         && l21_16.abs() <= runtime::lu::MAX_MULTIPLIER)
     {
         return None;
     }
-    let u17_18 = jac[26][19];
-    let u17_19 = jac[26][20];
-    let u17_20 = jac[26][18];
     let p17 = jac[26][17];
     let d17 = 1.0 / p17;
     let l18_17 = jac[14][17] * d17;
     let l19_17 = jac[13][17] * d17;
-    let l20_17 = (jac[15][17] - l20_15 * u15_17 - l20_16 * u16_17) * d17;
-    let l21_17 = (jac[16][17] - l21_15 * u15_17 - l21_16 * u16_17) * d17;
+    let l20_17 = (jac[15][17] - l20_15 * jac[12][17] - l20_16 * u16_17) * d17;
+    let l21_17 = (jac[16][17] - l21_15 * jac[12][17] - l21_16 * u16_17) * d17;
     if !(p17.is_finite() && l18_17.abs() <= runtime::lu::MAX_MULTIPLIER
         && l19_17.abs() <= runtime::lu::MAX_MULTIPLIER
         && l20_17.abs() <= runtime::lu::MAX_MULTIPLIER
@@ -1567,65 +1472,58 @@ pub fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     {
         return None;
     }
-    let u18_19 = jac[14][20] - l18_17 * u17_19;
-    let u18_20 = jac[14][18] - l18_17 * u17_20;
-    let u18_24 = jac[14][24];
-    let u18_25 = jac[14][25];
-    let u18_26 = jac[14][26];
-    let u18_27 = jac[14][27];
-    let p18 = jac[14][19] - l18_17 * u17_18;
+    let u18_19 = jac[14][20] - l18_17 * jac[26][20];
+    let u18_20 = jac[14][18] - l18_17 * jac[26][18];
+    let p18 = jac[14][19] - l18_17 * jac[26][19];
     let d18 = 1.0 / p18;
-    let l19_18 = (jac[13][19] - l19_17 * u17_18) * d18;
-    let l20_18 = (jac[15][19] - l20_15 * u15_18 - l20_16 * u16_18 - l20_17 * u17_18)
-        * d18;
-    let l21_18 = (jac[16][19] - l21_15 * u15_18 - l21_16 * u16_18 - l21_17 * u17_18)
-        * d18;
+    let l19_18 = (jac[13][19] - l19_17 * jac[26][19]) * d18;
+    let l20_18 = (jac[15][19] - l20_15 * jac[12][19] - l20_16 * u16_18
+        - l20_17 * jac[26][19]) * d18;
+    let l21_18 = (jac[16][19] - l21_15 * jac[12][19] - l21_16 * u16_18
+        - l21_17 * jac[26][19]) * d18;
     if !(p18.is_finite() && l19_18.abs() <= runtime::lu::MAX_MULTIPLIER
         && l20_18.abs() <= runtime::lu::MAX_MULTIPLIER
         && l21_18.abs() <= runtime::lu::MAX_MULTIPLIER)
     {
         return None;
     }
-    let u19_20 = jac[13][18] - l19_17 * u17_20 - l19_18 * u18_20;
-    let u19_24 = jac[13][24] - l19_18 * u18_24;
-    let u19_25 = jac[13][25] - l19_18 * u18_25;
-    let u19_26 = jac[13][26] - l19_18 * u18_26;
-    let u19_27 = jac[13][27] - l19_18 * u18_27;
-    let p19 = jac[13][20] - l19_17 * u17_19 - l19_18 * u18_19;
+    let u19_20 = jac[13][18] - l19_17 * jac[26][18] - l19_18 * u18_20;
+    let u19_24 = jac[13][24] - l19_18 * jac[14][24];
+    let u19_25 = jac[13][25] - l19_18 * jac[14][25];
+    let u19_26 = jac[13][26] - l19_18 * jac[14][26];
+    let u19_27 = jac[13][27] - l19_18 * jac[14][27];
+    let p19 = jac[13][20] - l19_17 * jac[26][20] - l19_18 * u18_19;
     let d19 = 1.0 / p19;
-    let l20_19 = (jac[15][20] - l20_15 * u15_19 - l20_16 * u16_19 - l20_17 * u17_19
-        - l20_18 * u18_19) * d19;
-    let l21_19 = (jac[16][20] - l21_15 * u15_19 - l21_16 * u16_19 - l21_17 * u17_19
-        - l21_18 * u18_19) * d19;
+    let l20_19 = (jac[15][20] - l20_15 * jac[12][20] - l20_16 * u16_19
+        - l20_17 * jac[26][20] - l20_18 * u18_19) * d19;
+    let l21_19 = (jac[16][20] - l21_15 * jac[12][20] - l21_16 * u16_19
+        - l21_17 * jac[26][20] - l21_18 * u18_19) * d19;
     if !(p19.is_finite() && l20_19.abs() <= runtime::lu::MAX_MULTIPLIER
         && l21_19.abs() <= runtime::lu::MAX_MULTIPLIER)
     {
         return None;
     }
-    let u20_21 = jac[15][21] - l20_3 * u3_21 - l20_14 * u14_21 - l20_15 * u15_21
-        - l20_16 * u16_21;
-    let u20_22 = jac[15][22];
-    let u20_23 = jac[15][23];
-    let u20_24 = jac[15][24] - l20_18 * u18_24 - l20_19 * u19_24;
-    let u20_25 = jac[15][25] - l20_18 * u18_25 - l20_19 * u19_25;
-    let u20_26 = jac[15][26] - l20_18 * u18_26 - l20_19 * u19_26;
-    let u20_27 = jac[15][27] - l20_18 * u18_27 - l20_19 * u19_27;
-    let p20 = jac[15][18] - l20_15 * u15_20 - l20_16 * u16_20 - l20_17 * u17_20
+    let u20_21 = jac[15][21] + jac[15][14] - l20_14 - l20_15 * u15_21 - l20_16 * u16_21;
+    let u20_24 = jac[15][24] - l20_18 * jac[14][24] - l20_19 * u19_24;
+    let u20_25 = jac[15][25] - l20_18 * jac[14][25] - l20_19 * u19_25;
+    let u20_26 = jac[15][26] - l20_18 * jac[14][26] - l20_19 * u19_26;
+    let u20_27 = jac[15][27] - l20_18 * jac[14][27] - l20_19 * u19_27;
+    let p20 = jac[15][18] - l20_15 * jac[12][18] - l20_16 * u16_20 - l20_17 * jac[26][18]
         - l20_18 * u18_20 - l20_19 * u19_20;
     let d20 = 1.0 / p20;
-    let l21_20 = (jac[16][18] - l21_15 * u15_20 - l21_16 * u16_20 - l21_17 * u17_20
-        - l21_18 * u18_20 - l21_19 * u19_20) * d20;
+    let l21_20 = (jac[16][18] - l21_15 * jac[12][18] - l21_16 * u16_20
+        - l21_17 * jac[26][18] - l21_18 * u18_20 - l21_19 * u19_20) * d20;
     if !(p20.is_finite() && l21_20.abs() <= runtime::lu::MAX_MULTIPLIER) {
         return None;
     }
-    let u21_22 = jac[16][22] - l21_20 * u20_22;
-    let u21_23 = jac[16][23] - l21_20 * u20_23;
-    let u21_24 = jac[16][24] - l21_18 * u18_24 - l21_19 * u19_24 - l21_20 * u20_24;
-    let u21_25 = jac[16][25] - l21_18 * u18_25 - l21_19 * u19_25 - l21_20 * u20_25;
-    let u21_26 = jac[16][26] - l21_18 * u18_26 - l21_19 * u19_26 - l21_20 * u20_26;
-    let u21_27 = jac[16][27] - l21_18 * u18_27 - l21_19 * u19_27 - l21_20 * u20_27;
-    let p21 = jac[16][21] - l21_3 * u3_21 - l21_14 * u14_21 - l21_15 * u15_21
-        - l21_16 * u16_21 - l21_20 * u20_21;
+    let u21_22 = jac[16][22] - l21_20 * jac[15][22];
+    let u21_23 = jac[16][23] - l21_20 * jac[15][23];
+    let u21_24 = jac[16][24] - l21_18 * jac[14][24] - l21_19 * u19_24 - l21_20 * u20_24;
+    let u21_25 = jac[16][25] - l21_18 * jac[14][25] - l21_19 * u19_25 - l21_20 * u20_25;
+    let u21_26 = jac[16][26] - l21_18 * jac[14][26] - l21_19 * u19_26 - l21_20 * u20_26;
+    let u21_27 = jac[16][27] - l21_18 * jac[14][27] - l21_19 * u19_27 - l21_20 * u20_27;
+    let p21 = jac[16][21] + jac[16][14] - l21_14 - l21_15 * u15_21 - l21_16 * u16_21
+        - l21_20 * u20_21;
     let d21 = 1.0 / p21;
     let l22_21 = jac[19][21] * d21;
     let l23_21 = jac[20][21] * d21;
@@ -1651,12 +1549,9 @@ pub fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     let u23_27 = jac[20][27] - l23_21 * u21_27 - l23_22 * u22_27;
     let p23 = jac[20][23] - l23_21 * u21_23 - l23_22 * u22_23;
     let d23 = 1.0 / p23;
-    if !(p23.is_finite()) {
+    if !p23.is_finite() {
         return None;
     }
-    let u24_25 = jac[27][25];
-    let u24_26 = jac[27][26];
-    let u24_27 = jac[27][27];
     let p24 = jac[27][24];
     let d24 = 1.0 / p24;
     let l25_24 = jac[21][24] * d24;
@@ -1668,59 +1563,32 @@ pub fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     {
         return None;
     }
-    let u25_26 = jac[21][26] - l25_24 * u24_26;
-    let u25_27 = jac[21][27] - l25_24 * u24_27;
-    let p25 = jac[21][25] - l25_24 * u24_25;
+    let u25_26 = jac[21][26] - l25_24 * jac[27][26];
+    let u25_27 = jac[21][27] - l25_24 * jac[27][27];
+    let p25 = jac[21][25] - l25_24 * jac[27][25];
     let d25 = 1.0 / p25;
-    let l26_25 = (jac[18][25] - l26_24 * u24_25) * d25;
-    let l27_25 = (jac[17][25] - l27_24 * u24_25) * d25;
+    let l26_25 = (jac[18][25] - l26_24 * jac[27][25]) * d25;
+    let l27_25 = (jac[17][25] - l27_24 * jac[27][25]) * d25;
     if !(p25.is_finite() && l26_25.abs() <= runtime::lu::MAX_MULTIPLIER
         && l27_25.abs() <= runtime::lu::MAX_MULTIPLIER)
     {
         return None;
     }
-    let u26_27 = jac[18][27] - l26_24 * u24_27 - l26_25 * u25_27;
-    let p26 = jac[18][26] - l26_24 * u24_26 - l26_25 * u25_26;
+    let u26_27 = jac[18][27] - l26_24 * jac[27][27] - l26_25 * u25_27;
+    let p26 = jac[18][26] - l26_24 * jac[27][26] - l26_25 * u25_26;
     let d26 = 1.0 / p26;
-    let l27_26 = (jac[17][26] - l27_24 * u24_26 - l27_25 * u25_26) * d26;
+    let l27_26 = (jac[17][26] - l27_24 * jac[27][26] - l27_25 * u25_26) * d26;
     if !(p26.is_finite() && l27_26.abs() <= runtime::lu::MAX_MULTIPLIER) {
         return None;
     }
-    let p27 = jac[17][27] - l27_24 * u24_27 - l27_25 * u25_27 - l27_26 * u26_27;
+    let p27 = jac[17][27] - l27_24 * jac[27][27] - l27_25 * u25_27 - l27_26 * u26_27;
     let d27 = 1.0 / p27;
-    if !(p27.is_finite()) {
+    if !p27.is_finite() {
         return None;
     }
-    jac[3][0] = d0;
-    jac[4][1] = d1;
-    jac[5][2] = d2;
-    jac[22][14] = d3;
-    jac[22][21] = u3_21;
-    jac[8][14] = l4_3;
-    jac[8][7] = d4;
-    jac[8][10] = u4_13;
-    jac[8][12] = u4_14;
-    jac[8][11] = u4_15;
-    jac[8][13] = u4_16;
-    jac[8][21] = u4_21;
-    jac[9][8] = d5;
-    jac[9][15] = u5_11;
-    jac[9][10] = u5_13;
-    jac[9][12] = u5_14;
-    jac[9][11] = u5_15;
-    jac[9][13] = u5_16;
-    jac[10][9] = d6;
-    jac[10][16] = u6_12;
-    jac[10][10] = u6_13;
-    jac[10][12] = u6_14;
-    jac[10][11] = u6_15;
-    jac[10][13] = u6_16;
     jac[23][4] = d7;
-    jac[23][3] = u7_8;
     jac[24][4] = l8_7;
     jac[24][3] = d8;
-    jac[24][5] = u8_9;
-    jac[24][6] = u8_10;
     jac[7][4] = l9_7;
     jac[7][3] = l9_8;
     jac[7][5] = d9;
@@ -1729,34 +1597,23 @@ pub fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     jac[6][3] = l10_8;
     jac[6][5] = l10_9;
     jac[6][6] = d10;
-    jac[1][1] = l11_1;
-    jac[1][8] = l11_5;
     jac[1][4] = l11_7;
     jac[1][3] = l11_8;
     jac[1][5] = l11_9;
     jac[1][6] = l11_10;
-    jac[1][15] = d11;
     jac[1][10] = u11_13;
     jac[1][12] = u11_14;
     jac[1][11] = u11_15;
     jac[1][13] = u11_16;
-    jac[2][2] = l12_2;
-    jac[2][9] = l12_6;
     jac[2][4] = l12_7;
     jac[2][3] = l12_8;
     jac[2][5] = l12_9;
     jac[2][6] = l12_10;
-    jac[2][16] = d12;
     jac[2][10] = u12_13;
     jac[2][12] = u12_14;
     jac[2][11] = u12_15;
     jac[2][13] = u12_16;
     jac[25][10] = d13;
-    jac[25][12] = u13_14;
-    jac[25][11] = u13_15;
-    jac[25][13] = u13_16;
-    jac[0][0] = l14_0;
-    jac[0][7] = l14_4;
     jac[0][4] = l14_7;
     jac[0][3] = l14_8;
     jac[0][5] = l14_9;
@@ -1765,15 +1622,10 @@ pub fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     jac[0][12] = d14;
     jac[0][11] = u14_15;
     jac[0][13] = u14_16;
-    jac[0][21] = u14_21;
     jac[12][10] = l15_13;
     jac[12][12] = l15_14;
     jac[12][11] = d15;
     jac[12][13] = u15_16;
-    jac[12][17] = u15_17;
-    jac[12][19] = u15_18;
-    jac[12][20] = u15_19;
-    jac[12][18] = u15_20;
     jac[12][21] = u15_21;
     jac[11][10] = l16_13;
     jac[11][12] = l16_14;
@@ -1785,17 +1637,10 @@ pub fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     jac[11][18] = u16_20;
     jac[11][21] = u16_21;
     jac[26][17] = d17;
-    jac[26][19] = u17_18;
-    jac[26][20] = u17_19;
-    jac[26][18] = u17_20;
     jac[14][17] = l18_17;
     jac[14][19] = d18;
     jac[14][20] = u18_19;
     jac[14][18] = u18_20;
-    jac[14][24] = u18_24;
-    jac[14][25] = u18_25;
-    jac[14][26] = u18_26;
-    jac[14][27] = u18_27;
     jac[13][17] = l19_17;
     jac[13][19] = l19_18;
     jac[13][20] = d19;
@@ -1804,9 +1649,6 @@ pub fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     jac[13][25] = u19_25;
     jac[13][26] = u19_26;
     jac[13][27] = u19_27;
-    jac[15][14] = l20_3;
-    jac[15][15] = l20_11;
-    jac[15][16] = l20_12;
     jac[15][10] = l20_13;
     jac[15][12] = l20_14;
     jac[15][11] = l20_15;
@@ -1816,15 +1658,10 @@ pub fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     jac[15][20] = l20_19;
     jac[15][18] = d20;
     jac[15][21] = u20_21;
-    jac[15][22] = u20_22;
-    jac[15][23] = u20_23;
     jac[15][24] = u20_24;
     jac[15][25] = u20_25;
     jac[15][26] = u20_26;
     jac[15][27] = u20_27;
-    jac[16][14] = l21_3;
-    jac[16][15] = l21_11;
-    jac[16][16] = l21_12;
     jac[16][10] = l21_13;
     jac[16][12] = l21_14;
     jac[16][11] = l21_15;
@@ -1855,9 +1692,6 @@ pub fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     jac[20][26] = u23_26;
     jac[20][27] = u23_27;
     jac[27][24] = d24;
-    jac[27][25] = u24_25;
-    jac[27][26] = u24_26;
-    jac[27][27] = u24_27;
     jac[21][24] = l25_24;
     jac[21][25] = d25;
     jac[21][26] = u25_26;
@@ -1871,20 +1705,11 @@ pub fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     jac[17][26] = l27_26;
     jac[17][27] = d27;
     Some(runtime::lu::PivotInfo {
-        smallest: p0
+        smallest: p7
             .abs()
-            .min(p1.abs())
-            .min(p2.abs())
-            .min(p3.abs())
-            .min(p4.abs())
-            .min(p5.abs())
-            .min(p6.abs())
-            .min(p7.abs())
             .min(p8.abs())
             .min(p9.abs())
             .min(p10.abs())
-            .min(p11.abs())
-            .min(p12.abs())
             .min(p13.abs())
             .min(p14.abs())
             .min(p15.abs())
@@ -1899,21 +1724,13 @@ pub fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
             .min(p24.abs())
             .min(p25.abs())
             .min(p26.abs())
-            .min(p27.abs()),
-        largest: p0
+            .min(p27.abs())
+            .min(1.0),
+        largest: p7
             .abs()
-            .max(p1.abs())
-            .max(p2.abs())
-            .max(p3.abs())
-            .max(p4.abs())
-            .max(p5.abs())
-            .max(p6.abs())
-            .max(p7.abs())
             .max(p8.abs())
             .max(p9.abs())
             .max(p10.abs())
-            .max(p11.abs())
-            .max(p12.abs())
             .max(p13.abs())
             .max(p14.abs())
             .max(p15.abs())
@@ -1928,32 +1745,33 @@ pub fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
             .max(p24.abs())
             .max(p25.abs())
             .max(p26.abs())
-            .max(p27.abs()),
+            .max(p27.abs())
+            .max(1.0),
     })
 }
 
 /** Solves Φ_q x = b in place with the factors [`factor_0`] left in `lu`.
 
- 330 operations.*/
+ 315 operations.*/
 pub fn solve_0(lu: &[[f64; N]; N], b: &mut [f64; N]) {
     let y0 = b[3];
     let y1 = b[4];
     let y2 = b[5];
     let y3 = b[22];
-    let y4 = b[8] - lu[8][14] * y3;
+    let y4 = b[8] - y3;
     let y5 = b[9];
     let y6 = b[10];
     let y7 = b[23];
     let y8 = b[24] - lu[24][4] * y7;
     let y9 = b[7] - lu[7][4] * y7 - lu[7][3] * y8;
     let y10 = b[6] - lu[6][4] * y7 - lu[6][3] * y8 - lu[6][5] * y9;
-    let y11 = b[1] - lu[1][1] * y1 - lu[1][8] * y5 - lu[1][4] * y7 - lu[1][3] * y8
-        - lu[1][5] * y9 - lu[1][6] * y10;
-    let y12 = b[2] - lu[2][2] * y2 - lu[2][9] * y6 - lu[2][4] * y7 - lu[2][3] * y8
-        - lu[2][5] * y9 - lu[2][6] * y10;
+    let y11 = b[1] - y1 + y5 - lu[1][4] * y7 - lu[1][3] * y8 - lu[1][5] * y9
+        - lu[1][6] * y10;
+    let y12 = b[2] - y2 + y6 - lu[2][4] * y7 - lu[2][3] * y8 - lu[2][5] * y9
+        - lu[2][6] * y10;
     let y13 = b[25];
-    let y14 = b[0] - lu[0][0] * y0 - lu[0][7] * y4 - lu[0][4] * y7 - lu[0][3] * y8
-        - lu[0][5] * y9 - lu[0][6] * y10 - lu[0][10] * y13;
+    let y14 = b[0] - y0 + y4 - lu[0][4] * y7 - lu[0][3] * y8 - lu[0][5] * y9
+        - lu[0][6] * y10 - lu[0][10] * y13;
     let y15 = b[12] - lu[12][10] * y13 - lu[12][12] * y14;
     let y16 = b[11] - lu[11][10] * y13 - lu[11][12] * y14 - lu[11][11] * y15;
     let y17 = b[26];
@@ -1995,27 +1813,27 @@ pub fn solve_0(lu: &[[f64; N]; N], b: &mut [f64; N]) {
         - lu[11][18] * x20 - lu[11][21] * x21) * lu[11][13];
     let x15 = (y15 - lu[12][13] * x16 - lu[12][17] * x17 - lu[12][19] * x18
         - lu[12][20] * x19 - lu[12][18] * x20 - lu[12][21] * x21) * lu[12][11];
-    let x14 = (y14 - lu[0][11] * x15 - lu[0][13] * x16 - lu[0][21] * x21) * lu[0][12];
+    let x14 = (y14 - lu[0][11] * x15 - lu[0][13] * x16 - x21) * lu[0][12];
     let x13 = (y13 - lu[25][12] * x14 - lu[25][11] * x15 - lu[25][13] * x16)
         * lu[25][10];
-    let x12 = (y12 - lu[2][10] * x13 - lu[2][12] * x14 - lu[2][11] * x15
-        - lu[2][13] * x16) * lu[2][16];
-    let x11 = (y11 - lu[1][10] * x13 - lu[1][12] * x14 - lu[1][11] * x15
-        - lu[1][13] * x16) * lu[1][15];
+    let x12 = y12 - lu[2][10] * x13 - lu[2][12] * x14 - lu[2][11] * x15
+        - lu[2][13] * x16;
+    let x11 = y11 - lu[1][10] * x13 - lu[1][12] * x14 - lu[1][11] * x15
+        - lu[1][13] * x16;
     let x10 = y10 * lu[6][6];
     let x9 = (y9 - lu[7][6] * x10) * lu[7][5];
     let x8 = (y8 - lu[24][5] * x9 - lu[24][6] * x10) * lu[24][3];
     let x7 = (y7 - lu[23][3] * x8) * lu[23][4];
-    let x6 = (y6 - lu[10][16] * x12 - lu[10][10] * x13 - lu[10][12] * x14
-        - lu[10][11] * x15 - lu[10][13] * x16) * lu[10][9];
-    let x5 = (y5 - lu[9][15] * x11 - lu[9][10] * x13 - lu[9][12] * x14 - lu[9][11] * x15
-        - lu[9][13] * x16) * lu[9][8];
-    let x4 = (y4 - lu[8][10] * x13 - lu[8][12] * x14 - lu[8][11] * x15 - lu[8][13] * x16
-        - lu[8][21] * x21) * lu[8][7];
-    let x3 = (y3 - lu[22][21] * x21) * lu[22][14];
-    let x2 = y2 * lu[5][2];
-    let x1 = y1 * lu[4][1];
-    let x0 = y0 * lu[3][0];
+    let x6 = -(y6 - x12 - lu[10][10] * x13 - lu[10][12] * x14 - lu[10][11] * x15
+        - lu[10][13] * x16);
+    let x5 = -(y5 - x11 - lu[9][10] * x13 - lu[9][12] * x14 - lu[9][11] * x15
+        - lu[9][13] * x16);
+    let x4 = -(y4 - lu[8][10] * x13 - lu[8][12] * x14 - lu[8][11] * x15 - lu[8][13] * x16
+        - x21);
+    let x3 = y3 + x21;
+    let x2 = -y2;
+    let x1 = -y1;
+    let x0 = -y0;
     b[0] = x0;
     b[1] = x1;
     b[2] = x2;
@@ -2048,75 +1866,16 @@ pub fn solve_0(lu: &[[f64; N]; N], b: &mut [f64; N]) {
 
 /** Factors Φ_q in place with static pivot order 1: step k pivots on row `[3, 4, 5, 22, 8, 9, 10, 23, 24, 7, 6, 1, 2, 25, 0, 26, 19, 20, 12, 11, 16, 15, 14, 13, 27, 21, 18, 17][k]` and column `[0, 1, 2, 14, 7, 8, 9, 4, 3, 5, 6, 15, 16, 10, 21, 17, 22, 23, 11, 12, 13, 18, 19, 20, 24, 25, 26, 27][k]`.
 
- L and U have 183 entries (18 of them fill-in); 490 operations. The reciprocals of the pivots are stored on the diagonal.
+ L and U have 183 entries (18 of them fill-in, 21 known when generated); 441 operations. The others are in `jac`: 125 stored there, with the reciprocals of the pivots on the diagonal, and 37 left as Φ_q had them.
 
  Returns the smallest and largest |pivot|, or `None` (with `jac` unchanged) when a pivot is not finite or a multiplier exceeds [`runtime::lu::MAX_MULTIPLIER`] in magnitude.*/
 #[must_use]
 pub fn factor_1(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
-    let p0 = jac[3][0];
-    let d0 = 1.0 / p0;
-    let l14_0 = jac[0][0] * d0;
-    if !(p0.is_finite() && l14_0.abs() <= runtime::lu::MAX_MULTIPLIER) {
-        return None;
-    }
-    let p1 = jac[4][1];
-    let d1 = 1.0 / p1;
-    let l11_1 = jac[1][1] * d1;
-    if !(p1.is_finite() && l11_1.abs() <= runtime::lu::MAX_MULTIPLIER) {
-        return None;
-    }
-    let p2 = jac[5][2];
-    let d2 = 1.0 / p2;
-    let l12_2 = jac[2][2] * d2;
-    if !(p2.is_finite() && l12_2.abs() <= runtime::lu::MAX_MULTIPLIER) {
-        return None;
-    }
-    let u3_14 = jac[22][21];
-    let p3 = jac[22][14];
-    let d3 = 1.0 / p3;
-    let l4_3 = jac[8][14] * d3;
-    let l20_3 = jac[16][14] * d3;
-    let l21_3 = jac[15][14] * d3;
-    if !(p3.is_finite() && l4_3.abs() <= runtime::lu::MAX_MULTIPLIER
-        && l20_3.abs() <= runtime::lu::MAX_MULTIPLIER
-        && l21_3.abs() <= runtime::lu::MAX_MULTIPLIER)
+    if !(jac[16][14].abs() <= runtime::lu::MAX_MULTIPLIER
+        && jac[15][14].abs() <= runtime::lu::MAX_MULTIPLIER)
     {
         return None;
     }
-    let u4_13 = jac[8][10];
-    let u4_14 = -(l4_3 * u3_14);
-    let u4_18 = jac[8][11];
-    let u4_19 = jac[8][12];
-    let u4_20 = jac[8][13];
-    let p4 = jac[8][7];
-    let d4 = 1.0 / p4;
-    let l14_4 = jac[0][7] * d4;
-    if !(p4.is_finite() && l14_4.abs() <= runtime::lu::MAX_MULTIPLIER) {
-        return None;
-    }
-    let u5_11 = jac[9][15];
-    let u5_13 = jac[9][10];
-    let u5_18 = jac[9][11];
-    let u5_19 = jac[9][12];
-    let u5_20 = jac[9][13];
-    let p5 = jac[9][8];
-    let d5 = 1.0 / p5;
-    let l11_5 = jac[1][8] * d5;
-    if !(p5.is_finite() && l11_5.abs() <= runtime::lu::MAX_MULTIPLIER) {
-        return None;
-    }
-    let u6_12 = jac[10][16];
-    let u6_13 = jac[10][10];
-    let u6_18 = jac[10][11];
-    let u6_19 = jac[10][12];
-    let u6_20 = jac[10][13];
-    let p6 = jac[10][9];
-    let d6 = 1.0 / p6;
-    let l12_6 = jac[2][9] * d6;
-    if !(p6.is_finite() && l12_6.abs() <= runtime::lu::MAX_MULTIPLIER) {
-        return None;
-    }
-    let u7_8 = jac[23][3];
     let p7 = jac[23][4];
     let d7 = 1.0 / p7;
     let l8_7 = jac[24][4] * d7;
@@ -2134,15 +1893,13 @@ pub fn factor_1(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     {
         return None;
     }
-    let u8_9 = jac[24][5];
-    let u8_10 = jac[24][6];
-    let p8 = jac[24][3] - l8_7 * u7_8;
+    let p8 = jac[24][3] - l8_7 * jac[23][3];
     let d8 = 1.0 / p8;
-    let l9_8 = (jac[7][3] - l9_7 * u7_8) * d8;
-    let l10_8 = (jac[6][3] - l10_7 * u7_8) * d8;
-    let l11_8 = (jac[1][3] - l11_7 * u7_8) * d8;
-    let l12_8 = (jac[2][3] - l12_7 * u7_8) * d8;
-    let l14_8 = (jac[0][3] - l14_7 * u7_8) * d8;
+    let l9_8 = (jac[7][3] - l9_7 * jac[23][3]) * d8;
+    let l10_8 = (jac[6][3] - l10_7 * jac[23][3]) * d8;
+    let l11_8 = (jac[1][3] - l11_7 * jac[23][3]) * d8;
+    let l12_8 = (jac[2][3] - l12_7 * jac[23][3]) * d8;
+    let l14_8 = (jac[0][3] - l14_7 * jac[23][3]) * d8;
     if !(p8.is_finite() && l9_8.abs() <= runtime::lu::MAX_MULTIPLIER
         && l10_8.abs() <= runtime::lu::MAX_MULTIPLIER
         && l11_8.abs() <= runtime::lu::MAX_MULTIPLIER
@@ -2151,13 +1908,13 @@ pub fn factor_1(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     {
         return None;
     }
-    let u9_10 = jac[7][6] - l9_8 * u8_10;
-    let p9 = jac[7][5] - l9_8 * u8_9;
+    let u9_10 = jac[7][6] - l9_8 * jac[24][6];
+    let p9 = jac[7][5] - l9_8 * jac[24][5];
     let d9 = 1.0 / p9;
-    let l10_9 = (jac[6][5] - l10_8 * u8_9) * d9;
-    let l11_9 = (jac[1][5] - l11_8 * u8_9) * d9;
-    let l12_9 = (jac[2][5] - l12_8 * u8_9) * d9;
-    let l14_9 = (jac[0][5] - l14_8 * u8_9) * d9;
+    let l10_9 = (jac[6][5] - l10_8 * jac[24][5]) * d9;
+    let l11_9 = (jac[1][5] - l11_8 * jac[24][5]) * d9;
+    let l12_9 = (jac[2][5] - l12_8 * jac[24][5]) * d9;
+    let l14_9 = (jac[0][5] - l14_8 * jac[24][5]) * d9;
     if !(p9.is_finite() && l10_9.abs() <= runtime::lu::MAX_MULTIPLIER
         && l11_9.abs() <= runtime::lu::MAX_MULTIPLIER
         && l12_9.abs() <= runtime::lu::MAX_MULTIPLIER
@@ -2165,53 +1922,42 @@ pub fn factor_1(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     {
         return None;
     }
-    let p10 = jac[6][6] - l10_8 * u8_10 - l10_9 * u9_10;
+    let p10 = jac[6][6] - l10_8 * jac[24][6] - l10_9 * u9_10;
     let d10 = 1.0 / p10;
-    let l11_10 = (jac[1][6] - l11_8 * u8_10 - l11_9 * u9_10) * d10;
-    let l12_10 = (jac[2][6] - l12_8 * u8_10 - l12_9 * u9_10) * d10;
-    let l14_10 = (jac[0][6] - l14_8 * u8_10 - l14_9 * u9_10) * d10;
+    let l11_10 = (jac[1][6] - l11_8 * jac[24][6] - l11_9 * u9_10) * d10;
+    let l12_10 = (jac[2][6] - l12_8 * jac[24][6] - l12_9 * u9_10) * d10;
+    let l14_10 = (jac[0][6] - l14_8 * jac[24][6] - l14_9 * u9_10) * d10;
     if !(p10.is_finite() && l11_10.abs() <= runtime::lu::MAX_MULTIPLIER
         && l12_10.abs() <= runtime::lu::MAX_MULTIPLIER
         && l14_10.abs() <= runtime::lu::MAX_MULTIPLIER)
     {
         return None;
     }
-    let u11_13 = jac[1][10] - l11_5 * u5_13;
-    let u11_18 = jac[1][11] - l11_5 * u5_18;
-    let u11_19 = jac[1][12] - l11_5 * u5_19;
-    let u11_20 = jac[1][13] - l11_5 * u5_20;
-    let p11 = -(l11_5 * u5_11);
-    let d11 = 1.0 / p11;
-    let l20_11 = jac[16][15] * d11;
-    let l21_11 = jac[15][15] * d11;
-    if !(p11.is_finite() && l20_11.abs() <= runtime::lu::MAX_MULTIPLIER
-        && l21_11.abs() <= runtime::lu::MAX_MULTIPLIER)
+    let u11_13 = jac[1][10] + jac[9][10];
+    let u11_18 = jac[1][11] + jac[9][11];
+    let u11_19 = jac[1][12] + jac[9][12];
+    let u11_20 = jac[1][13] + jac[9][13];
+    if !(jac[16][15].abs() <= runtime::lu::MAX_MULTIPLIER
+        && jac[15][15].abs() <= runtime::lu::MAX_MULTIPLIER)
     {
         return None;
     }
-    let u12_13 = jac[2][10] - l12_6 * u6_13;
-    let u12_18 = jac[2][11] - l12_6 * u6_18;
-    let u12_19 = jac[2][12] - l12_6 * u6_19;
-    let u12_20 = jac[2][13] - l12_6 * u6_20;
-    let p12 = -(l12_6 * u6_12);
-    let d12 = 1.0 / p12;
-    let l20_12 = jac[16][16] * d12;
-    let l21_12 = jac[15][16] * d12;
-    if !(p12.is_finite() && l20_12.abs() <= runtime::lu::MAX_MULTIPLIER
-        && l21_12.abs() <= runtime::lu::MAX_MULTIPLIER)
+    let u12_13 = jac[2][10] + jac[10][10];
+    let u12_18 = jac[2][11] + jac[10][11];
+    let u12_19 = jac[2][12] + jac[10][12];
+    let u12_20 = jac[2][13] + jac[10][13];
+    if !(jac[16][16].abs() <= runtime::lu::MAX_MULTIPLIER
+        && jac[15][16].abs() <= runtime::lu::MAX_MULTIPLIER)
     {
         return None;
     }
-    let u13_18 = jac[25][11];
-    let u13_19 = jac[25][12];
-    let u13_20 = jac[25][13];
     let p13 = jac[25][10];
     let d13 = 1.0 / p13;
-    let l14_13 = (jac[0][10] - l14_4 * u4_13) * d13;
+    let l14_13 = (jac[0][10] + jac[8][10]) * d13;
     let l18_13 = jac[12][10] * d13;
     let l19_13 = jac[11][10] * d13;
-    let l20_13 = (-(l20_11 * u11_13) - l20_12 * u12_13) * d13;
-    let l21_13 = (-(l21_11 * u11_13) - l21_12 * u12_13) * d13;
+    let l20_13 = (-(jac[16][15] * u11_13) - jac[16][16] * u12_13) * d13;
+    let l21_13 = (-(jac[15][15] * u11_13) - jac[15][16] * u12_13) * d13;
     if !(p13.is_finite() && l14_13.abs() <= runtime::lu::MAX_MULTIPLIER
         && l18_13.abs() <= runtime::lu::MAX_MULTIPLIER
         && l19_13.abs() <= runtime::lu::MAX_MULTIPLIER
@@ -2220,25 +1966,18 @@ pub fn factor_1(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     {
         return None;
     }
-    let u14_18 = jac[0][11] - l14_4 * u4_18 - l14_13 * u13_18;
-    let u14_19 = jac[0][12] - l14_4 * u4_19 - l14_13 * u13_19;
-    let u14_20 = jac[0][13] - l14_4 * u4_20 - l14_13 * u13_20;
-    let p14 = -(l14_4 * u4_14);
-    let d14 = 1.0 / p14;
-    let l16_14 = jac[19][21] * d14;
-    let l17_14 = jac[20][21] * d14;
-    let l20_14 = (jac[16][21] - l20_3 * u3_14) * d14;
-    let l21_14 = (jac[15][21] - l21_3 * u3_14) * d14;
-    if !(p14.is_finite() && l16_14.abs() <= runtime::lu::MAX_MULTIPLIER
-        && l17_14.abs() <= runtime::lu::MAX_MULTIPLIER
+    let u14_18 = jac[0][11] + jac[8][11] - l14_13 * jac[25][11];
+    let u14_19 = jac[0][12] + jac[8][12] - l14_13 * jac[25][12];
+    let u14_20 = jac[0][13] + jac[8][13] - l14_13 * jac[25][13];
+    let l20_14 = jac[16][21] + jac[16][14];
+    let l21_14 = jac[15][21] + jac[15][14];
+    if !(jac[19][21].abs() <= runtime::lu::MAX_MULTIPLIER
+        && jac[20][21].abs() <= runtime::lu::MAX_MULTIPLIER
         && l20_14.abs() <= runtime::lu::MAX_MULTIPLIER
         && l21_14.abs() <= runtime::lu::MAX_MULTIPLIER)
     {
         return None;
     }
-    let u15_21 = jac[26][18];
-    let u15_22 = jac[26][19];
-    let u15_23 = jac[26][20];
     let p15 = jac[26][17];
     let d15 = 1.0 / p15;
     let l18_15 = jac[12][17] * d15;
@@ -2256,14 +1995,9 @@ pub fn factor_1(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     {
         return None;
     }
-    let u16_17 = jac[19][23];
-    let u16_18 = -(l16_14 * u14_18);
-    let u16_19 = -(l16_14 * u14_19);
-    let u16_20 = -(l16_14 * u14_20);
-    let u16_24 = jac[19][24];
-    let u16_25 = jac[19][25];
-    let u16_26 = jac[19][26];
-    let u16_27 = jac[19][27];
+    let u16_18 = -(jac[19][21] * u14_18);
+    let u16_19 = -(jac[19][21] * u14_19);
+    let u16_20 = -(jac[19][21] * u14_20);
     let p16 = jac[19][22];
     let d16 = 1.0 / p16;
     let l17_16 = jac[20][22] * d16;
@@ -2275,33 +2009,33 @@ pub fn factor_1(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     {
         return None;
     }
-    let u17_18 = -(l17_14 * u14_18) - l17_16 * u16_18;
-    let u17_19 = -(l17_14 * u14_19) - l17_16 * u16_19;
-    let u17_20 = -(l17_14 * u14_20) - l17_16 * u16_20;
-    let u17_24 = jac[20][24] - l17_16 * u16_24;
-    let u17_25 = jac[20][25] - l17_16 * u16_25;
-    let u17_26 = jac[20][26] - l17_16 * u16_26;
-    let u17_27 = jac[20][27] - l17_16 * u16_27;
-    let p17 = jac[20][23] - l17_16 * u16_17;
+    let u17_18 = -(jac[20][21] * u14_18) - l17_16 * u16_18;
+    let u17_19 = -(jac[20][21] * u14_19) - l17_16 * u16_19;
+    let u17_20 = -(jac[20][21] * u14_20) - l17_16 * u16_20;
+    let u17_24 = jac[20][24] - l17_16 * jac[19][24];
+    let u17_25 = jac[20][25] - l17_16 * jac[19][25];
+    let u17_26 = jac[20][26] - l17_16 * jac[19][26];
+    let u17_27 = jac[20][27] - l17_16 * jac[19][27];
+    let p17 = jac[20][23] - l17_16 * jac[19][23];
     let d17 = 1.0 / p17;
-    let l20_17 = (jac[16][23] - l20_16 * u16_17) * d17;
-    let l21_17 = (jac[15][23] - l21_16 * u16_17) * d17;
+    let l20_17 = (jac[16][23] - l20_16 * jac[19][23]) * d17;
+    let l21_17 = (jac[15][23] - l21_16 * jac[19][23]) * d17;
     if !(p17.is_finite() && l20_17.abs() <= runtime::lu::MAX_MULTIPLIER
         && l21_17.abs() <= runtime::lu::MAX_MULTIPLIER)
     {
         return None;
     }
-    let u18_19 = jac[12][12] - l18_13 * u13_19;
-    let u18_20 = jac[12][13] - l18_13 * u13_20;
-    let u18_21 = jac[12][18] - l18_15 * u15_21;
-    let u18_22 = jac[12][19] - l18_15 * u15_22;
-    let u18_23 = jac[12][20] - l18_15 * u15_23;
-    let p18 = jac[12][11] - l18_13 * u13_18;
+    let u18_19 = jac[12][12] - l18_13 * jac[25][12];
+    let u18_20 = jac[12][13] - l18_13 * jac[25][13];
+    let u18_21 = jac[12][18] - l18_15 * jac[26][18];
+    let u18_22 = jac[12][19] - l18_15 * jac[26][19];
+    let u18_23 = jac[12][20] - l18_15 * jac[26][20];
+    let p18 = jac[12][11] - l18_13 * jac[25][11];
     let d18 = 1.0 / p18;
-    let l19_18 = (jac[11][11] - l19_13 * u13_18) * d18;
-    let l20_18 = (-(l20_11 * u11_18) - l20_12 * u12_18 - l20_13 * u13_18
+    let l19_18 = (jac[11][11] - l19_13 * jac[25][11]) * d18;
+    let l20_18 = (-(jac[16][15] * u11_18) - jac[16][16] * u12_18 - l20_13 * jac[25][11]
         - l20_14 * u14_18 - l20_16 * u16_18 - l20_17 * u17_18) * d18;
-    let l21_18 = (-(l21_11 * u11_18) - l21_12 * u12_18 - l21_13 * u13_18
+    let l21_18 = (-(jac[15][15] * u11_18) - jac[15][16] * u12_18 - l21_13 * jac[25][11]
         - l21_14 * u14_18 - l21_16 * u16_18 - l21_17 * u17_18) * d18;
     if !(p18.is_finite() && l19_18.abs() <= runtime::lu::MAX_MULTIPLIER
         && l20_18.abs() <= runtime::lu::MAX_MULTIPLIER
@@ -2309,63 +2043,64 @@ pub fn factor_1(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     {
         return None;
     }
-    let u19_20 = jac[11][13] - l19_13 * u13_20 - l19_18 * u18_20;
-    let u19_21 = jac[11][18] - l19_15 * u15_21 - l19_18 * u18_21;
-    let u19_22 = jac[11][19] - l19_15 * u15_22 - l19_18 * u18_22;
-    let u19_23 = jac[11][20] - l19_15 * u15_23 - l19_18 * u18_23;
-    let p19 = jac[11][12] - l19_13 * u13_19 - l19_18 * u18_19;
+    let u19_20 = jac[11][13] - l19_13 * jac[25][13] - l19_18 * u18_20;
+    let u19_21 = jac[11][18] - l19_15 * jac[26][18] - l19_18 * u18_21;
+    let u19_22 = jac[11][19] - l19_15 * jac[26][19] - l19_18 * u18_22;
+    let u19_23 = jac[11][20] - l19_15 * jac[26][20] - l19_18 * u18_23;
+    let p19 = jac[11][12] - l19_13 * jac[25][12] - l19_18 * u18_19;
     let d19 = 1.0 / p19;
-    let l20_19 = (-(l20_11 * u11_19) - l20_12 * u12_19 - l20_13 * u13_19
+    let l20_19 = (-(jac[16][15] * u11_19) - jac[16][16] * u12_19 - l20_13 * jac[25][12]
         - l20_14 * u14_19 - l20_16 * u16_19 - l20_17 * u17_19 - l20_18 * u18_19) * d19;
-    let l21_19 = (-(l21_11 * u11_19) - l21_12 * u12_19 - l21_13 * u13_19
+    let l21_19 = (-(jac[15][15] * u11_19) - jac[15][16] * u12_19 - l21_13 * jac[25][12]
         - l21_14 * u14_19 - l21_16 * u16_19 - l21_17 * u17_19 - l21_18 * u18_19) * d19;
     if !(p19.is_finite() && l20_19.abs() <= runtime::lu::MAX_MULTIPLIER
         && l21_19.abs() <= runtime::lu::MAX_MULTIPLIER)
     {
         return None;
     }
-    let u20_21 = jac[16][18] - l20_15 * u15_21 - l20_18 * u18_21 - l20_19 * u19_21;
-    let u20_22 = jac[16][19] - l20_15 * u15_22 - l20_18 * u18_22 - l20_19 * u19_22;
-    let u20_23 = jac[16][20] - l20_15 * u15_23 - l20_18 * u18_23 - l20_19 * u19_23;
-    let u20_24 = jac[16][24] - l20_16 * u16_24 - l20_17 * u17_24;
-    let u20_25 = jac[16][25] - l20_16 * u16_25 - l20_17 * u17_25;
-    let u20_26 = jac[16][26] - l20_16 * u16_26 - l20_17 * u17_26;
-    let u20_27 = jac[16][27] - l20_16 * u16_27 - l20_17 * u17_27;
-    let p20 = -(l20_11 * u11_20) - l20_12 * u12_20 - l20_13 * u13_20 - l20_14 * u14_20
-        - l20_16 * u16_20 - l20_17 * u17_20 - l20_18 * u18_20 - l20_19 * u19_20;
+    let u20_21 = jac[16][18] - l20_15 * jac[26][18] - l20_18 * u18_21 - l20_19 * u19_21;
+    let u20_22 = jac[16][19] - l20_15 * jac[26][19] - l20_18 * u18_22 - l20_19 * u19_22;
+    let u20_23 = jac[16][20] - l20_15 * jac[26][20] - l20_18 * u18_23 - l20_19 * u19_23;
+    let u20_24 = jac[16][24] - l20_16 * jac[19][24] - l20_17 * u17_24;
+    let u20_25 = jac[16][25] - l20_16 * jac[19][25] - l20_17 * u17_25;
+    let u20_26 = jac[16][26] - l20_16 * jac[19][26] - l20_17 * u17_26;
+    let u20_27 = jac[16][27] - l20_16 * jac[19][27] - l20_17 * u17_27;
+    let p20 = -(jac[16][15] * u11_20) - jac[16][16] * u12_20 - l20_13 * jac[25][13]
+        - l20_14 * u14_20 - l20_16 * u16_20 - l20_17 * u17_20 - l20_18 * u18_20
+        - l20_19 * u19_20;
     let d20 = 1.0 / p20;
-    let l21_20 = (-(l21_11 * u11_20) - l21_12 * u12_20 - l21_13 * u13_20
+    let l21_20 = (-(jac[15][15] * u11_20) - jac[15][16] * u12_20 - l21_13 * jac[25][13]
         - l21_14 * u14_20 - l21_16 * u16_20 - l21_17 * u17_20 - l21_18 * u18_20
         - l21_19 * u19_20) * d20;
     if !(p20.is_finite() && l21_20.abs() <= runtime::lu::MAX_MULTIPLIER) {
         return None;
     }
-    let u21_22 = jac[15][19] - l21_15 * u15_22 - l21_18 * u18_22 - l21_19 * u19_22
+    let u21_22 = jac[15][19] - l21_15 * jac[26][19] - l21_18 * u18_22 - l21_19 * u19_22
         - l21_20 * u20_22;
-    let u21_23 = jac[15][20] - l21_15 * u15_23 - l21_18 * u18_23 - l21_19 * u19_23
+    let u21_23 = jac[15][20] - l21_15 * jac[26][20] - l21_18 * u18_23 - l21_19 * u19_23
         - l21_20 * u20_23;
-    let u21_24 = jac[15][24] - l21_16 * u16_24 - l21_17 * u17_24 - l21_20 * u20_24;
-    let u21_25 = jac[15][25] - l21_16 * u16_25 - l21_17 * u17_25 - l21_20 * u20_25;
-    let u21_26 = jac[15][26] - l21_16 * u16_26 - l21_17 * u17_26 - l21_20 * u20_26;
-    let u21_27 = jac[15][27] - l21_16 * u16_27 - l21_17 * u17_27 - l21_20 * u20_27;
-    let p21 = jac[15][18] - l21_15 * u15_21 - l21_18 * u18_21 - l21_19 * u19_21
+    let u21_24 = jac[15][24] - l21_16 * jac[19][24] - l21_17 * u17_24 - l21_20 * u20_24;
+    let u21_25 = jac[15][25] - l21_16 * jac[19][25] - l21_17 * u17_25 - l21_20 * u20_25;
+    let u21_26 = jac[15][26] - l21_16 * jac[19][26] - l21_17 * u17_26 - l21_20 * u20_26;
+    let u21_27 = jac[15][27] - l21_16 * jac[19][27] - l21_17 * u17_27 - l21_20 * u20_27;
+    let p21 = jac[15][18] - l21_15 * jac[26][18] - l21_18 * u18_21 - l21_19 * u19_21
         - l21_20 * u20_21;
     let d21 = 1.0 / p21;
-    let l22_21 = (jac[14][18] - l22_15 * u15_21) * d21;
-    let l23_21 = (jac[13][18] - l23_15 * u15_21) * d21;
+    let l22_21 = (jac[14][18] - l22_15 * jac[26][18]) * d21;
+    let l23_21 = (jac[13][18] - l23_15 * jac[26][18]) * d21;
     if !(p21.is_finite() && l22_21.abs() <= runtime::lu::MAX_MULTIPLIER
         && l23_21.abs() <= runtime::lu::MAX_MULTIPLIER)
     {
         return None;
     }
-    let u22_23 = jac[14][20] - l22_15 * u15_23 - l22_21 * u21_23;
+    let u22_23 = jac[14][20] - l22_15 * jac[26][20] - l22_21 * u21_23;
     let u22_24 = jac[14][24] - l22_21 * u21_24;
     let u22_25 = jac[14][25] - l22_21 * u21_25;
     let u22_26 = jac[14][26] - l22_21 * u21_26;
     let u22_27 = jac[14][27] - l22_21 * u21_27;
-    let p22 = jac[14][19] - l22_15 * u15_22 - l22_21 * u21_22;
+    let p22 = jac[14][19] - l22_15 * jac[26][19] - l22_21 * u21_22;
     let d22 = 1.0 / p22;
-    let l23_22 = (jac[13][19] - l23_15 * u15_22 - l23_21 * u21_22) * d22;
+    let l23_22 = (jac[13][19] - l23_15 * jac[26][19] - l23_21 * u21_22) * d22;
     if !(p22.is_finite() && l23_22.abs() <= runtime::lu::MAX_MULTIPLIER) {
         return None;
     }
@@ -2373,14 +2108,11 @@ pub fn factor_1(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     let u23_25 = jac[13][25] - l23_21 * u21_25 - l23_22 * u22_25;
     let u23_26 = jac[13][26] - l23_21 * u21_26 - l23_22 * u22_26;
     let u23_27 = jac[13][27] - l23_21 * u21_27 - l23_22 * u22_27;
-    let p23 = jac[13][20] - l23_15 * u15_23 - l23_21 * u21_23 - l23_22 * u22_23;
+    let p23 = jac[13][20] - l23_15 * jac[26][20] - l23_21 * u21_23 - l23_22 * u22_23;
     let d23 = 1.0 / p23;
-    if !(p23.is_finite()) {
+    if !p23.is_finite() {
         return None;
     }
-    let u24_25 = jac[27][25];
-    let u24_26 = jac[27][26];
-    let u24_27 = jac[27][27];
     let p24 = jac[27][24];
     let d24 = 1.0 / p24;
     let l25_24 = jac[21][24] * d24;
@@ -2392,59 +2124,32 @@ pub fn factor_1(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     {
         return None;
     }
-    let u25_26 = jac[21][26] - l25_24 * u24_26;
-    let u25_27 = jac[21][27] - l25_24 * u24_27;
-    let p25 = jac[21][25] - l25_24 * u24_25;
+    let u25_26 = jac[21][26] - l25_24 * jac[27][26];
+    let u25_27 = jac[21][27] - l25_24 * jac[27][27];
+    let p25 = jac[21][25] - l25_24 * jac[27][25];
     let d25 = 1.0 / p25;
-    let l26_25 = (jac[18][25] - l26_24 * u24_25) * d25;
-    let l27_25 = (jac[17][25] - l27_24 * u24_25) * d25;
+    let l26_25 = (jac[18][25] - l26_24 * jac[27][25]) * d25;
+    let l27_25 = (jac[17][25] - l27_24 * jac[27][25]) * d25;
     if !(p25.is_finite() && l26_25.abs() <= runtime::lu::MAX_MULTIPLIER
         && l27_25.abs() <= runtime::lu::MAX_MULTIPLIER)
     {
         return None;
     }
-    let u26_27 = jac[18][27] - l26_24 * u24_27 - l26_25 * u25_27;
-    let p26 = jac[18][26] - l26_24 * u24_26 - l26_25 * u25_26;
+    let u26_27 = jac[18][27] - l26_24 * jac[27][27] - l26_25 * u25_27;
+    let p26 = jac[18][26] - l26_24 * jac[27][26] - l26_25 * u25_26;
     let d26 = 1.0 / p26;
-    let l27_26 = (jac[17][26] - l27_24 * u24_26 - l27_25 * u25_26) * d26;
+    let l27_26 = (jac[17][26] - l27_24 * jac[27][26] - l27_25 * u25_26) * d26;
     if !(p26.is_finite() && l27_26.abs() <= runtime::lu::MAX_MULTIPLIER) {
         return None;
     }
-    let p27 = jac[17][27] - l27_24 * u24_27 - l27_25 * u25_27 - l27_26 * u26_27;
+    let p27 = jac[17][27] - l27_24 * jac[27][27] - l27_25 * u25_27 - l27_26 * u26_27;
     let d27 = 1.0 / p27;
-    if !(p27.is_finite()) {
+    if !p27.is_finite() {
         return None;
     }
-    jac[3][0] = d0;
-    jac[4][1] = d1;
-    jac[5][2] = d2;
-    jac[22][14] = d3;
-    jac[22][21] = u3_14;
-    jac[8][14] = l4_3;
-    jac[8][7] = d4;
-    jac[8][10] = u4_13;
-    jac[8][21] = u4_14;
-    jac[8][11] = u4_18;
-    jac[8][12] = u4_19;
-    jac[8][13] = u4_20;
-    jac[9][8] = d5;
-    jac[9][15] = u5_11;
-    jac[9][10] = u5_13;
-    jac[9][11] = u5_18;
-    jac[9][12] = u5_19;
-    jac[9][13] = u5_20;
-    jac[10][9] = d6;
-    jac[10][16] = u6_12;
-    jac[10][10] = u6_13;
-    jac[10][11] = u6_18;
-    jac[10][12] = u6_19;
-    jac[10][13] = u6_20;
     jac[23][4] = d7;
-    jac[23][3] = u7_8;
     jac[24][4] = l8_7;
     jac[24][3] = d8;
-    jac[24][5] = u8_9;
-    jac[24][6] = u8_10;
     jac[7][4] = l9_7;
     jac[7][3] = l9_8;
     jac[7][5] = d9;
@@ -2453,58 +2158,36 @@ pub fn factor_1(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     jac[6][3] = l10_8;
     jac[6][5] = l10_9;
     jac[6][6] = d10;
-    jac[1][1] = l11_1;
-    jac[1][8] = l11_5;
     jac[1][4] = l11_7;
     jac[1][3] = l11_8;
     jac[1][5] = l11_9;
     jac[1][6] = l11_10;
-    jac[1][15] = d11;
     jac[1][10] = u11_13;
     jac[1][11] = u11_18;
     jac[1][12] = u11_19;
     jac[1][13] = u11_20;
-    jac[2][2] = l12_2;
-    jac[2][9] = l12_6;
     jac[2][4] = l12_7;
     jac[2][3] = l12_8;
     jac[2][5] = l12_9;
     jac[2][6] = l12_10;
-    jac[2][16] = d12;
     jac[2][10] = u12_13;
     jac[2][11] = u12_18;
     jac[2][12] = u12_19;
     jac[2][13] = u12_20;
     jac[25][10] = d13;
-    jac[25][11] = u13_18;
-    jac[25][12] = u13_19;
-    jac[25][13] = u13_20;
-    jac[0][0] = l14_0;
-    jac[0][7] = l14_4;
     jac[0][4] = l14_7;
     jac[0][3] = l14_8;
     jac[0][5] = l14_9;
     jac[0][6] = l14_10;
     jac[0][10] = l14_13;
-    jac[0][21] = d14;
     jac[0][11] = u14_18;
     jac[0][12] = u14_19;
     jac[0][13] = u14_20;
     jac[26][17] = d15;
-    jac[26][18] = u15_21;
-    jac[26][19] = u15_22;
-    jac[26][20] = u15_23;
-    jac[19][21] = l16_14;
     jac[19][22] = d16;
-    jac[19][23] = u16_17;
     jac[19][11] = u16_18;
     jac[19][12] = u16_19;
     jac[19][13] = u16_20;
-    jac[19][24] = u16_24;
-    jac[19][25] = u16_25;
-    jac[19][26] = u16_26;
-    jac[19][27] = u16_27;
-    jac[20][21] = l17_14;
     jac[20][22] = l17_16;
     jac[20][23] = d17;
     jac[20][11] = u17_18;
@@ -2530,9 +2213,6 @@ pub fn factor_1(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     jac[11][18] = u19_21;
     jac[11][19] = u19_22;
     jac[11][20] = u19_23;
-    jac[16][14] = l20_3;
-    jac[16][15] = l20_11;
-    jac[16][16] = l20_12;
     jac[16][10] = l20_13;
     jac[16][21] = l20_14;
     jac[16][17] = l20_15;
@@ -2548,9 +2228,6 @@ pub fn factor_1(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     jac[16][25] = u20_25;
     jac[16][26] = u20_26;
     jac[16][27] = u20_27;
-    jac[15][14] = l21_3;
-    jac[15][15] = l21_11;
-    jac[15][16] = l21_12;
     jac[15][10] = l21_13;
     jac[15][21] = l21_14;
     jac[15][17] = l21_15;
@@ -2583,9 +2260,6 @@ pub fn factor_1(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     jac[13][26] = u23_26;
     jac[13][27] = u23_27;
     jac[27][24] = d24;
-    jac[27][25] = u24_25;
-    jac[27][26] = u24_26;
-    jac[27][27] = u24_27;
     jac[21][24] = l25_24;
     jac[21][25] = d25;
     jac[21][26] = u25_26;
@@ -2599,22 +2273,12 @@ pub fn factor_1(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     jac[17][26] = l27_26;
     jac[17][27] = d27;
     Some(runtime::lu::PivotInfo {
-        smallest: p0
+        smallest: p7
             .abs()
-            .min(p1.abs())
-            .min(p2.abs())
-            .min(p3.abs())
-            .min(p4.abs())
-            .min(p5.abs())
-            .min(p6.abs())
-            .min(p7.abs())
             .min(p8.abs())
             .min(p9.abs())
             .min(p10.abs())
-            .min(p11.abs())
-            .min(p12.abs())
             .min(p13.abs())
-            .min(p14.abs())
             .min(p15.abs())
             .min(p16.abs())
             .min(p17.abs())
@@ -2627,23 +2291,14 @@ pub fn factor_1(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
             .min(p24.abs())
             .min(p25.abs())
             .min(p26.abs())
-            .min(p27.abs()),
-        largest: p0
+            .min(p27.abs())
+            .min(1.0),
+        largest: p7
             .abs()
-            .max(p1.abs())
-            .max(p2.abs())
-            .max(p3.abs())
-            .max(p4.abs())
-            .max(p5.abs())
-            .max(p6.abs())
-            .max(p7.abs())
             .max(p8.abs())
             .max(p9.abs())
             .max(p10.abs())
-            .max(p11.abs())
-            .max(p12.abs())
             .max(p13.abs())
-            .max(p14.abs())
             .max(p15.abs())
             .max(p16.abs())
             .max(p17.abs())
@@ -2656,32 +2311,33 @@ pub fn factor_1(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
             .max(p24.abs())
             .max(p25.abs())
             .max(p26.abs())
-            .max(p27.abs()),
+            .max(p27.abs())
+            .max(1.0),
     })
 }
 
 /** Solves Φ_q x = b in place with the factors [`factor_1`] left in `lu`.
 
- 338 operations.*/
+ 323 operations.*/
 pub fn solve_1(lu: &[[f64; N]; N], b: &mut [f64; N]) {
     let y0 = b[3];
     let y1 = b[4];
     let y2 = b[5];
     let y3 = b[22];
-    let y4 = b[8] - lu[8][14] * y3;
+    let y4 = b[8] - y3;
     let y5 = b[9];
     let y6 = b[10];
     let y7 = b[23];
     let y8 = b[24] - lu[24][4] * y7;
     let y9 = b[7] - lu[7][4] * y7 - lu[7][3] * y8;
     let y10 = b[6] - lu[6][4] * y7 - lu[6][3] * y8 - lu[6][5] * y9;
-    let y11 = b[1] - lu[1][1] * y1 - lu[1][8] * y5 - lu[1][4] * y7 - lu[1][3] * y8
-        - lu[1][5] * y9 - lu[1][6] * y10;
-    let y12 = b[2] - lu[2][2] * y2 - lu[2][9] * y6 - lu[2][4] * y7 - lu[2][3] * y8
-        - lu[2][5] * y9 - lu[2][6] * y10;
+    let y11 = b[1] - y1 + y5 - lu[1][4] * y7 - lu[1][3] * y8 - lu[1][5] * y9
+        - lu[1][6] * y10;
+    let y12 = b[2] - y2 + y6 - lu[2][4] * y7 - lu[2][3] * y8 - lu[2][5] * y9
+        - lu[2][6] * y10;
     let y13 = b[25];
-    let y14 = b[0] - lu[0][0] * y0 - lu[0][7] * y4 - lu[0][4] * y7 - lu[0][3] * y8
-        - lu[0][5] * y9 - lu[0][6] * y10 - lu[0][10] * y13;
+    let y14 = b[0] - y0 + y4 - lu[0][4] * y7 - lu[0][3] * y8 - lu[0][5] * y9
+        - lu[0][6] * y10 - lu[0][10] * y13;
     let y15 = b[26];
     let y16 = b[19] - lu[19][21] * y14;
     let y17 = b[20] - lu[20][21] * y14 - lu[20][22] * y16;
@@ -2725,27 +2381,27 @@ pub fn solve_1(lu: &[[f64; N]; N], b: &mut [f64; N]) {
         - lu[19][27] * x27) * lu[19][22];
     let x15 = (y15 - lu[26][18] * x21 - lu[26][19] * x22 - lu[26][20] * x23)
         * lu[26][17];
-    let x14 = (y14 - lu[0][11] * x18 - lu[0][12] * x19 - lu[0][13] * x20) * lu[0][21];
+    let x14 = y14 - lu[0][11] * x18 - lu[0][12] * x19 - lu[0][13] * x20;
     let x13 = (y13 - lu[25][11] * x18 - lu[25][12] * x19 - lu[25][13] * x20)
         * lu[25][10];
-    let x12 = (y12 - lu[2][10] * x13 - lu[2][11] * x18 - lu[2][12] * x19
-        - lu[2][13] * x20) * lu[2][16];
-    let x11 = (y11 - lu[1][10] * x13 - lu[1][11] * x18 - lu[1][12] * x19
-        - lu[1][13] * x20) * lu[1][15];
+    let x12 = y12 - lu[2][10] * x13 - lu[2][11] * x18 - lu[2][12] * x19
+        - lu[2][13] * x20;
+    let x11 = y11 - lu[1][10] * x13 - lu[1][11] * x18 - lu[1][12] * x19
+        - lu[1][13] * x20;
     let x10 = y10 * lu[6][6];
     let x9 = (y9 - lu[7][6] * x10) * lu[7][5];
     let x8 = (y8 - lu[24][5] * x9 - lu[24][6] * x10) * lu[24][3];
     let x7 = (y7 - lu[23][3] * x8) * lu[23][4];
-    let x6 = (y6 - lu[10][16] * x12 - lu[10][10] * x13 - lu[10][11] * x18
-        - lu[10][12] * x19 - lu[10][13] * x20) * lu[10][9];
-    let x5 = (y5 - lu[9][15] * x11 - lu[9][10] * x13 - lu[9][11] * x18 - lu[9][12] * x19
-        - lu[9][13] * x20) * lu[9][8];
-    let x4 = (y4 - lu[8][10] * x13 - lu[8][21] * x14 - lu[8][11] * x18 - lu[8][12] * x19
-        - lu[8][13] * x20) * lu[8][7];
-    let x3 = (y3 - lu[22][21] * x14) * lu[22][14];
-    let x2 = y2 * lu[5][2];
-    let x1 = y1 * lu[4][1];
-    let x0 = y0 * lu[3][0];
+    let x6 = -(y6 - x12 - lu[10][10] * x13 - lu[10][11] * x18 - lu[10][12] * x19
+        - lu[10][13] * x20);
+    let x5 = -(y5 - x11 - lu[9][10] * x13 - lu[9][11] * x18 - lu[9][12] * x19
+        - lu[9][13] * x20);
+    let x4 = -(y4 - lu[8][10] * x13 - x14 - lu[8][11] * x18 - lu[8][12] * x19
+        - lu[8][13] * x20);
+    let x3 = y3 + x14;
+    let x2 = -y2;
+    let x1 = -y1;
+    let x0 = -y0;
     b[0] = x0;
     b[1] = x1;
     b[2] = x2;
@@ -2778,75 +2434,16 @@ pub fn solve_1(lu: &[[f64; N]; N], b: &mut [f64; N]) {
 
 /** Factors Φ_q in place with static pivot order 2: step k pivots on row `[3, 4, 5, 22, 8, 9, 10, 23, 24, 6, 7, 1, 2, 25, 0, 26, 19, 20, 12, 11, 16, 15, 14, 13, 27, 21, 18, 17][k]` and column `[0, 1, 2, 14, 7, 8, 9, 3, 4, 5, 6, 15, 16, 10, 21, 17, 22, 23, 11, 12, 13, 18, 19, 20, 24, 25, 26, 27][k]`.
 
- L and U have 183 entries (18 of them fill-in); 490 operations. The reciprocals of the pivots are stored on the diagonal.
+ L and U have 183 entries (18 of them fill-in, 21 known when generated); 441 operations. The others are in `jac`: 125 stored there, with the reciprocals of the pivots on the diagonal, and 37 left as Φ_q had them.
 
  Returns the smallest and largest |pivot|, or `None` (with `jac` unchanged) when a pivot is not finite or a multiplier exceeds [`runtime::lu::MAX_MULTIPLIER`] in magnitude.*/
 #[must_use]
 pub fn factor_2(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
-    let p0 = jac[3][0];
-    let d0 = 1.0 / p0;
-    let l14_0 = jac[0][0] * d0;
-    if !(p0.is_finite() && l14_0.abs() <= runtime::lu::MAX_MULTIPLIER) {
-        return None;
-    }
-    let p1 = jac[4][1];
-    let d1 = 1.0 / p1;
-    let l11_1 = jac[1][1] * d1;
-    if !(p1.is_finite() && l11_1.abs() <= runtime::lu::MAX_MULTIPLIER) {
-        return None;
-    }
-    let p2 = jac[5][2];
-    let d2 = 1.0 / p2;
-    let l12_2 = jac[2][2] * d2;
-    if !(p2.is_finite() && l12_2.abs() <= runtime::lu::MAX_MULTIPLIER) {
-        return None;
-    }
-    let u3_14 = jac[22][21];
-    let p3 = jac[22][14];
-    let d3 = 1.0 / p3;
-    let l4_3 = jac[8][14] * d3;
-    let l20_3 = jac[16][14] * d3;
-    let l21_3 = jac[15][14] * d3;
-    if !(p3.is_finite() && l4_3.abs() <= runtime::lu::MAX_MULTIPLIER
-        && l20_3.abs() <= runtime::lu::MAX_MULTIPLIER
-        && l21_3.abs() <= runtime::lu::MAX_MULTIPLIER)
+    if !(jac[16][14].abs() <= runtime::lu::MAX_MULTIPLIER
+        && jac[15][14].abs() <= runtime::lu::MAX_MULTIPLIER)
     {
         return None;
     }
-    let u4_13 = jac[8][10];
-    let u4_14 = -(l4_3 * u3_14);
-    let u4_18 = jac[8][11];
-    let u4_19 = jac[8][12];
-    let u4_20 = jac[8][13];
-    let p4 = jac[8][7];
-    let d4 = 1.0 / p4;
-    let l14_4 = jac[0][7] * d4;
-    if !(p4.is_finite() && l14_4.abs() <= runtime::lu::MAX_MULTIPLIER) {
-        return None;
-    }
-    let u5_11 = jac[9][15];
-    let u5_13 = jac[9][10];
-    let u5_18 = jac[9][11];
-    let u5_19 = jac[9][12];
-    let u5_20 = jac[9][13];
-    let p5 = jac[9][8];
-    let d5 = 1.0 / p5;
-    let l11_5 = jac[1][8] * d5;
-    if !(p5.is_finite() && l11_5.abs() <= runtime::lu::MAX_MULTIPLIER) {
-        return None;
-    }
-    let u6_12 = jac[10][16];
-    let u6_13 = jac[10][10];
-    let u6_18 = jac[10][11];
-    let u6_19 = jac[10][12];
-    let u6_20 = jac[10][13];
-    let p6 = jac[10][9];
-    let d6 = 1.0 / p6;
-    let l12_6 = jac[2][9] * d6;
-    if !(p6.is_finite() && l12_6.abs() <= runtime::lu::MAX_MULTIPLIER) {
-        return None;
-    }
-    let u7_8 = jac[23][4];
     let p7 = jac[23][3];
     let d7 = 1.0 / p7;
     let l8_7 = jac[24][3] * d7;
@@ -2864,15 +2461,13 @@ pub fn factor_2(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     {
         return None;
     }
-    let u8_9 = jac[24][5];
-    let u8_10 = jac[24][6];
-    let p8 = jac[24][4] - l8_7 * u7_8;
+    let p8 = jac[24][4] - l8_7 * jac[23][4];
     let d8 = 1.0 / p8;
-    let l9_8 = (jac[6][4] - l9_7 * u7_8) * d8;
-    let l10_8 = (jac[7][4] - l10_7 * u7_8) * d8;
-    let l11_8 = (jac[1][4] - l11_7 * u7_8) * d8;
-    let l12_8 = (jac[2][4] - l12_7 * u7_8) * d8;
-    let l14_8 = (jac[0][4] - l14_7 * u7_8) * d8;
+    let l9_8 = (jac[6][4] - l9_7 * jac[23][4]) * d8;
+    let l10_8 = (jac[7][4] - l10_7 * jac[23][4]) * d8;
+    let l11_8 = (jac[1][4] - l11_7 * jac[23][4]) * d8;
+    let l12_8 = (jac[2][4] - l12_7 * jac[23][4]) * d8;
+    let l14_8 = (jac[0][4] - l14_7 * jac[23][4]) * d8;
     if !(p8.is_finite() && l9_8.abs() <= runtime::lu::MAX_MULTIPLIER
         && l10_8.abs() <= runtime::lu::MAX_MULTIPLIER
         && l11_8.abs() <= runtime::lu::MAX_MULTIPLIER
@@ -2881,13 +2476,13 @@ pub fn factor_2(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     {
         return None;
     }
-    let u9_10 = jac[6][6] - l9_8 * u8_10;
-    let p9 = jac[6][5] - l9_8 * u8_9;
+    let u9_10 = jac[6][6] - l9_8 * jac[24][6];
+    let p9 = jac[6][5] - l9_8 * jac[24][5];
     let d9 = 1.0 / p9;
-    let l10_9 = (jac[7][5] - l10_8 * u8_9) * d9;
-    let l11_9 = (jac[1][5] - l11_8 * u8_9) * d9;
-    let l12_9 = (jac[2][5] - l12_8 * u8_9) * d9;
-    let l14_9 = (jac[0][5] - l14_8 * u8_9) * d9;
+    let l10_9 = (jac[7][5] - l10_8 * jac[24][5]) * d9;
+    let l11_9 = (jac[1][5] - l11_8 * jac[24][5]) * d9;
+    let l12_9 = (jac[2][5] - l12_8 * jac[24][5]) * d9;
+    let l14_9 = (jac[0][5] - l14_8 * jac[24][5]) * d9;
     if !(p9.is_finite() && l10_9.abs() <= runtime::lu::MAX_MULTIPLIER
         && l11_9.abs() <= runtime::lu::MAX_MULTIPLIER
         && l12_9.abs() <= runtime::lu::MAX_MULTIPLIER
@@ -2895,53 +2490,42 @@ pub fn factor_2(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     {
         return None;
     }
-    let p10 = jac[7][6] - l10_8 * u8_10 - l10_9 * u9_10;
+    let p10 = jac[7][6] - l10_8 * jac[24][6] - l10_9 * u9_10;
     let d10 = 1.0 / p10;
-    let l11_10 = (jac[1][6] - l11_8 * u8_10 - l11_9 * u9_10) * d10;
-    let l12_10 = (jac[2][6] - l12_8 * u8_10 - l12_9 * u9_10) * d10;
-    let l14_10 = (jac[0][6] - l14_8 * u8_10 - l14_9 * u9_10) * d10;
+    let l11_10 = (jac[1][6] - l11_8 * jac[24][6] - l11_9 * u9_10) * d10;
+    let l12_10 = (jac[2][6] - l12_8 * jac[24][6] - l12_9 * u9_10) * d10;
+    let l14_10 = (jac[0][6] - l14_8 * jac[24][6] - l14_9 * u9_10) * d10;
     if !(p10.is_finite() && l11_10.abs() <= runtime::lu::MAX_MULTIPLIER
         && l12_10.abs() <= runtime::lu::MAX_MULTIPLIER
         && l14_10.abs() <= runtime::lu::MAX_MULTIPLIER)
     {
         return None;
     }
-    let u11_13 = jac[1][10] - l11_5 * u5_13;
-    let u11_18 = jac[1][11] - l11_5 * u5_18;
-    let u11_19 = jac[1][12] - l11_5 * u5_19;
-    let u11_20 = jac[1][13] - l11_5 * u5_20;
-    let p11 = -(l11_5 * u5_11);
-    let d11 = 1.0 / p11;
-    let l20_11 = jac[16][15] * d11;
-    let l21_11 = jac[15][15] * d11;
-    if !(p11.is_finite() && l20_11.abs() <= runtime::lu::MAX_MULTIPLIER
-        && l21_11.abs() <= runtime::lu::MAX_MULTIPLIER)
+    let u11_13 = jac[1][10] + jac[9][10];
+    let u11_18 = jac[1][11] + jac[9][11];
+    let u11_19 = jac[1][12] + jac[9][12];
+    let u11_20 = jac[1][13] + jac[9][13];
+    if !(jac[16][15].abs() <= runtime::lu::MAX_MULTIPLIER
+        && jac[15][15].abs() <= runtime::lu::MAX_MULTIPLIER)
     {
         return None;
     }
-    let u12_13 = jac[2][10] - l12_6 * u6_13;
-    let u12_18 = jac[2][11] - l12_6 * u6_18;
-    let u12_19 = jac[2][12] - l12_6 * u6_19;
-    let u12_20 = jac[2][13] - l12_6 * u6_20;
-    let p12 = -(l12_6 * u6_12);
-    let d12 = 1.0 / p12;
-    let l20_12 = jac[16][16] * d12;
-    let l21_12 = jac[15][16] * d12;
-    if !(p12.is_finite() && l20_12.abs() <= runtime::lu::MAX_MULTIPLIER
-        && l21_12.abs() <= runtime::lu::MAX_MULTIPLIER)
+    let u12_13 = jac[2][10] + jac[10][10];
+    let u12_18 = jac[2][11] + jac[10][11];
+    let u12_19 = jac[2][12] + jac[10][12];
+    let u12_20 = jac[2][13] + jac[10][13];
+    if !(jac[16][16].abs() <= runtime::lu::MAX_MULTIPLIER
+        && jac[15][16].abs() <= runtime::lu::MAX_MULTIPLIER)
     {
         return None;
     }
-    let u13_18 = jac[25][11];
-    let u13_19 = jac[25][12];
-    let u13_20 = jac[25][13];
     let p13 = jac[25][10];
     let d13 = 1.0 / p13;
-    let l14_13 = (jac[0][10] - l14_4 * u4_13) * d13;
+    let l14_13 = (jac[0][10] + jac[8][10]) * d13;
     let l18_13 = jac[12][10] * d13;
     let l19_13 = jac[11][10] * d13;
-    let l20_13 = (-(l20_11 * u11_13) - l20_12 * u12_13) * d13;
-    let l21_13 = (-(l21_11 * u11_13) - l21_12 * u12_13) * d13;
+    let l20_13 = (-(jac[16][15] * u11_13) - jac[16][16] * u12_13) * d13;
+    let l21_13 = (-(jac[15][15] * u11_13) - jac[15][16] * u12_13) * d13;
     if !(p13.is_finite() && l14_13.abs() <= runtime::lu::MAX_MULTIPLIER
         && l18_13.abs() <= runtime::lu::MAX_MULTIPLIER
         && l19_13.abs() <= runtime::lu::MAX_MULTIPLIER
@@ -2950,25 +2534,18 @@ pub fn factor_2(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     {
         return None;
     }
-    let u14_18 = jac[0][11] - l14_4 * u4_18 - l14_13 * u13_18;
-    let u14_19 = jac[0][12] - l14_4 * u4_19 - l14_13 * u13_19;
-    let u14_20 = jac[0][13] - l14_4 * u4_20 - l14_13 * u13_20;
-    let p14 = -(l14_4 * u4_14);
-    let d14 = 1.0 / p14;
-    let l16_14 = jac[19][21] * d14;
-    let l17_14 = jac[20][21] * d14;
-    let l20_14 = (jac[16][21] - l20_3 * u3_14) * d14;
-    let l21_14 = (jac[15][21] - l21_3 * u3_14) * d14;
-    if !(p14.is_finite() && l16_14.abs() <= runtime::lu::MAX_MULTIPLIER
-        && l17_14.abs() <= runtime::lu::MAX_MULTIPLIER
+    let u14_18 = jac[0][11] + jac[8][11] - l14_13 * jac[25][11];
+    let u14_19 = jac[0][12] + jac[8][12] - l14_13 * jac[25][12];
+    let u14_20 = jac[0][13] + jac[8][13] - l14_13 * jac[25][13];
+    let l20_14 = jac[16][21] + jac[16][14];
+    let l21_14 = jac[15][21] + jac[15][14];
+    if !(jac[19][21].abs() <= runtime::lu::MAX_MULTIPLIER
+        && jac[20][21].abs() <= runtime::lu::MAX_MULTIPLIER
         && l20_14.abs() <= runtime::lu::MAX_MULTIPLIER
         && l21_14.abs() <= runtime::lu::MAX_MULTIPLIER)
     {
         return None;
     }
-    let u15_21 = jac[26][18];
-    let u15_22 = jac[26][19];
-    let u15_23 = jac[26][20];
     let p15 = jac[26][17];
     let d15 = 1.0 / p15;
     let l18_15 = jac[12][17] * d15;
@@ -2986,14 +2563,9 @@ pub fn factor_2(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     {
         return None;
     }
-    let u16_17 = jac[19][23];
-    let u16_18 = -(l16_14 * u14_18);
-    let u16_19 = -(l16_14 * u14_19);
-    let u16_20 = -(l16_14 * u14_20);
-    let u16_24 = jac[19][24];
-    let u16_25 = jac[19][25];
-    let u16_26 = jac[19][26];
-    let u16_27 = jac[19][27];
+    let u16_18 = -(jac[19][21] * u14_18);
+    let u16_19 = -(jac[19][21] * u14_19);
+    let u16_20 = -(jac[19][21] * u14_20);
     let p16 = jac[19][22];
     let d16 = 1.0 / p16;
     let l17_16 = jac[20][22] * d16;
@@ -3005,33 +2577,33 @@ pub fn factor_2(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     {
         return None;
     }
-    let u17_18 = -(l17_14 * u14_18) - l17_16 * u16_18;
-    let u17_19 = -(l17_14 * u14_19) - l17_16 * u16_19;
-    let u17_20 = -(l17_14 * u14_20) - l17_16 * u16_20;
-    let u17_24 = jac[20][24] - l17_16 * u16_24;
-    let u17_25 = jac[20][25] - l17_16 * u16_25;
-    let u17_26 = jac[20][26] - l17_16 * u16_26;
-    let u17_27 = jac[20][27] - l17_16 * u16_27;
-    let p17 = jac[20][23] - l17_16 * u16_17;
+    let u17_18 = -(jac[20][21] * u14_18) - l17_16 * u16_18;
+    let u17_19 = -(jac[20][21] * u14_19) - l17_16 * u16_19;
+    let u17_20 = -(jac[20][21] * u14_20) - l17_16 * u16_20;
+    let u17_24 = jac[20][24] - l17_16 * jac[19][24];
+    let u17_25 = jac[20][25] - l17_16 * jac[19][25];
+    let u17_26 = jac[20][26] - l17_16 * jac[19][26];
+    let u17_27 = jac[20][27] - l17_16 * jac[19][27];
+    let p17 = jac[20][23] - l17_16 * jac[19][23];
     let d17 = 1.0 / p17;
-    let l20_17 = (jac[16][23] - l20_16 * u16_17) * d17;
-    let l21_17 = (jac[15][23] - l21_16 * u16_17) * d17;
+    let l20_17 = (jac[16][23] - l20_16 * jac[19][23]) * d17;
+    let l21_17 = (jac[15][23] - l21_16 * jac[19][23]) * d17;
     if !(p17.is_finite() && l20_17.abs() <= runtime::lu::MAX_MULTIPLIER
         && l21_17.abs() <= runtime::lu::MAX_MULTIPLIER)
     {
         return None;
     }
-    let u18_19 = jac[12][12] - l18_13 * u13_19;
-    let u18_20 = jac[12][13] - l18_13 * u13_20;
-    let u18_21 = jac[12][18] - l18_15 * u15_21;
-    let u18_22 = jac[12][19] - l18_15 * u15_22;
-    let u18_23 = jac[12][20] - l18_15 * u15_23;
-    let p18 = jac[12][11] - l18_13 * u13_18;
+    let u18_19 = jac[12][12] - l18_13 * jac[25][12];
+    let u18_20 = jac[12][13] - l18_13 * jac[25][13];
+    let u18_21 = jac[12][18] - l18_15 * jac[26][18];
+    let u18_22 = jac[12][19] - l18_15 * jac[26][19];
+    let u18_23 = jac[12][20] - l18_15 * jac[26][20];
+    let p18 = jac[12][11] - l18_13 * jac[25][11];
     let d18 = 1.0 / p18;
-    let l19_18 = (jac[11][11] - l19_13 * u13_18) * d18;
-    let l20_18 = (-(l20_11 * u11_18) - l20_12 * u12_18 - l20_13 * u13_18
+    let l19_18 = (jac[11][11] - l19_13 * jac[25][11]) * d18;
+    let l20_18 = (-(jac[16][15] * u11_18) - jac[16][16] * u12_18 - l20_13 * jac[25][11]
         - l20_14 * u14_18 - l20_16 * u16_18 - l20_17 * u17_18) * d18;
-    let l21_18 = (-(l21_11 * u11_18) - l21_12 * u12_18 - l21_13 * u13_18
+    let l21_18 = (-(jac[15][15] * u11_18) - jac[15][16] * u12_18 - l21_13 * jac[25][11]
         - l21_14 * u14_18 - l21_16 * u16_18 - l21_17 * u17_18) * d18;
     if !(p18.is_finite() && l19_18.abs() <= runtime::lu::MAX_MULTIPLIER
         && l20_18.abs() <= runtime::lu::MAX_MULTIPLIER
@@ -3039,63 +2611,64 @@ pub fn factor_2(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     {
         return None;
     }
-    let u19_20 = jac[11][13] - l19_13 * u13_20 - l19_18 * u18_20;
-    let u19_21 = jac[11][18] - l19_15 * u15_21 - l19_18 * u18_21;
-    let u19_22 = jac[11][19] - l19_15 * u15_22 - l19_18 * u18_22;
-    let u19_23 = jac[11][20] - l19_15 * u15_23 - l19_18 * u18_23;
-    let p19 = jac[11][12] - l19_13 * u13_19 - l19_18 * u18_19;
+    let u19_20 = jac[11][13] - l19_13 * jac[25][13] - l19_18 * u18_20;
+    let u19_21 = jac[11][18] - l19_15 * jac[26][18] - l19_18 * u18_21;
+    let u19_22 = jac[11][19] - l19_15 * jac[26][19] - l19_18 * u18_22;
+    let u19_23 = jac[11][20] - l19_15 * jac[26][20] - l19_18 * u18_23;
+    let p19 = jac[11][12] - l19_13 * jac[25][12] - l19_18 * u18_19;
     let d19 = 1.0 / p19;
-    let l20_19 = (-(l20_11 * u11_19) - l20_12 * u12_19 - l20_13 * u13_19
+    let l20_19 = (-(jac[16][15] * u11_19) - jac[16][16] * u12_19 - l20_13 * jac[25][12]
         - l20_14 * u14_19 - l20_16 * u16_19 - l20_17 * u17_19 - l20_18 * u18_19) * d19;
-    let l21_19 = (-(l21_11 * u11_19) - l21_12 * u12_19 - l21_13 * u13_19
+    let l21_19 = (-(jac[15][15] * u11_19) - jac[15][16] * u12_19 - l21_13 * jac[25][12]
         - l21_14 * u14_19 - l21_16 * u16_19 - l21_17 * u17_19 - l21_18 * u18_19) * d19;
     if !(p19.is_finite() && l20_19.abs() <= runtime::lu::MAX_MULTIPLIER
         && l21_19.abs() <= runtime::lu::MAX_MULTIPLIER)
     {
         return None;
     }
-    let u20_21 = jac[16][18] - l20_15 * u15_21 - l20_18 * u18_21 - l20_19 * u19_21;
-    let u20_22 = jac[16][19] - l20_15 * u15_22 - l20_18 * u18_22 - l20_19 * u19_22;
-    let u20_23 = jac[16][20] - l20_15 * u15_23 - l20_18 * u18_23 - l20_19 * u19_23;
-    let u20_24 = jac[16][24] - l20_16 * u16_24 - l20_17 * u17_24;
-    let u20_25 = jac[16][25] - l20_16 * u16_25 - l20_17 * u17_25;
-    let u20_26 = jac[16][26] - l20_16 * u16_26 - l20_17 * u17_26;
-    let u20_27 = jac[16][27] - l20_16 * u16_27 - l20_17 * u17_27;
-    let p20 = -(l20_11 * u11_20) - l20_12 * u12_20 - l20_13 * u13_20 - l20_14 * u14_20
-        - l20_16 * u16_20 - l20_17 * u17_20 - l20_18 * u18_20 - l20_19 * u19_20;
+    let u20_21 = jac[16][18] - l20_15 * jac[26][18] - l20_18 * u18_21 - l20_19 * u19_21;
+    let u20_22 = jac[16][19] - l20_15 * jac[26][19] - l20_18 * u18_22 - l20_19 * u19_22;
+    let u20_23 = jac[16][20] - l20_15 * jac[26][20] - l20_18 * u18_23 - l20_19 * u19_23;
+    let u20_24 = jac[16][24] - l20_16 * jac[19][24] - l20_17 * u17_24;
+    let u20_25 = jac[16][25] - l20_16 * jac[19][25] - l20_17 * u17_25;
+    let u20_26 = jac[16][26] - l20_16 * jac[19][26] - l20_17 * u17_26;
+    let u20_27 = jac[16][27] - l20_16 * jac[19][27] - l20_17 * u17_27;
+    let p20 = -(jac[16][15] * u11_20) - jac[16][16] * u12_20 - l20_13 * jac[25][13]
+        - l20_14 * u14_20 - l20_16 * u16_20 - l20_17 * u17_20 - l20_18 * u18_20
+        - l20_19 * u19_20;
     let d20 = 1.0 / p20;
-    let l21_20 = (-(l21_11 * u11_20) - l21_12 * u12_20 - l21_13 * u13_20
+    let l21_20 = (-(jac[15][15] * u11_20) - jac[15][16] * u12_20 - l21_13 * jac[25][13]
         - l21_14 * u14_20 - l21_16 * u16_20 - l21_17 * u17_20 - l21_18 * u18_20
         - l21_19 * u19_20) * d20;
     if !(p20.is_finite() && l21_20.abs() <= runtime::lu::MAX_MULTIPLIER) {
         return None;
     }
-    let u21_22 = jac[15][19] - l21_15 * u15_22 - l21_18 * u18_22 - l21_19 * u19_22
+    let u21_22 = jac[15][19] - l21_15 * jac[26][19] - l21_18 * u18_22 - l21_19 * u19_22
         - l21_20 * u20_22;
-    let u21_23 = jac[15][20] - l21_15 * u15_23 - l21_18 * u18_23 - l21_19 * u19_23
+    let u21_23 = jac[15][20] - l21_15 * jac[26][20] - l21_18 * u18_23 - l21_19 * u19_23
         - l21_20 * u20_23;
-    let u21_24 = jac[15][24] - l21_16 * u16_24 - l21_17 * u17_24 - l21_20 * u20_24;
-    let u21_25 = jac[15][25] - l21_16 * u16_25 - l21_17 * u17_25 - l21_20 * u20_25;
-    let u21_26 = jac[15][26] - l21_16 * u16_26 - l21_17 * u17_26 - l21_20 * u20_26;
-    let u21_27 = jac[15][27] - l21_16 * u16_27 - l21_17 * u17_27 - l21_20 * u20_27;
-    let p21 = jac[15][18] - l21_15 * u15_21 - l21_18 * u18_21 - l21_19 * u19_21
+    let u21_24 = jac[15][24] - l21_16 * jac[19][24] - l21_17 * u17_24 - l21_20 * u20_24;
+    let u21_25 = jac[15][25] - l21_16 * jac[19][25] - l21_17 * u17_25 - l21_20 * u20_25;
+    let u21_26 = jac[15][26] - l21_16 * jac[19][26] - l21_17 * u17_26 - l21_20 * u20_26;
+    let u21_27 = jac[15][27] - l21_16 * jac[19][27] - l21_17 * u17_27 - l21_20 * u20_27;
+    let p21 = jac[15][18] - l21_15 * jac[26][18] - l21_18 * u18_21 - l21_19 * u19_21
         - l21_20 * u20_21;
     let d21 = 1.0 / p21;
-    let l22_21 = (jac[14][18] - l22_15 * u15_21) * d21;
-    let l23_21 = (jac[13][18] - l23_15 * u15_21) * d21;
+    let l22_21 = (jac[14][18] - l22_15 * jac[26][18]) * d21;
+    let l23_21 = (jac[13][18] - l23_15 * jac[26][18]) * d21;
     if !(p21.is_finite() && l22_21.abs() <= runtime::lu::MAX_MULTIPLIER
         && l23_21.abs() <= runtime::lu::MAX_MULTIPLIER)
     {
         return None;
     }
-    let u22_23 = jac[14][20] - l22_15 * u15_23 - l22_21 * u21_23;
+    let u22_23 = jac[14][20] - l22_15 * jac[26][20] - l22_21 * u21_23;
     let u22_24 = jac[14][24] - l22_21 * u21_24;
     let u22_25 = jac[14][25] - l22_21 * u21_25;
     let u22_26 = jac[14][26] - l22_21 * u21_26;
     let u22_27 = jac[14][27] - l22_21 * u21_27;
-    let p22 = jac[14][19] - l22_15 * u15_22 - l22_21 * u21_22;
+    let p22 = jac[14][19] - l22_15 * jac[26][19] - l22_21 * u21_22;
     let d22 = 1.0 / p22;
-    let l23_22 = (jac[13][19] - l23_15 * u15_22 - l23_21 * u21_22) * d22;
+    let l23_22 = (jac[13][19] - l23_15 * jac[26][19] - l23_21 * u21_22) * d22;
     if !(p22.is_finite() && l23_22.abs() <= runtime::lu::MAX_MULTIPLIER) {
         return None;
     }
@@ -3103,14 +2676,11 @@ pub fn factor_2(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     let u23_25 = jac[13][25] - l23_21 * u21_25 - l23_22 * u22_25;
     let u23_26 = jac[13][26] - l23_21 * u21_26 - l23_22 * u22_26;
     let u23_27 = jac[13][27] - l23_21 * u21_27 - l23_22 * u22_27;
-    let p23 = jac[13][20] - l23_15 * u15_23 - l23_21 * u21_23 - l23_22 * u22_23;
+    let p23 = jac[13][20] - l23_15 * jac[26][20] - l23_21 * u21_23 - l23_22 * u22_23;
     let d23 = 1.0 / p23;
-    if !(p23.is_finite()) {
+    if !p23.is_finite() {
         return None;
     }
-    let u24_25 = jac[27][25];
-    let u24_26 = jac[27][26];
-    let u24_27 = jac[27][27];
     let p24 = jac[27][24];
     let d24 = 1.0 / p24;
     let l25_24 = jac[21][24] * d24;
@@ -3122,59 +2692,32 @@ pub fn factor_2(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     {
         return None;
     }
-    let u25_26 = jac[21][26] - l25_24 * u24_26;
-    let u25_27 = jac[21][27] - l25_24 * u24_27;
-    let p25 = jac[21][25] - l25_24 * u24_25;
+    let u25_26 = jac[21][26] - l25_24 * jac[27][26];
+    let u25_27 = jac[21][27] - l25_24 * jac[27][27];
+    let p25 = jac[21][25] - l25_24 * jac[27][25];
     let d25 = 1.0 / p25;
-    let l26_25 = (jac[18][25] - l26_24 * u24_25) * d25;
-    let l27_25 = (jac[17][25] - l27_24 * u24_25) * d25;
+    let l26_25 = (jac[18][25] - l26_24 * jac[27][25]) * d25;
+    let l27_25 = (jac[17][25] - l27_24 * jac[27][25]) * d25;
     if !(p25.is_finite() && l26_25.abs() <= runtime::lu::MAX_MULTIPLIER
         && l27_25.abs() <= runtime::lu::MAX_MULTIPLIER)
     {
         return None;
     }
-    let u26_27 = jac[18][27] - l26_24 * u24_27 - l26_25 * u25_27;
-    let p26 = jac[18][26] - l26_24 * u24_26 - l26_25 * u25_26;
+    let u26_27 = jac[18][27] - l26_24 * jac[27][27] - l26_25 * u25_27;
+    let p26 = jac[18][26] - l26_24 * jac[27][26] - l26_25 * u25_26;
     let d26 = 1.0 / p26;
-    let l27_26 = (jac[17][26] - l27_24 * u24_26 - l27_25 * u25_26) * d26;
+    let l27_26 = (jac[17][26] - l27_24 * jac[27][26] - l27_25 * u25_26) * d26;
     if !(p26.is_finite() && l27_26.abs() <= runtime::lu::MAX_MULTIPLIER) {
         return None;
     }
-    let p27 = jac[17][27] - l27_24 * u24_27 - l27_25 * u25_27 - l27_26 * u26_27;
+    let p27 = jac[17][27] - l27_24 * jac[27][27] - l27_25 * u25_27 - l27_26 * u26_27;
     let d27 = 1.0 / p27;
-    if !(p27.is_finite()) {
+    if !p27.is_finite() {
         return None;
     }
-    jac[3][0] = d0;
-    jac[4][1] = d1;
-    jac[5][2] = d2;
-    jac[22][14] = d3;
-    jac[22][21] = u3_14;
-    jac[8][14] = l4_3;
-    jac[8][7] = d4;
-    jac[8][10] = u4_13;
-    jac[8][21] = u4_14;
-    jac[8][11] = u4_18;
-    jac[8][12] = u4_19;
-    jac[8][13] = u4_20;
-    jac[9][8] = d5;
-    jac[9][15] = u5_11;
-    jac[9][10] = u5_13;
-    jac[9][11] = u5_18;
-    jac[9][12] = u5_19;
-    jac[9][13] = u5_20;
-    jac[10][9] = d6;
-    jac[10][16] = u6_12;
-    jac[10][10] = u6_13;
-    jac[10][11] = u6_18;
-    jac[10][12] = u6_19;
-    jac[10][13] = u6_20;
     jac[23][3] = d7;
-    jac[23][4] = u7_8;
     jac[24][3] = l8_7;
     jac[24][4] = d8;
-    jac[24][5] = u8_9;
-    jac[24][6] = u8_10;
     jac[6][3] = l9_7;
     jac[6][4] = l9_8;
     jac[6][5] = d9;
@@ -3183,58 +2726,36 @@ pub fn factor_2(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     jac[7][4] = l10_8;
     jac[7][5] = l10_9;
     jac[7][6] = d10;
-    jac[1][1] = l11_1;
-    jac[1][8] = l11_5;
     jac[1][3] = l11_7;
     jac[1][4] = l11_8;
     jac[1][5] = l11_9;
     jac[1][6] = l11_10;
-    jac[1][15] = d11;
     jac[1][10] = u11_13;
     jac[1][11] = u11_18;
     jac[1][12] = u11_19;
     jac[1][13] = u11_20;
-    jac[2][2] = l12_2;
-    jac[2][9] = l12_6;
     jac[2][3] = l12_7;
     jac[2][4] = l12_8;
     jac[2][5] = l12_9;
     jac[2][6] = l12_10;
-    jac[2][16] = d12;
     jac[2][10] = u12_13;
     jac[2][11] = u12_18;
     jac[2][12] = u12_19;
     jac[2][13] = u12_20;
     jac[25][10] = d13;
-    jac[25][11] = u13_18;
-    jac[25][12] = u13_19;
-    jac[25][13] = u13_20;
-    jac[0][0] = l14_0;
-    jac[0][7] = l14_4;
     jac[0][3] = l14_7;
     jac[0][4] = l14_8;
     jac[0][5] = l14_9;
     jac[0][6] = l14_10;
     jac[0][10] = l14_13;
-    jac[0][21] = d14;
     jac[0][11] = u14_18;
     jac[0][12] = u14_19;
     jac[0][13] = u14_20;
     jac[26][17] = d15;
-    jac[26][18] = u15_21;
-    jac[26][19] = u15_22;
-    jac[26][20] = u15_23;
-    jac[19][21] = l16_14;
     jac[19][22] = d16;
-    jac[19][23] = u16_17;
     jac[19][11] = u16_18;
     jac[19][12] = u16_19;
     jac[19][13] = u16_20;
-    jac[19][24] = u16_24;
-    jac[19][25] = u16_25;
-    jac[19][26] = u16_26;
-    jac[19][27] = u16_27;
-    jac[20][21] = l17_14;
     jac[20][22] = l17_16;
     jac[20][23] = d17;
     jac[20][11] = u17_18;
@@ -3260,9 +2781,6 @@ pub fn factor_2(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     jac[11][18] = u19_21;
     jac[11][19] = u19_22;
     jac[11][20] = u19_23;
-    jac[16][14] = l20_3;
-    jac[16][15] = l20_11;
-    jac[16][16] = l20_12;
     jac[16][10] = l20_13;
     jac[16][21] = l20_14;
     jac[16][17] = l20_15;
@@ -3278,9 +2796,6 @@ pub fn factor_2(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     jac[16][25] = u20_25;
     jac[16][26] = u20_26;
     jac[16][27] = u20_27;
-    jac[15][14] = l21_3;
-    jac[15][15] = l21_11;
-    jac[15][16] = l21_12;
     jac[15][10] = l21_13;
     jac[15][21] = l21_14;
     jac[15][17] = l21_15;
@@ -3313,9 +2828,6 @@ pub fn factor_2(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     jac[13][26] = u23_26;
     jac[13][27] = u23_27;
     jac[27][24] = d24;
-    jac[27][25] = u24_25;
-    jac[27][26] = u24_26;
-    jac[27][27] = u24_27;
     jac[21][24] = l25_24;
     jac[21][25] = d25;
     jac[21][26] = u25_26;
@@ -3329,22 +2841,12 @@ pub fn factor_2(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     jac[17][26] = l27_26;
     jac[17][27] = d27;
     Some(runtime::lu::PivotInfo {
-        smallest: p0
+        smallest: p7
             .abs()
-            .min(p1.abs())
-            .min(p2.abs())
-            .min(p3.abs())
-            .min(p4.abs())
-            .min(p5.abs())
-            .min(p6.abs())
-            .min(p7.abs())
             .min(p8.abs())
             .min(p9.abs())
             .min(p10.abs())
-            .min(p11.abs())
-            .min(p12.abs())
             .min(p13.abs())
-            .min(p14.abs())
             .min(p15.abs())
             .min(p16.abs())
             .min(p17.abs())
@@ -3357,23 +2859,14 @@ pub fn factor_2(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
             .min(p24.abs())
             .min(p25.abs())
             .min(p26.abs())
-            .min(p27.abs()),
-        largest: p0
+            .min(p27.abs())
+            .min(1.0),
+        largest: p7
             .abs()
-            .max(p1.abs())
-            .max(p2.abs())
-            .max(p3.abs())
-            .max(p4.abs())
-            .max(p5.abs())
-            .max(p6.abs())
-            .max(p7.abs())
             .max(p8.abs())
             .max(p9.abs())
             .max(p10.abs())
-            .max(p11.abs())
-            .max(p12.abs())
             .max(p13.abs())
-            .max(p14.abs())
             .max(p15.abs())
             .max(p16.abs())
             .max(p17.abs())
@@ -3386,32 +2879,33 @@ pub fn factor_2(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
             .max(p24.abs())
             .max(p25.abs())
             .max(p26.abs())
-            .max(p27.abs()),
+            .max(p27.abs())
+            .max(1.0),
     })
 }
 
 /** Solves Φ_q x = b in place with the factors [`factor_2`] left in `lu`.
 
- 338 operations.*/
+ 323 operations.*/
 pub fn solve_2(lu: &[[f64; N]; N], b: &mut [f64; N]) {
     let y0 = b[3];
     let y1 = b[4];
     let y2 = b[5];
     let y3 = b[22];
-    let y4 = b[8] - lu[8][14] * y3;
+    let y4 = b[8] - y3;
     let y5 = b[9];
     let y6 = b[10];
     let y7 = b[23];
     let y8 = b[24] - lu[24][3] * y7;
     let y9 = b[6] - lu[6][3] * y7 - lu[6][4] * y8;
     let y10 = b[7] - lu[7][3] * y7 - lu[7][4] * y8 - lu[7][5] * y9;
-    let y11 = b[1] - lu[1][1] * y1 - lu[1][8] * y5 - lu[1][3] * y7 - lu[1][4] * y8
-        - lu[1][5] * y9 - lu[1][6] * y10;
-    let y12 = b[2] - lu[2][2] * y2 - lu[2][9] * y6 - lu[2][3] * y7 - lu[2][4] * y8
-        - lu[2][5] * y9 - lu[2][6] * y10;
+    let y11 = b[1] - y1 + y5 - lu[1][3] * y7 - lu[1][4] * y8 - lu[1][5] * y9
+        - lu[1][6] * y10;
+    let y12 = b[2] - y2 + y6 - lu[2][3] * y7 - lu[2][4] * y8 - lu[2][5] * y9
+        - lu[2][6] * y10;
     let y13 = b[25];
-    let y14 = b[0] - lu[0][0] * y0 - lu[0][7] * y4 - lu[0][3] * y7 - lu[0][4] * y8
-        - lu[0][5] * y9 - lu[0][6] * y10 - lu[0][10] * y13;
+    let y14 = b[0] - y0 + y4 - lu[0][3] * y7 - lu[0][4] * y8 - lu[0][5] * y9
+        - lu[0][6] * y10 - lu[0][10] * y13;
     let y15 = b[26];
     let y16 = b[19] - lu[19][21] * y14;
     let y17 = b[20] - lu[20][21] * y14 - lu[20][22] * y16;
@@ -3455,27 +2949,27 @@ pub fn solve_2(lu: &[[f64; N]; N], b: &mut [f64; N]) {
         - lu[19][27] * x27) * lu[19][22];
     let x15 = (y15 - lu[26][18] * x21 - lu[26][19] * x22 - lu[26][20] * x23)
         * lu[26][17];
-    let x14 = (y14 - lu[0][11] * x18 - lu[0][12] * x19 - lu[0][13] * x20) * lu[0][21];
+    let x14 = y14 - lu[0][11] * x18 - lu[0][12] * x19 - lu[0][13] * x20;
     let x13 = (y13 - lu[25][11] * x18 - lu[25][12] * x19 - lu[25][13] * x20)
         * lu[25][10];
-    let x12 = (y12 - lu[2][10] * x13 - lu[2][11] * x18 - lu[2][12] * x19
-        - lu[2][13] * x20) * lu[2][16];
-    let x11 = (y11 - lu[1][10] * x13 - lu[1][11] * x18 - lu[1][12] * x19
-        - lu[1][13] * x20) * lu[1][15];
+    let x12 = y12 - lu[2][10] * x13 - lu[2][11] * x18 - lu[2][12] * x19
+        - lu[2][13] * x20;
+    let x11 = y11 - lu[1][10] * x13 - lu[1][11] * x18 - lu[1][12] * x19
+        - lu[1][13] * x20;
     let x10 = y10 * lu[7][6];
     let x9 = (y9 - lu[6][6] * x10) * lu[6][5];
     let x8 = (y8 - lu[24][5] * x9 - lu[24][6] * x10) * lu[24][4];
     let x7 = (y7 - lu[23][4] * x8) * lu[23][3];
-    let x6 = (y6 - lu[10][16] * x12 - lu[10][10] * x13 - lu[10][11] * x18
-        - lu[10][12] * x19 - lu[10][13] * x20) * lu[10][9];
-    let x5 = (y5 - lu[9][15] * x11 - lu[9][10] * x13 - lu[9][11] * x18 - lu[9][12] * x19
-        - lu[9][13] * x20) * lu[9][8];
-    let x4 = (y4 - lu[8][10] * x13 - lu[8][21] * x14 - lu[8][11] * x18 - lu[8][12] * x19
-        - lu[8][13] * x20) * lu[8][7];
-    let x3 = (y3 - lu[22][21] * x14) * lu[22][14];
-    let x2 = y2 * lu[5][2];
-    let x1 = y1 * lu[4][1];
-    let x0 = y0 * lu[3][0];
+    let x6 = -(y6 - x12 - lu[10][10] * x13 - lu[10][11] * x18 - lu[10][12] * x19
+        - lu[10][13] * x20);
+    let x5 = -(y5 - x11 - lu[9][10] * x13 - lu[9][11] * x18 - lu[9][12] * x19
+        - lu[9][13] * x20);
+    let x4 = -(y4 - lu[8][10] * x13 - x14 - lu[8][11] * x18 - lu[8][12] * x19
+        - lu[8][13] * x20);
+    let x3 = y3 + x14;
+    let x2 = -y2;
+    let x1 = -y1;
+    let x0 = -y0;
     b[0] = x0;
     b[1] = x1;
     b[2] = x2;

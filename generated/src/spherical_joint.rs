@@ -115,7 +115,7 @@ pub fn residual_jacobian(
     jac[4][4] = t6;
 }
 
-/** Φ and the 11 structurally non-zero entries of Φ_q, the others of `jac` left as they were: what the `factor_k` functions read.
+/** Φ and the 8 entries of Φ_q that depend on q or t, the others of `jac` left as they were: what the `factor_k` functions read (3 of the 11 structurally non-zero entries are constants, which they know).
 
  24 operations, 7 shared subexpressions.*/
 pub fn residual_jacobian_structural(
@@ -137,11 +137,8 @@ pub fn residual_jacobian_structural(
     phi[2] = 2.0 * (q3 * q4) + q2;
     phi[3] = q4 * t4 - q3 * t3;
     phi[4] = t0 + t1 - 1.0;
-    jac[0][0] = 1.0;
     jac[0][3] = -t5;
     jac[0][4] = t6;
-    jac[1][1] = 1.0;
-    jac[2][2] = 1.0;
     jac[2][3] = 2.0 * q4;
     jac[2][4] = 2.0 * q3;
     jac[3][3] = -t3;
@@ -152,62 +149,34 @@ pub fn residual_jacobian_structural(
 
 /** Factors Φ_q in place with static pivot order 0: step k pivots on row `[0, 1, 2, 4, 3][k]` and column `[0, 1, 2, 3, 4][k]`.
 
- L and U have 11 entries (0 of them fill-in); 8 operations. The reciprocals of the pivots are stored on the diagonal.
+ L and U have 11 entries (0 of them fill-in, 3 known when generated); 5 operations. The others are in `jac`: 3 stored there, with the reciprocals of the pivots on the diagonal, and 5 left as Φ_q had them.
 
  Returns the smallest and largest |pivot|, or `None` (with `jac` unchanged) when a pivot is not finite or a multiplier exceeds [`runtime::lu::MAX_MULTIPLIER`] in magnitude.*/
 #[must_use]
 pub fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
-    let u0_3 = jac[0][3];
-    let u0_4 = jac[0][4];
-    let p0 = jac[0][0];
-    let d0 = 1.0 / p0;
-    if !(p0.is_finite()) {
-        return None;
-    }
-    let p1 = jac[1][1];
-    let d1 = 1.0 / p1;
-    if !(p1.is_finite()) {
-        return None;
-    }
-    let u2_3 = jac[2][3];
-    let u2_4 = jac[2][4];
-    let p2 = jac[2][2];
-    let d2 = 1.0 / p2;
-    if !(p2.is_finite()) {
-        return None;
-    }
-    let u3_4 = jac[4][4];
     let p3 = jac[4][3];
     let d3 = 1.0 / p3;
     let l4_3 = jac[3][3] * d3;
     if !(p3.is_finite() && l4_3.abs() <= runtime::lu::MAX_MULTIPLIER) {
         return None;
     }
-    let p4 = jac[3][4] - l4_3 * u3_4;
+    let p4 = jac[3][4] - l4_3 * jac[4][4];
     let d4 = 1.0 / p4;
-    if !(p4.is_finite()) {
+    if !p4.is_finite() {
         return None;
     }
-    jac[0][0] = d0;
-    jac[0][3] = u0_3;
-    jac[0][4] = u0_4;
-    jac[1][1] = d1;
-    jac[2][2] = d2;
-    jac[2][3] = u2_3;
-    jac[2][4] = u2_4;
     jac[4][3] = d3;
-    jac[4][4] = u3_4;
     jac[3][3] = l4_3;
     jac[3][4] = d4;
     Some(runtime::lu::PivotInfo {
-        smallest: p0.abs().min(p1.abs()).min(p2.abs()).min(p3.abs()).min(p4.abs()),
-        largest: p0.abs().max(p1.abs()).max(p2.abs()).max(p3.abs()).max(p4.abs()),
+        smallest: p3.abs().min(p4.abs()).min(1.0),
+        largest: p3.abs().max(p4.abs()).max(1.0),
     })
 }
 
 /** Solves Φ_q x = b in place with the factors [`factor_0`] left in `lu`.
 
- 17 operations.*/
+ 14 operations.*/
 pub fn solve_0(lu: &[[f64; N]; N], b: &mut [f64; N]) {
     let y0 = b[0];
     let y1 = b[1];
@@ -216,9 +185,9 @@ pub fn solve_0(lu: &[[f64; N]; N], b: &mut [f64; N]) {
     let y4 = b[3] - lu[3][3] * y3;
     let x4 = y4 * lu[3][4];
     let x3 = (y3 - lu[4][4] * x4) * lu[4][3];
-    let x2 = (y2 - lu[2][3] * x3 - lu[2][4] * x4) * lu[2][2];
-    let x1 = y1 * lu[1][1];
-    let x0 = (y0 - lu[0][3] * x3 - lu[0][4] * x4) * lu[0][0];
+    let x2 = y2 - lu[2][3] * x3 - lu[2][4] * x4;
+    let x1 = y1;
+    let x0 = y0 - lu[0][3] * x3 - lu[0][4] * x4;
     b[0] = x0;
     b[1] = x1;
     b[2] = x2;
@@ -228,62 +197,34 @@ pub fn solve_0(lu: &[[f64; N]; N], b: &mut [f64; N]) {
 
 /** Factors Φ_q in place with static pivot order 1: step k pivots on row `[0, 1, 2, 3, 4][k]` and column `[0, 1, 2, 3, 4][k]`.
 
- L and U have 11 entries (0 of them fill-in); 8 operations. The reciprocals of the pivots are stored on the diagonal.
+ L and U have 11 entries (0 of them fill-in, 3 known when generated); 5 operations. The others are in `jac`: 3 stored there, with the reciprocals of the pivots on the diagonal, and 5 left as Φ_q had them.
 
  Returns the smallest and largest |pivot|, or `None` (with `jac` unchanged) when a pivot is not finite or a multiplier exceeds [`runtime::lu::MAX_MULTIPLIER`] in magnitude.*/
 #[must_use]
 pub fn factor_1(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
-    let u0_3 = jac[0][3];
-    let u0_4 = jac[0][4];
-    let p0 = jac[0][0];
-    let d0 = 1.0 / p0;
-    if !(p0.is_finite()) {
-        return None;
-    }
-    let p1 = jac[1][1];
-    let d1 = 1.0 / p1;
-    if !(p1.is_finite()) {
-        return None;
-    }
-    let u2_3 = jac[2][3];
-    let u2_4 = jac[2][4];
-    let p2 = jac[2][2];
-    let d2 = 1.0 / p2;
-    if !(p2.is_finite()) {
-        return None;
-    }
-    let u3_4 = jac[3][4];
     let p3 = jac[3][3];
     let d3 = 1.0 / p3;
     let l4_3 = jac[4][3] * d3;
     if !(p3.is_finite() && l4_3.abs() <= runtime::lu::MAX_MULTIPLIER) {
         return None;
     }
-    let p4 = jac[4][4] - l4_3 * u3_4;
+    let p4 = jac[4][4] - l4_3 * jac[3][4];
     let d4 = 1.0 / p4;
-    if !(p4.is_finite()) {
+    if !p4.is_finite() {
         return None;
     }
-    jac[0][0] = d0;
-    jac[0][3] = u0_3;
-    jac[0][4] = u0_4;
-    jac[1][1] = d1;
-    jac[2][2] = d2;
-    jac[2][3] = u2_3;
-    jac[2][4] = u2_4;
     jac[3][3] = d3;
-    jac[3][4] = u3_4;
     jac[4][3] = l4_3;
     jac[4][4] = d4;
     Some(runtime::lu::PivotInfo {
-        smallest: p0.abs().min(p1.abs()).min(p2.abs()).min(p3.abs()).min(p4.abs()),
-        largest: p0.abs().max(p1.abs()).max(p2.abs()).max(p3.abs()).max(p4.abs()),
+        smallest: p3.abs().min(p4.abs()).min(1.0),
+        largest: p3.abs().max(p4.abs()).max(1.0),
     })
 }
 
 /** Solves Φ_q x = b in place with the factors [`factor_1`] left in `lu`.
 
- 17 operations.*/
+ 14 operations.*/
 pub fn solve_1(lu: &[[f64; N]; N], b: &mut [f64; N]) {
     let y0 = b[0];
     let y1 = b[1];
@@ -292,9 +233,9 @@ pub fn solve_1(lu: &[[f64; N]; N], b: &mut [f64; N]) {
     let y4 = b[4] - lu[4][3] * y3;
     let x4 = y4 * lu[4][4];
     let x3 = (y3 - lu[3][4] * x4) * lu[3][3];
-    let x2 = (y2 - lu[2][3] * x3 - lu[2][4] * x4) * lu[2][2];
-    let x1 = y1 * lu[1][1];
-    let x0 = (y0 - lu[0][3] * x3 - lu[0][4] * x4) * lu[0][0];
+    let x2 = y2 - lu[2][3] * x3 - lu[2][4] * x4;
+    let x1 = y1;
+    let x0 = y0 - lu[0][3] * x3 - lu[0][4] * x4;
     b[0] = x0;
     b[1] = x1;
     b[2] = x2;

@@ -68,7 +68,7 @@ pub fn residual_jacobian(
     jac[0][0] = q0 + q0;
 }
 
-/** Φ and the 1 structurally non-zero entries of Φ_q, the others of `jac` left as they were: what the `factor_k` functions read.
+/** Φ and the 1 entries of Φ_q that depend on q or t, the others of `jac` left as they were: what the `factor_k` functions read (0 of the 1 structurally non-zero entries are constants, which they know).
 
  3 operations, 0 shared subexpressions.*/
 pub fn residual_jacobian_structural(
@@ -84,14 +84,14 @@ pub fn residual_jacobian_structural(
 
 /** Factors Φ_q in place with static pivot order 0: step k pivots on row `[0][k]` and column `[0][k]`.
 
- L and U have 1 entries (0 of them fill-in); 1 operations. The reciprocals of the pivots are stored on the diagonal.
+ L and U have 1 entries (0 of them fill-in, 0 known when generated); 1 operations. The others are in `jac`: 1 stored there, with the reciprocals of the pivots on the diagonal, and 0 left as Φ_q had them.
 
  Returns the smallest and largest |pivot|, or `None` (with `jac` unchanged) when a pivot is not finite or a multiplier exceeds [`runtime::lu::MAX_MULTIPLIER`] in magnitude.*/
 #[must_use]
 pub fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     let p0 = jac[0][0];
     let d0 = 1.0 / p0;
-    if !(p0.is_finite()) {
+    if !p0.is_finite() {
         return None;
     }
     jac[0][0] = d0;

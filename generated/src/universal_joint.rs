@@ -147,7 +147,7 @@ pub fn residual_jacobian(
     jac[5][5] = t10;
 }
 
-/** Φ and the 17 structurally non-zero entries of Φ_q, the others of `jac` left as they were: what the `factor_k` functions read.
+/** Φ and the 14 entries of Φ_q that depend on q or t, the others of `jac` left as they were: what the `factor_k` functions read (3 of the 17 structurally non-zero entries are constants, which they know).
 
  40 operations, 12 shared subexpressions.*/
 pub fn residual_jacobian_structural(
@@ -175,14 +175,11 @@ pub fn residual_jacobian_structural(
     phi[3] = 2.0 * (q3 * q5);
     phi[4] = q4 * t5 - q3 * t4;
     phi[5] = t2 + (t0 + t1) - 1.0;
-    jac[0][0] = 1.0;
     jac[0][4] = -t6;
     jac[0][5] = t7;
-    jac[1][1] = 1.0;
     jac[1][3] = -t8;
     jac[1][4] = t9;
     jac[1][5] = -t10;
-    jac[2][2] = 1.0;
     jac[2][3] = t7;
     jac[2][4] = -t11;
     jac[3][3] = t6;
@@ -196,90 +193,42 @@ pub fn residual_jacobian_structural(
 
 /** Factors Φ_q in place with static pivot order 0: step k pivots on row `[0, 1, 2, 4, 5, 3][k]` and column `[0, 1, 2, 4, 3, 5][k]`.
 
- L and U have 17 entries (0 of them fill-in); 12 operations. The reciprocals of the pivots are stored on the diagonal.
+ L and U have 17 entries (0 of them fill-in, 3 known when generated); 9 operations. The others are in `jac`: 5 stored there, with the reciprocals of the pivots on the diagonal, and 9 left as Φ_q had them.
 
  Returns the smallest and largest |pivot|, or `None` (with `jac` unchanged) when a pivot is not finite or a multiplier exceeds [`runtime::lu::MAX_MULTIPLIER`] in magnitude.*/
 #[must_use]
 pub fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
-    let u0_3 = jac[0][4];
-    let u0_5 = jac[0][5];
-    let p0 = jac[0][0];
-    let d0 = 1.0 / p0;
-    if !(p0.is_finite()) {
-        return None;
-    }
-    let u1_3 = jac[1][4];
-    let u1_4 = jac[1][3];
-    let u1_5 = jac[1][5];
-    let p1 = jac[1][1];
-    let d1 = 1.0 / p1;
-    if !(p1.is_finite()) {
-        return None;
-    }
-    let u2_3 = jac[2][4];
-    let u2_4 = jac[2][3];
-    let p2 = jac[2][2];
-    let d2 = 1.0 / p2;
-    if !(p2.is_finite()) {
-        return None;
-    }
-    let u3_4 = jac[4][3];
     let p3 = jac[4][4];
     let d3 = 1.0 / p3;
     let l4_3 = jac[5][4] * d3;
     if !(p3.is_finite() && l4_3.abs() <= runtime::lu::MAX_MULTIPLIER) {
         return None;
     }
-    let u4_5 = jac[5][5];
-    let p4 = jac[5][3] - l4_3 * u3_4;
+    let p4 = jac[5][3] - l4_3 * jac[4][3];
     let d4 = 1.0 / p4;
     let l5_4 = jac[3][3] * d4;
     if !(p4.is_finite() && l5_4.abs() <= runtime::lu::MAX_MULTIPLIER) {
         return None;
     }
-    let p5 = jac[3][5] - l5_4 * u4_5;
+    let p5 = jac[3][5] - l5_4 * jac[5][5];
     let d5 = 1.0 / p5;
-    if !(p5.is_finite()) {
+    if !p5.is_finite() {
         return None;
     }
-    jac[0][0] = d0;
-    jac[0][4] = u0_3;
-    jac[0][5] = u0_5;
-    jac[1][1] = d1;
-    jac[1][4] = u1_3;
-    jac[1][3] = u1_4;
-    jac[1][5] = u1_5;
-    jac[2][2] = d2;
-    jac[2][4] = u2_3;
-    jac[2][3] = u2_4;
     jac[4][4] = d3;
-    jac[4][3] = u3_4;
     jac[5][4] = l4_3;
     jac[5][3] = d4;
-    jac[5][5] = u4_5;
     jac[3][3] = l5_4;
     jac[3][5] = d5;
     Some(runtime::lu::PivotInfo {
-        smallest: p0
-            .abs()
-            .min(p1.abs())
-            .min(p2.abs())
-            .min(p3.abs())
-            .min(p4.abs())
-            .min(p5.abs()),
-        largest: p0
-            .abs()
-            .max(p1.abs())
-            .max(p2.abs())
-            .max(p3.abs())
-            .max(p4.abs())
-            .max(p5.abs()),
+        smallest: p3.abs().min(p4.abs()).min(p5.abs()).min(1.0),
+        largest: p3.abs().max(p4.abs()).max(p5.abs()).max(1.0),
     })
 }
 
 /** Solves Φ_q x = b in place with the factors [`factor_0`] left in `lu`.
 
- 28 operations.*/
+ 25 operations.*/
 pub fn solve_0(lu: &[[f64; N]; N], b: &mut [f64; N]) {
     let y0 = b[0];
     let y1 = b[1];
@@ -290,9 +239,9 @@ pub fn solve_0(lu: &[[f64; N]; N], b: &mut [f64; N]) {
     let x5 = y5 * lu[3][5];
     let x4 = (y4 - lu[5][5] * x5) * lu[5][3];
     let x3 = (y3 - lu[4][3] * x4) * lu[4][4];
-    let x2 = (y2 - lu[2][4] * x3 - lu[2][3] * x4) * lu[2][2];
-    let x1 = (y1 - lu[1][4] * x3 - lu[1][3] * x4 - lu[1][5] * x5) * lu[1][1];
-    let x0 = (y0 - lu[0][4] * x3 - lu[0][5] * x5) * lu[0][0];
+    let x2 = y2 - lu[2][4] * x3 - lu[2][3] * x4;
+    let x1 = y1 - lu[1][4] * x3 - lu[1][3] * x4 - lu[1][5] * x5;
+    let x0 = y0 - lu[0][4] * x3 - lu[0][5] * x5;
     b[0] = x0;
     b[1] = x1;
     b[2] = x2;
@@ -303,90 +252,42 @@ pub fn solve_0(lu: &[[f64; N]; N], b: &mut [f64; N]) {
 
 /** Factors Φ_q in place with static pivot order 1: step k pivots on row `[0, 1, 2, 3, 4, 5][k]` and column `[0, 1, 2, 5, 3, 4][k]`.
 
- L and U have 17 entries (0 of them fill-in); 12 operations. The reciprocals of the pivots are stored on the diagonal.
+ L and U have 17 entries (0 of them fill-in, 3 known when generated); 9 operations. The others are in `jac`: 5 stored there, with the reciprocals of the pivots on the diagonal, and 9 left as Φ_q had them.
 
  Returns the smallest and largest |pivot|, or `None` (with `jac` unchanged) when a pivot is not finite or a multiplier exceeds [`runtime::lu::MAX_MULTIPLIER`] in magnitude.*/
 #[must_use]
 pub fn factor_1(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
-    let u0_3 = jac[0][5];
-    let u0_5 = jac[0][4];
-    let p0 = jac[0][0];
-    let d0 = 1.0 / p0;
-    if !(p0.is_finite()) {
-        return None;
-    }
-    let u1_3 = jac[1][5];
-    let u1_4 = jac[1][3];
-    let u1_5 = jac[1][4];
-    let p1 = jac[1][1];
-    let d1 = 1.0 / p1;
-    if !(p1.is_finite()) {
-        return None;
-    }
-    let u2_4 = jac[2][3];
-    let u2_5 = jac[2][4];
-    let p2 = jac[2][2];
-    let d2 = 1.0 / p2;
-    if !(p2.is_finite()) {
-        return None;
-    }
-    let u3_4 = jac[3][3];
     let p3 = jac[3][5];
     let d3 = 1.0 / p3;
     let l5_3 = jac[5][5] * d3;
     if !(p3.is_finite() && l5_3.abs() <= runtime::lu::MAX_MULTIPLIER) {
         return None;
     }
-    let u4_5 = jac[4][4];
     let p4 = jac[4][3];
     let d4 = 1.0 / p4;
-    let l5_4 = (jac[5][3] - l5_3 * u3_4) * d4;
+    let l5_4 = (jac[5][3] - l5_3 * jac[3][3]) * d4;
     if !(p4.is_finite() && l5_4.abs() <= runtime::lu::MAX_MULTIPLIER) {
         return None;
     }
-    let p5 = jac[5][4] - l5_4 * u4_5;
+    let p5 = jac[5][4] - l5_4 * jac[4][4];
     let d5 = 1.0 / p5;
-    if !(p5.is_finite()) {
+    if !p5.is_finite() {
         return None;
     }
-    jac[0][0] = d0;
-    jac[0][5] = u0_3;
-    jac[0][4] = u0_5;
-    jac[1][1] = d1;
-    jac[1][5] = u1_3;
-    jac[1][3] = u1_4;
-    jac[1][4] = u1_5;
-    jac[2][2] = d2;
-    jac[2][3] = u2_4;
-    jac[2][4] = u2_5;
     jac[3][5] = d3;
-    jac[3][3] = u3_4;
     jac[4][3] = d4;
-    jac[4][4] = u4_5;
     jac[5][5] = l5_3;
     jac[5][3] = l5_4;
     jac[5][4] = d5;
     Some(runtime::lu::PivotInfo {
-        smallest: p0
-            .abs()
-            .min(p1.abs())
-            .min(p2.abs())
-            .min(p3.abs())
-            .min(p4.abs())
-            .min(p5.abs()),
-        largest: p0
-            .abs()
-            .max(p1.abs())
-            .max(p2.abs())
-            .max(p3.abs())
-            .max(p4.abs())
-            .max(p5.abs()),
+        smallest: p3.abs().min(p4.abs()).min(p5.abs()).min(1.0),
+        largest: p3.abs().max(p4.abs()).max(p5.abs()).max(1.0),
     })
 }
 
 /** Solves Φ_q x = b in place with the factors [`factor_1`] left in `lu`.
 
- 28 operations.*/
+ 25 operations.*/
 pub fn solve_1(lu: &[[f64; N]; N], b: &mut [f64; N]) {
     let y0 = b[0];
     let y1 = b[1];
@@ -397,9 +298,9 @@ pub fn solve_1(lu: &[[f64; N]; N], b: &mut [f64; N]) {
     let x5 = y5 * lu[5][4];
     let x4 = (y4 - lu[4][4] * x5) * lu[4][3];
     let x3 = (y3 - lu[3][3] * x4) * lu[3][5];
-    let x2 = (y2 - lu[2][3] * x4 - lu[2][4] * x5) * lu[2][2];
-    let x1 = (y1 - lu[1][5] * x3 - lu[1][3] * x4 - lu[1][4] * x5) * lu[1][1];
-    let x0 = (y0 - lu[0][5] * x3 - lu[0][4] * x5) * lu[0][0];
+    let x2 = y2 - lu[2][3] * x4 - lu[2][4] * x5;
+    let x1 = y1 - lu[1][5] * x3 - lu[1][3] * x4 - lu[1][4] * x5;
+    let x0 = y0 - lu[0][5] * x3 - lu[0][4] * x5;
     b[0] = x0;
     b[1] = x1;
     b[2] = x2;

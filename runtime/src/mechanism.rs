@@ -45,10 +45,12 @@ pub trait Mechanism<const N: usize> {
     /// ([`lu`](crate::lu)).
     const PIVOT_ORDERS: usize = 0;
 
-    /// Writes Φ(q, t) into `phi` and the structurally non-zero entries of Φ_q(q, t) into `jac`,
-    /// leaving the other entries of `jac` as they were.
+    /// Writes Φ(q, t) into `phi` and the entries of Φ_q(q, t) that
+    /// [`Mechanism::factor_structured`] reads into `jac`, leaving the other entries of `jac` as
+    /// they were.
     ///
-    /// This is what [`Mechanism::factor_structured`] reads; the solvers call it instead of
+    /// Generated code writes the entries that depend on q or t: its factorisations know the
+    /// constant ones. The solvers call it instead of
     /// [`Mechanism::residual_jacobian`] when [`Mechanism::PIVOT_ORDERS`] is not 0, and call
     /// [`Mechanism::jacobian`] again before falling back to dense LU.
     /// The default calls [`Mechanism::residual_jacobian`].

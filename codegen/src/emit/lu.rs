@@ -19,7 +19,7 @@
 
 use syn::{Expr, Ident, parse_quote};
 
-use super::{binary, ident, index, neg, paren};
+use super::{Prec, binary, ident, index, literal_signed, neg, paren};
 use crate::generic::{Analysis, Equations};
 use crate::model::Mechanism;
 use crate::symbolic::Symbolic;
@@ -79,6 +79,19 @@ pub fn structure(sys: &Symbolic) -> Vec<Vec<bool>> {
         }
     }
     s
+}
+
+/// The entries of Φ_q that depend on neither q nor t, with their values.
+#[must_use]
+pub fn constants(sys: &Symbolic) -> Vec<Vec<Option<f64>>> {
+    let n = sys.unknowns.len();
+    let mut c = vec![vec![None; n]; n];
+    for (i, row) in sys.jac.iter().enumerate() {
+        for &(j, e) in row {
+            c[i][j] = sys.pool.as_const(e);
+        }
+    }
+    c
 }
 
 /// Φ_q at (q, t) as a dense matrix.
@@ -230,7 +243,8 @@ fn entry(array: &str, r: usize, c: usize) -> Expr {
     parse_quote!(#a[#r][#c])
 }
 
-/// The local holding entry (k, l) of L or U in step coordinates.
+/// The local holding entry (k, l) of L or U in step coordinates (the reciprocal of the pivot on
+/// the diagonal).
 fn local(k: usize, l: usize) -> Ident {
     if k == l {
         ident(&format!("d{k}"))
@@ -241,35 +255,109 @@ fn local(k: usize, l: usize) -> Ident {
     }
 }
 
-fn var(name: &Ident) -> Expr {
-    parse_quote!(#name)
+/// A value in the factorisation: known when the code is generated (the constant entries of
+/// Φ_q, and what is computed from constants only), or computed at run time.
+///
+/// Folding follows IEEE arithmetic exactly: constants are combined with the same operations
+/// in the same order as the run time would, and only multiplications by ±1, negations of
+/// negations and subtractions of negations (all exact) are rewritten.
+#[derive(Clone)]
+enum Val {
+    Const(f64),
+    Run(Expr, Prec),
 }
 
-/// `start − Σ l[k][m] u[m][l]` over the m < min(k, l) where both are structural non-zeros, in
-/// ascending m (the order in which right-looking elimination applies the updates).
-fn eliminated(order: &Order, k: usize, l: usize, original: bool) -> Expr {
-    let below = k.min(l);
-    let terms: Vec<Expr> = order.pattern[k]
-        .iter()
-        .copied()
-        .filter(|&m| m < below && order.pattern[m].contains(&l))
-        .map(|m| {
-            let (lk, um) = (local(k, m), local(m, l));
-            parse_quote!(#lk * #um)
-        })
-        .collect();
-    let mut terms = terms.into_iter();
-    let mut e = if original {
-        entry("jac", order.rows[k], order.cols[l])
-    } else {
-        // A fill-in entry starts at 0 and 0 − x = −x exactly.
-        let first = terms.next().expect("fill-in has an update");
-        neg(paren(first))
-    };
-    for t in terms {
-        e = binary(e, syn::BinOp::Sub(Default::default()), t);
+impl Val {
+    fn expr(&self, at_least: Prec) -> Expr {
+        let (e, p) = match self {
+            Val::Const(c) if *c < 0.0 => (literal_signed(*c), Prec::Unary),
+            Val::Const(c) => (literal_signed(*c), Prec::Atom),
+            Val::Run(e, p) => (e.clone(), *p),
+        };
+        if p >= at_least { e } else { paren(e) }
     }
-    e
+
+    fn negated(&self) -> Val {
+        match self {
+            Val::Const(c) => Val::Const(-c),
+            Val::Run(Expr::Unary(u), _) if matches!(u.op, syn::UnOp::Neg(_)) => {
+                let inner = (*u.expr).clone();
+                // The operand was printed at unary strength at least.
+                let p = if matches!(inner, Expr::Binary(_) | Expr::Paren(_)) {
+                    Prec::Atom
+                } else {
+                    Prec::Unary
+                };
+                Val::Run(inner, p)
+            }
+            Val::Run(..) => Val::Run(neg(self.expr(Prec::Unary)), Prec::Unary),
+        }
+    }
+
+    fn is_negation(&self) -> bool {
+        matches!(self, Val::Run(Expr::Unary(u), _) if matches!(u.op, syn::UnOp::Neg(_)))
+    }
+
+    fn mul(&self, other: &Val) -> Val {
+        match (self, other) {
+            (Val::Const(a), Val::Const(b)) => Val::Const(a * b),
+            (Val::Const(c), v) | (v, Val::Const(c)) if *c == 1.0 => v.clone(),
+            (Val::Const(c), v) | (v, Val::Const(c)) if *c == -1.0 => v.negated(),
+            (a, b) => Val::Run(
+                binary(
+                    a.expr(Prec::Product),
+                    syn::BinOp::Mul(Default::default()),
+                    b.expr(Prec::Unary),
+                ),
+                Prec::Product,
+            ),
+        }
+    }
+
+    fn div(&self, other: &Val) -> Val {
+        match (self, other) {
+            (Val::Const(a), Val::Const(b)) => Val::Const(a / b),
+            (a, b) => Val::Run(
+                binary(
+                    a.expr(Prec::Product),
+                    syn::BinOp::Div(Default::default()),
+                    b.expr(Prec::Unary),
+                ),
+                Prec::Product,
+            ),
+        }
+    }
+
+    fn sub(&self, other: &Val) -> Val {
+        match (self, other) {
+            (Val::Const(a), Val::Const(b)) => Val::Const(a - b),
+            (a, b) if b.is_negation() => {
+                let b = b.negated();
+                Val::Run(
+                    binary(
+                        a.expr(Prec::Sum),
+                        syn::BinOp::Add(Default::default()),
+                        b.expr(Prec::Product),
+                    ),
+                    Prec::Sum,
+                )
+            }
+            (a, b) => Val::Run(
+                binary(
+                    a.expr(Prec::Sum),
+                    syn::BinOp::Sub(Default::default()),
+                    b.expr(Prec::Product),
+                ),
+                Prec::Sum,
+            ),
+        }
+    }
+}
+
+/// What the emitted factor does with entry (k, l) of L or U.
+struct Factored {
+    /// The value of every entry of the pattern, by step coordinates.
+    vals: Vec<Vec<Option<Val>>>,
 }
 
 /// The straight-line factor and solve functions of one order.
@@ -281,77 +369,161 @@ pub struct Emitted {
 }
 
 /// Emits `factor_{which}` and `solve_{which}` for `order` (of at least one step) of the
-/// Jacobian with structure `s`.
+/// Jacobian with structure `s`, where `constant[i][j]` is the value of entry (i, j) when it does
+/// not depend on q or t.
+///
+/// # Panics
+///
+/// When a constant pivot is zero or a constant multiplier exceeds the run-time bound: an order
+/// chosen by [`choose`] at any configuration never has one.
 #[must_use]
-pub fn emit(order: &Order, s: &[Vec<bool>], which: usize) -> Emitted {
+pub fn emit(
+    order: &Order,
+    s: &[Vec<bool>],
+    constant: &[Vec<Option<f64>>],
+    which: usize,
+) -> Emitted {
     let n = order.rows.len();
-    let original = |k: usize, l: usize| s[order.rows[k]][order.cols[l]];
+    let original = |k: usize, l: usize| -> Option<Val> {
+        let (r, c) = (order.rows[k], order.cols[l]);
+        s[r][c].then(|| match constant[r][c] {
+            Some(v) => Val::Const(v),
+            None => Val::Run(entry("jac", r, c), Prec::Atom),
+        })
+    };
+    let mut f = Factored { vals: vec![vec![None; n]; n] };
     let mut stmts: Vec<syn::Stmt> = Vec::new();
-    let mut pivots: Vec<Expr> = Vec::new();
-    let mut flops = 0usize;
+    let mut pivots: Vec<Val> = Vec::new();
     let mut fill = 0usize;
-    let count = |order: &Order, k: usize, l: usize| {
-        order.pattern[k].iter().filter(|&&m| m < k.min(l) && order.pattern[m].contains(&l)).count()
+    // a_kl − Σ_m l_km u_ml over the m < min(k, l) where both are non-zero, in ascending m (the
+    // order in which right-looking elimination applies the updates).
+    // Entries whose value is that of Φ_q at the same place: `jac` holds them already.
+    let mut kept = vec![vec![false; n]; n];
+    let mut eliminated = |f: &Factored, kept: &mut Vec<Vec<bool>>, k: usize, l: usize| -> Val {
+        let mut acc = original(k, l);
+        fill += usize::from(acc.is_none());
+        kept[k][l] = true;
+        for &m in order.pattern[k].iter().filter(|&&m| m < k.min(l)) {
+            let (Some(lkm), Some(uml)) = (&f.vals[k][m], &f.vals[m][l]) else { continue };
+            let term = lkm.mul(uml);
+            kept[k][l] = false;
+            acc = Some(match acc {
+                // A fill-in entry starts at 0, and 0 − x = −x exactly.
+                None => term.negated(),
+                Some(a) => a.sub(&term),
+            });
+        }
+        acc.expect("an entry of the pattern is original or filled")
+    };
+    let bind = |stmts: &mut Vec<syn::Stmt>, name: Ident, v: Val| -> Val {
+        match v {
+            Val::Const(_) => v,
+            Val::Run(..) => {
+                let e = v.expr(Prec::Sum);
+                stmts.push(parse_quote!(let #name = #e;));
+                Val::Run(parse_quote!(#name), Prec::Atom)
+            }
+        }
     };
     for k in 0..n {
         // Row k of U (right of the pivot), then the pivot, then column k of L: every entry
         // read has been computed at an earlier step.
         for &l in order.pattern[k].iter().filter(|&&l| l > k) {
-            let name = local(k, l);
-            let e = eliminated(order, k, l, original(k, l));
-            flops += 2 * count(order, k, l);
-            fill += usize::from(!original(k, l));
-            stmts.push(parse_quote!(let #name = #e;));
+            let v = eliminated(&f, &mut kept, k, l);
+            // An entry read unchanged is read where it is used (and not stored).
+            let v = if kept[k][l] { v } else { bind(&mut stmts, local(k, l), v) };
+            f.vals[k][l] = Some(v);
         }
-        let p = ident(&format!("p{k}"));
-        let d = local(k, k);
-        let e = eliminated(order, k, k, original(k, k));
-        flops += 2 * count(order, k, k) + 1;
-        fill += usize::from(!original(k, k));
-        stmts.push(parse_quote!(let #p = #e;));
-        stmts.push(parse_quote!(let #d = 1.0 / #p;));
-        pivots.push(var(&p));
-        let mut checks: Vec<Expr> = vec![parse_quote!(#p.is_finite())];
-        for i in (k + 1..n).filter(|&i| order.pattern[i].contains(&k)) {
-            let name = local(i, k);
-            let e = eliminated(order, i, k, original(i, k));
-            flops += 2 * count(order, i, k) + 1;
-            fill += usize::from(!original(i, k));
-            let e = if matches!(e, Expr::Binary(_)) { paren(e) } else { e };
-            stmts.push(parse_quote!(let #name = #e * #d;));
-            checks.push(parse_quote!(#name.abs() <= runtime::lu::MAX_MULTIPLIER));
-        }
-        let ok = checks
-            .into_iter()
-            .reduce(|a, b| binary(a, syn::BinOp::And(Default::default()), b))
-            .expect("the pivot is checked");
-        stmts.push(parse_quote! {
-            if !(#ok) {
-                return None;
+        let p = eliminated(&f, &mut kept, k, k);
+        // The diagonal holds the reciprocal of the pivot.
+        kept[k][k] = false;
+        let mut checks: Vec<Expr> = Vec::new();
+        let d = match &p {
+            Val::Const(c) => {
+                assert!(c.is_finite() && *c != 0.0, "constant pivot {c} in order {which}");
+                pivots.push(p.clone());
+                Val::Const(1.0 / c)
             }
-        });
+            Val::Run(..) => {
+                let pn = ident(&format!("p{k}"));
+                let pivot = bind(&mut stmts, pn.clone(), p.clone());
+                checks.push(parse_quote!(#pn.is_finite()));
+                pivots.push(pivot.clone());
+                bind(&mut stmts, local(k, k), Val::Const(1.0).div(&pivot))
+            }
+        };
+        f.vals[k][k] = Some(d.clone());
+        for i in (k + 1..n).filter(|&i| order.pattern[i].contains(&k)) {
+            let v = eliminated(&f, &mut kept, i, k);
+            kept[i][k] &= matches!(d, Val::Const(c) if c == 1.0);
+            let v = v.mul(&d);
+            let v = if kept[i][k] { v } else { bind(&mut stmts, local(i, k), v) };
+            match &v {
+                Val::Const(c) => assert!(
+                    c.abs() <= RUNTIME_MAX_MULTIPLIER,
+                    "constant multiplier {c} in order {which}"
+                ),
+                Val::Run(e, _) => {
+                    checks.push(parse_quote!(#e.abs() <= runtime::lu::MAX_MULTIPLIER))
+                }
+            }
+            f.vals[i][k] = Some(v);
+        }
+        if let Some(ok) =
+            checks.into_iter().reduce(|a, b| binary(a, syn::BinOp::And(Default::default()), b))
+        {
+            let ok = if matches!(ok, Expr::Binary(_)) { paren(ok) } else { ok };
+            stmts.push(parse_quote! {
+                if !#ok {
+                    return None;
+                }
+            });
+        }
     }
-    let fold = |method: &str| -> Expr {
+    // The extremes of |pivot|: the constant ones folded into one literal.
+    let fold = |method: &str, pick: fn(f64, f64) -> f64| -> Expr {
         let m = ident(method);
-        let mut it = pivots.iter().map(|p| -> Expr { parse_quote!(#p.abs()) });
+        let known = pivots
+            .iter()
+            .filter_map(|p| if let Val::Const(c) = p { Some(c.abs()) } else { None })
+            .reduce(pick);
+        let mut terms: Vec<Expr> = pivots
+            .iter()
+            .filter_map(
+                |p| if let Val::Run(e, _) = p { Some(parse_quote!(#e.abs())) } else { None },
+            )
+            .collect();
+        // Last, so that a literal never receives the method call (its type would be ambiguous).
+        if let Some(c) = known {
+            terms.push(literal_signed(c));
+        }
+        let mut it = terms.into_iter();
         let first = it.next().expect("at least one step");
         it.fold(first, |acc, x| parse_quote!(#acc.#m(#x)))
     };
-    let (smallest, largest) = (fold("min"), fold("max"));
+    let (smallest, largest) = (fold("min", f64::min), fold("max", f64::max));
+    let mut stored = 0usize;
     let stores: Vec<syn::Stmt> = (0..n)
         .flat_map(|k| order.pattern[k].iter().map(move |&l| (k, l)))
+        .filter(|&(k, l)| matches!(f.vals[k][l], Some(Val::Run(..))) && !kept[k][l])
         .map(|(k, l)| {
+            stored += 1;
             let target = entry("jac", order.rows[k], order.cols[l]);
             let v = local(k, l);
             parse_quote!(#target = #v;)
         })
         .collect();
     let name = ident(&format!("factor_{which}"));
+    let ops = operations(&stmts);
     let nnz = order.entries();
+    let run_time = f.vals.iter().flatten().filter(|v| matches!(v, Some(Val::Run(..)))).count();
+    let known = nnz - run_time;
     let rows = list(&order.rows);
     let cols = list(&order.cols);
     let doc = format!(
-        " Factors Φ_q in place with static pivot order {which}: step k pivots on row `[{rows}][k]` and column `[{cols}][k]`.\n\n L and U have {nnz} entries ({fill} of them fill-in); {flops} operations. The reciprocals of the pivots are stored on the diagonal.\n\n Returns the smallest and largest |pivot|, or `None` (with `jac` unchanged) when a pivot is not finite or a multiplier exceeds [`runtime::lu::MAX_MULTIPLIER`] in magnitude."
+        " Factors Φ_q in place with static pivot order {which}: step k pivots on row `[{rows}][k]` and column `[{cols}][k]`.\n\n L and U have {nnz} entries ({fill} of them fill-in, {} known when generated); {ops} operations. The others are in `jac`: {stored} stored there, with the reciprocals of the pivots on the diagonal, and {} left as Φ_q had them.\n\n Returns the smallest and largest |pivot|, or `None` (with `jac` unchanged) when a pivot is not finite or a multiplier exceeds [`runtime::lu::MAX_MULTIPLIER`] in magnitude.",
+        known,
+        run_time - stored
     );
     let factor: syn::Item = parse_quote! {
         #[doc = #doc]
@@ -363,40 +535,37 @@ pub fn emit(order: &Order, s: &[Vec<bool>], which: usize) -> Emitted {
         }
     };
 
-    // Solve: y = L⁻¹ P b, then x = Q U⁻¹ y.
-    let mut stmts: Vec<syn::Stmt> = Vec::new();
-    let mut ops = 0usize;
-    for k in 0..n {
-        let y = ident(&format!("y{k}"));
-        let r = index(order.rows[k]);
-        let mut e: Expr = parse_quote!(b[#r]);
-        for &l in order.pattern[k].iter().filter(|&&l| l < k) {
-            let yl = ident(&format!("y{l}"));
-            let lkl = entry("lu", order.rows[k], order.cols[l]);
-            e = binary(e, syn::BinOp::Sub(Default::default()), parse_quote!(#lkl * #yl));
-            ops += 2;
+    // Solve: y = L⁻¹ P b, then x = Q U⁻¹ y, with the factors known when generated as literals.
+    let stored_val = |k: usize, l: usize| -> Val {
+        match f.vals[k][l].as_ref().expect("in the pattern") {
+            Val::Const(c) => Val::Const(*c),
+            Val::Run(..) => Val::Run(entry("lu", order.rows[k], order.cols[l]), Prec::Atom),
         }
+    };
+    let mut stmts: Vec<syn::Stmt> = Vec::new();
+    let named = |prefix: &str, k: usize| {
+        let name = ident(&format!("{prefix}{k}"));
+        Val::Run(parse_quote!(#name), Prec::Atom)
+    };
+    for k in 0..n {
+        let r = index(order.rows[k]);
+        let mut v = Val::Run(parse_quote!(b[#r]), Prec::Atom);
+        for &l in order.pattern[k].iter().filter(|&&l| l < k) {
+            v = v.sub(&stored_val(k, l).mul(&named("y", l)));
+        }
+        let y = ident(&format!("y{k}"));
+        let e = v.expr(Prec::Sum);
         stmts.push(parse_quote!(let #y = #e;));
     }
     for k in (0..n).rev() {
+        let mut v = named("y", k);
+        for &l in order.pattern[k].iter().filter(|&&l| l > k) {
+            v = v.sub(&stored_val(k, l).mul(&named("x", l)));
+        }
+        let v = v.mul(&stored_val(k, k));
         let x = ident(&format!("x{k}"));
-        let mut e: Expr = {
-            let y = ident(&format!("y{k}"));
-            parse_quote!(#y)
-        };
-        let uppers: Vec<usize> = order.pattern[k].iter().copied().filter(|&l| l > k).collect();
-        for &l in &uppers {
-            let xl = ident(&format!("x{l}"));
-            let ukl = entry("lu", order.rows[k], order.cols[l]);
-            e = binary(e, syn::BinOp::Sub(Default::default()), parse_quote!(#ukl * #xl));
-            ops += 2;
-        }
-        if !uppers.is_empty() {
-            e = paren(e);
-        }
-        let d = entry("lu", order.rows[k], order.cols[k]);
-        ops += 1;
-        stmts.push(parse_quote!(let #x = #e * #d;));
+        let e = v.expr(Prec::Sum);
+        stmts.push(parse_quote!(let #x = #e;));
     }
     for k in 0..n {
         let x = ident(&format!("x{k}"));
@@ -404,6 +573,7 @@ pub fn emit(order: &Order, s: &[Vec<bool>], which: usize) -> Emitted {
         stmts.push(parse_quote!(b[#c] = #x;));
     }
     let name = ident(&format!("solve_{which}"));
+    let ops = operations(&stmts);
     let doc = format!(
         " Solves Φ_q x = b in place with the factors [`factor_{which}`] left in `lu`.\n\n {ops} operations."
     );
@@ -414,6 +584,34 @@ pub fn emit(order: &Order, s: &[Vec<bool>], which: usize) -> Emitted {
         }
     };
     Emitted { factor, solve }
+}
+
+/// The arithmetic operations (+, −, ×, ÷ and negation) in the `let` statements of `stmts`.
+fn operations(stmts: &[syn::Stmt]) -> usize {
+    fn count(e: &Expr) -> usize {
+        match e {
+            Expr::Binary(b) => {
+                let arithmetic = matches!(
+                    b.op,
+                    syn::BinOp::Add(_)
+                        | syn::BinOp::Sub(_)
+                        | syn::BinOp::Mul(_)
+                        | syn::BinOp::Div(_)
+                );
+                usize::from(arithmetic) + count(&b.left) + count(&b.right)
+            }
+            Expr::Unary(u) => usize::from(matches!(u.op, syn::UnOp::Neg(_))) + count(&u.expr),
+            Expr::Paren(p) => count(&p.expr),
+            _ => 0,
+        }
+    }
+    stmts
+        .iter()
+        .filter_map(|s| match s {
+            syn::Stmt::Local(l) => l.init.as_ref().map(|i| count(&i.expr)),
+            _ => None,
+        })
+        .sum()
 }
 
 fn list(v: &[usize]) -> String {
