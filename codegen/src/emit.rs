@@ -140,6 +140,24 @@ impl<'p> Body<'p> {
                 stack.push(c);
             }
         }
+        // sin a and cos a both needed: one `runtime::math::sin_cos(a)` gives both, with one
+        // argument reduction (and the same bits as `sin` and `cos`).
+        let mut trig: std::collections::BTreeMap<ExprId, [Option<usize>; 2]> =
+            std::collections::BTreeMap::new();
+        for k in (0..last).filter(|&k| live[k]) {
+            match pool.nodes()[k] {
+                Node::Sin(a) => trig.entry(a).or_default()[0] = Some(k),
+                Node::Cos(a) => trig.entry(a).or_default()[1] = Some(k),
+                _ => {}
+            }
+        }
+        let mut pair: Vec<Option<(ExprId, usize, usize)>> = vec![None; last];
+        for (&a, &[s, c]) in &trig {
+            if let (Some(s), Some(c)) = (s, c) {
+                pair[s] = Some((a, s, c));
+                pair[c] = Some((a, s, c));
+            }
+        }
         let mut body = Self { pool, temp: vec![None; last], stmts: Vec::new(), ops: 0 };
         let mut count = 0;
         for k in 0..last {
@@ -150,7 +168,16 @@ impl<'p> Body<'p> {
             if !leaf {
                 body.ops += 1;
             }
-            if !leaf && uses[k] >= 2 {
+            if let Some((a, s, c)) = pair[k] {
+                if body.temp[k].is_none() {
+                    let (arg, _) = body.render(a);
+                    let (sin, cos) = (ident(&format!("t{count}")), ident(&format!("t{}", count + 1)));
+                    count += 2;
+                    body.stmts.push(parse_quote!(let (#sin, #cos) = runtime::math::sin_cos(#arg);));
+                    body.temp[s] = Some(sin);
+                    body.temp[c] = Some(cos);
+                }
+            } else if !leaf && uses[k] >= 2 {
                 let (e, _) = body.render(ExprId::from_index(k));
                 let name = ident(&format!("t{count}"));
                 count += 1;

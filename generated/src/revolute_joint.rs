@@ -54,7 +54,7 @@ pub const Q0: [f64; N] = [0.0, 1.0, 0.0, 1.0, 0.0, 0.0, 0.0];
 
 /** Constraint residuals Φ(q, t), 7 rows.
 
- 43 operations, 7 shared subexpressions.*/
+ 43 operations, 9 shared subexpressions.*/
 pub fn residual(q: &[f64; N], t: f64, phi: &mut [f64; N]) {
     let [q0, q1, q2, q3, q4, q5, q6] = *q;
     let t0 = q3 * q3;
@@ -64,62 +64,64 @@ pub fn residual(q: &[f64; N], t: f64, phi: &mut [f64; N]) {
     let t4 = q4 * q5;
     let t5 = q3 * q6;
     let t6 = f64::from_bits(4602890488355133325) * t;
+    let (t7, t8) = runtime::math::sin_cos(t6);
     phi[0] = q0 - 2.0 * (t4 - t5);
     phi[1] = q1 - (t0 + t2 - (t1 + t3));
     phi[2] = q2 - 2.0 * (q5 * q6 + q3 * q4);
     phi[3] = -(2.0 * (t4 + t5));
     phi[4] = -(2.0 * (q4 * q6 - q3 * q5));
-    phi[5] = q4 * runtime::math::cos(t6) - q3 * runtime::math::sin(t6);
+    phi[5] = q4 * t8 - q3 * t7;
     phi[6] = t3 + (t2 + (t0 + t1)) - 1.0;
 }
 
 /** Jacobian Φ_q, row-major: `jac[i][j] = ∂Φ_i/∂q_j`; the 29 structurally non-zero entries are written, the others set to 0.
 
- 18 operations, 12 shared subexpressions.*/
+ 18 operations, 14 shared subexpressions.*/
 pub fn jacobian(q: &[f64; N], t: f64, jac: &mut [[f64; N]; N]) {
     *jac = [[0.0; N]; N];
     let [_q0, _q1, _q2, q3, q4, q5, q6] = *q;
     let t0 = f64::from_bits(4602890488355133325) * t;
-    let t1 = 2.0 * q6;
-    let t2 = -t1;
-    let t3 = 2.0 * q5;
+    let (t1, t2) = runtime::math::sin_cos(t0);
+    let t3 = 2.0 * q6;
     let t4 = -t3;
-    let t5 = -(2.0 * q4);
-    let t6 = 2.0 * q3;
-    let t7 = -t6;
-    let t8 = q3 + q3;
-    let t9 = q4 + q4;
-    let t10 = q5 + q5;
-    let t11 = q6 + q6;
+    let t5 = 2.0 * q5;
+    let t6 = -t5;
+    let t7 = -(2.0 * q4);
+    let t8 = 2.0 * q3;
+    let t9 = -t8;
+    let t10 = q3 + q3;
+    let t11 = q4 + q4;
+    let t12 = q5 + q5;
+    let t13 = q6 + q6;
     jac[0][0] = 1.0;
-    jac[0][3] = t1;
-    jac[0][4] = t4;
-    jac[0][5] = t5;
-    jac[0][6] = t6;
+    jac[0][3] = t3;
+    jac[0][4] = t6;
+    jac[0][5] = t7;
+    jac[0][6] = t8;
     jac[1][1] = 1.0;
-    jac[1][3] = -t8;
-    jac[1][4] = t9;
-    jac[1][5] = -t10;
-    jac[1][6] = t11;
+    jac[1][3] = -t10;
+    jac[1][4] = t11;
+    jac[1][5] = -t12;
+    jac[1][6] = t13;
     jac[2][2] = 1.0;
-    jac[2][3] = t5;
-    jac[2][4] = t7;
-    jac[2][5] = t2;
-    jac[2][6] = t4;
-    jac[3][3] = t2;
-    jac[3][4] = t4;
-    jac[3][5] = t5;
-    jac[3][6] = t7;
-    jac[4][3] = t3;
-    jac[4][4] = t2;
-    jac[4][5] = t6;
-    jac[4][6] = t5;
-    jac[5][3] = -runtime::math::sin(t0);
-    jac[5][4] = runtime::math::cos(t0);
-    jac[6][3] = t8;
-    jac[6][4] = t9;
-    jac[6][5] = t10;
-    jac[6][6] = t11;
+    jac[2][3] = t7;
+    jac[2][4] = t9;
+    jac[2][5] = t4;
+    jac[2][6] = t6;
+    jac[3][3] = t4;
+    jac[3][4] = t6;
+    jac[3][5] = t7;
+    jac[3][6] = t9;
+    jac[4][3] = t5;
+    jac[4][4] = t4;
+    jac[4][5] = t8;
+    jac[4][6] = t7;
+    jac[5][3] = -t1;
+    jac[5][4] = t2;
+    jac[6][3] = t10;
+    jac[6][4] = t11;
+    jac[6][5] = t12;
+    jac[6][6] = t13;
 }
 
 /** Φ and Φ_q at once (see [`residual`] and [`jacobian`]).
@@ -140,8 +142,7 @@ pub fn residual_jacobian(
     let t4 = q4 * q5;
     let t5 = q3 * q6;
     let t6 = f64::from_bits(4602890488355133325) * t;
-    let t7 = runtime::math::sin(t6);
-    let t8 = runtime::math::cos(t6);
+    let (t7, t8) = runtime::math::sin_cos(t6);
     let t9 = 2.0 * q6;
     let t10 = -t9;
     let t11 = 2.0 * q5;
@@ -208,8 +209,7 @@ pub fn residual_jacobian_structural(
     let t4 = q4 * q5;
     let t5 = q3 * q6;
     let t6 = f64::from_bits(4602890488355133325) * t;
-    let t7 = runtime::math::sin(t6);
-    let t8 = runtime::math::cos(t6);
+    let (t7, t8) = runtime::math::sin_cos(t6);
     let t9 = 2.0 * q6;
     let t10 = -t9;
     let t11 = 2.0 * q5;
@@ -424,17 +424,18 @@ pub fn solve_1(lu: &[[f64; N]; N], b: &mut [f64; N]) {
 
 /** Velocity right-hand side ν = −Φ_t.
 
- 11 operations, 1 shared subexpressions.*/
+ 11 operations, 3 shared subexpressions.*/
 pub fn velocity_rhs(q: &[f64; N], t: f64, nu: &mut [f64; N]) {
     let [_q0, _q1, _q2, q3, q4, _q5, _q6] = *q;
     let t0 = f64::from_bits(4602890488355133325) * t;
+    let (t1, t2) = runtime::math::sin_cos(t0);
     nu[0] = 0.0;
     nu[1] = 0.0;
     nu[2] = 0.0;
     nu[3] = 0.0;
     nu[4] = 0.0;
-    nu[5] = -(-(q4 * (f64::from_bits(4602890488355133325) * runtime::math::sin(t0)))
-        - q3 * (f64::from_bits(4602890488355133325) * runtime::math::cos(t0)));
+    nu[5] = -(-(q4 * (f64::from_bits(4602890488355133325) * t1))
+        - q3 * (f64::from_bits(4602890488355133325) * t2));
     nu[6] = 0.0;
 }
 
@@ -445,8 +446,7 @@ pub fn acceleration_rhs(q: &[f64; N], qd: &[f64; N], t: f64, gamma: &mut [f64; N
     let [_q0, _q1, _q2, q3, q4, _q5, _q6] = *q;
     let [_qd0, _qd1, _qd2, qd3, qd4, qd5, qd6] = *qd;
     let t0 = f64::from_bits(4602890488355133325) * t;
-    let t1 = runtime::math::sin(t0);
-    let t2 = runtime::math::cos(t0);
+    let (t1, t2) = runtime::math::sin_cos(t0);
     let t3 = qd4 * qd5;
     let t4 = t3 + t3;
     let t5 = qd3 * qd6;

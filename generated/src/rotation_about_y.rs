@@ -38,23 +38,25 @@ pub const Q0: [f64; N] = [1.0, 0.0];
 
 /** Constraint residuals Φ(q, t), 2 rows.
 
- 11 operations, 1 shared subexpressions.*/
+ 11 operations, 3 shared subexpressions.*/
 pub fn residual(q: &[f64; N], t: f64, phi: &mut [f64; N]) {
     let [q0, q1] = *q;
     let t0 = f64::from_bits(4602890488355133325) * t;
-    phi[0] = q1 * runtime::math::cos(t0) - runtime::math::sin(t0) * q0;
+    let (t1, t2) = runtime::math::sin_cos(t0);
+    phi[0] = q1 * t2 - t1 * q0;
     phi[1] = q0 * q0 + q1 * q1 - 1.0;
 }
 
 /** Jacobian Φ_q, row-major: `jac[i][j] = ∂Φ_i/∂q_j`; the 4 structurally non-zero entries are written, the others set to 0.
 
- 6 operations, 1 shared subexpressions.*/
+ 6 operations, 3 shared subexpressions.*/
 pub fn jacobian(q: &[f64; N], t: f64, jac: &mut [[f64; N]; N]) {
     *jac = [[0.0; N]; N];
     let [q0, q1] = *q;
     let t0 = f64::from_bits(4602890488355133325) * t;
-    jac[0][0] = -runtime::math::sin(t0);
-    jac[0][1] = runtime::math::cos(t0);
+    let (t1, t2) = runtime::math::sin_cos(t0);
+    jac[0][0] = -t1;
+    jac[0][1] = t2;
     jac[1][0] = q0 + q0;
     jac[1][1] = q1 + q1;
 }
@@ -71,8 +73,7 @@ pub fn residual_jacobian(
     *jac = [[0.0; N]; N];
     let [q0, q1] = *q;
     let t0 = f64::from_bits(4602890488355133325) * t;
-    let t1 = runtime::math::sin(t0);
-    let t2 = runtime::math::cos(t0);
+    let (t1, t2) = runtime::math::sin_cos(t0);
     phi[0] = q1 * t2 - t1 * q0;
     phi[1] = q0 * q0 + q1 * q1 - 1.0;
     jac[0][0] = -t1;
@@ -92,8 +93,7 @@ pub fn residual_jacobian_structural(
 ) {
     let [q0, q1] = *q;
     let t0 = f64::from_bits(4602890488355133325) * t;
-    let t1 = runtime::math::sin(t0);
-    let t2 = runtime::math::cos(t0);
+    let (t1, t2) = runtime::math::sin_cos(t0);
     phi[0] = q1 * t2 - t1 * q0;
     phi[1] = q0 * q0 + q1 * q1 - 1.0;
     jac[0][0] = -t1;
@@ -182,12 +182,13 @@ pub fn solve_1(lu: &[[f64; N]; N], b: &mut [f64; N]) {
 
 /** Velocity right-hand side ν = −Φ_t.
 
- 11 operations, 1 shared subexpressions.*/
+ 11 operations, 3 shared subexpressions.*/
 pub fn velocity_rhs(q: &[f64; N], t: f64, nu: &mut [f64; N]) {
     let [q0, q1] = *q;
     let t0 = f64::from_bits(4602890488355133325) * t;
-    nu[0] = -(-(q1 * (f64::from_bits(4602890488355133325) * runtime::math::sin(t0)))
-        - q0 * (f64::from_bits(4602890488355133325) * runtime::math::cos(t0)));
+    let (t1, t2) = runtime::math::sin_cos(t0);
+    nu[0] = -(-(q1 * (f64::from_bits(4602890488355133325) * t1))
+        - q0 * (f64::from_bits(4602890488355133325) * t2));
     nu[1] = 0.0;
 }
 
@@ -198,8 +199,7 @@ pub fn acceleration_rhs(q: &[f64; N], qd: &[f64; N], t: f64, gamma: &mut [f64; N
     let [q0, q1] = *q;
     let [qd0, qd1] = *qd;
     let t0 = f64::from_bits(4602890488355133325) * t;
-    let t1 = runtime::math::sin(t0);
-    let t2 = runtime::math::cos(t0);
+    let (t1, t2) = runtime::math::sin_cos(t0);
     let t3 = f64::from_bits(4602890488355133325) * t1 * qd1;
     let t4 = f64::from_bits(4602890488355133325) * t2 * qd0;
     let t5 = qd0 * qd0;

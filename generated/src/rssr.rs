@@ -101,7 +101,7 @@ pub const Q0: [f64; N] = [
 
 /** Constraint residuals Φ(q, t), 20 rows.
 
- 141 operations, 25 shared subexpressions.*/
+ 141 operations, 27 shared subexpressions.*/
 pub fn residual(q: &[f64; N], t: f64, phi: &mut [f64; N]) {
     let [q0, q1, q2, q3, q4, q5, q6, q7, q8, q9, q10, q11, q12, q13, q14, q15, q16, q17,
     q18, q19] = *q;
@@ -130,6 +130,7 @@ pub fn residual(q: &[f64; N], t: f64, phi: &mut [f64; N]) {
     let t22 = q18 * q19;
     let t23 = q16 * q17;
     let t24 = 73.3 * t;
+    let (t25, t26) = runtime::math::sin_cos(t24);
     phi[0] = q7 - (0.13134 * t4 + 0.2 * (q4 * q6 + q3 * q5) + q0);
     phi[1] = q8 - (0.06567 * (t0 + t2 - (t1 + t3)) + 0.2 * (t5 - t6) + q1);
     phi[2] = q9 - (0.13134 * t7 + 0.1 * (t0 + t3 - (t1 + t2)) + q2);
@@ -151,7 +152,7 @@ pub fn residual(q: &[f64; N], t: f64, phi: &mut [f64; N]) {
     phi[13] = -q15;
     phi[14] = -(2.0 * t18);
     phi[15] = -(2.0 * t21);
-    phi[16] = q5 * runtime::math::cos(t24) - q3 * runtime::math::sin(t24);
+    phi[16] = q5 * t26 - q3 * t25;
     phi[17] = t3 + (t2 + (t0 + t1)) - 1.0;
     phi[18] = t10 + (t8 + t9) - 1.0;
     phi[19] = t14 + (t13 + t15) - 1.0;
@@ -159,130 +160,131 @@ pub fn residual(q: &[f64; N], t: f64, phi: &mut [f64; N]) {
 
 /** Jacobian Φ_q, row-major: `jac[i][j] = ∂Φ_i/∂q_j`; the 78 structurally non-zero entries are written, the others set to 0.
 
- 146 operations, 41 shared subexpressions.*/
+ 146 operations, 43 shared subexpressions.*/
 pub fn jacobian(q: &[f64; N], t: f64, jac: &mut [[f64; N]; N]) {
     *jac = [[0.0; N]; N];
     let [_q0, _q1, _q2, q3, q4, q5, q6, _q7, _q8, _q9, q10, q11, q12, _q13, _q14, _q15,
     q16, q17, q18, q19] = *q;
     let t0 = 73.3 * t;
-    let t1 = 0.13134 * q6;
-    let t2 = 0.2 * q5;
-    let t3 = 0.13134 * q5;
-    let t4 = 0.2 * q6;
-    let t5 = 0.13134 * q4;
-    let t6 = 0.2 * q3;
-    let t7 = 0.13134 * q3;
-    let t8 = 0.2 * q4;
-    let t9 = q3 + q3;
-    let t10 = q4 + q4;
-    let t11 = q5 + q5;
-    let t12 = q6 + q6;
-    let t13 = 0.9624 * q10;
-    let t14 = 0.2 * q18;
-    let t15 = q16 + q16;
-    let t16 = -0.03714 * q19;
-    let t17 = 0.2 * q19;
-    let t18 = q17 + q17;
-    let t19 = -0.03714 * q18;
-    let t20 = 0.2 * q16;
-    let t21 = q18 + q18;
-    let t22 = -0.03714 * q17;
-    let t23 = 0.2 * q17;
-    let t24 = q19 + q19;
-    let t25 = -0.03714 * q16;
-    let t26 = q10 + q10;
-    let t27 = q11 + q11;
-    let t28 = q12 + q12;
-    let t29 = 0.095 * q19;
-    let t30 = 0.095 * q18;
-    let t31 = 0.095 * q17;
-    let t32 = 0.095 * q16;
-    let t33 = 2.0 * q6;
-    let t34 = 2.0 * q5;
-    let t35 = 2.0 * q4;
-    let t36 = 2.0 * q3;
-    let t37 = 2.0 * q19;
-    let t38 = -(2.0 * q18);
-    let t39 = -(2.0 * q17);
-    let t40 = 2.0 * q16;
+    let (t1, t2) = runtime::math::sin_cos(t0);
+    let t3 = 0.13134 * q6;
+    let t4 = 0.2 * q5;
+    let t5 = 0.13134 * q5;
+    let t6 = 0.2 * q6;
+    let t7 = 0.13134 * q4;
+    let t8 = 0.2 * q3;
+    let t9 = 0.13134 * q3;
+    let t10 = 0.2 * q4;
+    let t11 = q3 + q3;
+    let t12 = q4 + q4;
+    let t13 = q5 + q5;
+    let t14 = q6 + q6;
+    let t15 = 0.9624 * q10;
+    let t16 = 0.2 * q18;
+    let t17 = q16 + q16;
+    let t18 = -0.03714 * q19;
+    let t19 = 0.2 * q19;
+    let t20 = q17 + q17;
+    let t21 = -0.03714 * q18;
+    let t22 = 0.2 * q16;
+    let t23 = q18 + q18;
+    let t24 = -0.03714 * q17;
+    let t25 = 0.2 * q17;
+    let t26 = q19 + q19;
+    let t27 = -0.03714 * q16;
+    let t28 = q10 + q10;
+    let t29 = q11 + q11;
+    let t30 = q12 + q12;
+    let t31 = 0.095 * q19;
+    let t32 = 0.095 * q18;
+    let t33 = 0.095 * q17;
+    let t34 = 0.095 * q16;
+    let t35 = 2.0 * q6;
+    let t36 = 2.0 * q5;
+    let t37 = 2.0 * q4;
+    let t38 = 2.0 * q3;
+    let t39 = 2.0 * q19;
+    let t40 = -(2.0 * q18);
+    let t41 = -(2.0 * q17);
+    let t42 = 2.0 * q16;
     jac[0][0] = -1.0;
-    jac[0][3] = -(t2 - t1);
-    jac[0][4] = -(t3 + t4);
-    jac[0][5] = -(t5 + t6);
-    jac[0][6] = -(t8 - t7);
+    jac[0][3] = -(t4 - t3);
+    jac[0][4] = -(t5 + t6);
+    jac[0][5] = -(t7 + t8);
+    jac[0][6] = -(t10 - t9);
     jac[0][7] = 1.0;
     jac[1][1] = -1.0;
-    jac[1][3] = -(0.06567 * t9 - t8);
-    jac[1][4] = -(-(0.06567 * t10) - t6);
-    jac[1][5] = -(t4 + 0.06567 * t11);
-    jac[1][6] = -(t2 - 0.06567 * t12);
+    jac[1][3] = -(0.06567 * t11 - t10);
+    jac[1][4] = -(-(0.06567 * t12) - t8);
+    jac[1][5] = -(t6 + 0.06567 * t13);
+    jac[1][6] = -(t4 - 0.06567 * t14);
     jac[1][8] = 1.0;
     jac[2][2] = -1.0;
-    jac[2][3] = -(t5 + 0.1 * t9);
-    jac[2][4] = -(t7 - 0.1 * t10);
-    jac[2][5] = -(t1 - 0.1 * t11);
-    jac[2][6] = -(t3 + 0.1 * t12);
+    jac[2][3] = -(t7 + 0.1 * t11);
+    jac[2][4] = -(t9 - 0.1 * t12);
+    jac[2][5] = -(t3 - 0.1 * t13);
+    jac[2][6] = -(t5 + 0.1 * t14);
     jac[2][9] = 1.0;
     jac[3][7] = -1.0;
     jac[3][10] = 0.9624 * q12;
-    jac[3][12] = t13;
+    jac[3][12] = t15;
     jac[3][13] = 1.0;
-    jac[3][16] = t14 + (0.0475 * t15 - t16);
-    jac[3][17] = t17 + (0.0475 * t18 + t19);
-    jac[3][18] = t20 + (t22 - 0.0475 * t21);
-    jac[3][19] = t23 + (-(0.0475 * t24) - t25);
+    jac[3][16] = t16 + (0.0475 * t17 - t18);
+    jac[3][17] = t19 + (0.0475 * t20 + t21);
+    jac[3][18] = t22 + (t24 - 0.0475 * t23);
+    jac[3][19] = t25 + (-(0.0475 * t26) - t27);
     jac[4][8] = -1.0;
-    jac[4][10] = -(0.4812 * t26);
-    jac[4][11] = 0.4812 * t27;
-    jac[4][12] = 0.4812 * t28;
+    jac[4][10] = -(0.4812 * t28);
+    jac[4][11] = 0.4812 * t29;
+    jac[4][12] = 0.4812 * t30;
     jac[4][14] = 1.0;
-    jac[4][16] = t29 + -0.01857 * t15 - t23;
-    jac[4][17] = t30 - -0.01857 * t18 - t20;
-    jac[4][18] = t17 + (t31 + -0.01857 * t21);
-    jac[4][19] = t14 + (t32 - -0.01857 * t24);
+    jac[4][16] = t31 + -0.01857 * t17 - t25;
+    jac[4][17] = t32 - -0.01857 * t20 - t22;
+    jac[4][18] = t19 + (t33 + -0.01857 * t23);
+    jac[4][19] = t16 + (t34 - -0.01857 * t26);
     jac[5][9] = -1.0;
     jac[5][10] = -(0.9624 * q11);
-    jac[5][11] = -t13;
+    jac[5][11] = -t15;
     jac[5][15] = 1.0;
-    jac[5][16] = 0.1 * t15 + (t22 - t30);
-    jac[5][17] = t25 + t29 - 0.1 * t18;
-    jac[5][18] = t16 - t32 - 0.1 * t21;
-    jac[5][19] = 0.1 * t24 + (t19 + t31);
+    jac[5][16] = 0.1 * t17 + (t24 - t32);
+    jac[5][17] = t27 + t31 - 0.1 * t20;
+    jac[5][18] = t18 - t34 - 0.1 * t23;
+    jac[5][19] = 0.1 * t26 + (t21 + t33);
     jac[6][0] = 1.0;
     jac[7][1] = 1.0;
     jac[8][2] = 1.0;
-    jac[9][3] = -t33;
-    jac[9][4] = t34;
-    jac[9][5] = t35;
-    jac[9][6] = -t36;
-    jac[10][3] = t35;
-    jac[10][4] = t36;
-    jac[10][5] = t33;
-    jac[10][6] = t34;
+    jac[9][3] = -t35;
+    jac[9][4] = t36;
+    jac[9][5] = t37;
+    jac[9][6] = -t38;
+    jac[10][3] = t37;
+    jac[10][4] = t38;
+    jac[10][5] = t35;
+    jac[10][6] = t36;
     jac[11][13] = -1.0;
     jac[12][14] = -1.0;
     jac[13][15] = -1.0;
-    jac[14][16] = t37;
-    jac[14][17] = t38;
-    jac[14][18] = t39;
-    jac[14][19] = t40;
-    jac[15][16] = t38;
-    jac[15][17] = -t37;
-    jac[15][18] = -t40;
-    jac[15][19] = t39;
-    jac[16][3] = -runtime::math::sin(t0);
-    jac[16][5] = runtime::math::cos(t0);
-    jac[17][3] = t9;
-    jac[17][4] = t10;
-    jac[17][5] = t11;
-    jac[17][6] = t12;
-    jac[18][10] = t26;
-    jac[18][11] = t27;
-    jac[18][12] = t28;
-    jac[19][16] = t15;
-    jac[19][17] = t18;
-    jac[19][18] = t21;
-    jac[19][19] = t24;
+    jac[14][16] = t39;
+    jac[14][17] = t40;
+    jac[14][18] = t41;
+    jac[14][19] = t42;
+    jac[15][16] = t40;
+    jac[15][17] = -t39;
+    jac[15][18] = -t42;
+    jac[15][19] = t41;
+    jac[16][3] = -t1;
+    jac[16][5] = t2;
+    jac[17][3] = t11;
+    jac[17][4] = t12;
+    jac[17][5] = t13;
+    jac[17][6] = t14;
+    jac[18][10] = t28;
+    jac[18][11] = t29;
+    jac[18][12] = t30;
+    jac[19][16] = t17;
+    jac[19][17] = t20;
+    jac[19][18] = t23;
+    jac[19][19] = t26;
 }
 
 /** Φ and Φ_q at once (see [`residual`] and [`jacobian`]).
@@ -322,8 +324,7 @@ pub fn residual_jacobian(
     let t22 = q18 * q19;
     let t23 = q16 * q17;
     let t24 = 73.3 * t;
-    let t25 = runtime::math::sin(t24);
-    let t26 = runtime::math::cos(t24);
+    let (t25, t26) = runtime::math::sin_cos(t24);
     let t27 = 0.13134 * q6;
     let t28 = 0.2 * q5;
     let t29 = 0.13134 * q5;
@@ -505,8 +506,7 @@ pub fn residual_jacobian_structural(
     let t22 = q18 * q19;
     let t23 = q16 * q17;
     let t24 = 73.3 * t;
-    let t25 = runtime::math::sin(t24);
-    let t26 = runtime::math::cos(t24);
+    let (t25, t26) = runtime::math::sin_cos(t24);
     let t27 = 0.13134 * q6;
     let t28 = 0.2 * q5;
     let t29 = 0.13134 * q5;
@@ -1206,11 +1206,12 @@ pub fn solve_1(lu: &[[f64; N]; N], b: &mut [f64; N]) {
 
 /** Velocity right-hand side ν = −Φ_t.
 
- 11 operations, 1 shared subexpressions.*/
+ 11 operations, 3 shared subexpressions.*/
 pub fn velocity_rhs(q: &[f64; N], t: f64, nu: &mut [f64; N]) {
     let [_q0, _q1, _q2, q3, _q4, q5, _q6, _q7, _q8, _q9, _q10, _q11, _q12, _q13, _q14,
     _q15, _q16, _q17, _q18, _q19] = *q;
     let t0 = 73.3 * t;
+    let (t1, t2) = runtime::math::sin_cos(t0);
     nu[0] = 0.0;
     nu[1] = 0.0;
     nu[2] = 0.0;
@@ -1227,8 +1228,7 @@ pub fn velocity_rhs(q: &[f64; N], t: f64, nu: &mut [f64; N]) {
     nu[13] = 0.0;
     nu[14] = 0.0;
     nu[15] = 0.0;
-    nu[16] = -(-(q5 * (73.3 * runtime::math::sin(t0)))
-        - q3 * (73.3 * runtime::math::cos(t0)));
+    nu[16] = -(-(q5 * (73.3 * t1)) - q3 * (73.3 * t2));
     nu[17] = 0.0;
     nu[18] = 0.0;
     nu[19] = 0.0;
@@ -1243,8 +1243,7 @@ pub fn acceleration_rhs(q: &[f64; N], qd: &[f64; N], t: f64, gamma: &mut [f64; N
     let [_qd0, _qd1, _qd2, qd3, qd4, qd5, qd6, _qd7, _qd8, _qd9, qd10, qd11, qd12, _qd13,
     _qd14, _qd15, qd16, qd17, qd18, qd19] = *qd;
     let t0 = 73.3 * t;
-    let t1 = runtime::math::sin(t0);
-    let t2 = runtime::math::cos(t0);
+    let (t1, t2) = runtime::math::sin_cos(t0);
     let t3 = qd4 * qd5;
     let t4 = qd3 * qd6;
     let t5 = t3 + t3 - (t4 + t4);

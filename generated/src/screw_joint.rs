@@ -54,66 +54,67 @@ pub const Q0: [f64; N] = [0.0, 2.0, 0.0, 1.0, 0.0, 0.0, 0.0];
 
 /** Constraint residuals Φ(q, t), 7 rows.
 
- 41 operations, 5 shared subexpressions.*/
+ 41 operations, 9 shared subexpressions.*/
 pub fn residual(q: &[f64; N], t: f64, phi: &mut [f64; N]) {
     let [q0, q1, q2, q3, q4, q5, q6] = *q;
     let t0 = q5 * q5;
     let t1 = q6 * q6;
     let t2 = q3 * q3 + q4 * q4;
     let t3 = 2.0 * (q1 - 2.0);
-    let t4 = f64::from_bits(4602890488355133325) * t;
+    let (t4, t5) = runtime::math::sin_cos(t3);
+    let t6 = f64::from_bits(4602890488355133325) * t;
+    let (t7, t8) = runtime::math::sin_cos(t6);
     phi[0] = 2.0 * (q4 * q5 - q3 * q6);
     phi[1] = -(2.0 * (q5 * q6 + q3 * q4));
     phi[2] = q0;
     phi[3] = -q2;
-    phi[4] = (t2 - (t0 + t1)) * runtime::math::sin(t3)
-        + 2.0 * (q4 * q6 - q3 * q5) * runtime::math::cos(t3);
-    phi[5] = q5 * runtime::math::cos(t4) - q3 * runtime::math::sin(t4);
+    phi[4] = (t2 - (t0 + t1)) * t4 + 2.0 * (q4 * q6 - q3 * q5) * t5;
+    phi[5] = q5 * t8 - q3 * t7;
     phi[6] = t1 + (t0 + t2) - 1.0;
 }
 
 /** Jacobian Φ_q, row-major: `jac[i][j] = ∂Φ_i/∂q_j`; the 21 structurally non-zero entries are written, the others set to 0.
 
- 55 operations, 14 shared subexpressions.*/
+ 55 operations, 16 shared subexpressions.*/
 pub fn jacobian(q: &[f64; N], t: f64, jac: &mut [[f64; N]; N]) {
     *jac = [[0.0; N]; N];
     let [_q0, q1, _q2, q3, q4, q5, q6] = *q;
     let t0 = 2.0 * (q1 - 2.0);
-    let t1 = runtime::math::sin(t0);
-    let t2 = runtime::math::cos(t0);
+    let (t1, t2) = runtime::math::sin_cos(t0);
     let t3 = f64::from_bits(4602890488355133325) * t;
-    let t4 = 2.0 * q6;
-    let t5 = -t4;
-    let t6 = 2.0 * q5;
-    let t7 = 2.0 * q4;
-    let t8 = 2.0 * q3;
-    let t9 = -t8;
-    let t10 = q3 + q3;
-    let t11 = q4 + q4;
-    let t12 = q5 + q5;
-    let t13 = q6 + q6;
-    jac[0][3] = t5;
-    jac[0][4] = t6;
-    jac[0][5] = t7;
-    jac[0][6] = t9;
-    jac[1][3] = -t7;
-    jac[1][4] = t9;
-    jac[1][5] = t5;
-    jac[1][6] = -t6;
+    let (t4, t5) = runtime::math::sin_cos(t3);
+    let t6 = 2.0 * q6;
+    let t7 = -t6;
+    let t8 = 2.0 * q5;
+    let t9 = 2.0 * q4;
+    let t10 = 2.0 * q3;
+    let t11 = -t10;
+    let t12 = q3 + q3;
+    let t13 = q4 + q4;
+    let t14 = q5 + q5;
+    let t15 = q6 + q6;
+    jac[0][3] = t7;
+    jac[0][4] = t8;
+    jac[0][5] = t9;
+    jac[0][6] = t11;
+    jac[1][3] = -t9;
+    jac[1][4] = t11;
+    jac[1][5] = t7;
+    jac[1][6] = -t8;
     jac[2][0] = 1.0;
     jac[3][2] = -1.0;
     jac[4][1] = (q3 * q3 + q4 * q4 - (q5 * q5 + q6 * q6)) * (2.0 * t2)
         - 2.0 * (q4 * q6 - q3 * q5) * (2.0 * t1);
-    jac[4][3] = t1 * t10 - t2 * t6;
-    jac[4][4] = t1 * t11 + t2 * t4;
-    jac[4][5] = -(t1 * t12) - t2 * t8;
-    jac[4][6] = t2 * t7 - t1 * t13;
-    jac[5][3] = -runtime::math::sin(t3);
-    jac[5][5] = runtime::math::cos(t3);
-    jac[6][3] = t10;
-    jac[6][4] = t11;
-    jac[6][5] = t12;
-    jac[6][6] = t13;
+    jac[4][3] = t1 * t12 - t2 * t8;
+    jac[4][4] = t1 * t13 + t2 * t6;
+    jac[4][5] = -(t1 * t14) - t2 * t10;
+    jac[4][6] = t2 * t9 - t1 * t15;
+    jac[5][3] = -t4;
+    jac[5][5] = t5;
+    jac[6][3] = t12;
+    jac[6][4] = t13;
+    jac[6][5] = t14;
+    jac[6][6] = t15;
 }
 
 /** Φ and Φ_q at once (see [`residual`] and [`jacobian`]).
@@ -133,11 +134,9 @@ pub fn residual_jacobian(
     let t3 = t2 - (t0 + t1);
     let t4 = 2.0 * (q4 * q6 - q3 * q5);
     let t5 = 2.0 * (q1 - 2.0);
-    let t6 = runtime::math::sin(t5);
-    let t7 = runtime::math::cos(t5);
+    let (t6, t7) = runtime::math::sin_cos(t5);
     let t8 = f64::from_bits(4602890488355133325) * t;
-    let t9 = runtime::math::sin(t8);
-    let t10 = runtime::math::cos(t8);
+    let (t9, t10) = runtime::math::sin_cos(t8);
     let t11 = 2.0 * q6;
     let t12 = -t11;
     let t13 = 2.0 * q5;
@@ -194,11 +193,9 @@ pub fn residual_jacobian_structural(
     let t3 = t2 - (t0 + t1);
     let t4 = 2.0 * (q4 * q6 - q3 * q5);
     let t5 = 2.0 * (q1 - 2.0);
-    let t6 = runtime::math::sin(t5);
-    let t7 = runtime::math::cos(t5);
+    let (t6, t7) = runtime::math::sin_cos(t5);
     let t8 = f64::from_bits(4602890488355133325) * t;
-    let t9 = runtime::math::sin(t8);
-    let t10 = runtime::math::cos(t8);
+    let (t9, t10) = runtime::math::sin_cos(t8);
     let t11 = 2.0 * q6;
     let t12 = -t11;
     let t13 = 2.0 * q5;
@@ -445,17 +442,18 @@ pub fn solve_1(lu: &[[f64; N]; N], b: &mut [f64; N]) {
 
 /** Velocity right-hand side ν = −Φ_t.
 
- 11 operations, 1 shared subexpressions.*/
+ 11 operations, 3 shared subexpressions.*/
 pub fn velocity_rhs(q: &[f64; N], t: f64, nu: &mut [f64; N]) {
     let [_q0, _q1, _q2, q3, _q4, q5, _q6] = *q;
     let t0 = f64::from_bits(4602890488355133325) * t;
+    let (t1, t2) = runtime::math::sin_cos(t0);
     nu[0] = 0.0;
     nu[1] = 0.0;
     nu[2] = 0.0;
     nu[3] = 0.0;
     nu[4] = 0.0;
-    nu[5] = -(-(q5 * (f64::from_bits(4602890488355133325) * runtime::math::sin(t0)))
-        - q3 * (f64::from_bits(4602890488355133325) * runtime::math::cos(t0)));
+    nu[5] = -(-(q5 * (f64::from_bits(4602890488355133325) * t1))
+        - q3 * (f64::from_bits(4602890488355133325) * t2));
     nu[6] = 0.0;
 }
 
@@ -466,11 +464,9 @@ pub fn acceleration_rhs(q: &[f64; N], qd: &[f64; N], t: f64, gamma: &mut [f64; N
     let [_q0, q1, _q2, q3, q4, q5, q6] = *q;
     let [_qd0, qd1, _qd2, qd3, qd4, qd5, qd6] = *qd;
     let t0 = 2.0 * (q1 - 2.0);
-    let t1 = runtime::math::sin(t0);
-    let t2 = runtime::math::cos(t0);
+    let (t1, t2) = runtime::math::sin_cos(t0);
     let t3 = f64::from_bits(4602890488355133325) * t;
-    let t4 = runtime::math::sin(t3);
-    let t5 = runtime::math::cos(t3);
+    let (t4, t5) = runtime::math::sin_cos(t3);
     let t6 = qd4 * qd5;
     let t7 = qd3 * qd6;
     let t8 = qd5 * qd6;

@@ -44,39 +44,41 @@ pub const Q0: [f64; N] = [1.0, 0.0, 0.0, 1.0, 0.0];
 
 /** Constraint residuals Φ(q, t), 5 rows.
 
- 18 operations, 3 shared subexpressions.*/
+ 18 operations, 5 shared subexpressions.*/
 pub fn residual(q: &[f64; N], t: f64, phi: &mut [f64; N]) {
     let [q0, q1, q2, q3, q4] = *q;
     let t0 = q3 * q3;
     let t1 = q4 * q4;
     let t2 = f64::from_bits(4602890488355133325) * t;
+    let (t3, t4) = runtime::math::sin_cos(t2);
     phi[0] = q0 - (t0 - t1);
     phi[1] = q1;
     phi[2] = 2.0 * (q3 * q4) + q2;
-    phi[3] = q4 * runtime::math::cos(t2) - q3 * runtime::math::sin(t2);
+    phi[3] = q4 * t4 - q3 * t3;
     phi[4] = t0 + t1 - 1.0;
 }
 
 /** Jacobian Φ_q, row-major: `jac[i][j] = ∂Φ_i/∂q_j`; the 11 structurally non-zero entries are written, the others set to 0.
 
- 9 operations, 3 shared subexpressions.*/
+ 9 operations, 5 shared subexpressions.*/
 pub fn jacobian(q: &[f64; N], t: f64, jac: &mut [[f64; N]; N]) {
     *jac = [[0.0; N]; N];
     let [_q0, _q1, _q2, q3, q4] = *q;
     let t0 = f64::from_bits(4602890488355133325) * t;
-    let t1 = q3 + q3;
-    let t2 = q4 + q4;
+    let (t1, t2) = runtime::math::sin_cos(t0);
+    let t3 = q3 + q3;
+    let t4 = q4 + q4;
     jac[0][0] = 1.0;
-    jac[0][3] = -t1;
-    jac[0][4] = t2;
+    jac[0][3] = -t3;
+    jac[0][4] = t4;
     jac[1][1] = 1.0;
     jac[2][2] = 1.0;
     jac[2][3] = 2.0 * q4;
     jac[2][4] = 2.0 * q3;
-    jac[3][3] = -runtime::math::sin(t0);
-    jac[3][4] = runtime::math::cos(t0);
-    jac[4][3] = t1;
-    jac[4][4] = t2;
+    jac[3][3] = -t1;
+    jac[3][4] = t2;
+    jac[4][3] = t3;
+    jac[4][4] = t4;
 }
 
 /** Φ and Φ_q at once (see [`residual`] and [`jacobian`]).
@@ -93,8 +95,7 @@ pub fn residual_jacobian(
     let t0 = q3 * q3;
     let t1 = q4 * q4;
     let t2 = f64::from_bits(4602890488355133325) * t;
-    let t3 = runtime::math::sin(t2);
-    let t4 = runtime::math::cos(t2);
+    let (t3, t4) = runtime::math::sin_cos(t2);
     let t5 = q3 + q3;
     let t6 = q4 + q4;
     phi[0] = q0 - (t0 - t1);
@@ -128,8 +129,7 @@ pub fn residual_jacobian_structural(
     let t0 = q3 * q3;
     let t1 = q4 * q4;
     let t2 = f64::from_bits(4602890488355133325) * t;
-    let t3 = runtime::math::sin(t2);
-    let t4 = runtime::math::cos(t2);
+    let (t3, t4) = runtime::math::sin_cos(t2);
     let t5 = q3 + q3;
     let t6 = q4 + q4;
     phi[0] = q0 - (t0 - t1);
@@ -245,15 +245,16 @@ pub fn solve_1(lu: &[[f64; N]; N], b: &mut [f64; N]) {
 
 /** Velocity right-hand side ν = −Φ_t.
 
- 11 operations, 1 shared subexpressions.*/
+ 11 operations, 3 shared subexpressions.*/
 pub fn velocity_rhs(q: &[f64; N], t: f64, nu: &mut [f64; N]) {
     let [_q0, _q1, _q2, q3, q4] = *q;
     let t0 = f64::from_bits(4602890488355133325) * t;
+    let (t1, t2) = runtime::math::sin_cos(t0);
     nu[0] = 0.0;
     nu[1] = 0.0;
     nu[2] = 0.0;
-    nu[3] = -(-(q4 * (f64::from_bits(4602890488355133325) * runtime::math::sin(t0)))
-        - q3 * (f64::from_bits(4602890488355133325) * runtime::math::cos(t0)));
+    nu[3] = -(-(q4 * (f64::from_bits(4602890488355133325) * t1))
+        - q3 * (f64::from_bits(4602890488355133325) * t2));
     nu[4] = 0.0;
 }
 
@@ -264,8 +265,7 @@ pub fn acceleration_rhs(q: &[f64; N], qd: &[f64; N], t: f64, gamma: &mut [f64; N
     let [_q0, _q1, _q2, q3, q4] = *q;
     let [_qd0, _qd1, _qd2, qd3, qd4] = *qd;
     let t0 = f64::from_bits(4602890488355133325) * t;
-    let t1 = runtime::math::sin(t0);
-    let t2 = runtime::math::cos(t0);
+    let (t1, t2) = runtime::math::sin_cos(t0);
     let t3 = qd3 * qd3;
     let t4 = t3 + t3;
     let t5 = qd4 * qd4;

@@ -52,51 +52,53 @@ pub const Q0: [f64; N] = [0.0, 1.0, 0.0, 1.0, 0.0, 0.0];
 
 /** Constraint residuals Φ(q, t), 6 rows.
 
- 28 operations, 4 shared subexpressions.*/
+ 28 operations, 6 shared subexpressions.*/
 pub fn residual(q: &[f64; N], t: f64, phi: &mut [f64; N]) {
     let [q0, q1, q2, q3, q4, q5] = *q;
     let t0 = q3 * q3;
     let t1 = q4 * q4;
     let t2 = q5 * q5;
     let t3 = f64::from_bits(4602890488355133325) * t;
+    let (t4, t5) = runtime::math::sin_cos(t3);
     phi[0] = q0 - 2.0 * (q4 * q5);
     phi[1] = q1 - (t0 + t2 - t1);
     phi[2] = q2 - 2.0 * (q3 * q4);
     phi[3] = 2.0 * (q3 * q5);
-    phi[4] = q4 * runtime::math::cos(t3) - q3 * runtime::math::sin(t3);
+    phi[4] = q4 * t5 - q3 * t4;
     phi[5] = t2 + (t0 + t1) - 1.0;
 }
 
 /** Jacobian Φ_q, row-major: `jac[i][j] = ∂Φ_i/∂q_j`; the 17 structurally non-zero entries are written, the others set to 0.
 
- 15 operations, 7 shared subexpressions.*/
+ 15 operations, 9 shared subexpressions.*/
 pub fn jacobian(q: &[f64; N], t: f64, jac: &mut [[f64; N]; N]) {
     *jac = [[0.0; N]; N];
     let [_q0, _q1, _q2, q3, q4, q5] = *q;
     let t0 = f64::from_bits(4602890488355133325) * t;
-    let t1 = 2.0 * q5;
-    let t2 = -(2.0 * q4);
-    let t3 = q3 + q3;
-    let t4 = q4 + q4;
-    let t5 = q5 + q5;
-    let t6 = 2.0 * q3;
+    let (t1, t2) = runtime::math::sin_cos(t0);
+    let t3 = 2.0 * q5;
+    let t4 = -(2.0 * q4);
+    let t5 = q3 + q3;
+    let t6 = q4 + q4;
+    let t7 = q5 + q5;
+    let t8 = 2.0 * q3;
     jac[0][0] = 1.0;
-    jac[0][4] = -t1;
-    jac[0][5] = t2;
+    jac[0][4] = -t3;
+    jac[0][5] = t4;
     jac[1][1] = 1.0;
-    jac[1][3] = -t3;
-    jac[1][4] = t4;
-    jac[1][5] = -t5;
+    jac[1][3] = -t5;
+    jac[1][4] = t6;
+    jac[1][5] = -t7;
     jac[2][2] = 1.0;
-    jac[2][3] = t2;
-    jac[2][4] = -t6;
-    jac[3][3] = t1;
-    jac[3][5] = t6;
-    jac[4][3] = -runtime::math::sin(t0);
-    jac[4][4] = runtime::math::cos(t0);
-    jac[5][3] = t3;
-    jac[5][4] = t4;
-    jac[5][5] = t5;
+    jac[2][3] = t4;
+    jac[2][4] = -t8;
+    jac[3][3] = t3;
+    jac[3][5] = t8;
+    jac[4][3] = -t1;
+    jac[4][4] = t2;
+    jac[5][3] = t5;
+    jac[5][4] = t6;
+    jac[5][5] = t7;
 }
 
 /** Φ and Φ_q at once (see [`residual`] and [`jacobian`]).
@@ -114,8 +116,7 @@ pub fn residual_jacobian(
     let t1 = q4 * q4;
     let t2 = q5 * q5;
     let t3 = f64::from_bits(4602890488355133325) * t;
-    let t4 = runtime::math::sin(t3);
-    let t5 = runtime::math::cos(t3);
+    let (t4, t5) = runtime::math::sin_cos(t3);
     let t6 = 2.0 * q5;
     let t7 = -(2.0 * q4);
     let t8 = q3 + q3;
@@ -161,8 +162,7 @@ pub fn residual_jacobian_structural(
     let t1 = q4 * q4;
     let t2 = q5 * q5;
     let t3 = f64::from_bits(4602890488355133325) * t;
-    let t4 = runtime::math::sin(t3);
-    let t5 = runtime::math::cos(t3);
+    let (t4, t5) = runtime::math::sin_cos(t3);
     let t6 = 2.0 * q5;
     let t7 = -(2.0 * q4);
     let t8 = q3 + q3;
@@ -311,16 +311,17 @@ pub fn solve_1(lu: &[[f64; N]; N], b: &mut [f64; N]) {
 
 /** Velocity right-hand side ν = −Φ_t.
 
- 11 operations, 1 shared subexpressions.*/
+ 11 operations, 3 shared subexpressions.*/
 pub fn velocity_rhs(q: &[f64; N], t: f64, nu: &mut [f64; N]) {
     let [_q0, _q1, _q2, q3, q4, _q5] = *q;
     let t0 = f64::from_bits(4602890488355133325) * t;
+    let (t1, t2) = runtime::math::sin_cos(t0);
     nu[0] = 0.0;
     nu[1] = 0.0;
     nu[2] = 0.0;
     nu[3] = 0.0;
-    nu[4] = -(-(q4 * (f64::from_bits(4602890488355133325) * runtime::math::sin(t0)))
-        - q3 * (f64::from_bits(4602890488355133325) * runtime::math::cos(t0)));
+    nu[4] = -(-(q4 * (f64::from_bits(4602890488355133325) * t1))
+        - q3 * (f64::from_bits(4602890488355133325) * t2));
     nu[5] = 0.0;
 }
 
@@ -331,8 +332,7 @@ pub fn acceleration_rhs(q: &[f64; N], qd: &[f64; N], t: f64, gamma: &mut [f64; N
     let [_q0, _q1, _q2, q3, q4, _q5] = *q;
     let [_qd0, _qd1, _qd2, qd3, qd4, qd5] = *qd;
     let t0 = f64::from_bits(4602890488355133325) * t;
-    let t1 = runtime::math::sin(t0);
-    let t2 = runtime::math::cos(t0);
+    let (t1, t2) = runtime::math::sin_cos(t0);
     let t3 = qd4 * qd5;
     let t4 = qd3 * qd3;
     let t5 = t4 + t4;

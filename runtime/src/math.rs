@@ -21,3 +21,13 @@ pub fn cos(x: f64) -> f64 {
 pub fn sqrt(x: f64) -> f64 {
     libm::sqrt(x)
 }
+
+/// (sin x, cos x), with one argument reduction: bit for bit the values of [`sin`] and [`cos`].
+#[inline]
+#[must_use]
+pub fn sin_cos(x: f64) -> (f64, f64) {
+    libm::sincos(x)
+}
+
+#[cfg(test)]
+mod tests;
