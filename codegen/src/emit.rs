@@ -171,7 +171,8 @@ impl<'p> Body<'p> {
             if let Some((a, s, c)) = pair[k] {
                 if body.temp[k].is_none() {
                     let (arg, _) = body.render(a);
-                    let (sin, cos) = (ident(&format!("t{count}")), ident(&format!("t{}", count + 1)));
+                    let (sin, cos) =
+                        (ident(&format!("t{count}")), ident(&format!("t{}", count + 1)));
                     count += 2;
                     body.stmts.push(parse_quote!(let (#sin, #cos) = runtime::math::sin_cos(#arg);));
                     body.temp[s] = Some(sin);
