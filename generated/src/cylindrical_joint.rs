@@ -135,34 +135,40 @@ pub fn residual_jacobian_structural(
 
  L and U have 9 entries (0 of them fill-in, 2 known when generated); 9 operations. The others are in `jac`: 5 stored there, with the reciprocals of the pivots on the diagonal, and 2 left as Φ_q had them.
 
- Returns the smallest and largest |pivot|, or `None` (with `jac` unchanged) when a pivot is not finite or a multiplier exceeds [`runtime::lu::MAX_MULTIPLIER`] in magnitude.*/
+ Returns the smallest and largest |pivot|, or `None` when a pivot is not finite or a multiplier exceeds [`runtime::lu::MAX_MULTIPLIER`] in magnitude; `jac` is then partly factored and must be evaluated again.*/
 #[must_use]
 pub fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     let p2 = jac[1][3];
     let d2 = 1.0 / p2;
+    jac[1][3] = d2;
     let l3_2 = jac[4][3] * d2;
+    jac[4][3] = l3_2;
     if !(p2.is_finite() && l3_2.abs() <= runtime::lu::MAX_MULTIPLIER) {
         return None;
     }
+    let mut smallest = p2.abs().min(1.0);
+    let mut largest = p2.abs().max(1.0);
     let p3 = jac[4][2] - l3_2 * jac[1][2];
     let d3 = 1.0 / p3;
+    jac[4][2] = d3;
     let l4_3 = jac[0][2] * d3;
+    jac[0][2] = l4_3;
     if !(p3.is_finite() && l4_3.abs() <= runtime::lu::MAX_MULTIPLIER) {
         return None;
     }
+    smallest = smallest.min(p3.abs());
+    largest = largest.max(p3.abs());
     let p4 = jac[0][4] - l4_3 * jac[4][4];
     let d4 = 1.0 / p4;
+    jac[0][4] = d4;
     if !p4.is_finite() {
         return None;
     }
-    jac[1][3] = d2;
-    jac[4][3] = l3_2;
-    jac[4][2] = d3;
-    jac[0][2] = l4_3;
-    jac[0][4] = d4;
+    smallest = smallest.min(p4.abs());
+    largest = largest.max(p4.abs());
     Some(runtime::lu::PivotInfo {
-        smallest: p2.abs().min(p3.abs()).min(p4.abs()).min(1.0),
-        largest: p2.abs().max(p3.abs()).max(p4.abs()).max(1.0),
+        smallest,
+        largest,
     })
 }
 

@@ -847,29 +847,48 @@ pub fn residual_jacobian_structural(
 
  L and U have 144 entries (28 of them fill-in, 18 known when generated); 350 operations. The others are in `jac`: 96 stored there, with the reciprocals of the pivots on the diagonal, and 30 left as Φ_q had them.
 
- Returns the smallest and largest |pivot|, or `None` (with `jac` unchanged) when a pivot is not finite or a multiplier exceeds [`runtime::lu::MAX_MULTIPLIER`] in magnitude.*/
+ Returns the smallest and largest |pivot|, or `None` when a pivot is not finite or a multiplier exceeds [`runtime::lu::MAX_MULTIPLIER`] in magnitude; `jac` is then partly factored and must be evaluated again.*/
 #[must_use]
 pub fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     let u6_17 = jac[0][17] + jac[12][17];
+    jac[0][17] = u6_17;
     let u6_18 = jac[0][18] + jac[12][18];
+    jac[0][18] = u6_18;
     let u6_19 = jac[0][19] + jac[12][19];
+    jac[0][19] = u6_19;
     let u6_20 = jac[0][20] + jac[12][20];
+    jac[0][20] = u6_20;
     let u7_17 = jac[1][17] + jac[13][17];
+    jac[1][17] = u7_17;
     let u7_18 = jac[1][18] + jac[13][18];
+    jac[1][18] = u7_18;
     let u7_19 = jac[1][19] + jac[13][19];
+    jac[1][19] = u7_19;
     let u7_20 = jac[1][20] + jac[13][20];
+    jac[1][20] = u7_20;
     let u8_17 = jac[2][17] + jac[14][17];
+    jac[2][17] = u8_17;
     let u8_18 = jac[2][18] + jac[14][18];
+    jac[2][18] = u8_18;
     let u8_19 = jac[2][19] + jac[14][19];
+    jac[2][19] = u8_19;
     let u8_20 = jac[2][20] + jac[14][20];
+    jac[2][20] = u8_20;
     let p9 = jac[10][6];
     let d9 = 1.0 / p9;
+    jac[10][6] = d9;
     let l10_9 = jac[11][6] * d9;
+    jac[11][6] = l10_9;
     let l11_9 = jac[18][6] * d9;
+    jac[18][6] = l11_9;
     let l12_9 = jac[4][6] * d9;
+    jac[4][6] = l12_9;
     let l13_9 = jac[3][6] * d9;
+    jac[3][6] = l13_9;
     let l14_9 = jac[5][6] * d9;
+    jac[5][6] = l14_9;
     let l15_9 = jac[6][6] * d9;
+    jac[6][6] = l15_9;
     if !(p9.is_finite() && l10_9.abs() <= runtime::lu::MAX_MULTIPLIER
         && l11_9.abs() <= runtime::lu::MAX_MULTIPLIER
         && l12_9.abs() <= runtime::lu::MAX_MULTIPLIER
@@ -879,15 +898,25 @@ pub fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     {
         return None;
     }
+    let mut smallest = p9.abs().min(1.0);
+    let mut largest = p9.abs().max(1.0);
     let u10_11 = jac[11][3] - l10_9 * jac[10][3];
+    jac[11][3] = u10_11;
     let u10_12 = jac[11][4] - l10_9 * jac[10][4];
+    jac[11][4] = u10_12;
     let p10 = jac[11][5] - l10_9 * jac[10][5];
     let d10 = 1.0 / p10;
+    jac[11][5] = d10;
     let l11_10 = (jac[18][5] - l11_9 * jac[10][5]) * d10;
+    jac[18][5] = l11_10;
     let l12_10 = (jac[4][5] - l12_9 * jac[10][5]) * d10;
+    jac[4][5] = l12_10;
     let l13_10 = (jac[3][5] - l13_9 * jac[10][5]) * d10;
+    jac[3][5] = l13_10;
     let l14_10 = (jac[5][5] - l14_9 * jac[10][5]) * d10;
+    jac[5][5] = l14_10;
     let l15_10 = (jac[6][5] - l15_9 * jac[10][5]) * d10;
+    jac[6][5] = l15_10;
     if !(p10.is_finite() && l11_10.abs() <= runtime::lu::MAX_MULTIPLIER
         && l12_10.abs() <= runtime::lu::MAX_MULTIPLIER
         && l13_10.abs() <= runtime::lu::MAX_MULTIPLIER
@@ -896,14 +925,23 @@ pub fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     {
         return None;
     }
+    smallest = smallest.min(p10.abs());
+    largest = largest.max(p10.abs());
     let u11_12 = jac[18][4] - l11_9 * jac[10][4] - l11_10 * u10_12;
+    jac[18][4] = u11_12;
     let p11 = jac[18][3] - l11_9 * jac[10][3] - l11_10 * u10_11;
     let d11 = 1.0 / p11;
+    jac[18][3] = d11;
     let l12_11 = (jac[4][3] - l12_9 * jac[10][3] - l12_10 * u10_11) * d11;
+    jac[4][3] = l12_11;
     let l13_11 = (jac[3][3] - l13_9 * jac[10][3] - l13_10 * u10_11) * d11;
+    jac[3][3] = l13_11;
     let l14_11 = (jac[5][3] - l14_9 * jac[10][3] - l14_10 * u10_11) * d11;
+    jac[5][3] = l14_11;
     let l15_11 = (jac[6][3] - l15_9 * jac[10][3] - l15_10 * u10_11) * d11;
+    jac[6][3] = l15_11;
     let l16_11 = jac[17][3] * d11;
+    jac[17][3] = l16_11;
     if !(p11.is_finite() && l12_11.abs() <= runtime::lu::MAX_MULTIPLIER
         && l13_11.abs() <= runtime::lu::MAX_MULTIPLIER
         && l14_11.abs() <= runtime::lu::MAX_MULTIPLIER
@@ -912,23 +950,38 @@ pub fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     {
         return None;
     }
+    smallest = smallest.min(p11.abs());
+    largest = largest.max(p11.abs());
     let u12_13 = jac[4][10] + jac[1][10];
+    jac[4][10] = u12_13;
     let u12_14 = jac[4][11] + jac[1][11];
+    jac[4][11] = u12_14;
     let u12_15 = jac[4][12] + jac[1][12];
+    jac[4][12] = u12_15;
     let u12_16 = jac[4][13] + jac[1][13];
+    jac[4][13] = u12_16;
     let u12_17 = u7_17;
+    jac[4][17] = u12_17;
     let u12_18 = u7_18;
+    jac[4][18] = u12_18;
     let u12_19 = u7_19;
+    jac[4][19] = u12_19;
     let u12_20 = u7_20;
+    jac[4][20] = u12_20;
     let p12 = jac[4][4] - l12_9 * jac[10][4] - l12_10 * u10_12 - l12_11 * u11_12;
     let d12 = 1.0 / p12;
+    jac[4][4] = d12;
     let l13_12 = (jac[3][4] - l13_9 * jac[10][4] - l13_10 * u10_12 - l13_11 * u11_12)
         * d12;
+    jac[3][4] = l13_12;
     let l14_12 = (jac[5][4] - l14_9 * jac[10][4] - l14_10 * u10_12 - l14_11 * u11_12)
         * d12;
+    jac[5][4] = l14_12;
     let l15_12 = (jac[6][4] - l15_9 * jac[10][4] - l15_10 * u10_12 - l15_11 * u11_12)
         * d12;
+    jac[6][4] = l15_12;
     let l16_12 = (jac[17][4] - l16_11 * u11_12) * d12;
+    jac[17][4] = l16_12;
     if !(p12.is_finite() && l13_12.abs() <= runtime::lu::MAX_MULTIPLIER
         && l14_12.abs() <= runtime::lu::MAX_MULTIPLIER
         && l15_12.abs() <= runtime::lu::MAX_MULTIPLIER
@@ -936,19 +989,33 @@ pub fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     {
         return None;
     }
+    smallest = smallest.min(p12.abs());
+    largest = largest.max(p12.abs());
     let u13_14 = jac[3][11] + jac[0][11] - l13_12 * u12_14;
+    jac[3][11] = u13_14;
     let u13_15 = jac[3][12] + jac[0][12] - l13_12 * u12_15;
+    jac[3][12] = u13_15;
     let u13_16 = jac[3][13] + jac[0][13] - l13_12 * u12_16;
+    jac[3][13] = u13_16;
     let u13_17 = u6_17 - l13_12 * u12_17;
+    jac[3][17] = u13_17;
     let u13_18 = u6_18 - l13_12 * u12_18;
+    jac[3][18] = u13_18;
     let u13_19 = u6_19 - l13_12 * u12_19;
+    jac[3][19] = u13_19;
     let u13_20 = u6_20 - l13_12 * u12_20;
+    jac[3][20] = u13_20;
     let p13 = jac[3][10] + jac[0][10] - l13_12 * u12_13;
     let d13 = 1.0 / p13;
+    jac[3][10] = d13;
     let l14_13 = (jac[5][10] + jac[2][10] - l14_12 * u12_13) * d13;
+    jac[5][10] = l14_13;
     let l15_13 = (jac[6][10] - l15_12 * u12_13) * d13;
+    jac[6][10] = l15_13;
     let l16_13 = -(l16_12 * u12_13) * d13;
+    jac[17][10] = l16_13;
     let l20_13 = jac[19][10] * d13;
+    jac[19][10] = l20_13;
     if !(p13.is_finite() && l14_13.abs() <= runtime::lu::MAX_MULTIPLIER
         && l15_13.abs() <= runtime::lu::MAX_MULTIPLIER
         && l16_13.abs() <= runtime::lu::MAX_MULTIPLIER
@@ -956,215 +1023,146 @@ pub fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     {
         return None;
     }
+    smallest = smallest.min(p13.abs());
+    largest = largest.max(p13.abs());
     let u14_15 = jac[5][12] + jac[2][12] - l14_12 * u12_15 - l14_13 * u13_15;
+    jac[5][12] = u14_15;
     let u14_16 = jac[5][13] + jac[2][13] - l14_12 * u12_16 - l14_13 * u13_16;
+    jac[5][13] = u14_16;
     let u14_17 = u8_17 - l14_12 * u12_17 - l14_13 * u13_17;
+    jac[5][17] = u14_17;
     let u14_18 = u8_18 - l14_12 * u12_18 - l14_13 * u13_18;
+    jac[5][18] = u14_18;
     let u14_19 = u8_19 - l14_12 * u12_19 - l14_13 * u13_19;
+    jac[5][19] = u14_19;
     let u14_20 = u8_20 - l14_12 * u12_20 - l14_13 * u13_20;
+    jac[5][20] = u14_20;
     let p14 = jac[5][11] + jac[2][11] - l14_12 * u12_14 - l14_13 * u13_14;
     let d14 = 1.0 / p14;
+    jac[5][11] = d14;
     let l15_14 = (jac[6][11] - l15_12 * u12_14 - l15_13 * u13_14) * d14;
+    jac[6][11] = l15_14;
     let l16_14 = (-(l16_12 * u12_14) - l16_13 * u13_14) * d14;
+    jac[17][11] = l16_14;
     let l20_14 = (jac[19][11] - l20_13 * u13_14) * d14;
+    jac[19][11] = l20_14;
     if !(p14.is_finite() && l15_14.abs() <= runtime::lu::MAX_MULTIPLIER
         && l16_14.abs() <= runtime::lu::MAX_MULTIPLIER
         && l20_14.abs() <= runtime::lu::MAX_MULTIPLIER)
     {
         return None;
     }
+    smallest = smallest.min(p14.abs());
+    largest = largest.max(p14.abs());
     let u15_16 = jac[6][13] - l15_12 * u12_16 - l15_13 * u13_16 - l15_14 * u14_16;
+    jac[6][13] = u15_16;
     let u15_17 = -(l15_12 * u12_17) - l15_13 * u13_17 - l15_14 * u14_17;
+    jac[6][17] = u15_17;
     let u15_18 = -(l15_12 * u12_18) - l15_13 * u13_18 - l15_14 * u14_18;
+    jac[6][18] = u15_18;
     let u15_19 = -(l15_12 * u12_19) - l15_13 * u13_19 - l15_14 * u14_19;
+    jac[6][19] = u15_19;
     let u15_20 = -(l15_12 * u12_20) - l15_13 * u13_20 - l15_14 * u14_20;
+    jac[6][20] = u15_20;
     let p15 = jac[6][12] - l15_12 * u12_15 - l15_13 * u13_15 - l15_14 * u14_15;
     let d15 = 1.0 / p15;
+    jac[6][12] = d15;
     let l16_15 = (-(l16_12 * u12_15) - l16_13 * u13_15 - l16_14 * u14_15) * d15;
+    jac[17][12] = l16_15;
     let l20_15 = (jac[19][12] - l20_13 * u13_15 - l20_14 * u14_15) * d15;
+    jac[19][12] = l20_15;
     if !(p15.is_finite() && l16_15.abs() <= runtime::lu::MAX_MULTIPLIER
         && l20_15.abs() <= runtime::lu::MAX_MULTIPLIER)
     {
         return None;
     }
+    smallest = smallest.min(p15.abs());
+    largest = largest.max(p15.abs());
     let u16_17 = -(l16_12 * u12_17) - l16_13 * u13_17 - l16_14 * u14_17
         - l16_15 * u15_17;
+    jac[17][17] = u16_17;
     let u16_18 = -(l16_12 * u12_18) - l16_13 * u13_18 - l16_14 * u14_18
         - l16_15 * u15_18;
+    jac[17][18] = u16_18;
     let u16_19 = -(l16_12 * u12_19) - l16_13 * u13_19 - l16_14 * u14_19
         - l16_15 * u15_19;
+    jac[17][19] = u16_19;
     let u16_20 = -(l16_12 * u12_20) - l16_13 * u13_20 - l16_14 * u14_20
         - l16_15 * u15_20;
+    jac[17][20] = u16_20;
     let p16 = -(l16_12 * u12_16) - l16_13 * u13_16 - l16_14 * u14_16 - l16_15 * u15_16;
     let d16 = 1.0 / p16;
+    jac[17][13] = d16;
     let l20_16 = (jac[19][13] - l20_13 * u13_16 - l20_14 * u14_16 - l20_15 * u15_16)
         * d16;
+    jac[19][13] = l20_16;
     if !(p16.is_finite() && l20_16.abs() <= runtime::lu::MAX_MULTIPLIER) {
         return None;
     }
+    smallest = smallest.min(p16.abs());
+    largest = largest.max(p16.abs());
     let p17 = jac[15][17];
     let d17 = 1.0 / p17;
+    jac[15][17] = d17;
     let l18_17 = jac[16][17] * d17;
+    jac[16][17] = l18_17;
     let l19_17 = jac[20][17] * d17;
+    jac[20][17] = l19_17;
     let l20_17 = (-(l20_13 * u13_17) - l20_14 * u14_17 - l20_15 * u15_17
         - l20_16 * u16_17) * d17;
+    jac[19][17] = l20_17;
     if !(p17.is_finite() && l18_17.abs() <= runtime::lu::MAX_MULTIPLIER
         && l19_17.abs() <= runtime::lu::MAX_MULTIPLIER
         && l20_17.abs() <= runtime::lu::MAX_MULTIPLIER)
     {
         return None;
     }
+    smallest = smallest.min(p17.abs());
+    largest = largest.max(p17.abs());
     let u18_19 = jac[16][19] - l18_17 * jac[15][19];
+    jac[16][19] = u18_19;
     let u18_20 = jac[16][20] - l18_17 * jac[15][20];
+    jac[16][20] = u18_20;
     let p18 = jac[16][18] - l18_17 * jac[15][18];
     let d18 = 1.0 / p18;
+    jac[16][18] = d18;
     let l19_18 = (jac[20][18] - l19_17 * jac[15][18]) * d18;
+    jac[20][18] = l19_18;
     let l20_18 = (-(l20_13 * u13_18) - l20_14 * u14_18 - l20_15 * u15_18
         - l20_16 * u16_18 - l20_17 * jac[15][18]) * d18;
+    jac[19][18] = l20_18;
     if !(p18.is_finite() && l19_18.abs() <= runtime::lu::MAX_MULTIPLIER
         && l20_18.abs() <= runtime::lu::MAX_MULTIPLIER)
     {
         return None;
     }
+    smallest = smallest.min(p18.abs());
+    largest = largest.max(p18.abs());
     let u19_20 = jac[20][20] - l19_17 * jac[15][20] - l19_18 * u18_20;
+    jac[20][20] = u19_20;
     let p19 = jac[20][19] - l19_17 * jac[15][19] - l19_18 * u18_19;
     let d19 = 1.0 / p19;
+    jac[20][19] = d19;
     let l20_19 = (-(l20_13 * u13_19) - l20_14 * u14_19 - l20_15 * u15_19
         - l20_16 * u16_19 - l20_17 * jac[15][19] - l20_18 * u18_19) * d19;
+    jac[19][19] = l20_19;
     if !(p19.is_finite() && l20_19.abs() <= runtime::lu::MAX_MULTIPLIER) {
         return None;
     }
+    smallest = smallest.min(p19.abs());
+    largest = largest.max(p19.abs());
     let p20 = -(l20_13 * u13_20) - l20_14 * u14_20 - l20_15 * u15_20 - l20_16 * u16_20
         - l20_17 * jac[15][20] - l20_18 * u18_20 - l20_19 * u19_20;
     let d20 = 1.0 / p20;
+    jac[19][20] = d20;
     if !p20.is_finite() {
         return None;
     }
-    jac[0][17] = u6_17;
-    jac[0][18] = u6_18;
-    jac[0][19] = u6_19;
-    jac[0][20] = u6_20;
-    jac[1][17] = u7_17;
-    jac[1][18] = u7_18;
-    jac[1][19] = u7_19;
-    jac[1][20] = u7_20;
-    jac[2][17] = u8_17;
-    jac[2][18] = u8_18;
-    jac[2][19] = u8_19;
-    jac[2][20] = u8_20;
-    jac[10][6] = d9;
-    jac[11][6] = l10_9;
-    jac[11][5] = d10;
-    jac[11][3] = u10_11;
-    jac[11][4] = u10_12;
-    jac[18][6] = l11_9;
-    jac[18][5] = l11_10;
-    jac[18][3] = d11;
-    jac[18][4] = u11_12;
-    jac[4][6] = l12_9;
-    jac[4][5] = l12_10;
-    jac[4][3] = l12_11;
-    jac[4][4] = d12;
-    jac[4][10] = u12_13;
-    jac[4][11] = u12_14;
-    jac[4][12] = u12_15;
-    jac[4][13] = u12_16;
-    jac[4][17] = u12_17;
-    jac[4][18] = u12_18;
-    jac[4][19] = u12_19;
-    jac[4][20] = u12_20;
-    jac[3][6] = l13_9;
-    jac[3][5] = l13_10;
-    jac[3][3] = l13_11;
-    jac[3][4] = l13_12;
-    jac[3][10] = d13;
-    jac[3][11] = u13_14;
-    jac[3][12] = u13_15;
-    jac[3][13] = u13_16;
-    jac[3][17] = u13_17;
-    jac[3][18] = u13_18;
-    jac[3][19] = u13_19;
-    jac[3][20] = u13_20;
-    jac[5][6] = l14_9;
-    jac[5][5] = l14_10;
-    jac[5][3] = l14_11;
-    jac[5][4] = l14_12;
-    jac[5][10] = l14_13;
-    jac[5][11] = d14;
-    jac[5][12] = u14_15;
-    jac[5][13] = u14_16;
-    jac[5][17] = u14_17;
-    jac[5][18] = u14_18;
-    jac[5][19] = u14_19;
-    jac[5][20] = u14_20;
-    jac[6][6] = l15_9;
-    jac[6][5] = l15_10;
-    jac[6][3] = l15_11;
-    jac[6][4] = l15_12;
-    jac[6][10] = l15_13;
-    jac[6][11] = l15_14;
-    jac[6][12] = d15;
-    jac[6][13] = u15_16;
-    jac[6][17] = u15_17;
-    jac[6][18] = u15_18;
-    jac[6][19] = u15_19;
-    jac[6][20] = u15_20;
-    jac[17][3] = l16_11;
-    jac[17][4] = l16_12;
-    jac[17][10] = l16_13;
-    jac[17][11] = l16_14;
-    jac[17][12] = l16_15;
-    jac[17][13] = d16;
-    jac[17][17] = u16_17;
-    jac[17][18] = u16_18;
-    jac[17][19] = u16_19;
-    jac[17][20] = u16_20;
-    jac[15][17] = d17;
-    jac[16][17] = l18_17;
-    jac[16][18] = d18;
-    jac[16][19] = u18_19;
-    jac[16][20] = u18_20;
-    jac[20][17] = l19_17;
-    jac[20][18] = l19_18;
-    jac[20][19] = d19;
-    jac[20][20] = u19_20;
-    jac[19][10] = l20_13;
-    jac[19][11] = l20_14;
-    jac[19][12] = l20_15;
-    jac[19][13] = l20_16;
-    jac[19][17] = l20_17;
-    jac[19][18] = l20_18;
-    jac[19][19] = l20_19;
-    jac[19][20] = d20;
+    smallest = smallest.min(p20.abs());
+    largest = largest.max(p20.abs());
     Some(runtime::lu::PivotInfo {
-        smallest: p9
-            .abs()
-            .min(p10.abs())
-            .min(p11.abs())
-            .min(p12.abs())
-            .min(p13.abs())
-            .min(p14.abs())
-            .min(p15.abs())
-            .min(p16.abs())
-            .min(p17.abs())
-            .min(p18.abs())
-            .min(p19.abs())
-            .min(p20.abs())
-            .min(1.0),
-        largest: p9
-            .abs()
-            .max(p10.abs())
-            .max(p11.abs())
-            .max(p12.abs())
-            .max(p13.abs())
-            .max(p14.abs())
-            .max(p15.abs())
-            .max(p16.abs())
-            .max(p17.abs())
-            .max(p18.abs())
-            .max(p19.abs())
-            .max(p20.abs())
-            .max(1.0),
+        smallest,
+        largest,
     })
 }
 
@@ -1260,29 +1258,48 @@ pub fn solve_0(lu: &[[f64; N]; N], b: &mut [f64; N]) {
 
  L and U have 144 entries (28 of them fill-in, 18 known when generated); 350 operations. The others are in `jac`: 96 stored there, with the reciprocals of the pivots on the diagonal, and 30 left as Φ_q had them.
 
- Returns the smallest and largest |pivot|, or `None` (with `jac` unchanged) when a pivot is not finite or a multiplier exceeds [`runtime::lu::MAX_MULTIPLIER`] in magnitude.*/
+ Returns the smallest and largest |pivot|, or `None` when a pivot is not finite or a multiplier exceeds [`runtime::lu::MAX_MULTIPLIER`] in magnitude; `jac` is then partly factored and must be evaluated again.*/
 #[must_use]
 pub fn factor_1(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     let u6_17 = jac[0][17] + jac[12][17];
+    jac[0][17] = u6_17;
     let u6_18 = jac[0][18] + jac[12][18];
+    jac[0][18] = u6_18;
     let u6_19 = jac[0][19] + jac[12][19];
+    jac[0][19] = u6_19;
     let u6_20 = jac[0][20] + jac[12][20];
+    jac[0][20] = u6_20;
     let u7_17 = jac[1][17] + jac[13][17];
+    jac[1][17] = u7_17;
     let u7_18 = jac[1][18] + jac[13][18];
+    jac[1][18] = u7_18;
     let u7_19 = jac[1][19] + jac[13][19];
+    jac[1][19] = u7_19;
     let u7_20 = jac[1][20] + jac[13][20];
+    jac[1][20] = u7_20;
     let u8_17 = jac[2][17] + jac[14][17];
+    jac[2][17] = u8_17;
     let u8_18 = jac[2][18] + jac[14][18];
+    jac[2][18] = u8_18;
     let u8_19 = jac[2][19] + jac[14][19];
+    jac[2][19] = u8_19;
     let u8_20 = jac[2][20] + jac[14][20];
+    jac[2][20] = u8_20;
     let p9 = jac[10][6];
     let d9 = 1.0 / p9;
+    jac[10][6] = d9;
     let l10_9 = jac[11][6] * d9;
+    jac[11][6] = l10_9;
     let l11_9 = jac[18][6] * d9;
+    jac[18][6] = l11_9;
     let l12_9 = jac[5][6] * d9;
+    jac[5][6] = l12_9;
     let l13_9 = jac[4][6] * d9;
+    jac[4][6] = l13_9;
     let l14_9 = jac[3][6] * d9;
+    jac[3][6] = l14_9;
     let l15_9 = jac[6][6] * d9;
+    jac[6][6] = l15_9;
     if !(p9.is_finite() && l10_9.abs() <= runtime::lu::MAX_MULTIPLIER
         && l11_9.abs() <= runtime::lu::MAX_MULTIPLIER
         && l12_9.abs() <= runtime::lu::MAX_MULTIPLIER
@@ -1292,15 +1309,25 @@ pub fn factor_1(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     {
         return None;
     }
+    let mut smallest = p9.abs().min(1.0);
+    let mut largest = p9.abs().max(1.0);
     let u10_11 = jac[11][3] - l10_9 * jac[10][3];
+    jac[11][3] = u10_11;
     let u10_12 = jac[11][4] - l10_9 * jac[10][4];
+    jac[11][4] = u10_12;
     let p10 = jac[11][5] - l10_9 * jac[10][5];
     let d10 = 1.0 / p10;
+    jac[11][5] = d10;
     let l11_10 = (jac[18][5] - l11_9 * jac[10][5]) * d10;
+    jac[18][5] = l11_10;
     let l12_10 = (jac[5][5] - l12_9 * jac[10][5]) * d10;
+    jac[5][5] = l12_10;
     let l13_10 = (jac[4][5] - l13_9 * jac[10][5]) * d10;
+    jac[4][5] = l13_10;
     let l14_10 = (jac[3][5] - l14_9 * jac[10][5]) * d10;
+    jac[3][5] = l14_10;
     let l15_10 = (jac[6][5] - l15_9 * jac[10][5]) * d10;
+    jac[6][5] = l15_10;
     if !(p10.is_finite() && l11_10.abs() <= runtime::lu::MAX_MULTIPLIER
         && l12_10.abs() <= runtime::lu::MAX_MULTIPLIER
         && l13_10.abs() <= runtime::lu::MAX_MULTIPLIER
@@ -1309,14 +1336,23 @@ pub fn factor_1(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     {
         return None;
     }
+    smallest = smallest.min(p10.abs());
+    largest = largest.max(p10.abs());
     let u11_12 = jac[18][4] - l11_9 * jac[10][4] - l11_10 * u10_12;
+    jac[18][4] = u11_12;
     let p11 = jac[18][3] - l11_9 * jac[10][3] - l11_10 * u10_11;
     let d11 = 1.0 / p11;
+    jac[18][3] = d11;
     let l12_11 = (jac[5][3] - l12_9 * jac[10][3] - l12_10 * u10_11) * d11;
+    jac[5][3] = l12_11;
     let l13_11 = (jac[4][3] - l13_9 * jac[10][3] - l13_10 * u10_11) * d11;
+    jac[4][3] = l13_11;
     let l14_11 = (jac[3][3] - l14_9 * jac[10][3] - l14_10 * u10_11) * d11;
+    jac[3][3] = l14_11;
     let l15_11 = (jac[6][3] - l15_9 * jac[10][3] - l15_10 * u10_11) * d11;
+    jac[6][3] = l15_11;
     let l16_11 = jac[17][3] * d11;
+    jac[17][3] = l16_11;
     if !(p11.is_finite() && l12_11.abs() <= runtime::lu::MAX_MULTIPLIER
         && l13_11.abs() <= runtime::lu::MAX_MULTIPLIER
         && l14_11.abs() <= runtime::lu::MAX_MULTIPLIER
@@ -1325,23 +1361,38 @@ pub fn factor_1(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     {
         return None;
     }
+    smallest = smallest.min(p11.abs());
+    largest = largest.max(p11.abs());
     let u12_13 = jac[5][10] + jac[2][10];
+    jac[5][10] = u12_13;
     let u12_14 = jac[5][11] + jac[2][11];
+    jac[5][11] = u12_14;
     let u12_15 = jac[5][12] + jac[2][12];
+    jac[5][12] = u12_15;
     let u12_16 = jac[5][13] + jac[2][13];
+    jac[5][13] = u12_16;
     let u12_17 = u8_17;
+    jac[5][17] = u12_17;
     let u12_18 = u8_18;
+    jac[5][18] = u12_18;
     let u12_19 = u8_19;
+    jac[5][19] = u12_19;
     let u12_20 = u8_20;
+    jac[5][20] = u12_20;
     let p12 = jac[5][4] - l12_9 * jac[10][4] - l12_10 * u10_12 - l12_11 * u11_12;
     let d12 = 1.0 / p12;
+    jac[5][4] = d12;
     let l13_12 = (jac[4][4] - l13_9 * jac[10][4] - l13_10 * u10_12 - l13_11 * u11_12)
         * d12;
+    jac[4][4] = l13_12;
     let l14_12 = (jac[3][4] - l14_9 * jac[10][4] - l14_10 * u10_12 - l14_11 * u11_12)
         * d12;
+    jac[3][4] = l14_12;
     let l15_12 = (jac[6][4] - l15_9 * jac[10][4] - l15_10 * u10_12 - l15_11 * u11_12)
         * d12;
+    jac[6][4] = l15_12;
     let l16_12 = (jac[17][4] - l16_11 * u11_12) * d12;
+    jac[17][4] = l16_12;
     if !(p12.is_finite() && l13_12.abs() <= runtime::lu::MAX_MULTIPLIER
         && l14_12.abs() <= runtime::lu::MAX_MULTIPLIER
         && l15_12.abs() <= runtime::lu::MAX_MULTIPLIER
@@ -1349,19 +1400,33 @@ pub fn factor_1(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     {
         return None;
     }
+    smallest = smallest.min(p12.abs());
+    largest = largest.max(p12.abs());
     let u13_14 = jac[4][11] + jac[1][11] - l13_12 * u12_14;
+    jac[4][11] = u13_14;
     let u13_15 = jac[4][12] + jac[1][12] - l13_12 * u12_15;
+    jac[4][12] = u13_15;
     let u13_16 = jac[4][13] + jac[1][13] - l13_12 * u12_16;
+    jac[4][13] = u13_16;
     let u13_17 = u7_17 - l13_12 * u12_17;
+    jac[4][17] = u13_17;
     let u13_18 = u7_18 - l13_12 * u12_18;
+    jac[4][18] = u13_18;
     let u13_19 = u7_19 - l13_12 * u12_19;
+    jac[4][19] = u13_19;
     let u13_20 = u7_20 - l13_12 * u12_20;
+    jac[4][20] = u13_20;
     let p13 = jac[4][10] + jac[1][10] - l13_12 * u12_13;
     let d13 = 1.0 / p13;
+    jac[4][10] = d13;
     let l14_13 = (jac[3][10] + jac[0][10] - l14_12 * u12_13) * d13;
+    jac[3][10] = l14_13;
     let l15_13 = (jac[6][10] - l15_12 * u12_13) * d13;
+    jac[6][10] = l15_13;
     let l16_13 = -(l16_12 * u12_13) * d13;
+    jac[17][10] = l16_13;
     let l20_13 = jac[19][10] * d13;
+    jac[19][10] = l20_13;
     if !(p13.is_finite() && l14_13.abs() <= runtime::lu::MAX_MULTIPLIER
         && l15_13.abs() <= runtime::lu::MAX_MULTIPLIER
         && l16_13.abs() <= runtime::lu::MAX_MULTIPLIER
@@ -1369,215 +1434,146 @@ pub fn factor_1(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     {
         return None;
     }
+    smallest = smallest.min(p13.abs());
+    largest = largest.max(p13.abs());
     let u14_15 = jac[3][12] + jac[0][12] - l14_12 * u12_15 - l14_13 * u13_15;
+    jac[3][12] = u14_15;
     let u14_16 = jac[3][13] + jac[0][13] - l14_12 * u12_16 - l14_13 * u13_16;
+    jac[3][13] = u14_16;
     let u14_17 = u6_17 - l14_12 * u12_17 - l14_13 * u13_17;
+    jac[3][17] = u14_17;
     let u14_18 = u6_18 - l14_12 * u12_18 - l14_13 * u13_18;
+    jac[3][18] = u14_18;
     let u14_19 = u6_19 - l14_12 * u12_19 - l14_13 * u13_19;
+    jac[3][19] = u14_19;
     let u14_20 = u6_20 - l14_12 * u12_20 - l14_13 * u13_20;
+    jac[3][20] = u14_20;
     let p14 = jac[3][11] + jac[0][11] - l14_12 * u12_14 - l14_13 * u13_14;
     let d14 = 1.0 / p14;
+    jac[3][11] = d14;
     let l15_14 = (jac[6][11] - l15_12 * u12_14 - l15_13 * u13_14) * d14;
+    jac[6][11] = l15_14;
     let l16_14 = (-(l16_12 * u12_14) - l16_13 * u13_14) * d14;
+    jac[17][11] = l16_14;
     let l20_14 = (jac[19][11] - l20_13 * u13_14) * d14;
+    jac[19][11] = l20_14;
     if !(p14.is_finite() && l15_14.abs() <= runtime::lu::MAX_MULTIPLIER
         && l16_14.abs() <= runtime::lu::MAX_MULTIPLIER
         && l20_14.abs() <= runtime::lu::MAX_MULTIPLIER)
     {
         return None;
     }
+    smallest = smallest.min(p14.abs());
+    largest = largest.max(p14.abs());
     let u15_16 = jac[6][13] - l15_12 * u12_16 - l15_13 * u13_16 - l15_14 * u14_16;
+    jac[6][13] = u15_16;
     let u15_17 = -(l15_12 * u12_17) - l15_13 * u13_17 - l15_14 * u14_17;
+    jac[6][17] = u15_17;
     let u15_18 = -(l15_12 * u12_18) - l15_13 * u13_18 - l15_14 * u14_18;
+    jac[6][18] = u15_18;
     let u15_19 = -(l15_12 * u12_19) - l15_13 * u13_19 - l15_14 * u14_19;
+    jac[6][19] = u15_19;
     let u15_20 = -(l15_12 * u12_20) - l15_13 * u13_20 - l15_14 * u14_20;
+    jac[6][20] = u15_20;
     let p15 = jac[6][12] - l15_12 * u12_15 - l15_13 * u13_15 - l15_14 * u14_15;
     let d15 = 1.0 / p15;
+    jac[6][12] = d15;
     let l16_15 = (-(l16_12 * u12_15) - l16_13 * u13_15 - l16_14 * u14_15) * d15;
+    jac[17][12] = l16_15;
     let l20_15 = (jac[19][12] - l20_13 * u13_15 - l20_14 * u14_15) * d15;
+    jac[19][12] = l20_15;
     if !(p15.is_finite() && l16_15.abs() <= runtime::lu::MAX_MULTIPLIER
         && l20_15.abs() <= runtime::lu::MAX_MULTIPLIER)
     {
         return None;
     }
+    smallest = smallest.min(p15.abs());
+    largest = largest.max(p15.abs());
     let u16_17 = -(l16_12 * u12_17) - l16_13 * u13_17 - l16_14 * u14_17
         - l16_15 * u15_17;
+    jac[17][17] = u16_17;
     let u16_18 = -(l16_12 * u12_18) - l16_13 * u13_18 - l16_14 * u14_18
         - l16_15 * u15_18;
+    jac[17][18] = u16_18;
     let u16_19 = -(l16_12 * u12_19) - l16_13 * u13_19 - l16_14 * u14_19
         - l16_15 * u15_19;
+    jac[17][19] = u16_19;
     let u16_20 = -(l16_12 * u12_20) - l16_13 * u13_20 - l16_14 * u14_20
         - l16_15 * u15_20;
+    jac[17][20] = u16_20;
     let p16 = -(l16_12 * u12_16) - l16_13 * u13_16 - l16_14 * u14_16 - l16_15 * u15_16;
     let d16 = 1.0 / p16;
+    jac[17][13] = d16;
     let l20_16 = (jac[19][13] - l20_13 * u13_16 - l20_14 * u14_16 - l20_15 * u15_16)
         * d16;
+    jac[19][13] = l20_16;
     if !(p16.is_finite() && l20_16.abs() <= runtime::lu::MAX_MULTIPLIER) {
         return None;
     }
+    smallest = smallest.min(p16.abs());
+    largest = largest.max(p16.abs());
     let p17 = jac[15][17];
     let d17 = 1.0 / p17;
+    jac[15][17] = d17;
     let l18_17 = jac[16][17] * d17;
+    jac[16][17] = l18_17;
     let l19_17 = jac[20][17] * d17;
+    jac[20][17] = l19_17;
     let l20_17 = (-(l20_13 * u13_17) - l20_14 * u14_17 - l20_15 * u15_17
         - l20_16 * u16_17) * d17;
+    jac[19][17] = l20_17;
     if !(p17.is_finite() && l18_17.abs() <= runtime::lu::MAX_MULTIPLIER
         && l19_17.abs() <= runtime::lu::MAX_MULTIPLIER
         && l20_17.abs() <= runtime::lu::MAX_MULTIPLIER)
     {
         return None;
     }
+    smallest = smallest.min(p17.abs());
+    largest = largest.max(p17.abs());
     let u18_19 = jac[16][19] - l18_17 * jac[15][19];
+    jac[16][19] = u18_19;
     let u18_20 = jac[16][20] - l18_17 * jac[15][20];
+    jac[16][20] = u18_20;
     let p18 = jac[16][18] - l18_17 * jac[15][18];
     let d18 = 1.0 / p18;
+    jac[16][18] = d18;
     let l19_18 = (jac[20][18] - l19_17 * jac[15][18]) * d18;
+    jac[20][18] = l19_18;
     let l20_18 = (-(l20_13 * u13_18) - l20_14 * u14_18 - l20_15 * u15_18
         - l20_16 * u16_18 - l20_17 * jac[15][18]) * d18;
+    jac[19][18] = l20_18;
     if !(p18.is_finite() && l19_18.abs() <= runtime::lu::MAX_MULTIPLIER
         && l20_18.abs() <= runtime::lu::MAX_MULTIPLIER)
     {
         return None;
     }
+    smallest = smallest.min(p18.abs());
+    largest = largest.max(p18.abs());
     let u19_20 = jac[20][20] - l19_17 * jac[15][20] - l19_18 * u18_20;
+    jac[20][20] = u19_20;
     let p19 = jac[20][19] - l19_17 * jac[15][19] - l19_18 * u18_19;
     let d19 = 1.0 / p19;
+    jac[20][19] = d19;
     let l20_19 = (-(l20_13 * u13_19) - l20_14 * u14_19 - l20_15 * u15_19
         - l20_16 * u16_19 - l20_17 * jac[15][19] - l20_18 * u18_19) * d19;
+    jac[19][19] = l20_19;
     if !(p19.is_finite() && l20_19.abs() <= runtime::lu::MAX_MULTIPLIER) {
         return None;
     }
+    smallest = smallest.min(p19.abs());
+    largest = largest.max(p19.abs());
     let p20 = -(l20_13 * u13_20) - l20_14 * u14_20 - l20_15 * u15_20 - l20_16 * u16_20
         - l20_17 * jac[15][20] - l20_18 * u18_20 - l20_19 * u19_20;
     let d20 = 1.0 / p20;
+    jac[19][20] = d20;
     if !p20.is_finite() {
         return None;
     }
-    jac[0][17] = u6_17;
-    jac[0][18] = u6_18;
-    jac[0][19] = u6_19;
-    jac[0][20] = u6_20;
-    jac[1][17] = u7_17;
-    jac[1][18] = u7_18;
-    jac[1][19] = u7_19;
-    jac[1][20] = u7_20;
-    jac[2][17] = u8_17;
-    jac[2][18] = u8_18;
-    jac[2][19] = u8_19;
-    jac[2][20] = u8_20;
-    jac[10][6] = d9;
-    jac[11][6] = l10_9;
-    jac[11][5] = d10;
-    jac[11][3] = u10_11;
-    jac[11][4] = u10_12;
-    jac[18][6] = l11_9;
-    jac[18][5] = l11_10;
-    jac[18][3] = d11;
-    jac[18][4] = u11_12;
-    jac[5][6] = l12_9;
-    jac[5][5] = l12_10;
-    jac[5][3] = l12_11;
-    jac[5][4] = d12;
-    jac[5][10] = u12_13;
-    jac[5][11] = u12_14;
-    jac[5][12] = u12_15;
-    jac[5][13] = u12_16;
-    jac[5][17] = u12_17;
-    jac[5][18] = u12_18;
-    jac[5][19] = u12_19;
-    jac[5][20] = u12_20;
-    jac[4][6] = l13_9;
-    jac[4][5] = l13_10;
-    jac[4][3] = l13_11;
-    jac[4][4] = l13_12;
-    jac[4][10] = d13;
-    jac[4][11] = u13_14;
-    jac[4][12] = u13_15;
-    jac[4][13] = u13_16;
-    jac[4][17] = u13_17;
-    jac[4][18] = u13_18;
-    jac[4][19] = u13_19;
-    jac[4][20] = u13_20;
-    jac[3][6] = l14_9;
-    jac[3][5] = l14_10;
-    jac[3][3] = l14_11;
-    jac[3][4] = l14_12;
-    jac[3][10] = l14_13;
-    jac[3][11] = d14;
-    jac[3][12] = u14_15;
-    jac[3][13] = u14_16;
-    jac[3][17] = u14_17;
-    jac[3][18] = u14_18;
-    jac[3][19] = u14_19;
-    jac[3][20] = u14_20;
-    jac[6][6] = l15_9;
-    jac[6][5] = l15_10;
-    jac[6][3] = l15_11;
-    jac[6][4] = l15_12;
-    jac[6][10] = l15_13;
-    jac[6][11] = l15_14;
-    jac[6][12] = d15;
-    jac[6][13] = u15_16;
-    jac[6][17] = u15_17;
-    jac[6][18] = u15_18;
-    jac[6][19] = u15_19;
-    jac[6][20] = u15_20;
-    jac[17][3] = l16_11;
-    jac[17][4] = l16_12;
-    jac[17][10] = l16_13;
-    jac[17][11] = l16_14;
-    jac[17][12] = l16_15;
-    jac[17][13] = d16;
-    jac[17][17] = u16_17;
-    jac[17][18] = u16_18;
-    jac[17][19] = u16_19;
-    jac[17][20] = u16_20;
-    jac[15][17] = d17;
-    jac[16][17] = l18_17;
-    jac[16][18] = d18;
-    jac[16][19] = u18_19;
-    jac[16][20] = u18_20;
-    jac[20][17] = l19_17;
-    jac[20][18] = l19_18;
-    jac[20][19] = d19;
-    jac[20][20] = u19_20;
-    jac[19][10] = l20_13;
-    jac[19][11] = l20_14;
-    jac[19][12] = l20_15;
-    jac[19][13] = l20_16;
-    jac[19][17] = l20_17;
-    jac[19][18] = l20_18;
-    jac[19][19] = l20_19;
-    jac[19][20] = d20;
+    smallest = smallest.min(p20.abs());
+    largest = largest.max(p20.abs());
     Some(runtime::lu::PivotInfo {
-        smallest: p9
-            .abs()
-            .min(p10.abs())
-            .min(p11.abs())
-            .min(p12.abs())
-            .min(p13.abs())
-            .min(p14.abs())
-            .min(p15.abs())
-            .min(p16.abs())
-            .min(p17.abs())
-            .min(p18.abs())
-            .min(p19.abs())
-            .min(p20.abs())
-            .min(1.0),
-        largest: p9
-            .abs()
-            .max(p10.abs())
-            .max(p11.abs())
-            .max(p12.abs())
-            .max(p13.abs())
-            .max(p14.abs())
-            .max(p15.abs())
-            .max(p16.abs())
-            .max(p17.abs())
-            .max(p18.abs())
-            .max(p19.abs())
-            .max(p20.abs())
-            .max(1.0),
+        smallest,
+        largest,
     })
 }
 
@@ -1673,29 +1669,48 @@ pub fn solve_1(lu: &[[f64; N]; N], b: &mut [f64; N]) {
 
  L and U have 144 entries (28 of them fill-in, 18 known when generated); 350 operations. The others are in `jac`: 96 stored there, with the reciprocals of the pivots on the diagonal, and 30 left as Φ_q had them.
 
- Returns the smallest and largest |pivot|, or `None` (with `jac` unchanged) when a pivot is not finite or a multiplier exceeds [`runtime::lu::MAX_MULTIPLIER`] in magnitude.*/
+ Returns the smallest and largest |pivot|, or `None` when a pivot is not finite or a multiplier exceeds [`runtime::lu::MAX_MULTIPLIER`] in magnitude; `jac` is then partly factored and must be evaluated again.*/
 #[must_use]
 pub fn factor_2(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     let u6_17 = jac[0][17] + jac[12][17];
+    jac[0][17] = u6_17;
     let u6_18 = jac[0][18] + jac[12][18];
+    jac[0][18] = u6_18;
     let u6_19 = jac[0][19] + jac[12][19];
+    jac[0][19] = u6_19;
     let u6_20 = jac[0][20] + jac[12][20];
+    jac[0][20] = u6_20;
     let u7_17 = jac[1][17] + jac[13][17];
+    jac[1][17] = u7_17;
     let u7_18 = jac[1][18] + jac[13][18];
+    jac[1][18] = u7_18;
     let u7_19 = jac[1][19] + jac[13][19];
+    jac[1][19] = u7_19;
     let u7_20 = jac[1][20] + jac[13][20];
+    jac[1][20] = u7_20;
     let u8_17 = jac[2][17] + jac[14][17];
+    jac[2][17] = u8_17;
     let u8_18 = jac[2][18] + jac[14][18];
+    jac[2][18] = u8_18;
     let u8_19 = jac[2][19] + jac[14][19];
+    jac[2][19] = u8_19;
     let u8_20 = jac[2][20] + jac[14][20];
+    jac[2][20] = u8_20;
     let p9 = jac[10][5];
     let d9 = 1.0 / p9;
+    jac[10][5] = d9;
     let l10_9 = jac[11][5] * d9;
+    jac[11][5] = l10_9;
     let l11_9 = jac[18][5] * d9;
+    jac[18][5] = l11_9;
     let l12_9 = jac[5][5] * d9;
+    jac[5][5] = l12_9;
     let l13_9 = jac[4][5] * d9;
+    jac[4][5] = l13_9;
     let l15_9 = jac[3][5] * d9;
+    jac[3][5] = l15_9;
     let l16_9 = jac[6][5] * d9;
+    jac[6][5] = l16_9;
     if !(p9.is_finite() && l10_9.abs() <= runtime::lu::MAX_MULTIPLIER
         && l11_9.abs() <= runtime::lu::MAX_MULTIPLIER
         && l12_9.abs() <= runtime::lu::MAX_MULTIPLIER
@@ -1705,15 +1720,25 @@ pub fn factor_2(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     {
         return None;
     }
+    let mut smallest = p9.abs().min(1.0);
+    let mut largest = p9.abs().max(1.0);
     let u10_11 = jac[11][4] - l10_9 * jac[10][4];
+    jac[11][4] = u10_11;
     let u10_12 = jac[11][3] - l10_9 * jac[10][3];
+    jac[11][3] = u10_12;
     let p10 = jac[11][6] - l10_9 * jac[10][6];
     let d10 = 1.0 / p10;
+    jac[11][6] = d10;
     let l11_10 = (jac[18][6] - l11_9 * jac[10][6]) * d10;
+    jac[18][6] = l11_10;
     let l12_10 = (jac[5][6] - l12_9 * jac[10][6]) * d10;
+    jac[5][6] = l12_10;
     let l13_10 = (jac[4][6] - l13_9 * jac[10][6]) * d10;
+    jac[4][6] = l13_10;
     let l15_10 = (jac[3][6] - l15_9 * jac[10][6]) * d10;
+    jac[3][6] = l15_10;
     let l16_10 = (jac[6][6] - l16_9 * jac[10][6]) * d10;
+    jac[6][6] = l16_10;
     if !(p10.is_finite() && l11_10.abs() <= runtime::lu::MAX_MULTIPLIER
         && l12_10.abs() <= runtime::lu::MAX_MULTIPLIER
         && l13_10.abs() <= runtime::lu::MAX_MULTIPLIER
@@ -1722,14 +1747,23 @@ pub fn factor_2(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     {
         return None;
     }
+    smallest = smallest.min(p10.abs());
+    largest = largest.max(p10.abs());
     let u11_12 = jac[18][3] - l11_9 * jac[10][3] - l11_10 * u10_12;
+    jac[18][3] = u11_12;
     let p11 = jac[18][4] - l11_9 * jac[10][4] - l11_10 * u10_11;
     let d11 = 1.0 / p11;
+    jac[18][4] = d11;
     let l12_11 = (jac[5][4] - l12_9 * jac[10][4] - l12_10 * u10_11) * d11;
+    jac[5][4] = l12_11;
     let l13_11 = (jac[4][4] - l13_9 * jac[10][4] - l13_10 * u10_11) * d11;
+    jac[4][4] = l13_11;
     let l14_11 = jac[17][4] * d11;
+    jac[17][4] = l14_11;
     let l15_11 = (jac[3][4] - l15_9 * jac[10][4] - l15_10 * u10_11) * d11;
+    jac[3][4] = l15_11;
     let l16_11 = (jac[6][4] - l16_9 * jac[10][4] - l16_10 * u10_11) * d11;
+    jac[6][4] = l16_11;
     if !(p11.is_finite() && l12_11.abs() <= runtime::lu::MAX_MULTIPLIER
         && l13_11.abs() <= runtime::lu::MAX_MULTIPLIER
         && l14_11.abs() <= runtime::lu::MAX_MULTIPLIER
@@ -1738,23 +1772,38 @@ pub fn factor_2(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     {
         return None;
     }
+    smallest = smallest.min(p11.abs());
+    largest = largest.max(p11.abs());
     let u12_13 = jac[5][10] + jac[2][10];
+    jac[5][10] = u12_13;
     let u12_14 = jac[5][11] + jac[2][11];
+    jac[5][11] = u12_14;
     let u12_15 = jac[5][12] + jac[2][12];
+    jac[5][12] = u12_15;
     let u12_16 = jac[5][13] + jac[2][13];
+    jac[5][13] = u12_16;
     let u12_17 = u8_17;
+    jac[5][17] = u12_17;
     let u12_18 = u8_18;
+    jac[5][18] = u12_18;
     let u12_19 = u8_19;
+    jac[5][19] = u12_19;
     let u12_20 = u8_20;
+    jac[5][20] = u12_20;
     let p12 = jac[5][3] - l12_9 * jac[10][3] - l12_10 * u10_12 - l12_11 * u11_12;
     let d12 = 1.0 / p12;
+    jac[5][3] = d12;
     let l13_12 = (jac[4][3] - l13_9 * jac[10][3] - l13_10 * u10_12 - l13_11 * u11_12)
         * d12;
+    jac[4][3] = l13_12;
     let l14_12 = (jac[17][3] - l14_11 * u11_12) * d12;
+    jac[17][3] = l14_12;
     let l15_12 = (jac[3][3] - l15_9 * jac[10][3] - l15_10 * u10_12 - l15_11 * u11_12)
         * d12;
+    jac[3][3] = l15_12;
     let l16_12 = (jac[6][3] - l16_9 * jac[10][3] - l16_10 * u10_12 - l16_11 * u11_12)
         * d12;
+    jac[6][3] = l16_12;
     if !(p12.is_finite() && l13_12.abs() <= runtime::lu::MAX_MULTIPLIER
         && l14_12.abs() <= runtime::lu::MAX_MULTIPLIER
         && l15_12.abs() <= runtime::lu::MAX_MULTIPLIER
@@ -1762,19 +1811,33 @@ pub fn factor_2(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     {
         return None;
     }
+    smallest = smallest.min(p12.abs());
+    largest = largest.max(p12.abs());
     let u13_14 = jac[4][11] + jac[1][11] - l13_12 * u12_14;
+    jac[4][11] = u13_14;
     let u13_15 = jac[4][12] + jac[1][12] - l13_12 * u12_15;
+    jac[4][12] = u13_15;
     let u13_16 = jac[4][13] + jac[1][13] - l13_12 * u12_16;
+    jac[4][13] = u13_16;
     let u13_17 = u7_17 - l13_12 * u12_17;
+    jac[4][17] = u13_17;
     let u13_18 = u7_18 - l13_12 * u12_18;
+    jac[4][18] = u13_18;
     let u13_19 = u7_19 - l13_12 * u12_19;
+    jac[4][19] = u13_19;
     let u13_20 = u7_20 - l13_12 * u12_20;
+    jac[4][20] = u13_20;
     let p13 = jac[4][10] + jac[1][10] - l13_12 * u12_13;
     let d13 = 1.0 / p13;
+    jac[4][10] = d13;
     let l14_13 = -(l14_12 * u12_13) * d13;
+    jac[17][10] = l14_13;
     let l15_13 = (jac[3][10] + jac[0][10] - l15_12 * u12_13) * d13;
+    jac[3][10] = l15_13;
     let l16_13 = (jac[6][10] - l16_12 * u12_13) * d13;
+    jac[6][10] = l16_13;
     let l20_13 = jac[19][10] * d13;
+    jac[19][10] = l20_13;
     if !(p13.is_finite() && l14_13.abs() <= runtime::lu::MAX_MULTIPLIER
         && l15_13.abs() <= runtime::lu::MAX_MULTIPLIER
         && l16_13.abs() <= runtime::lu::MAX_MULTIPLIER
@@ -1782,219 +1845,150 @@ pub fn factor_2(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     {
         return None;
     }
+    smallest = smallest.min(p13.abs());
+    largest = largest.max(p13.abs());
     let u14_15 = -(l14_12 * u12_15) - l14_13 * u13_15;
+    jac[17][12] = u14_15;
     let u14_16 = -(l14_12 * u12_16) - l14_13 * u13_16;
+    jac[17][13] = u14_16;
     let u14_17 = -(l14_12 * u12_17) - l14_13 * u13_17;
+    jac[17][17] = u14_17;
     let u14_18 = -(l14_12 * u12_18) - l14_13 * u13_18;
+    jac[17][18] = u14_18;
     let u14_19 = -(l14_12 * u12_19) - l14_13 * u13_19;
+    jac[17][19] = u14_19;
     let u14_20 = -(l14_12 * u12_20) - l14_13 * u13_20;
+    jac[17][20] = u14_20;
     let p14 = -(l14_12 * u12_14) - l14_13 * u13_14;
     let d14 = 1.0 / p14;
+    jac[17][11] = d14;
     let l15_14 = (jac[3][11] + jac[0][11] - l15_12 * u12_14 - l15_13 * u13_14) * d14;
+    jac[3][11] = l15_14;
     let l16_14 = (jac[6][11] - l16_12 * u12_14 - l16_13 * u13_14) * d14;
+    jac[6][11] = l16_14;
     let l20_14 = (jac[19][11] - l20_13 * u13_14) * d14;
+    jac[19][11] = l20_14;
     if !(p14.is_finite() && l15_14.abs() <= runtime::lu::MAX_MULTIPLIER
         && l16_14.abs() <= runtime::lu::MAX_MULTIPLIER
         && l20_14.abs() <= runtime::lu::MAX_MULTIPLIER)
     {
         return None;
     }
+    smallest = smallest.min(p14.abs());
+    largest = largest.max(p14.abs());
     let u15_16 = jac[3][13] + jac[0][13] - l15_12 * u12_16 - l15_13 * u13_16
         - l15_14 * u14_16;
+    jac[3][13] = u15_16;
     let u15_17 = u6_17 - l15_12 * u12_17 - l15_13 * u13_17 - l15_14 * u14_17;
+    jac[3][17] = u15_17;
     let u15_18 = u6_18 - l15_12 * u12_18 - l15_13 * u13_18 - l15_14 * u14_18;
+    jac[3][18] = u15_18;
     let u15_19 = u6_19 - l15_12 * u12_19 - l15_13 * u13_19 - l15_14 * u14_19;
+    jac[3][19] = u15_19;
     let u15_20 = u6_20 - l15_12 * u12_20 - l15_13 * u13_20 - l15_14 * u14_20;
+    jac[3][20] = u15_20;
     let p15 = jac[3][12] + jac[0][12] - l15_12 * u12_15 - l15_13 * u13_15
         - l15_14 * u14_15;
     let d15 = 1.0 / p15;
+    jac[3][12] = d15;
     let l16_15 = (jac[6][12] - l16_12 * u12_15 - l16_13 * u13_15 - l16_14 * u14_15)
         * d15;
+    jac[6][12] = l16_15;
     let l20_15 = (jac[19][12] - l20_13 * u13_15 - l20_14 * u14_15) * d15;
+    jac[19][12] = l20_15;
     if !(p15.is_finite() && l16_15.abs() <= runtime::lu::MAX_MULTIPLIER
         && l20_15.abs() <= runtime::lu::MAX_MULTIPLIER)
     {
         return None;
     }
+    smallest = smallest.min(p15.abs());
+    largest = largest.max(p15.abs());
     let u16_17 = -(l16_12 * u12_17) - l16_13 * u13_17 - l16_14 * u14_17
         - l16_15 * u15_17;
+    jac[6][17] = u16_17;
     let u16_18 = -(l16_12 * u12_18) - l16_13 * u13_18 - l16_14 * u14_18
         - l16_15 * u15_18;
+    jac[6][18] = u16_18;
     let u16_19 = -(l16_12 * u12_19) - l16_13 * u13_19 - l16_14 * u14_19
         - l16_15 * u15_19;
+    jac[6][19] = u16_19;
     let u16_20 = -(l16_12 * u12_20) - l16_13 * u13_20 - l16_14 * u14_20
         - l16_15 * u15_20;
+    jac[6][20] = u16_20;
     let p16 = jac[6][13] - l16_12 * u12_16 - l16_13 * u13_16 - l16_14 * u14_16
         - l16_15 * u15_16;
     let d16 = 1.0 / p16;
+    jac[6][13] = d16;
     let l20_16 = (jac[19][13] - l20_13 * u13_16 - l20_14 * u14_16 - l20_15 * u15_16)
         * d16;
+    jac[19][13] = l20_16;
     if !(p16.is_finite() && l20_16.abs() <= runtime::lu::MAX_MULTIPLIER) {
         return None;
     }
+    smallest = smallest.min(p16.abs());
+    largest = largest.max(p16.abs());
     let p17 = jac[15][17];
     let d17 = 1.0 / p17;
+    jac[15][17] = d17;
     let l18_17 = jac[16][17] * d17;
+    jac[16][17] = l18_17;
     let l19_17 = jac[20][17] * d17;
+    jac[20][17] = l19_17;
     let l20_17 = (-(l20_13 * u13_17) - l20_14 * u14_17 - l20_15 * u15_17
         - l20_16 * u16_17) * d17;
+    jac[19][17] = l20_17;
     if !(p17.is_finite() && l18_17.abs() <= runtime::lu::MAX_MULTIPLIER
         && l19_17.abs() <= runtime::lu::MAX_MULTIPLIER
         && l20_17.abs() <= runtime::lu::MAX_MULTIPLIER)
     {
         return None;
     }
+    smallest = smallest.min(p17.abs());
+    largest = largest.max(p17.abs());
     let u18_19 = jac[16][19] - l18_17 * jac[15][19];
+    jac[16][19] = u18_19;
     let u18_20 = jac[16][20] - l18_17 * jac[15][20];
+    jac[16][20] = u18_20;
     let p18 = jac[16][18] - l18_17 * jac[15][18];
     let d18 = 1.0 / p18;
+    jac[16][18] = d18;
     let l19_18 = (jac[20][18] - l19_17 * jac[15][18]) * d18;
+    jac[20][18] = l19_18;
     let l20_18 = (-(l20_13 * u13_18) - l20_14 * u14_18 - l20_15 * u15_18
         - l20_16 * u16_18 - l20_17 * jac[15][18]) * d18;
+    jac[19][18] = l20_18;
     if !(p18.is_finite() && l19_18.abs() <= runtime::lu::MAX_MULTIPLIER
         && l20_18.abs() <= runtime::lu::MAX_MULTIPLIER)
     {
         return None;
     }
+    smallest = smallest.min(p18.abs());
+    largest = largest.max(p18.abs());
     let u19_20 = jac[20][20] - l19_17 * jac[15][20] - l19_18 * u18_20;
+    jac[20][20] = u19_20;
     let p19 = jac[20][19] - l19_17 * jac[15][19] - l19_18 * u18_19;
     let d19 = 1.0 / p19;
+    jac[20][19] = d19;
     let l20_19 = (-(l20_13 * u13_19) - l20_14 * u14_19 - l20_15 * u15_19
         - l20_16 * u16_19 - l20_17 * jac[15][19] - l20_18 * u18_19) * d19;
+    jac[19][19] = l20_19;
     if !(p19.is_finite() && l20_19.abs() <= runtime::lu::MAX_MULTIPLIER) {
         return None;
     }
+    smallest = smallest.min(p19.abs());
+    largest = largest.max(p19.abs());
     let p20 = -(l20_13 * u13_20) - l20_14 * u14_20 - l20_15 * u15_20 - l20_16 * u16_20
         - l20_17 * jac[15][20] - l20_18 * u18_20 - l20_19 * u19_20;
     let d20 = 1.0 / p20;
+    jac[19][20] = d20;
     if !p20.is_finite() {
         return None;
     }
-    jac[0][17] = u6_17;
-    jac[0][18] = u6_18;
-    jac[0][19] = u6_19;
-    jac[0][20] = u6_20;
-    jac[1][17] = u7_17;
-    jac[1][18] = u7_18;
-    jac[1][19] = u7_19;
-    jac[1][20] = u7_20;
-    jac[2][17] = u8_17;
-    jac[2][18] = u8_18;
-    jac[2][19] = u8_19;
-    jac[2][20] = u8_20;
-    jac[10][5] = d9;
-    jac[11][5] = l10_9;
-    jac[11][6] = d10;
-    jac[11][4] = u10_11;
-    jac[11][3] = u10_12;
-    jac[18][5] = l11_9;
-    jac[18][6] = l11_10;
-    jac[18][4] = d11;
-    jac[18][3] = u11_12;
-    jac[5][5] = l12_9;
-    jac[5][6] = l12_10;
-    jac[5][4] = l12_11;
-    jac[5][3] = d12;
-    jac[5][10] = u12_13;
-    jac[5][11] = u12_14;
-    jac[5][12] = u12_15;
-    jac[5][13] = u12_16;
-    jac[5][17] = u12_17;
-    jac[5][18] = u12_18;
-    jac[5][19] = u12_19;
-    jac[5][20] = u12_20;
-    jac[4][5] = l13_9;
-    jac[4][6] = l13_10;
-    jac[4][4] = l13_11;
-    jac[4][3] = l13_12;
-    jac[4][10] = d13;
-    jac[4][11] = u13_14;
-    jac[4][12] = u13_15;
-    jac[4][13] = u13_16;
-    jac[4][17] = u13_17;
-    jac[4][18] = u13_18;
-    jac[4][19] = u13_19;
-    jac[4][20] = u13_20;
-    jac[17][4] = l14_11;
-    jac[17][3] = l14_12;
-    jac[17][10] = l14_13;
-    jac[17][11] = d14;
-    jac[17][12] = u14_15;
-    jac[17][13] = u14_16;
-    jac[17][17] = u14_17;
-    jac[17][18] = u14_18;
-    jac[17][19] = u14_19;
-    jac[17][20] = u14_20;
-    jac[3][5] = l15_9;
-    jac[3][6] = l15_10;
-    jac[3][4] = l15_11;
-    jac[3][3] = l15_12;
-    jac[3][10] = l15_13;
-    jac[3][11] = l15_14;
-    jac[3][12] = d15;
-    jac[3][13] = u15_16;
-    jac[3][17] = u15_17;
-    jac[3][18] = u15_18;
-    jac[3][19] = u15_19;
-    jac[3][20] = u15_20;
-    jac[6][5] = l16_9;
-    jac[6][6] = l16_10;
-    jac[6][4] = l16_11;
-    jac[6][3] = l16_12;
-    jac[6][10] = l16_13;
-    jac[6][11] = l16_14;
-    jac[6][12] = l16_15;
-    jac[6][13] = d16;
-    jac[6][17] = u16_17;
-    jac[6][18] = u16_18;
-    jac[6][19] = u16_19;
-    jac[6][20] = u16_20;
-    jac[15][17] = d17;
-    jac[16][17] = l18_17;
-    jac[16][18] = d18;
-    jac[16][19] = u18_19;
-    jac[16][20] = u18_20;
-    jac[20][17] = l19_17;
-    jac[20][18] = l19_18;
-    jac[20][19] = d19;
-    jac[20][20] = u19_20;
-    jac[19][10] = l20_13;
-    jac[19][11] = l20_14;
-    jac[19][12] = l20_15;
-    jac[19][13] = l20_16;
-    jac[19][17] = l20_17;
-    jac[19][18] = l20_18;
-    jac[19][19] = l20_19;
-    jac[19][20] = d20;
+    smallest = smallest.min(p20.abs());
+    largest = largest.max(p20.abs());
     Some(runtime::lu::PivotInfo {
-        smallest: p9
-            .abs()
-            .min(p10.abs())
-            .min(p11.abs())
-            .min(p12.abs())
-            .min(p13.abs())
-            .min(p14.abs())
-            .min(p15.abs())
-            .min(p16.abs())
-            .min(p17.abs())
-            .min(p18.abs())
-            .min(p19.abs())
-            .min(p20.abs())
-            .min(1.0),
-        largest: p9
-            .abs()
-            .max(p10.abs())
-            .max(p11.abs())
-            .max(p12.abs())
-            .max(p13.abs())
-            .max(p14.abs())
-            .max(p15.abs())
-            .max(p16.abs())
-            .max(p17.abs())
-            .max(p18.abs())
-            .max(p19.abs())
-            .max(p20.abs())
-            .max(1.0),
+        smallest,
+        largest,
     })
 }
 
@@ -2089,29 +2083,48 @@ pub fn solve_2(lu: &[[f64; N]; N], b: &mut [f64; N]) {
 
  L and U have 144 entries (28 of them fill-in, 18 known when generated); 350 operations. The others are in `jac`: 96 stored there, with the reciprocals of the pivots on the diagonal, and 30 left as Φ_q had them.
 
- Returns the smallest and largest |pivot|, or `None` (with `jac` unchanged) when a pivot is not finite or a multiplier exceeds [`runtime::lu::MAX_MULTIPLIER`] in magnitude.*/
+ Returns the smallest and largest |pivot|, or `None` when a pivot is not finite or a multiplier exceeds [`runtime::lu::MAX_MULTIPLIER`] in magnitude; `jac` is then partly factored and must be evaluated again.*/
 #[must_use]
 pub fn factor_3(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     let u6_17 = jac[0][17] + jac[12][17];
+    jac[0][17] = u6_17;
     let u6_18 = jac[0][18] + jac[12][18];
+    jac[0][18] = u6_18;
     let u6_19 = jac[0][19] + jac[12][19];
+    jac[0][19] = u6_19;
     let u6_20 = jac[0][20] + jac[12][20];
+    jac[0][20] = u6_20;
     let u7_17 = jac[1][17] + jac[13][17];
+    jac[1][17] = u7_17;
     let u7_18 = jac[1][18] + jac[13][18];
+    jac[1][18] = u7_18;
     let u7_19 = jac[1][19] + jac[13][19];
+    jac[1][19] = u7_19;
     let u7_20 = jac[1][20] + jac[13][20];
+    jac[1][20] = u7_20;
     let u8_17 = jac[2][17] + jac[14][17];
+    jac[2][17] = u8_17;
     let u8_18 = jac[2][18] + jac[14][18];
+    jac[2][18] = u8_18;
     let u8_19 = jac[2][19] + jac[14][19];
+    jac[2][19] = u8_19;
     let u8_20 = jac[2][20] + jac[14][20];
+    jac[2][20] = u8_20;
     let p9 = jac[10][5];
     let d9 = 1.0 / p9;
+    jac[10][5] = d9;
     let l10_9 = jac[11][5] * d9;
+    jac[11][5] = l10_9;
     let l11_9 = jac[18][5] * d9;
+    jac[18][5] = l11_9;
     let l12_9 = jac[4][5] * d9;
+    jac[4][5] = l12_9;
     let l13_9 = jac[5][5] * d9;
+    jac[5][5] = l13_9;
     let l15_9 = jac[3][5] * d9;
+    jac[3][5] = l15_9;
     let l16_9 = jac[6][5] * d9;
+    jac[6][5] = l16_9;
     if !(p9.is_finite() && l10_9.abs() <= runtime::lu::MAX_MULTIPLIER
         && l11_9.abs() <= runtime::lu::MAX_MULTIPLIER
         && l12_9.abs() <= runtime::lu::MAX_MULTIPLIER
@@ -2121,15 +2134,25 @@ pub fn factor_3(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     {
         return None;
     }
+    let mut smallest = p9.abs().min(1.0);
+    let mut largest = p9.abs().max(1.0);
     let u10_11 = jac[11][4] - l10_9 * jac[10][4];
+    jac[11][4] = u10_11;
     let u10_12 = jac[11][3] - l10_9 * jac[10][3];
+    jac[11][3] = u10_12;
     let p10 = jac[11][6] - l10_9 * jac[10][6];
     let d10 = 1.0 / p10;
+    jac[11][6] = d10;
     let l11_10 = (jac[18][6] - l11_9 * jac[10][6]) * d10;
+    jac[18][6] = l11_10;
     let l12_10 = (jac[4][6] - l12_9 * jac[10][6]) * d10;
+    jac[4][6] = l12_10;
     let l13_10 = (jac[5][6] - l13_9 * jac[10][6]) * d10;
+    jac[5][6] = l13_10;
     let l15_10 = (jac[3][6] - l15_9 * jac[10][6]) * d10;
+    jac[3][6] = l15_10;
     let l16_10 = (jac[6][6] - l16_9 * jac[10][6]) * d10;
+    jac[6][6] = l16_10;
     if !(p10.is_finite() && l11_10.abs() <= runtime::lu::MAX_MULTIPLIER
         && l12_10.abs() <= runtime::lu::MAX_MULTIPLIER
         && l13_10.abs() <= runtime::lu::MAX_MULTIPLIER
@@ -2138,14 +2161,23 @@ pub fn factor_3(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     {
         return None;
     }
+    smallest = smallest.min(p10.abs());
+    largest = largest.max(p10.abs());
     let u11_12 = jac[18][3] - l11_9 * jac[10][3] - l11_10 * u10_12;
+    jac[18][3] = u11_12;
     let p11 = jac[18][4] - l11_9 * jac[10][4] - l11_10 * u10_11;
     let d11 = 1.0 / p11;
+    jac[18][4] = d11;
     let l12_11 = (jac[4][4] - l12_9 * jac[10][4] - l12_10 * u10_11) * d11;
+    jac[4][4] = l12_11;
     let l13_11 = (jac[5][4] - l13_9 * jac[10][4] - l13_10 * u10_11) * d11;
+    jac[5][4] = l13_11;
     let l14_11 = jac[17][4] * d11;
+    jac[17][4] = l14_11;
     let l15_11 = (jac[3][4] - l15_9 * jac[10][4] - l15_10 * u10_11) * d11;
+    jac[3][4] = l15_11;
     let l16_11 = (jac[6][4] - l16_9 * jac[10][4] - l16_10 * u10_11) * d11;
+    jac[6][4] = l16_11;
     if !(p11.is_finite() && l12_11.abs() <= runtime::lu::MAX_MULTIPLIER
         && l13_11.abs() <= runtime::lu::MAX_MULTIPLIER
         && l14_11.abs() <= runtime::lu::MAX_MULTIPLIER
@@ -2154,23 +2186,38 @@ pub fn factor_3(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     {
         return None;
     }
+    smallest = smallest.min(p11.abs());
+    largest = largest.max(p11.abs());
     let u12_13 = jac[4][10] + jac[1][10];
+    jac[4][10] = u12_13;
     let u12_14 = jac[4][11] + jac[1][11];
+    jac[4][11] = u12_14;
     let u12_15 = jac[4][12] + jac[1][12];
+    jac[4][12] = u12_15;
     let u12_16 = jac[4][13] + jac[1][13];
+    jac[4][13] = u12_16;
     let u12_17 = u7_17;
+    jac[4][17] = u12_17;
     let u12_18 = u7_18;
+    jac[4][18] = u12_18;
     let u12_19 = u7_19;
+    jac[4][19] = u12_19;
     let u12_20 = u7_20;
+    jac[4][20] = u12_20;
     let p12 = jac[4][3] - l12_9 * jac[10][3] - l12_10 * u10_12 - l12_11 * u11_12;
     let d12 = 1.0 / p12;
+    jac[4][3] = d12;
     let l13_12 = (jac[5][3] - l13_9 * jac[10][3] - l13_10 * u10_12 - l13_11 * u11_12)
         * d12;
+    jac[5][3] = l13_12;
     let l14_12 = (jac[17][3] - l14_11 * u11_12) * d12;
+    jac[17][3] = l14_12;
     let l15_12 = (jac[3][3] - l15_9 * jac[10][3] - l15_10 * u10_12 - l15_11 * u11_12)
         * d12;
+    jac[3][3] = l15_12;
     let l16_12 = (jac[6][3] - l16_9 * jac[10][3] - l16_10 * u10_12 - l16_11 * u11_12)
         * d12;
+    jac[6][3] = l16_12;
     if !(p12.is_finite() && l13_12.abs() <= runtime::lu::MAX_MULTIPLIER
         && l14_12.abs() <= runtime::lu::MAX_MULTIPLIER
         && l15_12.abs() <= runtime::lu::MAX_MULTIPLIER
@@ -2178,19 +2225,33 @@ pub fn factor_3(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     {
         return None;
     }
+    smallest = smallest.min(p12.abs());
+    largest = largest.max(p12.abs());
     let u13_14 = jac[5][11] + jac[2][11] - l13_12 * u12_14;
+    jac[5][11] = u13_14;
     let u13_15 = jac[5][12] + jac[2][12] - l13_12 * u12_15;
+    jac[5][12] = u13_15;
     let u13_16 = jac[5][13] + jac[2][13] - l13_12 * u12_16;
+    jac[5][13] = u13_16;
     let u13_17 = u8_17 - l13_12 * u12_17;
+    jac[5][17] = u13_17;
     let u13_18 = u8_18 - l13_12 * u12_18;
+    jac[5][18] = u13_18;
     let u13_19 = u8_19 - l13_12 * u12_19;
+    jac[5][19] = u13_19;
     let u13_20 = u8_20 - l13_12 * u12_20;
+    jac[5][20] = u13_20;
     let p13 = jac[5][10] + jac[2][10] - l13_12 * u12_13;
     let d13 = 1.0 / p13;
+    jac[5][10] = d13;
     let l14_13 = -(l14_12 * u12_13) * d13;
+    jac[17][10] = l14_13;
     let l15_13 = (jac[3][10] + jac[0][10] - l15_12 * u12_13) * d13;
+    jac[3][10] = l15_13;
     let l16_13 = (jac[6][10] - l16_12 * u12_13) * d13;
+    jac[6][10] = l16_13;
     let l20_13 = jac[19][10] * d13;
+    jac[19][10] = l20_13;
     if !(p13.is_finite() && l14_13.abs() <= runtime::lu::MAX_MULTIPLIER
         && l15_13.abs() <= runtime::lu::MAX_MULTIPLIER
         && l16_13.abs() <= runtime::lu::MAX_MULTIPLIER
@@ -2198,219 +2259,150 @@ pub fn factor_3(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     {
         return None;
     }
+    smallest = smallest.min(p13.abs());
+    largest = largest.max(p13.abs());
     let u14_15 = -(l14_12 * u12_15) - l14_13 * u13_15;
+    jac[17][12] = u14_15;
     let u14_16 = -(l14_12 * u12_16) - l14_13 * u13_16;
+    jac[17][13] = u14_16;
     let u14_17 = -(l14_12 * u12_17) - l14_13 * u13_17;
+    jac[17][17] = u14_17;
     let u14_18 = -(l14_12 * u12_18) - l14_13 * u13_18;
+    jac[17][18] = u14_18;
     let u14_19 = -(l14_12 * u12_19) - l14_13 * u13_19;
+    jac[17][19] = u14_19;
     let u14_20 = -(l14_12 * u12_20) - l14_13 * u13_20;
+    jac[17][20] = u14_20;
     let p14 = -(l14_12 * u12_14) - l14_13 * u13_14;
     let d14 = 1.0 / p14;
+    jac[17][11] = d14;
     let l15_14 = (jac[3][11] + jac[0][11] - l15_12 * u12_14 - l15_13 * u13_14) * d14;
+    jac[3][11] = l15_14;
     let l16_14 = (jac[6][11] - l16_12 * u12_14 - l16_13 * u13_14) * d14;
+    jac[6][11] = l16_14;
     let l20_14 = (jac[19][11] - l20_13 * u13_14) * d14;
+    jac[19][11] = l20_14;
     if !(p14.is_finite() && l15_14.abs() <= runtime::lu::MAX_MULTIPLIER
         && l16_14.abs() <= runtime::lu::MAX_MULTIPLIER
         && l20_14.abs() <= runtime::lu::MAX_MULTIPLIER)
     {
         return None;
     }
+    smallest = smallest.min(p14.abs());
+    largest = largest.max(p14.abs());
     let u15_16 = jac[3][13] + jac[0][13] - l15_12 * u12_16 - l15_13 * u13_16
         - l15_14 * u14_16;
+    jac[3][13] = u15_16;
     let u15_17 = u6_17 - l15_12 * u12_17 - l15_13 * u13_17 - l15_14 * u14_17;
+    jac[3][17] = u15_17;
     let u15_18 = u6_18 - l15_12 * u12_18 - l15_13 * u13_18 - l15_14 * u14_18;
+    jac[3][18] = u15_18;
     let u15_19 = u6_19 - l15_12 * u12_19 - l15_13 * u13_19 - l15_14 * u14_19;
+    jac[3][19] = u15_19;
     let u15_20 = u6_20 - l15_12 * u12_20 - l15_13 * u13_20 - l15_14 * u14_20;
+    jac[3][20] = u15_20;
     let p15 = jac[3][12] + jac[0][12] - l15_12 * u12_15 - l15_13 * u13_15
         - l15_14 * u14_15;
     let d15 = 1.0 / p15;
+    jac[3][12] = d15;
     let l16_15 = (jac[6][12] - l16_12 * u12_15 - l16_13 * u13_15 - l16_14 * u14_15)
         * d15;
+    jac[6][12] = l16_15;
     let l20_15 = (jac[19][12] - l20_13 * u13_15 - l20_14 * u14_15) * d15;
+    jac[19][12] = l20_15;
     if !(p15.is_finite() && l16_15.abs() <= runtime::lu::MAX_MULTIPLIER
         && l20_15.abs() <= runtime::lu::MAX_MULTIPLIER)
     {
         return None;
     }
+    smallest = smallest.min(p15.abs());
+    largest = largest.max(p15.abs());
     let u16_17 = -(l16_12 * u12_17) - l16_13 * u13_17 - l16_14 * u14_17
         - l16_15 * u15_17;
+    jac[6][17] = u16_17;
     let u16_18 = -(l16_12 * u12_18) - l16_13 * u13_18 - l16_14 * u14_18
         - l16_15 * u15_18;
+    jac[6][18] = u16_18;
     let u16_19 = -(l16_12 * u12_19) - l16_13 * u13_19 - l16_14 * u14_19
         - l16_15 * u15_19;
+    jac[6][19] = u16_19;
     let u16_20 = -(l16_12 * u12_20) - l16_13 * u13_20 - l16_14 * u14_20
         - l16_15 * u15_20;
+    jac[6][20] = u16_20;
     let p16 = jac[6][13] - l16_12 * u12_16 - l16_13 * u13_16 - l16_14 * u14_16
         - l16_15 * u15_16;
     let d16 = 1.0 / p16;
+    jac[6][13] = d16;
     let l20_16 = (jac[19][13] - l20_13 * u13_16 - l20_14 * u14_16 - l20_15 * u15_16)
         * d16;
+    jac[19][13] = l20_16;
     if !(p16.is_finite() && l20_16.abs() <= runtime::lu::MAX_MULTIPLIER) {
         return None;
     }
+    smallest = smallest.min(p16.abs());
+    largest = largest.max(p16.abs());
     let p17 = jac[16][17];
     let d17 = 1.0 / p17;
+    jac[16][17] = d17;
     let l18_17 = jac[15][17] * d17;
+    jac[15][17] = l18_17;
     let l19_17 = jac[20][17] * d17;
+    jac[20][17] = l19_17;
     let l20_17 = (-(l20_13 * u13_17) - l20_14 * u14_17 - l20_15 * u15_17
         - l20_16 * u16_17) * d17;
+    jac[19][17] = l20_17;
     if !(p17.is_finite() && l18_17.abs() <= runtime::lu::MAX_MULTIPLIER
         && l19_17.abs() <= runtime::lu::MAX_MULTIPLIER
         && l20_17.abs() <= runtime::lu::MAX_MULTIPLIER)
     {
         return None;
     }
+    smallest = smallest.min(p17.abs());
+    largest = largest.max(p17.abs());
     let u18_19 = jac[15][19] - l18_17 * jac[16][19];
+    jac[15][19] = u18_19;
     let u18_20 = jac[15][20] - l18_17 * jac[16][20];
+    jac[15][20] = u18_20;
     let p18 = jac[15][18] - l18_17 * jac[16][18];
     let d18 = 1.0 / p18;
+    jac[15][18] = d18;
     let l19_18 = (jac[20][18] - l19_17 * jac[16][18]) * d18;
+    jac[20][18] = l19_18;
     let l20_18 = (-(l20_13 * u13_18) - l20_14 * u14_18 - l20_15 * u15_18
         - l20_16 * u16_18 - l20_17 * jac[16][18]) * d18;
+    jac[19][18] = l20_18;
     if !(p18.is_finite() && l19_18.abs() <= runtime::lu::MAX_MULTIPLIER
         && l20_18.abs() <= runtime::lu::MAX_MULTIPLIER)
     {
         return None;
     }
+    smallest = smallest.min(p18.abs());
+    largest = largest.max(p18.abs());
     let u19_20 = jac[20][20] - l19_17 * jac[16][20] - l19_18 * u18_20;
+    jac[20][20] = u19_20;
     let p19 = jac[20][19] - l19_17 * jac[16][19] - l19_18 * u18_19;
     let d19 = 1.0 / p19;
+    jac[20][19] = d19;
     let l20_19 = (-(l20_13 * u13_19) - l20_14 * u14_19 - l20_15 * u15_19
         - l20_16 * u16_19 - l20_17 * jac[16][19] - l20_18 * u18_19) * d19;
+    jac[19][19] = l20_19;
     if !(p19.is_finite() && l20_19.abs() <= runtime::lu::MAX_MULTIPLIER) {
         return None;
     }
+    smallest = smallest.min(p19.abs());
+    largest = largest.max(p19.abs());
     let p20 = -(l20_13 * u13_20) - l20_14 * u14_20 - l20_15 * u15_20 - l20_16 * u16_20
         - l20_17 * jac[16][20] - l20_18 * u18_20 - l20_19 * u19_20;
     let d20 = 1.0 / p20;
+    jac[19][20] = d20;
     if !p20.is_finite() {
         return None;
     }
-    jac[0][17] = u6_17;
-    jac[0][18] = u6_18;
-    jac[0][19] = u6_19;
-    jac[0][20] = u6_20;
-    jac[1][17] = u7_17;
-    jac[1][18] = u7_18;
-    jac[1][19] = u7_19;
-    jac[1][20] = u7_20;
-    jac[2][17] = u8_17;
-    jac[2][18] = u8_18;
-    jac[2][19] = u8_19;
-    jac[2][20] = u8_20;
-    jac[10][5] = d9;
-    jac[11][5] = l10_9;
-    jac[11][6] = d10;
-    jac[11][4] = u10_11;
-    jac[11][3] = u10_12;
-    jac[18][5] = l11_9;
-    jac[18][6] = l11_10;
-    jac[18][4] = d11;
-    jac[18][3] = u11_12;
-    jac[4][5] = l12_9;
-    jac[4][6] = l12_10;
-    jac[4][4] = l12_11;
-    jac[4][3] = d12;
-    jac[4][10] = u12_13;
-    jac[4][11] = u12_14;
-    jac[4][12] = u12_15;
-    jac[4][13] = u12_16;
-    jac[4][17] = u12_17;
-    jac[4][18] = u12_18;
-    jac[4][19] = u12_19;
-    jac[4][20] = u12_20;
-    jac[5][5] = l13_9;
-    jac[5][6] = l13_10;
-    jac[5][4] = l13_11;
-    jac[5][3] = l13_12;
-    jac[5][10] = d13;
-    jac[5][11] = u13_14;
-    jac[5][12] = u13_15;
-    jac[5][13] = u13_16;
-    jac[5][17] = u13_17;
-    jac[5][18] = u13_18;
-    jac[5][19] = u13_19;
-    jac[5][20] = u13_20;
-    jac[17][4] = l14_11;
-    jac[17][3] = l14_12;
-    jac[17][10] = l14_13;
-    jac[17][11] = d14;
-    jac[17][12] = u14_15;
-    jac[17][13] = u14_16;
-    jac[17][17] = u14_17;
-    jac[17][18] = u14_18;
-    jac[17][19] = u14_19;
-    jac[17][20] = u14_20;
-    jac[3][5] = l15_9;
-    jac[3][6] = l15_10;
-    jac[3][4] = l15_11;
-    jac[3][3] = l15_12;
-    jac[3][10] = l15_13;
-    jac[3][11] = l15_14;
-    jac[3][12] = d15;
-    jac[3][13] = u15_16;
-    jac[3][17] = u15_17;
-    jac[3][18] = u15_18;
-    jac[3][19] = u15_19;
-    jac[3][20] = u15_20;
-    jac[6][5] = l16_9;
-    jac[6][6] = l16_10;
-    jac[6][4] = l16_11;
-    jac[6][3] = l16_12;
-    jac[6][10] = l16_13;
-    jac[6][11] = l16_14;
-    jac[6][12] = l16_15;
-    jac[6][13] = d16;
-    jac[6][17] = u16_17;
-    jac[6][18] = u16_18;
-    jac[6][19] = u16_19;
-    jac[6][20] = u16_20;
-    jac[16][17] = d17;
-    jac[15][17] = l18_17;
-    jac[15][18] = d18;
-    jac[15][19] = u18_19;
-    jac[15][20] = u18_20;
-    jac[20][17] = l19_17;
-    jac[20][18] = l19_18;
-    jac[20][19] = d19;
-    jac[20][20] = u19_20;
-    jac[19][10] = l20_13;
-    jac[19][11] = l20_14;
-    jac[19][12] = l20_15;
-    jac[19][13] = l20_16;
-    jac[19][17] = l20_17;
-    jac[19][18] = l20_18;
-    jac[19][19] = l20_19;
-    jac[19][20] = d20;
+    smallest = smallest.min(p20.abs());
+    largest = largest.max(p20.abs());
     Some(runtime::lu::PivotInfo {
-        smallest: p9
-            .abs()
-            .min(p10.abs())
-            .min(p11.abs())
-            .min(p12.abs())
-            .min(p13.abs())
-            .min(p14.abs())
-            .min(p15.abs())
-            .min(p16.abs())
-            .min(p17.abs())
-            .min(p18.abs())
-            .min(p19.abs())
-            .min(p20.abs())
-            .min(1.0),
-        largest: p9
-            .abs()
-            .max(p10.abs())
-            .max(p11.abs())
-            .max(p12.abs())
-            .max(p13.abs())
-            .max(p14.abs())
-            .max(p15.abs())
-            .max(p16.abs())
-            .max(p17.abs())
-            .max(p18.abs())
-            .max(p19.abs())
-            .max(p20.abs())
-            .max(1.0),
+        smallest,
+        largest,
     })
 }
 

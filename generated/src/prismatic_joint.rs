@@ -182,59 +182,67 @@ pub fn residual_jacobian_structural(
 
  L and U have 18 entries (0 of them fill-in, 2 known when generated); 38 operations. The others are in `jac`: 13 stored there, with the reciprocals of the pivots on the diagonal, and 3 left as Φ_q had them.
 
- Returns the smallest and largest |pivot|, or `None` (with `jac` unchanged) when a pivot is not finite or a multiplier exceeds [`runtime::lu::MAX_MULTIPLIER`] in magnitude.*/
+ Returns the smallest and largest |pivot|, or `None` when a pivot is not finite or a multiplier exceeds [`runtime::lu::MAX_MULTIPLIER`] in magnitude; `jac` is then partly factored and must be evaluated again.*/
 #[must_use]
 pub fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     let p2 = jac[5][2];
     let d2 = 1.0 / p2;
+    jac[5][2] = d2;
     let l3_2 = jac[1][2] * d2;
+    jac[1][2] = l3_2;
     let l4_2 = jac[4][2] * d2;
+    jac[4][2] = l4_2;
     let l5_2 = jac[0][2] * d2;
+    jac[0][2] = l5_2;
     if !(p2.is_finite() && l3_2.abs() <= runtime::lu::MAX_MULTIPLIER
         && l4_2.abs() <= runtime::lu::MAX_MULTIPLIER
         && l5_2.abs() <= runtime::lu::MAX_MULTIPLIER)
     {
         return None;
     }
+    let mut smallest = p2.abs().min(1.0);
+    let mut largest = p2.abs().max(1.0);
     let u3_4 = jac[1][4] - l3_2 * jac[5][4];
+    jac[1][4] = u3_4;
     let u3_5 = jac[1][5] - l3_2 * jac[5][5];
+    jac[1][5] = u3_5;
     let p3 = jac[1][3] - l3_2 * jac[5][3];
     let d3 = 1.0 / p3;
+    jac[1][3] = d3;
     let l4_3 = (jac[4][3] - l4_2 * jac[5][3]) * d3;
+    jac[4][3] = l4_3;
     let l5_3 = (jac[0][3] - l5_2 * jac[5][3]) * d3;
+    jac[0][3] = l5_3;
     if !(p3.is_finite() && l4_3.abs() <= runtime::lu::MAX_MULTIPLIER
         && l5_3.abs() <= runtime::lu::MAX_MULTIPLIER)
     {
         return None;
     }
+    smallest = smallest.min(p3.abs());
+    largest = largest.max(p3.abs());
     let u4_5 = jac[4][5] - l4_2 * jac[5][5] - l4_3 * u3_5;
+    jac[4][5] = u4_5;
     let p4 = jac[4][4] - l4_2 * jac[5][4] - l4_3 * u3_4;
     let d4 = 1.0 / p4;
+    jac[4][4] = d4;
     let l5_4 = (jac[0][4] - l5_2 * jac[5][4] - l5_3 * u3_4) * d4;
+    jac[0][4] = l5_4;
     if !(p4.is_finite() && l5_4.abs() <= runtime::lu::MAX_MULTIPLIER) {
         return None;
     }
+    smallest = smallest.min(p4.abs());
+    largest = largest.max(p4.abs());
     let p5 = jac[0][5] - l5_2 * jac[5][5] - l5_3 * u3_5 - l5_4 * u4_5;
     let d5 = 1.0 / p5;
+    jac[0][5] = d5;
     if !p5.is_finite() {
         return None;
     }
-    jac[5][2] = d2;
-    jac[1][2] = l3_2;
-    jac[1][3] = d3;
-    jac[1][4] = u3_4;
-    jac[1][5] = u3_5;
-    jac[4][2] = l4_2;
-    jac[4][3] = l4_3;
-    jac[4][4] = d4;
-    jac[4][5] = u4_5;
-    jac[0][2] = l5_2;
-    jac[0][3] = l5_3;
-    jac[0][4] = l5_4;
-    jac[0][5] = d5;
+    smallest = smallest.min(p5.abs());
+    largest = largest.max(p5.abs());
     Some(runtime::lu::PivotInfo {
-        smallest: p2.abs().min(p3.abs()).min(p4.abs()).min(p5.abs()).min(1.0),
-        largest: p2.abs().max(p3.abs()).max(p4.abs()).max(p5.abs()).max(1.0),
+        smallest,
+        largest,
     })
 }
 

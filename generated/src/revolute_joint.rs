@@ -260,55 +260,63 @@ pub fn residual_jacobian_structural(
 
  L and U have 29 entries (0 of them fill-in, 3 known when generated); 26 operations. The others are in `jac`: 11 stored there, with the reciprocals of the pivots on the diagonal, and 15 left as Φ_q had them.
 
- Returns the smallest and largest |pivot|, or `None` (with `jac` unchanged) when a pivot is not finite or a multiplier exceeds [`runtime::lu::MAX_MULTIPLIER`] in magnitude.*/
+ Returns the smallest and largest |pivot|, or `None` when a pivot is not finite or a multiplier exceeds [`runtime::lu::MAX_MULTIPLIER`] in magnitude; `jac` is then partly factored and must be evaluated again.*/
 #[must_use]
 pub fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     let p3 = jac[5][4];
     let d3 = 1.0 / p3;
+    jac[5][4] = d3;
     let l4_3 = jac[6][4] * d3;
+    jac[6][4] = l4_3;
     let l5_3 = jac[4][4] * d3;
+    jac[4][4] = l5_3;
     let l6_3 = jac[3][4] * d3;
+    jac[3][4] = l6_3;
     if !(p3.is_finite() && l4_3.abs() <= runtime::lu::MAX_MULTIPLIER
         && l5_3.abs() <= runtime::lu::MAX_MULTIPLIER
         && l6_3.abs() <= runtime::lu::MAX_MULTIPLIER)
     {
         return None;
     }
+    let mut smallest = p3.abs().min(1.0);
+    let mut largest = p3.abs().max(1.0);
     let p4 = jac[6][3] - l4_3 * jac[5][3];
     let d4 = 1.0 / p4;
+    jac[6][3] = d4;
     let l5_4 = (jac[4][3] - l5_3 * jac[5][3]) * d4;
+    jac[4][3] = l5_4;
     let l6_4 = (jac[3][3] - l6_3 * jac[5][3]) * d4;
+    jac[3][3] = l6_4;
     if !(p4.is_finite() && l5_4.abs() <= runtime::lu::MAX_MULTIPLIER
         && l6_4.abs() <= runtime::lu::MAX_MULTIPLIER)
     {
         return None;
     }
+    smallest = smallest.min(p4.abs());
+    largest = largest.max(p4.abs());
     let u5_6 = jac[4][6] - l5_4 * jac[6][6];
+    jac[4][6] = u5_6;
     let p5 = jac[4][5] - l5_4 * jac[6][5];
     let d5 = 1.0 / p5;
+    jac[4][5] = d5;
     let l6_5 = (jac[3][5] - l6_4 * jac[6][5]) * d5;
+    jac[3][5] = l6_5;
     if !(p5.is_finite() && l6_5.abs() <= runtime::lu::MAX_MULTIPLIER) {
         return None;
     }
+    smallest = smallest.min(p5.abs());
+    largest = largest.max(p5.abs());
     let p6 = jac[3][6] - l6_4 * jac[6][6] - l6_5 * u5_6;
     let d6 = 1.0 / p6;
+    jac[3][6] = d6;
     if !p6.is_finite() {
         return None;
     }
-    jac[5][4] = d3;
-    jac[6][4] = l4_3;
-    jac[6][3] = d4;
-    jac[4][4] = l5_3;
-    jac[4][3] = l5_4;
-    jac[4][5] = d5;
-    jac[4][6] = u5_6;
-    jac[3][4] = l6_3;
-    jac[3][3] = l6_4;
-    jac[3][5] = l6_5;
-    jac[3][6] = d6;
+    smallest = smallest.min(p6.abs());
+    largest = largest.max(p6.abs());
     Some(runtime::lu::PivotInfo {
-        smallest: p3.abs().min(p4.abs()).min(p5.abs()).min(p6.abs()).min(1.0),
-        largest: p3.abs().max(p4.abs()).max(p5.abs()).max(p6.abs()).max(1.0),
+        smallest,
+        largest,
     })
 }
 
@@ -343,55 +351,63 @@ pub fn solve_0(lu: &[[f64; N]; N], b: &mut [f64; N]) {
 
  L and U have 29 entries (0 of them fill-in, 3 known when generated); 26 operations. The others are in `jac`: 11 stored there, with the reciprocals of the pivots on the diagonal, and 15 left as Φ_q had them.
 
- Returns the smallest and largest |pivot|, or `None` (with `jac` unchanged) when a pivot is not finite or a multiplier exceeds [`runtime::lu::MAX_MULTIPLIER`] in magnitude.*/
+ Returns the smallest and largest |pivot|, or `None` when a pivot is not finite or a multiplier exceeds [`runtime::lu::MAX_MULTIPLIER`] in magnitude; `jac` is then partly factored and must be evaluated again.*/
 #[must_use]
 pub fn factor_1(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     let p3 = jac[5][3];
     let d3 = 1.0 / p3;
+    jac[5][3] = d3;
     let l4_3 = jac[6][3] * d3;
+    jac[6][3] = l4_3;
     let l5_3 = jac[3][3] * d3;
+    jac[3][3] = l5_3;
     let l6_3 = jac[4][3] * d3;
+    jac[4][3] = l6_3;
     if !(p3.is_finite() && l4_3.abs() <= runtime::lu::MAX_MULTIPLIER
         && l5_3.abs() <= runtime::lu::MAX_MULTIPLIER
         && l6_3.abs() <= runtime::lu::MAX_MULTIPLIER)
     {
         return None;
     }
+    let mut smallest = p3.abs().min(1.0);
+    let mut largest = p3.abs().max(1.0);
     let p4 = jac[6][4] - l4_3 * jac[5][4];
     let d4 = 1.0 / p4;
+    jac[6][4] = d4;
     let l5_4 = (jac[3][4] - l5_3 * jac[5][4]) * d4;
+    jac[3][4] = l5_4;
     let l6_4 = (jac[4][4] - l6_3 * jac[5][4]) * d4;
+    jac[4][4] = l6_4;
     if !(p4.is_finite() && l5_4.abs() <= runtime::lu::MAX_MULTIPLIER
         && l6_4.abs() <= runtime::lu::MAX_MULTIPLIER)
     {
         return None;
     }
+    smallest = smallest.min(p4.abs());
+    largest = largest.max(p4.abs());
     let u5_6 = jac[3][6] - l5_4 * jac[6][6];
+    jac[3][6] = u5_6;
     let p5 = jac[3][5] - l5_4 * jac[6][5];
     let d5 = 1.0 / p5;
+    jac[3][5] = d5;
     let l6_5 = (jac[4][5] - l6_4 * jac[6][5]) * d5;
+    jac[4][5] = l6_5;
     if !(p5.is_finite() && l6_5.abs() <= runtime::lu::MAX_MULTIPLIER) {
         return None;
     }
+    smallest = smallest.min(p5.abs());
+    largest = largest.max(p5.abs());
     let p6 = jac[4][6] - l6_4 * jac[6][6] - l6_5 * u5_6;
     let d6 = 1.0 / p6;
+    jac[4][6] = d6;
     if !p6.is_finite() {
         return None;
     }
-    jac[5][3] = d3;
-    jac[6][3] = l4_3;
-    jac[6][4] = d4;
-    jac[3][3] = l5_3;
-    jac[3][4] = l5_4;
-    jac[3][5] = d5;
-    jac[3][6] = u5_6;
-    jac[4][3] = l6_3;
-    jac[4][4] = l6_4;
-    jac[4][5] = l6_5;
-    jac[4][6] = d6;
+    smallest = smallest.min(p6.abs());
+    largest = largest.max(p6.abs());
     Some(runtime::lu::PivotInfo {
-        smallest: p3.abs().min(p4.abs()).min(p5.abs()).min(p6.abs()).min(1.0),
-        largest: p3.abs().max(p4.abs()).max(p5.abs()).max(p6.abs()).max(1.0),
+        smallest,
+        largest,
     })
 }
 

@@ -106,26 +106,30 @@ pub fn residual_jacobian_structural(
 
  L and U have 4 entries (0 of them fill-in, 0 known when generated); 5 operations. The others are in `jac`: 3 stored there, with the reciprocals of the pivots on the diagonal, and 1 left as Φ_q had them.
 
- Returns the smallest and largest |pivot|, or `None` (with `jac` unchanged) when a pivot is not finite or a multiplier exceeds [`runtime::lu::MAX_MULTIPLIER`] in magnitude.*/
+ Returns the smallest and largest |pivot|, or `None` when a pivot is not finite or a multiplier exceeds [`runtime::lu::MAX_MULTIPLIER`] in magnitude; `jac` is then partly factored and must be evaluated again.*/
 #[must_use]
 pub fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     let p0 = jac[1][0];
     let d0 = 1.0 / p0;
+    jac[1][0] = d0;
     let l1_0 = jac[0][0] * d0;
+    jac[0][0] = l1_0;
     if !(p0.is_finite() && l1_0.abs() <= runtime::lu::MAX_MULTIPLIER) {
         return None;
     }
+    let mut smallest = p0.abs();
+    let mut largest = p0.abs();
     let p1 = jac[0][1] - l1_0 * jac[1][1];
     let d1 = 1.0 / p1;
+    jac[0][1] = d1;
     if !p1.is_finite() {
         return None;
     }
-    jac[1][0] = d0;
-    jac[0][0] = l1_0;
-    jac[0][1] = d1;
+    smallest = smallest.min(p1.abs());
+    largest = largest.max(p1.abs());
     Some(runtime::lu::PivotInfo {
-        smallest: p0.abs().min(p1.abs()),
-        largest: p0.abs().max(p1.abs()),
+        smallest,
+        largest,
     })
 }
 
@@ -145,26 +149,30 @@ pub fn solve_0(lu: &[[f64; N]; N], b: &mut [f64; N]) {
 
  L and U have 4 entries (0 of them fill-in, 0 known when generated); 5 operations. The others are in `jac`: 3 stored there, with the reciprocals of the pivots on the diagonal, and 1 left as Φ_q had them.
 
- Returns the smallest and largest |pivot|, or `None` (with `jac` unchanged) when a pivot is not finite or a multiplier exceeds [`runtime::lu::MAX_MULTIPLIER`] in magnitude.*/
+ Returns the smallest and largest |pivot|, or `None` when a pivot is not finite or a multiplier exceeds [`runtime::lu::MAX_MULTIPLIER`] in magnitude; `jac` is then partly factored and must be evaluated again.*/
 #[must_use]
 pub fn factor_1(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     let p0 = jac[0][0];
     let d0 = 1.0 / p0;
+    jac[0][0] = d0;
     let l1_0 = jac[1][0] * d0;
+    jac[1][0] = l1_0;
     if !(p0.is_finite() && l1_0.abs() <= runtime::lu::MAX_MULTIPLIER) {
         return None;
     }
+    let mut smallest = p0.abs();
+    let mut largest = p0.abs();
     let p1 = jac[1][1] - l1_0 * jac[0][1];
     let d1 = 1.0 / p1;
+    jac[1][1] = d1;
     if !p1.is_finite() {
         return None;
     }
-    jac[0][0] = d0;
-    jac[1][0] = l1_0;
-    jac[1][1] = d1;
+    smallest = smallest.min(p1.abs());
+    largest = largest.max(p1.abs());
     Some(runtime::lu::PivotInfo {
-        smallest: p0.abs().min(p1.abs()),
-        largest: p0.abs().max(p1.abs()),
+        smallest,
+        largest,
     })
 }
 

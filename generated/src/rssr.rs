@@ -638,17 +638,24 @@ pub fn residual_jacobian_structural(
 
  L and U have 92 entries (14 of them fill-in, 18 known when generated); 149 operations. The others are in `jac`: 50 stored there, with the reciprocals of the pivots on the diagonal, and 24 left as Φ_q had them.
 
- Returns the smallest and largest |pivot|, or `None` (with `jac` unchanged) when a pivot is not finite or a multiplier exceeds [`runtime::lu::MAX_MULTIPLIER`] in magnitude.*/
+ Returns the smallest and largest |pivot|, or `None` when a pivot is not finite or a multiplier exceeds [`runtime::lu::MAX_MULTIPLIER`] in magnitude; `jac` is then partly factored and must be evaluated again.*/
 #[must_use]
 pub fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     let p9 = jac[16][5];
     let d9 = 1.0 / p9;
+    jac[16][5] = d9;
     let l11_9 = jac[17][5] * d9;
+    jac[17][5] = l11_9;
     let l12_9 = jac[10][5] * d9;
+    jac[10][5] = l12_9;
     let l13_9 = jac[9][5] * d9;
+    jac[9][5] = l13_9;
     let l14_9 = jac[2][5] * d9;
+    jac[5][5] = l14_9;
     let l15_9 = jac[0][5] * d9;
+    jac[3][5] = l15_9;
     let l17_9 = jac[1][5] * d9;
+    jac[4][5] = l17_9;
     if !(p9.is_finite() && l11_9.abs() <= runtime::lu::MAX_MULTIPLIER
         && l12_9.abs() <= runtime::lu::MAX_MULTIPLIER
         && l13_9.abs() <= runtime::lu::MAX_MULTIPLIER
@@ -658,24 +665,38 @@ pub fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     {
         return None;
     }
+    let mut smallest = p9.abs().min(1.0);
+    let mut largest = p9.abs().max(1.0);
     let p10 = jac[18][10];
     let d10 = 1.0 / p10;
+    jac[18][10] = d10;
     let l14_10 = jac[5][10] * d10;
+    jac[5][10] = l14_10;
     let l15_10 = jac[3][10] * d10;
+    jac[3][10] = l15_10;
     let l17_10 = jac[4][10] * d10;
+    jac[4][10] = l17_10;
     if !(p10.is_finite() && l14_10.abs() <= runtime::lu::MAX_MULTIPLIER
         && l15_10.abs() <= runtime::lu::MAX_MULTIPLIER
         && l17_10.abs() <= runtime::lu::MAX_MULTIPLIER)
     {
         return None;
     }
+    smallest = smallest.min(p10.abs());
+    largest = largest.max(p10.abs());
     let p11 = jac[17][3] - l11_9 * jac[16][3];
     let d11 = 1.0 / p11;
+    jac[17][3] = d11;
     let l12_11 = (jac[10][3] - l12_9 * jac[16][3]) * d11;
+    jac[10][3] = l12_11;
     let l13_11 = (jac[9][3] - l13_9 * jac[16][3]) * d11;
+    jac[9][3] = l13_11;
     let l14_11 = (jac[2][3] - l14_9 * jac[16][3]) * d11;
+    jac[5][3] = l14_11;
     let l15_11 = (jac[0][3] - l15_9 * jac[16][3]) * d11;
+    jac[3][3] = l15_11;
     let l17_11 = (jac[1][3] - l17_9 * jac[16][3]) * d11;
+    jac[4][3] = l17_11;
     if !(p11.is_finite() && l12_11.abs() <= runtime::lu::MAX_MULTIPLIER
         && l13_11.abs() <= runtime::lu::MAX_MULTIPLIER
         && l14_11.abs() <= runtime::lu::MAX_MULTIPLIER
@@ -684,13 +705,21 @@ pub fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     {
         return None;
     }
+    smallest = smallest.min(p11.abs());
+    largest = largest.max(p11.abs());
     let u12_13 = jac[10][6] - l12_11 * jac[17][6];
+    jac[10][6] = u12_13;
     let p12 = jac[10][4] - l12_11 * jac[17][4];
     let d12 = 1.0 / p12;
+    jac[10][4] = d12;
     let l13_12 = (jac[9][4] - l13_11 * jac[17][4]) * d12;
+    jac[9][4] = l13_12;
     let l14_12 = (jac[2][4] - l14_11 * jac[17][4]) * d12;
+    jac[5][4] = l14_12;
     let l15_12 = (jac[0][4] - l15_11 * jac[17][4]) * d12;
+    jac[3][4] = l15_12;
     let l17_12 = (jac[1][4] - l17_11 * jac[17][4]) * d12;
+    jac[4][4] = l17_12;
     if !(p12.is_finite() && l13_12.abs() <= runtime::lu::MAX_MULTIPLIER
         && l14_12.abs() <= runtime::lu::MAX_MULTIPLIER
         && l15_12.abs() <= runtime::lu::MAX_MULTIPLIER
@@ -698,150 +727,119 @@ pub fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     {
         return None;
     }
+    smallest = smallest.min(p12.abs());
+    largest = largest.max(p12.abs());
     let p13 = jac[9][6] - l13_11 * jac[17][6] - l13_12 * u12_13;
     let d13 = 1.0 / p13;
+    jac[9][6] = d13;
     let l14_13 = (jac[2][6] - l14_11 * jac[17][6] - l14_12 * u12_13) * d13;
+    jac[5][6] = l14_13;
     let l15_13 = (jac[0][6] - l15_11 * jac[17][6] - l15_12 * u12_13) * d13;
+    jac[3][6] = l15_13;
     let l17_13 = (jac[1][6] - l17_11 * jac[17][6] - l17_12 * u12_13) * d13;
+    jac[4][6] = l17_13;
     if !(p13.is_finite() && l14_13.abs() <= runtime::lu::MAX_MULTIPLIER
         && l15_13.abs() <= runtime::lu::MAX_MULTIPLIER
         && l17_13.abs() <= runtime::lu::MAX_MULTIPLIER)
     {
         return None;
     }
+    smallest = smallest.min(p13.abs());
+    largest = largest.max(p13.abs());
     let u14_15 = -(l14_10 * jac[18][12]);
+    jac[5][12] = u14_15;
     let p14 = jac[5][11] - l14_10 * jac[18][11];
     let d14 = 1.0 / p14;
+    jac[5][11] = d14;
     let l15_14 = -(l15_10 * jac[18][11]) * d14;
+    jac[3][11] = l15_14;
     let l17_14 = (jac[4][11] - l17_10 * jac[18][11]) * d14;
+    jac[4][11] = l17_14;
     if !(p14.is_finite() && l15_14.abs() <= runtime::lu::MAX_MULTIPLIER
         && l17_14.abs() <= runtime::lu::MAX_MULTIPLIER)
     {
         return None;
     }
+    smallest = smallest.min(p14.abs());
+    largest = largest.max(p14.abs());
     let u15_16 = jac[3][16] - l15_14 * jac[5][16];
+    jac[3][16] = u15_16;
     let u15_17 = jac[3][17] - l15_14 * jac[5][17];
+    jac[3][17] = u15_17;
     let u15_18 = jac[3][18] - l15_14 * jac[5][18];
+    jac[3][18] = u15_18;
     let u15_19 = jac[3][19] - l15_14 * jac[5][19];
+    jac[3][19] = u15_19;
     let p15 = jac[3][12] - l15_10 * jac[18][12] - l15_14 * u14_15;
     let d15 = 1.0 / p15;
+    jac[3][12] = d15;
     let l17_15 = (jac[4][12] - l17_10 * jac[18][12] - l17_14 * u14_15) * d15;
+    jac[4][12] = l17_15;
     if !(p15.is_finite() && l17_15.abs() <= runtime::lu::MAX_MULTIPLIER) {
         return None;
     }
+    smallest = smallest.min(p15.abs());
+    largest = largest.max(p15.abs());
     let p16 = jac[19][16];
     let d16 = 1.0 / p16;
+    jac[19][16] = d16;
     let l17_16 = (jac[4][16] - l17_14 * jac[5][16] - l17_15 * u15_16) * d16;
+    jac[4][16] = l17_16;
     let l18_16 = jac[15][16] * d16;
+    jac[15][16] = l18_16;
     let l19_16 = jac[14][16] * d16;
+    jac[14][16] = l19_16;
     if !(p16.is_finite() && l17_16.abs() <= runtime::lu::MAX_MULTIPLIER
         && l18_16.abs() <= runtime::lu::MAX_MULTIPLIER
         && l19_16.abs() <= runtime::lu::MAX_MULTIPLIER)
     {
         return None;
     }
+    smallest = smallest.min(p16.abs());
+    largest = largest.max(p16.abs());
     let u17_18 = jac[4][18] - l17_14 * jac[5][18] - l17_15 * u15_18
         - l17_16 * jac[19][18];
+    jac[4][18] = u17_18;
     let u17_19 = jac[4][19] - l17_14 * jac[5][19] - l17_15 * u15_19
         - l17_16 * jac[19][19];
+    jac[4][19] = u17_19;
     let p17 = jac[4][17] - l17_14 * jac[5][17] - l17_15 * u15_17 - l17_16 * jac[19][17];
     let d17 = 1.0 / p17;
+    jac[4][17] = d17;
     let l18_17 = (jac[15][17] - l18_16 * jac[19][17]) * d17;
+    jac[15][17] = l18_17;
     let l19_17 = (jac[14][17] - l19_16 * jac[19][17]) * d17;
+    jac[14][17] = l19_17;
     if !(p17.is_finite() && l18_17.abs() <= runtime::lu::MAX_MULTIPLIER
         && l19_17.abs() <= runtime::lu::MAX_MULTIPLIER)
     {
         return None;
     }
+    smallest = smallest.min(p17.abs());
+    largest = largest.max(p17.abs());
     let u18_19 = jac[15][19] - l18_16 * jac[19][19] - l18_17 * u17_19;
+    jac[15][19] = u18_19;
     let p18 = jac[15][18] - l18_16 * jac[19][18] - l18_17 * u17_18;
     let d18 = 1.0 / p18;
+    jac[15][18] = d18;
     let l19_18 = (jac[14][18] - l19_16 * jac[19][18] - l19_17 * u17_18) * d18;
+    jac[14][18] = l19_18;
     if !(p18.is_finite() && l19_18.abs() <= runtime::lu::MAX_MULTIPLIER) {
         return None;
     }
+    smallest = smallest.min(p18.abs());
+    largest = largest.max(p18.abs());
     let p19 = jac[14][19] - l19_16 * jac[19][19] - l19_17 * u17_19 - l19_18 * u18_19;
     let d19 = 1.0 / p19;
+    jac[14][19] = d19;
     if !p19.is_finite() {
         return None;
     }
-    jac[16][5] = d9;
-    jac[18][10] = d10;
-    jac[17][5] = l11_9;
-    jac[17][3] = d11;
-    jac[10][5] = l12_9;
-    jac[10][3] = l12_11;
-    jac[10][4] = d12;
-    jac[10][6] = u12_13;
-    jac[9][5] = l13_9;
-    jac[9][3] = l13_11;
-    jac[9][4] = l13_12;
-    jac[9][6] = d13;
-    jac[5][5] = l14_9;
-    jac[5][10] = l14_10;
-    jac[5][3] = l14_11;
-    jac[5][4] = l14_12;
-    jac[5][6] = l14_13;
-    jac[5][11] = d14;
-    jac[5][12] = u14_15;
-    jac[3][5] = l15_9;
-    jac[3][10] = l15_10;
-    jac[3][3] = l15_11;
-    jac[3][4] = l15_12;
-    jac[3][6] = l15_13;
-    jac[3][11] = l15_14;
-    jac[3][12] = d15;
-    jac[3][16] = u15_16;
-    jac[3][17] = u15_17;
-    jac[3][18] = u15_18;
-    jac[3][19] = u15_19;
-    jac[19][16] = d16;
-    jac[4][5] = l17_9;
-    jac[4][10] = l17_10;
-    jac[4][3] = l17_11;
-    jac[4][4] = l17_12;
-    jac[4][6] = l17_13;
-    jac[4][11] = l17_14;
-    jac[4][12] = l17_15;
-    jac[4][16] = l17_16;
-    jac[4][17] = d17;
-    jac[4][18] = u17_18;
-    jac[4][19] = u17_19;
-    jac[15][16] = l18_16;
-    jac[15][17] = l18_17;
-    jac[15][18] = d18;
-    jac[15][19] = u18_19;
-    jac[14][16] = l19_16;
-    jac[14][17] = l19_17;
-    jac[14][18] = l19_18;
-    jac[14][19] = d19;
+    smallest = smallest.min(p19.abs());
+    largest = largest.max(p19.abs());
     Some(runtime::lu::PivotInfo {
-        smallest: p9
-            .abs()
-            .min(p10.abs())
-            .min(p11.abs())
-            .min(p12.abs())
-            .min(p13.abs())
-            .min(p14.abs())
-            .min(p15.abs())
-            .min(p16.abs())
-            .min(p17.abs())
-            .min(p18.abs())
-            .min(p19.abs())
-            .min(1.0),
-        largest: p9
-            .abs()
-            .max(p10.abs())
-            .max(p11.abs())
-            .max(p12.abs())
-            .max(p13.abs())
-            .max(p14.abs())
-            .max(p15.abs())
-            .max(p16.abs())
-            .max(p17.abs())
-            .max(p18.abs())
-            .max(p19.abs())
-            .max(1.0),
+        smallest,
+        largest,
     })
 }
 
@@ -922,17 +920,24 @@ pub fn solve_0(lu: &[[f64; N]; N], b: &mut [f64; N]) {
 
  L and U have 92 entries (14 of them fill-in, 18 known when generated); 149 operations. The others are in `jac`: 51 stored there, with the reciprocals of the pivots on the diagonal, and 23 left as Φ_q had them.
 
- Returns the smallest and largest |pivot|, or `None` (with `jac` unchanged) when a pivot is not finite or a multiplier exceeds [`runtime::lu::MAX_MULTIPLIER`] in magnitude.*/
+ Returns the smallest and largest |pivot|, or `None` when a pivot is not finite or a multiplier exceeds [`runtime::lu::MAX_MULTIPLIER`] in magnitude; `jac` is then partly factored and must be evaluated again.*/
 #[must_use]
 pub fn factor_1(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     let p9 = jac[16][3];
     let d9 = 1.0 / p9;
+    jac[16][3] = d9;
     let l11_9 = jac[9][3] * d9;
+    jac[9][3] = l11_9;
     let l12_9 = jac[17][3] * d9;
+    jac[17][3] = l12_9;
     let l13_9 = jac[10][3] * d9;
+    jac[10][3] = l13_9;
     let l14_9 = jac[2][3] * d9;
+    jac[5][3] = l14_9;
     let l15_9 = jac[0][3] * d9;
+    jac[3][3] = l15_9;
     let l17_9 = jac[1][3] * d9;
+    jac[4][3] = l17_9;
     if !(p9.is_finite() && l11_9.abs() <= runtime::lu::MAX_MULTIPLIER
         && l12_9.abs() <= runtime::lu::MAX_MULTIPLIER
         && l13_9.abs() <= runtime::lu::MAX_MULTIPLIER
@@ -942,25 +947,40 @@ pub fn factor_1(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     {
         return None;
     }
+    let mut smallest = p9.abs().min(1.0);
+    let mut largest = p9.abs().max(1.0);
     let p10 = jac[18][10];
     let d10 = 1.0 / p10;
+    jac[18][10] = d10;
     let l14_10 = jac[5][10] * d10;
+    jac[5][10] = l14_10;
     let l15_10 = jac[3][10] * d10;
+    jac[3][10] = l15_10;
     let l17_10 = jac[4][10] * d10;
+    jac[4][10] = l17_10;
     if !(p10.is_finite() && l14_10.abs() <= runtime::lu::MAX_MULTIPLIER
         && l15_10.abs() <= runtime::lu::MAX_MULTIPLIER
         && l17_10.abs() <= runtime::lu::MAX_MULTIPLIER)
     {
         return None;
     }
+    smallest = smallest.min(p10.abs());
+    largest = largest.max(p10.abs());
     let u11_12 = jac[9][5] - l11_9 * jac[16][5];
+    jac[9][5] = u11_12;
     let p11 = jac[9][4];
     let d11 = 1.0 / p11;
+    jac[9][4] = d11;
     let l12_11 = jac[17][4] * d11;
+    jac[17][4] = l12_11;
     let l13_11 = jac[10][4] * d11;
+    jac[10][4] = l13_11;
     let l14_11 = jac[2][4] * d11;
+    jac[5][4] = l14_11;
     let l15_11 = jac[0][4] * d11;
+    jac[3][4] = l15_11;
     let l17_11 = jac[1][4] * d11;
+    jac[4][4] = l17_11;
     if !(p11.is_finite() && l12_11.abs() <= runtime::lu::MAX_MULTIPLIER
         && l13_11.abs() <= runtime::lu::MAX_MULTIPLIER
         && l14_11.abs() <= runtime::lu::MAX_MULTIPLIER
@@ -969,13 +989,21 @@ pub fn factor_1(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     {
         return None;
     }
+    smallest = smallest.min(p11.abs());
+    largest = largest.max(p11.abs());
     let u12_13 = jac[17][6] - l12_11 * jac[9][6];
+    jac[17][6] = u12_13;
     let p12 = jac[17][5] - l12_9 * jac[16][5] - l12_11 * u11_12;
     let d12 = 1.0 / p12;
+    jac[17][5] = d12;
     let l13_12 = (jac[10][5] - l13_9 * jac[16][5] - l13_11 * u11_12) * d12;
+    jac[10][5] = l13_12;
     let l14_12 = (jac[2][5] - l14_9 * jac[16][5] - l14_11 * u11_12) * d12;
+    jac[5][5] = l14_12;
     let l15_12 = (jac[0][5] - l15_9 * jac[16][5] - l15_11 * u11_12) * d12;
+    jac[3][5] = l15_12;
     let l17_12 = (jac[1][5] - l17_9 * jac[16][5] - l17_11 * u11_12) * d12;
+    jac[4][5] = l17_12;
     if !(p12.is_finite() && l13_12.abs() <= runtime::lu::MAX_MULTIPLIER
         && l14_12.abs() <= runtime::lu::MAX_MULTIPLIER
         && l15_12.abs() <= runtime::lu::MAX_MULTIPLIER
@@ -983,151 +1011,119 @@ pub fn factor_1(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     {
         return None;
     }
+    smallest = smallest.min(p12.abs());
+    largest = largest.max(p12.abs());
     let p13 = jac[10][6] - l13_11 * jac[9][6] - l13_12 * u12_13;
     let d13 = 1.0 / p13;
+    jac[10][6] = d13;
     let l14_13 = (jac[2][6] - l14_11 * jac[9][6] - l14_12 * u12_13) * d13;
+    jac[5][6] = l14_13;
     let l15_13 = (jac[0][6] - l15_11 * jac[9][6] - l15_12 * u12_13) * d13;
+    jac[3][6] = l15_13;
     let l17_13 = (jac[1][6] - l17_11 * jac[9][6] - l17_12 * u12_13) * d13;
+    jac[4][6] = l17_13;
     if !(p13.is_finite() && l14_13.abs() <= runtime::lu::MAX_MULTIPLIER
         && l15_13.abs() <= runtime::lu::MAX_MULTIPLIER
         && l17_13.abs() <= runtime::lu::MAX_MULTIPLIER)
     {
         return None;
     }
+    smallest = smallest.min(p13.abs());
+    largest = largest.max(p13.abs());
     let u14_15 = -(l14_10 * jac[18][12]);
+    jac[5][12] = u14_15;
     let p14 = jac[5][11] - l14_10 * jac[18][11];
     let d14 = 1.0 / p14;
+    jac[5][11] = d14;
     let l15_14 = -(l15_10 * jac[18][11]) * d14;
+    jac[3][11] = l15_14;
     let l17_14 = (jac[4][11] - l17_10 * jac[18][11]) * d14;
+    jac[4][11] = l17_14;
     if !(p14.is_finite() && l15_14.abs() <= runtime::lu::MAX_MULTIPLIER
         && l17_14.abs() <= runtime::lu::MAX_MULTIPLIER)
     {
         return None;
     }
+    smallest = smallest.min(p14.abs());
+    largest = largest.max(p14.abs());
     let u15_16 = jac[3][16] - l15_14 * jac[5][16];
+    jac[3][16] = u15_16;
     let u15_17 = jac[3][17] - l15_14 * jac[5][17];
+    jac[3][17] = u15_17;
     let u15_18 = jac[3][18] - l15_14 * jac[5][18];
+    jac[3][18] = u15_18;
     let u15_19 = jac[3][19] - l15_14 * jac[5][19];
+    jac[3][19] = u15_19;
     let p15 = jac[3][12] - l15_10 * jac[18][12] - l15_14 * u14_15;
     let d15 = 1.0 / p15;
+    jac[3][12] = d15;
     let l17_15 = (jac[4][12] - l17_10 * jac[18][12] - l17_14 * u14_15) * d15;
+    jac[4][12] = l17_15;
     if !(p15.is_finite() && l17_15.abs() <= runtime::lu::MAX_MULTIPLIER) {
         return None;
     }
+    smallest = smallest.min(p15.abs());
+    largest = largest.max(p15.abs());
     let p16 = jac[19][16];
     let d16 = 1.0 / p16;
+    jac[19][16] = d16;
     let l17_16 = (jac[4][16] - l17_14 * jac[5][16] - l17_15 * u15_16) * d16;
+    jac[4][16] = l17_16;
     let l18_16 = jac[15][16] * d16;
+    jac[15][16] = l18_16;
     let l19_16 = jac[14][16] * d16;
+    jac[14][16] = l19_16;
     if !(p16.is_finite() && l17_16.abs() <= runtime::lu::MAX_MULTIPLIER
         && l18_16.abs() <= runtime::lu::MAX_MULTIPLIER
         && l19_16.abs() <= runtime::lu::MAX_MULTIPLIER)
     {
         return None;
     }
+    smallest = smallest.min(p16.abs());
+    largest = largest.max(p16.abs());
     let u17_18 = jac[4][18] - l17_14 * jac[5][18] - l17_15 * u15_18
         - l17_16 * jac[19][18];
+    jac[4][18] = u17_18;
     let u17_19 = jac[4][19] - l17_14 * jac[5][19] - l17_15 * u15_19
         - l17_16 * jac[19][19];
+    jac[4][19] = u17_19;
     let p17 = jac[4][17] - l17_14 * jac[5][17] - l17_15 * u15_17 - l17_16 * jac[19][17];
     let d17 = 1.0 / p17;
+    jac[4][17] = d17;
     let l18_17 = (jac[15][17] - l18_16 * jac[19][17]) * d17;
+    jac[15][17] = l18_17;
     let l19_17 = (jac[14][17] - l19_16 * jac[19][17]) * d17;
+    jac[14][17] = l19_17;
     if !(p17.is_finite() && l18_17.abs() <= runtime::lu::MAX_MULTIPLIER
         && l19_17.abs() <= runtime::lu::MAX_MULTIPLIER)
     {
         return None;
     }
+    smallest = smallest.min(p17.abs());
+    largest = largest.max(p17.abs());
     let u18_19 = jac[15][19] - l18_16 * jac[19][19] - l18_17 * u17_19;
+    jac[15][19] = u18_19;
     let p18 = jac[15][18] - l18_16 * jac[19][18] - l18_17 * u17_18;
     let d18 = 1.0 / p18;
+    jac[15][18] = d18;
     let l19_18 = (jac[14][18] - l19_16 * jac[19][18] - l19_17 * u17_18) * d18;
+    jac[14][18] = l19_18;
     if !(p18.is_finite() && l19_18.abs() <= runtime::lu::MAX_MULTIPLIER) {
         return None;
     }
+    smallest = smallest.min(p18.abs());
+    largest = largest.max(p18.abs());
     let p19 = jac[14][19] - l19_16 * jac[19][19] - l19_17 * u17_19 - l19_18 * u18_19;
     let d19 = 1.0 / p19;
+    jac[14][19] = d19;
     if !p19.is_finite() {
         return None;
     }
-    jac[16][3] = d9;
-    jac[18][10] = d10;
-    jac[9][3] = l11_9;
-    jac[9][4] = d11;
-    jac[9][5] = u11_12;
-    jac[17][3] = l12_9;
-    jac[17][4] = l12_11;
-    jac[17][5] = d12;
-    jac[17][6] = u12_13;
-    jac[10][3] = l13_9;
-    jac[10][4] = l13_11;
-    jac[10][5] = l13_12;
-    jac[10][6] = d13;
-    jac[5][3] = l14_9;
-    jac[5][10] = l14_10;
-    jac[5][4] = l14_11;
-    jac[5][5] = l14_12;
-    jac[5][6] = l14_13;
-    jac[5][11] = d14;
-    jac[5][12] = u14_15;
-    jac[3][3] = l15_9;
-    jac[3][10] = l15_10;
-    jac[3][4] = l15_11;
-    jac[3][5] = l15_12;
-    jac[3][6] = l15_13;
-    jac[3][11] = l15_14;
-    jac[3][12] = d15;
-    jac[3][16] = u15_16;
-    jac[3][17] = u15_17;
-    jac[3][18] = u15_18;
-    jac[3][19] = u15_19;
-    jac[19][16] = d16;
-    jac[4][3] = l17_9;
-    jac[4][10] = l17_10;
-    jac[4][4] = l17_11;
-    jac[4][5] = l17_12;
-    jac[4][6] = l17_13;
-    jac[4][11] = l17_14;
-    jac[4][12] = l17_15;
-    jac[4][16] = l17_16;
-    jac[4][17] = d17;
-    jac[4][18] = u17_18;
-    jac[4][19] = u17_19;
-    jac[15][16] = l18_16;
-    jac[15][17] = l18_17;
-    jac[15][18] = d18;
-    jac[15][19] = u18_19;
-    jac[14][16] = l19_16;
-    jac[14][17] = l19_17;
-    jac[14][18] = l19_18;
-    jac[14][19] = d19;
+    smallest = smallest.min(p19.abs());
+    largest = largest.max(p19.abs());
     Some(runtime::lu::PivotInfo {
-        smallest: p9
-            .abs()
-            .min(p10.abs())
-            .min(p11.abs())
-            .min(p12.abs())
-            .min(p13.abs())
-            .min(p14.abs())
-            .min(p15.abs())
-            .min(p16.abs())
-            .min(p17.abs())
-            .min(p18.abs())
-            .min(p19.abs())
-            .min(1.0),
-        largest: p9
-            .abs()
-            .max(p10.abs())
-            .max(p11.abs())
-            .max(p12.abs())
-            .max(p13.abs())
-            .max(p14.abs())
-            .max(p15.abs())
-            .max(p16.abs())
-            .max(p17.abs())
-            .max(p18.abs())
-            .max(p19.abs())
-            .max(1.0),
+        smallest,
+        largest,
     })
 }
 

@@ -238,73 +238,71 @@ pub fn residual_jacobian_structural(
 
  L and U have 21 entries (0 of them fill-in, 2 known when generated); 27 operations. The others are in `jac`: 12 stored there, with the reciprocals of the pivots on the diagonal, and 7 left as Φ_q had them.
 
- Returns the smallest and largest |pivot|, or `None` (with `jac` unchanged) when a pivot is not finite or a multiplier exceeds [`runtime::lu::MAX_MULTIPLIER`] in magnitude.*/
+ Returns the smallest and largest |pivot|, or `None` when a pivot is not finite or a multiplier exceeds [`runtime::lu::MAX_MULTIPLIER`] in magnitude; `jac` is then partly factored and must be evaluated again.*/
 #[must_use]
 pub fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     let p1 = jac[4][1];
     let d1 = 1.0 / p1;
+    jac[4][1] = d1;
     if !p1.is_finite() {
         return None;
     }
+    let mut smallest = p1.abs().min(1.0);
+    let mut largest = p1.abs().max(1.0);
     let p3 = jac[5][5];
     let d3 = 1.0 / p3;
+    jac[5][5] = d3;
     let l4_3 = jac[6][5] * d3;
+    jac[6][5] = l4_3;
     let l5_3 = jac[1][5] * d3;
+    jac[1][5] = l5_3;
     let l6_3 = jac[0][5] * d3;
+    jac[0][5] = l6_3;
     if !(p3.is_finite() && l4_3.abs() <= runtime::lu::MAX_MULTIPLIER
         && l5_3.abs() <= runtime::lu::MAX_MULTIPLIER
         && l6_3.abs() <= runtime::lu::MAX_MULTIPLIER)
     {
         return None;
     }
+    smallest = smallest.min(p3.abs());
+    largest = largest.max(p3.abs());
     let p4 = jac[6][3] - l4_3 * jac[5][3];
     let d4 = 1.0 / p4;
+    jac[6][3] = d4;
     let l5_4 = (jac[1][3] - l5_3 * jac[5][3]) * d4;
+    jac[1][3] = l5_4;
     let l6_4 = (jac[0][3] - l6_3 * jac[5][3]) * d4;
+    jac[0][3] = l6_4;
     if !(p4.is_finite() && l5_4.abs() <= runtime::lu::MAX_MULTIPLIER
         && l6_4.abs() <= runtime::lu::MAX_MULTIPLIER)
     {
         return None;
     }
+    smallest = smallest.min(p4.abs());
+    largest = largest.max(p4.abs());
     let u5_6 = jac[1][6] - l5_4 * jac[6][6];
+    jac[1][6] = u5_6;
     let p5 = jac[1][4] - l5_4 * jac[6][4];
     let d5 = 1.0 / p5;
+    jac[1][4] = d5;
     let l6_5 = (jac[0][4] - l6_4 * jac[6][4]) * d5;
+    jac[0][4] = l6_5;
     if !(p5.is_finite() && l6_5.abs() <= runtime::lu::MAX_MULTIPLIER) {
         return None;
     }
+    smallest = smallest.min(p5.abs());
+    largest = largest.max(p5.abs());
     let p6 = jac[0][6] - l6_4 * jac[6][6] - l6_5 * u5_6;
     let d6 = 1.0 / p6;
+    jac[0][6] = d6;
     if !p6.is_finite() {
         return None;
     }
-    jac[4][1] = d1;
-    jac[5][5] = d3;
-    jac[6][5] = l4_3;
-    jac[6][3] = d4;
-    jac[1][5] = l5_3;
-    jac[1][3] = l5_4;
-    jac[1][4] = d5;
-    jac[1][6] = u5_6;
-    jac[0][5] = l6_3;
-    jac[0][3] = l6_4;
-    jac[0][4] = l6_5;
-    jac[0][6] = d6;
+    smallest = smallest.min(p6.abs());
+    largest = largest.max(p6.abs());
     Some(runtime::lu::PivotInfo {
-        smallest: p1
-            .abs()
-            .min(p3.abs())
-            .min(p4.abs())
-            .min(p5.abs())
-            .min(p6.abs())
-            .min(1.0),
-        largest: p1
-            .abs()
-            .max(p3.abs())
-            .max(p4.abs())
-            .max(p5.abs())
-            .max(p6.abs())
-            .max(1.0),
+        smallest,
+        largest,
     })
 }
 
@@ -340,75 +338,73 @@ pub fn solve_0(lu: &[[f64; N]; N], b: &mut [f64; N]) {
 
  L and U have 21 entries (0 of them fill-in, 2 known when generated); 27 operations. The others are in `jac`: 13 stored there, with the reciprocals of the pivots on the diagonal, and 6 left as Φ_q had them.
 
- Returns the smallest and largest |pivot|, or `None` (with `jac` unchanged) when a pivot is not finite or a multiplier exceeds [`runtime::lu::MAX_MULTIPLIER`] in magnitude.*/
+ Returns the smallest and largest |pivot|, or `None` when a pivot is not finite or a multiplier exceeds [`runtime::lu::MAX_MULTIPLIER`] in magnitude; `jac` is then partly factored and must be evaluated again.*/
 #[must_use]
 pub fn factor_1(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     let p1 = jac[4][1];
     let d1 = 1.0 / p1;
+    jac[4][1] = d1;
     if !p1.is_finite() {
         return None;
     }
+    let mut smallest = p1.abs().min(1.0);
+    let mut largest = p1.abs().max(1.0);
     let p3 = jac[5][3];
     let d3 = 1.0 / p3;
+    jac[5][3] = d3;
     let l4_3 = jac[0][3] * d3;
+    jac[0][3] = l4_3;
     let l5_3 = jac[6][3] * d3;
+    jac[6][3] = l5_3;
     let l6_3 = jac[1][3] * d3;
+    jac[1][3] = l6_3;
     if !(p3.is_finite() && l4_3.abs() <= runtime::lu::MAX_MULTIPLIER
         && l5_3.abs() <= runtime::lu::MAX_MULTIPLIER
         && l6_3.abs() <= runtime::lu::MAX_MULTIPLIER)
     {
         return None;
     }
+    smallest = smallest.min(p3.abs());
+    largest = largest.max(p3.abs());
     let u4_5 = jac[0][5] - l4_3 * jac[5][5];
+    jac[0][5] = u4_5;
     let p4 = jac[0][4];
     let d4 = 1.0 / p4;
+    jac[0][4] = d4;
     let l5_4 = jac[6][4] * d4;
+    jac[6][4] = l5_4;
     let l6_4 = jac[1][4] * d4;
+    jac[1][4] = l6_4;
     if !(p4.is_finite() && l5_4.abs() <= runtime::lu::MAX_MULTIPLIER
         && l6_4.abs() <= runtime::lu::MAX_MULTIPLIER)
     {
         return None;
     }
+    smallest = smallest.min(p4.abs());
+    largest = largest.max(p4.abs());
     let u5_6 = jac[6][6] - l5_4 * jac[0][6];
+    jac[6][6] = u5_6;
     let p5 = jac[6][5] - l5_3 * jac[5][5] - l5_4 * u4_5;
     let d5 = 1.0 / p5;
+    jac[6][5] = d5;
     let l6_5 = (jac[1][5] - l6_3 * jac[5][5] - l6_4 * u4_5) * d5;
+    jac[1][5] = l6_5;
     if !(p5.is_finite() && l6_5.abs() <= runtime::lu::MAX_MULTIPLIER) {
         return None;
     }
+    smallest = smallest.min(p5.abs());
+    largest = largest.max(p5.abs());
     let p6 = jac[1][6] - l6_4 * jac[0][6] - l6_5 * u5_6;
     let d6 = 1.0 / p6;
+    jac[1][6] = d6;
     if !p6.is_finite() {
         return None;
     }
-    jac[4][1] = d1;
-    jac[5][3] = d3;
-    jac[0][3] = l4_3;
-    jac[0][4] = d4;
-    jac[0][5] = u4_5;
-    jac[6][3] = l5_3;
-    jac[6][4] = l5_4;
-    jac[6][5] = d5;
-    jac[6][6] = u5_6;
-    jac[1][3] = l6_3;
-    jac[1][4] = l6_4;
-    jac[1][5] = l6_5;
-    jac[1][6] = d6;
+    smallest = smallest.min(p6.abs());
+    largest = largest.max(p6.abs());
     Some(runtime::lu::PivotInfo {
-        smallest: p1
-            .abs()
-            .min(p3.abs())
-            .min(p4.abs())
-            .min(p5.abs())
-            .min(p6.abs())
-            .min(1.0),
-        largest: p1
-            .abs()
-            .max(p3.abs())
-            .max(p4.abs())
-            .max(p5.abs())
-            .max(p6.abs())
-            .max(1.0),
+        smallest,
+        largest,
     })
 }
 

@@ -1313,7 +1313,7 @@ pub fn residual_jacobian_structural(
 
  L and U have 179 entries (14 of them fill-in, 21 known when generated); 418 operations. The others are in `jac`: 118 stored there, with the reciprocals of the pivots on the diagonal, and 40 left as Φ_q had them.
 
- Returns the smallest and largest |pivot|, or `None` (with `jac` unchanged) when a pivot is not finite or a multiplier exceeds [`runtime::lu::MAX_MULTIPLIER`] in magnitude.*/
+ Returns the smallest and largest |pivot|, or `None` when a pivot is not finite or a multiplier exceeds [`runtime::lu::MAX_MULTIPLIER`] in magnitude; `jac` is then partly factored and must be evaluated again.*/
 #[must_use]
 pub fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     if !(jac[15][14].abs() <= runtime::lu::MAX_MULTIPLIER
@@ -1323,12 +1323,19 @@ pub fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     }
     let p7 = jac[23][4];
     let d7 = 1.0 / p7;
+    jac[23][4] = d7;
     let l8_7 = jac[24][4] * d7;
+    jac[24][4] = l8_7;
     let l9_7 = jac[7][4] * d7;
+    jac[7][4] = l9_7;
     let l10_7 = jac[6][4] * d7;
+    jac[6][4] = l10_7;
     let l11_7 = jac[1][4] * d7;
+    jac[1][4] = l11_7;
     let l12_7 = jac[2][4] * d7;
+    jac[2][4] = l12_7;
     let l14_7 = jac[0][4] * d7;
+    jac[0][4] = l14_7;
     if !(p7.is_finite() && l8_7.abs() <= runtime::lu::MAX_MULTIPLIER
         && l9_7.abs() <= runtime::lu::MAX_MULTIPLIER
         && l10_7.abs() <= runtime::lu::MAX_MULTIPLIER
@@ -1338,13 +1345,21 @@ pub fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     {
         return None;
     }
+    let mut smallest = p7.abs().min(1.0);
+    let mut largest = p7.abs().max(1.0);
     let p8 = jac[24][3] - l8_7 * jac[23][3];
     let d8 = 1.0 / p8;
+    jac[24][3] = d8;
     let l9_8 = (jac[7][3] - l9_7 * jac[23][3]) * d8;
+    jac[7][3] = l9_8;
     let l10_8 = (jac[6][3] - l10_7 * jac[23][3]) * d8;
+    jac[6][3] = l10_8;
     let l11_8 = (jac[1][3] - l11_7 * jac[23][3]) * d8;
+    jac[1][3] = l11_8;
     let l12_8 = (jac[2][3] - l12_7 * jac[23][3]) * d8;
+    jac[2][3] = l12_8;
     let l14_8 = (jac[0][3] - l14_7 * jac[23][3]) * d8;
+    jac[0][3] = l14_8;
     if !(p8.is_finite() && l9_8.abs() <= runtime::lu::MAX_MULTIPLIER
         && l10_8.abs() <= runtime::lu::MAX_MULTIPLIER
         && l11_8.abs() <= runtime::lu::MAX_MULTIPLIER
@@ -1353,13 +1368,21 @@ pub fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     {
         return None;
     }
+    smallest = smallest.min(p8.abs());
+    largest = largest.max(p8.abs());
     let u9_10 = jac[7][6] - l9_8 * jac[24][6];
+    jac[7][6] = u9_10;
     let p9 = jac[7][5] - l9_8 * jac[24][5];
     let d9 = 1.0 / p9;
+    jac[7][5] = d9;
     let l10_9 = (jac[6][5] - l10_8 * jac[24][5]) * d9;
+    jac[6][5] = l10_9;
     let l11_9 = (jac[1][5] - l11_8 * jac[24][5]) * d9;
+    jac[1][5] = l11_9;
     let l12_9 = (jac[2][5] - l12_8 * jac[24][5]) * d9;
+    jac[2][5] = l12_9;
     let l14_9 = (jac[0][5] - l14_8 * jac[24][5]) * d9;
+    jac[0][5] = l14_9;
     if !(p9.is_finite() && l10_9.abs() <= runtime::lu::MAX_MULTIPLIER
         && l11_9.abs() <= runtime::lu::MAX_MULTIPLIER
         && l12_9.abs() <= runtime::lu::MAX_MULTIPLIER
@@ -1367,30 +1390,46 @@ pub fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     {
         return None;
     }
+    smallest = smallest.min(p9.abs());
+    largest = largest.max(p9.abs());
     let p10 = jac[6][6] - l10_8 * jac[24][6] - l10_9 * u9_10;
     let d10 = 1.0 / p10;
+    jac[6][6] = d10;
     let l11_10 = (jac[1][6] - l11_8 * jac[24][6] - l11_9 * u9_10) * d10;
+    jac[1][6] = l11_10;
     let l12_10 = (jac[2][6] - l12_8 * jac[24][6] - l12_9 * u9_10) * d10;
+    jac[2][6] = l12_10;
     let l14_10 = (jac[0][6] - l14_8 * jac[24][6] - l14_9 * u9_10) * d10;
+    jac[0][6] = l14_10;
     if !(p10.is_finite() && l11_10.abs() <= runtime::lu::MAX_MULTIPLIER
         && l12_10.abs() <= runtime::lu::MAX_MULTIPLIER
         && l14_10.abs() <= runtime::lu::MAX_MULTIPLIER)
     {
         return None;
     }
+    smallest = smallest.min(p10.abs());
+    largest = largest.max(p10.abs());
     let u11_13 = jac[1][10] + jac[9][10];
+    jac[1][10] = u11_13;
     let u11_14 = jac[1][12] + jac[9][12];
+    jac[1][12] = u11_14;
     let u11_15 = jac[1][11] + jac[9][11];
+    jac[1][11] = u11_15;
     let u11_16 = jac[1][13] + jac[9][13];
+    jac[1][13] = u11_16;
     if !(jac[15][15].abs() <= runtime::lu::MAX_MULTIPLIER
         && jac[16][15].abs() <= runtime::lu::MAX_MULTIPLIER)
     {
         return None;
     }
     let u12_13 = jac[2][10] + jac[10][10];
+    jac[2][10] = u12_13;
     let u12_14 = jac[2][12] + jac[10][12];
+    jac[2][12] = u12_14;
     let u12_15 = jac[2][11] + jac[10][11];
+    jac[2][11] = u12_15;
     let u12_16 = jac[2][13] + jac[10][13];
+    jac[2][13] = u12_16;
     if !(jac[15][16].abs() <= runtime::lu::MAX_MULTIPLIER
         && jac[16][16].abs() <= runtime::lu::MAX_MULTIPLIER)
     {
@@ -1398,11 +1437,17 @@ pub fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     }
     let p13 = jac[25][10];
     let d13 = 1.0 / p13;
+    jac[25][10] = d13;
     let l14_13 = (jac[0][10] + jac[8][10]) * d13;
+    jac[0][10] = l14_13;
     let l15_13 = jac[12][10] * d13;
+    jac[12][10] = l15_13;
     let l16_13 = jac[11][10] * d13;
+    jac[11][10] = l16_13;
     let l20_13 = (-(jac[15][15] * u11_13) - jac[15][16] * u12_13) * d13;
+    jac[15][10] = l20_13;
     let l21_13 = (-(jac[16][15] * u11_13) - jac[16][16] * u12_13) * d13;
+    jac[16][10] = l21_13;
     if !(p13.is_finite() && l14_13.abs() <= runtime::lu::MAX_MULTIPLIER
         && l15_13.abs() <= runtime::lu::MAX_MULTIPLIER
         && l16_13.abs() <= runtime::lu::MAX_MULTIPLIER
@@ -1411,16 +1456,25 @@ pub fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     {
         return None;
     }
+    smallest = smallest.min(p13.abs());
+    largest = largest.max(p13.abs());
     let u14_15 = jac[0][11] + jac[8][11] - l14_13 * jac[25][11];
+    jac[0][11] = u14_15;
     let u14_16 = jac[0][13] + jac[8][13] - l14_13 * jac[25][13];
+    jac[0][13] = u14_16;
     let p14 = jac[0][12] + jac[8][12] - l14_13 * jac[25][12];
     let d14 = 1.0 / p14;
+    jac[0][12] = d14;
     let l15_14 = (jac[12][12] - l15_13 * jac[25][12]) * d14;
+    jac[12][12] = l15_14;
     let l16_14 = (jac[11][12] - l16_13 * jac[25][12]) * d14;
+    jac[11][12] = l16_14;
     let l20_14 = (-(jac[15][15] * u11_14) - jac[15][16] * u12_14 - l20_13 * jac[25][12])
         * d14;
+    jac[15][12] = l20_14;
     let l21_14 = (-(jac[16][15] * u11_14) - jac[16][16] * u12_14 - l21_13 * jac[25][12])
         * d14;
+    jac[16][12] = l21_14;
     if !(p14.is_finite() && l15_14.abs() <= runtime::lu::MAX_MULTIPLIER
         && l16_14.abs() <= runtime::lu::MAX_MULTIPLIER
         && l20_14.abs() <= runtime::lu::MAX_MULTIPLIER
@@ -1428,43 +1482,68 @@ pub fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     {
         return None;
     }
+    smallest = smallest.min(p14.abs());
+    largest = largest.max(p14.abs());
     let u15_16 = jac[12][13] - l15_13 * jac[25][13] - l15_14 * u14_16;
+    jac[12][13] = u15_16;
     let u15_21 = -l15_14;
+    jac[12][21] = u15_21;
     let p15 = jac[12][11] - l15_13 * jac[25][11] - l15_14 * u14_15;
     let d15 = 1.0 / p15;
+    jac[12][11] = d15;
     let l16_15 = (jac[11][11] - l16_13 * jac[25][11] - l16_14 * u14_15) * d15;
+    jac[11][11] = l16_15;
     let l20_15 = (-(jac[15][15] * u11_15) - jac[15][16] * u12_15 - l20_13 * jac[25][11]
         - l20_14 * u14_15) * d15;
+    jac[15][11] = l20_15;
     let l21_15 = (-(jac[16][15] * u11_15) - jac[16][16] * u12_15 - l21_13 * jac[25][11]
         - l21_14 * u14_15) * d15;
+    jac[16][11] = l21_15;
     if !(p15.is_finite() && l16_15.abs() <= runtime::lu::MAX_MULTIPLIER
         && l20_15.abs() <= runtime::lu::MAX_MULTIPLIER
         && l21_15.abs() <= runtime::lu::MAX_MULTIPLIER)
     {
         return None;
     }
+    smallest = smallest.min(p15.abs());
+    largest = largest.max(p15.abs());
     let u16_17 = jac[11][17] - l16_15 * jac[12][17];
+    jac[11][17] = u16_17;
     let u16_18 = jac[11][19] - l16_15 * jac[12][19];
+    jac[11][19] = u16_18;
     let u16_19 = jac[11][20] - l16_15 * jac[12][20];
+    jac[11][20] = u16_19;
     let u16_20 = jac[11][18] - l16_15 * jac[12][18];
+    jac[11][18] = u16_20;
     let u16_21 = -l16_14 - l16_15 * u15_21;
+    jac[11][21] = u16_21;
     let p16 = jac[11][13] - l16_13 * jac[25][13] - l16_14 * u14_16 - l16_15 * u15_16;
     let d16 = 1.0 / p16;
+    jac[11][13] = d16;
     let l20_16 = (-(jac[15][15] * u11_16) - jac[15][16] * u12_16 - l20_13 * jac[25][13]
         - l20_14 * u14_16 - l20_15 * u15_16) * d16;
+    jac[15][13] = l20_16;
     let l21_16 = (-(jac[16][15] * u11_16) - jac[16][16] * u12_16 - l21_13 * jac[25][13]
         - l21_14 * u14_16 - l21_15 * u15_16) * d16;
+    jac[16][13] = l21_16;
     if !(p16.is_finite() && l20_16.abs() <= runtime::lu::MAX_MULTIPLIER
         && l21_16.abs() <= runtime::lu::MAX_MULTIPLIER)
     {
         return None;
     }
+    smallest = smallest.min(p16.abs());
+    largest = largest.max(p16.abs());
     let p17 = jac[26][17];
     let d17 = 1.0 / p17;
+    jac[26][17] = d17;
     let l18_17 = jac[14][17] * d17;
+    jac[14][17] = l18_17;
     let l19_17 = jac[13][17] * d17;
+    jac[13][17] = l19_17;
     let l20_17 = (jac[15][17] - l20_15 * jac[12][17] - l20_16 * u16_17) * d17;
+    jac[15][17] = l20_17;
     let l21_17 = (jac[16][17] - l21_15 * jac[12][17] - l21_16 * u16_17) * d17;
+    jac[16][17] = l21_17;
     if !(p17.is_finite() && l18_17.abs() <= runtime::lu::MAX_MULTIPLIER
         && l19_17.abs() <= runtime::lu::MAX_MULTIPLIER
         && l20_17.abs() <= runtime::lu::MAX_MULTIPLIER
@@ -1472,281 +1551,200 @@ pub fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     {
         return None;
     }
+    smallest = smallest.min(p17.abs());
+    largest = largest.max(p17.abs());
     let u18_19 = jac[14][20] - l18_17 * jac[26][20];
+    jac[14][20] = u18_19;
     let u18_20 = jac[14][18] - l18_17 * jac[26][18];
+    jac[14][18] = u18_20;
     let p18 = jac[14][19] - l18_17 * jac[26][19];
     let d18 = 1.0 / p18;
+    jac[14][19] = d18;
     let l19_18 = (jac[13][19] - l19_17 * jac[26][19]) * d18;
+    jac[13][19] = l19_18;
     let l20_18 = (jac[15][19] - l20_15 * jac[12][19] - l20_16 * u16_18
         - l20_17 * jac[26][19]) * d18;
+    jac[15][19] = l20_18;
     let l21_18 = (jac[16][19] - l21_15 * jac[12][19] - l21_16 * u16_18
         - l21_17 * jac[26][19]) * d18;
+    jac[16][19] = l21_18;
     if !(p18.is_finite() && l19_18.abs() <= runtime::lu::MAX_MULTIPLIER
         && l20_18.abs() <= runtime::lu::MAX_MULTIPLIER
         && l21_18.abs() <= runtime::lu::MAX_MULTIPLIER)
     {
         return None;
     }
+    smallest = smallest.min(p18.abs());
+    largest = largest.max(p18.abs());
     let u19_20 = jac[13][18] - l19_17 * jac[26][18] - l19_18 * u18_20;
+    jac[13][18] = u19_20;
     let u19_24 = jac[13][24] - l19_18 * jac[14][24];
+    jac[13][24] = u19_24;
     let u19_25 = jac[13][25] - l19_18 * jac[14][25];
+    jac[13][25] = u19_25;
     let u19_26 = jac[13][26] - l19_18 * jac[14][26];
+    jac[13][26] = u19_26;
     let u19_27 = jac[13][27] - l19_18 * jac[14][27];
+    jac[13][27] = u19_27;
     let p19 = jac[13][20] - l19_17 * jac[26][20] - l19_18 * u18_19;
     let d19 = 1.0 / p19;
+    jac[13][20] = d19;
     let l20_19 = (jac[15][20] - l20_15 * jac[12][20] - l20_16 * u16_19
         - l20_17 * jac[26][20] - l20_18 * u18_19) * d19;
+    jac[15][20] = l20_19;
     let l21_19 = (jac[16][20] - l21_15 * jac[12][20] - l21_16 * u16_19
         - l21_17 * jac[26][20] - l21_18 * u18_19) * d19;
+    jac[16][20] = l21_19;
     if !(p19.is_finite() && l20_19.abs() <= runtime::lu::MAX_MULTIPLIER
         && l21_19.abs() <= runtime::lu::MAX_MULTIPLIER)
     {
         return None;
     }
+    smallest = smallest.min(p19.abs());
+    largest = largest.max(p19.abs());
     let u20_21 = jac[15][21] + jac[15][14] - l20_14 - l20_15 * u15_21 - l20_16 * u16_21;
+    jac[15][21] = u20_21;
     let u20_24 = jac[15][24] - l20_18 * jac[14][24] - l20_19 * u19_24;
+    jac[15][24] = u20_24;
     let u20_25 = jac[15][25] - l20_18 * jac[14][25] - l20_19 * u19_25;
+    jac[15][25] = u20_25;
     let u20_26 = jac[15][26] - l20_18 * jac[14][26] - l20_19 * u19_26;
+    jac[15][26] = u20_26;
     let u20_27 = jac[15][27] - l20_18 * jac[14][27] - l20_19 * u19_27;
+    jac[15][27] = u20_27;
     let p20 = jac[15][18] - l20_15 * jac[12][18] - l20_16 * u16_20 - l20_17 * jac[26][18]
         - l20_18 * u18_20 - l20_19 * u19_20;
     let d20 = 1.0 / p20;
+    jac[15][18] = d20;
     let l21_20 = (jac[16][18] - l21_15 * jac[12][18] - l21_16 * u16_20
         - l21_17 * jac[26][18] - l21_18 * u18_20 - l21_19 * u19_20) * d20;
+    jac[16][18] = l21_20;
     if !(p20.is_finite() && l21_20.abs() <= runtime::lu::MAX_MULTIPLIER) {
         return None;
     }
+    smallest = smallest.min(p20.abs());
+    largest = largest.max(p20.abs());
     let u21_22 = jac[16][22] - l21_20 * jac[15][22];
+    jac[16][22] = u21_22;
     let u21_23 = jac[16][23] - l21_20 * jac[15][23];
+    jac[16][23] = u21_23;
     let u21_24 = jac[16][24] - l21_18 * jac[14][24] - l21_19 * u19_24 - l21_20 * u20_24;
+    jac[16][24] = u21_24;
     let u21_25 = jac[16][25] - l21_18 * jac[14][25] - l21_19 * u19_25 - l21_20 * u20_25;
+    jac[16][25] = u21_25;
     let u21_26 = jac[16][26] - l21_18 * jac[14][26] - l21_19 * u19_26 - l21_20 * u20_26;
+    jac[16][26] = u21_26;
     let u21_27 = jac[16][27] - l21_18 * jac[14][27] - l21_19 * u19_27 - l21_20 * u20_27;
+    jac[16][27] = u21_27;
     let p21 = jac[16][21] + jac[16][14] - l21_14 - l21_15 * u15_21 - l21_16 * u16_21
         - l21_20 * u20_21;
     let d21 = 1.0 / p21;
+    jac[16][21] = d21;
     let l22_21 = jac[19][21] * d21;
+    jac[19][21] = l22_21;
     let l23_21 = jac[20][21] * d21;
+    jac[20][21] = l23_21;
     if !(p21.is_finite() && l22_21.abs() <= runtime::lu::MAX_MULTIPLIER
         && l23_21.abs() <= runtime::lu::MAX_MULTIPLIER)
     {
         return None;
     }
+    smallest = smallest.min(p21.abs());
+    largest = largest.max(p21.abs());
     let u22_23 = jac[19][23] - l22_21 * u21_23;
+    jac[19][23] = u22_23;
     let u22_24 = jac[19][24] - l22_21 * u21_24;
+    jac[19][24] = u22_24;
     let u22_25 = jac[19][25] - l22_21 * u21_25;
+    jac[19][25] = u22_25;
     let u22_26 = jac[19][26] - l22_21 * u21_26;
+    jac[19][26] = u22_26;
     let u22_27 = jac[19][27] - l22_21 * u21_27;
+    jac[19][27] = u22_27;
     let p22 = jac[19][22] - l22_21 * u21_22;
     let d22 = 1.0 / p22;
+    jac[19][22] = d22;
     let l23_22 = (jac[20][22] - l23_21 * u21_22) * d22;
+    jac[20][22] = l23_22;
     if !(p22.is_finite() && l23_22.abs() <= runtime::lu::MAX_MULTIPLIER) {
         return None;
     }
+    smallest = smallest.min(p22.abs());
+    largest = largest.max(p22.abs());
     let u23_24 = jac[20][24] - l23_21 * u21_24 - l23_22 * u22_24;
+    jac[20][24] = u23_24;
     let u23_25 = jac[20][25] - l23_21 * u21_25 - l23_22 * u22_25;
+    jac[20][25] = u23_25;
     let u23_26 = jac[20][26] - l23_21 * u21_26 - l23_22 * u22_26;
+    jac[20][26] = u23_26;
     let u23_27 = jac[20][27] - l23_21 * u21_27 - l23_22 * u22_27;
+    jac[20][27] = u23_27;
     let p23 = jac[20][23] - l23_21 * u21_23 - l23_22 * u22_23;
     let d23 = 1.0 / p23;
+    jac[20][23] = d23;
     if !p23.is_finite() {
         return None;
     }
+    smallest = smallest.min(p23.abs());
+    largest = largest.max(p23.abs());
     let p24 = jac[27][24];
     let d24 = 1.0 / p24;
+    jac[27][24] = d24;
     let l25_24 = jac[21][24] * d24;
+    jac[21][24] = l25_24;
     let l26_24 = jac[18][24] * d24;
+    jac[18][24] = l26_24;
     let l27_24 = jac[17][24] * d24;
+    jac[17][24] = l27_24;
     if !(p24.is_finite() && l25_24.abs() <= runtime::lu::MAX_MULTIPLIER
         && l26_24.abs() <= runtime::lu::MAX_MULTIPLIER
         && l27_24.abs() <= runtime::lu::MAX_MULTIPLIER)
     {
         return None;
     }
+    smallest = smallest.min(p24.abs());
+    largest = largest.max(p24.abs());
     let u25_26 = jac[21][26] - l25_24 * jac[27][26];
+    jac[21][26] = u25_26;
     let u25_27 = jac[21][27] - l25_24 * jac[27][27];
+    jac[21][27] = u25_27;
     let p25 = jac[21][25] - l25_24 * jac[27][25];
     let d25 = 1.0 / p25;
+    jac[21][25] = d25;
     let l26_25 = (jac[18][25] - l26_24 * jac[27][25]) * d25;
+    jac[18][25] = l26_25;
     let l27_25 = (jac[17][25] - l27_24 * jac[27][25]) * d25;
+    jac[17][25] = l27_25;
     if !(p25.is_finite() && l26_25.abs() <= runtime::lu::MAX_MULTIPLIER
         && l27_25.abs() <= runtime::lu::MAX_MULTIPLIER)
     {
         return None;
     }
+    smallest = smallest.min(p25.abs());
+    largest = largest.max(p25.abs());
     let u26_27 = jac[18][27] - l26_24 * jac[27][27] - l26_25 * u25_27;
+    jac[18][27] = u26_27;
     let p26 = jac[18][26] - l26_24 * jac[27][26] - l26_25 * u25_26;
     let d26 = 1.0 / p26;
+    jac[18][26] = d26;
     let l27_26 = (jac[17][26] - l27_24 * jac[27][26] - l27_25 * u25_26) * d26;
+    jac[17][26] = l27_26;
     if !(p26.is_finite() && l27_26.abs() <= runtime::lu::MAX_MULTIPLIER) {
         return None;
     }
+    smallest = smallest.min(p26.abs());
+    largest = largest.max(p26.abs());
     let p27 = jac[17][27] - l27_24 * jac[27][27] - l27_25 * u25_27 - l27_26 * u26_27;
     let d27 = 1.0 / p27;
+    jac[17][27] = d27;
     if !p27.is_finite() {
         return None;
     }
-    jac[23][4] = d7;
-    jac[24][4] = l8_7;
-    jac[24][3] = d8;
-    jac[7][4] = l9_7;
-    jac[7][3] = l9_8;
-    jac[7][5] = d9;
-    jac[7][6] = u9_10;
-    jac[6][4] = l10_7;
-    jac[6][3] = l10_8;
-    jac[6][5] = l10_9;
-    jac[6][6] = d10;
-    jac[1][4] = l11_7;
-    jac[1][3] = l11_8;
-    jac[1][5] = l11_9;
-    jac[1][6] = l11_10;
-    jac[1][10] = u11_13;
-    jac[1][12] = u11_14;
-    jac[1][11] = u11_15;
-    jac[1][13] = u11_16;
-    jac[2][4] = l12_7;
-    jac[2][3] = l12_8;
-    jac[2][5] = l12_9;
-    jac[2][6] = l12_10;
-    jac[2][10] = u12_13;
-    jac[2][12] = u12_14;
-    jac[2][11] = u12_15;
-    jac[2][13] = u12_16;
-    jac[25][10] = d13;
-    jac[0][4] = l14_7;
-    jac[0][3] = l14_8;
-    jac[0][5] = l14_9;
-    jac[0][6] = l14_10;
-    jac[0][10] = l14_13;
-    jac[0][12] = d14;
-    jac[0][11] = u14_15;
-    jac[0][13] = u14_16;
-    jac[12][10] = l15_13;
-    jac[12][12] = l15_14;
-    jac[12][11] = d15;
-    jac[12][13] = u15_16;
-    jac[12][21] = u15_21;
-    jac[11][10] = l16_13;
-    jac[11][12] = l16_14;
-    jac[11][11] = l16_15;
-    jac[11][13] = d16;
-    jac[11][17] = u16_17;
-    jac[11][19] = u16_18;
-    jac[11][20] = u16_19;
-    jac[11][18] = u16_20;
-    jac[11][21] = u16_21;
-    jac[26][17] = d17;
-    jac[14][17] = l18_17;
-    jac[14][19] = d18;
-    jac[14][20] = u18_19;
-    jac[14][18] = u18_20;
-    jac[13][17] = l19_17;
-    jac[13][19] = l19_18;
-    jac[13][20] = d19;
-    jac[13][18] = u19_20;
-    jac[13][24] = u19_24;
-    jac[13][25] = u19_25;
-    jac[13][26] = u19_26;
-    jac[13][27] = u19_27;
-    jac[15][10] = l20_13;
-    jac[15][12] = l20_14;
-    jac[15][11] = l20_15;
-    jac[15][13] = l20_16;
-    jac[15][17] = l20_17;
-    jac[15][19] = l20_18;
-    jac[15][20] = l20_19;
-    jac[15][18] = d20;
-    jac[15][21] = u20_21;
-    jac[15][24] = u20_24;
-    jac[15][25] = u20_25;
-    jac[15][26] = u20_26;
-    jac[15][27] = u20_27;
-    jac[16][10] = l21_13;
-    jac[16][12] = l21_14;
-    jac[16][11] = l21_15;
-    jac[16][13] = l21_16;
-    jac[16][17] = l21_17;
-    jac[16][19] = l21_18;
-    jac[16][20] = l21_19;
-    jac[16][18] = l21_20;
-    jac[16][21] = d21;
-    jac[16][22] = u21_22;
-    jac[16][23] = u21_23;
-    jac[16][24] = u21_24;
-    jac[16][25] = u21_25;
-    jac[16][26] = u21_26;
-    jac[16][27] = u21_27;
-    jac[19][21] = l22_21;
-    jac[19][22] = d22;
-    jac[19][23] = u22_23;
-    jac[19][24] = u22_24;
-    jac[19][25] = u22_25;
-    jac[19][26] = u22_26;
-    jac[19][27] = u22_27;
-    jac[20][21] = l23_21;
-    jac[20][22] = l23_22;
-    jac[20][23] = d23;
-    jac[20][24] = u23_24;
-    jac[20][25] = u23_25;
-    jac[20][26] = u23_26;
-    jac[20][27] = u23_27;
-    jac[27][24] = d24;
-    jac[21][24] = l25_24;
-    jac[21][25] = d25;
-    jac[21][26] = u25_26;
-    jac[21][27] = u25_27;
-    jac[18][24] = l26_24;
-    jac[18][25] = l26_25;
-    jac[18][26] = d26;
-    jac[18][27] = u26_27;
-    jac[17][24] = l27_24;
-    jac[17][25] = l27_25;
-    jac[17][26] = l27_26;
-    jac[17][27] = d27;
+    smallest = smallest.min(p27.abs());
+    largest = largest.max(p27.abs());
     Some(runtime::lu::PivotInfo {
-        smallest: p7
-            .abs()
-            .min(p8.abs())
-            .min(p9.abs())
-            .min(p10.abs())
-            .min(p13.abs())
-            .min(p14.abs())
-            .min(p15.abs())
-            .min(p16.abs())
-            .min(p17.abs())
-            .min(p18.abs())
-            .min(p19.abs())
-            .min(p20.abs())
-            .min(p21.abs())
-            .min(p22.abs())
-            .min(p23.abs())
-            .min(p24.abs())
-            .min(p25.abs())
-            .min(p26.abs())
-            .min(p27.abs())
-            .min(1.0),
-        largest: p7
-            .abs()
-            .max(p8.abs())
-            .max(p9.abs())
-            .max(p10.abs())
-            .max(p13.abs())
-            .max(p14.abs())
-            .max(p15.abs())
-            .max(p16.abs())
-            .max(p17.abs())
-            .max(p18.abs())
-            .max(p19.abs())
-            .max(p20.abs())
-            .max(p21.abs())
-            .max(p22.abs())
-            .max(p23.abs())
-            .max(p24.abs())
-            .max(p25.abs())
-            .max(p26.abs())
-            .max(p27.abs())
-            .max(1.0),
+        smallest,
+        largest,
     })
 }
 
@@ -1868,7 +1866,7 @@ pub fn solve_0(lu: &[[f64; N]; N], b: &mut [f64; N]) {
 
  L and U have 183 entries (18 of them fill-in, 21 known when generated); 441 operations. The others are in `jac`: 125 stored there, with the reciprocals of the pivots on the diagonal, and 37 left as Φ_q had them.
 
- Returns the smallest and largest |pivot|, or `None` (with `jac` unchanged) when a pivot is not finite or a multiplier exceeds [`runtime::lu::MAX_MULTIPLIER`] in magnitude.*/
+ Returns the smallest and largest |pivot|, or `None` when a pivot is not finite or a multiplier exceeds [`runtime::lu::MAX_MULTIPLIER`] in magnitude; `jac` is then partly factored and must be evaluated again.*/
 #[must_use]
 pub fn factor_1(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     if !(jac[16][14].abs() <= runtime::lu::MAX_MULTIPLIER
@@ -1878,12 +1876,19 @@ pub fn factor_1(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     }
     let p7 = jac[23][4];
     let d7 = 1.0 / p7;
+    jac[23][4] = d7;
     let l8_7 = jac[24][4] * d7;
+    jac[24][4] = l8_7;
     let l9_7 = jac[7][4] * d7;
+    jac[7][4] = l9_7;
     let l10_7 = jac[6][4] * d7;
+    jac[6][4] = l10_7;
     let l11_7 = jac[1][4] * d7;
+    jac[1][4] = l11_7;
     let l12_7 = jac[2][4] * d7;
+    jac[2][4] = l12_7;
     let l14_7 = jac[0][4] * d7;
+    jac[0][4] = l14_7;
     if !(p7.is_finite() && l8_7.abs() <= runtime::lu::MAX_MULTIPLIER
         && l9_7.abs() <= runtime::lu::MAX_MULTIPLIER
         && l10_7.abs() <= runtime::lu::MAX_MULTIPLIER
@@ -1893,13 +1898,21 @@ pub fn factor_1(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     {
         return None;
     }
+    let mut smallest = p7.abs().min(1.0);
+    let mut largest = p7.abs().max(1.0);
     let p8 = jac[24][3] - l8_7 * jac[23][3];
     let d8 = 1.0 / p8;
+    jac[24][3] = d8;
     let l9_8 = (jac[7][3] - l9_7 * jac[23][3]) * d8;
+    jac[7][3] = l9_8;
     let l10_8 = (jac[6][3] - l10_7 * jac[23][3]) * d8;
+    jac[6][3] = l10_8;
     let l11_8 = (jac[1][3] - l11_7 * jac[23][3]) * d8;
+    jac[1][3] = l11_8;
     let l12_8 = (jac[2][3] - l12_7 * jac[23][3]) * d8;
+    jac[2][3] = l12_8;
     let l14_8 = (jac[0][3] - l14_7 * jac[23][3]) * d8;
+    jac[0][3] = l14_8;
     if !(p8.is_finite() && l9_8.abs() <= runtime::lu::MAX_MULTIPLIER
         && l10_8.abs() <= runtime::lu::MAX_MULTIPLIER
         && l11_8.abs() <= runtime::lu::MAX_MULTIPLIER
@@ -1908,13 +1921,21 @@ pub fn factor_1(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     {
         return None;
     }
+    smallest = smallest.min(p8.abs());
+    largest = largest.max(p8.abs());
     let u9_10 = jac[7][6] - l9_8 * jac[24][6];
+    jac[7][6] = u9_10;
     let p9 = jac[7][5] - l9_8 * jac[24][5];
     let d9 = 1.0 / p9;
+    jac[7][5] = d9;
     let l10_9 = (jac[6][5] - l10_8 * jac[24][5]) * d9;
+    jac[6][5] = l10_9;
     let l11_9 = (jac[1][5] - l11_8 * jac[24][5]) * d9;
+    jac[1][5] = l11_9;
     let l12_9 = (jac[2][5] - l12_8 * jac[24][5]) * d9;
+    jac[2][5] = l12_9;
     let l14_9 = (jac[0][5] - l14_8 * jac[24][5]) * d9;
+    jac[0][5] = l14_9;
     if !(p9.is_finite() && l10_9.abs() <= runtime::lu::MAX_MULTIPLIER
         && l11_9.abs() <= runtime::lu::MAX_MULTIPLIER
         && l12_9.abs() <= runtime::lu::MAX_MULTIPLIER
@@ -1922,30 +1943,46 @@ pub fn factor_1(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     {
         return None;
     }
+    smallest = smallest.min(p9.abs());
+    largest = largest.max(p9.abs());
     let p10 = jac[6][6] - l10_8 * jac[24][6] - l10_9 * u9_10;
     let d10 = 1.0 / p10;
+    jac[6][6] = d10;
     let l11_10 = (jac[1][6] - l11_8 * jac[24][6] - l11_9 * u9_10) * d10;
+    jac[1][6] = l11_10;
     let l12_10 = (jac[2][6] - l12_8 * jac[24][6] - l12_9 * u9_10) * d10;
+    jac[2][6] = l12_10;
     let l14_10 = (jac[0][6] - l14_8 * jac[24][6] - l14_9 * u9_10) * d10;
+    jac[0][6] = l14_10;
     if !(p10.is_finite() && l11_10.abs() <= runtime::lu::MAX_MULTIPLIER
         && l12_10.abs() <= runtime::lu::MAX_MULTIPLIER
         && l14_10.abs() <= runtime::lu::MAX_MULTIPLIER)
     {
         return None;
     }
+    smallest = smallest.min(p10.abs());
+    largest = largest.max(p10.abs());
     let u11_13 = jac[1][10] + jac[9][10];
+    jac[1][10] = u11_13;
     let u11_18 = jac[1][11] + jac[9][11];
+    jac[1][11] = u11_18;
     let u11_19 = jac[1][12] + jac[9][12];
+    jac[1][12] = u11_19;
     let u11_20 = jac[1][13] + jac[9][13];
+    jac[1][13] = u11_20;
     if !(jac[16][15].abs() <= runtime::lu::MAX_MULTIPLIER
         && jac[15][15].abs() <= runtime::lu::MAX_MULTIPLIER)
     {
         return None;
     }
     let u12_13 = jac[2][10] + jac[10][10];
+    jac[2][10] = u12_13;
     let u12_18 = jac[2][11] + jac[10][11];
+    jac[2][11] = u12_18;
     let u12_19 = jac[2][12] + jac[10][12];
+    jac[2][12] = u12_19;
     let u12_20 = jac[2][13] + jac[10][13];
+    jac[2][13] = u12_20;
     if !(jac[16][16].abs() <= runtime::lu::MAX_MULTIPLIER
         && jac[15][16].abs() <= runtime::lu::MAX_MULTIPLIER)
     {
@@ -1953,11 +1990,17 @@ pub fn factor_1(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     }
     let p13 = jac[25][10];
     let d13 = 1.0 / p13;
+    jac[25][10] = d13;
     let l14_13 = (jac[0][10] + jac[8][10]) * d13;
+    jac[0][10] = l14_13;
     let l18_13 = jac[12][10] * d13;
+    jac[12][10] = l18_13;
     let l19_13 = jac[11][10] * d13;
+    jac[11][10] = l19_13;
     let l20_13 = (-(jac[16][15] * u11_13) - jac[16][16] * u12_13) * d13;
+    jac[16][10] = l20_13;
     let l21_13 = (-(jac[15][15] * u11_13) - jac[15][16] * u12_13) * d13;
+    jac[15][10] = l21_13;
     if !(p13.is_finite() && l14_13.abs() <= runtime::lu::MAX_MULTIPLIER
         && l18_13.abs() <= runtime::lu::MAX_MULTIPLIER
         && l19_13.abs() <= runtime::lu::MAX_MULTIPLIER
@@ -1966,11 +2009,18 @@ pub fn factor_1(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     {
         return None;
     }
+    smallest = smallest.min(p13.abs());
+    largest = largest.max(p13.abs());
     let u14_18 = jac[0][11] + jac[8][11] - l14_13 * jac[25][11];
+    jac[0][11] = u14_18;
     let u14_19 = jac[0][12] + jac[8][12] - l14_13 * jac[25][12];
+    jac[0][12] = u14_19;
     let u14_20 = jac[0][13] + jac[8][13] - l14_13 * jac[25][13];
+    jac[0][13] = u14_20;
     let l20_14 = jac[16][21] + jac[16][14];
+    jac[16][21] = l20_14;
     let l21_14 = jac[15][21] + jac[15][14];
+    jac[15][21] = l21_14;
     if !(jac[19][21].abs() <= runtime::lu::MAX_MULTIPLIER
         && jac[20][21].abs() <= runtime::lu::MAX_MULTIPLIER
         && l20_14.abs() <= runtime::lu::MAX_MULTIPLIER
@@ -1980,12 +2030,19 @@ pub fn factor_1(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     }
     let p15 = jac[26][17];
     let d15 = 1.0 / p15;
+    jac[26][17] = d15;
     let l18_15 = jac[12][17] * d15;
+    jac[12][17] = l18_15;
     let l19_15 = jac[11][17] * d15;
+    jac[11][17] = l19_15;
     let l20_15 = jac[16][17] * d15;
+    jac[16][17] = l20_15;
     let l21_15 = jac[15][17] * d15;
+    jac[15][17] = l21_15;
     let l22_15 = jac[14][17] * d15;
+    jac[14][17] = l22_15;
     let l23_15 = jac[13][17] * d15;
+    jac[13][17] = l23_15;
     if !(p15.is_finite() && l18_15.abs() <= runtime::lu::MAX_MULTIPLIER
         && l19_15.abs() <= runtime::lu::MAX_MULTIPLIER
         && l20_15.abs() <= runtime::lu::MAX_MULTIPLIER
@@ -1995,324 +2052,263 @@ pub fn factor_1(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     {
         return None;
     }
+    smallest = smallest.min(p15.abs());
+    largest = largest.max(p15.abs());
     let u16_18 = -(jac[19][21] * u14_18);
+    jac[19][11] = u16_18;
     let u16_19 = -(jac[19][21] * u14_19);
+    jac[19][12] = u16_19;
     let u16_20 = -(jac[19][21] * u14_20);
+    jac[19][13] = u16_20;
     let p16 = jac[19][22];
     let d16 = 1.0 / p16;
+    jac[19][22] = d16;
     let l17_16 = jac[20][22] * d16;
+    jac[20][22] = l17_16;
     let l20_16 = jac[16][22] * d16;
+    jac[16][22] = l20_16;
     let l21_16 = jac[15][22] * d16;
+    jac[15][22] = l21_16;
     if !(p16.is_finite() && l17_16.abs() <= runtime::lu::MAX_MULTIPLIER
         && l20_16.abs() <= runtime::lu::MAX_MULTIPLIER
         && l21_16.abs() <= runtime::lu::MAX_MULTIPLIER)
     {
         return None;
     }
+    smallest = smallest.min(p16.abs());
+    largest = largest.max(p16.abs());
     let u17_18 = -(jac[20][21] * u14_18) - l17_16 * u16_18;
+    jac[20][11] = u17_18;
     let u17_19 = -(jac[20][21] * u14_19) - l17_16 * u16_19;
+    jac[20][12] = u17_19;
     let u17_20 = -(jac[20][21] * u14_20) - l17_16 * u16_20;
+    jac[20][13] = u17_20;
     let u17_24 = jac[20][24] - l17_16 * jac[19][24];
+    jac[20][24] = u17_24;
     let u17_25 = jac[20][25] - l17_16 * jac[19][25];
+    jac[20][25] = u17_25;
     let u17_26 = jac[20][26] - l17_16 * jac[19][26];
+    jac[20][26] = u17_26;
     let u17_27 = jac[20][27] - l17_16 * jac[19][27];
+    jac[20][27] = u17_27;
     let p17 = jac[20][23] - l17_16 * jac[19][23];
     let d17 = 1.0 / p17;
+    jac[20][23] = d17;
     let l20_17 = (jac[16][23] - l20_16 * jac[19][23]) * d17;
+    jac[16][23] = l20_17;
     let l21_17 = (jac[15][23] - l21_16 * jac[19][23]) * d17;
+    jac[15][23] = l21_17;
     if !(p17.is_finite() && l20_17.abs() <= runtime::lu::MAX_MULTIPLIER
         && l21_17.abs() <= runtime::lu::MAX_MULTIPLIER)
     {
         return None;
     }
+    smallest = smallest.min(p17.abs());
+    largest = largest.max(p17.abs());
     let u18_19 = jac[12][12] - l18_13 * jac[25][12];
+    jac[12][12] = u18_19;
     let u18_20 = jac[12][13] - l18_13 * jac[25][13];
+    jac[12][13] = u18_20;
     let u18_21 = jac[12][18] - l18_15 * jac[26][18];
+    jac[12][18] = u18_21;
     let u18_22 = jac[12][19] - l18_15 * jac[26][19];
+    jac[12][19] = u18_22;
     let u18_23 = jac[12][20] - l18_15 * jac[26][20];
+    jac[12][20] = u18_23;
     let p18 = jac[12][11] - l18_13 * jac[25][11];
     let d18 = 1.0 / p18;
+    jac[12][11] = d18;
     let l19_18 = (jac[11][11] - l19_13 * jac[25][11]) * d18;
+    jac[11][11] = l19_18;
     let l20_18 = (-(jac[16][15] * u11_18) - jac[16][16] * u12_18 - l20_13 * jac[25][11]
         - l20_14 * u14_18 - l20_16 * u16_18 - l20_17 * u17_18) * d18;
+    jac[16][11] = l20_18;
     let l21_18 = (-(jac[15][15] * u11_18) - jac[15][16] * u12_18 - l21_13 * jac[25][11]
         - l21_14 * u14_18 - l21_16 * u16_18 - l21_17 * u17_18) * d18;
+    jac[15][11] = l21_18;
     if !(p18.is_finite() && l19_18.abs() <= runtime::lu::MAX_MULTIPLIER
         && l20_18.abs() <= runtime::lu::MAX_MULTIPLIER
         && l21_18.abs() <= runtime::lu::MAX_MULTIPLIER)
     {
         return None;
     }
+    smallest = smallest.min(p18.abs());
+    largest = largest.max(p18.abs());
     let u19_20 = jac[11][13] - l19_13 * jac[25][13] - l19_18 * u18_20;
+    jac[11][13] = u19_20;
     let u19_21 = jac[11][18] - l19_15 * jac[26][18] - l19_18 * u18_21;
+    jac[11][18] = u19_21;
     let u19_22 = jac[11][19] - l19_15 * jac[26][19] - l19_18 * u18_22;
+    jac[11][19] = u19_22;
     let u19_23 = jac[11][20] - l19_15 * jac[26][20] - l19_18 * u18_23;
+    jac[11][20] = u19_23;
     let p19 = jac[11][12] - l19_13 * jac[25][12] - l19_18 * u18_19;
     let d19 = 1.0 / p19;
+    jac[11][12] = d19;
     let l20_19 = (-(jac[16][15] * u11_19) - jac[16][16] * u12_19 - l20_13 * jac[25][12]
         - l20_14 * u14_19 - l20_16 * u16_19 - l20_17 * u17_19 - l20_18 * u18_19) * d19;
+    jac[16][12] = l20_19;
     let l21_19 = (-(jac[15][15] * u11_19) - jac[15][16] * u12_19 - l21_13 * jac[25][12]
         - l21_14 * u14_19 - l21_16 * u16_19 - l21_17 * u17_19 - l21_18 * u18_19) * d19;
+    jac[15][12] = l21_19;
     if !(p19.is_finite() && l20_19.abs() <= runtime::lu::MAX_MULTIPLIER
         && l21_19.abs() <= runtime::lu::MAX_MULTIPLIER)
     {
         return None;
     }
+    smallest = smallest.min(p19.abs());
+    largest = largest.max(p19.abs());
     let u20_21 = jac[16][18] - l20_15 * jac[26][18] - l20_18 * u18_21 - l20_19 * u19_21;
+    jac[16][18] = u20_21;
     let u20_22 = jac[16][19] - l20_15 * jac[26][19] - l20_18 * u18_22 - l20_19 * u19_22;
+    jac[16][19] = u20_22;
     let u20_23 = jac[16][20] - l20_15 * jac[26][20] - l20_18 * u18_23 - l20_19 * u19_23;
+    jac[16][20] = u20_23;
     let u20_24 = jac[16][24] - l20_16 * jac[19][24] - l20_17 * u17_24;
+    jac[16][24] = u20_24;
     let u20_25 = jac[16][25] - l20_16 * jac[19][25] - l20_17 * u17_25;
+    jac[16][25] = u20_25;
     let u20_26 = jac[16][26] - l20_16 * jac[19][26] - l20_17 * u17_26;
+    jac[16][26] = u20_26;
     let u20_27 = jac[16][27] - l20_16 * jac[19][27] - l20_17 * u17_27;
+    jac[16][27] = u20_27;
     let p20 = -(jac[16][15] * u11_20) - jac[16][16] * u12_20 - l20_13 * jac[25][13]
         - l20_14 * u14_20 - l20_16 * u16_20 - l20_17 * u17_20 - l20_18 * u18_20
         - l20_19 * u19_20;
     let d20 = 1.0 / p20;
+    jac[16][13] = d20;
     let l21_20 = (-(jac[15][15] * u11_20) - jac[15][16] * u12_20 - l21_13 * jac[25][13]
         - l21_14 * u14_20 - l21_16 * u16_20 - l21_17 * u17_20 - l21_18 * u18_20
         - l21_19 * u19_20) * d20;
+    jac[15][13] = l21_20;
     if !(p20.is_finite() && l21_20.abs() <= runtime::lu::MAX_MULTIPLIER) {
         return None;
     }
+    smallest = smallest.min(p20.abs());
+    largest = largest.max(p20.abs());
     let u21_22 = jac[15][19] - l21_15 * jac[26][19] - l21_18 * u18_22 - l21_19 * u19_22
         - l21_20 * u20_22;
+    jac[15][19] = u21_22;
     let u21_23 = jac[15][20] - l21_15 * jac[26][20] - l21_18 * u18_23 - l21_19 * u19_23
         - l21_20 * u20_23;
+    jac[15][20] = u21_23;
     let u21_24 = jac[15][24] - l21_16 * jac[19][24] - l21_17 * u17_24 - l21_20 * u20_24;
+    jac[15][24] = u21_24;
     let u21_25 = jac[15][25] - l21_16 * jac[19][25] - l21_17 * u17_25 - l21_20 * u20_25;
+    jac[15][25] = u21_25;
     let u21_26 = jac[15][26] - l21_16 * jac[19][26] - l21_17 * u17_26 - l21_20 * u20_26;
+    jac[15][26] = u21_26;
     let u21_27 = jac[15][27] - l21_16 * jac[19][27] - l21_17 * u17_27 - l21_20 * u20_27;
+    jac[15][27] = u21_27;
     let p21 = jac[15][18] - l21_15 * jac[26][18] - l21_18 * u18_21 - l21_19 * u19_21
         - l21_20 * u20_21;
     let d21 = 1.0 / p21;
+    jac[15][18] = d21;
     let l22_21 = (jac[14][18] - l22_15 * jac[26][18]) * d21;
+    jac[14][18] = l22_21;
     let l23_21 = (jac[13][18] - l23_15 * jac[26][18]) * d21;
+    jac[13][18] = l23_21;
     if !(p21.is_finite() && l22_21.abs() <= runtime::lu::MAX_MULTIPLIER
         && l23_21.abs() <= runtime::lu::MAX_MULTIPLIER)
     {
         return None;
     }
+    smallest = smallest.min(p21.abs());
+    largest = largest.max(p21.abs());
     let u22_23 = jac[14][20] - l22_15 * jac[26][20] - l22_21 * u21_23;
+    jac[14][20] = u22_23;
     let u22_24 = jac[14][24] - l22_21 * u21_24;
+    jac[14][24] = u22_24;
     let u22_25 = jac[14][25] - l22_21 * u21_25;
+    jac[14][25] = u22_25;
     let u22_26 = jac[14][26] - l22_21 * u21_26;
+    jac[14][26] = u22_26;
     let u22_27 = jac[14][27] - l22_21 * u21_27;
+    jac[14][27] = u22_27;
     let p22 = jac[14][19] - l22_15 * jac[26][19] - l22_21 * u21_22;
     let d22 = 1.0 / p22;
+    jac[14][19] = d22;
     let l23_22 = (jac[13][19] - l23_15 * jac[26][19] - l23_21 * u21_22) * d22;
+    jac[13][19] = l23_22;
     if !(p22.is_finite() && l23_22.abs() <= runtime::lu::MAX_MULTIPLIER) {
         return None;
     }
+    smallest = smallest.min(p22.abs());
+    largest = largest.max(p22.abs());
     let u23_24 = jac[13][24] - l23_21 * u21_24 - l23_22 * u22_24;
+    jac[13][24] = u23_24;
     let u23_25 = jac[13][25] - l23_21 * u21_25 - l23_22 * u22_25;
+    jac[13][25] = u23_25;
     let u23_26 = jac[13][26] - l23_21 * u21_26 - l23_22 * u22_26;
+    jac[13][26] = u23_26;
     let u23_27 = jac[13][27] - l23_21 * u21_27 - l23_22 * u22_27;
+    jac[13][27] = u23_27;
     let p23 = jac[13][20] - l23_15 * jac[26][20] - l23_21 * u21_23 - l23_22 * u22_23;
     let d23 = 1.0 / p23;
+    jac[13][20] = d23;
     if !p23.is_finite() {
         return None;
     }
+    smallest = smallest.min(p23.abs());
+    largest = largest.max(p23.abs());
     let p24 = jac[27][24];
     let d24 = 1.0 / p24;
+    jac[27][24] = d24;
     let l25_24 = jac[21][24] * d24;
+    jac[21][24] = l25_24;
     let l26_24 = jac[18][24] * d24;
+    jac[18][24] = l26_24;
     let l27_24 = jac[17][24] * d24;
+    jac[17][24] = l27_24;
     if !(p24.is_finite() && l25_24.abs() <= runtime::lu::MAX_MULTIPLIER
         && l26_24.abs() <= runtime::lu::MAX_MULTIPLIER
         && l27_24.abs() <= runtime::lu::MAX_MULTIPLIER)
     {
         return None;
     }
+    smallest = smallest.min(p24.abs());
+    largest = largest.max(p24.abs());
     let u25_26 = jac[21][26] - l25_24 * jac[27][26];
+    jac[21][26] = u25_26;
     let u25_27 = jac[21][27] - l25_24 * jac[27][27];
+    jac[21][27] = u25_27;
     let p25 = jac[21][25] - l25_24 * jac[27][25];
     let d25 = 1.0 / p25;
+    jac[21][25] = d25;
     let l26_25 = (jac[18][25] - l26_24 * jac[27][25]) * d25;
+    jac[18][25] = l26_25;
     let l27_25 = (jac[17][25] - l27_24 * jac[27][25]) * d25;
+    jac[17][25] = l27_25;
     if !(p25.is_finite() && l26_25.abs() <= runtime::lu::MAX_MULTIPLIER
         && l27_25.abs() <= runtime::lu::MAX_MULTIPLIER)
     {
         return None;
     }
+    smallest = smallest.min(p25.abs());
+    largest = largest.max(p25.abs());
     let u26_27 = jac[18][27] - l26_24 * jac[27][27] - l26_25 * u25_27;
+    jac[18][27] = u26_27;
     let p26 = jac[18][26] - l26_24 * jac[27][26] - l26_25 * u25_26;
     let d26 = 1.0 / p26;
+    jac[18][26] = d26;
     let l27_26 = (jac[17][26] - l27_24 * jac[27][26] - l27_25 * u25_26) * d26;
+    jac[17][26] = l27_26;
     if !(p26.is_finite() && l27_26.abs() <= runtime::lu::MAX_MULTIPLIER) {
         return None;
     }
+    smallest = smallest.min(p26.abs());
+    largest = largest.max(p26.abs());
     let p27 = jac[17][27] - l27_24 * jac[27][27] - l27_25 * u25_27 - l27_26 * u26_27;
     let d27 = 1.0 / p27;
+    jac[17][27] = d27;
     if !p27.is_finite() {
         return None;
     }
-    jac[23][4] = d7;
-    jac[24][4] = l8_7;
-    jac[24][3] = d8;
-    jac[7][4] = l9_7;
-    jac[7][3] = l9_8;
-    jac[7][5] = d9;
-    jac[7][6] = u9_10;
-    jac[6][4] = l10_7;
-    jac[6][3] = l10_8;
-    jac[6][5] = l10_9;
-    jac[6][6] = d10;
-    jac[1][4] = l11_7;
-    jac[1][3] = l11_8;
-    jac[1][5] = l11_9;
-    jac[1][6] = l11_10;
-    jac[1][10] = u11_13;
-    jac[1][11] = u11_18;
-    jac[1][12] = u11_19;
-    jac[1][13] = u11_20;
-    jac[2][4] = l12_7;
-    jac[2][3] = l12_8;
-    jac[2][5] = l12_9;
-    jac[2][6] = l12_10;
-    jac[2][10] = u12_13;
-    jac[2][11] = u12_18;
-    jac[2][12] = u12_19;
-    jac[2][13] = u12_20;
-    jac[25][10] = d13;
-    jac[0][4] = l14_7;
-    jac[0][3] = l14_8;
-    jac[0][5] = l14_9;
-    jac[0][6] = l14_10;
-    jac[0][10] = l14_13;
-    jac[0][11] = u14_18;
-    jac[0][12] = u14_19;
-    jac[0][13] = u14_20;
-    jac[26][17] = d15;
-    jac[19][22] = d16;
-    jac[19][11] = u16_18;
-    jac[19][12] = u16_19;
-    jac[19][13] = u16_20;
-    jac[20][22] = l17_16;
-    jac[20][23] = d17;
-    jac[20][11] = u17_18;
-    jac[20][12] = u17_19;
-    jac[20][13] = u17_20;
-    jac[20][24] = u17_24;
-    jac[20][25] = u17_25;
-    jac[20][26] = u17_26;
-    jac[20][27] = u17_27;
-    jac[12][10] = l18_13;
-    jac[12][17] = l18_15;
-    jac[12][11] = d18;
-    jac[12][12] = u18_19;
-    jac[12][13] = u18_20;
-    jac[12][18] = u18_21;
-    jac[12][19] = u18_22;
-    jac[12][20] = u18_23;
-    jac[11][10] = l19_13;
-    jac[11][17] = l19_15;
-    jac[11][11] = l19_18;
-    jac[11][12] = d19;
-    jac[11][13] = u19_20;
-    jac[11][18] = u19_21;
-    jac[11][19] = u19_22;
-    jac[11][20] = u19_23;
-    jac[16][10] = l20_13;
-    jac[16][21] = l20_14;
-    jac[16][17] = l20_15;
-    jac[16][22] = l20_16;
-    jac[16][23] = l20_17;
-    jac[16][11] = l20_18;
-    jac[16][12] = l20_19;
-    jac[16][13] = d20;
-    jac[16][18] = u20_21;
-    jac[16][19] = u20_22;
-    jac[16][20] = u20_23;
-    jac[16][24] = u20_24;
-    jac[16][25] = u20_25;
-    jac[16][26] = u20_26;
-    jac[16][27] = u20_27;
-    jac[15][10] = l21_13;
-    jac[15][21] = l21_14;
-    jac[15][17] = l21_15;
-    jac[15][22] = l21_16;
-    jac[15][23] = l21_17;
-    jac[15][11] = l21_18;
-    jac[15][12] = l21_19;
-    jac[15][13] = l21_20;
-    jac[15][18] = d21;
-    jac[15][19] = u21_22;
-    jac[15][20] = u21_23;
-    jac[15][24] = u21_24;
-    jac[15][25] = u21_25;
-    jac[15][26] = u21_26;
-    jac[15][27] = u21_27;
-    jac[14][17] = l22_15;
-    jac[14][18] = l22_21;
-    jac[14][19] = d22;
-    jac[14][20] = u22_23;
-    jac[14][24] = u22_24;
-    jac[14][25] = u22_25;
-    jac[14][26] = u22_26;
-    jac[14][27] = u22_27;
-    jac[13][17] = l23_15;
-    jac[13][18] = l23_21;
-    jac[13][19] = l23_22;
-    jac[13][20] = d23;
-    jac[13][24] = u23_24;
-    jac[13][25] = u23_25;
-    jac[13][26] = u23_26;
-    jac[13][27] = u23_27;
-    jac[27][24] = d24;
-    jac[21][24] = l25_24;
-    jac[21][25] = d25;
-    jac[21][26] = u25_26;
-    jac[21][27] = u25_27;
-    jac[18][24] = l26_24;
-    jac[18][25] = l26_25;
-    jac[18][26] = d26;
-    jac[18][27] = u26_27;
-    jac[17][24] = l27_24;
-    jac[17][25] = l27_25;
-    jac[17][26] = l27_26;
-    jac[17][27] = d27;
+    smallest = smallest.min(p27.abs());
+    largest = largest.max(p27.abs());
     Some(runtime::lu::PivotInfo {
-        smallest: p7
-            .abs()
-            .min(p8.abs())
-            .min(p9.abs())
-            .min(p10.abs())
-            .min(p13.abs())
-            .min(p15.abs())
-            .min(p16.abs())
-            .min(p17.abs())
-            .min(p18.abs())
-            .min(p19.abs())
-            .min(p20.abs())
-            .min(p21.abs())
-            .min(p22.abs())
-            .min(p23.abs())
-            .min(p24.abs())
-            .min(p25.abs())
-            .min(p26.abs())
-            .min(p27.abs())
-            .min(1.0),
-        largest: p7
-            .abs()
-            .max(p8.abs())
-            .max(p9.abs())
-            .max(p10.abs())
-            .max(p13.abs())
-            .max(p15.abs())
-            .max(p16.abs())
-            .max(p17.abs())
-            .max(p18.abs())
-            .max(p19.abs())
-            .max(p20.abs())
-            .max(p21.abs())
-            .max(p22.abs())
-            .max(p23.abs())
-            .max(p24.abs())
-            .max(p25.abs())
-            .max(p26.abs())
-            .max(p27.abs())
-            .max(1.0),
+        smallest,
+        largest,
     })
 }
 
@@ -2436,7 +2432,7 @@ pub fn solve_1(lu: &[[f64; N]; N], b: &mut [f64; N]) {
 
  L and U have 183 entries (18 of them fill-in, 21 known when generated); 441 operations. The others are in `jac`: 125 stored there, with the reciprocals of the pivots on the diagonal, and 37 left as Φ_q had them.
 
- Returns the smallest and largest |pivot|, or `None` (with `jac` unchanged) when a pivot is not finite or a multiplier exceeds [`runtime::lu::MAX_MULTIPLIER`] in magnitude.*/
+ Returns the smallest and largest |pivot|, or `None` when a pivot is not finite or a multiplier exceeds [`runtime::lu::MAX_MULTIPLIER`] in magnitude; `jac` is then partly factored and must be evaluated again.*/
 #[must_use]
 pub fn factor_2(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     if !(jac[16][14].abs() <= runtime::lu::MAX_MULTIPLIER
@@ -2446,12 +2442,19 @@ pub fn factor_2(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     }
     let p7 = jac[23][3];
     let d7 = 1.0 / p7;
+    jac[23][3] = d7;
     let l8_7 = jac[24][3] * d7;
+    jac[24][3] = l8_7;
     let l9_7 = jac[6][3] * d7;
+    jac[6][3] = l9_7;
     let l10_7 = jac[7][3] * d7;
+    jac[7][3] = l10_7;
     let l11_7 = jac[1][3] * d7;
+    jac[1][3] = l11_7;
     let l12_7 = jac[2][3] * d7;
+    jac[2][3] = l12_7;
     let l14_7 = jac[0][3] * d7;
+    jac[0][3] = l14_7;
     if !(p7.is_finite() && l8_7.abs() <= runtime::lu::MAX_MULTIPLIER
         && l9_7.abs() <= runtime::lu::MAX_MULTIPLIER
         && l10_7.abs() <= runtime::lu::MAX_MULTIPLIER
@@ -2461,13 +2464,21 @@ pub fn factor_2(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     {
         return None;
     }
+    let mut smallest = p7.abs().min(1.0);
+    let mut largest = p7.abs().max(1.0);
     let p8 = jac[24][4] - l8_7 * jac[23][4];
     let d8 = 1.0 / p8;
+    jac[24][4] = d8;
     let l9_8 = (jac[6][4] - l9_7 * jac[23][4]) * d8;
+    jac[6][4] = l9_8;
     let l10_8 = (jac[7][4] - l10_7 * jac[23][4]) * d8;
+    jac[7][4] = l10_8;
     let l11_8 = (jac[1][4] - l11_7 * jac[23][4]) * d8;
+    jac[1][4] = l11_8;
     let l12_8 = (jac[2][4] - l12_7 * jac[23][4]) * d8;
+    jac[2][4] = l12_8;
     let l14_8 = (jac[0][4] - l14_7 * jac[23][4]) * d8;
+    jac[0][4] = l14_8;
     if !(p8.is_finite() && l9_8.abs() <= runtime::lu::MAX_MULTIPLIER
         && l10_8.abs() <= runtime::lu::MAX_MULTIPLIER
         && l11_8.abs() <= runtime::lu::MAX_MULTIPLIER
@@ -2476,13 +2487,21 @@ pub fn factor_2(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     {
         return None;
     }
+    smallest = smallest.min(p8.abs());
+    largest = largest.max(p8.abs());
     let u9_10 = jac[6][6] - l9_8 * jac[24][6];
+    jac[6][6] = u9_10;
     let p9 = jac[6][5] - l9_8 * jac[24][5];
     let d9 = 1.0 / p9;
+    jac[6][5] = d9;
     let l10_9 = (jac[7][5] - l10_8 * jac[24][5]) * d9;
+    jac[7][5] = l10_9;
     let l11_9 = (jac[1][5] - l11_8 * jac[24][5]) * d9;
+    jac[1][5] = l11_9;
     let l12_9 = (jac[2][5] - l12_8 * jac[24][5]) * d9;
+    jac[2][5] = l12_9;
     let l14_9 = (jac[0][5] - l14_8 * jac[24][5]) * d9;
+    jac[0][5] = l14_9;
     if !(p9.is_finite() && l10_9.abs() <= runtime::lu::MAX_MULTIPLIER
         && l11_9.abs() <= runtime::lu::MAX_MULTIPLIER
         && l12_9.abs() <= runtime::lu::MAX_MULTIPLIER
@@ -2490,30 +2509,46 @@ pub fn factor_2(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     {
         return None;
     }
+    smallest = smallest.min(p9.abs());
+    largest = largest.max(p9.abs());
     let p10 = jac[7][6] - l10_8 * jac[24][6] - l10_9 * u9_10;
     let d10 = 1.0 / p10;
+    jac[7][6] = d10;
     let l11_10 = (jac[1][6] - l11_8 * jac[24][6] - l11_9 * u9_10) * d10;
+    jac[1][6] = l11_10;
     let l12_10 = (jac[2][6] - l12_8 * jac[24][6] - l12_9 * u9_10) * d10;
+    jac[2][6] = l12_10;
     let l14_10 = (jac[0][6] - l14_8 * jac[24][6] - l14_9 * u9_10) * d10;
+    jac[0][6] = l14_10;
     if !(p10.is_finite() && l11_10.abs() <= runtime::lu::MAX_MULTIPLIER
         && l12_10.abs() <= runtime::lu::MAX_MULTIPLIER
         && l14_10.abs() <= runtime::lu::MAX_MULTIPLIER)
     {
         return None;
     }
+    smallest = smallest.min(p10.abs());
+    largest = largest.max(p10.abs());
     let u11_13 = jac[1][10] + jac[9][10];
+    jac[1][10] = u11_13;
     let u11_18 = jac[1][11] + jac[9][11];
+    jac[1][11] = u11_18;
     let u11_19 = jac[1][12] + jac[9][12];
+    jac[1][12] = u11_19;
     let u11_20 = jac[1][13] + jac[9][13];
+    jac[1][13] = u11_20;
     if !(jac[16][15].abs() <= runtime::lu::MAX_MULTIPLIER
         && jac[15][15].abs() <= runtime::lu::MAX_MULTIPLIER)
     {
         return None;
     }
     let u12_13 = jac[2][10] + jac[10][10];
+    jac[2][10] = u12_13;
     let u12_18 = jac[2][11] + jac[10][11];
+    jac[2][11] = u12_18;
     let u12_19 = jac[2][12] + jac[10][12];
+    jac[2][12] = u12_19;
     let u12_20 = jac[2][13] + jac[10][13];
+    jac[2][13] = u12_20;
     if !(jac[16][16].abs() <= runtime::lu::MAX_MULTIPLIER
         && jac[15][16].abs() <= runtime::lu::MAX_MULTIPLIER)
     {
@@ -2521,11 +2556,17 @@ pub fn factor_2(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     }
     let p13 = jac[25][10];
     let d13 = 1.0 / p13;
+    jac[25][10] = d13;
     let l14_13 = (jac[0][10] + jac[8][10]) * d13;
+    jac[0][10] = l14_13;
     let l18_13 = jac[12][10] * d13;
+    jac[12][10] = l18_13;
     let l19_13 = jac[11][10] * d13;
+    jac[11][10] = l19_13;
     let l20_13 = (-(jac[16][15] * u11_13) - jac[16][16] * u12_13) * d13;
+    jac[16][10] = l20_13;
     let l21_13 = (-(jac[15][15] * u11_13) - jac[15][16] * u12_13) * d13;
+    jac[15][10] = l21_13;
     if !(p13.is_finite() && l14_13.abs() <= runtime::lu::MAX_MULTIPLIER
         && l18_13.abs() <= runtime::lu::MAX_MULTIPLIER
         && l19_13.abs() <= runtime::lu::MAX_MULTIPLIER
@@ -2534,11 +2575,18 @@ pub fn factor_2(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     {
         return None;
     }
+    smallest = smallest.min(p13.abs());
+    largest = largest.max(p13.abs());
     let u14_18 = jac[0][11] + jac[8][11] - l14_13 * jac[25][11];
+    jac[0][11] = u14_18;
     let u14_19 = jac[0][12] + jac[8][12] - l14_13 * jac[25][12];
+    jac[0][12] = u14_19;
     let u14_20 = jac[0][13] + jac[8][13] - l14_13 * jac[25][13];
+    jac[0][13] = u14_20;
     let l20_14 = jac[16][21] + jac[16][14];
+    jac[16][21] = l20_14;
     let l21_14 = jac[15][21] + jac[15][14];
+    jac[15][21] = l21_14;
     if !(jac[19][21].abs() <= runtime::lu::MAX_MULTIPLIER
         && jac[20][21].abs() <= runtime::lu::MAX_MULTIPLIER
         && l20_14.abs() <= runtime::lu::MAX_MULTIPLIER
@@ -2548,12 +2596,19 @@ pub fn factor_2(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     }
     let p15 = jac[26][17];
     let d15 = 1.0 / p15;
+    jac[26][17] = d15;
     let l18_15 = jac[12][17] * d15;
+    jac[12][17] = l18_15;
     let l19_15 = jac[11][17] * d15;
+    jac[11][17] = l19_15;
     let l20_15 = jac[16][17] * d15;
+    jac[16][17] = l20_15;
     let l21_15 = jac[15][17] * d15;
+    jac[15][17] = l21_15;
     let l22_15 = jac[14][17] * d15;
+    jac[14][17] = l22_15;
     let l23_15 = jac[13][17] * d15;
+    jac[13][17] = l23_15;
     if !(p15.is_finite() && l18_15.abs() <= runtime::lu::MAX_MULTIPLIER
         && l19_15.abs() <= runtime::lu::MAX_MULTIPLIER
         && l20_15.abs() <= runtime::lu::MAX_MULTIPLIER
@@ -2563,324 +2618,263 @@ pub fn factor_2(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     {
         return None;
     }
+    smallest = smallest.min(p15.abs());
+    largest = largest.max(p15.abs());
     let u16_18 = -(jac[19][21] * u14_18);
+    jac[19][11] = u16_18;
     let u16_19 = -(jac[19][21] * u14_19);
+    jac[19][12] = u16_19;
     let u16_20 = -(jac[19][21] * u14_20);
+    jac[19][13] = u16_20;
     let p16 = jac[19][22];
     let d16 = 1.0 / p16;
+    jac[19][22] = d16;
     let l17_16 = jac[20][22] * d16;
+    jac[20][22] = l17_16;
     let l20_16 = jac[16][22] * d16;
+    jac[16][22] = l20_16;
     let l21_16 = jac[15][22] * d16;
+    jac[15][22] = l21_16;
     if !(p16.is_finite() && l17_16.abs() <= runtime::lu::MAX_MULTIPLIER
         && l20_16.abs() <= runtime::lu::MAX_MULTIPLIER
         && l21_16.abs() <= runtime::lu::MAX_MULTIPLIER)
     {
         return None;
     }
+    smallest = smallest.min(p16.abs());
+    largest = largest.max(p16.abs());
     let u17_18 = -(jac[20][21] * u14_18) - l17_16 * u16_18;
+    jac[20][11] = u17_18;
     let u17_19 = -(jac[20][21] * u14_19) - l17_16 * u16_19;
+    jac[20][12] = u17_19;
     let u17_20 = -(jac[20][21] * u14_20) - l17_16 * u16_20;
+    jac[20][13] = u17_20;
     let u17_24 = jac[20][24] - l17_16 * jac[19][24];
+    jac[20][24] = u17_24;
     let u17_25 = jac[20][25] - l17_16 * jac[19][25];
+    jac[20][25] = u17_25;
     let u17_26 = jac[20][26] - l17_16 * jac[19][26];
+    jac[20][26] = u17_26;
     let u17_27 = jac[20][27] - l17_16 * jac[19][27];
+    jac[20][27] = u17_27;
     let p17 = jac[20][23] - l17_16 * jac[19][23];
     let d17 = 1.0 / p17;
+    jac[20][23] = d17;
     let l20_17 = (jac[16][23] - l20_16 * jac[19][23]) * d17;
+    jac[16][23] = l20_17;
     let l21_17 = (jac[15][23] - l21_16 * jac[19][23]) * d17;
+    jac[15][23] = l21_17;
     if !(p17.is_finite() && l20_17.abs() <= runtime::lu::MAX_MULTIPLIER
         && l21_17.abs() <= runtime::lu::MAX_MULTIPLIER)
     {
         return None;
     }
+    smallest = smallest.min(p17.abs());
+    largest = largest.max(p17.abs());
     let u18_19 = jac[12][12] - l18_13 * jac[25][12];
+    jac[12][12] = u18_19;
     let u18_20 = jac[12][13] - l18_13 * jac[25][13];
+    jac[12][13] = u18_20;
     let u18_21 = jac[12][18] - l18_15 * jac[26][18];
+    jac[12][18] = u18_21;
     let u18_22 = jac[12][19] - l18_15 * jac[26][19];
+    jac[12][19] = u18_22;
     let u18_23 = jac[12][20] - l18_15 * jac[26][20];
+    jac[12][20] = u18_23;
     let p18 = jac[12][11] - l18_13 * jac[25][11];
     let d18 = 1.0 / p18;
+    jac[12][11] = d18;
     let l19_18 = (jac[11][11] - l19_13 * jac[25][11]) * d18;
+    jac[11][11] = l19_18;
     let l20_18 = (-(jac[16][15] * u11_18) - jac[16][16] * u12_18 - l20_13 * jac[25][11]
         - l20_14 * u14_18 - l20_16 * u16_18 - l20_17 * u17_18) * d18;
+    jac[16][11] = l20_18;
     let l21_18 = (-(jac[15][15] * u11_18) - jac[15][16] * u12_18 - l21_13 * jac[25][11]
         - l21_14 * u14_18 - l21_16 * u16_18 - l21_17 * u17_18) * d18;
+    jac[15][11] = l21_18;
     if !(p18.is_finite() && l19_18.abs() <= runtime::lu::MAX_MULTIPLIER
         && l20_18.abs() <= runtime::lu::MAX_MULTIPLIER
         && l21_18.abs() <= runtime::lu::MAX_MULTIPLIER)
     {
         return None;
     }
+    smallest = smallest.min(p18.abs());
+    largest = largest.max(p18.abs());
     let u19_20 = jac[11][13] - l19_13 * jac[25][13] - l19_18 * u18_20;
+    jac[11][13] = u19_20;
     let u19_21 = jac[11][18] - l19_15 * jac[26][18] - l19_18 * u18_21;
+    jac[11][18] = u19_21;
     let u19_22 = jac[11][19] - l19_15 * jac[26][19] - l19_18 * u18_22;
+    jac[11][19] = u19_22;
     let u19_23 = jac[11][20] - l19_15 * jac[26][20] - l19_18 * u18_23;
+    jac[11][20] = u19_23;
     let p19 = jac[11][12] - l19_13 * jac[25][12] - l19_18 * u18_19;
     let d19 = 1.0 / p19;
+    jac[11][12] = d19;
     let l20_19 = (-(jac[16][15] * u11_19) - jac[16][16] * u12_19 - l20_13 * jac[25][12]
         - l20_14 * u14_19 - l20_16 * u16_19 - l20_17 * u17_19 - l20_18 * u18_19) * d19;
+    jac[16][12] = l20_19;
     let l21_19 = (-(jac[15][15] * u11_19) - jac[15][16] * u12_19 - l21_13 * jac[25][12]
         - l21_14 * u14_19 - l21_16 * u16_19 - l21_17 * u17_19 - l21_18 * u18_19) * d19;
+    jac[15][12] = l21_19;
     if !(p19.is_finite() && l20_19.abs() <= runtime::lu::MAX_MULTIPLIER
         && l21_19.abs() <= runtime::lu::MAX_MULTIPLIER)
     {
         return None;
     }
+    smallest = smallest.min(p19.abs());
+    largest = largest.max(p19.abs());
     let u20_21 = jac[16][18] - l20_15 * jac[26][18] - l20_18 * u18_21 - l20_19 * u19_21;
+    jac[16][18] = u20_21;
     let u20_22 = jac[16][19] - l20_15 * jac[26][19] - l20_18 * u18_22 - l20_19 * u19_22;
+    jac[16][19] = u20_22;
     let u20_23 = jac[16][20] - l20_15 * jac[26][20] - l20_18 * u18_23 - l20_19 * u19_23;
+    jac[16][20] = u20_23;
     let u20_24 = jac[16][24] - l20_16 * jac[19][24] - l20_17 * u17_24;
+    jac[16][24] = u20_24;
     let u20_25 = jac[16][25] - l20_16 * jac[19][25] - l20_17 * u17_25;
+    jac[16][25] = u20_25;
     let u20_26 = jac[16][26] - l20_16 * jac[19][26] - l20_17 * u17_26;
+    jac[16][26] = u20_26;
     let u20_27 = jac[16][27] - l20_16 * jac[19][27] - l20_17 * u17_27;
+    jac[16][27] = u20_27;
     let p20 = -(jac[16][15] * u11_20) - jac[16][16] * u12_20 - l20_13 * jac[25][13]
         - l20_14 * u14_20 - l20_16 * u16_20 - l20_17 * u17_20 - l20_18 * u18_20
         - l20_19 * u19_20;
     let d20 = 1.0 / p20;
+    jac[16][13] = d20;
     let l21_20 = (-(jac[15][15] * u11_20) - jac[15][16] * u12_20 - l21_13 * jac[25][13]
         - l21_14 * u14_20 - l21_16 * u16_20 - l21_17 * u17_20 - l21_18 * u18_20
         - l21_19 * u19_20) * d20;
+    jac[15][13] = l21_20;
     if !(p20.is_finite() && l21_20.abs() <= runtime::lu::MAX_MULTIPLIER) {
         return None;
     }
+    smallest = smallest.min(p20.abs());
+    largest = largest.max(p20.abs());
     let u21_22 = jac[15][19] - l21_15 * jac[26][19] - l21_18 * u18_22 - l21_19 * u19_22
         - l21_20 * u20_22;
+    jac[15][19] = u21_22;
     let u21_23 = jac[15][20] - l21_15 * jac[26][20] - l21_18 * u18_23 - l21_19 * u19_23
         - l21_20 * u20_23;
+    jac[15][20] = u21_23;
     let u21_24 = jac[15][24] - l21_16 * jac[19][24] - l21_17 * u17_24 - l21_20 * u20_24;
+    jac[15][24] = u21_24;
     let u21_25 = jac[15][25] - l21_16 * jac[19][25] - l21_17 * u17_25 - l21_20 * u20_25;
+    jac[15][25] = u21_25;
     let u21_26 = jac[15][26] - l21_16 * jac[19][26] - l21_17 * u17_26 - l21_20 * u20_26;
+    jac[15][26] = u21_26;
     let u21_27 = jac[15][27] - l21_16 * jac[19][27] - l21_17 * u17_27 - l21_20 * u20_27;
+    jac[15][27] = u21_27;
     let p21 = jac[15][18] - l21_15 * jac[26][18] - l21_18 * u18_21 - l21_19 * u19_21
         - l21_20 * u20_21;
     let d21 = 1.0 / p21;
+    jac[15][18] = d21;
     let l22_21 = (jac[14][18] - l22_15 * jac[26][18]) * d21;
+    jac[14][18] = l22_21;
     let l23_21 = (jac[13][18] - l23_15 * jac[26][18]) * d21;
+    jac[13][18] = l23_21;
     if !(p21.is_finite() && l22_21.abs() <= runtime::lu::MAX_MULTIPLIER
         && l23_21.abs() <= runtime::lu::MAX_MULTIPLIER)
     {
         return None;
     }
+    smallest = smallest.min(p21.abs());
+    largest = largest.max(p21.abs());
     let u22_23 = jac[14][20] - l22_15 * jac[26][20] - l22_21 * u21_23;
+    jac[14][20] = u22_23;
     let u22_24 = jac[14][24] - l22_21 * u21_24;
+    jac[14][24] = u22_24;
     let u22_25 = jac[14][25] - l22_21 * u21_25;
+    jac[14][25] = u22_25;
     let u22_26 = jac[14][26] - l22_21 * u21_26;
+    jac[14][26] = u22_26;
     let u22_27 = jac[14][27] - l22_21 * u21_27;
+    jac[14][27] = u22_27;
     let p22 = jac[14][19] - l22_15 * jac[26][19] - l22_21 * u21_22;
     let d22 = 1.0 / p22;
+    jac[14][19] = d22;
     let l23_22 = (jac[13][19] - l23_15 * jac[26][19] - l23_21 * u21_22) * d22;
+    jac[13][19] = l23_22;
     if !(p22.is_finite() && l23_22.abs() <= runtime::lu::MAX_MULTIPLIER) {
         return None;
     }
+    smallest = smallest.min(p22.abs());
+    largest = largest.max(p22.abs());
     let u23_24 = jac[13][24] - l23_21 * u21_24 - l23_22 * u22_24;
+    jac[13][24] = u23_24;
     let u23_25 = jac[13][25] - l23_21 * u21_25 - l23_22 * u22_25;
+    jac[13][25] = u23_25;
     let u23_26 = jac[13][26] - l23_21 * u21_26 - l23_22 * u22_26;
+    jac[13][26] = u23_26;
     let u23_27 = jac[13][27] - l23_21 * u21_27 - l23_22 * u22_27;
+    jac[13][27] = u23_27;
     let p23 = jac[13][20] - l23_15 * jac[26][20] - l23_21 * u21_23 - l23_22 * u22_23;
     let d23 = 1.0 / p23;
+    jac[13][20] = d23;
     if !p23.is_finite() {
         return None;
     }
+    smallest = smallest.min(p23.abs());
+    largest = largest.max(p23.abs());
     let p24 = jac[27][24];
     let d24 = 1.0 / p24;
+    jac[27][24] = d24;
     let l25_24 = jac[21][24] * d24;
+    jac[21][24] = l25_24;
     let l26_24 = jac[18][24] * d24;
+    jac[18][24] = l26_24;
     let l27_24 = jac[17][24] * d24;
+    jac[17][24] = l27_24;
     if !(p24.is_finite() && l25_24.abs() <= runtime::lu::MAX_MULTIPLIER
         && l26_24.abs() <= runtime::lu::MAX_MULTIPLIER
         && l27_24.abs() <= runtime::lu::MAX_MULTIPLIER)
     {
         return None;
     }
+    smallest = smallest.min(p24.abs());
+    largest = largest.max(p24.abs());
     let u25_26 = jac[21][26] - l25_24 * jac[27][26];
+    jac[21][26] = u25_26;
     let u25_27 = jac[21][27] - l25_24 * jac[27][27];
+    jac[21][27] = u25_27;
     let p25 = jac[21][25] - l25_24 * jac[27][25];
     let d25 = 1.0 / p25;
+    jac[21][25] = d25;
     let l26_25 = (jac[18][25] - l26_24 * jac[27][25]) * d25;
+    jac[18][25] = l26_25;
     let l27_25 = (jac[17][25] - l27_24 * jac[27][25]) * d25;
+    jac[17][25] = l27_25;
     if !(p25.is_finite() && l26_25.abs() <= runtime::lu::MAX_MULTIPLIER
         && l27_25.abs() <= runtime::lu::MAX_MULTIPLIER)
     {
         return None;
     }
+    smallest = smallest.min(p25.abs());
+    largest = largest.max(p25.abs());
     let u26_27 = jac[18][27] - l26_24 * jac[27][27] - l26_25 * u25_27;
+    jac[18][27] = u26_27;
     let p26 = jac[18][26] - l26_24 * jac[27][26] - l26_25 * u25_26;
     let d26 = 1.0 / p26;
+    jac[18][26] = d26;
     let l27_26 = (jac[17][26] - l27_24 * jac[27][26] - l27_25 * u25_26) * d26;
+    jac[17][26] = l27_26;
     if !(p26.is_finite() && l27_26.abs() <= runtime::lu::MAX_MULTIPLIER) {
         return None;
     }
+    smallest = smallest.min(p26.abs());
+    largest = largest.max(p26.abs());
     let p27 = jac[17][27] - l27_24 * jac[27][27] - l27_25 * u25_27 - l27_26 * u26_27;
     let d27 = 1.0 / p27;
+    jac[17][27] = d27;
     if !p27.is_finite() {
         return None;
     }
-    jac[23][3] = d7;
-    jac[24][3] = l8_7;
-    jac[24][4] = d8;
-    jac[6][3] = l9_7;
-    jac[6][4] = l9_8;
-    jac[6][5] = d9;
-    jac[6][6] = u9_10;
-    jac[7][3] = l10_7;
-    jac[7][4] = l10_8;
-    jac[7][5] = l10_9;
-    jac[7][6] = d10;
-    jac[1][3] = l11_7;
-    jac[1][4] = l11_8;
-    jac[1][5] = l11_9;
-    jac[1][6] = l11_10;
-    jac[1][10] = u11_13;
-    jac[1][11] = u11_18;
-    jac[1][12] = u11_19;
-    jac[1][13] = u11_20;
-    jac[2][3] = l12_7;
-    jac[2][4] = l12_8;
-    jac[2][5] = l12_9;
-    jac[2][6] = l12_10;
-    jac[2][10] = u12_13;
-    jac[2][11] = u12_18;
-    jac[2][12] = u12_19;
-    jac[2][13] = u12_20;
-    jac[25][10] = d13;
-    jac[0][3] = l14_7;
-    jac[0][4] = l14_8;
-    jac[0][5] = l14_9;
-    jac[0][6] = l14_10;
-    jac[0][10] = l14_13;
-    jac[0][11] = u14_18;
-    jac[0][12] = u14_19;
-    jac[0][13] = u14_20;
-    jac[26][17] = d15;
-    jac[19][22] = d16;
-    jac[19][11] = u16_18;
-    jac[19][12] = u16_19;
-    jac[19][13] = u16_20;
-    jac[20][22] = l17_16;
-    jac[20][23] = d17;
-    jac[20][11] = u17_18;
-    jac[20][12] = u17_19;
-    jac[20][13] = u17_20;
-    jac[20][24] = u17_24;
-    jac[20][25] = u17_25;
-    jac[20][26] = u17_26;
-    jac[20][27] = u17_27;
-    jac[12][10] = l18_13;
-    jac[12][17] = l18_15;
-    jac[12][11] = d18;
-    jac[12][12] = u18_19;
-    jac[12][13] = u18_20;
-    jac[12][18] = u18_21;
-    jac[12][19] = u18_22;
-    jac[12][20] = u18_23;
-    jac[11][10] = l19_13;
-    jac[11][17] = l19_15;
-    jac[11][11] = l19_18;
-    jac[11][12] = d19;
-    jac[11][13] = u19_20;
-    jac[11][18] = u19_21;
-    jac[11][19] = u19_22;
-    jac[11][20] = u19_23;
-    jac[16][10] = l20_13;
-    jac[16][21] = l20_14;
-    jac[16][17] = l20_15;
-    jac[16][22] = l20_16;
-    jac[16][23] = l20_17;
-    jac[16][11] = l20_18;
-    jac[16][12] = l20_19;
-    jac[16][13] = d20;
-    jac[16][18] = u20_21;
-    jac[16][19] = u20_22;
-    jac[16][20] = u20_23;
-    jac[16][24] = u20_24;
-    jac[16][25] = u20_25;
-    jac[16][26] = u20_26;
-    jac[16][27] = u20_27;
-    jac[15][10] = l21_13;
-    jac[15][21] = l21_14;
-    jac[15][17] = l21_15;
-    jac[15][22] = l21_16;
-    jac[15][23] = l21_17;
-    jac[15][11] = l21_18;
-    jac[15][12] = l21_19;
-    jac[15][13] = l21_20;
-    jac[15][18] = d21;
-    jac[15][19] = u21_22;
-    jac[15][20] = u21_23;
-    jac[15][24] = u21_24;
-    jac[15][25] = u21_25;
-    jac[15][26] = u21_26;
-    jac[15][27] = u21_27;
-    jac[14][17] = l22_15;
-    jac[14][18] = l22_21;
-    jac[14][19] = d22;
-    jac[14][20] = u22_23;
-    jac[14][24] = u22_24;
-    jac[14][25] = u22_25;
-    jac[14][26] = u22_26;
-    jac[14][27] = u22_27;
-    jac[13][17] = l23_15;
-    jac[13][18] = l23_21;
-    jac[13][19] = l23_22;
-    jac[13][20] = d23;
-    jac[13][24] = u23_24;
-    jac[13][25] = u23_25;
-    jac[13][26] = u23_26;
-    jac[13][27] = u23_27;
-    jac[27][24] = d24;
-    jac[21][24] = l25_24;
-    jac[21][25] = d25;
-    jac[21][26] = u25_26;
-    jac[21][27] = u25_27;
-    jac[18][24] = l26_24;
-    jac[18][25] = l26_25;
-    jac[18][26] = d26;
-    jac[18][27] = u26_27;
-    jac[17][24] = l27_24;
-    jac[17][25] = l27_25;
-    jac[17][26] = l27_26;
-    jac[17][27] = d27;
+    smallest = smallest.min(p27.abs());
+    largest = largest.max(p27.abs());
     Some(runtime::lu::PivotInfo {
-        smallest: p7
-            .abs()
-            .min(p8.abs())
-            .min(p9.abs())
-            .min(p10.abs())
-            .min(p13.abs())
-            .min(p15.abs())
-            .min(p16.abs())
-            .min(p17.abs())
-            .min(p18.abs())
-            .min(p19.abs())
-            .min(p20.abs())
-            .min(p21.abs())
-            .min(p22.abs())
-            .min(p23.abs())
-            .min(p24.abs())
-            .min(p25.abs())
-            .min(p26.abs())
-            .min(p27.abs())
-            .min(1.0),
-        largest: p7
-            .abs()
-            .max(p8.abs())
-            .max(p9.abs())
-            .max(p10.abs())
-            .max(p13.abs())
-            .max(p15.abs())
-            .max(p16.abs())
-            .max(p17.abs())
-            .max(p18.abs())
-            .max(p19.abs())
-            .max(p20.abs())
-            .max(p21.abs())
-            .max(p22.abs())
-            .max(p23.abs())
-            .max(p24.abs())
-            .max(p25.abs())
-            .max(p26.abs())
-            .max(p27.abs())
-            .max(1.0),
+        smallest,
+        largest,
     })
 }
 

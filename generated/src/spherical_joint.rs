@@ -151,26 +151,30 @@ pub fn residual_jacobian_structural(
 
  L and U have 11 entries (0 of them fill-in, 3 known when generated); 5 operations. The others are in `jac`: 3 stored there, with the reciprocals of the pivots on the diagonal, and 5 left as Φ_q had them.
 
- Returns the smallest and largest |pivot|, or `None` (with `jac` unchanged) when a pivot is not finite or a multiplier exceeds [`runtime::lu::MAX_MULTIPLIER`] in magnitude.*/
+ Returns the smallest and largest |pivot|, or `None` when a pivot is not finite or a multiplier exceeds [`runtime::lu::MAX_MULTIPLIER`] in magnitude; `jac` is then partly factored and must be evaluated again.*/
 #[must_use]
 pub fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     let p3 = jac[4][3];
     let d3 = 1.0 / p3;
+    jac[4][3] = d3;
     let l4_3 = jac[3][3] * d3;
+    jac[3][3] = l4_3;
     if !(p3.is_finite() && l4_3.abs() <= runtime::lu::MAX_MULTIPLIER) {
         return None;
     }
+    let mut smallest = p3.abs().min(1.0);
+    let mut largest = p3.abs().max(1.0);
     let p4 = jac[3][4] - l4_3 * jac[4][4];
     let d4 = 1.0 / p4;
+    jac[3][4] = d4;
     if !p4.is_finite() {
         return None;
     }
-    jac[4][3] = d3;
-    jac[3][3] = l4_3;
-    jac[3][4] = d4;
+    smallest = smallest.min(p4.abs());
+    largest = largest.max(p4.abs());
     Some(runtime::lu::PivotInfo {
-        smallest: p3.abs().min(p4.abs()).min(1.0),
-        largest: p3.abs().max(p4.abs()).max(1.0),
+        smallest,
+        largest,
     })
 }
 
@@ -199,26 +203,30 @@ pub fn solve_0(lu: &[[f64; N]; N], b: &mut [f64; N]) {
 
  L and U have 11 entries (0 of them fill-in, 3 known when generated); 5 operations. The others are in `jac`: 3 stored there, with the reciprocals of the pivots on the diagonal, and 5 left as Φ_q had them.
 
- Returns the smallest and largest |pivot|, or `None` (with `jac` unchanged) when a pivot is not finite or a multiplier exceeds [`runtime::lu::MAX_MULTIPLIER`] in magnitude.*/
+ Returns the smallest and largest |pivot|, or `None` when a pivot is not finite or a multiplier exceeds [`runtime::lu::MAX_MULTIPLIER`] in magnitude; `jac` is then partly factored and must be evaluated again.*/
 #[must_use]
 pub fn factor_1(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     let p3 = jac[3][3];
     let d3 = 1.0 / p3;
+    jac[3][3] = d3;
     let l4_3 = jac[4][3] * d3;
+    jac[4][3] = l4_3;
     if !(p3.is_finite() && l4_3.abs() <= runtime::lu::MAX_MULTIPLIER) {
         return None;
     }
+    let mut smallest = p3.abs().min(1.0);
+    let mut largest = p3.abs().max(1.0);
     let p4 = jac[4][4] - l4_3 * jac[3][4];
     let d4 = 1.0 / p4;
+    jac[4][4] = d4;
     if !p4.is_finite() {
         return None;
     }
-    jac[3][3] = d3;
-    jac[4][3] = l4_3;
-    jac[4][4] = d4;
+    smallest = smallest.min(p4.abs());
+    largest = largest.max(p4.abs());
     Some(runtime::lu::PivotInfo {
-        smallest: p3.abs().min(p4.abs()).min(1.0),
-        largest: p3.abs().max(p4.abs()).max(1.0),
+        smallest,
+        largest,
     })
 }
 

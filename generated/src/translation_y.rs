@@ -86,18 +86,20 @@ pub fn residual_jacobian_structural(
 
  L and U have 1 entries (0 of them fill-in, 0 known when generated); 1 operations. The others are in `jac`: 1 stored there, with the reciprocals of the pivots on the diagonal, and 0 left as Φ_q had them.
 
- Returns the smallest and largest |pivot|, or `None` (with `jac` unchanged) when a pivot is not finite or a multiplier exceeds [`runtime::lu::MAX_MULTIPLIER`] in magnitude.*/
+ Returns the smallest and largest |pivot|, or `None` when a pivot is not finite or a multiplier exceeds [`runtime::lu::MAX_MULTIPLIER`] in magnitude; `jac` is then partly factored and must be evaluated again.*/
 #[must_use]
 pub fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     let p0 = jac[0][0];
     let d0 = 1.0 / p0;
+    jac[0][0] = d0;
     if !p0.is_finite() {
         return None;
     }
-    jac[0][0] = d0;
+    let smallest = p0.abs();
+    let largest = p0.abs();
     Some(runtime::lu::PivotInfo {
-        smallest: p0.abs(),
-        largest: p0.abs(),
+        smallest,
+        largest,
     })
 }
 

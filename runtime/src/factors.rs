@@ -5,9 +5,9 @@
 //! Generated mechanisms know the structure of Φ_q and emit straight-line factor and solve
 //! functions for a few static pivot orders ([`Mechanism::factor_structured`]).
 //! A static order is refused at a configuration where one of its pivots is small next to the
-//! entries below it ([`lu::MAX_MULTIPLIER`]); [`Factors::factor`] then tries the mechanism's
-//! other orders, starting from the one that last succeeded, and if none passes it evaluates Φ_q
-//! in full again and factors it by [`lu::factor_with_ratio`].
+//! entries below it ([`lu::MAX_MULTIPLIER`]); [`Factors::factor`] then evaluates Φ_q again and
+//! tries the mechanism's other orders, starting from the one that last succeeded, and if none
+//! passes it evaluates Φ_q in full again and factors it by [`lu::factor_with_ratio`].
 //! Either way the factors are refused as singular by the same test as dense LU: the smallest
 //! |pivot| must exceed `ratio` times the largest; a static order that fails it falls back to
 //! dense LU, whose verdict is final.
@@ -141,10 +141,10 @@ impl<const N: usize> Factors<N> {
     /// Factors Φ_q(q, t), written into `jac` by [`Factors::evaluate`] at the same (q, t), in
     /// place.
     ///
-    /// Tries the mechanism's static orders, the last successful one first; when every one is
-    /// refused, or the smallest |pivot| of the one that passed is at most `ratio` times the
-    /// largest, evaluates Φ_q(q, t) in full into `jac` and factors it by
-    /// [`lu::factor_with_ratio`].
+    /// Tries the mechanism's static orders, the last successful one first, evaluating Φ_q(q, t)
+    /// again after each refusal; when every one is refused, or the smallest |pivot| of the one
+    /// that passed is at most `ratio` times the largest, evaluates Φ_q(q, t) in full into `jac`
+    /// and factors it by [`lu::factor_with_ratio`].
     ///
     /// # Errors
     ///
@@ -168,17 +168,23 @@ impl<const N: usize> Factors<N> {
                     return Ok(p);
                 }
                 Some(_) => {
-                    // The order's pivots passed the guard but look singular: the storage now
-                    // holds its factors, so the dense fallback below must evaluate again, and
-                    // dense LU's own verdict decides.
+                    // The order's pivots passed the guard but look singular: dense LU's own
+                    // verdict decides.
                     self.counts.refused += 1;
                     break;
                 }
-                None => self.counts.refused += 1,
+                // A refused order leaves a partial factorisation: the next one needs Φ_q again.
+                None => {
+                    self.counts.refused += 1;
+                    if attempt + 1 < orders {
+                        mechanism.jacobian(q, t, jac);
+                    }
+                }
             }
         }
         if orders > 0 {
-            // The structural evaluation left the other entries of `jac` as they were.
+            // The storage holds factors, a partial factorisation, or a structural evaluation
+            // whose other entries are stale: dense LU needs Φ_q in full.
             mechanism.jacobian(q, t, jac);
         }
         self.held = Held::Nothing;

@@ -71,7 +71,9 @@ pub trait Mechanism<const N: usize> {
     /// [`lu::MAX_MULTIPLIER`](crate::lu::MAX_MULTIPLIER) in magnitude (threshold partial
     /// pivoting).
     /// Returns the smallest and largest |pivot|, which the caller compares as for dense LU, or
-    /// `None`, with `jac` unchanged, when a pivot is refused or `order` is out of range.
+    /// `None` when a pivot is refused or `order` is out of range; `jac` then holds a partial
+    /// factorisation (the factors are stored as soon as they are computed, which keeps the
+    /// generated code's registers free), so Φ_q must be evaluated again before it is read.
     /// The layout of the factors in `jac` is the mechanism's own: only
     /// [`Mechanism::solve_structured`] with the same `order` may read them.
     /// The default has no orders and returns `None`.

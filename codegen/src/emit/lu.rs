@@ -393,7 +393,6 @@ pub fn emit(
     };
     let mut f = Factored { vals: vec![vec![None; n]; n] };
     let mut stmts: Vec<syn::Stmt> = Vec::new();
-    let mut pivots: Vec<Val> = Vec::new();
     let mut fill = 0usize;
     // a_kl − Σ_m l_km u_ml over the m < min(k, l) where both are non-zero, in ascending m (the
     // order in which right-looking elimination applies the updates).
@@ -425,13 +424,35 @@ pub fn emit(
             }
         }
     };
+    // Each value computed at run time is stored as soon as it is known, so that it need not
+    // stay in a register (or be spilled) until the end; no entry is read after its own place
+    // has been written.
+    let mut stored = 0usize;
+    let mut store = |stmts: &mut Vec<syn::Stmt>, k: usize, l: usize, v: &Val| {
+        if let Val::Run(e, _) = v {
+            let target = entry("jac", order.rows[k], order.cols[l]);
+            stmts.push(parse_quote!(#target = #e;));
+            stored += 1;
+        }
+    };
+    // The extremes of |pivot|: the constant pivots folded into one pair, the others
+    // accumulated as they come (the first one declares the accumulators, at `first_run`).
+    let mut known_pivots: Option<(f64, f64)> = None;
+    let mut first_run: Option<(usize, Expr)> = None;
+    let mut run_pivots = 0usize;
     for k in 0..n {
         // Row k of U (right of the pivot), then the pivot, then column k of L: every entry
         // read has been computed at an earlier step.
         for &l in order.pattern[k].iter().filter(|&&l| l > k) {
             let v = eliminated(&f, &mut kept, k, l);
             // An entry read unchanged is read where it is used (and not stored).
-            let v = if kept[k][l] { v } else { bind(&mut stmts, local(k, l), v) };
+            let v = if kept[k][l] {
+                v
+            } else {
+                let v = bind(&mut stmts, local(k, l), v);
+                store(&mut stmts, k, l, &v);
+                v
+            };
             f.vals[k][l] = Some(v);
         }
         let p = eliminated(&f, &mut kept, k, k);
@@ -441,15 +462,15 @@ pub fn emit(
         let d = match &p {
             Val::Const(c) => {
                 assert!(c.is_finite() && *c != 0.0, "constant pivot {c} in order {which}");
-                pivots.push(p.clone());
                 Val::Const(1.0 / c)
             }
             Val::Run(..) => {
                 let pn = ident(&format!("p{k}"));
                 let pivot = bind(&mut stmts, pn.clone(), p.clone());
                 checks.push(parse_quote!(#pn.is_finite()));
-                pivots.push(pivot.clone());
-                bind(&mut stmts, local(k, k), Val::Const(1.0).div(&pivot))
+                let d = bind(&mut stmts, local(k, k), Val::Const(1.0).div(&pivot));
+                store(&mut stmts, k, k, &d);
+                d
             }
         };
         f.vals[k][k] = Some(d.clone());
@@ -457,7 +478,13 @@ pub fn emit(
             let v = eliminated(&f, &mut kept, i, k);
             kept[i][k] &= matches!(d, Val::Const(c) if c == 1.0);
             let v = v.mul(&d);
-            let v = if kept[i][k] { v } else { bind(&mut stmts, local(i, k), v) };
+            let v = if kept[i][k] {
+                v
+            } else {
+                let v = bind(&mut stmts, local(i, k), v);
+                store(&mut stmts, i, k, &v);
+                v
+            };
             match &v {
                 Val::Const(c) => assert!(
                     c.abs() <= RUNTIME_MAX_MULTIPLIER,
@@ -479,49 +506,52 @@ pub fn emit(
                 }
             });
         }
-    }
-    // The extremes of |pivot|: the constant ones folded into one literal.
-    let fold = |method: &str, pick: fn(f64, f64) -> f64| -> Expr {
-        let m = ident(method);
-        let known = pivots
-            .iter()
-            .filter_map(|p| if let Val::Const(c) = p { Some(c.abs()) } else { None })
-            .reduce(pick);
-        let mut terms: Vec<Expr> = pivots
-            .iter()
-            .filter_map(
-                |p| if let Val::Run(e, _) = p { Some(parse_quote!(#e.abs())) } else { None },
-            )
-            .collect();
-        // Last, so that a literal never receives the method call (its type would be ambiguous).
-        if let Some(c) = known {
-            terms.push(literal_signed(c));
+        match &p {
+            Val::Const(c) => {
+                let c = c.abs();
+                known_pivots = Some(known_pivots.map_or((c, c), |(lo, hi)| (lo.min(c), hi.max(c))));
+            }
+            Val::Run(..) => {
+                let pn = ident(&format!("p{k}"));
+                run_pivots += 1;
+                if first_run.is_none() {
+                    first_run = Some((stmts.len(), parse_quote!(#pn)));
+                } else {
+                    stmts.push(parse_quote!(smallest = smallest.min(#pn.abs());));
+                    stmts.push(parse_quote!(largest = largest.max(#pn.abs());));
+                }
+            }
         }
-        let mut it = terms.into_iter();
-        let first = it.next().expect("at least one step");
-        it.fold(first, |acc, x| parse_quote!(#acc.#m(#x)))
+    }
+    if let Some((at, e)) = &first_run {
+        let mutable = if run_pivots > 1 { quote::quote!(mut) } else { quote::quote!() };
+        let (lo, hi) = match known_pivots {
+            Some((lo, hi)) => {
+                let (lo, hi) = (literal_signed(lo), literal_signed(hi));
+                (quote::quote!(#e.abs().min(#lo)), quote::quote!(#e.abs().max(#hi)))
+            }
+            None => (quote::quote!(#e.abs()), quote::quote!(#e.abs())),
+        };
+        stmts.insert(*at, parse_quote!(let #mutable largest = #hi;));
+        stmts.insert(*at, parse_quote!(let #mutable smallest = #lo;));
+    }
+    let extremes: Expr = match (run_pivots, known_pivots) {
+        (0, Some((lo, hi))) => {
+            let (lo, hi) = (literal_signed(lo), literal_signed(hi));
+            parse_quote!(runtime::lu::PivotInfo { smallest: #lo, largest: #hi })
+        }
+        _ => parse_quote!(runtime::lu::PivotInfo { smallest, largest }),
     };
-    let (smallest, largest) = (fold("min", f64::min), fold("max", f64::max));
-    let mut stored = 0usize;
-    let stores: Vec<syn::Stmt> = (0..n)
-        .flat_map(|k| order.pattern[k].iter().map(move |&l| (k, l)))
-        .filter(|&(k, l)| matches!(f.vals[k][l], Some(Val::Run(..))) && !kept[k][l])
-        .map(|(k, l)| {
-            stored += 1;
-            let target = entry("jac", order.rows[k], order.cols[l]);
-            let v = local(k, l);
-            parse_quote!(#target = #v;)
-        })
-        .collect();
     let name = ident(&format!("factor_{which}"));
     let ops = operations(&stmts);
     let nnz = order.entries();
     let run_time = f.vals.iter().flatten().filter(|v| matches!(v, Some(Val::Run(..)))).count();
+    let stored = stored;
     let known = nnz - run_time;
     let rows = list(&order.rows);
     let cols = list(&order.cols);
     let doc = format!(
-        " Factors Φ_q in place with static pivot order {which}: step k pivots on row `[{rows}][k]` and column `[{cols}][k]`.\n\n L and U have {nnz} entries ({fill} of them fill-in, {} known when generated); {ops} operations. The others are in `jac`: {stored} stored there, with the reciprocals of the pivots on the diagonal, and {} left as Φ_q had them.\n\n Returns the smallest and largest |pivot|, or `None` (with `jac` unchanged) when a pivot is not finite or a multiplier exceeds [`runtime::lu::MAX_MULTIPLIER`] in magnitude.",
+        " Factors Φ_q in place with static pivot order {which}: step k pivots on row `[{rows}][k]` and column `[{cols}][k]`.\n\n L and U have {nnz} entries ({fill} of them fill-in, {} known when generated); {ops} operations. The others are in `jac`: {stored} stored there, with the reciprocals of the pivots on the diagonal, and {} left as Φ_q had them.\n\n Returns the smallest and largest |pivot|, or `None` when a pivot is not finite or a multiplier exceeds [`runtime::lu::MAX_MULTIPLIER`] in magnitude; `jac` is then partly factored and must be evaluated again.",
         known,
         run_time - stored
     );
@@ -530,8 +560,7 @@ pub fn emit(
         #[must_use]
         pub fn #name(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
             #(#stmts)*
-            #(#stores)*
-            Some(runtime::lu::PivotInfo { smallest: #smallest, largest: #largest })
+            Some(#extremes)
         }
     };
 
