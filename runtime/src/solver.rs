@@ -12,9 +12,8 @@
 //! and q̈ were solved at that step; b and c are the coefficients of q̈(t + τ) ≈ q̈ + b τ + c τ²,
 //! the parabola through the accelerations solved at the last three steps (the line through
 //! two, or nothing, when fewer are known), so the predictor's error falls from O(h³) to O(h⁵).
-//! The predicted q is projected with [`Mechanism::normalize`].
-//! On smooth motions sampled finely, as a control loop does, the prediction then often meets
-//! the tolerance already; it is then corrected by one chord step with the factors of Φ_q kept
+//! On smooth motions sampled finely, as a control loop does, the prediction often meets the
+//! tolerance already; it is then corrected by one chord step with the factors of Φ_q kept
 //! from the last position ([`newton::solve_with_chord`]), which needs neither Φ_q nor a
 //! factorisation and brings it to within round-off of the solution, as a Newton step would.
 //! The factorisation at the converged q, which velocities and accelerations need anyway, is
@@ -215,7 +214,6 @@ impl<M: Mechanism<N>, const N: usize, J: BorrowMut<[[f64; N]; N]>> Solver<M, N, 
             if self.known == Known::Acceleration {
                 self.extrapolate_acceleration(h);
             }
-            self.mechanism.normalize(&mut self.q);
         }
         // With the predictor, the factors of the last position correct the prediction first.
         let solve =
