@@ -15,8 +15,8 @@
 #[cfg(test)]
 mod tests;
 
-use crate::Mechanism;
 use crate::lu::{self, PivotInfo, Singular};
+use crate::{Mechanism, Real};
 
 /// How often each kind of factorisation was used, for tests and benchmarks.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -40,7 +40,7 @@ enum Held {
     Dense,
 }
 
-/// The pivoting side of a factorisation of Φ_q held in a separate `[[f64; N]; N]`.
+/// The pivoting side of a factorisation of Φ_q held in a separate `[[R; N]; N]`.
 ///
 /// ```
 /// use runtime::Mechanism;
@@ -122,13 +122,13 @@ impl<const N: usize> Factors<N> {
     /// only the structural non-zeros when the mechanism has static orders, in full otherwise.
     ///
     /// The factors held before are lost.
-    pub fn evaluate<M: Mechanism<N>>(
+    pub fn evaluate<R: Real, M: Mechanism<N, R>>(
         &mut self,
         mechanism: &M,
-        q: &[f64; N],
-        t: f64,
-        phi: &mut [f64; N],
-        jac: &mut [[f64; N]; N],
+        q: &[R; N],
+        t: R,
+        phi: &mut [R; N],
+        jac: &mut [[R; N]; N],
     ) {
         self.held = Held::Nothing;
         if M::PIVOT_ORDERS > 0 {
@@ -149,14 +149,14 @@ impl<const N: usize> Factors<N> {
     /// # Errors
     ///
     /// The [`Singular`] of the dense factorisation; `jac` then holds no usable factors.
-    pub fn factor<M: Mechanism<N>>(
+    pub fn factor<R: Real, M: Mechanism<N, R>>(
         &mut self,
         mechanism: &M,
-        q: &[f64; N],
-        t: f64,
-        jac: &mut [[f64; N]; N],
-        ratio: f64,
-    ) -> Result<PivotInfo, Singular> {
+        q: &[R; N],
+        t: R,
+        jac: &mut [[R; N]; N],
+        ratio: R,
+    ) -> Result<PivotInfo<R>, Singular<R>> {
         let orders = M::PIVOT_ORDERS;
         for attempt in 0..orders {
             let order = (self.next + attempt) % orders;
@@ -199,11 +199,16 @@ impl<const N: usize> Factors<N> {
     ///
     /// Without usable factors (see [`Factors::holds_factors`]) x is all NaN, so the caller's
     /// finiteness check catches the mistake.
-    pub fn solve<M: Mechanism<N>>(&self, mechanism: &M, lu: &[[f64; N]; N], b: &mut [f64; N]) {
+    pub fn solve<R: Real, M: Mechanism<N, R>>(
+        &self,
+        mechanism: &M,
+        lu: &[[R; N]; N],
+        b: &mut [R; N],
+    ) {
         match self.held {
             Held::Structured(order) => mechanism.solve_structured(order, lu, b),
             Held::Dense => lu::solve(lu, &self.perm, b),
-            Held::Nothing => *b = [f64::NAN; N],
+            Held::Nothing => *b = [R::NAN; N],
         }
     }
 }

@@ -73,3 +73,27 @@ impl Mechanism<0> for Empty {
     fn velocity_rhs(&self, _q: &[f64; 0], _t: f64, _nu: &mut [f64; 0]) {}
     fn acceleration_rhs(&self, _q: &[f64; 0], _qd: &[f64; 0], _t: f64, _gamma: &mut [f64; 0]) {}
 }
+
+/// [`CircleLine`] in single precision, without projection or counters.
+pub(crate) struct CircleLineF32;
+
+impl Mechanism<2, f32> for CircleLineF32 {
+    fn residual(&self, q: &[f32; 2], t: f32, phi: &mut [f32; 2]) {
+        let [x, y] = *q;
+        *phi = [x * x + y * y - 1.0, x - crate::math::cos(t)];
+    }
+
+    fn jacobian(&self, q: &[f32; 2], _t: f32, jac: &mut [[f32; 2]; 2]) {
+        let [x, y] = *q;
+        *jac = [[2.0 * x, 2.0 * y], [1.0, 0.0]];
+    }
+
+    fn velocity_rhs(&self, _q: &[f32; 2], t: f32, nu: &mut [f32; 2]) {
+        *nu = [0.0, -crate::math::sin(t)];
+    }
+
+    fn acceleration_rhs(&self, _q: &[f32; 2], qd: &[f32; 2], t: f32, gamma: &mut [f32; 2]) {
+        let [xd, yd] = *qd;
+        *gamma = [-2.0 * (xd * xd + yd * yd), -crate::math::cos(t)];
+    }
+}

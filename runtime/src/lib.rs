@@ -128,6 +128,7 @@ pub mod lu;
 pub mod math;
 mod mechanism;
 pub mod newton;
+mod real;
 mod solver;
 
 #[cfg(test)]
@@ -135,4 +136,5 @@ mod fixtures;
 
 pub use mechanism::Mechanism;
 pub use newton::{NewtonError, NewtonOptions, NewtonReport};
+pub use real::Real;
 pub use solver::{SolveError, Solver};

@@ -1,4 +1,5 @@
-//! LU factorisation with partial (row) pivoting, in place on `[[f64; N]; N]`.
+//! LU factorisation with partial (row) pivoting, in place on `[[R; N]; N]` (`R` is `f64` or
+//! `f32`, see [`Real`]).
 //!
 //! [`factor`] overwrites a row-major matrix A with its factors and fills a permutation `perm`
 //! such that P·A = L·U, where row `i` of P·A is row `perm[i]` of A, L is unit lower triangular
@@ -7,8 +8,9 @@
 //! [`solve`] then solves A x = b in place with the factors, as often as needed.
 //!
 //! A matrix is refused as [`Singular`] when its smallest pivot is tiny next to its largest one:
-//! min |u_kk| ≤ ratio · max |u_kk|, with [`DEFAULT_PIVOT_RATIO`] = 1e-12 unless the caller
-//! chooses another ratio through [`factor_with_ratio`].
+//! min |u_kk| ≤ ratio · max |u_kk|, with [`DEFAULT_PIVOT_RATIO`] = 1e-12 in `f64`
+//! ([`Real::DEFAULT_PIVOT_RATIO`], 1e-5 in `f32`) unless the caller chooses another ratio
+//! through [`factor_with_ratio`].
 //! The test is relative, so it does not depend on units: scaling A by any nonzero factor gives
 //! the same verdict.
 //! A NaN or an infinity met during elimination is refused too.
@@ -17,7 +19,7 @@
 //! use runtime::lu;
 //!
 //! // x + 2y = 5 and 3x + 4y = 11, so x = 1 and y = 2.
-//! let mut a = [[1.0, 2.0], [3.0, 4.0]];
+//! let mut a = [[1.0_f64, 2.0], [3.0, 4.0]];
 //! let mut perm = [0; 2];
 //! let pivots = lu::factor(&mut a, &mut perm)?;
 //! assert_eq!((perm, pivots.largest), ([1, 0], 3.0));
@@ -35,12 +37,14 @@ mod tests;
 
 use core::fmt;
 
+use crate::Real;
+
 /// The default pivot ratio: a matrix whose smallest |pivot| is at most 1e-12 of its largest is
 /// singular.
 ///
 /// Double precision carries about 16 digits, so a solve with such pivots would keep at most
 /// about 4 correct digits.
-pub const DEFAULT_PIVOT_RATIO: f64 = 1e-12;
+pub const DEFAULT_PIVOT_RATIO: f64 = <f64 as Real>::DEFAULT_PIVOT_RATIO;
 
 /// The largest |multiplier| a static pivot order may produce: threshold partial pivoting with
 /// a fraction of 0.1.
@@ -62,16 +66,16 @@ pub const MAX_MULTIPLIER: f64 = 10.0;
 /// Their ratio, `smallest / largest`, is a cheap lower bound on the conditioning: when it is
 /// small the matrix is close to singular.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct PivotInfo {
+pub struct PivotInfo<R = f64> {
     /// The smallest |u_kk|.
-    pub smallest: f64,
+    pub smallest: R,
     /// The largest |u_kk|.
-    pub largest: f64,
+    pub largest: R,
 }
 
 /// Why a matrix could not be factored.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub enum Singular {
+pub enum Singular<R = f64> {
     /// The pivot of column `column` is too small: |pivot| ≤ ratio · `largest`.
     ///
     /// Two equal rows, for example, give a zero pivot, and so does the Jacobian of a
@@ -80,10 +84,10 @@ pub enum Singular {
         /// The elimination step, which is also the column of the pivot.
         column: usize,
         /// The |pivot| of that column.
-        pivot: f64,
+        pivot: R,
         /// The largest |pivot| of the columns factored so far, or of the whole matrix when the
         /// small pivot was found only at the end.
-        largest: f64,
+        largest: R,
     },
     /// Elimination step `column` met a NaN or an infinity, for example an entry computed as
     /// `sqrt(-1.0)`.
@@ -93,7 +97,7 @@ pub enum Singular {
     },
 }
 
-impl Singular {
+impl<R> Singular<R> {
     /// The elimination step (and column) at which the matrix was refused.
     #[must_use]
     pub fn column(&self) -> usize {
@@ -103,7 +107,7 @@ impl Singular {
     }
 }
 
-impl fmt::Display for Singular {
+impl<R: Real> fmt::Display for Singular<R> {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match *self {
             Singular::SmallPivot { column, pivot, largest } => write!(
@@ -117,21 +121,23 @@ impl fmt::Display for Singular {
     }
 }
 
-impl core::error::Error for Singular {}
+impl<R: Real> core::error::Error for Singular<R> {}
 
-/// Factors `a` in place with partial pivoting, using [`DEFAULT_PIVOT_RATIO`].
+/// Factors `a` in place with partial pivoting, using [`Real::DEFAULT_PIVOT_RATIO`]
+/// ([`DEFAULT_PIVOT_RATIO`] for `f64`).
 ///
-/// Same as [`factor_with_ratio`]`(a, perm, DEFAULT_PIVOT_RATIO)`.
+/// Same as [`factor_with_ratio`]`(a, perm, R::DEFAULT_PIVOT_RATIO)`.
 ///
 /// # Errors
 ///
-/// Returns [`Singular`] when the smallest |pivot| is at most 1e-12 of the largest, or when a
-/// NaN or an infinity is met; `a` and `perm` then hold a partial factorisation.
-pub fn factor<const N: usize>(
-    a: &mut [[f64; N]; N],
+/// Returns [`Singular`] when the smallest |pivot| is at most 1e-12 of the largest (1e-5 in
+/// `f32`), or when a NaN or an infinity is met; `a` and `perm` then hold a partial
+/// factorisation.
+pub fn factor<R: Real, const N: usize>(
+    a: &mut [[R; N]; N],
     perm: &mut [usize; N],
-) -> Result<PivotInfo, Singular> {
-    factor_with_ratio(a, perm, DEFAULT_PIVOT_RATIO)
+) -> Result<PivotInfo<R>, Singular<R>> {
+    factor_with_ratio(a, perm, R::DEFAULT_PIVOT_RATIO)
 }
 
 /// Factors `a` in place with partial pivoting: afterwards P·A = L·U (see the module docs for
@@ -148,22 +154,22 @@ pub fn factor<const N: usize>(
 /// pivot included, whatever `ratio`), and [`Singular::NonFinite`] when a NaN or an infinity is
 /// met.
 /// On error, `a` and `perm` hold a partial factorisation and must not be passed to [`solve`].
-pub fn factor_with_ratio<const N: usize>(
-    a: &mut [[f64; N]; N],
+pub fn factor_with_ratio<R: Real, const N: usize>(
+    a: &mut [[R; N]; N],
     perm: &mut [usize; N],
-    ratio: f64,
-) -> Result<PivotInfo, Singular> {
+    ratio: R,
+) -> Result<PivotInfo<R>, Singular<R>> {
     for (i, p) in perm.iter_mut().enumerate() {
         *p = i;
     }
-    let mut smallest = f64::INFINITY;
+    let mut smallest = R::INFINITY;
     let mut smallest_column = 0;
-    let mut largest = 0.0_f64;
+    let mut largest = R::ZERO;
     for k in 0..N {
         // Choose the pivot row: the largest |a_ik| for i ≥ k.
         // Every entry of the column is checked, so a NaN cannot hide behind a comparison.
         let mut pivot_row = k;
-        let mut pivot = 0.0_f64;
+        let mut pivot = R::ZERO;
         for (i, row) in a.iter().enumerate().skip(k) {
             let v = row[k].abs();
             if !v.is_finite() {
@@ -184,7 +190,7 @@ pub fn factor_with_ratio<const N: usize>(
             return Err(Singular::NonFinite { column: k });
         }
         largest = largest.max(pivot);
-        if pivot == 0.0 || pivot <= ratio * largest {
+        if pivot == R::ZERO || pivot <= ratio * largest {
             return Err(Singular::SmallPivot { column: k, pivot, largest });
         }
         if pivot < smallest {
@@ -196,13 +202,13 @@ pub fn factor_with_ratio<const N: usize>(
         let pivot_row = &upper[k];
         let u_kk = pivot_row[k];
         for row in lower {
-            if row[k] == 0.0 {
+            if row[k] == R::ZERO {
                 continue;
             }
             // |l| ≤ 1 because the pivot is the largest entry of its column.
             let l = row[k] / u_kk;
             row[k] = l;
-            for (x, u) in row[k + 1..].iter_mut().zip(&pivot_row[k + 1..]) {
+            for (x, &u) in row[k + 1..].iter_mut().zip(&pivot_row[k + 1..]) {
                 *x -= l * u;
             }
         }
@@ -219,24 +225,24 @@ pub fn factor_with_ratio<const N: usize>(
 /// On return `b` holds x.
 /// Applies the permutation, then forward substitution with L and back substitution with U; each
 /// row is one dot product over contiguous slices.
-/// Costs N² multiply-adds and one `[f64; N]` of stack.
+/// Costs N² multiply-adds and one `[R; N]` of stack.
 /// A NaN or an infinity in `b` gives NaN or infinity in x.
 /// Nothing here panics: an index in `perm` out of range, which [`factor`] never produces, gives
 /// NaN in x.
-pub fn solve<const N: usize>(lu: &[[f64; N]; N], perm: &[usize; N], b: &mut [f64; N]) {
-    let mut x = [0.0; N];
+pub fn solve<R: Real, const N: usize>(lu: &[[R; N]; N], perm: &[usize; N], b: &mut [R; N]) {
+    let mut x = [R::ZERO; N];
     for (xi, &p) in x.iter_mut().zip(perm) {
-        *xi = b.get(p).copied().unwrap_or(f64::NAN);
+        *xi = b.get(p).copied().unwrap_or(R::NAN);
     }
     // Forward: L y = P b, with L's unit diagonal implied.
     for i in 1..N {
-        let dot: f64 = lu[i][..i].iter().zip(&x[..i]).map(|(l, y)| l * y).sum();
+        let dot: R = lu[i][..i].iter().zip(&x[..i]).map(|(&l, &y)| l * y).sum();
         x[i] -= dot;
     }
     // Back: U x = y.
     for i in (0..N).rev() {
         let row = &lu[i];
-        let dot: f64 = row[i + 1..].iter().zip(&x[i + 1..]).map(|(u, x)| u * x).sum();
+        let dot: R = row[i + 1..].iter().zip(&x[i + 1..]).map(|(&u, &x)| u * x).sum();
         x[i] = (x[i] - dot) / row[i];
     }
     *b = x;

@@ -1,33 +1,36 @@
 //! The trait that generated code implements.
 
-/// A square kinematic system Φ(q, t) = 0 of `N` equations in `N` unknowns.
+use crate::Real;
+
+/// A square kinematic system Φ(q, t) = 0 of `N` equations in `N` unknowns, in the
+/// floating-point type `R` (`f64` unless the module was generated for `f32`).
 ///
 /// Generated code implements this trait, one struct per mechanism.
 /// Every method writes into storage the caller owns, so nothing is allocated and no `N × N`
 /// array is returned by value.
 /// Methods do not check their inputs: a NaN or an infinity in `q`, `qd` or `t` may come out as
 /// NaN in the output, and the solvers in this crate turn that into an error.
-pub trait Mechanism<const N: usize> {
+pub trait Mechanism<const N: usize, R: Real = f64> {
     /// Writes the constraint residuals Φ(q, t) into `phi`.
-    fn residual(&self, q: &[f64; N], t: f64, phi: &mut [f64; N]);
+    fn residual(&self, q: &[R; N], t: R, phi: &mut [R; N]);
 
     /// Writes the Jacobian Φ_q(q, t) into `jac`, row-major: `jac[i][j] = ∂Φ_i/∂q_j`.
-    fn jacobian(&self, q: &[f64; N], t: f64, jac: &mut [[f64; N]; N]);
+    fn jacobian(&self, q: &[R; N], t: R, jac: &mut [[R; N]; N]);
 
     /// Writes Φ(q, t) into `phi` and Φ_q(q, t) into `jac` in one pass.
     ///
     /// Generated code overrides this to share subexpressions between the two.
     /// The default calls [`Mechanism::residual`] and then [`Mechanism::jacobian`].
-    fn residual_jacobian(&self, q: &[f64; N], t: f64, phi: &mut [f64; N], jac: &mut [[f64; N]; N]) {
+    fn residual_jacobian(&self, q: &[R; N], t: R, phi: &mut [R; N], jac: &mut [[R; N]; N]) {
         self.residual(q, t, phi);
         self.jacobian(q, t, jac);
     }
 
     /// Writes the velocity right-hand side ν = −Φ_t into `nu`.
-    fn velocity_rhs(&self, q: &[f64; N], t: f64, nu: &mut [f64; N]);
+    fn velocity_rhs(&self, q: &[R; N], t: R, nu: &mut [R; N]);
 
     /// Writes the acceleration right-hand side γ = −(Φ_q q̇)_q q̇ − 2Φ_qt q̇ − Φ_tt into `gamma`.
-    fn acceleration_rhs(&self, q: &[f64; N], qd: &[f64; N], t: f64, gamma: &mut [f64; N]);
+    fn acceleration_rhs(&self, q: &[R; N], qd: &[R; N], t: R, gamma: &mut [R; N]);
 
     /// Projects `q` back onto the constraints that have a closed-form projection.
     ///
@@ -36,7 +39,7 @@ pub trait Mechanism<const N: usize> {
     /// reported residual and the factored Jacobian belong to the projected `q` (unless it moved
     /// `q` by a few ulps only, see [`newton::moved_by_round_off`](crate::newton::moved_by_round_off)).
     /// The default does nothing.
-    fn normalize(&self, _q: &mut [f64; N]) {}
+    fn normalize(&self, _q: &mut [R; N]) {}
 
     /// The number of static pivot orders [`Mechanism::factor_structured`] knows.
     ///
@@ -56,10 +59,10 @@ pub trait Mechanism<const N: usize> {
     /// The default calls [`Mechanism::residual_jacobian`].
     fn residual_jacobian_structural(
         &self,
-        q: &[f64; N],
-        t: f64,
-        phi: &mut [f64; N],
-        jac: &mut [[f64; N]; N],
+        q: &[R; N],
+        t: R,
+        phi: &mut [R; N],
+        jac: &mut [[R; N]; N],
     ) {
         self.residual_jacobian(q, t, phi, jac);
     }
@@ -80,8 +83,8 @@ pub trait Mechanism<const N: usize> {
     fn factor_structured(
         &self,
         order: usize,
-        jac: &mut [[f64; N]; N],
-    ) -> Option<crate::lu::PivotInfo> {
+        jac: &mut [[R; N]; N],
+    ) -> Option<crate::lu::PivotInfo<R>> {
         let _ = (order, jac);
         None
     }
@@ -90,7 +93,7 @@ pub trait Mechanism<const N: usize> {
     /// [`Mechanism::factor_structured`]`(order, lu)` left in `lu`.
     ///
     /// The default, for mechanisms without orders, does nothing.
-    fn solve_structured(&self, order: usize, lu: &[[f64; N]; N], b: &mut [f64; N]) {
+    fn solve_structured(&self, order: usize, lu: &[[R; N]; N], b: &mut [R; N]) {
         let _ = (order, lu, b);
     }
 }

@@ -17,37 +17,39 @@ mod tests;
 
 use core::fmt;
 
-use crate::Mechanism;
 use crate::factors::Factors;
-use crate::lu::{self, Singular};
+use crate::lu::Singular;
+use crate::{Mechanism, Real};
 
 /// Stopping rule and pivot test of a Newton solve.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct NewtonOptions {
+pub struct NewtonOptions<R = f64> {
     /// Converged when max |Φ_i| ≤ `tolerance`, in the units of each row of Φ.
-    pub tolerance: f64,
+    pub tolerance: R,
     /// The most Newton steps (factor, solve, update) that one solve may take.
     pub max_iterations: u32,
     /// The Jacobian is singular when its smallest |pivot| ≤ `pivot_ratio` · its largest
-    /// (see [`lu::factor_with_ratio`]).
-    pub pivot_ratio: f64,
+    /// (see [`lu::factor_with_ratio`](crate::lu::factor_with_ratio)).
+    pub pivot_ratio: R,
 }
 
-impl NewtonOptions {
-    /// `tolerance` 1e-10, `max_iterations` 25, `pivot_ratio` 1e-12 ([`lu::DEFAULT_PIVOT_RATIO`]).
+impl<R: Real> NewtonOptions<R> {
+    /// `tolerance` 1e-10, `max_iterations` 25, `pivot_ratio` 1e-12 ([`lu::DEFAULT_PIVOT_RATIO`](crate::lu::DEFAULT_PIVOT_RATIO))
+    /// in `f64`; in `f32` `tolerance` 1e-4 and `pivot_ratio` 1e-5 ([`Real::DEFAULT_TOLERANCE`],
+    /// [`Real::DEFAULT_PIVOT_RATIO`]).
     ///
     /// A tolerance of 1e-10 is about a million times the rounding error of residuals of unit
     /// size, and a well-posed problem started within the region of quadratic convergence takes
     /// 3 to 6 steps, so 25 leaves room for poor starting estimates without looping for long on
     /// hopeless ones.
-    pub const DEFAULT: NewtonOptions = NewtonOptions {
-        tolerance: 1e-10,
+    pub const DEFAULT: NewtonOptions<R> = NewtonOptions {
+        tolerance: R::DEFAULT_TOLERANCE,
         max_iterations: 25,
-        pivot_ratio: lu::DEFAULT_PIVOT_RATIO,
+        pivot_ratio: R::DEFAULT_PIVOT_RATIO,
     };
 }
 
-impl Default for NewtonOptions {
+impl<R: Real> Default for NewtonOptions<R> {
     /// Returns [`NewtonOptions::DEFAULT`].
     fn default() -> Self {
         NewtonOptions::DEFAULT
@@ -56,11 +58,11 @@ impl Default for NewtonOptions {
 
 /// What a converged solve did.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct NewtonReport {
+pub struct NewtonReport<R = f64> {
     /// Newton steps taken; 0 when the starting estimate already satisfied the tolerance.
     pub iterations: u32,
     /// max |Φ_i| at the final, normalised q.
-    pub residual: f64,
+    pub residual: R,
 }
 
 /// Why a Newton solve failed.
@@ -68,7 +70,7 @@ pub struct NewtonReport {
 /// `iteration` counts the Newton steps completed before the failure: 0 means at the starting
 /// estimate.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub enum NewtonError {
+pub enum NewtonError<R = f64> {
     /// Φ_q could not be factored: its smallest |pivot| ≤ `pivot_ratio` · `largest`.
     ///
     /// For example a slider-crank at a dead centre, or a circle met tangentially by a line.
@@ -78,9 +80,9 @@ pub enum NewtonError {
         /// The elimination step (column) with the small pivot.
         column: usize,
         /// That |pivot|.
-        pivot: f64,
+        pivot: R,
         /// The largest |pivot| it was compared with.
-        largest: f64,
+        largest: R,
     },
     /// `max_iterations` steps did not bring max |Φ_i| down to the tolerance.
     ///
@@ -89,7 +91,7 @@ pub enum NewtonError {
         /// Newton steps taken, equal to `max_iterations`.
         iterations: u32,
         /// max |Φ_i| after the last step.
-        residual: f64,
+        residual: R,
     },
     /// Φ, Φ_q or the Newton step contained a NaN or an infinity.
     ///
@@ -100,7 +102,7 @@ pub enum NewtonError {
     },
 }
 
-impl fmt::Display for NewtonError {
+impl<R: Real> fmt::Display for NewtonError<R> {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match *self {
             NewtonError::Singular { iteration, column, pivot, largest } => write!(
@@ -119,7 +121,7 @@ impl fmt::Display for NewtonError {
     }
 }
 
-impl core::error::Error for NewtonError {}
+impl<R: Real> core::error::Error for NewtonError<R> {}
 
 /// The verdict of the stopping rule on one evaluation of Φ.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -140,7 +142,7 @@ pub enum Status {
 /// Convergence wins over exhaustion, so a solve whose last allowed step lands within the
 /// tolerance succeeds.
 #[must_use]
-pub fn status(residual: f64, iterations: u32, options: &NewtonOptions) -> Status {
+pub fn status<R: Real>(residual: R, iterations: u32, options: &NewtonOptions<R>) -> Status {
     if !residual.is_finite() {
         Status::NonFinite
     } else if residual <= options.tolerance {
@@ -157,14 +159,14 @@ pub fn status(residual: f64, iterations: u32, options: &NewtonOptions) -> Status
 /// Branch-free and inlined, so that the compiler can unroll and vectorise it: it runs several
 /// times per time step.
 #[inline]
-pub(crate) fn max_abs(x: &[f64]) -> f64 {
-    let (mut m, mut nan) = (0.0_f64, false);
+pub(crate) fn max_abs<R: Real>(x: &[R]) -> R {
+    let (mut m, mut nan) = (R::ZERO, false);
     for &v in x {
         let a = v.abs();
         nan |= a.is_nan();
         m = if a > m { a } else { m };
     }
-    if nan { f64::NAN } else { m }
+    if nan { R::NAN } else { m }
 }
 
 /// Solves Φ(q, t) = 0 for q by Newton's method, starting from `q`.
@@ -181,15 +183,15 @@ pub(crate) fn max_abs(x: &[f64]) -> f64 {
 /// documented on each variant.
 /// On error `q` holds the last iterate, the contents of `phi` and `jac` are unspecified, and
 /// `factors` holds no factors.
-pub fn solve<M: Mechanism<N>, const N: usize>(
+pub fn solve<R: Real, M: Mechanism<N, R>, const N: usize>(
     mechanism: &M,
-    q: &mut [f64; N],
-    t: f64,
-    options: &NewtonOptions,
-    phi: &mut [f64; N],
-    jac: &mut [[f64; N]; N],
+    q: &mut [R; N],
+    t: R,
+    options: &NewtonOptions<R>,
+    phi: &mut [R; N],
+    jac: &mut [[R; N]; N],
     factors: &mut Factors<N>,
-) -> Result<NewtonReport, NewtonError> {
+) -> Result<NewtonReport<R>, NewtonError<R>> {
     iterate(mechanism, q, t, options, Scratch { phi, jac, factors }, None)
 }
 
@@ -213,15 +215,15 @@ pub fn solve<M: Mechanism<N>, const N: usize>(
 /// # Errors
 ///
 /// As [`solve`].
-pub fn solve_with_chord<M: Mechanism<N>, const N: usize>(
+pub fn solve_with_chord<R: Real, M: Mechanism<N, R>, const N: usize>(
     mechanism: &M,
-    q: &mut [f64; N],
-    t: f64,
-    options: &NewtonOptions,
-    phi: &mut [f64; N],
-    jac: &mut [[f64; N]; N],
+    q: &mut [R; N],
+    t: R,
+    options: &NewtonOptions<R>,
+    phi: &mut [R; N],
+    jac: &mut [[R; N]; N],
     factors: &mut Factors<N>,
-) -> Result<NewtonReport, NewtonError> {
+) -> Result<NewtonReport<R>, NewtonError<R>> {
     let mut chord = None;
     if factors.holds_factors() && options.max_iterations > 0 {
         mechanism.residual(q, t, phi);
@@ -234,7 +236,7 @@ pub fn solve_with_chord<M: Mechanism<N>, const N: usize>(
             if phi.iter().all(|d| d.is_finite()) {
                 chord = Some(Chord { start: *q, before, step: max_abs(phi) });
                 for (qi, d) in q.iter_mut().zip(phi.iter()) {
-                    *qi += d;
+                    *qi += *d;
                 }
             }
         }
@@ -243,38 +245,38 @@ pub fn solve_with_chord<M: Mechanism<N>, const N: usize>(
 }
 
 /// The remaining error a chord step may leave and still end the iteration, in units of
-/// f64::EPSILON times max |q_k| (see [`solve_with_chord`]).
+/// the machine epsilon times max |q_k| (see [`solve_with_chord`]).
 ///
 /// 32 ε ≈ 7e-15 relative: the level of the rounding errors of the Newton step itself, so that
 /// the answer agrees with full Newton's to round-off.
 pub const CHORD_ROUND_OFF: f64 = 32.0;
 
 /// The caller's storage for one solve.
-struct Scratch<'a, const N: usize> {
-    phi: &'a mut [f64; N],
-    jac: &'a mut [[f64; N]; N],
+struct Scratch<'a, R, const N: usize> {
+    phi: &'a mut [R; N],
+    jac: &'a mut [[R; N]; N],
     factors: &'a mut Factors<N>,
 }
 
 /// A chord step taken, awaiting its verdict at the first evaluation after it.
-struct Chord<const N: usize> {
+struct Chord<R, const N: usize> {
     /// Where it started.
-    start: [f64; N],
+    start: [R; N],
     /// max |Φ_i| at the start.
-    before: f64,
+    before: R,
     /// max |Δ_k| of the step.
-    step: f64,
+    step: R,
 }
 
 /// Newton's iteration, after a chord step when `chord` is set.
-fn iterate<M: Mechanism<N>, const N: usize>(
+fn iterate<R: Real, M: Mechanism<N, R>, const N: usize>(
     mechanism: &M,
-    q: &mut [f64; N],
-    t: f64,
-    options: &NewtonOptions,
-    scratch: Scratch<'_, N>,
-    mut chord: Option<Chord<N>>,
-) -> Result<NewtonReport, NewtonError> {
+    q: &mut [R; N],
+    t: R,
+    options: &NewtonOptions<R>,
+    scratch: Scratch<'_, R, N>,
+    mut chord: Option<Chord<R, N>>,
+) -> Result<NewtonReport<R>, NewtonError<R>> {
     let Scratch { phi, jac, factors } = scratch;
     let mut iterations = u32::from(chord.is_some());
     // Whether q was just projected by `normalize`; a second projection in a row is skipped so
@@ -289,7 +291,7 @@ fn iterate<M: Mechanism<N>, const N: usize>(
                 *q = c.start;
                 continue;
             }
-            let scale = CHORD_ROUND_OFF * f64::EPSILON * max_abs(q);
+            let scale = R::from_f64(CHORD_ROUND_OFF) * R::EPSILON * max_abs(q);
             if verdict == Status::Converged
                 && residual * c.step > c.before * scale
                 && iterations < options.max_iterations
@@ -323,7 +325,7 @@ fn iterate<M: Mechanism<N>, const N: usize>(
             return Err(NewtonError::NonFinite { iteration: iterations });
         }
         for (qi, d) in q.iter_mut().zip(phi.iter()) {
-            *qi += d;
+            *qi += *d;
         }
         iterations += 1;
         normalized = false;
@@ -338,12 +340,13 @@ fn iterate<M: Mechanism<N>, const N: usize>(
 /// values before the projection by less than the rounding error of evaluating them, and
 /// evaluating them again would only repeat that rounding error.
 #[must_use]
-pub fn moved_by_round_off<const N: usize>(before: &[f64; N], after: &[f64; N]) -> bool {
-    before.iter().zip(after).all(|(b, a)| (a - b).abs() <= ROUND_OFF_MOVE * f64::EPSILON * b.abs())
+pub fn moved_by_round_off<R: Real, const N: usize>(before: &[R; N], after: &[R; N]) -> bool {
+    let bound = R::from_f64(ROUND_OFF_MOVE) * R::EPSILON;
+    before.iter().zip(after).all(|(&b, &a)| (a - b).abs() <= bound * b.abs())
 }
 
 /// A projection that moves each coordinate by at most this many units of its own last place
-/// (f64::EPSILON relative) counts as round-off (see [`moved_by_round_off`]).
+/// (machine epsilon relative) counts as round-off (see [`moved_by_round_off`]).
 ///
 /// Scaling a coordinate by 1 + δ moves it by |δ| of itself plus at most half an ulp of
 /// rounding, so a bound of 4 ε accepts scale factors within about 3.5 ε of 1, that is
@@ -352,15 +355,15 @@ pub fn moved_by_round_off<const N: usize>(before: &[f64; N], after: &[f64; N]) -
 pub const ROUND_OFF_MOVE: f64 = 4.0;
 
 /// [`Factors::factor`] with its error turned into a [`NewtonError`].
-fn factor<M: Mechanism<N>, const N: usize>(
+fn factor<R: Real, M: Mechanism<N, R>, const N: usize>(
     mechanism: &M,
-    q: &[f64; N],
-    t: f64,
-    jac: &mut [[f64; N]; N],
+    q: &[R; N],
+    t: R,
+    jac: &mut [[R; N]; N],
     factors: &mut Factors<N>,
-    options: &NewtonOptions,
+    options: &NewtonOptions<R>,
     iteration: u32,
-) -> Result<(), NewtonError> {
+) -> Result<(), NewtonError<R>> {
     match factors.factor(mechanism, q, t, jac, options.pivot_ratio) {
         Ok(_) => Ok(()),
         Err(Singular::SmallPivot { column, pivot, largest }) => {

@@ -25,29 +25,30 @@ mod tests;
 use core::borrow::BorrowMut;
 use core::fmt;
 
-use crate::Mechanism;
 use crate::factors::{FactorCounts, Factors};
 use crate::newton::{self, NewtonError, NewtonOptions, NewtonReport};
+use crate::{Mechanism, Real};
 
 /// Kinematic analysis of one mechanism, one time step at a time, without allocation.
 ///
-/// `J` is the storage of the `N × N` Jacobian and its LU factors.
+/// `R` is the floating-point type (`f64`, or `f32` for a module generated in single precision)
+/// and `J` the storage of the `N × N` Jacobian and its LU factors.
 /// With the default, an owned array, the solver is self-contained: keep it in a local for small
 /// `N`, and in a `Box` or a `static` for large `N` (the constructors are `const fn`, so it can
 /// be built at compile time).
-/// [`Solver::with_storage`] takes any `J: BorrowMut<[[f64; N]; N]>` instead, such as a
-/// `&mut [[f64; N]; N]` or a `Box<[[f64; N]; N]>` built without passing through the stack.
+/// [`Solver::with_storage`] takes any `J: BorrowMut<[[R; N]; N]>` instead, such as a
+/// `&mut [[R; N]; N]` or a `Box<[[R; N]; N]>` built without passing through the stack.
 #[derive(Clone, Debug)]
-pub struct Solver<M, const N: usize, J = [[f64; N]; N]> {
+pub struct Solver<M, const N: usize, R = f64, J = [[R; N]; N]> {
     mechanism: M,
-    options: NewtonOptions,
+    options: NewtonOptions<R>,
     predictor: bool,
-    t: f64,
-    q: [f64; N],
-    qd: [f64; N],
-    qdd: [f64; N],
+    t: R,
+    q: [R; N],
+    qd: [R; N],
+    qdd: [R; N],
     /// Φ during Newton, then ν or γ and the solutions before they are accepted.
-    scratch: [f64; N],
+    scratch: [R; N],
     jac: J,
     /// How `jac` was factored.
     factors: Factors<N>,
@@ -57,7 +58,7 @@ pub struct Solver<M, const N: usize, J = [[f64; N]; N]> {
     known: Known,
     /// (t, q̈) at the two converged positions before the current one, the later first, where q̈
     /// was solved there.
-    history: [Option<(f64, [f64; N])>; 2],
+    history: [Option<(R, [R; N])>; 2],
 }
 
 /// The time derivatives solved at the solver's current (q, t).
@@ -93,32 +94,32 @@ impl fmt::Display for SolveError {
 
 impl core::error::Error for SolveError {}
 
-impl<M, const N: usize> Solver<M, N> {
+impl<M, const N: usize, R: Real> Solver<M, N, R> {
     /// A solver for `mechanism` that owns its Jacobian storage, with `q` as the first estimate,
     /// t = 0, [`NewtonOptions::DEFAULT`] and the predictor off.
     ///
     /// The solver holds an `N × N` array by value: for large `N`, place it in a `static` or see
     /// [`Solver::with_storage`].
-    pub const fn new(mechanism: M, q: [f64; N]) -> Self {
-        Solver::with_storage(mechanism, q, [[0.0; N]; N])
+    pub const fn new(mechanism: M, q: [R; N]) -> Self {
+        Solver::with_storage(mechanism, q, [[R::ZERO; N]; N])
     }
 }
 
-impl<M, const N: usize, J> Solver<M, N, J> {
+impl<M, const N: usize, R: Real, J> Solver<M, N, R, J> {
     /// A solver for `mechanism` that keeps Φ_q and its factors in `jac`, with `q` as the first
     /// estimate, t = 0, [`NewtonOptions::DEFAULT`] and the predictor off.
     ///
     /// The contents of `jac` are irrelevant; it is overwritten before it is read.
-    pub const fn with_storage(mechanism: M, q: [f64; N], jac: J) -> Self {
+    pub const fn with_storage(mechanism: M, q: [R; N], jac: J) -> Self {
         Solver {
             mechanism,
             options: NewtonOptions::DEFAULT,
             predictor: false,
-            t: 0.0,
+            t: R::ZERO,
             q,
-            qd: [0.0; N],
-            qdd: [0.0; N],
-            scratch: [0.0; N],
+            qd: [R::ZERO; N],
+            qdd: [R::ZERO; N],
+            scratch: [R::ZERO; N],
             jac,
             factors: Factors::new(),
             factored: false,
@@ -133,12 +134,12 @@ impl<M, const N: usize, J> Solver<M, N, J> {
     }
 
     /// The Newton options used by [`Solver::position`].
-    pub const fn options(&self) -> &NewtonOptions {
+    pub const fn options(&self) -> &NewtonOptions<R> {
         &self.options
     }
 
     /// Replaces the Newton options used by [`Solver::position`].
-    pub const fn set_options(&mut self, options: NewtonOptions) {
+    pub const fn set_options(&mut self, options: NewtonOptions<R>) {
         self.options = options;
     }
 
@@ -148,13 +149,13 @@ impl<M, const N: usize, J> Solver<M, N, J> {
     }
 
     /// The time of the last converged position (0 before the first).
-    pub const fn t(&self) -> f64 {
+    pub const fn t(&self) -> R {
         self.t
     }
 
     /// The coordinates q: the last converged position, or the estimate given to
     /// [`Solver::new`] or [`Solver::set_q`].
-    pub const fn q(&self) -> &[f64; N] {
+    pub const fn q(&self) -> &[R; N] {
         &self.q
     }
 
@@ -162,13 +163,13 @@ impl<M, const N: usize, J> Solver<M, N, J> {
     ///
     /// They belong to the current q only if [`Solver::velocity`] was called after the last
     /// [`Solver::position`].
-    pub const fn qd(&self) -> &[f64; N] {
+    pub const fn qd(&self) -> &[R; N] {
         &self.qd
     }
 
     /// The accelerations q̈ from the last successful [`Solver::acceleration`] (zeros before the
     /// first), with the same caveat as [`Solver::qd`].
-    pub const fn qdd(&self) -> &[f64; N] {
+    pub const fn qdd(&self) -> &[R; N] {
         &self.qdd
     }
 
@@ -182,7 +183,7 @@ impl<M, const N: usize, J> Solver<M, N, J> {
     ///
     /// This forgets the factorisation and the solved q̇ and q̈, so the next step uses no
     /// predictor, and [`Solver::velocity`] fails until a position has converged.
-    pub const fn set_q(&mut self, q: [f64; N]) {
+    pub const fn set_q(&mut self, q: [R; N]) {
         self.q = q;
         self.factored = false;
         self.known = Known::Nothing;
@@ -190,7 +191,7 @@ impl<M, const N: usize, J> Solver<M, N, J> {
     }
 }
 
-impl<M: Mechanism<N>, const N: usize, J: BorrowMut<[[f64; N]; N]>> Solver<M, N, J> {
+impl<M: Mechanism<N, R>, const N: usize, R: Real, J: BorrowMut<[[R; N]; N]>> Solver<M, N, R, J> {
     /// Solves Φ(q, t) = 0 by Newton from the current q (or from the predictor, see the module
     /// docs, when it is on and q̇ was solved at the last step), then normalises q.
     ///
@@ -203,12 +204,13 @@ impl<M: Mechanism<N>, const N: usize, J: BorrowMut<[[f64; N]; N]>> Solver<M, N, 
     /// q, q̇, q̈ and t are then left as they were before the call (the predictor's history
     /// included), so the caller can retry, for example with a shorter step or after
     /// [`Solver::set_q`]; velocity and acceleration fail until a position converges.
-    pub fn position(&mut self, t: f64) -> Result<NewtonReport, NewtonError> {
+    pub fn position(&mut self, t: R) -> Result<NewtonReport<R>, NewtonError<R>> {
         let start = self.q;
         if self.predictor && self.known >= Known::Velocity {
             let h = t - self.t;
-            let half_h2 = if self.known == Known::Acceleration { 0.5 * h * h } else { 0.0 };
-            for ((q, qd), qdd) in self.q.iter_mut().zip(&self.qd).zip(&self.qdd) {
+            let half = R::from_f64(0.5);
+            let half_h2 = if self.known == Known::Acceleration { half * h * h } else { R::ZERO };
+            for ((q, &qd), &qdd) in self.q.iter_mut().zip(&self.qd).zip(&self.qdd) {
                 *q += h * qd + half_h2 * qdd;
             }
             if self.known == Known::Acceleration {
@@ -216,8 +218,11 @@ impl<M: Mechanism<N>, const N: usize, J: BorrowMut<[[f64; N]; N]>> Solver<M, N, 
             }
         }
         // With the predictor, the factors of the last position correct the prediction first.
-        let solve =
-            if self.predictor && self.factored { newton::solve_with_chord } else { newton::solve };
+        let solve = if self.predictor && self.factored {
+            newton::solve_with_chord::<R, M, N>
+        } else {
+            newton::solve::<R, M, N>
+        };
         self.factored = false;
         let result = solve(
             &self.mechanism,
@@ -249,27 +254,27 @@ impl<M: Mechanism<N>, const N: usize, J: BorrowMut<[[f64; N]; N]>> Solver<M, N, 
     /// (a line through two when only one is known), integrated twice over the step h.
     ///
     /// A history whose times coincide with the current one's is not used.
-    fn extrapolate_acceleration(&mut self, h: f64) {
+    fn extrapolate_acceleration(&mut self, h: R) {
         let Some((t1, a1)) = &self.history[0] else { return };
-        let tau1 = t1 - self.t;
-        if tau1 == 0.0 {
+        let tau1 = *t1 - self.t;
+        if tau1 == R::ZERO {
             return;
         }
-        let (h3, h4) = (h * h * h / 6.0, h * h * h * h / 12.0);
+        let (h3, h4) = (h * h * h / R::from_f64(6.0), h * h * h * h / R::from_f64(12.0));
         match &self.history[1] {
             Some((t2, a2)) if *t2 != *t1 && *t2 != self.t => {
                 // Divided differences of q̈ at τ = 0, τ1, τ2 (times relative to the current one).
-                let tau2 = t2 - self.t;
-                let (r01, r12, r02) = (1.0 / -tau1, 1.0 / (tau1 - tau2), 1.0 / -tau2);
-                for (((q, a0), a1), a2) in self.q.iter_mut().zip(&self.qdd).zip(a1).zip(a2) {
+                let tau2 = *t2 - self.t;
+                let (r01, r12, r02) = (R::ONE / -tau1, R::ONE / (tau1 - tau2), R::ONE / -tau2);
+                for (((q, &a0), &a1), &a2) in self.q.iter_mut().zip(&self.qdd).zip(a1).zip(a2) {
                     let f01 = (a0 - a1) * r01;
                     let f012 = (f01 - (a1 - a2) * r12) * r02;
                     *q += h3 * (f01 - f012 * tau1) + h4 * f012;
                 }
             }
             _ => {
-                let r01 = 1.0 / -tau1;
-                for ((q, a0), a1) in self.q.iter_mut().zip(&self.qdd).zip(a1) {
+                let r01 = R::ONE / -tau1;
+                for ((q, &a0), &a1) in self.q.iter_mut().zip(&self.qdd).zip(a1) {
                     *q += h3 * (a0 - a1) * r01;
                 }
             }

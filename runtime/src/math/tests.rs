@@ -23,3 +23,19 @@ fn sin_cos_has_the_bits_of_sin_and_cos() {
         assert_eq!((s.to_bits(), c.to_bits()), (sin(x).to_bits(), cos(x).to_bits()), "x = {x:e}");
     }
 }
+
+#[test]
+fn single_precision_functions_are_within_an_ulp_or_two_of_double() {
+    // libm's sinf, cosf, sqrtf are correctly rounded or nearly so; compare with the f64
+    // versions rounded to f32 over [-100, 100] (2 ulps of f32 allow for either rounding).
+    for k in -20_000..=20_000 {
+        let x = (f64::from(k) * 0.005) as f32;
+        let (s, c) = sin_cos(x);
+        assert_eq!((s.to_bits(), c.to_bits()), (sin(x).to_bits(), cos(x).to_bits()));
+        let wide = f64::from(x);
+        for (got, want) in [(s, wide.sin()), (c, wide.cos()), (sqrt(x.abs()), wide.abs().sqrt())] {
+            let ulp = f64::from(f32::EPSILON) * want.abs().max(f64::from(f32::MIN_POSITIVE));
+            assert!((f64::from(got) - want).abs() <= 2.0 * ulp, "x = {x}: {got} vs {want}");
+        }
+    }
+}

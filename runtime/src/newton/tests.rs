@@ -68,7 +68,7 @@ fn default_options_are_the_documented_values() {
 fn max_abs_keeps_nan() {
     assert_eq!(max_abs(&[1.0, -3.0, 2.0]), 3.0);
     assert!(max_abs(&[1.0, f64::NAN, 2.0]).is_nan());
-    assert_eq!(max_abs(&[]), 0.0);
+    assert_eq!(max_abs::<f64>(&[]), 0.0);
 }
 
 #[test]

@@ -1,0 +1,192 @@
+//! [`Real`]: the floating-point type a mechanism is solved in, `f64` or `f32`.
+//!
+//! Everything in this crate is generic over it, with `f64` the default, so that a generated
+//! module can be emitted in single precision where its accuracy is enough (a control loop that
+//! needs positions to 1e-5 of the link lengths, on a processor whose `f32` is twice as fast).
+//! The constants that depend on the precision, the default pivot ratio and Newton tolerance,
+//! are associated constants here, derived from each type's machine epsilon.
+
+use core::fmt::{Debug, Display, LowerExp};
+use core::iter::Sum;
+use core::ops::{Add, AddAssign, Div, DivAssign, Mul, MulAssign, Neg, Sub, SubAssign};
+
+/// A floating-point type the runtime can solve in: implemented for `f64` and `f32` only.
+pub trait Real:
+    Copy
+    + PartialEq
+    + PartialOrd
+    + Debug
+    + Display
+    + LowerExp
+    + Default
+    + Add<Output = Self>
+    + Sub<Output = Self>
+    + Mul<Output = Self>
+    + Div<Output = Self>
+    + Neg<Output = Self>
+    + AddAssign
+    + SubAssign
+    + MulAssign
+    + DivAssign
+    + Sum
+    + for<'a> Sum<&'a Self>
+    + Send
+    + Sync
+    + 'static
+{
+    /// 0.
+    const ZERO: Self;
+    /// 1.
+    const ONE: Self;
+    /// The difference between 1 and the next larger representable number.
+    const EPSILON: Self;
+    /// +∞.
+    const INFINITY: Self;
+    /// Not a number.
+    const NAN: Self;
+    /// The default pivot ratio of LU ([`lu::DEFAULT_PIVOT_RATIO`](crate::lu::DEFAULT_PIVOT_RATIO)
+    /// for `f64`): a matrix whose smallest |pivot| is at most this fraction of its largest is
+    /// singular.
+    ///
+    /// About ε^¾ (1e-12 for `f64`, 1e-5 for `f32`): a solve with such pivots keeps at most a
+    /// quarter of the digits.
+    const DEFAULT_PIVOT_RATIO: Self;
+    /// The default Newton tolerance on max |Φ_i|: 1e-10 for `f64`, about 5·10⁵ ε, and 1e-4 for
+    /// `f32`, about 840 ε (single precision carries 7 digits, so a residual of unit size
+    /// cannot be pushed much closer to its rounding error).
+    const DEFAULT_TOLERANCE: Self;
+
+    /// |x|.
+    #[must_use]
+    fn abs(self) -> Self;
+    /// Whether x is neither infinite nor NaN.
+    #[must_use]
+    fn is_finite(self) -> bool;
+    /// Whether x is NaN.
+    #[must_use]
+    fn is_nan(self) -> bool;
+    /// √x (libm).
+    #[must_use]
+    fn sqrt(self) -> Self;
+    /// sin x (libm).
+    #[must_use]
+    fn sin(self) -> Self;
+    /// cos x (libm).
+    #[must_use]
+    fn cos(self) -> Self;
+    /// (sin x, cos x) with one argument reduction (libm): bit for bit [`Real::sin`] and
+    /// [`Real::cos`].
+    #[must_use]
+    fn sin_cos(self) -> (Self, Self);
+    /// The larger of x and y (the other one when one is NaN).
+    #[must_use]
+    fn max(self, y: Self) -> Self;
+    /// x rounded to this type.
+    #[must_use]
+    fn from_f64(x: f64) -> Self;
+    /// x, exactly, as `f64`.
+    #[must_use]
+    fn to_f64(self) -> f64;
+}
+
+impl Real for f64 {
+    const ZERO: Self = 0.0;
+    const ONE: Self = 1.0;
+    const EPSILON: Self = f64::EPSILON;
+    const INFINITY: Self = f64::INFINITY;
+    const NAN: Self = f64::NAN;
+    const DEFAULT_PIVOT_RATIO: Self = 1e-12;
+    const DEFAULT_TOLERANCE: Self = 1e-10;
+
+    #[inline]
+    fn abs(self) -> Self {
+        f64::abs(self)
+    }
+    #[inline]
+    fn is_finite(self) -> bool {
+        f64::is_finite(self)
+    }
+    #[inline]
+    fn is_nan(self) -> bool {
+        f64::is_nan(self)
+    }
+    #[inline]
+    fn sqrt(self) -> Self {
+        libm::sqrt(self)
+    }
+    #[inline]
+    fn sin(self) -> Self {
+        libm::sin(self)
+    }
+    #[inline]
+    fn cos(self) -> Self {
+        libm::cos(self)
+    }
+    #[inline]
+    fn sin_cos(self) -> (Self, Self) {
+        libm::sincos(self)
+    }
+    #[inline]
+    fn max(self, y: Self) -> Self {
+        f64::max(self, y)
+    }
+    #[inline]
+    fn from_f64(x: f64) -> Self {
+        x
+    }
+    #[inline]
+    fn to_f64(self) -> f64 {
+        self
+    }
+}
+
+impl Real for f32 {
+    const ZERO: Self = 0.0;
+    const ONE: Self = 1.0;
+    const EPSILON: Self = f32::EPSILON;
+    const INFINITY: Self = f32::INFINITY;
+    const NAN: Self = f32::NAN;
+    const DEFAULT_PIVOT_RATIO: Self = 1e-5;
+    const DEFAULT_TOLERANCE: Self = 1e-4;
+
+    #[inline]
+    fn abs(self) -> Self {
+        f32::abs(self)
+    }
+    #[inline]
+    fn is_finite(self) -> bool {
+        f32::is_finite(self)
+    }
+    #[inline]
+    fn is_nan(self) -> bool {
+        f32::is_nan(self)
+    }
+    #[inline]
+    fn sqrt(self) -> Self {
+        libm::sqrtf(self)
+    }
+    #[inline]
+    fn sin(self) -> Self {
+        libm::sinf(self)
+    }
+    #[inline]
+    fn cos(self) -> Self {
+        libm::cosf(self)
+    }
+    #[inline]
+    fn sin_cos(self) -> (Self, Self) {
+        libm::sincosf(self)
+    }
+    #[inline]
+    fn max(self, y: Self) -> Self {
+        f32::max(self, y)
+    }
+    #[inline]
+    fn from_f64(x: f64) -> Self {
+        x as f32
+    }
+    #[inline]
+    fn to_f64(self) -> f64 {
+        f64::from(self)
+    }
+}
