@@ -11,11 +11,17 @@ use std::path::Path;
 
 use plotters::prelude::*;
 
+use crate::emit::Scalar;
+use crate::engine::Settings;
 use crate::generic::{Analysis, Equations, Frame};
 use crate::model::Mechanism;
 
-/// Tolerances swept for every engine.
+/// Tolerances swept for every engine in double precision.
 pub const TOLERANCES: [f64; 6] = [1e-4, 1e-6, 1e-8, 1e-10, 1e-12, 1e-14];
+
+/// Tolerances swept for the single-precision generated solver: single precision carries 7
+/// digits, so residuals of unit size stop near 1e-7 and tighter tolerances cannot be met.
+pub const F32_TOLERANCES: [f64; 3] = [1e-3, 1e-4, 1e-5];
 
 /// Tolerance of the reference run (see the module docs).
 const REFERENCE_TOLERANCE: f64 = 1e-13;
@@ -65,9 +71,10 @@ fn generic_frames(eq: &Equations<'_>, analysis: &Analysis<'_, '_>) -> Option<Vec
 }
 
 /// Measures every mark of `mech`: the generic engine with and without its predictor, and
-/// the generated engine (when it can be built), at every tolerance of [`TOLERANCES`]. Runs
-/// that fail (no convergence at a tolerance below round-off, say) are left out and named in
-/// the second list.
+/// the generated engine (when it can be built) with and without the predictor, with its
+/// static pivot orders or dense LU only, at every tolerance of [`TOLERANCES`], and in single
+/// precision at [`F32_TOLERANCES`]. Runs that fail (no convergence at a tolerance below
+/// round-off, say) are left out and named in the second list.
 ///
 /// # Errors
 /// When the reference run itself fails.
@@ -97,32 +104,49 @@ pub fn measure(mech: &Mechanism, repeats: usize) -> Result<(Vec<Mark>, Vec<Strin
             }
         }
     }
-    match crate::engine::build(mech) {
-        Ok(built) => {
-            for &tolerance in &TOLERANCES {
+    let f64_settings = [
+        ("generated", Settings::default()),
+        ("generated, no predictor", Settings { predictor: false, ..Settings::default() }),
+        ("generated, dense LU", Settings { dense_lu: true, ..Settings::default() }),
+    ];
+    /// A floating-point type, its series and their tolerances.
+    type Variant<'a> = (Scalar, &'a [(&'a str, Settings)], &'a [f64]);
+    let variants: [Variant<'_>; 2] = [
+        (Scalar::F64, &f64_settings, &TOLERANCES),
+        (Scalar::F32, &[("generated, f32", Settings::default())], &F32_TOLERANCES),
+    ];
+    for (scalar, series, tolerances) in variants {
+        let built = match crate::engine::build_in(mech, scalar) {
+            Ok(b) => b,
+            Err(e) => {
+                skipped.push(format!("generated in {}: {e}", scalar.name()));
+                continue;
+            }
+        };
+        for &(name, settings) in series {
+            for &tolerance in tolerances {
                 let mut frames = Vec::new();
-                let run = crate::engine::run(&built, Some(tolerance), |f| {
+                let run = crate::engine::run_with(&built, Some(tolerance), settings, |f| {
                     frames.push(f.clone());
                     Ok(())
                 });
-                let timing = crate::engine::bench(&built, tolerance, repeats);
+                let timing = crate::engine::bench_with(&built, tolerance, repeats, settings);
                 match (run, timing) {
                     (Ok(r), Ok((_, median, iterations)))
                         if r.failure.is_none() && frames.len() == reference.len() =>
                     {
                         marks.push(Mark {
-                            series: "generated".to_owned(),
+                            series: name.to_owned(),
                             tolerance,
                             ns_per_step: median,
                             iterations,
                             error: error(&reference, &frames),
                         });
                     }
-                    _ => skipped.push(format!("generated at tolerance {tolerance:e}")),
+                    _ => skipped.push(format!("{name} at tolerance {tolerance:e}")),
                 }
             }
         }
-        Err(e) => skipped.push(format!("generated: {e}")),
     }
     Ok((marks, skipped))
 }
@@ -170,6 +194,8 @@ pub fn draw(marks: &[Mark], title: &str, path: &Path) -> Result<(), String> {
         RGBColor(255, 127, 14),
         RGBColor(44, 160, 44),
         RGBColor(214, 39, 40),
+        RGBColor(148, 103, 189),
+        RGBColor(140, 86, 75),
     ];
     for (k, name) in series.iter().enumerate() {
         let color = colors[k % colors.len()];

@@ -82,6 +82,15 @@ enum Command {
         /// Output format.
         #[arg(long, value_enum, default_value_t = CheckFormat::Text)]
         format: CheckFormat,
+        /// Floating-point type of the generated solver.
+        #[arg(long, value_enum, default_value_t = Float::F64)]
+        float: Float,
+        /// Start every Newton solve from the last position instead of the Taylor predictor.
+        #[arg(long)]
+        no_predictor: bool,
+        /// Factor the generated solver's Jacobian by dense LU only (no static pivot orders).
+        #[arg(long)]
+        dense_lu: bool,
     },
     /// Chart speed against accuracy: one mark per engine and setting (SVG).
     Chart {
@@ -112,6 +121,9 @@ enum Command {
     Generate {
         /// The description file.
         file: PathBuf,
+        /// Floating-point type of the module.
+        #[arg(long, value_enum, default_value_t = Float::F64)]
+        float: Float,
         /// Write the module here instead of standard output.
         #[arg(short = 'o', long = "output")]
         output: Option<PathBuf>,
@@ -154,6 +166,21 @@ enum BenchEngine {
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+enum Float {
+    F64,
+    F32,
+}
+
+impl Float {
+    fn scalar(self) -> crate::emit::Scalar {
+        match self {
+            Float::F64 => crate::emit::Scalar::F64,
+            Float::F32 => crate::emit::Scalar::F32,
+        }
+    }
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
 enum Engine {
     Generic,
     Generated,
@@ -191,14 +218,27 @@ pub fn run(args: Vec<OsString>, out: &mut dyn Write, err: &mut dyn Write) -> i32
             solve(&file, engine, format, output.as_deref(), out, err)
         }
         Command::ImportYoung { deck, output } => import_young(&deck, output.as_deref(), out, err),
-        Command::Generate { file, output } => generate(&file, output.as_deref(), out, err),
+        Command::Generate { file, float, output } => {
+            generate(&file, float.scalar(), output.as_deref(), out, err)
+        }
         Command::Chart { file, output, repeats } => chart(&file, &output, repeats, out, err),
         Command::Scaling { bodies, repeats, write } => {
             scaling(&bodies, repeats, write.as_deref(), out, err)
         }
         Command::Compare { file, format } => compare(&file, format, out, err),
-        Command::Bench { file, engine, tolerance, repeats, format } => {
-            bench(&file, engine, tolerance, repeats, format, out, err)
+        Command::Bench {
+            file,
+            engine,
+            tolerance,
+            repeats,
+            format,
+            float,
+            no_predictor,
+            dense_lu,
+        } => {
+            let settings = crate::engine::Settings { predictor: !no_predictor, dense_lu };
+            let how = BenchHow { tolerance, repeats, float: float.scalar(), settings };
+            bench(&file, engine, &how, format, out, err)
         }
         Command::Codegen { check } => codegen(check, out, err),
     };
@@ -463,6 +503,7 @@ fn import_young(
 
 fn generate(
     file: &Path,
+    scalar: crate::emit::Scalar,
     output: Option<&Path>,
     out: &mut dyn Write,
     err: &mut dyn Write,
@@ -479,7 +520,16 @@ fn generate(
             return Ok(report_invalid(&[d], false, out, err));
         }
     };
-    let text = crate::emit::module(&loaded.mechanism, &sys, &file.display().to_string());
+    let text = crate::emit::module_in(&loaded.mechanism, &sys, &file.display().to_string(), scalar);
+    let tolerance = loaded.mechanism.solver.tolerance;
+    if scalar == crate::emit::Scalar::F32 && tolerance < 1e-5 {
+        writeln!(
+            err,
+            "warning: the description's tolerance {tolerance:e} (the module's TOLERANCE) is \
+             below what single precision reaches; set NewtonOptions::tolerance to about 1e-4 \
+             (runtime::Real::DEFAULT_TOLERANCE for f32)"
+        )?;
+    }
     match output {
         Some(path) => std::fs::write(path, text)?,
         None => out.write_all(text.as_bytes())?,
@@ -509,27 +559,35 @@ fn time_generic(
     prep: &crate::generic::Preparation,
     tolerance: f64,
     repeats: usize,
+    predictor: bool,
 ) -> Option<(f64, f64, f64)> {
-    Analysis::new(eq, prep).with_tolerance(tolerance).time(repeats)
+    Analysis::new(eq, prep).with_tolerance(tolerance).with_predictor(predictor).time(repeats)
 }
 
-#[allow(clippy::too_many_arguments)] // One argument per command-line option.
+/// The timing options of `bench`.
+struct BenchHow {
+    tolerance: Option<f64>,
+    repeats: usize,
+    float: crate::emit::Scalar,
+    settings: crate::engine::Settings,
+}
+
 fn bench(
     file: &Path,
     engine: BenchEngine,
-    tolerance: Option<f64>,
-    repeats: usize,
+    how: &BenchHow,
     format: CheckFormat,
     out: &mut dyn Write,
     err: &mut dyn Write,
 ) -> io::Result<i32> {
+    let repeats = how.repeats;
     let json = format == CheckFormat::Json;
     let loaded = match load(file, json, out, err) {
         Ok(l) => l,
         Err(code) => return Ok(code),
     };
     let mech = &loaded.mechanism;
-    let tolerance = tolerance.unwrap_or(mech.solver.tolerance);
+    let tolerance = how.tolerance.unwrap_or(mech.solver.tolerance);
     let eq = Equations::new(mech);
     let prep = eq.prepare();
     if let Some(d) = undriven(&eq, &prep) {
@@ -538,7 +596,7 @@ fn bench(
     let steps = mech.time.count;
     let mut results = Vec::new();
     if engine != BenchEngine::Generated {
-        match time_generic(&eq, &prep, tolerance, repeats) {
+        match time_generic(&eq, &prep, tolerance, repeats, how.settings.predictor) {
             Some(r) => results.push(("generic", r)),
             None => {
                 writeln!(err, "error: the generic analysis failed")?;
@@ -547,11 +605,15 @@ fn bench(
         }
     }
     if engine != BenchEngine::Generic {
-        let built = match build_generated(mech) {
+        let built = match crate::engine::build_in(mech, how.float) {
             Ok(b) => b,
-            Err(d) => return Ok(report_invalid(&[*d], json, out, err)),
+            Err(e) => {
+                let d =
+                    Diagnostic::error(e.to_string()).entity(format!("mechanism \"{}\"", mech.name));
+                return Ok(report_invalid(&[d], json, out, err));
+            }
         };
-        match crate::engine::bench(&built, tolerance, repeats) {
+        match crate::engine::bench_with(&built, tolerance, repeats, how.settings) {
             Ok(r) => results.push(("generated", r)),
             Err(e) => {
                 writeln!(err, "error: {e}")?;
@@ -570,6 +632,9 @@ fn bench(
                 "repeats": repeats.max(1),
                 "ns_per_step": { "min": min, "median": median },
                 "iterations_per_step": iters,
+                "float": if *name == "generated" { how.float.name() } else { "f64" },
+                "predictor": how.settings.predictor,
+                "lu": if *name == "generated" && !how.settings.dense_lu { "structured" } else { "dense" },
             })
         })
         .collect();
@@ -581,11 +646,22 @@ fn bench(
         };
         writeln!(out, "{}", serde_json::to_string_pretty(&v)?)?;
     } else {
+        let mut notes = Vec::new();
+        if how.float != crate::emit::Scalar::F64 {
+            notes.push(format!(", generated in {}", how.float.name()));
+        }
+        if !how.settings.predictor {
+            notes.push(", no predictor".to_owned());
+        }
+        if how.settings.dense_lu {
+            notes.push(", dense LU".to_owned());
+        }
         writeln!(
             out,
-            "{} ({steps} time points, tolerance {tolerance:e}, {} repeats)",
+            "{} ({steps} time points, tolerance {tolerance:e}, {} repeats{})",
             mech.name,
-            repeats.max(1)
+            repeats.max(1),
+            notes.concat()
         )?;
         for (name, (min, median, iters)) in &results {
             writeln!(
@@ -651,7 +727,8 @@ fn compare(
     }
     let diffs = report::differences(&generic, &generated);
     let repeats = 10;
-    let tg = time_generic(&eq, &prep, mech.solver.tolerance, repeats).map_or(f64::NAN, |r| r.1);
+    let tg =
+        time_generic(&eq, &prep, mech.solver.tolerance, repeats, true).map_or(f64::NAN, |r| r.1);
     let td = crate::engine::bench(&built, mech.solver.tolerance, repeats).map_or(f64::NAN, |r| r.1);
     if json {
         let v = serde_json::json!({
@@ -762,8 +839,8 @@ fn scaling(
             let build = start.elapsed().as_secs_f64();
             let eq = Equations::new(mech);
             let prep = eq.prepare();
-            let generic =
-                time_generic(&eq, &prep, mech.solver.tolerance, repeats).map_or(f64::NAN, |r| r.1);
+            let generic = time_generic(&eq, &prep, mech.solver.tolerance, repeats, true)
+                .map_or(f64::NAN, |r| r.1);
             let generated = crate::engine::bench(&built, mech.solver.tolerance, repeats)
                 .map_or(f64::NAN, |r| r.1);
             writeln!(

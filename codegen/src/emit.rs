@@ -15,6 +15,9 @@ use crate::model::Mechanism;
 use crate::symbolic::{Source, Symbolic};
 
 pub mod lu;
+pub mod scalar;
+
+pub use scalar::Scalar;
 
 /// Binding strength of an emitted expression.
 #[derive(Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
@@ -331,6 +334,12 @@ fn index(k: usize) -> Literal {
 /// The generated module for one mechanism, as text.
 #[must_use]
 pub fn module(mech: &Mechanism, sys: &Symbolic, source: &str) -> String {
+    module_in(mech, sys, source, Scalar::F64)
+}
+
+/// [`module`] in the floating-point type `scalar` (see [`scalar`]).
+#[must_use]
+pub fn module_in(mech: &Mechanism, sys: &Symbolic, source: &str, scalar: Scalar) -> String {
     let n = sys.unknowns.len();
     let pool = &sys.pool;
     let ty = ident(&type_name(&mech.name));
@@ -717,6 +726,10 @@ pub fn module(mech: &Mechanism, sys: &Symbolic, source: &str) -> String {
                 .collect::<Vec<_>>()
                 .join(", ")
         ));
+    }
+    if scalar == Scalar::F32 {
+        text.push_str("//! Single precision: every value, literal and operation is `f32`.\n");
+        items.iter_mut().for_each(scalar::to_f32);
     }
     for item in items {
         text.push('\n');

@@ -14,39 +14,81 @@ use std::process::{Command, Stdio};
 
 use nalgebra::DVector;
 
-use crate::emit;
+use crate::emit::{self, Scalar};
 use crate::generic::{Failure, FailureKind, Frame};
 use crate::model::Mechanism;
 use crate::symbolic::Symbolic;
 
 /// The driver program compiled with each generated module.
 const DRIVER: &str = r#"//! Runs one generated mechanism over its time grid (written by mechgen; do not edit).
+//!
+//! Usage: `run|bench [tolerance] [repeats] [no-predictor] [dense]`.
 
 mod mechanism;
 
 use std::io::Write;
 
-use runtime::{NewtonError, NewtonOptions, Solver};
+use runtime::{Mechanism, NewtonError, NewtonOptions, Solver};
+
+/// The floating-point type the module was generated in.
+type Real = __REAL__;
+
+const N: usize = mechanism::N;
+
+/// The mechanism with its static pivot orders hidden, so that every factorisation is the
+/// runtime's dense LU with partial pivoting.
+struct Dense;
+
+impl Mechanism<N, Real> for Dense {
+    fn residual(&self, q: &[Real; N], t: Real, phi: &mut [Real; N]) {
+        mechanism::residual(q, t, phi);
+    }
+    fn jacobian(&self, q: &[Real; N], t: Real, jac: &mut [[Real; N]; N]) {
+        mechanism::jacobian(q, t, jac);
+    }
+    fn residual_jacobian(&self, q: &[Real; N], t: Real, phi: &mut [Real; N], jac: &mut [[Real; N]; N]) {
+        mechanism::residual_jacobian(q, t, phi, jac);
+    }
+    fn velocity_rhs(&self, q: &[Real; N], t: Real, nu: &mut [Real; N]) {
+        mechanism::velocity_rhs(q, t, nu);
+    }
+    fn acceleration_rhs(&self, q: &[Real; N], qd: &[Real; N], t: Real, gamma: &mut [Real; N]) {
+        mechanism::acceleration_rhs(q, qd, t, gamma);
+    }
+    fn normalize(&self, q: &mut [Real; N]) {
+        mechanism::normalize(q);
+    }
+}
 
 fn main() {
     let args: Vec<String> = std::env::args().collect();
     let mode = args.get(1).map_or("run", String::as_str);
     let tolerance = args.get(2).and_then(|s| s.parse().ok()).unwrap_or(mechanism::TOLERANCE);
     let repeats: usize = args.get(3).and_then(|s| s.parse().ok()).unwrap_or(1);
+    let flag = |name: &str| args.iter().skip(2).any(|a| a == name);
+    let predictor = !flag("no-predictor");
+    if flag("dense") {
+        drive(Dense, mode, tolerance, repeats, predictor);
+    } else {
+        drive(mechanism::__TYPE__, mode, tolerance, repeats, predictor);
+    }
+}
+
+fn drive<M: Mechanism<N, Real>>(m: M, mode: &str, tolerance: Real, repeats: usize, predictor: bool) {
     let options = NewtonOptions {
         tolerance,
         max_iterations: mechanism::MAX_ITERATIONS,
         ..NewtonOptions::DEFAULT
     };
     // The Jacobian lives on the heap: large mechanisms would overflow the stack.
-    let jac: Box<[[f64; mechanism::N]; mechanism::N]> =
-        match vec![[0.0; mechanism::N]; mechanism::N].into_boxed_slice().try_into() {
+    let jac: Box<[[Real; N]; N]> =
+        match vec![[0.0; N]; N].into_boxed_slice().try_into() {
             Ok(b) => b,
             Err(_) => unreachable!("the vector has N rows"),
         };
-    let mut solver = Solver::with_storage(mechanism::__TYPE__, mechanism::Q0, jac);
+    let mut solver = Solver::with_storage(m, mechanism::Q0, jac);
     solver.set_options(options);
-    solver.set_predictor(true);
+    solver.set_predictor(predictor);
     let stdout = std::io::stdout();
     let mut out = std::io::BufWriter::new(stdout.lock());
     if mode == "bench" {
@@ -57,11 +99,11 @@ fn main() {
             iterations = 0;
             let start = std::time::Instant::now();
             for k in 0..mechanism::T_COUNT {
-                let t = mechanism::T_START + k as f64 * mechanism::T_STEP;
+                let t = mechanism::T_START + k as Real * mechanism::T_STEP;
                 match solver.position(t) {
                     Ok(r) => iterations += u64::from(r.iterations),
                     Err(e) => {
-                        let _ = writeln!(out, "error bench {t:?} {e}");
+                        let _ = writeln!(out, "error bench {:?} {e}", f64::from(t));
                         std::process::exit(2);
                     }
                 }
@@ -83,7 +125,7 @@ fn main() {
     }
     let mut full = [[[0.0; 7]; 3]; mechanism::BODIES];
     for k in 0..mechanism::T_COUNT {
-        let t = mechanism::T_START + k as f64 * mechanism::T_STEP;
+        let t = mechanism::T_START + k as Real * mechanism::T_STEP;
         let report = match solver.position(t) {
             Ok(r) => r,
             Err(e) => {
@@ -91,22 +133,22 @@ fn main() {
                     NewtonError::Singular { .. } => "singular",
                     _ => "no_convergence",
                 };
-                let _ = writeln!(out, "error {kind} {t:?} {e}");
+                let _ = writeln!(out, "error {kind} {:?} {e}", f64::from(t));
                 let _ = out.flush();
                 std::process::exit(2);
             }
         };
         if let Err(e) = solver.velocity().and_then(|()| solver.acceleration()) {
-            let _ = writeln!(out, "error singular {t:?} {e}");
+            let _ = writeln!(out, "error singular {:?} {e}", f64::from(t));
             let _ = out.flush();
             std::process::exit(2);
         }
         mechanism::expand(solver.q(), solver.qd(), solver.qdd(), t, &mut full);
-        let _ = write!(out, "step {t:?} {} {:?}", report.iterations, report.residual);
+        let _ = write!(out, "step {:?} {} {:?}", f64::from(t), report.iterations, f64::from(report.residual));
         for d in 0..3 {
             for body in &full {
-                for x in &body[d] {
-                    let _ = write!(out, " {x:?}");
+                for &x in &body[d] {
+                    let _ = write!(out, " {:?}", f64::from(x));
                 }
             }
         }
@@ -160,9 +202,18 @@ pub fn cache_dir() -> PathBuf {
 /// # Errors
 /// [`EngineError::Generate`] or [`EngineError::Build`].
 pub fn build(mech: &Mechanism) -> Result<Built, EngineError> {
+    build_in(mech, Scalar::F64)
+}
+
+/// [`build`] with the module generated in the floating-point type `scalar`.
+///
+/// # Errors
+/// [`EngineError::Generate`] or [`EngineError::Build`].
+pub fn build_in(mech: &Mechanism, scalar: Scalar) -> Result<Built, EngineError> {
     let sys = Symbolic::build(mech).map_err(|e| EngineError::Generate(e.message))?;
-    let module = emit::module(mech, &sys, &format!("the description \"{}\"", mech.name));
-    let driver = DRIVER.replace("__TYPE__", &emit::type_name(&mech.name));
+    let module = emit::module_in(mech, &sys, &format!("the description \"{}\"", mech.name), scalar);
+    let driver =
+        DRIVER.replace("__TYPE__", &emit::type_name(&mech.name)).replace("__REAL__", scalar.name());
     let mut hasher = DefaultHasher::new();
     (&module, &driver).hash(&mut hasher);
     let key = format!("{:016x}", hasher.finish());
@@ -226,13 +277,54 @@ pub struct RunReport {
 pub fn run(
     built: &Built,
     tolerance: Option<f64>,
+    sink: impl FnMut(&Frame) -> std::io::Result<()>,
+) -> Result<RunReport, EngineError> {
+    run_with(built, tolerance, Settings::default(), sink)
+}
+
+/// How a built solver runs: the runtime's predictor, and its static pivot orders or dense LU.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Settings {
+    /// Start Newton from the runtime's Taylor predictor (on by default).
+    pub predictor: bool,
+    /// Factor Φ_q by dense LU with partial pivoting only, hiding the module's static pivot
+    /// orders (off by default).
+    pub dense_lu: bool,
+}
+
+impl Default for Settings {
+    fn default() -> Self {
+        Settings { predictor: true, dense_lu: false }
+    }
+}
+
+impl Settings {
+    /// The driver's flags for these settings.
+    fn flags(self) -> impl Iterator<Item = &'static str> {
+        [(!self.predictor).then_some("no-predictor"), self.dense_lu.then_some("dense")]
+            .into_iter()
+            .flatten()
+    }
+}
+
+/// [`run`] with the given [`Settings`].
+///
+/// # Errors
+/// As [`run`].
+pub fn run_with(
+    built: &Built,
+    tolerance: Option<f64>,
+    settings: Settings,
     mut sink: impl FnMut(&Frame) -> std::io::Result<()>,
 ) -> Result<RunReport, EngineError> {
     let mut cmd = Command::new(&built.binary);
     cmd.arg("run");
     if let Some(t) = tolerance {
         cmd.arg(format!("{t:?}"));
+    } else {
+        cmd.arg("-");
     }
+    cmd.args(settings.flags());
     let mut child = cmd
         .stdout(Stdio::piped())
         .stdin(Stdio::null())
@@ -295,8 +387,22 @@ pub fn bench(
     tolerance: f64,
     repeats: usize,
 ) -> Result<(f64, f64, f64), EngineError> {
+    bench_with(built, tolerance, repeats, Settings::default())
+}
+
+/// [`bench`] with the given [`Settings`].
+///
+/// # Errors
+/// As [`bench`].
+pub fn bench_with(
+    built: &Built,
+    tolerance: f64,
+    repeats: usize,
+    settings: Settings,
+) -> Result<(f64, f64, f64), EngineError> {
     let output = Command::new(&built.binary)
         .args(["bench", &format!("{tolerance:?}"), &repeats.to_string()])
+        .args(settings.flags())
         .stdin(Stdio::null())
         .output()
         .map_err(|e| EngineError::Run(format!("{}: {e}", built.binary.display())))?;

@@ -16,4 +16,6 @@ mod rssr_reference;
 #[cfg(test)]
 mod seed_examples;
 #[cfg(test)]
+mod single_precision;
+#[cfg(test)]
 mod structured_lu;
