@@ -58,7 +58,37 @@ pub struct Solver<M, const N: usize, R = f64, J = [[R; N]; N]> {
     known: Known,
     /// (t, q̈) at the two converged positions before the current one, the later first, where q̈
     /// was solved there.
-    history: [Option<(R, [R; N])>; 2],
+    history: History<R, N>,
+}
+
+/// The (t, q̈) of the two converged positions before the current one, kept as a ring so
+/// that a new entry costs one copy of q̈ and no shifting.
+#[derive(Clone, Debug)]
+struct History<R, const N: usize> {
+    t: [R; 2],
+    qdd: [[R; N]; 2],
+    /// How many entries are valid (0, 1 or 2).
+    len: u8,
+    /// The slot of the later entry.
+    latest: usize,
+}
+
+impl<R: Real, const N: usize> History<R, N> {
+    const EMPTY: Self = History { t: [R::ZERO; 2], qdd: [[R::ZERO; N]; 2], len: 0, latest: 0 };
+
+    /// Makes (t, q̈) the later entry; the former later entry becomes the earlier one.
+    fn push(&mut self, t: R, qdd: &[R; N]) {
+        self.latest ^= 1;
+        self.t[self.latest] = t;
+        self.qdd[self.latest] = *qdd;
+        self.len = (self.len + 1).min(2);
+    }
+
+    /// Entry `k`: 0 the later, 1 the earlier.
+    fn get(&self, k: usize) -> Option<(R, &[R; N])> {
+        let slot = self.latest ^ k;
+        (k < usize::from(self.len)).then(|| (self.t[slot], &self.qdd[slot]))
+    }
 }
 
 /// The time derivatives solved at the solver's current (q, t).
@@ -124,7 +154,7 @@ impl<M, const N: usize, R: Real, J> Solver<M, N, R, J> {
             factors: Factors::new(),
             factored: false,
             known: Known::Nothing,
-            history: [None, None],
+            history: History::EMPTY,
         }
     }
 
@@ -187,7 +217,7 @@ impl<M, const N: usize, R: Real, J> Solver<M, N, R, J> {
         self.q = q;
         self.factored = false;
         self.known = Known::Nothing;
-        self.history = [None, None];
+        self.history = History::EMPTY;
     }
 }
 
@@ -235,11 +265,11 @@ impl<M: Mechanism<N, R>, const N: usize, R: Real, J: BorrowMut<[[R; N]; N]>> Sol
         );
         match result {
             Ok(_) => {
-                self.history = if self.known == Known::Acceleration {
-                    [Some((self.t, self.qdd)), self.history[0]]
+                if self.known == Known::Acceleration {
+                    self.history.push(self.t, &self.qdd);
                 } else {
-                    [None, None]
-                };
+                    self.history.len = 0;
+                }
                 self.t = t;
                 self.factored = true;
                 self.known = Known::Nothing;
@@ -255,16 +285,16 @@ impl<M: Mechanism<N, R>, const N: usize, R: Real, J: BorrowMut<[[R; N]; N]>> Sol
     ///
     /// A history whose times coincide with the current one's is not used.
     fn extrapolate_acceleration(&mut self, h: R) {
-        let Some((t1, a1)) = &self.history[0] else { return };
-        let tau1 = *t1 - self.t;
+        let Some((t1, a1)) = self.history.get(0) else { return };
+        let tau1 = t1 - self.t;
         if tau1 == R::ZERO {
             return;
         }
         let (h3, h4) = (h * h * h / R::from_f64(6.0), h * h * h * h / R::from_f64(12.0));
-        match &self.history[1] {
-            Some((t2, a2)) if *t2 != *t1 && *t2 != self.t => {
+        match self.history.get(1) {
+            Some((t2, a2)) if t2 != t1 && t2 != self.t => {
                 // Divided differences of q̈ at τ = 0, τ1, τ2 (times relative to the current one).
-                let tau2 = *t2 - self.t;
+                let tau2 = t2 - self.t;
                 let (r01, r12, r02) = (R::ONE / -tau1, R::ONE / (tau1 - tau2), R::ONE / -tau2);
                 for (((q, &a0), &a1), &a2) in self.q.iter_mut().zip(&self.qdd).zip(a1).zip(a2) {
                     let f01 = (a0 - a1) * r01;
@@ -326,10 +356,10 @@ impl<M: Mechanism<N, R>, const N: usize, R: Real, J: BorrowMut<[[R; N]; N]>> Sol
     }
 
     /// Overwrites the right-hand side in `scratch` with the solution of Φ_q x = scratch.
+    ///
+    /// A NaN or an infinity in the right-hand side reaches the solution (substitution carries
+    /// it through the row that holds it), so checking the solution alone catches both.
     fn solve_scratch(&mut self) -> Result<(), SolveError> {
-        if self.scratch.iter().any(|v| !v.is_finite()) {
-            return Err(SolveError::NonFinite);
-        }
         self.factors.solve(&self.mechanism, self.jac.borrow(), &mut self.scratch);
         if self.scratch.iter().any(|v| !v.is_finite()) {
             return Err(SolveError::NonFinite);
