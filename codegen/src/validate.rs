@@ -57,14 +57,61 @@ pub struct Loaded {
 /// and every rule of the contract's Validation section.
 pub fn load_file(path: &Path) -> Result<Loaded, Vec<Diagnostic>> {
     let name = path.display().to_string();
-    let text = std::fs::read_to_string(path).map_err(|e| {
-        let mut diag = Diagnostic::error(format!("cannot read the file: {e}"));
+    let text = read_text(path).map_err(|(message, place)| {
+        let mut diag = Diagnostic::error(message).entity("file");
         diag.file = Some(name.clone());
+        if let Some((line, column)) = place {
+            (diag.line, diag.column) = (Some(line), Some(column));
+        }
         vec![diag]
     })?;
     let json = path.extension().is_some_and(|e| e.eq_ignore_ascii_case("json"));
     let format = if json { Format::Json } else { Format::Toml };
     load_str(&text, format, Some(&name))
+}
+
+/// The largest description file accepted, in bytes (16 MiB).
+///
+/// A description of [`rules::MAX_BODIES`] bodies with a joint and a point each takes well under
+/// 1 MiB; the bound keeps a mistaken argument (a log, a disk image) from being read into memory.
+pub const MAX_FILE_BYTES: u64 = 16 << 20;
+
+/// Reads at most [`MAX_FILE_BYTES`] of a file, without reading more from a larger file or a
+/// device.
+/// `what` names the input in messages ("file", "deck").
+pub(crate) fn read_bounded(path: &Path, what: &str) -> Result<Vec<u8>, String> {
+    use std::io::Read;
+    let file = std::fs::File::open(path).map_err(|e| format!("cannot read the {what}: {e}"))?;
+    let mut bytes = Vec::new();
+    file.take(MAX_FILE_BYTES + 1)
+        .read_to_end(&mut bytes)
+        .map_err(|e| format!("cannot read the {what}: {e}"))?;
+    if bytes.len() as u64 > MAX_FILE_BYTES {
+        return Err(format!(
+            "the {what} is larger than {} MiB, the most an input may have",
+            MAX_FILE_BYTES >> 20
+        ));
+    }
+    Ok(bytes)
+}
+
+/// Reads a description file as UTF-8 text ([`read_bounded`]); an error carries the line and
+/// column of the first byte that is not UTF-8, if that is the problem.
+fn read_text(path: &Path) -> Result<String, (String, Option<(usize, usize)>)> {
+    let bytes = read_bounded(path, "file").map_err(|m| (m, None))?;
+    String::from_utf8(bytes).map_err(|e| {
+        let at = e.utf8_error().valid_up_to();
+        let valid = &e.as_bytes()[..at];
+        let line = 1 + valid.iter().filter(|&&b| b == b'\n').count();
+        let start = valid.iter().rposition(|&b| b == b'\n').map_or(0, |k| k + 1);
+        let column = 1 + String::from_utf8_lossy(&valid[start..]).chars().count();
+        let message = format!(
+            "the file is not UTF-8 text: byte 0x{:02x} at line {line}, column {column} (is it a \
+             binary file?)",
+            e.as_bytes()[at]
+        );
+        (message, Some((line, column)))
+    })
 }
 
 /// Reads and validates a description given as text; `file` is only used in messages.
@@ -125,7 +172,10 @@ fn syntax_errors(
         let diag = Diagnostic::error(format!("{syntax} syntax: {}", e.message));
         // The entity and field come from the tree recovered around the error; a path into
         // it may name elements that are not in the file, so none is given.
-        Diagnostic { path: None, ..src.place(diag, e.offset) }
+        let placed = src.place(diag, e.offset);
+        // Outside every entity (a stray bracket at the top level), the file itself is named.
+        let entity = placed.entity.clone().or_else(|| Some("file".to_owned()));
+        Diagnostic { path: None, entity, ..placed }
     });
     in_file_order(diags.collect())
 }

@@ -100,9 +100,8 @@ pub fn import(deck: &str, name: &str) -> Result<MechanismDesc, Diagnostic> {
 )]
 pub fn import_file(path: &Path) -> Result<MechanismDesc, Diagnostic> {
     let shown = path.display().to_string();
-    let bytes = std::fs::read(path).map_err(|err| {
-        Diagnostic::error(format!("cannot read the deck: {err}")).at(Some(&shown), 1, 1)
-    })?;
+    let bytes = crate::validate::read_bounded(path, "deck")
+        .map_err(|message| Diagnostic::error(message).entity("deck").at(Some(&shown), 1, 1))?;
     let text = String::from_utf8_lossy(&bytes);
     let mut desc = import(&text, &name_from_path(path)).map_err(|mut diag| {
         diag.file = Some(shown.clone());

@@ -10,6 +10,8 @@ mod generated_engine;
 #[cfg(test)]
 mod harness;
 #[cfg(test)]
+mod hostile;
+#[cfg(test)]
 mod random_mechanisms;
 #[cfg(test)]
 mod rssr_reference;

@@ -19,9 +19,28 @@ use crate::model::{
 /// The largest time grid accepted (contract).
 const MAX_TIME_POINTS: usize = 10_000_000;
 
+/// The most moving bodies accepted.
+///
+/// The generic engine works on the dense Jacobian (7 unknowns per body): at 500 bodies that is
+/// 3,500 columns, about 100 MB per matrix and tens of seconds per time step, which bounds both
+/// memory and time; the generated engine's build grows with the bodies too (BENCHMARKS.md).
+pub(crate) const MAX_BODIES: usize = 500;
+
+/// The most equations accepted: twice the unknowns of [`MAX_BODIES`] bodies, room for any
+/// redundancy a real mechanism has, and a bound on the Jacobian's rows.
+pub(crate) const MAX_EQUATIONS: usize = 14 * MAX_BODIES;
+
 /// The largest `max_iterations` accepted: Newton converges in a handful of iterations or not
 /// at all, so more only delays the report.
 const MAX_ITERATIONS: u32 = 10_000;
+
+/// The largest magnitude of any number of a description.
+///
+/// Rows of Φ multiply and square coordinates (distances, Euler-parameter products, the
+/// normalisation pᵀp), so values beyond 1e150 overflow to infinity at once (1e150² = 1e300 is
+/// near f64's limit of 1.8e308). No mechanism needs them: 1e150 m is far beyond any physical
+/// size.
+pub(crate) const MAX_MAGNITUDE: f64 = 1e150;
 
 /// A direction whose largest component is at most this (absolute) is the zero vector.
 /// Directions are written in whatever units the user likes, typically O(1); a vector this
@@ -215,26 +234,43 @@ impl Rules<'_> {
         }
     }
 
-    /// Rule: every number of a vector is finite. Reports each bad component at its place.
+    /// Rule: every number of a vector is finite and at most [`MAX_MAGNITUDE`] in magnitude.
+    /// Reports each bad component at its place.
     fn finite(&mut self, at: &At, field: &str, v: &[f64]) -> bool {
         let mut ok = true;
         for (k, x) in v.iter().enumerate() {
-            if !x.is_finite() {
-                let message = format!("`{field}[{k}]` is {x}: every number must be finite");
-                let path = format!("{}[{k}]", at.field_path(field));
-                self.push(Diagnostic::error(message), at, field, path);
-                ok = false;
-            }
+            let problem = if !x.is_finite() {
+                format!("`{field}[{k}]` is {x}: every number must be finite")
+            } else if x.abs() > MAX_MAGNITUDE {
+                format!(
+                    "`{field}[{k}]` = {x:e} is beyond ±{MAX_MAGNITUDE:e}: squares and products \
+                     of such values overflow"
+                )
+            } else {
+                continue;
+            };
+            let path = format!("{}[{k}]", at.field_path(field));
+            self.push(Diagnostic::error(problem), at, field, path);
+            ok = false;
         }
         ok
     }
 
-    /// Rule: a scalar is finite.
+    /// Rule: a scalar is finite and at most [`MAX_MAGNITUDE`] in magnitude.
     fn finite_number(&mut self, at: &At, field: &str, x: f64) -> bool {
         if !x.is_finite() {
             self.error(at, field, format!("`{field}` is {x}: it must be finite"));
+            false
+        } else if x.abs() > MAX_MAGNITUDE {
+            let message = format!(
+                "`{field}` = {x:e} is beyond ±{MAX_MAGNITUDE:e}: squares and products of such \
+                 values overflow"
+            );
+            self.error(at, field, message);
+            false
+        } else {
+            true
         }
-        x.is_finite()
     }
 
     /// Rule: a point is finite.
@@ -618,8 +654,7 @@ impl Rules<'_> {
 
     /// Rule: a screw's lead is finite and non-zero.
     fn lead(&mut self, at: &At, lead: f64) -> Option<f64> {
-        if !lead.is_finite() {
-            self.error(at, "lead", format!("`lead` is {lead}: it must be finite"));
+        if !self.finite_number(at, "lead", lead) {
             return None;
         }
         if lead == 0.0 {
@@ -633,11 +668,14 @@ impl Rules<'_> {
 
     /// Rule: a given rod length is finite and > 0.
     fn length(&mut self, at: &At, length: f64) -> bool {
-        let ok = length.is_finite() && length > 0.0;
-        if !ok {
-            self.error(at, "distance", format!("`distance` = {length} must be finite and > 0"));
+        if !self.finite_number(at, "distance", length) {
+            return false;
         }
-        ok
+        if length <= 0.0 {
+            self.error(at, "distance", format!("`distance` = {length} must be > 0"));
+            return false;
+        }
+        true
     }
 
     /// Rule: without `distance`, the rod length is |P_j − P_i| at the initial estimates, and
@@ -913,8 +951,8 @@ impl Rules<'_> {
         Some(model::Point { name: p.name.clone(), body: body?, local: local? })
     }
 
-    /// Rules: at least one moving body; no fewer equations than unknowns. Returns the number
-    /// of equations when there is a moving body.
+    /// Rules: at least one moving body, at most [`MAX_BODIES`] and [`MAX_EQUATIONS`]; no fewer
+    /// equations than unknowns. Returns the number of equations when the counts are in range.
     fn counting(&mut self) -> Option<usize> {
         let desc = self.desc;
         let moving = desc.bodies.iter().filter(|b| !b.ground).count();
@@ -929,6 +967,16 @@ impl Rules<'_> {
             + desc.constraints.len()
             + desc.drivers.len()
             + moving;
+        if moving > MAX_BODIES || equations > MAX_EQUATIONS {
+            let message = format!(
+                "{moving} moving bodies and {equations} equations: at most {MAX_BODIES} moving \
+                 bodies and {MAX_EQUATIONS} equations are accepted (the generic engine's dense \
+                 Jacobian bounds memory and time)"
+            );
+            let diag = Diagnostic::error(message).entity(self.mechanism().entity).path("bodies");
+            self.diags.push(diag);
+            return None;
+        }
         if equations < unknowns {
             let missing = unknowns - equations;
             let (noun, verb) = if missing == 1 {
