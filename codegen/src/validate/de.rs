@@ -97,8 +97,20 @@ pub(super) fn entity_of(root: &Node, segs: &[Seg]) -> (Option<String>, usize) {
             (Some(section.clone()), 1)
         }
         [Seg::Key(key), ..] if key == "name" || key == "description" => (Some(key.clone()), 0),
+        // Any other top-level key (an unknown one, say) belongs to the mechanism as a whole.
+        [Seg::Key(_), ..] => (Some(mechanism_entity(root)), 0),
         _ => (None, 0),
     }
+}
+
+/// The mechanism as a whole, as messages name it: `mechanism "rssr"`, or `mechanism` when the
+/// document has no name yet.
+fn mechanism_entity(root: &Node) -> String {
+    let name = root.get("name").and_then(|n| match &n.value {
+        Value::Str(s) => Some(s.as_str()),
+        _ => None,
+    });
+    name.map_or_else(|| "mechanism".to_owned(), |n| format!("mechanism \"{n}\""))
 }
 
 /// The entity kind of an array section: `joints` → `joint`.
@@ -156,7 +168,10 @@ pub(super) fn description(src: &Source<'_>) -> Result<MechanismDesc, Vec<Diagnos
             "points" => points = ctx.section::<PointDesc>(key, node),
             _ => {
                 let message = unknown_field_message(key, TOP_FIELDS);
-                let diag = Diagnostic::error(message).field(key.as_str()).path(key.as_str());
+                let diag = Diagnostic::error(message)
+                    .entity(mechanism_entity(root))
+                    .field(key.as_str())
+                    .path(key.as_str());
                 ctx.errors.push(src.place(diag, key_span.start));
             }
         }
