@@ -219,7 +219,7 @@ proptest! {
         let text = String::from_utf8_lossy(&bytes);
         load(&text, Format::Toml);
         load(&text, Format::Json);
-        let _ = bounded("young::import", &text, || codegen::young::import(&text, "fuzz"));
+        let _ = bounded("young::import", &text, || codegen::young::import(&text, "fuzz").map_err(Box::new));
     }
 
     #[test]
@@ -240,7 +240,7 @@ proptest! {
     fn mutated_decks_import_or_are_refused_with_located_errors(k in 0usize..18, edits in edits()) {
         let texts = decks();
         let text = mutate(&texts[k % texts.len()], &edits);
-        let result = bounded("young::import", &text, || codegen::young::import(&text, "fuzz"));
+        let result = bounded("young::import", &text, || codegen::young::import(&text, "fuzz").map_err(Box::new));
         if let Err(d) = result {
             prop_assert!(!d.message.is_empty());
             prop_assert!(d.line.is_some_and(|l| l >= 1), "no line: {d:?}");
