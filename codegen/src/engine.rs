@@ -346,6 +346,24 @@ pub fn run_with(
                 let m = (nums.len() - 3) / 3;
                 let values: Vec<f64> =
                     nums[3..].iter().map(|s| parse(s)).collect::<Result<_, _>>()?;
+                if let Some(bad) = values.iter().chain(&[parse(nums[2])?]).find(|v| !v.is_finite())
+                {
+                    // Never written: the analysis stops here, saying why.
+                    let message = format!(
+                        "the generated solver produced the non-finite value {bad} (the steps \
+                         before this one are kept)"
+                    );
+                    let t = parse(nums[0]).unwrap_or(f64::NAN);
+                    report.failure = Some(Failure {
+                        kind: FailureKind::NoConvergence,
+                        t,
+                        message,
+                        constraints: Vec::new(),
+                    });
+                    let _ = child.kill();
+                    let _ = child.wait();
+                    return Ok(report);
+                }
                 let frame = Frame {
                     index: report.steps,
                     t: parse(nums[0])?,
@@ -414,5 +432,35 @@ pub fn bench_with(
             Ok((p(min)?, p(median)?, p(iters)?))
         }
         _ => Err(EngineError::Run(format!("unexpected benchmark output: {text}"))),
+    }
+}
+
+#[cfg(all(test, unix))]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_non_finite_value_from_a_solver_stops_the_run_instead_of_being_written() {
+        use std::os::unix::fs::PermissionsExt;
+        // A stand-in solver: one good step of one body, then a step whose q̇ holds NaN.
+        let good = format!("step 0.0 1 1e-12{}", " 0.5".repeat(21));
+        let bad = format!("step 0.1 1 1e-12{} NaN{}", " 0.5".repeat(8), " 0.5".repeat(12));
+        let script = format!("#!/bin/sh\necho '{good}'\necho '{bad}'\necho '{good}'\n");
+        let path = std::env::temp_dir().join(format!("mechgen-fake-solver-{}", std::process::id()));
+        std::fs::write(&path, script).unwrap();
+        std::fs::set_permissions(&path, std::fs::Permissions::from_mode(0o755)).unwrap();
+        let built = Built { binary: path.clone(), unknowns: 7 };
+        let mut written = Vec::new();
+        let report = run(&built, None, |f| {
+            written.push(f.t);
+            Ok(())
+        })
+        .unwrap();
+        std::fs::remove_file(&path).unwrap();
+        assert_eq!(written, [0.0]);
+        assert_eq!(report.steps, 1);
+        let failure = report.failure.expect("the NaN is reported");
+        assert_eq!(failure.t, 0.1);
+        assert!(failure.message.contains("non-finite value NaN"), "{}", failure.message);
     }
 }

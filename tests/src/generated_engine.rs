@@ -149,3 +149,31 @@ fn generated_code_is_fresh() {
         "generated/ is out of date: {stale:#?}\nrun `cargo codegen` and commit generated/"
     );
 }
+
+#[test]
+fn generated_code_names_no_machine_path_or_time() {
+    // Generated modules must be byte-identical on every machine: no absolute path, no user,
+    // no date. The workspace's own absolute path is the likeliest leak.
+    let root = codegen::sync::workspace_root();
+    let root_text = root.display().to_string();
+    let dir = root.join("generated/src");
+    for entry in std::fs::read_dir(&dir).unwrap() {
+        let path = entry.unwrap().path();
+        let text = std::fs::read_to_string(&path).unwrap();
+        let name = path.display();
+        assert!(!text.contains(&root_text), "{name} holds the workspace path {root_text}");
+        for leak in ["/home/", "/tmp/", "/root/", "/Users/", "C:\\"] {
+            assert!(!text.contains(leak), "{name} holds {leak}");
+        }
+        // A date like 2026-11-21 in any line (timestamps).
+        let dated = text.lines().find(|l| {
+            l.as_bytes().windows(10).any(|w| {
+                w.iter().enumerate().all(|(k, b)| match k {
+                    4 | 7 => *b == b'-',
+                    _ => b.is_ascii_digit(),
+                })
+            })
+        });
+        assert!(dated.is_none(), "{name} holds a date: {dated:?}");
+    }
+}
