@@ -829,7 +829,12 @@ fn scaling(
             let generate = start.elapsed().as_secs_f64();
             let lines = module.lines().count();
             let start = std::time::Instant::now();
-            let built = match crate::engine::build(mech) {
+            let built = match crate::engine::build_module(
+                mech,
+                &module,
+                sys.unknowns.len(),
+                crate::emit::Scalar::F64,
+            ) {
                 Ok(b) => b,
                 Err(e) => {
                     writeln!(err, "{}: {e}", mech.name)?;

@@ -44,6 +44,68 @@ fn binary(l: Expr, op: syn::BinOp, r: Expr) -> Expr {
     Expr::Binary(syn::ExprBinary { attrs: Vec::new(), left: Box::new(l), op, right: Box::new(r) })
 }
 
+/// The expression `name`.
+fn path(name: Ident) -> Expr {
+    Expr::Path(syn::ExprPath { attrs: Vec::new(), qself: None, path: name.into() })
+}
+
+/// `let name = e;`, built directly (parsing it from tokens costs more than the rest of the
+/// emission for large mechanisms).
+fn let_stmt(name: Ident, e: Expr) -> syn::Stmt {
+    syn::Stmt::Local(syn::Local {
+        attrs: Vec::new(),
+        let_token: Default::default(),
+        pat: syn::Pat::Ident(syn::PatIdent {
+            attrs: Vec::new(),
+            by_ref: None,
+            mutability: None,
+            ident: name,
+            subpat: None,
+        }),
+        init: Some(syn::LocalInit {
+            eq_token: Default::default(),
+            expr: Box::new(e),
+            diverge: None,
+        }),
+        semi_token: Default::default(),
+    })
+}
+
+/// `target = value;`.
+fn assign(target: Expr, value: Expr) -> syn::Stmt {
+    syn::Stmt::Expr(
+        Expr::Assign(syn::ExprAssign {
+            attrs: Vec::new(),
+            left: Box::new(target),
+            eq_token: Default::default(),
+            right: Box::new(value),
+        }),
+        Some(Default::default()),
+    )
+}
+
+/// `array[i]`, `array[i][j]`, … .
+fn element(array: &str, indices: &[usize]) -> Expr {
+    indices.iter().fold(path(ident(array)), |e, &k| {
+        Expr::Index(syn::ExprIndex {
+            attrs: Vec::new(),
+            expr: Box::new(e),
+            bracket_token: Default::default(),
+            index: Box::new(Expr::Lit(syn::ExprLit {
+                attrs: Vec::new(),
+                lit: syn::Lit::Int(syn::LitInt::from(index(k))),
+            })),
+        })
+    })
+}
+
+/// A function item with `stmts` as its body, the signature parsed from `signature` (the
+/// statements are not turned into tokens and parsed again).
+fn item_fn(mut signature: syn::ItemFn, stmts: Vec<syn::Stmt>) -> syn::Item {
+    signature.block.stmts = stmts;
+    syn::Item::Fn(signature)
+}
+
 fn neg(e: Expr) -> Expr {
     Expr::Unary(syn::ExprUnary {
         attrs: Vec::new(),
@@ -185,7 +247,7 @@ impl<'p> Body<'p> {
                 let (e, _) = body.render(ExprId::from_index(k));
                 let name = ident(&format!("t{count}"));
                 count += 1;
-                body.stmts.push(parse_quote!(let #name = #e;));
+                body.stmts.push(let_stmt(name.clone(), e));
                 body.temp[k] = Some(name);
             }
         }
@@ -200,7 +262,7 @@ impl<'p> Body<'p> {
     /// An expression for `id` with its binding strength.
     fn render(&self, id: ExprId) -> (Expr, Prec) {
         if let Some(name) = &self.temp[id.index()] {
-            return (parse_quote!(#name), Prec::Atom);
+            return (path(name.clone()), Prec::Atom);
         }
         let at_least = |e: (Expr, Prec), p: Prec| if e.1 >= p { e.0 } else { paren(e.0) };
         match self.pool[id] {
@@ -208,15 +270,9 @@ impl<'p> Body<'p> {
                 let v = f64::from_bits(bits);
                 if v < 0.0 { (neg(literal(-v)), Prec::Unary) } else { (literal(v), Prec::Atom) }
             }
-            Node::Var(Var::Q(k)) => {
-                let name = ident(&format!("q{k}"));
-                (parse_quote!(#name), Prec::Atom)
-            }
-            Node::Var(Var::Qd(k)) => {
-                let name = ident(&format!("qd{k}"));
-                (parse_quote!(#name), Prec::Atom)
-            }
-            Node::Var(Var::T) => (parse_quote!(t), Prec::Atom),
+            Node::Var(Var::Q(k)) => (path(ident(&format!("q{k}"))), Prec::Atom),
+            Node::Var(Var::Qd(k)) => (path(ident(&format!("qd{k}"))), Prec::Atom),
+            Node::Var(Var::T) => (path(ident("t")), Prec::Atom),
             Node::Neg(a) => (neg(at_least(self.render(a), Prec::Unary)), Prec::Unary),
             Node::Add(a, b) => {
                 // x + (−y) and (−y) + x are written x − y: the same IEEE operation, since
@@ -304,23 +360,213 @@ struct Function {
 }
 
 fn function(pool: &ExprPool, n: usize, outputs: &[(syn::Expr, ExprId)]) -> Function {
+    function_with(pool, n, outputs, false)
+}
+
+/// [`function`], reading the used entries of q and q̇ one by one (`let q5 = q[5];`) when
+/// `part`: a part of a split function uses few of them.
+fn function_with(
+    pool: &ExprPool,
+    n: usize,
+    outputs: &[(syn::Expr, ExprId)],
+    part: bool,
+) -> Function {
     let roots: Vec<ExprId> = outputs.iter().map(|(_, e)| *e).collect();
     let (q, qd, t) = symbols(pool, &roots, n);
     let body = Body::new(pool, &roots);
     let mut stmts = Vec::new();
     let (uses_q, uses_qd) = (q.iter().any(|&u| u), qd.iter().any(|&u| u));
-    if uses_q {
-        stmts.push(destructure("q", n, &q));
-    }
-    if uses_qd {
-        stmts.push(destructure("qd", n, &qd));
+    for (prefix, used) in [("q", &q), ("qd", &qd)] {
+        if !used.iter().any(|&u| u) {
+            continue;
+        }
+        if part {
+            for k in (0..n).filter(|&k| used[k]) {
+                stmts.push(let_stmt(ident(&format!("{prefix}{k}")), element(prefix, &[k])));
+            }
+        } else {
+            stmts.push(destructure(prefix, n, used));
+        }
     }
     stmts.extend(body.stmts.iter().cloned());
     for (target, e) in outputs {
         let (value, _) = body.render(*e);
-        stmts.push(parse_quote!(#target = #value;));
+        stmts.push(assign(target.clone(), value));
     }
     Function { stmts, uses_t: t, uses_q, uses_qd, ops: body.ops, shared: body.shared() }
+}
+
+/// Functions whose outputs take more operations than this are split into helpers of about
+/// this many operations each, so that rustc and LLVM never see one giant function (their time
+/// grows faster than linearly with a function's size). The largest function of the examples
+/// has under 800 operations and is not split.
+pub const CHUNK_OPS: usize = 1500;
+
+/// One value a function writes: `target = value`, to the array `targets[array]`; `key` orders
+/// the outputs when the function is split (outputs with near keys share subexpressions).
+struct Output {
+    target: Expr,
+    array: usize,
+    value: ExprId,
+    key: usize,
+}
+
+/// Marks the nodes reachable from `root` with `stamp` and returns how many of them are
+/// operations not marked before.
+fn new_operations(pool: &ExprPool, root: ExprId, marks: &mut [u32], stamp: u32) -> usize {
+    let mut stack = vec![root];
+    let mut count = 0;
+    while let Some(x) = stack.pop() {
+        if std::mem::replace(&mut marks[x.index()], stamp) == stamp {
+            continue;
+        }
+        if !matches!(pool[x], Node::Const(_) | Node::Var(_)) {
+            count += 1;
+        }
+        stack.extend(pool[x].children());
+    }
+    count
+}
+
+/// The outputs in groups of at most about [`CHUNK_OPS`] operations: one group in the given
+/// order when they fit, else ordered by key and cut greedily.
+fn chunks(pool: &ExprPool, outputs: &[Output]) -> Vec<Vec<usize>> {
+    let mut marks = vec![0u32; pool.len()];
+    let total: usize = outputs.iter().map(|o| new_operations(pool, o.value, &mut marks, 1)).sum();
+    if total <= CHUNK_OPS {
+        return vec![(0..outputs.len()).collect()];
+    }
+    let mut order: Vec<usize> = (0..outputs.len()).collect();
+    order.sort_by_key(|&k| outputs[k].key);
+    let (mut groups, mut current, mut ops, mut stamp) = (Vec::new(), Vec::new(), 0, 2);
+    for k in order {
+        let mut more = new_operations(pool, outputs[k].value, &mut marks, stamp);
+        if !current.is_empty() && ops + more > CHUNK_OPS {
+            groups.push(std::mem::take(&mut current));
+            stamp += 1;
+            ops = 0;
+            more = new_operations(pool, outputs[k].value, &mut marks, stamp);
+        }
+        current.push(k);
+        ops += more;
+    }
+    groups.push(current);
+    groups
+}
+
+/// What an emitted function reads and writes.
+struct Signature<'a> {
+    name: &'a str,
+    /// Whether q̇ is a parameter (after q).
+    qd: bool,
+    /// The arrays written, with their types, after `t`.
+    targets: &'a [(&'a str, proc_macro2::TokenStream)],
+}
+
+impl Signature<'_> {
+    /// `fn name(q: &[f64; N], [qd: &[f64; N],] t: f64, targets…)`, each parameter named with a
+    /// leading underscore when it is not used.
+    fn item(
+        &self,
+        name: &Ident,
+        doc: &str,
+        used: (bool, bool, bool, &[bool]),
+        helper: bool,
+    ) -> syn::ItemFn {
+        let (q, qd, t, arrays) = used;
+        let mut params: Vec<syn::FnArg> = vec![{
+            let q = param("q", q);
+            parse_quote!(#q: &[f64; N])
+        }];
+        if self.qd {
+            let qd = param("qd", qd);
+            params.push(parse_quote!(#qd: &[f64; N]));
+        }
+        let t = param("t", t);
+        params.push(parse_quote!(#t: f64));
+        for ((a, ty), &u) in self.targets.iter().zip(arrays) {
+            let a = param(a, u);
+            params.push(parse_quote!(#a: #ty));
+        }
+        if helper {
+            parse_quote! {
+                #[doc = #doc]
+                #[inline(never)]
+                fn #name(#(#params),*) {}
+            }
+        } else {
+            parse_quote! {
+                #[doc = #doc]
+                pub fn #name(#(#params),*) {}
+            }
+        }
+    }
+}
+
+/// The function `sig.name` writing `outputs` after `prefix`, split into `#[inline(never)]`
+/// helpers `name_0`, `name_1`, … when it would exceed [`CHUNK_OPS`] operations. `doc` gets
+/// the operations and shared subexpressions in total.
+fn emit_function(
+    pool: &ExprPool,
+    n: usize,
+    sig: &Signature<'_>,
+    doc: &dyn Fn(usize, usize) -> String,
+    prefix: Vec<syn::Stmt>,
+    outputs: &[Output],
+) -> Vec<syn::Item> {
+    let groups = chunks(pool, outputs);
+    let body = |group: &[usize]| -> (Function, Vec<bool>) {
+        let out: Vec<(Expr, ExprId)> =
+            group.iter().map(|&k| (outputs[k].target.clone(), outputs[k].value)).collect();
+        let mut written = vec![false; sig.targets.len()];
+        for &k in group {
+            written[outputs[k].array] = true;
+        }
+        (function_with(pool, n, &out, groups.len() > 1), written)
+    };
+    let name = ident(sig.name);
+    if groups.len() == 1 {
+        let (f, _) = body(&groups[0]);
+        let written = vec![true; sig.targets.len()];
+        let mut stmts = prefix;
+        stmts.extend(f.stmts);
+        let item = sig.item(
+            &name,
+            &doc(f.ops, f.shared),
+            (f.uses_q, f.uses_qd, f.uses_t, &written),
+            false,
+        );
+        return vec![item_fn(item, stmts)];
+    }
+    let mut items = Vec::new();
+    let mut calls = prefix;
+    let (mut ops, mut shared) = (0, 0);
+    let args: Vec<Ident> = ["q"]
+        .into_iter()
+        .chain(sig.qd.then_some("qd"))
+        .chain(["t"])
+        .chain(sig.targets.iter().map(|(a, _)| *a))
+        .map(ident)
+        .collect();
+    for (c, group) in groups.iter().enumerate() {
+        let (f, written) = body(group);
+        ops += f.ops;
+        shared += f.shared;
+        let helper = ident(&format!("{}_{c}", sig.name));
+        let doc = format!(" Part {c} of [`{}`]: {} operations.", sig.name, f.ops);
+        let item = sig.item(&helper, &doc, (f.uses_q, f.uses_qd, f.uses_t, &written), true);
+        items.push(item_fn(item, f.stmts));
+        calls.push(parse_quote!(#helper(#(#args),*);));
+    }
+    let doc = format!(
+        "{}\n\n Split into {} functions of at most about {CHUNK_OPS} operations each.",
+        doc(ops, shared),
+        groups.len()
+    );
+    let all = vec![true; sig.targets.len()];
+    let main = sig.item(&name, &doc, (true, true, true, &all), false);
+    items.insert(0, item_fn(main, calls));
+    items
 }
 
 fn param(name: &str, used: bool) -> Ident {
@@ -409,147 +655,117 @@ pub fn module_in(mech: &Mechanism, sys: &Symbolic, source: &str, scalar: Scalar)
         pub const Q0: [f64; N] = [#(#q0),*];
     });
 
+    // Locality of each row when a function is split: its last unknown.
+    let key: &Vec<usize> =
+        &sys.jac.iter().map(|row| row.iter().map(|&(c, _)| c).max().unwrap_or(0)).collect();
+    let vector = |array: usize, name: &str, values: &[ExprId]| -> Vec<Output> {
+        values
+            .iter()
+            .enumerate()
+            .map(|(i, &value)| Output { target: element(name, &[i]), array, value, key: key[i] })
+            .collect()
+    };
+    let vec_ty = quote::quote!(&mut [f64; N]);
+    let mat_ty = quote::quote!(&mut [[f64; N]; N]);
+    let zero_jac: syn::Stmt = parse_quote!(*jac = [[0.0; N]; N];);
+
     // Φ.
-    let outputs: Vec<(Expr, ExprId)> = sys
-        .phi
-        .iter()
-        .enumerate()
-        .map(|(i, &e)| {
-            let i = index(i);
-            (parse_quote!(phi[#i]), e)
-        })
-        .collect();
-    let f = function(pool, n, &outputs);
-    let (qn, tn, stmts) = (param("q", f.uses_q), param("t", f.uses_t), &f.stmts);
-    let doc = format!(
-        " Constraint residuals Φ(q, t), {n} rows.\n\n {} operations, {} shared subexpressions.",
-        f.ops, f.shared
-    );
-    items.push(parse_quote! {
-        #[doc = #doc]
-        pub fn residual(#qn: &[f64; N], #tn: f64, phi: &mut [f64; N]) {
-            #(#stmts)*
-        }
-    });
+    let phi_outputs = vector(0, "phi", &sys.phi);
+    let doc = |ops, shared| {
+        format!(
+            " Constraint residuals Φ(q, t), {n} rows.\n\n {ops} operations, {shared} shared subexpressions."
+        )
+    };
+    let targets = [("phi", vec_ty.clone())];
+    let sig = Signature { name: "residual", qd: false, targets: &targets };
+    items.extend(emit_function(pool, n, &sig, &doc, Vec::new(), &phi_outputs));
 
     // Φ_q.
-    let jac_outputs: Vec<(Expr, ExprId)> = sys
-        .jac
-        .iter()
-        .enumerate()
-        .flat_map(|(i, row)| {
-            row.iter().map(move |&(c, e)| {
-                let (i, c) = (index(i), index(c));
-                (parse_quote!(jac[#i][#c]), e)
+    let jac_outputs = |array: usize, only_varying: bool| -> Vec<Output> {
+        sys.jac
+            .iter()
+            .enumerate()
+            .flat_map(|(i, row)| {
+                row.iter().filter(move |&&(_, e)| !only_varying || pool.as_const(e).is_none()).map(
+                    move |&(c, value)| Output {
+                        target: element("jac", &[i, c]),
+                        array,
+                        value,
+                        key: key[i],
+                    },
+                )
             })
-        })
-        .collect();
-    let nnz = jac_outputs.len();
-    let f = function(pool, n, &jac_outputs);
-    let (qn, tn, stmts) = (param("q", f.uses_q), param("t", f.uses_t), &f.stmts);
-    let doc = format!(
-        " Jacobian Φ_q, row-major: `jac[i][j] = ∂Φ_i/∂q_j`; the {nnz} structurally non-zero entries are written, the others set to 0.\n\n {} operations, {} shared subexpressions.",
-        f.ops, f.shared
-    );
-    items.push(parse_quote! {
-        #[doc = #doc]
-        pub fn jacobian(#qn: &[f64; N], #tn: f64, jac: &mut [[f64; N]; N]) {
-            *jac = [[0.0; N]; N];
-            #(#stmts)*
-        }
-    });
+            .collect()
+    };
+    let nnz = sys.jac.iter().map(Vec::len).sum::<usize>();
+    let doc = |ops, shared| {
+        format!(
+            " Jacobian Φ_q, row-major: `jac[i][j] = ∂Φ_i/∂q_j`; the {nnz} structurally non-zero entries are written, the others set to 0.\n\n {ops} operations, {shared} shared subexpressions."
+        )
+    };
+    let targets = [("jac", mat_ty.clone())];
+    let sig = Signature { name: "jacobian", qd: false, targets: &targets };
+    items.extend(emit_function(
+        pool,
+        n,
+        &sig,
+        &doc,
+        vec![zero_jac.clone()],
+        &jac_outputs(0, false),
+    ));
 
     // Φ and Φ_q together, sharing subexpressions.
-    let mut both = outputs.clone();
-    both.extend(jac_outputs.iter().cloned());
-    let f = function(pool, n, &both);
-    let (qn, tn, stmts) = (param("q", f.uses_q), param("t", f.uses_t), &f.stmts);
-    let doc = format!(
-        " Φ and Φ_q at once (see [`residual`] and [`jacobian`]).\n\n {} operations, {} shared subexpressions.",
-        f.ops, f.shared
-    );
-    items.push(parse_quote! {
-        #[doc = #doc]
-        pub fn residual_jacobian(#qn: &[f64; N], #tn: f64, phi: &mut [f64; N], jac: &mut [[f64; N]; N]) {
-            *jac = [[0.0; N]; N];
-            #(#stmts)*
-        }
-    });
+    let targets = [("phi", vec_ty.clone()), ("jac", mat_ty.clone())];
+    let mut both = vector(0, "phi", &sys.phi);
+    both.extend(jac_outputs(1, false));
+    let doc = |ops, shared| {
+        format!(
+            " Φ and Φ_q at once (see [`residual`] and [`jacobian`]).\n\n {ops} operations, {shared} shared subexpressions."
+        )
+    };
+    let sig = Signature { name: "residual_jacobian", qd: false, targets: &targets };
+    items.extend(emit_function(pool, n, &sig, &doc, vec![zero_jac], &both));
+
     // Φ and the entries of Φ_q that vary: the constant ones are literals in `factor_k`.
-    let mut varying = outputs.clone();
-    varying.extend(jac_outputs.iter().filter(|(_, e)| pool.as_const(*e).is_none()).cloned());
-    let count = varying.len() - outputs.len();
-    let f = function(pool, n, &varying);
-    let (qn, tn, stmts) = (param("q", f.uses_q), param("t", f.uses_t), &f.stmts);
-    let doc = format!(
-        " Φ and the {count} entries of Φ_q that depend on q or t, the others of `jac` left as they were: what the `factor_k` functions read ({} of the {nnz} structurally non-zero entries are constants, which they know).\n\n {} operations, {} shared subexpressions.",
-        nnz - count,
-        f.ops,
-        f.shared
-    );
-    items.push(parse_quote! {
-        #[doc = #doc]
-        pub fn residual_jacobian_structural(#qn: &[f64; N], #tn: f64, phi: &mut [f64; N], jac: &mut [[f64; N]; N]) {
-            #(#stmts)*
-        }
-    });
+    let mut varying = phi_outputs;
+    varying.extend(jac_outputs(1, true));
+    let count = varying.len() - n;
+    let doc = |ops, shared| {
+        format!(
+            " Φ and the {count} entries of Φ_q that depend on q or t, the others of `jac` left as they were: what the `factor_k` functions read ({} of the {nnz} structurally non-zero entries are constants, which they know).\n\n {ops} operations, {shared} shared subexpressions.",
+            nnz - count
+        )
+    };
+    let sig = Signature { name: "residual_jacobian_structural", qd: false, targets: &targets };
+    items.extend(emit_function(pool, n, &sig, &doc, Vec::new(), &varying));
 
     // The structured LU: static pivot orders over the description's motion.
     let orders = if n == 0 { Vec::new() } else { lu::plan(sys, &lu::motion(mech, sys)) };
     let structure = lu::structure(sys);
     let constant = lu::constants(sys);
     for (k, order) in orders.iter().enumerate() {
-        let e = lu::emit(order, &structure, &constant, k);
-        items.push(e.factor);
-        items.push(e.solve);
+        items.extend(lu::emit(order, &structure, &constant, k));
     }
 
     // ν.
-    let outputs: Vec<(Expr, ExprId)> = sys
-        .nu
-        .iter()
-        .enumerate()
-        .map(|(i, &e)| {
-            let i = index(i);
-            (parse_quote!(nu[#i]), e)
-        })
-        .collect();
-    let f = function(pool, n, &outputs);
-    let (qn, tn, stmts) = (param("q", f.uses_q), param("t", f.uses_t), &f.stmts);
-    let doc = format!(
-        " Velocity right-hand side ν = −Φ_t.\n\n {} operations, {} shared subexpressions.",
-        f.ops, f.shared
-    );
-    items.push(parse_quote! {
-        #[doc = #doc]
-        pub fn velocity_rhs(#qn: &[f64; N], #tn: f64, nu: &mut [f64; N]) {
-            #(#stmts)*
-        }
-    });
+    let doc = |ops, shared| {
+        format!(
+            " Velocity right-hand side ν = −Φ_t.\n\n {ops} operations, {shared} shared subexpressions."
+        )
+    };
+    let targets = [("nu", vec_ty.clone())];
+    let sig = Signature { name: "velocity_rhs", qd: false, targets: &targets };
+    items.extend(emit_function(pool, n, &sig, &doc, Vec::new(), &vector(0, "nu", &sys.nu)));
 
     // γ.
-    let outputs: Vec<(Expr, ExprId)> = sys
-        .gamma
-        .iter()
-        .enumerate()
-        .map(|(i, &e)| {
-            let i = index(i);
-            (parse_quote!(gamma[#i]), e)
-        })
-        .collect();
-    let f = function(pool, n, &outputs);
-    let (qn, qdn, tn, stmts) =
-        (param("q", f.uses_q), param("qd", f.uses_qd), param("t", f.uses_t), &f.stmts);
-    let doc = format!(
-        " Acceleration right-hand side γ = −(Φ_q q̇)_q q̇ − 2Φ_qt q̇ − Φ_tt.\n\n {} operations, {} shared subexpressions.",
-        f.ops, f.shared
-    );
-    items.push(parse_quote! {
-        #[doc = #doc]
-        pub fn acceleration_rhs(#qn: &[f64; N], #qdn: &[f64; N], #tn: f64, gamma: &mut [f64; N]) {
-            #(#stmts)*
-        }
-    });
+    let doc = |ops, shared| {
+        format!(
+            " Acceleration right-hand side γ = −(Φ_q q̇)_q q̇ − 2Φ_qt q̇ − Φ_tt.\n\n {ops} operations, {shared} shared subexpressions."
+        )
+    };
+    let targets = [("gamma", vec_ty)];
+    let sig = Signature { name: "acceleration_rhs", qd: true, targets: &targets };
+    items.extend(emit_function(pool, n, &sig, &doc, Vec::new(), &vector(0, "gamma", &sys.gamma)));
 
     // Normalisation of the Euler parameters.
     let mut stmts: Vec<syn::Stmt> = Vec::new();

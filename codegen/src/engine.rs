@@ -212,10 +212,24 @@ pub fn build(mech: &Mechanism) -> Result<Built, EngineError> {
 pub fn build_in(mech: &Mechanism, scalar: Scalar) -> Result<Built, EngineError> {
     let sys = Symbolic::build(mech).map_err(|e| EngineError::Generate(e.message))?;
     let module = emit::module_in(mech, &sys, &format!("the description \"{}\"", mech.name), scalar);
+    build_module(mech, &module, sys.unknowns.len(), scalar)
+}
+
+/// Writes and builds a module generated for `mech` (with `unknowns` unknowns) in the
+/// floating-point type `scalar`, as [`build_in`] does after generating it.
+///
+/// # Errors
+/// [`EngineError::Build`].
+pub fn build_module(
+    mech: &Mechanism,
+    module: &str,
+    unknowns: usize,
+    scalar: Scalar,
+) -> Result<Built, EngineError> {
     let driver =
         DRIVER.replace("__TYPE__", &emit::type_name(&mech.name)).replace("__REAL__", scalar.name());
     let mut hasher = DefaultHasher::new();
-    (&module, &driver).hash(&mut hasher);
+    (module, &driver).hash(&mut hasher);
     let key = format!("{:016x}", hasher.finish());
     let cache = cache_dir();
     let dir = cache.join(&key);
@@ -238,7 +252,7 @@ pub fn build_in(mech: &Mechanism, scalar: Scalar) -> Result<Built, EngineError> 
     );
     write(&dir.join("Cargo.toml"), &manifest)?;
     write(&dir.join("src/main.rs"), &driver)?;
-    write(&dir.join("src/mechanism.rs"), &module)?;
+    write(&dir.join("src/mechanism.rs"), module)?;
     if let Ok(lock) = std::fs::read_to_string(root.join("Cargo.lock")) {
         // The workspace's lock pins libm to the version the workspace was tested with.
         if !dir.join("Cargo.lock").exists() {
@@ -256,7 +270,7 @@ pub fn build_in(mech: &Mechanism, scalar: Scalar) -> Result<Built, EngineError> 
         return Err(EngineError::Build(String::from_utf8_lossy(&output.stderr).into_owned()));
     }
     let binary = cache.join("target/release").join(&package);
-    Ok(Built { binary, unknowns: sys.unknowns.len() })
+    Ok(Built { binary, unknowns })
 }
 
 /// The outcome of a generated run: frames were handed to the sink as they came.

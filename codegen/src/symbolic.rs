@@ -15,7 +15,7 @@
 
 use std::collections::BTreeSet;
 
-use nalgebra::{DMatrix, DVector, Vector3};
+use nalgebra::{DVector, Vector3};
 
 use crate::expr::{ExprId, ExprPool, Node, Var};
 use crate::generic::{Equations, RowLabel};
@@ -61,6 +61,9 @@ pub struct Symbolic {
     /// For driven coordinates: (s, ṡ, s̈) as expressions in t.
     pub laws: Vec<[ExprId; 3]>,
 }
+
+/// A sparse matrix by rows: `(column, value)`.
+type SparseRows = Vec<Vec<(usize, f64)>>;
 
 /// A 3-vector of expressions.
 type V3 = [ExprId; 3];
@@ -458,7 +461,8 @@ impl Symbolic {
         for &k in &kept {
             jac_rows.push(sys.jacobian_row(phi_all[k]));
         }
-        let independent = sys.independent_rows(&eq, &jac_rows);
+        let kept_phi: Vec<ExprId> = kept.iter().map(|&k| phi_all[k]).collect();
+        let independent = sys.independent_rows(&eq, &kept_phi, &jac_rows);
         for (pos, &k) in kept.iter().enumerate() {
             if independent.contains(&pos) {
                 sys.rows.push(labels[k].clone());
@@ -498,25 +502,94 @@ impl Symbolic {
 
     /// Rows (positions in `jac_rows`) kept after dropping those that depend on earlier ones
     /// at the assembled initial configuration (greedy in row order, as `generic`).
+    ///
+    /// The reduced system is assembled first by Newton–Raphson on its independent rows
+    /// (sparse, see [`independent`]); when that does not converge, the generic engine's
+    /// Gauss–Newton assembly (`Equations::prepare`, dense, with the SVD) decides instead.
     fn independent_rows(
         &self,
         eq: &Equations<'_>,
+        phi: &[ExprId],
         jac_rows: &[Vec<(usize, ExprId)>],
     ) -> BTreeSet<usize> {
+        let mech = eq.mechanism();
+        let t = mech.time.start;
+        let at = |q: &[f64]| -> SparseRows {
+            let roots: Vec<ExprId> = jac_rows.iter().flatten().map(|&(_, e)| e).collect();
+            let mut it = self.pool.eval(&roots, q, &[], t).into_iter();
+            jac_rows
+                .iter()
+                .map(|row| row.iter().map(|&(c, _)| (c, it.next().expect("one value"))).collect())
+                .collect()
+        };
+        let q = self.assemble(mech, phi, jac_rows, &at).unwrap_or_else(|| {
+            let prep = eq.prepare();
+            self.reduce(eq, &prep.q).as_slice().to_vec()
+        });
+        independent(&at(&q), self.unknowns.len())
+    }
+
+    /// Newton–Raphson at the first time point on the rows independent at the current
+    /// configuration, from the initial estimates; `None` when those rows are not square or
+    /// Newton does not reach the description's tolerance.
+    fn assemble(
+        &self,
+        mech: &Mechanism,
+        phi: &[ExprId],
+        jac_rows: &[Vec<(usize, ExprId)>],
+        at: &dyn Fn(&[f64]) -> SparseRows,
+    ) -> Option<Vec<f64>> {
         let n = self.unknowns.len();
-        let prep = eq.prepare();
-        let q = self.reduce(eq, &prep.q);
-        let t = eq.mechanism().time.start;
-        let mut m = DMatrix::zeros(jac_rows.len(), n);
-        let roots: Vec<ExprId> = jac_rows.iter().flatten().map(|&(_, e)| e).collect();
-        let vals = self.pool.eval(&roots, q.as_slice(), &[], t);
-        let mut it = vals.into_iter();
-        for (r, row) in jac_rows.iter().enumerate() {
-            for &(c, _) in row {
-                m[(r, c)] = it.next().expect("one value per entry");
+        let t = mech.time.start;
+        let mut q = self.initial_estimate(mech);
+        for _ in 0..mech.solver.max_iterations.max(50) {
+            let res = self.pool.eval(phi, &q, &[], t);
+            if !res.iter().all(|x| x.is_finite()) {
+                return None;
+            }
+            if res.iter().all(|x| x.abs() <= mech.solver.tolerance) {
+                return Some(q);
+            }
+            let jac = at(&q);
+            let rows: Vec<usize> = independent(&jac, n).into_iter().collect();
+            if rows.len() != n || jac_rows.len() < n {
+                return None;
+            }
+            let s: Vec<Vec<bool>> = rows
+                .iter()
+                .map(|&r| {
+                    let mut v = vec![false; n];
+                    jac[r].iter().for_each(|&(c, _)| v[c] = true);
+                    v
+                })
+                .collect();
+            let a: Vec<Vec<f64>> = rows
+                .iter()
+                .map(|&r| {
+                    let mut v = vec![0.0; n];
+                    jac[r].iter().for_each(|&(c, x)| v[c] = x);
+                    v
+                })
+                .collect();
+            let b: Vec<f64> = rows.iter().map(|&r| res[r]).collect();
+            let dq = crate::emit::lu::solve(&s, &a, &b)?;
+            for (x, d) in q.iter_mut().zip(&dq) {
+                *x -= d;
             }
         }
-        crate::generic::independent_rows(&m).0.into_iter().collect()
+        None
+    }
+
+    /// The initial estimates of the reduced unknowns.
+    #[must_use]
+    pub fn initial_estimate(&self, mech: &Mechanism) -> Vec<f64> {
+        self.unknowns
+            .iter()
+            .map(|&(b, c)| {
+                let body = &mech.bodies[b.0];
+                if c < 3 { body.r[c] } else { body.p[c - 3] }
+            })
+            .collect()
     }
 
     /// The reduced unknowns taken from a full coordinate vector of the generic engine.
@@ -595,6 +668,55 @@ impl Symbolic {
             self.gamma.push(self.pool.neg(s));
         }
     }
+}
+
+/// A row whose part outside the span of the rows kept before it is below this fraction of its
+/// largest entry depends on them: an exact dependency leaves round-off (≈1e-16 relative, times
+/// the elimination's small growth), a genuine but poorly conditioned row far more (the same
+/// margin as the generic engine's `REDUNDANT_ROW_TOLERANCE`).
+const REDUNDANT_ROW_TOLERANCE: f64 = 1e-8;
+
+/// The rows of a sparse matrix with `n` columns (rows of `(column, value)`) that do not depend
+/// on the rows before them, greedily in row order: each row is reduced by the rows kept so far
+/// (row echelon form, each kept row pivoting on its largest remaining entry) and kept when
+/// something is left. In exact arithmetic this is the same set as Gram–Schmidt's, at the cost
+/// of the sparse elimination only.
+fn independent(rows: &[Vec<(usize, f64)>], n: usize) -> BTreeSet<usize> {
+    // Kept rows in echelon form: (pivot column, entries by column).
+    let mut basis: Vec<(usize, std::collections::BTreeMap<usize, f64>)> = Vec::new();
+    let mut pivot_of = vec![None; n];
+    let mut kept = BTreeSet::new();
+    for (k, row) in rows.iter().enumerate() {
+        let scale = row.iter().fold(0.0_f64, |m, &(_, x)| m.max(x.abs()));
+        let mut w: std::collections::BTreeMap<usize, f64> = row.iter().copied().collect();
+        // Reduce by the kept rows in the order they were kept: row b has no entry in the
+        // pivot columns of the rows kept before it, so each elimination is final.
+        let mut pending: BTreeSet<usize> = w.keys().filter_map(|&c| pivot_of[c]).collect();
+        while let Some(b) = pending.pop_first() {
+            let (pc, p) = &basis[b];
+            let Some(x) = w.remove(pc) else { continue };
+            if x == 0.0 {
+                continue;
+            }
+            let l = x / p[pc];
+            for (&c, &y) in p.iter().filter(|&(c, _)| c != pc) {
+                *w.entry(c).or_insert(0.0) -= l * y;
+                if let Some(o) = pivot_of[c] {
+                    pending.insert(o);
+                }
+            }
+        }
+        let (pc, big) = w.iter().fold((usize::MAX, 0.0_f64), |(bc, bv), (&c, &x)| {
+            if x.abs() > bv { (c, x.abs()) } else { (bc, bv) }
+        });
+        if scale > 0.0 && big > REDUNDANT_ROW_TOLERANCE * scale {
+            w.retain(|_, x| *x != 0.0);
+            pivot_of[pc] = Some(basis.len());
+            basis.push((pc, w));
+            kept.insert(k);
+        }
+    }
+    kept
 }
 
 /// The unknowns q_k an expression depends on, in increasing k.

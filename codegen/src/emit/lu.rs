@@ -19,8 +19,7 @@
 
 use syn::{Expr, Ident, parse_quote};
 
-use super::{Prec, binary, ident, index, literal_signed, neg, paren};
-use crate::generic::{Analysis, Equations};
+use super::{Prec, binary, ident, literal_signed, neg, paren};
 use crate::model::Mechanism;
 use crate::symbolic::Symbolic;
 
@@ -111,31 +110,37 @@ pub fn numeric(sys: &Symbolic, q: &[f64], t: f64) -> Vec<Vec<f64>> {
 
 /// The order Markowitz's rule with threshold pivoting picks for `a` (structure `s`), or `None`
 /// when some step finds no non-zero candidate (`a` is singular).
+///
+/// The active submatrix is kept as row and column lists of its structural non-zeros, so a
+/// step costs in proportion to them and not to n²: generation stays fast for hundreds of
+/// unknowns. The values are those dense elimination would compute, in the same operations.
 #[must_use]
 pub fn choose(s: &[Vec<bool>], a: &[Vec<f64>]) -> Option<Order> {
+    use std::collections::BTreeSet;
     let n = a.len();
     let mut s = s.to_vec();
     let mut v = a.to_vec();
-    let (mut row_done, mut col_done) = (vec![false; n], vec![false; n]);
+    // The structural non-zeros of the active submatrix, by row and by column.
+    let mut row_cols: Vec<BTreeSet<usize>> =
+        (0..n).map(|i| (0..n).filter(|&j| s[i][j]).collect()).collect();
+    let mut col_rows: Vec<BTreeSet<usize>> =
+        (0..n).map(|j| (0..n).filter(|&i| s[i][j]).collect()).collect();
+    let mut col_done = vec![false; n];
     let (mut rows, mut cols) = (Vec::with_capacity(n), Vec::with_capacity(n));
     for _ in 0..n {
-        let active = |done: &[bool]| (0..n).filter(|&k| !done[k]).collect::<Vec<_>>();
-        let (ar, ac) = (active(&row_done), active(&col_done));
-        let row_count: Vec<usize> =
-            (0..n).map(|i| ac.iter().filter(|&&j| s[i][j]).count()).collect();
         let mut best: Option<(usize, f64, usize, usize)> = None;
-        for &j in &ac {
-            let in_col: Vec<usize> = ar.iter().copied().filter(|&i| s[i][j]).collect();
+        for j in (0..n).filter(|&j| !col_done[j]) {
+            let in_col = &col_rows[j];
             let big = in_col.iter().map(|&i| v[i][j].abs()).fold(0.0, f64::max);
             if big == 0.0 || !big.is_finite() {
                 continue;
             }
-            for &i in &in_col {
+            for &i in in_col {
                 let m = v[i][j].abs();
                 if m < CHOICE_THRESHOLD * big {
                     continue;
                 }
-                let cost = (row_count[i] - 1) * (in_col.len() - 1);
+                let cost = (row_cols[i].len() - 1) * (in_col.len() - 1);
                 let ratio = m / big;
                 // Fewest fill-in first, then the largest entry relative to its column (the most
                 // margin along the motion), then the lowest column and row.
@@ -149,69 +154,235 @@ pub fn choose(s: &[Vec<bool>], a: &[Vec<f64>]) -> Option<Order> {
             }
         }
         let (_, _, pc, pr) = best?;
-        for &i in &ar {
-            if i == pr || !s[i][pc] {
-                continue;
-            }
+        let pivot_row: Vec<usize> = row_cols[pr].iter().copied().filter(|&j| j != pc).collect();
+        let below: Vec<usize> = col_rows[pc].iter().copied().filter(|&i| i != pr).collect();
+        for &i in &below {
             let l = v[i][pc] / v[pr][pc];
-            for &j in &ac {
-                if j != pc && s[pr][j] {
+            for &j in &pivot_row {
+                if !s[i][j] {
                     s[i][j] = true;
-                    v[i][j] -= l * v[pr][j];
+                    row_cols[i].insert(j);
+                    col_rows[j].insert(i);
                 }
+                v[i][j] -= l * v[pr][j];
             }
             v[i][pc] = l;
         }
-        row_done[pr] = true;
+        for &j in &row_cols[pr] {
+            col_rows[j].remove(&pr);
+        }
+        for &i in &col_rows[pc] {
+            row_cols[i].remove(&pc);
+        }
         col_done[pc] = true;
         rows.push(pr);
         cols.push(pc);
     }
-    let pattern = (0..n).map(|k| (0..n).filter(|&l| s[rows[k]][cols[l]]).collect()).collect();
+    let mut step_of_col = vec![0; n];
+    for (l, &c) in cols.iter().enumerate() {
+        step_of_col[c] = l;
+    }
+    let pattern = rows
+        .iter()
+        .map(|&r| {
+            let mut p: Vec<usize> = (0..n).filter(|&c| s[r][c]).map(|c| step_of_col[c]).collect();
+            p.sort_unstable();
+            p
+        })
+        .collect();
     Some(Order { rows, cols, pattern })
+}
+
+/// `a` factored with `order` in step coordinates (B = P a Q = L U, L below the diagonal with
+/// a unit diagonal, U on and above it), each row of B aligned with its pattern, and the largest
+/// |multiplier|; `None` when a pivot is zero or not finite.
+fn factor_in_order(order: &Order, a: &[Vec<f64>]) -> Option<(Vec<Vec<f64>>, f64)> {
+    let n = a.len();
+    let pattern = &order.pattern;
+    let mut b: Vec<Vec<f64>> = (0..n)
+        .map(|k| pattern[k].iter().map(|&l| a[order.rows[k]][order.cols[l]]).collect())
+        .collect();
+    let at = |k: usize, l: usize| pattern[k].binary_search(&l).expect("in the pattern");
+    // The steps i > k whose row has an entry in column k.
+    let mut below: Vec<Vec<usize>> = vec![Vec::new(); n];
+    for (i, p) in pattern.iter().enumerate() {
+        for &k in p.iter().filter(|&&k| k < i) {
+            below[k].push(i);
+        }
+    }
+    let mut worst = 0.0_f64;
+    for k in 0..n {
+        let dk = at(k, k);
+        let p = b[k][dk];
+        if p == 0.0 || !p.is_finite() {
+            return None;
+        }
+        for &i in &below[k] {
+            let ik = at(i, k);
+            let l = b[i][ik] / p;
+            worst = worst.max(l.abs());
+            for (pos, &j) in pattern[k].iter().enumerate().skip(dk + 1) {
+                let ij = at(i, j);
+                b[i][ij] -= l * b[k][pos];
+            }
+            b[i][ik] = l;
+        }
+    }
+    worst.is_finite().then_some((b, worst))
 }
 
 /// The largest |multiplier| when `a` is factored with `order`, or `None` when a pivot is zero
 /// or not finite.
 #[must_use]
 pub fn largest_multiplier(order: &Order, a: &[Vec<f64>]) -> Option<f64> {
-    let n = a.len();
-    let mut b: Vec<Vec<f64>> =
-        (0..n).map(|k| (0..n).map(|l| a[order.rows[k]][order.cols[l]]).collect()).collect();
-    let mut worst = 0.0_f64;
-    for k in 0..n {
-        let p = b[k][k];
-        if p == 0.0 || !p.is_finite() {
-            return None;
-        }
-        for i in k + 1..n {
-            if !order.pattern[i].contains(&k) {
-                continue;
-            }
-            let l = b[i][k] / p;
-            worst = worst.max(l.abs());
-            for &j in order.pattern[k].iter().filter(|&&j| j > k) {
-                b[i][j] -= l * b[k][j];
-            }
-            b[i][k] = l;
-        }
-    }
-    worst.is_finite().then_some(worst)
+    factor_in_order(order, a).map(|(_, worst)| worst)
 }
 
-/// The configurations (t, reduced q) the generic engine computes over the description's grid,
-/// or the assembled initial configuration when the analysis stops at once.
+/// Solves a x = b with the factors of `a` by `order` (see [`factor_in_order`]).
+fn solve_in_order(order: &Order, lu: &[Vec<f64>], b: &[f64]) -> Vec<f64> {
+    let n = b.len();
+    let mut y = vec![0.0; n];
+    for k in 0..n {
+        let mut v = b[order.rows[k]];
+        for (pos, &l) in order.pattern[k].iter().enumerate().take_while(|&(_, &l)| l < k) {
+            v -= lu[k][pos] * y[l];
+        }
+        y[k] = v;
+    }
+    let mut x = vec![0.0; n];
+    for k in (0..n).rev() {
+        let mut v = y[k];
+        let mut diagonal = 0.0;
+        for (pos, &l) in order.pattern[k].iter().enumerate().filter(|&(_, &l)| l >= k) {
+            if l == k {
+                diagonal = lu[k][pos];
+            } else {
+                v -= lu[k][pos] * y[l];
+            }
+        }
+        y[k] = v / diagonal;
+        x[order.cols[k]] = y[k];
+    }
+    x
+}
+
+/// Solves a x = b (structure `s`) with the order [`choose`] picks, or `None` when `a` is
+/// singular.
+#[must_use]
+pub fn solve(s: &[Vec<bool>], a: &[Vec<f64>], b: &[f64]) -> Option<Vec<f64>> {
+    let order = choose(s, a)?;
+    let (lu, _) = factor_in_order(&order, a)?;
+    Some(solve_in_order(&order, &lu, b))
+}
+
+/// Φ_q of the reduced system factored at one configuration, by the last order that passes
+/// the run-time guard there, or a new one chosen there.
+struct Sampler<'s> {
+    sys: &'s Symbolic,
+    structure: Vec<Vec<bool>>,
+    /// The orders chosen so far, the one last used first.
+    orders: Vec<Order>,
+}
+
+/// The generation-time solves accept a known order whose multipliers stay below this bound
+/// before choosing a new one (which costs far more): a growth of 1e4 costs at most four of the
+/// sixteen digits of a Newton correction, and Newton's next iteration corrects them.
+const SAMPLER_MAX_MULTIPLIER: f64 = 1e4;
+
+impl Sampler<'_> {
+    /// The factors of Φ_q(q, t), or `None` when it is singular.
+    fn factor(&mut self, q: &[f64], t: f64) -> Option<Vec<Vec<f64>>> {
+        let a = numeric(self.sys, q, t);
+        for k in 0..self.orders.len() {
+            if let Some((lu, worst)) = factor_in_order(&self.orders[k], &a)
+                && worst <= SAMPLER_MAX_MULTIPLIER
+            {
+                let o = self.orders.remove(k);
+                self.orders.insert(0, o);
+                return Some(lu);
+            }
+        }
+        let o = choose(&self.structure, &a)?;
+        let (lu, _) = factor_in_order(&o, &a)?;
+        self.orders.insert(0, o);
+        Some(lu)
+    }
+
+    fn solve(&self, lu: &[Vec<f64>], b: &[f64]) -> Vec<f64> {
+        solve_in_order(&self.orders[0], lu, b)
+    }
+
+    /// Newton–Raphson on the reduced system from `q` at `t`, then q̇ and q̈; `None` when it
+    /// does not converge.
+    fn step(
+        &mut self,
+        mut q: Vec<f64>,
+        t: f64,
+        tolerance: f64,
+        max_iterations: u32,
+    ) -> Option<[Vec<f64>; 3]> {
+        let pool = &self.sys.pool;
+        let mut normalised = false;
+        let mut iterations = 0;
+        loop {
+            let phi = pool.eval(&self.sys.phi, &q, &[], t);
+            let res = phi.iter().fold(0.0_f64, |m, x| m.max(x.abs()));
+            if !res.is_finite() {
+                return None;
+            }
+            if res <= tolerance {
+                if normalised {
+                    break;
+                }
+                self.sys.normalise(&mut q);
+                normalised = true;
+                continue;
+            }
+            if iterations >= max_iterations {
+                return None;
+            }
+            let lu = self.factor(&q, t)?;
+            let dq = self.solve(&lu, &phi);
+            for (x, d) in q.iter_mut().zip(&dq) {
+                *x -= d;
+            }
+            normalised = false;
+            iterations += 1;
+        }
+        let lu = self.factor(&q, t)?;
+        let qd = self.solve(&lu, &pool.eval(&self.sys.nu, &q, &[], t));
+        let qdd = self.solve(&lu, &pool.eval(&self.sys.gamma, &q, &qd, t));
+        [&q, &qd, &qdd].iter().all(|v| v.iter().all(|x| x.is_finite())).then_some([q, qd, qdd])
+    }
+}
+
+/// The configurations (t, reduced q) of the description's motion, solved on the reduced
+/// system (Newton–Raphson from a Taylor predictor, sparse LU with the static orders' own
+/// rules), up to the first point where Newton fails; the initial estimates when it fails at
+/// once.
 #[must_use]
 pub fn motion(mech: &Mechanism, sys: &Symbolic) -> Vec<(f64, Vec<f64>)> {
-    let eq = Equations::new(mech);
-    let prep = eq.prepare();
+    let q0 = sys.initial_estimate(mech);
+    let mut sampler = Sampler { sys, structure: structure(sys), orders: Vec::new() };
     let mut out = Vec::new();
-    let _ = Analysis::new(&eq, &prep).run(|f| {
-        out.push((f.t, sys.reduce(&eq, &f.q).as_slice().to_vec()));
-        Ok::<(), ()>(())
-    });
+    let mut prev: Option<(f64, [Vec<f64>; 3])> = None;
+    let (tolerance, max_iterations) = (mech.solver.tolerance, mech.solver.max_iterations);
+    for k in 0..mech.time.count {
+        let t = mech.time.at(k);
+        let guess = match &prev {
+            // Taylor predictor q + h q̇ + h²/2 q̈ from the previous time point.
+            Some((t0, [q, qd, qdd])) => {
+                let h = t - t0;
+                (0..q.len()).map(|i| q[i] + qd[i] * h + qdd[i] * (0.5 * h * h)).collect()
+            }
+            None => q0.clone(),
+        };
+        let Some(state) = sampler.step(guess, t, tolerance, max_iterations) else { break };
+        out.push((t, state[0].clone()));
+        prev = Some((t, state));
+    }
     if out.is_empty() {
-        out.push((mech.time.start, sys.reduce(&eq, &prep.q).as_slice().to_vec()));
+        out.push((mech.time.start, q0));
     }
     out
 }
@@ -239,8 +410,7 @@ pub fn plan(sys: &Symbolic, samples: &[(f64, Vec<f64>)]) -> Vec<Order> {
 
 /// `jac[r][c]` (or `lu[r][c]`).
 fn entry(array: &str, r: usize, c: usize) -> Expr {
-    let (a, r, c) = (ident(array), index(r), index(c));
-    parse_quote!(#a[#r][#c])
+    super::element(array, &[r, c])
 }
 
 /// The local holding entry (k, l) of L or U in step coordinates (the reciprocal of the pivot on
@@ -328,14 +498,20 @@ impl Val {
         }
     }
 
+    #[cfg(test)]
     fn sub(&self, other: &Val) -> Val {
+        self.clone().minus(other)
+    }
+
+    /// `self − other`, taking `self`: an accumulated sum is extended, not copied.
+    fn minus(self, other: &Val) -> Val {
         match (self, other) {
-            (Val::Const(a), Val::Const(b)) => Val::Const(a - b),
+            (Val::Const(a), Val::Const(b)) => Val::Const(a - *b),
             (a, b) if b.is_negation() => {
                 let b = b.negated();
                 Val::Run(
                     binary(
-                        a.expr(Prec::Sum),
+                        a.into_expr(Prec::Sum),
                         syn::BinOp::Add(Default::default()),
                         b.expr(Prec::Product),
                     ),
@@ -344,7 +520,7 @@ impl Val {
             }
             (a, b) => Val::Run(
                 binary(
-                    a.expr(Prec::Sum),
+                    a.into_expr(Prec::Sum),
                     syn::BinOp::Sub(Default::default()),
                     b.expr(Prec::Product),
                 ),
@@ -352,25 +528,81 @@ impl Val {
             ),
         }
     }
+
+    /// [`Val::expr`], taking `self`.
+    fn into_expr(self, at_least: Prec) -> Expr {
+        match self {
+            Val::Run(e, p) if p >= at_least => e,
+            Val::Run(e, _) => paren(e),
+            c @ Val::Const(_) => c.expr(at_least),
+        }
+    }
 }
 
-/// What the emitted factor does with entry (k, l) of L or U.
-struct Factored {
-    /// The value of every entry of the pattern, by step coordinates.
+/// The values of L and U by step coordinates, each row aligned with its pattern.
+struct Factored<'o> {
+    order: &'o Order,
     vals: Vec<Vec<Option<Val>>>,
 }
 
-/// The straight-line factor and solve functions of one order.
-pub struct Emitted {
-    /// `factor_k`.
-    pub factor: syn::Item,
-    /// `solve_k`.
-    pub solve: syn::Item,
+impl Factored<'_> {
+    fn slot(&self, k: usize, l: usize) -> usize {
+        self.order.pattern[k].binary_search(&l).expect("in the pattern")
+    }
+
+    fn get(&self, k: usize, l: usize) -> Option<&Val> {
+        self.order.pattern[k].binary_search(&l).ok().and_then(|p| self.vals[k][p].as_ref())
+    }
+
+    fn set(&mut self, k: usize, l: usize, v: Val) {
+        let p = self.slot(k, l);
+        self.vals[k][p] = Some(v);
+    }
+}
+
+/// The statements of one part of a factor function and the extremes of its pivots.
+#[derive(Default)]
+struct Part {
+    stmts: Vec<syn::Stmt>,
+    /// The extremes of the constant pivots.
+    known_pivots: Option<(f64, f64)>,
+    /// Where the first pivot computed at run time is, and its name.
+    first_run: Option<(usize, Expr)>,
+    run_pivots: usize,
+}
+
+impl Part {
+    /// The statements, ending with `Some(PivotInfo { … })`.
+    fn finish(mut self) -> Vec<syn::Stmt> {
+        if let Some((at, e)) = &self.first_run {
+            let mutable = if self.run_pivots > 1 { quote::quote!(mut) } else { quote::quote!() };
+            let (lo, hi) = match self.known_pivots {
+                Some((lo, hi)) => {
+                    let (lo, hi) = (literal_signed(lo), literal_signed(hi));
+                    (quote::quote!(#e.abs().min(#lo)), quote::quote!(#e.abs().max(#hi)))
+                }
+                None => (quote::quote!(#e.abs()), quote::quote!(#e.abs())),
+            };
+            self.stmts.insert(*at, parse_quote!(let #mutable largest = #hi;));
+            self.stmts.insert(*at, parse_quote!(let #mutable smallest = #lo;));
+        }
+        let extremes: Expr = match (self.run_pivots, self.known_pivots) {
+            (0, Some((lo, hi))) => {
+                let (lo, hi) = (literal_signed(lo), literal_signed(hi));
+                parse_quote!(runtime::lu::PivotInfo { smallest: #lo, largest: #hi })
+            }
+            _ => parse_quote!(runtime::lu::PivotInfo { smallest, largest }),
+        };
+        self.stmts.push(syn::Stmt::Expr(parse_quote!(Some(#extremes)), None));
+        self.stmts
+    }
 }
 
 /// Emits `factor_{which}` and `solve_{which}` for `order` (of at least one step) of the
 /// Jacobian with structure `s`, where `constant[i][j]` is the value of entry (i, j) when it does
-/// not depend on q or t.
+/// not depend on q or t. A factor or solve longer than [`super::CHUNK_OPS`] operations is split
+/// at step boundaries into `#[inline(never)]` helpers `factor_{which}_{part}` and
+/// `solve_{which}_{part}`, the values crossing a boundary read back from where they are stored.
 ///
 /// # Panics
 ///
@@ -382,7 +614,7 @@ pub fn emit(
     s: &[Vec<bool>],
     constant: &[Vec<Option<f64>>],
     which: usize,
-) -> Emitted {
+) -> Vec<syn::Item> {
     let n = order.rows.len();
     let original = |k: usize, l: usize| -> Option<Val> {
         let (r, c) = (order.rows[k], order.cols[l]);
@@ -391,36 +623,42 @@ pub fn emit(
             None => Val::Run(entry("jac", r, c), Prec::Atom),
         })
     };
-    let mut f = Factored { vals: vec![vec![None; n]; n] };
-    let mut stmts: Vec<syn::Stmt> = Vec::new();
+    // The steps i > k whose row has an entry in column k.
+    let mut below: Vec<Vec<usize>> = vec![Vec::new(); n];
+    for (i, p) in order.pattern.iter().enumerate() {
+        for &k in p.iter().filter(|&&k| k < i) {
+            below[k].push(i);
+        }
+    }
+    let mut f =
+        Factored { order, vals: order.pattern.iter().map(|p| vec![None; p.len()]).collect() };
     let mut fill = 0usize;
     // a_kl − Σ_m l_km u_ml over the m < min(k, l) where both are non-zero, in ascending m (the
-    // order in which right-looking elimination applies the updates).
-    // Entries whose value is that of Φ_q at the same place: `jac` holds them already.
-    let mut kept = vec![vec![false; n]; n];
-    let mut eliminated = |f: &Factored, kept: &mut Vec<Vec<bool>>, k: usize, l: usize| -> Val {
+    // order in which right-looking elimination applies the updates), and whether the value is
+    // that of Φ_q at the same place (`jac` holds it already).
+    let mut eliminated = |f: &Factored<'_>, k: usize, l: usize| -> (Val, bool) {
         let mut acc = original(k, l);
         fill += usize::from(acc.is_none());
-        kept[k][l] = true;
-        for &m in order.pattern[k].iter().filter(|&&m| m < k.min(l)) {
-            let (Some(lkm), Some(uml)) = (&f.vals[k][m], &f.vals[m][l]) else { continue };
+        let mut kept = true;
+        for &m in order.pattern[k].iter().take_while(|&&m| m < k.min(l)) {
+            let (Some(lkm), Some(uml)) = (f.get(k, m), f.get(m, l)) else { continue };
             let term = lkm.mul(uml);
-            kept[k][l] = false;
+            kept = false;
             acc = Some(match acc {
                 // A fill-in entry starts at 0, and 0 − x = −x exactly.
                 None => term.negated(),
-                Some(a) => a.sub(&term),
+                Some(a) => a.minus(&term),
             });
         }
-        acc.expect("an entry of the pattern is original or filled")
+        (acc.expect("an entry of the pattern is original or filled"), kept)
     };
     let bind = |stmts: &mut Vec<syn::Stmt>, name: Ident, v: Val| -> Val {
         match v {
             Val::Const(_) => v,
             Val::Run(..) => {
                 let e = v.expr(Prec::Sum);
-                stmts.push(parse_quote!(let #name = #e;));
-                Val::Run(parse_quote!(#name), Prec::Atom)
+                stmts.push(super::let_stmt(name.clone(), e));
+                Val::Run(super::path(name), Prec::Atom)
             }
         }
     };
@@ -431,33 +669,36 @@ pub fn emit(
     let mut store = |stmts: &mut Vec<syn::Stmt>, k: usize, l: usize, v: &Val| {
         if let Val::Run(e, _) = v {
             let target = entry("jac", order.rows[k], order.cols[l]);
-            stmts.push(parse_quote!(#target = #e;));
+            stmts.push(super::assign(target, e.clone()));
             stored += 1;
         }
     };
-    // The extremes of |pivot|: the constant pivots folded into one pair, the others
-    // accumulated as they come (the first one declares the accumulators, at `first_run`).
-    let mut known_pivots: Option<(f64, f64)> = None;
-    let mut first_run: Option<(usize, Expr)> = None;
-    let mut run_pivots = 0usize;
-    for k in 0..n {
+    let mut parts: Vec<Vec<syn::Stmt>> = Vec::new();
+    let mut part = Part::default();
+    let mut part_ops = 0usize;
+    let mut total_ops = 0usize;
+    // The entries computed at run time so far, read back from `jac` after a boundary.
+    let mut run_entries: Vec<(usize, usize)> = Vec::new();
+    for (k, below_k) in below.iter().enumerate() {
+        let first = part.stmts.len();
         // Row k of U (right of the pivot), then the pivot, then column k of L: every entry
         // read has been computed at an earlier step.
         for &l in order.pattern[k].iter().filter(|&&l| l > k) {
-            let v = eliminated(&f, &mut kept, k, l);
+            let (v, kept) = eliminated(&f, k, l);
             // An entry read unchanged is read where it is used (and not stored).
-            let v = if kept[k][l] {
+            let v = if kept {
                 v
             } else {
-                let v = bind(&mut stmts, local(k, l), v);
-                store(&mut stmts, k, l, &v);
+                let v = bind(&mut part.stmts, local(k, l), v);
+                store(&mut part.stmts, k, l, &v);
                 v
             };
-            f.vals[k][l] = Some(v);
+            if matches!(v, Val::Run(..)) {
+                run_entries.push((k, l));
+            }
+            f.set(k, l, v);
         }
-        let p = eliminated(&f, &mut kept, k, k);
-        // The diagonal holds the reciprocal of the pivot.
-        kept[k][k] = false;
+        let (p, _) = eliminated(&f, k, k);
         let mut checks: Vec<Expr> = Vec::new();
         let d = match &p {
             Val::Const(c) => {
@@ -466,23 +707,25 @@ pub fn emit(
             }
             Val::Run(..) => {
                 let pn = ident(&format!("p{k}"));
-                let pivot = bind(&mut stmts, pn.clone(), p.clone());
+                let pivot = bind(&mut part.stmts, pn.clone(), p.clone());
                 checks.push(parse_quote!(#pn.is_finite()));
-                let d = bind(&mut stmts, local(k, k), Val::Const(1.0).div(&pivot));
-                store(&mut stmts, k, k, &d);
+                // The diagonal holds the reciprocal of the pivot.
+                let d = bind(&mut part.stmts, local(k, k), Val::Const(1.0).div(&pivot));
+                store(&mut part.stmts, k, k, &d);
+                run_entries.push((k, k));
                 d
             }
         };
-        f.vals[k][k] = Some(d.clone());
-        for i in (k + 1..n).filter(|&i| order.pattern[i].contains(&k)) {
-            let v = eliminated(&f, &mut kept, i, k);
-            kept[i][k] &= matches!(d, Val::Const(c) if c == 1.0);
+        f.set(k, k, d.clone());
+        for &i in below_k {
+            let (v, kept) = eliminated(&f, i, k);
+            let kept = kept && matches!(d, Val::Const(c) if c == 1.0);
             let v = v.mul(&d);
-            let v = if kept[i][k] {
+            let v = if kept {
                 v
             } else {
-                let v = bind(&mut stmts, local(i, k), v);
-                store(&mut stmts, i, k, &v);
+                let v = bind(&mut part.stmts, local(i, k), v);
+                store(&mut part.stmts, i, k, &v);
                 v
             };
             match &v {
@@ -491,16 +734,17 @@ pub fn emit(
                     "constant multiplier {c} in order {which}"
                 ),
                 Val::Run(e, _) => {
-                    checks.push(parse_quote!(#e.abs() <= runtime::lu::MAX_MULTIPLIER))
+                    checks.push(parse_quote!(#e.abs() <= runtime::lu::MAX_MULTIPLIER));
+                    run_entries.push((i, k));
                 }
             }
-            f.vals[i][k] = Some(v);
+            f.set(i, k, v);
         }
         if let Some(ok) =
             checks.into_iter().reduce(|a, b| binary(a, syn::BinOp::And(Default::default()), b))
         {
             let ok = if matches!(ok, Expr::Binary(_)) { paren(ok) } else { ok };
-            stmts.push(parse_quote! {
+            part.stmts.push(parse_quote! {
                 if !#ok {
                     return None;
                 }
@@ -509,110 +753,215 @@ pub fn emit(
         match &p {
             Val::Const(c) => {
                 let c = c.abs();
-                known_pivots = Some(known_pivots.map_or((c, c), |(lo, hi)| (lo.min(c), hi.max(c))));
+                part.known_pivots =
+                    Some(part.known_pivots.map_or((c, c), |(lo, hi)| (lo.min(c), hi.max(c))));
             }
             Val::Run(..) => {
                 let pn = ident(&format!("p{k}"));
-                run_pivots += 1;
-                if first_run.is_none() {
-                    first_run = Some((stmts.len(), parse_quote!(#pn)));
+                part.run_pivots += 1;
+                if part.first_run.is_none() {
+                    part.first_run = Some((part.stmts.len(), parse_quote!(#pn)));
                 } else {
-                    stmts.push(parse_quote!(smallest = smallest.min(#pn.abs());));
-                    stmts.push(parse_quote!(largest = largest.max(#pn.abs());));
+                    part.stmts.push(parse_quote!(smallest = smallest.min(#pn.abs());));
+                    part.stmts.push(parse_quote!(largest = largest.max(#pn.abs());));
                 }
             }
         }
-    }
-    if let Some((at, e)) = &first_run {
-        let mutable = if run_pivots > 1 { quote::quote!(mut) } else { quote::quote!() };
-        let (lo, hi) = match known_pivots {
-            Some((lo, hi)) => {
-                let (lo, hi) = (literal_signed(lo), literal_signed(hi));
-                (quote::quote!(#e.abs().min(#lo)), quote::quote!(#e.abs().max(#hi)))
+        let ops = operations(&part.stmts[first..]);
+        part_ops += ops;
+        total_ops += ops;
+        if part_ops > super::CHUNK_OPS && k + 1 < n {
+            // A new part reads the values of this one where they are stored.
+            parts.push(std::mem::take(&mut part).finish());
+            part_ops = 0;
+            for &(a, b) in &run_entries {
+                let p = f.slot(a, b);
+                f.vals[a][p] =
+                    Some(Val::Run(entry("jac", order.rows[a], order.cols[b]), Prec::Atom));
             }
-            None => (quote::quote!(#e.abs()), quote::quote!(#e.abs())),
-        };
-        stmts.insert(*at, parse_quote!(let #mutable largest = #hi;));
-        stmts.insert(*at, parse_quote!(let #mutable smallest = #lo;));
-    }
-    let extremes: Expr = match (run_pivots, known_pivots) {
-        (0, Some((lo, hi))) => {
-            let (lo, hi) = (literal_signed(lo), literal_signed(hi));
-            parse_quote!(runtime::lu::PivotInfo { smallest: #lo, largest: #hi })
         }
-        _ => parse_quote!(runtime::lu::PivotInfo { smallest, largest }),
-    };
+    }
+    parts.push(part.finish());
     let name = ident(&format!("factor_{which}"));
-    let ops = operations(&stmts);
     let nnz = order.entries();
     let run_time = f.vals.iter().flatten().filter(|v| matches!(v, Some(Val::Run(..)))).count();
     let stored = stored;
     let known = nnz - run_time;
     let rows = list(&order.rows);
     let cols = list(&order.cols);
-    let doc = format!(
-        " Factors Φ_q in place with static pivot order {which}: step k pivots on row `[{rows}][k]` and column `[{cols}][k]`.\n\n L and U have {nnz} entries ({fill} of them fill-in, {} known when generated); {ops} operations. The others are in `jac`: {stored} stored there, with the reciprocals of the pivots on the diagonal, and {} left as Φ_q had them.\n\n Returns the smallest and largest |pivot|, or `None` when a pivot is not finite or a multiplier exceeds [`runtime::lu::MAX_MULTIPLIER`] in magnitude; `jac` is then partly factored and must be evaluated again.",
-        known,
+    let mut doc = format!(
+        " Factors Φ_q in place with static pivot order {which}: step k pivots on row `[{rows}][k]` and column `[{cols}][k]`.\n\n L and U have {nnz} entries ({fill} of them fill-in, {known} known when generated); {total_ops} operations. The others are in `jac`: {stored} stored there, with the reciprocals of the pivots on the diagonal, and {} left as Φ_q had them.\n\n Returns the smallest and largest |pivot|, or `None` when a pivot is not finite or a multiplier exceeds [`runtime::lu::MAX_MULTIPLIER`] in magnitude; `jac` is then partly factored and must be evaluated again.",
         run_time - stored
     );
-    let factor: syn::Item = parse_quote! {
-        #[doc = #doc]
-        #[must_use]
-        pub fn #name(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
-            #(#stmts)*
-            Some(#extremes)
+    let mut items = Vec::new();
+    if parts.len() == 1 {
+        let item: syn::ItemFn = parse_quote! {
+            #[doc = #doc]
+            #[must_use]
+            pub fn #name(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {}
+        };
+        items.push(super::item_fn(item, parts.pop().expect("one part")));
+    } else {
+        doc.push_str(&format!(
+            "\n\n Split into {} functions of at most about {} operations each.",
+            parts.len(),
+            super::CHUNK_OPS
+        ));
+        let mut calls: Vec<syn::Stmt> = Vec::new();
+        let names: Vec<Ident> = (0..parts.len()).map(|c| ident(&format!("p{c}"))).collect();
+        for (c, stmts) in parts.into_iter().enumerate() {
+            let helper = ident(&format!("factor_{which}_{c}"));
+            let doc = format!(" Steps of part {c} of [`factor_{which}`].");
+            let item: syn::ItemFn = parse_quote! {
+                #[doc = #doc]
+                #[inline(never)]
+                fn #helper(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {}
+            };
+            items.push(super::item_fn(item, stmts));
+            let p = &names[c];
+            calls.push(parse_quote!(let #p = #helper(jac)?;));
         }
-    };
+        let (first, rest) = names.split_first().expect("several parts");
+        let smallest = rest
+            .iter()
+            .fold(quote::quote!(#first.smallest), |a, p| quote::quote!(#a.min(#p.smallest)));
+        let largest = rest
+            .iter()
+            .fold(quote::quote!(#first.largest), |a, p| quote::quote!(#a.max(#p.largest)));
+        calls.push(syn::Stmt::Expr(
+            parse_quote!(Some(runtime::lu::PivotInfo { smallest: #smallest, largest: #largest })),
+            None,
+        ));
+        let item: syn::ItemFn = parse_quote! {
+            #[doc = #doc]
+            #[must_use]
+            pub fn #name(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {}
+        };
+        items.insert(0, super::item_fn(item, calls));
+    }
+    items.extend(emit_solve(&f, which));
+    items
+}
 
-    // Solve: y = L⁻¹ P b, then x = Q U⁻¹ y, with the factors known when generated as literals.
+/// `solve_{which}` for the factors `f`: y = L⁻¹ P b, then x = Q U⁻¹ y, with the factors known
+/// when generated as literals; split into helpers sharing a scratch array when long.
+fn emit_solve(f: &Factored<'_>, which: usize) -> Vec<syn::Item> {
+    let order = f.order;
+    let n = order.rows.len();
     let stored_val = |k: usize, l: usize| -> Val {
-        match f.vals[k][l].as_ref().expect("in the pattern") {
+        match f.get(k, l).expect("in the pattern") {
             Val::Const(c) => Val::Const(*c),
             Val::Run(..) => Val::Run(entry("lu", order.rows[k], order.cols[l]), Prec::Atom),
         }
     };
-    let mut stmts: Vec<syn::Stmt> = Vec::new();
-    let named = |prefix: &str, k: usize| {
-        let name = ident(&format!("{prefix}{k}"));
-        Val::Run(parse_quote!(#name), Prec::Atom)
+    // The statements of each step (forward, backward, then the writes) and whether they use
+    // `b`, with y_k and x_k in locals, or in `y[k]` when `split`.
+    let steps = |split: bool| -> Vec<(Vec<syn::Stmt>, bool)> {
+        let named = |prefix: &str, k: usize| -> Val {
+            if split {
+                Val::Run(super::element("y", &[k]), Prec::Atom)
+            } else {
+                Val::Run(super::path(ident(&format!("{prefix}{k}"))), Prec::Atom)
+            }
+        };
+        let define = |prefix: &str, k: usize, e: Expr| -> syn::Stmt {
+            if split {
+                super::assign(super::element("y", &[k]), e)
+            } else {
+                super::let_stmt(ident(&format!("{prefix}{k}")), e)
+            }
+        };
+        let mut out = Vec::with_capacity(2 * n + 1);
+        for k in 0..n {
+            let mut v = Val::Run(super::element("b", &[order.rows[k]]), Prec::Atom);
+            for &l in order.pattern[k].iter().filter(|&&l| l < k) {
+                v = v.minus(&stored_val(k, l).mul(&named("y", l)));
+            }
+            out.push((vec![define("y", k, v.into_expr(Prec::Sum))], true));
+        }
+        for k in (0..n).rev() {
+            let mut v = named("y", k);
+            for &l in order.pattern[k].iter().filter(|&&l| l > k) {
+                v = v.minus(&stored_val(k, l).mul(&named("x", l)));
+            }
+            let v = v.mul(&stored_val(k, k));
+            out.push((vec![define("x", k, v.into_expr(Prec::Sum))], false));
+        }
+        out.push((
+            (0..n)
+                .map(|k| {
+                    let x = named("x", k).expr(Prec::Atom);
+                    super::assign(super::element("b", &[order.cols[k]]), x)
+                })
+                .collect(),
+            true,
+        ));
+        out
     };
-    for k in 0..n {
-        let r = index(order.rows[k]);
-        let mut v = Val::Run(parse_quote!(b[#r]), Prec::Atom);
-        for &l in order.pattern[k].iter().filter(|&&l| l < k) {
-            v = v.sub(&stored_val(k, l).mul(&named("y", l)));
-        }
-        let y = ident(&format!("y{k}"));
-        let e = v.expr(Prec::Sum);
-        stmts.push(parse_quote!(let #y = #e;));
-    }
-    for k in (0..n).rev() {
-        let mut v = named("y", k);
-        for &l in order.pattern[k].iter().filter(|&&l| l > k) {
-            v = v.sub(&stored_val(k, l).mul(&named("x", l)));
-        }
-        let v = v.mul(&stored_val(k, k));
-        let x = ident(&format!("x{k}"));
-        let e = v.expr(Prec::Sum);
-        stmts.push(parse_quote!(let #x = #e;));
-    }
-    for k in 0..n {
-        let x = ident(&format!("x{k}"));
-        let c = index(order.cols[k]);
-        stmts.push(parse_quote!(b[#c] = #x;));
-    }
     let name = ident(&format!("solve_{which}"));
-    let ops = operations(&stmts);
+    let split = steps(true);
+    let counts: Vec<usize> =
+        split.iter().map(|(s, _)| s.iter().map(assigned_operations).sum()).collect();
+    let ops: usize = counts.iter().sum();
     let doc = format!(
         " Solves Φ_q x = b in place with the factors [`factor_{which}`] left in `lu`.\n\n {ops} operations."
     );
-    let solve: syn::Item = parse_quote! {
-        #[doc = #doc]
-        pub fn #name(lu: &[[f64; N]; N], b: &mut [f64; N]) {
-            #(#stmts)*
+    if ops <= super::CHUNK_OPS {
+        let item: syn::ItemFn = parse_quote! {
+            #[doc = #doc]
+            pub fn #name(lu: &[[f64; N]; N], b: &mut [f64; N]) {}
+        };
+        let unsplit = steps(false).into_iter().flat_map(|(s, _)| s).collect();
+        return vec![super::item_fn(item, unsplit)];
+    }
+    let mut parts: Vec<(Vec<syn::Stmt>, bool)> = vec![(Vec::new(), false)];
+    let mut part_ops = 0;
+    for ((step, uses_b), ops) in split.into_iter().zip(counts) {
+        if part_ops + ops > super::CHUNK_OPS && !parts.last().expect("one").0.is_empty() {
+            parts.push((Vec::new(), false));
+            part_ops = 0;
         }
+        part_ops += ops;
+        let last = parts.last_mut().expect("one");
+        last.0.extend(step);
+        last.1 |= uses_b;
+    }
+    let mut items = Vec::new();
+    let mut calls: Vec<syn::Stmt> = vec![parse_quote!(let mut y = [0.0; N];)];
+    let count = parts.len();
+    for (c, (stmts, uses_b)) in parts.into_iter().enumerate() {
+        let helper = ident(&format!("solve_{which}_{c}"));
+        let doc = format!(" Part {c} of [`solve_{which}`], with y_k and then x_k in `y[k]`.");
+        let b = if uses_b { ident("b") } else { ident("_b") };
+        let item: syn::ItemFn = parse_quote! {
+            #[doc = #doc]
+            #[inline(never)]
+            fn #helper(lu: &[[f64; N]; N], #b: &mut [f64; N], y: &mut [f64; N]) {}
+        };
+        items.push(super::item_fn(item, stmts));
+        calls.push(parse_quote!(#helper(lu, b, &mut y);));
+    }
+    let doc = format!(
+        "{doc}\n\n Split into {count} functions of at most about {} operations each.",
+        super::CHUNK_OPS
+    );
+    let item: syn::ItemFn = parse_quote! {
+        #[doc = #doc]
+        pub fn #name(lu: &[[f64; N]; N], b: &mut [f64; N]) {}
     };
-    Emitted { factor, solve }
+    items.insert(0, super::item_fn(item, calls));
+    items
+}
+
+/// The arithmetic operations of an assignment `target = value;`.
+fn assigned_operations(s: &syn::Stmt) -> usize {
+    match s {
+        syn::Stmt::Expr(Expr::Assign(a), _) => {
+            let l = super::let_stmt(ident("v"), (*a.right).clone());
+            operations(std::slice::from_ref(&l))
+        }
+        _ => operations(std::slice::from_ref(s)),
+    }
 }
 
 /// The arithmetic operations (+, −, ×, ÷ and negation) in the `let` statements of `stmts`.

@@ -24,3 +24,53 @@ fn literals_round_trip_and_avoid_approx_constant() {
     assert_eq!(show(near_pi), format!("f64 :: from_bits ({})", near_pi.to_bits()));
     assert_eq!(show(0.06567), "0.06567");
 }
+
+/// Binary arithmetic operators in a piece of emitted (prettyplease-printed) code.
+fn binary_operations(code: &str) -> usize {
+    [" + ", " - ", " * ", " / "].iter().map(|op| code.matches(op).count()).sum()
+}
+
+/// The top-level functions of an emitted module: (name, text).
+fn functions(module: &str) -> Vec<(String, String)> {
+    let mut out = Vec::new();
+    let mut current: Option<(String, String)> = None;
+    for line in module.lines() {
+        if let Some(rest) = line.strip_prefix("pub fn ").or_else(|| line.strip_prefix("fn ")) {
+            let name = rest.split('(').next().unwrap_or_default().to_owned();
+            current = Some((name, String::new()));
+        }
+        if let Some((_, text)) = &mut current {
+            text.push_str(line);
+            text.push('\n');
+            if line == "}" {
+                out.extend(current.take());
+            }
+        }
+    }
+    out
+}
+
+#[test]
+fn large_mechanisms_are_emitted_as_bounded_functions() {
+    let text = crate::scale::chain(30, 2);
+    let mech =
+        crate::validate::load_str(&text, crate::validate::Format::Toml, None).unwrap().mechanism;
+    let sys = crate::symbolic::Symbolic::build(&mech).unwrap();
+    let module = super::module(&mech, &sys, "a test");
+    let functions = functions(&module);
+    // Without splitting, Φ and Φ_q together take far more than the bound.
+    let total: usize = functions
+        .iter()
+        .filter(|(name, _)| name.starts_with("residual_jacobian_"))
+        .map(|(_, code)| binary_operations(code))
+        .sum();
+    assert!(total > 4 * super::CHUNK_OPS, "{total}");
+    // A part closes after the output or LU step that crosses CHUNK_OPS, and no single output
+    // or step of a chain takes more than CHUNK_OPS operations: no function exceeds twice it.
+    for (name, code) in &functions {
+        let ops = binary_operations(code);
+        assert!(ops <= 2 * super::CHUNK_OPS, "{name} has {ops} operations");
+    }
+    let helpers = module.matches("#[inline(never)]").count();
+    assert!(helpers >= 10, "{helpers} helpers");
+}

@@ -38,7 +38,6 @@ use crate::model::{
 };
 use kin::{BodyState, Sk, Vk};
 
-pub(crate) use solve::independent_rows;
 pub use solve::{Analysis, Failure, FailureKind, Frame, Preparation, StepReport};
 
 /// The entity an equation belongs to, for labels and error reports.
