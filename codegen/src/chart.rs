@@ -126,7 +126,8 @@ pub fn measure(mech: &Mechanism, repeats: usize) -> Result<(Vec<Mark>, Vec<Strin
         for &(name, settings) in series {
             for &tolerance in tolerances {
                 let mut frames = Vec::new();
-                let run = crate::engine::run_with(&built, Some(tolerance), settings, |f| {
+                let namer = Analysis::new(&eq, &prep);
+                let run = crate::engine::run_with(&built, &namer, Some(tolerance), settings, |f| {
                     frames.push(f.clone());
                     Ok(())
                 });

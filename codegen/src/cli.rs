@@ -454,13 +454,13 @@ fn solve(
     let layout = report::layout(mech);
     let name = if built.is_some() { "generated" } else { "generic" };
     let mut writer = Writer::begin(sink, fmt, mech, name)?;
+    let analysis = Analysis::new(&eq, &prep);
     let failure = match &built {
         None => {
-            let analysis = Analysis::new(&eq, &prep);
             analysis.run(|frame| writer.step(&report::step_result(mech, &layout, frame)))?.failure
         }
         Some(b) => {
-            match crate::engine::run(b, None, |frame| {
+            match crate::engine::run(b, &analysis, None, |frame| {
                 writer.step(&report::step_result(mech, &layout, frame))
             }) {
                 Ok(r) => r.failure,
@@ -709,7 +709,7 @@ fn compare(
         Err(d) => return Ok(report_invalid(&[*d], json, out, err)),
     };
     let mut generated = Vec::new();
-    let r = crate::engine::run(&built, None, |f| {
+    let r = crate::engine::run(&built, &Analysis::new(&eq, &prep), None, |f| {
         generated.push(report::step_result(mech, &layout, f));
         Ok(())
     });

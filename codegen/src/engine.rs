@@ -4,7 +4,9 @@
 //!
 //! The built program prints one line per time point: `step t iterations residual` followed
 //! by q, q̇ and q̈ of every moving body (7 each, body by body) in shortest round-trip form,
-//! or `error kind t message` when the analysis stops. In `bench` mode it times whole passes
+//! or, when the analysis stops, `near t q…` (the configuration closest to the failure, if
+//! any) and `error kind t body message`. Run mode takes each step under the step control of
+//! [`crate::stepping`], compiled into the program. In `bench` mode it times whole passes
 //! over the grid and prints `bench min_ns median_ns iterations_per_step`.
 
 use std::hash::{DefaultHasher, Hash, Hasher};
@@ -15,8 +17,9 @@ use std::process::{Command, Stdio};
 use nalgebra::DVector;
 
 use crate::emit::{self, Scalar};
-use crate::generic::{Failure, FailureKind, Frame};
+use crate::generic::{Analysis, Failure, FailureKind, Frame};
 use crate::model::Mechanism;
+use crate::stepping::{Point, Stop, Trouble};
 use crate::symbolic::Symbolic;
 
 /// The driver program compiled with each generated module.
@@ -25,10 +28,12 @@ const DRIVER: &str = r#"//! Runs one generated mechanism over its time grid (wri
 //! Usage: `run|bench [tolerance] [repeats] [no-predictor] [dense]`.
 
 mod mechanism;
+mod stepping;
 
 use std::io::Write;
 
 use runtime::{Mechanism, NewtonError, NewtonOptions, Solver};
+use stepping::{Point, Rejection, Trouble};
 
 /// The floating-point type the module was generated in.
 type Real = __REAL__;
@@ -123,39 +128,131 @@ fn drive<M: Mechanism<N, Real>>(m: M, mode: &str, tolerance: Real, repeats: usiz
         );
         return;
     }
-    let mut full = [[[0.0; 7]; 3]; mechanism::BODIES];
+    let mut engine = Engine {
+        solver,
+        dense: jacobian(),
+        perm: [0; N],
+        full: Box::new([[[0.0; 7]; 3]; mechanism::BODIES]),
+        accepted: None,
+        moved: false,
+    };
+    let mut last: Option<Point> = None;
     for k in 0..mechanism::T_COUNT {
         let t = mechanism::T_START + k as Real * mechanism::T_STEP;
-        let report = match solver.position(t) {
-            Ok(r) => r,
-            Err(e) => {
-                let kind = match e {
-                    NewtonError::Singular { .. } => "singular",
-                    _ => "no_convergence",
-                };
-                let _ = writeln!(out, "error {kind} {:?} {e}", f64::from(t));
+        let outcome = match &last {
+            None => stepping::first(&mut engine, f64::from(t)).map(|p| {
+                let n = p.iterations;
+                (p, n)
+            }),
+            Some(a) => stepping::advance(&mut engine, a, f64::from(t)),
+        };
+        match outcome {
+            Ok((p, iterations)) => {
+                let _ = write!(out, "step {:?} {iterations} {:?}", f64::from(t), p.residual);
+                for v in [&p.q, &p.qd, &p.qdd] {
+                    for x in v {
+                        let _ = write!(out, " {x:?}");
+                    }
+                }
+                let _ = writeln!(out);
+                last = Some(p);
+            }
+            Err(stop) => {
+                if let Some(p) = &stop.near {
+                    let _ = write!(out, "near {:?}", p.t);
+                    for x in &p.q {
+                        let _ = write!(out, " {x:?}");
+                    }
+                    let _ = writeln!(out);
+                }
+                let body = stop.body.map_or_else(|| "-".to_owned(), |b| b.to_string());
+                let message = stop.message.replace('\n', " ");
+                let _ = writeln!(out, "error {} {:?} {body} {message}", stop.trouble.as_str(), stop.t);
                 let _ = out.flush();
                 std::process::exit(2);
             }
+        }
+    }
+}
+
+/// The Jacobian of `N` rows, on the heap: large mechanisms would overflow the stack.
+type Jacobian = Box<[[Real; N]; N]>;
+
+fn jacobian() -> Jacobian {
+    match vec![[0.0; N]; N].into_boxed_slice().try_into() {
+        Ok(b) => b,
+        Err(_) => unreachable!("the vector has N rows"),
+    }
+}
+
+/// The generated solver under the step control of `stepping`.
+struct Engine<M> {
+    solver: Solver<M, N, Real, Jacobian>,
+    /// Φ_q at the last result, factored for its pivot ratio.
+    dense: Jacobian,
+    perm: [usize; N],
+    full: Box<[[[Real; 7]; 3]; mechanism::BODIES]>,
+    /// The last accepted (t, reduced q).
+    accepted: Option<(Real, [Real; N])>,
+    /// The solver holds a result that was not accepted yet.
+    moved: bool,
+}
+
+impl<M: Mechanism<N, Real>> stepping::Engine for Engine<M> {
+    fn attempt(&mut self, t: f64) -> Result<Point, Rejection> {
+        let reject = |trouble, message: String| Rejection { trouble, message, point: None, body: None };
+        let t = t as Real;
+        let report = self.solver.position(t).map_err(|e| {
+            let trouble = match e {
+                NewtonError::Singular { .. } => Trouble::Singular,
+                _ => Trouble::NoConvergence,
+            };
+            reject(trouble, e.to_string())
+        })?;
+        self.moved = true;
+        self.solver
+            .velocity()
+            .and_then(|()| self.solver.acceleration())
+            .map_err(|e| reject(Trouble::Singular, format!("velocities or accelerations: {e}")))?;
+        self.solver.mechanism().jacobian(self.solver.q(), t, &mut self.dense);
+        let pivot_ratio = match runtime::lu::factor_with_ratio(&mut self.dense, &mut self.perm, 0.0) {
+            Ok(p) => f64::from(p.smallest) / f64::from(p.largest),
+            Err(runtime::lu::Singular::SmallPivot { pivot, largest, .. }) => f64::from(pivot) / f64::from(largest),
+            Err(_) => f64::NAN,
         };
-        if let Err(e) = solver.velocity().and_then(|()| solver.acceleration()) {
-            let _ = writeln!(out, "error singular {:?} {e}", f64::from(t));
-            let _ = out.flush();
-            std::process::exit(2);
+        mechanism::expand(self.solver.q(), self.solver.qd(), self.solver.qdd(), t, &mut self.full);
+        let flat = |d: usize| self.full.iter().flat_map(|b| b[d]).map(f64::from).collect::<Vec<f64>>();
+        Ok(Point {
+            t: f64::from(t),
+            q: flat(0),
+            qd: flat(1),
+            qdd: flat(2),
+            iterations: report.iterations,
+            residual: f64::from(report.residual),
+            pivot_ratio,
+        })
+    }
+
+    fn accept(&mut self, p: &Point) {
+        if self.moved && f64::from(self.solver.t()) == p.t {
+            self.accepted = Some((self.solver.t(), *self.solver.q()));
+        } else if let Some((t, q)) = self.accepted {
+            // Back to the accepted point: Newton converges at once from it.
+            self.solver.set_q(q);
+            let _ = self.solver.position(t);
+            let _ = self.solver.velocity().and_then(|()| self.solver.acceleration());
         }
-        mechanism::expand(solver.q(), solver.qd(), solver.qdd(), t, &mut full);
-        let _ = write!(out, "step {:?} {} {:?}", f64::from(t), report.iterations, f64::from(report.residual));
-        for d in 0..3 {
-            for body in &full {
-                for &x in &body[d] {
-                    let _ = write!(out, " {:?}", f64::from(x));
-                }
-            }
-        }
-        let _ = writeln!(out);
+        self.moved = false;
+    }
+
+    fn epsilon(&self) -> f64 {
+        f64::from(Real::EPSILON)
     }
 }
 "#;
+
+/// The step control, compiled into the driver as its module `stepping`.
+const STEPPING: &str = include_str!("stepping.rs");
 
 /// Why the generated engine could not run.
 #[derive(Debug)]
@@ -187,6 +284,8 @@ pub struct Built {
     pub binary: PathBuf,
     /// Size of the reduced system.
     pub unknowns: usize,
+    /// The equations the generator left out as redundant (`joint O4 row 2`).
+    pub removed: Vec<String>,
 }
 
 /// Where built solvers are cached: `$MECHGEN_CACHE`, else `target/mechgen-cache` in the
@@ -212,7 +311,9 @@ pub fn build(mech: &Mechanism) -> Result<Built, EngineError> {
 pub fn build_in(mech: &Mechanism, scalar: Scalar) -> Result<Built, EngineError> {
     let sys = Symbolic::build(mech).map_err(|e| EngineError::Generate(e.message))?;
     let module = emit::module_in(mech, &sys, &format!("the description \"{}\"", mech.name), scalar);
-    build_module(mech, &module, sys.unknowns.len(), scalar)
+    let mut built = build_module(mech, &module, sys.unknowns.len(), scalar)?;
+    built.removed = sys.redundant.iter().map(crate::generic::RowLabel::equation).collect();
+    Ok(built)
 }
 
 /// Writes and builds a module generated for `mech` (with `unknowns` unknowns) in the
@@ -229,7 +330,7 @@ pub fn build_module(
     let driver =
         DRIVER.replace("__TYPE__", &emit::type_name(&mech.name)).replace("__REAL__", scalar.name());
     let mut hasher = DefaultHasher::new();
-    (module, &driver).hash(&mut hasher);
+    (module, &driver, STEPPING).hash(&mut hasher);
     let key = format!("{:016x}", hasher.finish());
     let cache = cache_dir();
     let dir = cache.join(&key);
@@ -252,6 +353,7 @@ pub fn build_module(
     );
     write(&dir.join("Cargo.toml"), &manifest)?;
     write(&dir.join("src/main.rs"), &driver)?;
+    write(&dir.join("src/stepping.rs"), STEPPING)?;
     write(&dir.join("src/mechanism.rs"), module)?;
     if let Ok(lock) = std::fs::read_to_string(root.join("Cargo.lock")) {
         // The workspace's lock pins libm to the version the workspace was tested with.
@@ -270,7 +372,7 @@ pub fn build_module(
         return Err(EngineError::Build(String::from_utf8_lossy(&output.stderr).into_owned()));
     }
     let binary = cache.join("target/release").join(&package);
-    Ok(Built { binary, unknowns })
+    Ok(Built { binary, unknowns, removed: Vec::new() })
 }
 
 /// The outcome of a generated run: frames were handed to the sink as they came.
@@ -283,17 +385,19 @@ pub struct RunReport {
 }
 
 /// Runs a built solver over the grid, handing each frame (full coordinates, generic layout)
-/// to `sink`.
+/// to `sink`. A failure is named by `analysis` (the generic engine of the same mechanism) at
+/// the configuration the solver reports closest to it, as the generic engine names its own.
 ///
 /// # Errors
 /// [`EngineError::Run`] for an unexpected output; the sink's own errors are passed through
 /// as `Run` too.
 pub fn run(
     built: &Built,
+    analysis: &Analysis<'_, '_>,
     tolerance: Option<f64>,
     sink: impl FnMut(&Frame) -> std::io::Result<()>,
 ) -> Result<RunReport, EngineError> {
-    run_with(built, tolerance, Settings::default(), sink)
+    run_with(built, analysis, tolerance, Settings::default(), sink)
 }
 
 /// How a built solver runs: the runtime's predictor, and its static pivot orders or dense LU.
@@ -327,6 +431,7 @@ impl Settings {
 /// As [`run`].
 pub fn run_with(
     built: &Built,
+    analysis: &Analysis<'_, '_>,
     tolerance: Option<f64>,
     settings: Settings,
     mut sink: impl FnMut(&Frame) -> std::io::Result<()>,
@@ -346,6 +451,7 @@ pub fn run_with(
         .map_err(|e| EngineError::Run(format!("{}: {e}", built.binary.display())))?;
     let stdout = child.stdout.take().expect("piped");
     let mut report = RunReport { steps: 0, failure: None };
+    let mut near: Option<Point> = None;
     for line in BufReader::new(stdout).lines() {
         let line = line.map_err(|e| EngineError::Run(e.to_string()))?;
         let mut words = line.split(' ');
@@ -390,14 +496,32 @@ pub fn run_with(
                 sink(&frame).map_err(|e| EngineError::Run(e.to_string()))?;
                 report.steps += 1;
             }
+            Some("near") => {
+                let bad = || EngineError::Run(format!("malformed line: {line}"));
+                let nums: Vec<f64> =
+                    words.map(|s| s.parse::<f64>().map_err(|_| bad())).collect::<Result<_, _>>()?;
+                let (&t, q) = nums.split_first().ok_or_else(bad)?;
+                near = Some(Point {
+                    t,
+                    q: q.to_vec(),
+                    qd: Vec::new(),
+                    qdd: Vec::new(),
+                    iterations: 0,
+                    residual: f64::NAN,
+                    pivot_ratio: f64::NAN,
+                });
+            }
             Some("error") => {
-                let kind = match words.next() {
-                    Some("singular") => FailureKind::Singular,
-                    _ => FailureKind::NoConvergence,
+                let trouble = match words.next() {
+                    Some("singular") => Trouble::Singular,
+                    Some("branch_jump") => Trouble::BranchJump,
+                    _ => Trouble::NoConvergence,
                 };
                 let t = words.next().and_then(|s| s.parse().ok()).unwrap_or(f64::NAN);
+                let body = words.next().and_then(|s| s.parse().ok());
                 let message = words.collect::<Vec<_>>().join(" ");
-                report.failure = Some(Failure { kind, t, message, constraints: Vec::new() });
+                let stop = Stop { trouble, t, message, near: near.take().map(Box::new), body };
+                report.failure = Some(analysis.failure_of(&stop));
             }
             _ => return Err(EngineError::Run(format!("unexpected output: {line}"))),
         }
@@ -463,9 +587,17 @@ mod tests {
         let path = std::env::temp_dir().join(format!("mechgen-fake-solver-{}", std::process::id()));
         std::fs::write(&path, script).unwrap();
         std::fs::set_permissions(&path, std::fs::Permissions::from_mode(0o755)).unwrap();
-        let built = Built { binary: path.clone(), unknowns: 7 };
+        let built = Built { binary: path.clone(), unknowns: 7, removed: Vec::new() };
+        // The one-body revolute example names failures; the stand-in's output has its size.
+        let loaded = crate::validate::load_file(
+            &crate::sync::workspace_root().join("examples/revolute_joint.toml"),
+        )
+        .unwrap();
+        let eq = crate::generic::Equations::new(&loaded.mechanism);
+        let prep = eq.prepare();
+        let analysis = Analysis::new(&eq, &prep);
         let mut written = Vec::new();
-        let report = run(&built, None, |f| {
+        let report = run(&built, &analysis, None, |f| {
             written.push(f.t);
             Ok(())
         })

@@ -18,6 +18,7 @@ pub mod generic;
 pub mod model;
 pub mod report;
 pub mod scale;
+pub mod stepping;
 pub mod symbolic;
 pub mod sync;
 pub mod validate;

@@ -453,7 +453,10 @@ fn compiled_generated_solvers_agree_with_the_generic_engine_on_random_mechanisms
             panic!("seed {}: the generated solver does not build: {e}\n{}", case.seed, case.toml)
         });
         let mut frames = Vec::new();
-        let report = codegen::engine::run(&built, None, |f| {
+        let eq = Equations::new(&run.mech);
+        let prep = eq.prepare();
+        let namer = Analysis::new(&eq, &prep);
+        let report = codegen::engine::run(&built, &namer, None, |f| {
             frames.push(f.clone());
             Ok(())
         })

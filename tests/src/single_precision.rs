@@ -34,7 +34,8 @@ fn single_precision_rssr_follows_the_double_precision_generic_engine() {
     let mut frames = Vec::new();
     // 1e-4 is the f32 default Newton tolerance (runtime::Real::DEFAULT_TOLERANCE): residuals
     // of unit size cannot be pushed much below f32's rounding error of 6e-8.
-    let report = run_with(&built, Some(1e-4), Settings::default(), |f| {
+    let namer = Analysis::new(&eq, &prep);
+    let report = run_with(&built, &namer, Some(1e-4), Settings::default(), |f| {
         frames.push(f.clone());
         Ok(())
     })

@@ -94,6 +94,8 @@ pub struct Equations<'m> {
     unknowns: usize,
     /// Local unit vectors (b_i, c_i) ⟂ axis_i for each joint with an axis.
     normals: Vec<Option<(Vector3<f64>, Vector3<f64>)>>,
+    /// The bodies each row acts on.
+    row_bodies: Vec<Vec<BodyId>>,
 }
 
 impl<'m> Equations<'m> {
@@ -131,7 +133,35 @@ impl<'m> Equations<'m> {
             }
         }
         let normals = mech.joints.iter().map(Joint::normals).collect();
-        Self { mech, offset, labels, unknowns, normals }
+        let mut row_bodies = Vec::with_capacity(labels.len());
+        for joint in &mech.joints {
+            for _ in 0..joint.kind.equations() {
+                row_bodies.push(vec![joint.body_i, joint.body_j]);
+            }
+        }
+        for c in &mech.constraints {
+            row_bodies.push(match c.kind {
+                ConstraintKind::Fix { body, .. } => vec![body],
+                ConstraintKind::CoordinateDifference { body_i, body_j, .. } => vec![body_i, body_j],
+            });
+        }
+        for d in &mech.drivers {
+            row_bodies.push(match d.target {
+                DriverTarget::Joint { joint, .. } => {
+                    vec![mech.joints[joint.0].body_i, mech.joints[joint.0].body_j]
+                }
+                DriverTarget::Absolute { body, .. } => vec![body],
+            });
+        }
+        row_bodies.extend(mech.moving_bodies().map(|b| vec![b]));
+        debug_assert_eq!(row_bodies.len(), labels.len());
+        Self { mech, offset, labels, unknowns, normals, row_bodies }
+    }
+
+    /// The bodies equation `row` acts on.
+    #[must_use]
+    pub fn row_bodies(&self, row: usize) -> &[BodyId] {
+        &self.row_bodies[row]
     }
 
     /// The mechanism.

@@ -6,6 +6,7 @@ use nalgebra::{DMatrix, DVector, SVD, Vector4};
 
 use super::{Equations, angle_alignment};
 use crate::model::{DriverTarget, JointKind, Motion};
+use crate::stepping::{self, Engine, Point, Rejection, Stop, Trouble};
 
 /// A pivot smaller than this fraction of the largest pivot of the LU factorisation marks
 /// Φ_q as singular: with partial pivoting the pivots bound the conditioning from below, and
@@ -278,23 +279,28 @@ impl<'e, 'm> Analysis<'e, 'm> {
 
     /// Times `repeats` whole passes over the grid: (min, median) ns per time point and
     /// Newton iterations per time point; `None` when the analysis fails.
+    ///
+    /// The passes step straight from one grid time to the next with the predictor, as the
+    /// generated solver's benchmark does: the step control of [`Analysis::run`] (continuity
+    /// check, subdivision) is not timed.
     #[must_use]
     pub fn time(&self, repeats: usize) -> Option<(f64, f64, f64)> {
+        let grid = self.eq.mechanism().time;
         let mut times = Vec::with_capacity(repeats.max(1));
         let mut iterations = 0.0;
         for _ in 0..repeats.max(1) {
             let start = std::time::Instant::now();
-            let r = self.run(|f| {
-                std::hint::black_box(&f.qdd);
-                Ok::<(), ()>(())
-            });
-            let elapsed = start.elapsed().as_nanos() as f64;
-            let r = r.ok()?;
-            if r.failure.is_some() || r.steps == 0 {
-                return None;
+            let mut prev: Option<Point> = None;
+            let mut total = 0_u64;
+            for k in 0..grid.count {
+                let t = grid.at(k);
+                let p = self.step(t, self.guess(prev.as_ref(), t)).ok()?;
+                total += u64::from(p.iterations);
+                std::hint::black_box(&p.qdd);
+                prev = Some(p);
             }
-            times.push(elapsed / r.steps as f64);
-            iterations = r.iterations as f64 / r.steps as f64;
+            times.push(start.elapsed().as_nanos() as f64 / grid.count as f64);
+            iterations = total as f64 / grid.count as f64;
         }
         times.sort_by(f64::total_cmp);
         Some((times[0], times[times.len() / 2], iterations))
@@ -308,39 +314,161 @@ impl<'e, 'm> Analysis<'e, 'm> {
     }
 
     /// Runs over the whole grid, handing every frame to `sink` as soon as it is computed,
-    /// so that output can be streamed. Stops at the first numerical failure.
+    /// so that output can be streamed. Each step is taken under the step control of
+    /// [`crate::stepping`] (subdivision, continuity check); the analysis stops at the first
+    /// step that cannot be taken.
     ///
     /// # Errors
     /// Returns the first error of `sink`.
     pub fn run<E>(&self, mut sink: impl FnMut(&Frame) -> Result<(), E>) -> Result<StepReport, E> {
         let grid = self.eq.mechanism().time;
         let mut report = StepReport { steps: 0, iterations: 0, failure: None };
-        let mut prev: Option<Frame> = None;
+        let mut engine = GenericEngine { analysis: self, prev: None };
+        let mut last: Option<Point> = None;
         for k in 0..grid.count {
             let t = grid.at(k);
-            let guess = match &prev {
-                Some(f) if !self.predictor => f.q.clone(),
-                // Taylor predictor q + h q̇ + h²/2 q̈ from the previous time point.
-                Some(f) => {
-                    let h = t - f.t;
-                    &f.q + &f.qd * h + &f.qdd * (0.5 * h * h)
-                }
-                None => self.start.clone(),
+            let outcome = match &last {
+                None => stepping::first(&mut engine, t).map(|p| {
+                    let n = p.iterations;
+                    (p, n)
+                }),
+                Some(a) => stepping::advance(&mut engine, a, t),
             };
-            match self.step(k, t, guess) {
-                Ok(frame) => {
+            match outcome {
+                Ok((point, iterations)) => {
                     report.steps += 1;
-                    report.iterations += u64::from(frame.iterations);
+                    report.iterations += u64::from(iterations);
+                    let frame = Frame {
+                        index: k,
+                        t,
+                        iterations,
+                        residual: point.residual,
+                        q: DVector::from_column_slice(&point.q),
+                        qd: DVector::from_column_slice(&point.qd),
+                        qdd: DVector::from_column_slice(&point.qdd),
+                    };
                     sink(&frame)?;
-                    prev = Some(frame);
+                    last = Some(point);
                 }
-                Err(failure) => {
-                    report.failure = Some(failure);
+                Err(stop) => {
+                    report.failure = Some(self.failure_of(&stop));
                     break;
                 }
             }
         }
         Ok(report)
+    }
+
+    /// The contract's failure for a step control [`Stop`], naming the equations involved
+    /// (see [`Analysis::involved`]).
+    #[must_use]
+    pub fn failure_of(&self, stop: &Stop) -> Failure {
+        let kind = match stop.trouble {
+            Trouble::Singular => FailureKind::Singular,
+            Trouble::NoConvergence => FailureKind::NoConvergence,
+            Trouble::BranchJump => FailureKind::BranchJump,
+        };
+        let near = stop.near.as_ref().map(|p| (DVector::from_column_slice(&p.q), p.t));
+        let constraints =
+            self.involved(kind, near.as_ref().map(|(q, t)| (q, *t)), stop.t, stop.body);
+        let mut message = stop.message.clone();
+        if let Some(b) = stop.body {
+            let name = self
+                .eq
+                .mechanism()
+                .moving_bodies()
+                .nth(b)
+                .map(|id| &self.eq.mechanism().bodies[id.0].name);
+            if let Some(name) = name {
+                message.push_str(&format!(" (body {name})"));
+            }
+        }
+        self.failure(kind, stop.t, message, constraints)
+    }
+
+    /// The equations involved in a failure, by entity:
+    /// - singular: those with a share of at least 0.1 of the largest in the left singular
+    ///   vector of the smallest singular value of Φ_q at the configuration `near` (the one
+    ///   closest to the failure; the initial estimates when there is none), the combination of
+    ///   rows that has become dependent;
+    /// - branch jump: the joints, constraints and drivers acting on the moving body `body`
+    ///   that jumped;
+    /// - no convergence: the (at most four) equations with the largest |Φ_i| above the
+    ///   tolerance at `near` and the failing time `t`.
+    #[must_use]
+    pub fn involved(
+        &self,
+        kind: FailureKind,
+        near: Option<(&DVector<f64>, f64)>,
+        t: f64,
+        body: Option<usize>,
+    ) -> Vec<String> {
+        let start = self.start.clone();
+        let (q, t_near) = near.map_or((&start, t), |(q, tn)| (q, tn));
+        let zero = DVector::zeros(q.len());
+        match kind {
+            FailureKind::Singular => {
+                let jac = self.restrict_mat(self.eq.evaluate(q, &zero, t_near).jac);
+                if !all_finite(&jac) {
+                    return Vec::new();
+                }
+                let svd = SVD::new(jac, true, false);
+                let u = svd.u.as_ref().expect("requested U");
+                let (kmin, _) = svd.singular_values.iter().enumerate().fold(
+                    (0, f64::INFINITY),
+                    |(bk, bv), (k, &s)| if s < bv { (k, s) } else { (bk, bv) },
+                );
+                let col = u.column(kmin);
+                let big = col.amax();
+                // Shares below 0.1 of the largest are the rows that merely take part in the
+                // configuration's scaling, not in the dependency.
+                (0..col.len())
+                    .filter(|&k| col[k].abs() >= 0.1 * big)
+                    .map(|k| self.active_label(k))
+                    .collect()
+            }
+            FailureKind::BranchJump => {
+                let mech = self.eq.mechanism();
+                let Some(id) = body.and_then(|b| mech.moving_bodies().nth(b)) else {
+                    return Vec::new();
+                };
+                self.eq
+                    .labels()
+                    .iter()
+                    .enumerate()
+                    .filter(|(k, l)| l.kind != "body" && self.eq.row_bodies(*k).contains(&id))
+                    .map(|(_, l)| l.entity())
+                    .collect()
+            }
+            FailureKind::NoConvergence => {
+                let phi = self.restrict_vec(self.eq.evaluate(q, &zero, t).phi);
+                let mut worst: Vec<usize> = (0..phi.len()).collect();
+                worst.sort_by(|&a, &b| phi[b].abs().total_cmp(&phi[a].abs()));
+                worst
+                    .iter()
+                    .take_while(|&&k| phi[k].abs() > self.tolerance)
+                    .take(4)
+                    .map(|&k| self.active_label(k))
+                    .collect()
+            }
+        }
+    }
+
+    /// The Taylor prediction from `prev` to `t`, or the start.
+    fn guess(&self, prev: Option<&Point>, t: f64) -> DVector<f64> {
+        match prev {
+            None => self.start.clone(),
+            Some(p) => {
+                let q = DVector::from_column_slice(&p.q);
+                if !self.predictor {
+                    return q;
+                }
+                // Taylor predictor q + h q̇ + h²/2 q̈ from the previous time point.
+                let h = t - p.t;
+                q + DVector::from_column_slice(&p.qd) * h
+                    + DVector::from_column_slice(&p.qdd) * (0.5 * h * h)
+            }
+        }
     }
 
     /// Rows of `sys` restricted to the active ones.
@@ -364,8 +492,8 @@ impl<'e, 'm> Analysis<'e, 'm> {
         self.eq.labels()[row].entity()
     }
 
-    /// Positions by Newton–Raphson, then velocities and accelerations, at one time point.
-    fn step(&self, index: usize, t: f64, mut q: DVector<f64>) -> Result<Frame, Failure> {
+    /// Positions by Newton–Raphson from `q`, then velocities and accelerations, at time `t`.
+    fn step(&self, t: f64, mut q: DVector<f64>) -> Result<Point, Rejection> {
         let n = self.eq.unknowns();
         let zero = DVector::zeros(n);
         let mut iterations = 0;
@@ -377,11 +505,9 @@ impl<'e, 'm> Analysis<'e, 'm> {
             let sys = self.eq.evaluate(&q, &zero, t);
             let phi = self.restrict_vec(sys.phi.clone());
             if !all_finite(&phi) || !all_finite(&sys.jac) {
-                return Err(self.failure(
-                    FailureKind::NoConvergence,
-                    t,
+                return Err(rejection(
+                    Trouble::NoConvergence,
                     format!("Newton produced non-finite values after {iterations} iterations"),
-                    Vec::new(),
                 ));
             }
             let res = max_abs(&phi);
@@ -394,27 +520,17 @@ impl<'e, 'm> Analysis<'e, 'm> {
                 continue;
             }
             if iterations >= self.max_iterations {
-                let mut worst: Vec<usize> = (0..phi.len()).collect();
-                worst.sort_by(|&a, &b| phi[b].abs().total_cmp(&phi[a].abs()));
-                let names = worst
-                    .iter()
-                    .take_while(|&&k| phi[k].abs() > self.tolerance)
-                    .take(4)
-                    .map(|&k| self.active_label(k))
-                    .collect();
-                return Err(self.failure(
-                    FailureKind::NoConvergence,
-                    t,
+                return Err(rejection(
+                    Trouble::NoConvergence,
                     format!(
                         "Newton did not converge in {iterations} iterations (max |Φ| = {res:e}, \
                          tolerance {:e})",
                         self.tolerance
                     ),
-                    names,
                 ));
             }
             let jac = self.restrict_mat(sys.jac);
-            let dq = self.factor(&jac, t)?.solve(&(-phi)).expect("checked non-singular");
+            let dq = factor(&jac)?.solve(&(-phi)).expect("checked non-singular");
             q += dq;
             normalised = false;
             iterations += 1;
@@ -422,20 +538,31 @@ impl<'e, 'm> Analysis<'e, 'm> {
         // Redundant rows left out of the analysis are satisfied too when they are consistent;
         // the reported residual covers every row.
         let residual = residual.max(max_abs(&sys.phi));
-        self.check_branch(&q, t)?;
-        let lu = self.factor(&self.restrict_mat(sys.jac), t)?;
+        let lu = factor(&self.restrict_mat(sys.jac))?;
         let qd = lu.solve(&self.restrict_vec(sys.nu)).expect("checked non-singular");
         let gamma = self.restrict_vec(self.eq.evaluate(&q, &qd, t).gamma);
         let qdd = lu.solve(&gamma).expect("checked non-singular");
         if !all_finite(&qd) || !all_finite(&qdd) {
-            return Err(self.failure(
-                FailureKind::Singular,
-                t,
+            return Err(rejection(
+                Trouble::Singular,
                 "velocities or accelerations are not finite".to_owned(),
-                Vec::new(),
             ));
         }
-        Ok(Frame { index, t, iterations, residual, q, qd, qdd })
+        let (min, max) = pivot_extremes(&lu);
+        let point = Point {
+            t,
+            q: q.as_slice().to_vec(),
+            qd: qd.as_slice().to_vec(),
+            qdd: qdd.as_slice().to_vec(),
+            iterations,
+            residual,
+            pivot_ratio: min / max,
+        };
+        self.check_branch(&q, t).map_err(|mut r| {
+            r.point = Some(Box::new(point.clone()));
+            r
+        })?;
+        Ok(point)
     }
 
     /// Scales every body's Euler parameters to unit norm.
@@ -447,66 +574,27 @@ impl<'e, 'm> Analysis<'e, 'm> {
         }
     }
 
-    /// LU with partial pivoting of the (square) Jacobian, refused when a pivot is below
-    /// [`SINGULAR_PIVOT_RATIO`] of the largest.
-    fn factor(
-        &self,
-        jac: &DMatrix<f64>,
-        t: f64,
-    ) -> Result<nalgebra::LU<f64, nalgebra::Dyn, nalgebra::Dyn>, Failure> {
-        let lu = jac.clone().lu();
-        let u = lu.u();
-        let diag = u.diagonal();
-        let (min, max) = diag
-            .iter()
-            .fold((f64::INFINITY, 0.0_f64), |(lo, hi), x| (lo.min(x.abs()), hi.max(x.abs())));
-        if min.is_nan() || min <= SINGULAR_PIVOT_RATIO * max {
-            let svd = SVD::new(jac.clone(), true, false);
-            let u = svd.u.as_ref().expect("requested U");
-            let (kmin, _) = svd.singular_values.iter().enumerate().fold(
-                (0, f64::INFINITY),
-                |(bk, bv), (k, &s)| if s < bv { (k, s) } else { (bk, bv) },
-            );
-            let col = u.column(kmin);
-            let big = col.amax();
-            let names = (0..col.len())
-                .filter(|&k| col[k].abs() >= 0.1 * big)
-                .map(|k| self.active_label(k))
-                .collect();
-            return Err(self.failure(
-                FailureKind::Singular,
-                t,
-                format!(
-                    "the Jacobian is singular (smallest LU pivot {min:e}, largest {max:e}): \
-                     the mechanism is at a singular configuration or its constraints are \
-                     dependent"
-                ),
-                names,
-            ));
-        }
-        Ok(lu)
-    }
-
     /// Refuses a converged configuration where a driven joint angle or a screw sits on the
     /// branch θ = s + π of its equation x sin s − y cos s = 0.
-    fn check_branch(&self, q: &DVector<f64>, t: f64) -> Result<(), Failure> {
+    fn check_branch(&self, q: &DVector<f64>, t: f64) -> Result<(), Rejection> {
         let mech = self.eq.mechanism();
         let states = self.eq.states(q, &DVector::zeros(q.len()));
+        let moving = |b: crate::model::BodyId| mech.moving_bodies().position(|m| m == b);
         for d in &mech.drivers {
             if let DriverTarget::Joint { joint, motion: Motion::Rotation } = d.target {
                 let jt = &mech.joints[joint.0];
                 let s = d.law.eval(t).0;
                 if angle_alignment(jt, &states[jt.body_i.0], &states[jt.body_j.0], s) <= 0.0 {
-                    return Err(self.failure(
-                        FailureKind::BranchJump,
-                        t,
-                        format!(
+                    return Err(Rejection {
+                        trouble: Trouble::BranchJump,
+                        message: format!(
                             "the angle of joint {} converged half a turn away from the value \
                              driver {} prescribes",
                             jt.name, d.name
                         ),
-                        vec![format!("driver {}", d.name), format!("joint {}", jt.name)],
-                    ));
+                        point: None,
+                        body: moving(jt.body_j).or_else(|| moving(jt.body_i)),
+                    });
                 }
             }
         }
@@ -516,15 +604,15 @@ impl<'e, 'm> Analysis<'e, 'm> {
                 let d = super::axial_position(jt, bi, bj).v;
                 let phi = theta0 + 2.0 * std::f64::consts::PI * (d - d0) / lead;
                 if angle_alignment(jt, bi, bj, phi) <= 0.0 {
-                    return Err(self.failure(
-                        FailureKind::BranchJump,
-                        t,
-                        format!(
+                    return Err(Rejection {
+                        trouble: Trouble::BranchJump,
+                        message: format!(
                             "screw joint {} converged half a turn away from its helix",
                             jt.name
                         ),
-                        vec![format!("joint {}", jt.name)],
-                    ));
+                        point: None,
+                        body: moving(jt.body_j).or_else(|| moving(jt.body_i)),
+                    });
                 }
             }
         }
@@ -541,5 +629,54 @@ impl<'e, 'm> Analysis<'e, 'm> {
         let mut seen = std::collections::BTreeSet::new();
         constraints.retain(|c| seen.insert(c.clone()));
         Failure { kind, t, message, constraints }
+    }
+}
+
+/// A rejection without a point or a body.
+fn rejection(trouble: Trouble, message: String) -> Rejection {
+    Rejection { trouble, message, point: None, body: None }
+}
+
+/// The smallest and largest |u_kk| of an LU factorisation.
+fn pivot_extremes(lu: &nalgebra::LU<f64, nalgebra::Dyn, nalgebra::Dyn>) -> (f64, f64) {
+    lu.u()
+        .diagonal()
+        .iter()
+        .fold((f64::INFINITY, 0.0_f64), |(lo, hi), x| (lo.min(x.abs()), hi.max(x.abs())))
+}
+
+/// LU with partial pivoting of the (square) Jacobian, refused when a pivot is at most
+/// [`SINGULAR_PIVOT_RATIO`] of the largest.
+fn factor(
+    jac: &DMatrix<f64>,
+) -> Result<nalgebra::LU<f64, nalgebra::Dyn, nalgebra::Dyn>, Rejection> {
+    let lu = jac.clone().lu();
+    let (min, max) = pivot_extremes(&lu);
+    if min.is_nan() || min <= SINGULAR_PIVOT_RATIO * max {
+        return Err(rejection(
+            Trouble::Singular,
+            format!("the Jacobian is singular (smallest LU pivot {min:e}, largest {max:e})"),
+        ));
+    }
+    Ok(lu)
+}
+
+/// The generic engine under the step control of [`crate::stepping`].
+struct GenericEngine<'a, 'e, 'm> {
+    analysis: &'a Analysis<'e, 'm>,
+    /// The last accepted point.
+    prev: Option<Point>,
+}
+
+impl Engine for GenericEngine<'_, '_, '_> {
+    fn attempt(&mut self, t: f64) -> Result<Point, Rejection> {
+        let guess = self.analysis.guess(self.prev.as_ref(), t);
+        self.analysis.step(t, guess)
+    }
+
+    fn accept(&mut self, p: &Point) {
+        if self.prev.as_ref() != Some(p) {
+            self.prev = Some(p.clone());
+        }
     }
 }
