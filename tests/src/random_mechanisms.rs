@@ -12,6 +12,7 @@ use std::collections::{BTreeMap, BTreeSet};
 
 use codegen::generic::{Analysis, Equations, Frame};
 use codegen::model::Mechanism;
+use codegen::stepping::{self, Point, Rejection, Trouble};
 use codegen::symbolic::Symbolic;
 use codegen::validate::{Format, load_str};
 use nalgebra::{DMatrix, DVector};
@@ -153,35 +154,45 @@ fn max_abs(v: &[f64]) -> f64 {
     v.iter().fold(0.0_f64, |m, x| m.max(x.abs()))
 }
 
-/// Runs the reduced symbolic system interpreted, as the generated solver does: from the
-/// initial estimates, a Taylor predictor from the previous time point, Newton to the
-/// description's tolerance with the closed-form normalisation at convergence, then q̇ and q̈
-/// with the factorisation at the converged configuration. Frames come in the generic layout;
-/// their residual is that of the full generic system at the expanded coordinates.
-fn interpreted(mech: &Mechanism, sys: &Symbolic) -> Result<Vec<Frame>, String> {
-    let eq = Equations::new(mech);
-    let n = sys.unknowns.len();
-    let tolerance = mech.solver.tolerance;
-    let mut q = sys.reduce(&eq, &eq.initial_estimate()).as_slice().to_vec();
-    let mut prev: Option<(f64, DVector<f64>, DVector<f64>)> = None;
-    let mut frames = Vec::new();
-    for index in 0..mech.time.count {
-        let t = mech.time.at(index);
-        if let Some((t_prev, qd, qdd)) = &prev {
-            let h = t - t_prev;
-            for k in 0..n {
-                q[k] += h * qd[k] + 0.5 * h * h * qdd[k];
+/// The reduced symbolic system interpreted, as the generated solver runs it: from the initial
+/// estimates, a Taylor predictor from the last accepted point, Newton to the description's
+/// tolerance with the closed-form normalisation at convergence, then q̇ and q̈ with the
+/// factorisation at the converged configuration; under the same step control as both
+/// engines ([`stepping`]).
+struct Interpreted<'a> {
+    mech: &'a Mechanism,
+    sys: &'a Symbolic,
+    eq: Equations<'a>,
+    /// The last accepted (t, q, q̇, q̈) in reduced unknowns, `None` before the first.
+    accepted: Option<(f64, Vec<f64>, DVector<f64>, DVector<f64>)>,
+    /// The last successful attempt, in reduced unknowns.
+    attempted: Option<(f64, Vec<f64>, DVector<f64>, DVector<f64>)>,
+}
+
+impl stepping::Engine for Interpreted<'_> {
+    fn attempt(&mut self, t: f64) -> Result<Point, Rejection> {
+        let (sys, n) = (self.sys, self.sys.unknowns.len());
+        let reject =
+            |trouble, message: String| Rejection { trouble, message, point: None, body: None };
+        let mut q = match &self.accepted {
+            None => sys.reduce(&self.eq, &self.eq.initial_estimate()).as_slice().to_vec(),
+            Some((t_prev, q, qd, qdd)) => {
+                let h = t - t_prev;
+                (0..n).map(|k| q[k] + h * qd[k] + 0.5 * h * h * qdd[k]).collect()
             }
-        }
+        };
         let mut iterations = 0;
         let mut normalised = false;
         loop {
             let phi = sys.pool.eval(&sys.phi, &q, &[], t);
             let res = max_abs(&phi);
             if !res.is_finite() {
-                return Err(format!("t = {t}: non-finite residual"));
+                return Err(reject(
+                    Trouble::NoConvergence,
+                    format!("t = {t}: non-finite residual"),
+                ));
             }
-            if res <= tolerance {
+            if res <= self.mech.solver.tolerance {
                 if normalised {
                     break;
                 }
@@ -193,13 +204,16 @@ fn interpreted(mech: &Mechanism, sys: &Symbolic) -> Result<Vec<Frame>, String> {
                 }
                 break;
             }
-            if iterations >= mech.solver.max_iterations {
-                return Err(format!("t = {t}: no convergence (max |Φ| = {res:e})"));
+            if iterations >= self.mech.solver.max_iterations {
+                return Err(reject(
+                    Trouble::NoConvergence,
+                    format!("t = {t}: no convergence (max |Φ| = {res:e})"),
+                ));
             }
             let dq = reduced_jacobian(sys, &q, t)
                 .lu()
                 .solve(&DVector::from_vec(phi))
-                .ok_or_else(|| format!("t = {t}: singular Jacobian"))?;
+                .ok_or_else(|| reject(Trouble::Singular, format!("t = {t}: singular Jacobian")))?;
             for k in 0..n {
                 q[k] -= dq[k];
             }
@@ -207,14 +221,64 @@ fn interpreted(mech: &Mechanism, sys: &Symbolic) -> Result<Vec<Frame>, String> {
             iterations += 1;
         }
         let lu = reduced_jacobian(sys, &q, t).lu();
+        let singular = || reject(Trouble::Singular, format!("t = {t}: singular Jacobian"));
         let nu = DVector::from_vec(sys.pool.eval(&sys.nu, &q, &[], t));
-        let qd = lu.solve(&nu).ok_or_else(|| format!("t = {t}: singular Jacobian"))?;
+        let qd = lu.solve(&nu).ok_or_else(singular)?;
         let gamma = DVector::from_vec(sys.pool.eval(&sys.gamma, &q, qd.as_slice(), t));
-        let qdd = lu.solve(&gamma).ok_or_else(|| format!("t = {t}: singular Jacobian"))?;
-        let [fq, fqd, fqdd] = sys.expand(&eq, &q, qd.as_slice(), qdd.as_slice(), t);
-        let residual = eq.evaluate(&fq, &fqd, t).phi.amax();
-        frames.push(Frame { index, t, iterations, residual, q: fq, qd: fqd, qdd: fqdd });
-        prev = Some((t, qd, qdd));
+        let qdd = lu.solve(&gamma).ok_or_else(singular)?;
+        let diag = lu.u().diagonal().abs();
+        let pivot_ratio = diag.min() / diag.max();
+        let [fq, fqd, fqdd] = sys.expand(&self.eq, &q, qd.as_slice(), qdd.as_slice(), t);
+        let residual = self.eq.evaluate(&fq, &fqd, t).phi.amax();
+        self.attempted = Some((t, q, qd, qdd));
+        Ok(Point {
+            t,
+            q: fq.as_slice().to_vec(),
+            qd: fqd.as_slice().to_vec(),
+            qdd: fqdd.as_slice().to_vec(),
+            iterations,
+            residual,
+            pivot_ratio,
+        })
+    }
+
+    fn accept(&mut self, p: &Point) {
+        if let Some(a) = self.attempted.take()
+            && a.0 == p.t
+        {
+            self.accepted = Some(a);
+        }
+    }
+}
+
+/// Runs the reduced symbolic system interpreted (see [`Interpreted`]). Frames come in the
+/// generic layout; their residual is that of the full generic system at the expanded
+/// coordinates.
+fn interpreted(mech: &Mechanism, sys: &Symbolic) -> Result<Vec<Frame>, String> {
+    let mut engine =
+        Interpreted { mech, sys, eq: Equations::new(mech), accepted: None, attempted: None };
+    let mut frames = Vec::new();
+    let mut last: Option<Point> = None;
+    for index in 0..mech.time.count {
+        let t = mech.time.at(index);
+        let outcome = match &last {
+            None => stepping::first(&mut engine, t).map(|p| {
+                let n = p.iterations;
+                (p, n)
+            }),
+            Some(a) => stepping::advance(&mut engine, a, t),
+        };
+        let (p, iterations) = outcome.map_err(|s| format!("t = {t}: {}", s.message))?;
+        frames.push(Frame {
+            index,
+            t,
+            iterations,
+            residual: p.residual,
+            q: DVector::from_column_slice(&p.q),
+            qd: DVector::from_column_slice(&p.qd),
+            qdd: DVector::from_column_slice(&p.qdd),
+        });
+        last = Some(p);
     }
     Ok(frames)
 }
