@@ -419,14 +419,6 @@ fn solve(
     if let Some(d) = undriven(&eq, &prep) {
         return Ok(report_invalid(&[d], json, out, err));
     }
-    for &k in &prep.redundant {
-        writeln!(
-            err,
-            "warning: equation {} depends on the others at the initial configuration and is \
-             left out of the analysis",
-            eq.labels()[k].equation()
-        )?;
-    }
     // The default engine is the generated one when it can be built, else the generic one.
     let built = match engine {
         Some(Engine::Generic) => None,
@@ -453,7 +445,20 @@ fn solve(
     };
     let layout = report::layout(mech);
     let name = if built.is_some() { "generated" } else { "generic" };
-    let mut writer = Writer::begin(sink, fmt, mech, name)?;
+    // The redundant equations each engine leaves out, said in the output itself and on
+    // standard error.
+    let removed: Vec<String> = match &built {
+        Some(b) => b.removed.clone(),
+        None => prep.redundant.iter().map(|&k| eq.labels()[k].equation()).collect(),
+    };
+    for r in &removed {
+        writeln!(
+            err,
+            "warning: equation {r} depends on the others at the initial configuration and is \
+             left out of the analysis"
+        )?;
+    }
+    let mut writer = Writer::begin(sink, fmt, mech, name, &removed)?;
     let analysis = Analysis::new(&eq, &prep);
     let failure = match &built {
         None => {

@@ -200,29 +200,52 @@ pub struct Writer<W: Write> {
     out: W,
     format: Format,
     steps: usize,
+    /// Equations left out of the analysis as redundant (written by `finish` in CSV).
+    removed: Vec<String>,
 }
 
 impl<W: Write> Writer<W> {
     /// Starts the output: the JSON preamble or the CSV header.
     ///
+    /// `removed` names the equations the analysis leaves out because they depend on the
+    /// others (consistent redundancy, `joint O4 row 2`): JSON lists them as `"removed"` before
+    /// the steps (an empty list when there are none), the table says so under its title, and
+    /// CSV adds a `# removed: …` comment line after the rows (so that the header stays the
+    /// first line).
+    ///
     /// # Errors
     /// Returns I/O errors of `out`.
-    pub fn begin(mut out: W, format: Format, mech: &Mechanism, engine: &str) -> io::Result<Self> {
+    pub fn begin(
+        mut out: W,
+        format: Format,
+        mech: &Mechanism,
+        engine: &str,
+        removed: &[String],
+    ) -> io::Result<Self> {
         match format {
             Format::Json => {
                 write!(
                     out,
-                    "{{\n  \"mechanism\": {},\n  \"engine\": {},\n  \"steps\": [",
+                    "{{\n  \"mechanism\": {},\n  \"engine\": {},\n  \"removed\": {},\n  \"steps\": [",
                     serde_json::to_string(&mech.name)?,
-                    serde_json::to_string(engine)?
+                    serde_json::to_string(engine)?,
+                    serde_json::to_string(removed)?
                 )?;
             }
             Format::Csv => writeln!(out, "{}", csv_header(mech).join(","))?,
             Format::Table => {
                 writeln!(out, "mechgen: kinematic analysis of {} ({engine} engine)", mech.name)?;
+                if !removed.is_empty() {
+                    writeln!(
+                        out,
+                        "redundant equations removed (dependent on the others at the initial \
+                         configuration): {}",
+                        removed.join(", ")
+                    )?;
+                }
             }
         }
-        Ok(Self { out, format, steps: 0 })
+        Ok(Self { out, format, steps: 0, removed: removed.to_vec() })
     }
 
     /// Writes one time point.
@@ -258,6 +281,9 @@ impl<W: Write> Writer<W> {
                 )?;
             }
             Format::Csv | Format::Table => {
+                if self.format == Format::Csv && !self.removed.is_empty() {
+                    writeln!(self.out, "# removed: {}", self.removed.join(", "))?;
+                }
                 if let Some(f) = failure {
                     // CSV readers skip comment lines; the table is for people.
                     let lead = if self.format == Format::Csv { "# " } else { "" };

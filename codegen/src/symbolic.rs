@@ -462,7 +462,8 @@ impl Symbolic {
             jac_rows.push(sys.jacobian_row(phi_all[k]));
         }
         let kept_phi: Vec<ExprId> = kept.iter().map(|&k| phi_all[k]).collect();
-        let independent = sys.independent_rows(&eq, &kept_phi, &jac_rows);
+        let normalisation: Vec<bool> = kept.iter().map(|&k| labels[k].kind == "body").collect();
+        let independent = sys.independent_rows(&eq, &kept_phi, &jac_rows, &normalisation);
         for (pos, &k) in kept.iter().enumerate() {
             if independent.contains(&pos) {
                 sys.rows.push(labels[k].clone());
@@ -500,8 +501,8 @@ impl Symbolic {
         row
     }
 
-    /// Rows (positions in `jac_rows`) kept after dropping those that depend on earlier ones
-    /// at the assembled initial configuration (greedy in row order, as `generic`).
+    /// Rows (positions in `jac_rows`) kept after dropping those that depend on the others
+    /// at the assembled initial configuration (greedy, normalisations first, as `generic`).
     ///
     /// The reduced system is assembled first by Newton–Raphson on its independent rows
     /// (sparse, see [`independent`]); when that does not converge, the generic engine's
@@ -511,6 +512,7 @@ impl Symbolic {
         eq: &Equations<'_>,
         phi: &[ExprId],
         jac_rows: &[Vec<(usize, ExprId)>],
+        normalisation: &[bool],
     ) -> BTreeSet<usize> {
         let mech = eq.mechanism();
         let t = mech.time.start;
@@ -526,7 +528,7 @@ impl Symbolic {
             let prep = eq.prepare();
             self.reduce(eq, &prep.q).as_slice().to_vec()
         });
-        independent(&at(&q), self.unknowns.len())
+        independent(&at(&q), self.unknowns.len(), normalisation)
     }
 
     /// Newton–Raphson at the first time point on the rows independent at the current
@@ -551,7 +553,7 @@ impl Symbolic {
                 return Some(q);
             }
             let jac = at(&q);
-            let rows: Vec<usize> = independent(&jac, n).into_iter().collect();
+            let rows: Vec<usize> = independent(&jac, n, &[]).into_iter().collect();
             if rows.len() != n || jac_rows.len() < n {
                 return None;
             }
@@ -677,16 +679,22 @@ impl Symbolic {
 const REDUNDANT_ROW_TOLERANCE: f64 = 1e-8;
 
 /// The rows of a sparse matrix with `n` columns (rows of `(column, value)`) that do not depend
-/// on the rows before them, greedily in row order: each row is reduced by the rows kept so far
+/// on the rows before them, greedily in row order (the rows marked in `first`, normalisations,
+/// before all others, so redundancy is blamed on a joint, constraint or driver row, as in
+/// `generic::independent_rows`): each row is reduced by the rows kept so far
 /// (row echelon form, each kept row pivoting on its largest remaining entry) and kept when
 /// something is left. In exact arithmetic this is the same set as Gram–Schmidt's, at the cost
 /// of the sparse elimination only.
-fn independent(rows: &[Vec<(usize, f64)>], n: usize) -> BTreeSet<usize> {
+fn independent(rows: &[Vec<(usize, f64)>], n: usize, first: &[bool]) -> BTreeSet<usize> {
     // Kept rows in echelon form: (pivot column, entries by column).
     let mut basis: Vec<(usize, std::collections::BTreeMap<usize, f64>)> = Vec::new();
     let mut pivot_of = vec![None; n];
     let mut kept = BTreeSet::new();
-    for (k, row) in rows.iter().enumerate() {
+    let is_first = |k: usize| first.get(k).copied().unwrap_or(false);
+    let order =
+        (0..rows.len()).filter(|&k| is_first(k)).chain((0..rows.len()).filter(|&k| !is_first(k)));
+    for k in order {
+        let row = &rows[k];
         let scale = row.iter().fold(0.0_f64, |m, &(_, x)| m.max(x.abs()));
         let mut w: std::collections::BTreeMap<usize, f64> = row.iter().copied().collect();
         // Reduce by the kept rows in the order they were kept: row b has no entry in the

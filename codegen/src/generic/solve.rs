@@ -171,7 +171,8 @@ impl Equations<'_> {
             .collect();
         let kept: Vec<usize> = (0..self.equations()).filter(|k| !driver_rows.contains(k)).collect();
         let rank_nd = numeric_rank(&jac.select_rows(kept.iter()));
-        let (active, redundant) = independent_rows(&jac);
+        let normalisation: Vec<bool> = self.labels().iter().map(|l| l.kind == "body").collect();
+        let (active, redundant) = independent_rows(&jac, &normalisation);
         Preparation {
             assembled,
             q,
@@ -207,12 +208,18 @@ fn numeric_rank(m: &DMatrix<f64>) -> usize {
     s.iter().filter(|&&x| x > RANK_TOLERANCE * smax).count()
 }
 
-/// Splits the rows into a maximal independent set, greedily in row order (modified
-/// Gram–Schmidt), and the rows that depend on earlier ones.
-pub(crate) fn independent_rows(jac: &DMatrix<f64>) -> (Vec<usize>, Vec<usize>) {
+/// Splits the rows into a maximal independent set, greedily (modified Gram–Schmidt), and the
+/// rows that depend on the ones taken before them; both lists in row order.
+///
+/// The rows marked in `first` (the Euler-parameter normalisations) are taken first and the
+/// others in row order, so that a dependency is blamed on the joint, constraint or driver
+/// equations that close it, never on a normalisation, which holds by construction.
+pub(crate) fn independent_rows(jac: &DMatrix<f64>, first: &[bool]) -> (Vec<usize>, Vec<usize>) {
     let mut basis: Vec<DVector<f64>> = Vec::new();
     let (mut active, mut redundant) = (Vec::new(), Vec::new());
-    for k in 0..jac.nrows() {
+    let order =
+        (0..jac.nrows()).filter(|&k| first[k]).chain((0..jac.nrows()).filter(|&k| !first[k]));
+    for k in order {
         let row = jac.row(k).transpose();
         let norm = row.norm();
         let mut w = row.clone();
@@ -227,6 +234,8 @@ pub(crate) fn independent_rows(jac: &DMatrix<f64>) -> (Vec<usize>, Vec<usize>) {
             redundant.push(k);
         }
     }
+    active.sort_unstable();
+    redundant.sort_unstable();
     (active, redundant)
 }
 
