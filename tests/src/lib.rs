@@ -20,4 +20,6 @@ mod seed_examples;
 #[cfg(test)]
 mod single_precision;
 #[cfg(test)]
+mod stability;
+#[cfg(test)]
 mod structured_lu;
