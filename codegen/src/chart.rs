@@ -233,3 +233,176 @@ pub fn draw(marks: &[Mark], title: &str, path: &Path) -> Result<(), String> {
     root.present().map_err(|x| e(&x))?;
     Ok(())
 }
+
+/// The conditioning of one analysed time point (see [`conditioning`]).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Conditioning {
+    /// Time.
+    pub t: f64,
+    /// κ₂(Φ_q) = σ_max / σ_min of the generic engine's Φ_q at the configuration.
+    pub condition: f64,
+    /// 1/ρ, ρ the pivot ratio of the LU with partial pivoting of the same Φ_q: the estimate
+    /// the step control uses (see `crate::stepping`).
+    pub pivot_estimate: f64,
+    /// Newton iterations of the generic engine for this grid step (sub-steps included).
+    pub generic_iterations: u32,
+    /// The same for the generated engine, when it could be built.
+    pub generated_iterations: Option<u32>,
+}
+
+/// Runs both engines over the grid of `mech` (a description without redundant equations)
+/// and returns, per time point, the condition of Φ_q and the Newton iterations each took.
+///
+/// # Errors
+/// When Φ_q is not square (redundant equations) or an engine stops.
+pub fn conditioning(mech: &Mechanism) -> Result<Vec<Conditioning>, String> {
+    let eq = Equations::new(mech);
+    if eq.equations() != eq.unknowns() {
+        return Err("the chart needs a square Φ_q (no redundant equations)".to_owned());
+    }
+    let prep = eq.prepare();
+    let analysis = Analysis::new(&eq, &prep);
+    let frames = generic_frames(&eq, &analysis).ok_or("the generic analysis stopped")?;
+    let generated: Option<Vec<u32>> = match crate::engine::build(mech) {
+        Ok(built) => {
+            let mut its = Vec::new();
+            let r = crate::engine::run(&built, &analysis, None, |f| {
+                its.push(f.iterations);
+                Ok(())
+            })
+            .map_err(|e| e.to_string())?;
+            if let Some(f) = r.failure {
+                return Err(format!("the generated engine stopped: {}", f.message));
+            }
+            Some(its)
+        }
+        Err(_) => None,
+    };
+    let zero = nalgebra::DVector::zeros(eq.unknowns());
+    Ok(frames
+        .iter()
+        .enumerate()
+        .map(|(k, f)| {
+            let jac = eq.evaluate(&f.q, &zero, f.t).jac;
+            let s = nalgebra::SVD::new(jac.clone(), false, false).singular_values;
+            let lu = jac.lu();
+            let d = lu.u().diagonal().abs();
+            Conditioning {
+                t: f.t,
+                condition: s.max() / s.min(),
+                pivot_estimate: d.max() / d.min(),
+                generic_iterations: f.iterations,
+                generated_iterations: generated.as_ref().and_then(|g| g.get(k).copied()),
+            }
+        })
+        .collect())
+}
+
+/// Draws [`conditioning`]'s points as an SVG at `path`: the condition (log scale) above, the
+/// Newton iterations per grid step below, against time.
+///
+/// # Errors
+/// Drawing or I/O failures, as text.
+pub fn draw_conditioning(points: &[Conditioning], title: &str, path: &Path) -> Result<(), String> {
+    let e = |e: &dyn std::fmt::Display| e.to_string();
+    let (Some(first), Some(last)) = (points.first(), points.last()) else {
+        return Err("nothing to draw".to_owned());
+    };
+    let (t0, t1) = (first.t, last.t);
+    let (mut c0, mut c1) = (f64::MAX, f64::MIN);
+    for p in points {
+        for c in [p.condition, p.pivot_estimate] {
+            c0 = c0.min(c);
+            c1 = c1.max(c);
+        }
+    }
+    let most = points
+        .iter()
+        .map(|p| p.generic_iterations.max(p.generated_iterations.unwrap_or(0)))
+        .max()
+        .unwrap_or(1);
+    let root = SVGBackend::new(path, (900, 700)).into_drawing_area();
+    root.fill(&WHITE).map_err(|x| e(&x))?;
+    let root = root.titled(title, ("sans-serif", 22)).map_err(|x| e(&x))?;
+    let (upper, lower) = root.split_vertically(420);
+    let blue = RGBColor(31, 119, 180);
+    let orange = RGBColor(255, 127, 14);
+    let mut chart = ChartBuilder::on(&upper)
+        .margin(15)
+        .x_label_area_size(35)
+        .y_label_area_size(80)
+        .build_cartesian_2d(t0..t1, (c0 / 2.0..c1 * 2.0).log_scale())
+        .map_err(|x| e(&x))?;
+    chart
+        .configure_mesh()
+        .x_desc("t")
+        .y_desc("condition of Φ_q (log scale)")
+        .y_label_formatter(&|v| format!("{v:.0e}"))
+        .draw()
+        .map_err(|x| e(&x))?;
+    chart
+        .draw_series(LineSeries::new(
+            points.iter().map(|p| (p.t, p.condition)),
+            blue.stroke_width(2),
+        ))
+        .map_err(|x| e(&x))?
+        .label("κ₂ = σ_max / σ_min (SVD)")
+        .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], blue.stroke_width(2)));
+    chart
+        .draw_series(LineSeries::new(
+            points.iter().map(|p| (p.t, p.pivot_estimate)),
+            orange.stroke_width(2),
+        ))
+        .map_err(|x| e(&x))?
+        .label("1/ρ: max / min LU pivot (the step control's estimate)")
+        .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], orange.stroke_width(2)));
+    chart
+        .configure_series_labels()
+        .background_style(WHITE.mix(0.8))
+        .border_style(BLACK)
+        .position(SeriesLabelPosition::UpperRight)
+        .draw()
+        .map_err(|x| e(&x))?;
+    let mut chart = ChartBuilder::on(&lower)
+        .margin(15)
+        .x_label_area_size(40)
+        .y_label_area_size(80)
+        .build_cartesian_2d(t0..t1, 0.0..f64::from(most) + 1.0)
+        .map_err(|x| e(&x))?;
+    chart
+        .configure_mesh()
+        .x_desc("t")
+        .y_desc("Newton iterations per step")
+        .draw()
+        .map_err(|x| e(&x))?;
+    chart
+        .draw_series(LineSeries::new(
+            points.iter().map(|p| (p.t, f64::from(p.generic_iterations))),
+            blue.stroke_width(2),
+        ))
+        .map_err(|x| e(&x))?
+        .label("generic")
+        .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], blue.stroke_width(2)));
+    if points.iter().all(|p| p.generated_iterations.is_some()) {
+        let green = RGBColor(44, 160, 44);
+        chart
+            .draw_series(LineSeries::new(
+                points.iter().map(|p| (p.t, f64::from(p.generated_iterations.unwrap_or(0)))),
+                green.stroke_width(2),
+            ))
+            .map_err(|x| e(&x))?
+            .label("generated")
+            .legend(move |(x, y)| {
+                PathElement::new(vec![(x, y), (x + 20, y)], green.stroke_width(2))
+            });
+    }
+    chart
+        .configure_series_labels()
+        .background_style(WHITE.mix(0.8))
+        .border_style(BLACK)
+        .position(SeriesLabelPosition::UpperRight)
+        .draw()
+        .map_err(|x| e(&x))?;
+    root.present().map_err(|x| e(&x))?;
+    Ok(())
+}

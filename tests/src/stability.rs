@@ -9,6 +9,7 @@
 //! | `slider_crank_dead_centre` | `singular` at t = 0.51 (the grid steps over x = 4 at t = 0.5) | as above: the slider's outer dead centre |
 //! | `slider_crank_exact_dead_centre` | `singular` at t = 0.5 exactly, no step with unbounded velocities | the grid lands on the dead centre, where Newton converges (linearly) but q̇ is unbounded |
 //! | `hooke_toward_90` | `singular` at t = 1 | the shaft lies along the ground's cross pin: its spin is free (gimbal lock) |
+//! | `four_bar_near_toggle` | every step returned, on the closed form | near the change point Φ_q is poorly conditioned (κ ≈ 1.2e3) but regular: no false alarm |
 //! | `four_bar_large_steps` | every step at 20° (and 90°) of crank per step on the starting assembly | Grashof crank-rocker: the assembly never changes along the motion |
 //! | `planar_four_bar_4r`, `bennett`, `bricard` | mobility 1, the redundant rows named, removed and said in the output, every row (removed ones included) satisfied | consistent redundancy: the true mobility exceeds Grübler's count |
 //! | `every_angle` | closed forms through 20 wheel turns, 10 screw turns, 5 rotor turns (e0 = 0) | no joint or driver form may have a singular angle |
@@ -213,8 +214,14 @@ fn singular_configurations_stop_with_the_time_and_the_equations_involved() {
 /// assembly where B lies to the left of the line from A to O4 (the starting one): the
 /// intersection of the circles |B − A| = b and |B − O4| = 2.5.
 fn rocker_pin(theta: f64) -> [f64; 2] {
-    let (c, o4) = (2.5, [3.5, 0.0]);
     let b = (2.25_f64.powi(2) + (2.1650635094610964_f64 - 1.0).powi(2)).sqrt();
+    pin(theta, b, 2.5)
+}
+
+/// B for crank angle θ of a four-bar with crank 1 at the origin, coupler b, rocker c and O4 at
+/// (3.5, 0), on the assembly where B lies to the left of the line from A to O4.
+fn pin(theta: f64, b: f64, c: f64) -> [f64; 2] {
+    let o4 = [3.5, 0.0];
     let a = [theta.cos(), theta.sin()];
     let d = [o4[0] - a[0], o4[1] - a[1]];
     let l = d[0].hypot(d[1]);
@@ -275,6 +282,27 @@ fn large_steps_stay_on_the_starting_assembly() {
         .expect("the sink does not fail");
     o.failure = r.failure;
     check(&o, 90f64.to_radians(), fast.time.count, "90° per step");
+}
+
+#[test]
+fn a_crank_passes_near_its_change_point() {
+    // Coupler 2.502 and rocker 2 stretch to 4.502 against |A O4| = 4.5 at crank angle 180°
+    // (t = 2.5): Φ_q's condition peaks there (about 1.2e3) but stays regular, so every step
+    // is returned, on the closed form.
+    let mech = load("four_bar_near_toggle");
+    for o in &both(&mech) {
+        assert!(o.failure.is_none(), "{}: {:?}", o.engine, o.failure);
+        assert_eq!(o.steps.len(), mech.time.count, "{}", o.engine);
+        for s in &o.steps {
+            let expected =
+                pin(std::f64::consts::FRAC_PI_2 + std::f64::consts::PI / 5.0 * s.t, 2.502, 2.0);
+            let got = s.points[0].r;
+            let err = (got[0] - expected[0]).hypot(got[1] - expected[1]);
+            // Near the change point a position error δ in B is amplified by the condition
+            // (≈1.2e3): 1e-5 still separates the assembly from its mirror image (≈0.1 apart).
+            assert!(err < 1e-5, "{} t = {}: B = {got:?}, closed form {expected:?}", o.engine, s.t);
+        }
+    }
 }
 
 /// Largest |q̇ − (q(t + h) − q(t − h)) / 2h| relative to max |q̇| over the interior frames: the
