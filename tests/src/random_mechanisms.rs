@@ -154,6 +154,9 @@ fn max_abs(v: &[f64]) -> f64 {
     v.iter().fold(0.0_f64, |m, x| m.max(x.abs()))
 }
 
+/// (t, q, q̇, q̈) in reduced unknowns.
+type Reduced = (f64, Vec<f64>, DVector<f64>, DVector<f64>);
+
 /// The reduced symbolic system interpreted, as the generated solver runs it: from the initial
 /// estimates, a Taylor predictor from the last accepted point, Newton to the description's
 /// tolerance with the closed-form normalisation at convergence, then q̇ and q̈ with the
@@ -164,9 +167,9 @@ struct Interpreted<'a> {
     sys: &'a Symbolic,
     eq: Equations<'a>,
     /// The last accepted (t, q, q̇, q̈) in reduced unknowns, `None` before the first.
-    accepted: Option<(f64, Vec<f64>, DVector<f64>, DVector<f64>)>,
+    accepted: Option<Reduced>,
     /// The last successful attempt, in reduced unknowns.
-    attempted: Option<(f64, Vec<f64>, DVector<f64>, DVector<f64>)>,
+    attempted: Option<Reduced>,
 }
 
 impl stepping::Engine for Interpreted<'_> {
