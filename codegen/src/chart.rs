@@ -79,6 +79,26 @@ fn generic_frames(eq: &Equations<'_>, analysis: &Analysis<'_, '_>) -> Option<Vec
 /// # Errors
 /// When the reference run itself fails.
 pub fn measure(mech: &Mechanism, repeats: usize) -> Result<(Vec<Mark>, Vec<String>), String> {
+    measure_with(mech, repeats, &mut |_, _| {})
+}
+
+/// The number of marks [`measure`] attempts: two generic and three generated series at
+/// every tolerance of [`TOLERANCES`], and one single-precision series at [`F32_TOLERANCES`].
+#[must_use]
+pub fn mark_count() -> usize {
+    5 * TOLERANCES.len() + F32_TOLERANCES.len()
+}
+
+/// As [`measure`], calling `done(series, tolerance)` after each mark is attempted (for
+/// progress reports).
+///
+/// # Errors
+/// When the reference run itself fails.
+pub fn measure_with(
+    mech: &Mechanism,
+    repeats: usize,
+    done: &mut dyn FnMut(&str, f64),
+) -> Result<(Vec<Mark>, Vec<String>), String> {
     let eq = Equations::new(mech);
     let prep = eq.prepare();
     let reference =
@@ -102,6 +122,7 @@ pub fn measure(mech: &Mechanism, repeats: usize) -> Result<(Vec<Mark>, Vec<Strin
                 }),
                 _ => skipped.push(format!("{series} at tolerance {tolerance:e}")),
             }
+            done(&series, tolerance);
         }
     }
     let f64_settings = [
@@ -146,6 +167,7 @@ pub fn measure(mech: &Mechanism, repeats: usize) -> Result<(Vec<Mark>, Vec<Strin
                     }
                     _ => skipped.push(format!("{name} at tolerance {tolerance:e}")),
                 }
+                done(name, tolerance);
             }
         }
     }

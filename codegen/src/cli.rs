@@ -15,8 +15,12 @@ use crate::report::{self, Writer};
 use crate::validate::{self, Loaded};
 use crate::young;
 
+mod plot;
+mod term;
 #[cfg(test)]
 mod tests;
+
+pub use term::Terminal;
 
 /// Exit status: success.
 pub const EXIT_OK: i32 = 0;
@@ -117,6 +121,24 @@ enum Command {
         #[arg(long)]
         write: Option<PathBuf>,
     },
+    /// Plot one quantity of a point or a body against time, and the path of a point or of a
+    /// body's origin in a 3D projection (SVG; generic engine).
+    Plot {
+        /// The description file.
+        file: PathBuf,
+        /// The point of interest to plot.
+        #[arg(long, required_unless_present = "body", conflicts_with = "body")]
+        point: Option<String>,
+        /// The moving body to plot (its frame's origin and orientation).
+        #[arg(long)]
+        body: Option<String>,
+        /// The quantity: r, v, a (points and bodies); p, omega, alpha (bodies).
+        #[arg(long, value_enum, default_value_t = plot::PlotQuantity::R)]
+        quantity: plot::PlotQuantity,
+        /// The SVG file to write.
+        #[arg(short = 'o', long = "output")]
+        output: PathBuf,
+    },
     /// Emit the specialised Rust module of a description.
     Generate {
         /// The description file.
@@ -194,7 +216,23 @@ fn wants_json(args: &[OsString]) -> bool {
 }
 
 /// Runs `mechgen` with `args` (including the program name) and returns the exit status.
+/// Output is plain: no colour, no progress bars (the form for tests and pipes).
 pub fn run(args: Vec<OsString>, out: &mut dyn Write, err: &mut dyn Write) -> i32 {
+    run_with(args, out, err, Terminal::default())
+}
+
+/// As [`run`], with diagnostics in colour and progress bars on standard error as `terminal`
+/// says (the binary passes [`Terminal::detect`]).
+pub fn run_with(
+    args: Vec<OsString>,
+    out: &mut dyn Write,
+    err: &mut dyn Write,
+    terminal: Terminal,
+) -> i32 {
+    term::with(terminal, || dispatch(args, out, err))
+}
+
+fn dispatch(args: Vec<OsString>, out: &mut dyn Write, err: &mut dyn Write) -> i32 {
     let json = wants_json(&args);
     let cli = match Cli::try_parse_from(&args) {
         Ok(cli) => cli,
@@ -241,6 +279,13 @@ pub fn run(args: Vec<OsString>, out: &mut dyn Write, err: &mut dyn Write) -> i32
             bench(&file, engine, &how, format, out, err)
         }
         Command::Codegen { check } => codegen(check, out, err),
+        Command::Plot { file, point, body, quantity, output } => {
+            let target = match (point, body) {
+                (Some(p), _) => crate::plot::Target::Point(p),
+                (None, b) => crate::plot::Target::Body(b.unwrap_or_default()),
+            };
+            plot::plot(&file, &target, quantity, &output, out, err)
+        }
     };
     match result {
         Ok(code) => code,
@@ -270,16 +315,34 @@ fn report_invalid(
     EXIT_INVALID
 }
 
+/// Prints diagnostics found in `source` with their excerpts and carets (all on stderr; the
+/// first error also as the JSON error object on stdout when `json`).
+fn report_in_source(
+    diags: &[Diagnostic],
+    source: &str,
+    json: bool,
+    out: &mut dyn Write,
+    err: &mut dyn Write,
+) -> i32 {
+    let _ = write!(err, "{}", crate::diag::render(diags, Some(source), term::current().color));
+    if json {
+        let first = diags.first().cloned().unwrap_or_else(|| Diagnostic::error("invalid input"));
+        let _ = writeln!(out, "{}", serde_json::json!({ "error": first.to_json() }));
+    }
+    EXIT_INVALID
+}
+
 /// Loads and validates a file, printing warnings; `Err` carries the exit status.
 fn load(file: &Path, json: bool, out: &mut dyn Write, err: &mut dyn Write) -> Result<Loaded, i32> {
-    match validate::load_file(file) {
+    let (text, format) =
+        validate::read_file(file).map_err(|d| report_invalid(&d, json, out, err))?;
+    match validate::load_str(&text, format, Some(&file.display().to_string())) {
         Ok(loaded) => {
-            for w in &loaded.warnings {
-                let _ = writeln!(err, "{w}");
-            }
+            let color = term::current().color;
+            let _ = write!(err, "{}", crate::diag::render(&loaded.warnings, Some(&text), color));
             Ok(loaded)
         }
-        Err(diags) => Err(report_invalid(&diags, json, out, err)),
+        Err(diags) => Err(report_in_source(&diags, &text, json, out, err)),
     }
 }
 
@@ -395,7 +458,10 @@ fn check(
 
 /// Builds the generated solver, or says why not as an invalid-input diagnostic.
 fn build_generated(mech: &Mechanism) -> Result<crate::engine::Built, Box<Diagnostic>> {
-    crate::engine::build(mech).map_err(|e| {
+    let spinner = term::spinner("building the generated solver");
+    let built = crate::engine::build(mech);
+    spinner.finish_and_clear();
+    built.map_err(|e| {
         Box::new(Diagnostic::error(e.to_string()).entity(format!("mechanism \"{}\"", mech.name)))
     })
 }
@@ -460,12 +526,19 @@ fn solve(
     }
     let mut writer = Writer::begin(sink, fmt, mech, name, &removed)?;
     let analysis = Analysis::new(&eq, &prep);
+    let bar = term::bar(mech.time.count as u64, "analysis");
     let failure = match &built {
         None => {
-            analysis.run(|frame| writer.step(&report::step_result(mech, &layout, frame)))?.failure
+            analysis
+                .run(|frame| {
+                    bar.inc(1);
+                    writer.step(&report::step_result(mech, &layout, frame))
+                })?
+                .failure
         }
         Some(b) => {
             match crate::engine::run(b, &analysis, None, |frame| {
+                bar.inc(1);
                 writer.step(&report::step_result(mech, &layout, frame))
             }) {
                 Ok(r) => r.failure,
@@ -476,6 +549,7 @@ fn solve(
             }
         }
     };
+    bar.finish_and_clear();
     writer.finish(failure.as_ref())?;
     if let Some(f) = &failure {
         writeln!(err, "error: {}", report::failure_text(f))?;
@@ -601,7 +675,10 @@ fn bench(
     let steps = mech.time.count;
     let mut results = Vec::new();
     if engine != BenchEngine::Generated {
-        match time_generic(&eq, &prep, tolerance, repeats, how.settings.predictor) {
+        let spinner = term::spinner(&format!("timing the generic engine ({repeats} passes)"));
+        let timed = time_generic(&eq, &prep, tolerance, repeats, how.settings.predictor);
+        spinner.finish_and_clear();
+        match timed {
             Some(r) => results.push(("generic", r)),
             None => {
                 writeln!(err, "error: the generic analysis failed")?;
@@ -618,7 +695,10 @@ fn bench(
                 return Ok(report_invalid(&[d], json, out, err));
             }
         };
-        match crate::engine::bench_with(&built, tolerance, repeats, how.settings) {
+        let spinner = term::spinner(&format!("timing the generated engine ({repeats} passes)"));
+        let timed = crate::engine::bench_with(&built, tolerance, repeats, how.settings);
+        spinner.finish_and_clear();
+        match timed {
             Ok(r) => results.push(("generated", r)),
             Err(e) => {
                 writeln!(err, "error: {e}")?;
@@ -700,10 +780,13 @@ fn compare(
     }
     let layout = report::layout(mech);
     let mut generic = Vec::new();
+    let bar = term::bar(mech.time.count as u64, "generic");
     let r = Analysis::new(&eq, &prep).run(|f| {
+        bar.inc(1);
         generic.push(report::step_result(mech, &layout, f));
         Ok::<(), ()>(())
     });
+    bar.finish_and_clear();
     let Ok(r) = r else { unreachable!("the sink never fails") };
     if let Some(f) = &r.failure {
         writeln!(err, "error: generic engine: {}", report::failure_text(f))?;
@@ -714,10 +797,13 @@ fn compare(
         Err(d) => return Ok(report_invalid(&[*d], json, out, err)),
     };
     let mut generated = Vec::new();
+    let bar = term::bar(mech.time.count as u64, "generated");
     let r = crate::engine::run(&built, &Analysis::new(&eq, &prep), None, |f| {
+        bar.inc(1);
         generated.push(report::step_result(mech, &layout, f));
         Ok(())
     });
+    bar.finish_and_clear();
     match r {
         Ok(r) if r.failure.is_none() => {}
         Ok(r) => {
@@ -732,9 +818,11 @@ fn compare(
     }
     let diffs = report::differences(&generic, &generated);
     let repeats = 10;
+    let spinner = term::spinner("timing both engines");
     let tg =
         time_generic(&eq, &prep, mech.solver.tolerance, repeats, true).map_or(f64::NAN, |r| r.1);
     let td = crate::engine::bench(&built, mech.solver.tolerance, repeats).map_or(f64::NAN, |r| r.1);
+    spinner.finish_and_clear();
     if json {
         let v = serde_json::json!({
             "mechanism": mech.name,
@@ -768,7 +856,13 @@ fn chart(
         Err(code) => return Ok(code),
     };
     let mech = &loaded.mechanism;
-    let (marks, skipped) = match crate::chart::measure(mech, repeats) {
+    let bar = term::bar(crate::chart::mark_count() as u64, "marks");
+    let measured = crate::chart::measure_with(mech, repeats, &mut |series, tolerance| {
+        bar.set_message(format!("{series} {tolerance:.0e}"));
+        bar.inc(1);
+    });
+    bar.finish_and_clear();
+    let (marks, skipped) = match measured {
         Ok(m) => m,
         Err(e) => {
             writeln!(err, "error: {e}")?;

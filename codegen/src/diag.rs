@@ -1,6 +1,11 @@
 //! Diagnostics about user input: what is wrong, with which entity and field, and where.
+//!
+//! A [`Diagnostic`] prints on one line through `Display` (`file:line:column: error: …`); with the
+//! text it came from, [`render`] shows it as a compiler would: the place, the line with a caret
+//! under the offending text and, where the fix is likely, the corrected line.
 
 use std::fmt;
+use std::ops::Range;
 
 use serde::Serialize;
 
@@ -33,6 +38,11 @@ pub struct Diagnostic {
     pub line: Option<usize>,
     /// 1-based column (in characters) of the offending text.
     pub column: Option<usize>,
+    /// Byte range of the offending text in the file (a key, a value or a table header).
+    pub span: Option<Range<usize>>,
+    /// The text that likely should replace [`span`](Self::span): `axis_i` for a misspelt
+    /// `axsi_i`, `"crank"` for `"crnak"`.
+    pub suggestion: Option<String>,
 }
 
 impl Diagnostic {
@@ -48,6 +58,8 @@ impl Diagnostic {
             file: None,
             line: None,
             column: None,
+            span: None,
+            suggestion: None,
         }
     }
 
@@ -87,6 +99,23 @@ impl Diagnostic {
         self
     }
 
+    /// Sets the text that likely should replace the offending text.
+    #[must_use]
+    pub fn suggest(mut self, replacement: impl Into<String>) -> Self {
+        self.suggestion = Some(replacement.into());
+        self
+    }
+
+    /// The entity and field as a prefix of the message: `joint "O2", field `axis_i`: `.
+    fn context(&self) -> String {
+        match (&self.entity, &self.field) {
+            (Some(e), Some(fl)) => format!("{e}, field `{fl}`: "),
+            (Some(e), None) => format!("{e}: "),
+            (None, Some(fl)) => format!("field `{fl}`: "),
+            (None, None) => String::new(),
+        }
+    }
+
     /// The JSON object of the contract's `{ "error": { "kind": "invalid_input", … } }`.
     #[must_use]
     pub fn to_json(&self) -> serde_json::Value {
@@ -113,12 +142,88 @@ impl fmt::Display for Diagnostic {
             Severity::Error => "error: ",
             Severity::Warning => "warning: ",
         })?;
-        match (&self.entity, &self.field) {
-            (Some(e), Some(fl)) => write!(f, "{e}, field `{fl}`: ")?,
-            (Some(e), None) => write!(f, "{e}: ")?,
-            (None, Some(fl)) => write!(f, "field `{fl}`: ")?,
-            (None, None) => {}
-        }
+        f.write_str(&self.context())?;
         f.write_str(&self.message)
     }
+}
+
+/// Renders diagnostics for a person: each one titled with its severity, entity, field and
+/// message, then, when `source` is the text the diagnostics were found in and a diagnostic has
+/// a span, the file, line and column, the line with a caret under the offending text and, for
+/// a likely fix, the line as it would read corrected. A diagnostic without a span prints as
+/// its one-line `Display` form. ANSI colours only when `color` is set.
+///
+/// ```
+/// use codegen::diag::{render, Diagnostic};
+///
+/// let text = "name = \"demo\"\nstpe = 0.1\n";
+/// let mut d = Diagnostic::error("unknown field `stpe`: did you mean `step`?")
+///     .entity("time")
+///     .suggest("step")
+///     .at(Some("demo.toml"), 2, 1);
+/// d.span = Some(14..18);
+/// let shown = render(&[d], Some(text), false);
+/// assert!(shown.starts_with("error: time: unknown field `stpe`: did you mean `step`?\n"));
+/// assert!(shown.contains(" --> demo.toml:2:1\n"));
+/// assert!(shown.contains("2 | stpe = 0.1\n  | ^^^^\n"));
+/// assert!(shown.contains("2 + step = 0.1"));
+/// ```
+#[must_use]
+pub fn render(diags: &[Diagnostic], source: Option<&str>, color: bool) -> String {
+    use annotate_snippets::{AnnotationKind, Group, Level, Patch, Renderer, Snippet};
+
+    let renderer = if color { Renderer::styled() } else { Renderer::plain() };
+    let mut out = String::new();
+    for d in diags {
+        let located = source.zip(d.span.clone()).filter(|(text, span)| {
+            span.start <= span.end
+                && span.end <= text.len()
+                && text.is_char_boundary(span.start)
+                && text.is_char_boundary(span.end)
+        });
+        let Some((text, span)) = located else {
+            out.push_str(&d.to_string());
+            out.push('\n');
+            continue;
+        };
+        let span = single_line(text, span);
+        let level = match d.severity {
+            Severity::Error => Level::ERROR,
+            Severity::Warning => Level::WARNING,
+        };
+        let title = format!("{}{}", d.context(), d.message);
+        let path = d.file.as_deref().unwrap_or("<input>");
+        let mut report: Vec<Group<'_>> =
+            vec![
+                level.primary_title(title).element(
+                    Snippet::source(text)
+                        .path(path)
+                        .annotation(AnnotationKind::Primary.span(span.clone())),
+                ),
+            ];
+        if let Some(fix) = &d.suggestion {
+            report.push(
+                Level::HELP.secondary_title(format!("replace with `{fix}`")).element(
+                    Snippet::source(text).path(path).patch(Patch::new(span, fix.as_str())),
+                ),
+            );
+        }
+        if !out.is_empty() {
+            out.push('\n');
+        }
+        out.push_str(&renderer.render(&report));
+        out.push('\n');
+    }
+    out
+}
+
+/// `span` cut at the end of its first line, and at least one character long where the line
+/// has one, so that the caret stays under the offending text.
+fn single_line(text: &str, span: Range<usize>) -> Range<usize> {
+    let line_end = text[span.start..].find('\n').map_or(text.len(), |k| span.start + k);
+    let mut end = span.end.min(line_end);
+    if end == span.start && end < line_end {
+        end += text[end..].chars().next().map_or(0, char::len_utf8);
+    }
+    span.start..end
 }

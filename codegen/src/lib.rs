@@ -16,6 +16,7 @@ pub mod engine;
 pub mod expr;
 pub mod generic;
 pub mod model;
+pub mod plot;
 pub mod report;
 pub mod scale;
 pub mod stepping;

@@ -56,6 +56,19 @@ pub struct Loaded {
 /// Every problem found, in file order: an unreadable file, syntax, unknown or mistyped fields,
 /// and every rule of the contract's Validation section.
 pub fn load_file(path: &Path) -> Result<Loaded, Vec<Diagnostic>> {
+    let (text, format) = read_file(path)?;
+    load_str(&text, format, Some(&path.display().to_string()))
+}
+
+/// Reads a description file's text ([`MAX_FILE_BYTES`] at most, UTF-8) and tells its format by
+/// the extension (`.json` → JSON, anything else TOML), for callers that keep the text, for
+/// example to show diagnostics with [`crate::diag::render`].
+///
+/// # Errors
+///
+/// The file cannot be read, is too large or is not UTF-8; the one diagnostic names the file
+/// (and the line and column of the first byte that is not UTF-8).
+pub fn read_file(path: &Path) -> Result<(String, Format), Vec<Diagnostic>> {
     let name = path.display().to_string();
     let text = read_text(path).map_err(|(message, place)| {
         let mut diag = Diagnostic::error(message).entity("file");
@@ -66,8 +79,7 @@ pub fn load_file(path: &Path) -> Result<Loaded, Vec<Diagnostic>> {
         vec![diag]
     })?;
     let json = path.extension().is_some_and(|e| e.eq_ignore_ascii_case("json"));
-    let format = if json { Format::Json } else { Format::Toml };
-    load_str(&text, format, Some(&name))
+    Ok((text, if json { Format::Json } else { Format::Toml }))
 }
 
 /// The largest description file accepted, in bytes (16 MiB).
@@ -189,7 +201,10 @@ fn in_file_order(mut diags: Vec<Diagnostic>) -> Vec<Diagnostic> {
 
 /// The candidate nearest to `name` within edit distance 2 (and nearer than a rewrite of the
 /// whole name), for "did you mean" hints; ties go to the first in order.
-fn closest<'a>(name: &str, candidates: impl IntoIterator<Item = &'a str>) -> Option<&'a str> {
+pub(crate) fn closest<'a>(
+    name: &str,
+    candidates: impl IntoIterator<Item = &'a str>,
+) -> Option<&'a str> {
     let len = name.chars().count();
     candidates
         .into_iter()

@@ -262,3 +262,34 @@ fn a_bad_command_line_is_status_1() {
     assert_eq!(code, EXIT_INVALID);
     assert!(err.contains("FILE") || err.contains("file"), "{err}");
 }
+
+#[test]
+fn a_misspelt_field_is_shown_with_an_excerpt_a_caret_and_the_fix() {
+    let text = std::fs::read_to_string(example("rssr.toml")).unwrap();
+    let at = text.find("axis_i").expect("the RSSR has an axis_i");
+    let line = text[..at].matches('\n').count() + 1;
+    let file = temp_file("axsi.toml", &text.replacen("axis_i", "axsi_i", 1));
+    let (code, out, err) = mechgen(&["check", file.to_str().unwrap()]);
+    assert_eq!(code, EXIT_INVALID);
+    assert!(out.is_empty(), "{out}");
+    assert!(err.contains(&format!("axsi.toml:{line}:1")), "{err}");
+    assert!(err.contains("unknown field `axsi_i`: did you mean `axis_i`?"), "{err}");
+    // The excerpt, the caret under the key, and the line as the fix would make it.
+    let gutter = " ".repeat(line.to_string().len());
+    assert!(err.contains(&format!("{line} | axsi_i = ")), "{err}");
+    assert!(err.contains(&format!("{gutter} | ^^^^^^\n")), "{err}");
+    assert!(err.contains(&format!("{line} + axis_i = ")), "{err}");
+    assert!(!err.contains('\u{1b}'), "no colour outside a terminal: {err:?}");
+}
+
+#[test]
+fn the_json_error_object_stays_as_the_contract_says_when_the_text_has_an_excerpt() {
+    let text = std::fs::read_to_string(example("rssr.toml")).unwrap();
+    let file = temp_file("axsi_json.toml", &text.replacen("axis_i", "axsi_i", 1));
+    let (code, out, _) = mechgen(&["check", file.to_str().unwrap(), "--format", "json"]);
+    assert_eq!(code, EXIT_INVALID);
+    let v: serde_json::Value = serde_json::from_str(&out).expect("one JSON object on stdout");
+    let keys: Vec<&str> = v["error"].as_object().unwrap().keys().map(String::as_str).collect();
+    assert_eq!(keys, ["column", "entity", "field", "kind", "line", "message"]);
+    assert_eq!(v["error"]["field"], "axsi_i");
+}

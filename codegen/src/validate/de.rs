@@ -60,14 +60,20 @@ impl Source<'_> {
         if diag.path.is_none() && !segs.is_empty() {
             diag.path = Some(path_string(&segs));
         }
+        if diag.span.is_none() {
+            diag.span = Some(self.root.token_span(self.text, offset));
+        }
         let (line, column) = line_column(self.text, offset);
         diag.at(self.file, line, column)
     }
 
     /// Places `diag` at the value its `path` names (or the deepest existing node on the way).
-    pub(super) fn place_by_path(&self, diag: Diagnostic) -> Diagnostic {
+    pub(super) fn place_by_path(&self, mut diag: Diagnostic) -> Diagnostic {
         let segs = super::locate::parse_path(diag.path.as_deref().unwrap_or(""));
         let offset = self.root.offset_of(&segs);
+        if diag.span.is_none() {
+            diag.span = Some(self.root.token_span(self.text, offset));
+        }
         let (line, column) = line_column(self.text, offset);
         diag.at(self.file, line, column)
     }
@@ -255,7 +261,11 @@ impl Reader<'_, '_> {
         });
         let diag = match e.hint {
             Hint::UnknownField { field, expected } => {
-                Diagnostic::error(unknown_field_message(&field, expected))
+                let diag = Diagnostic::error(unknown_field_message(&field, expected));
+                match closest(&field, expected.iter().copied()) {
+                    Some(near) => diag.suggest(near),
+                    None => diag,
+                }
             }
             Hint::MissingField(missing) => {
                 let path = format!("{}.{missing}", path_string(&segs));
@@ -267,13 +277,19 @@ impl Reader<'_, '_> {
                     field.unwrap_or("?"),
                     expected.join(", ")
                 );
-                if let Some(near) = closest(&variant, expected.iter().copied()) {
+                let near = closest(&variant, expected.iter().copied());
+                if let Some(near) = near {
                     message = format!("{message}; did you mean \"{near}\"?");
                 }
-                Diagnostic::error(message)
+                let diag = Diagnostic::error(message);
+                match near {
+                    Some(near) => diag.suggest(format!("\"{near}\"")),
+                    None => diag,
+                }
             }
             Hint::None => Diagnostic::error(plain(&e.message)),
         };
+        let diag = Diagnostic { span: e.span.filter(|s| s.start < s.end), ..diag };
         self.src.place(diag, offset)
     }
 }

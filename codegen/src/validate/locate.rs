@@ -311,6 +311,27 @@ impl Node {
         best
     }
 
+    /// The byte range of the text at `offset`: the smallest key or value that starts there,
+    /// else the word (letters, digits, `_`, `.`, `-`, `+`) or the single character there.
+    pub(super) fn token_span(&self, text: &str, offset: usize) -> Range<usize> {
+        let mut offset = offset.min(text.len());
+        while !text.is_char_boundary(offset) {
+            offset -= 1;
+        }
+        let mut best: Option<Range<usize>> = None;
+        starting_at(self, offset, &mut best);
+        best.unwrap_or_else(|| {
+            let rest = &text[offset..];
+            let word = |c: char| c.is_alphanumeric() || "_.-+".contains(c);
+            let len = match rest.find(|c: char| !word(c)) {
+                Some(0) => rest.chars().next().map_or(0, char::len_utf8),
+                Some(k) => k,
+                None => rest.len(),
+            };
+            offset..offset + len
+        })
+    }
+
     /// Removes the table entry whose key was read from `key_span`; true if one was found.
     pub(super) fn remove_key(&mut self, key_span: &Range<usize>) -> bool {
         match &mut self.value {
@@ -324,6 +345,29 @@ impl Node {
             Value::Array(items) => items.iter_mut().any(|n| n.remove_key(key_span)),
             _ => false,
         }
+    }
+}
+
+/// The smallest non-empty key or value span of the tree that starts at `offset`.
+fn starting_at(node: &Node, offset: usize, best: &mut Option<Range<usize>>) {
+    let consider = |span: &Range<usize>, best: &mut Option<Range<usize>>| {
+        if span.start == offset
+            && span.end > span.start
+            && best.as_ref().is_none_or(|b| span.len() < b.len())
+        {
+            *best = Some(span.clone());
+        }
+    };
+    consider(&node.span, best);
+    match &node.value {
+        Value::Table(entries) => {
+            for entry in entries {
+                consider(&entry.key_span, best);
+                starting_at(&entry.node, offset, best);
+            }
+        }
+        Value::Array(items) => items.iter().for_each(|n| starting_at(n, offset, best)),
+        _ => {}
     }
 }
 

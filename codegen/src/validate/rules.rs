@@ -305,12 +305,17 @@ impl Rules<'_> {
             return Some(BodyId(k));
         }
         let mut message = format!("unknown body \"{name}\"");
-        match closest(name, bodies.iter().map(|b| b.name.as_str())) {
+        let near = closest(name, bodies.iter().map(|b| b.name.as_str()));
+        match near {
             Some(near) => message.push_str(&format!(": did you mean \"{near}\"?")),
             None if bodies.is_empty() => message.push_str(": there are no bodies"),
             None => {}
         }
-        self.error(at, field, message);
+        let mut diag = Diagnostic::error(message);
+        if let Some(near) = near {
+            diag = diag.suggest(format!("\"{near}\""));
+        }
+        self.push(diag, at, field, at.field_path(field));
         None
     }
 
@@ -320,17 +325,22 @@ impl Rules<'_> {
         if let Some(k) = desc.joints.iter().position(|j| j.name == name) {
             return Some(JointId(k));
         }
-        let message = if desc.constraints.iter().any(|c| c.name == name) {
-            format!("\"{name}\" is a constraint, not a joint: only joints can be driven")
+        let diag = if desc.constraints.iter().any(|c| c.name == name) {
+            Diagnostic::error(format!(
+                "\"{name}\" is a constraint, not a joint: only joints can be driven"
+            ))
         } else if desc.drivers.iter().any(|d| d.name == name) {
-            format!("\"{name}\" is a driver, not a joint")
+            Diagnostic::error(format!("\"{name}\" is a driver, not a joint"))
         } else {
             match closest(name, desc.joints.iter().map(|j| j.name.as_str())) {
-                Some(near) => format!("unknown joint \"{name}\": did you mean \"{near}\"?"),
-                None => format!("unknown joint \"{name}\""),
+                Some(near) => {
+                    Diagnostic::error(format!("unknown joint \"{name}\": did you mean \"{near}\"?"))
+                        .suggest(format!("\"{near}\""))
+                }
+                None => Diagnostic::error(format!("unknown joint \"{name}\"")),
             }
         };
-        self.error(at, field, message);
+        self.push(diag, at, field, at.field_path(field));
         None
     }
 
