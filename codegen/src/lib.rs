@@ -7,6 +7,7 @@
 //! from Φ_q q̇ = ν and accelerations from Φ_q q̈ = γ. `young` imports the thesis' legacy decks;
 //! `report` writes the results as the contract's table, CSV or JSON.
 
+pub mod build;
 pub mod chart;
 pub mod cli;
 pub mod desc;

@@ -1,0 +1,198 @@
+//! Generating solvers from a `build.rs`, the way `prost-build` generates protobuf code.
+//!
+//! A crate that keeps its mechanism descriptions beside its sources can have cargo regenerate
+//! the specialised solvers whenever a description changes, instead of committing them:
+//!
+//! ```toml
+//! # Cargo.toml of the user's crate
+//! [dependencies]
+//! runtime = { path = "…/runtime" }      # what the generated code calls
+//!
+//! [build-dependencies]
+//! codegen = { path = "…/codegen" }
+//! ```
+//!
+//! ```no_run
+//! // build.rs, in `fn main()`: an invalid description fails the build with its diagnostics.
+//! codegen::build::Builder::new()
+//!     .file("four_bar.toml")
+//!     .compile()
+//!     .unwrap_or_else(|e| panic!("{e}"));
+//! ```
+//!
+//! The workspace's `examples/build-rs-user` crate does exactly this and tests the generated
+//! solver against the closed form of its four-bar.
+//!
+//! ```ignore
+//! // src/lib.rs: one module per description, named after its `name`.
+//! include!(concat!(env!("OUT_DIR"), "/mechgen.rs"));
+//!
+//! let mut solver = runtime::Solver::new(four_bar::FourBar, four_bar::Q0);
+//! ```
+//!
+//! [`Builder::compile`] writes `OUT_DIR/NAME.rs` for each description (exactly what
+//! `mechgen generate` prints) and `OUT_DIR/mechgen.rs`, which declares each of them as a module
+//! (`#[path = "…"] pub mod NAME;`), so the generated files keep their module docs. It prints
+//! `cargo:rerun-if-changed` for every description, and rewrites a file only when its contents
+//! change, so an unchanged description costs no rebuild. An invalid description fails the
+//! build with the same excerpt and caret as `mechgen check`.
+
+use std::fmt;
+use std::path::{Path, PathBuf};
+
+use crate::diag;
+use crate::emit;
+use crate::symbolic::Symbolic;
+use crate::validate;
+
+/// Generates solvers for a list of description files into a directory (`OUT_DIR` by default).
+#[derive(Clone, Debug, Default)]
+pub struct Builder {
+    files: Vec<PathBuf>,
+    out_dir: Option<PathBuf>,
+    quiet: bool,
+}
+
+/// One generated module.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Generated {
+    /// The module's name: the description's `name`.
+    pub module: String,
+    /// The file written.
+    pub path: PathBuf,
+}
+
+/// Why generation failed: an invalid description (with its rendered diagnostics), a
+/// description the generator cannot handle, or an I/O problem.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Error {
+    message: String,
+}
+
+impl fmt::Display for Error {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(&self.message)
+    }
+}
+
+impl std::error::Error for Error {}
+
+impl Error {
+    fn new(message: impl Into<String>) -> Self {
+        Self { message: message.into() }
+    }
+}
+
+impl Builder {
+    /// A builder with no files, writing into `OUT_DIR`.
+    #[must_use]
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// Adds a description file (TOML, or JSON by extension), relative to the current
+    /// directory, which for a build script is the package's root.
+    #[must_use]
+    pub fn file(mut self, path: impl AsRef<Path>) -> Self {
+        self.files.push(path.as_ref().to_path_buf());
+        self
+    }
+
+    /// Adds several description files.
+    #[must_use]
+    pub fn files(mut self, paths: impl IntoIterator<Item = impl AsRef<Path>>) -> Self {
+        self.files.extend(paths.into_iter().map(|p| p.as_ref().to_path_buf()));
+        self
+    }
+
+    /// Writes into `dir` instead of `OUT_DIR`.
+    #[must_use]
+    pub fn out_dir(mut self, dir: impl AsRef<Path>) -> Self {
+        self.out_dir = Some(dir.as_ref().to_path_buf());
+        self
+    }
+
+    /// Prints no `cargo:` directives (for use outside a build script).
+    #[must_use]
+    pub fn quiet(mut self) -> Self {
+        self.quiet = true;
+        self
+    }
+
+    /// Validates every description, generates its module and writes the files.
+    ///
+    /// # Errors
+    ///
+    /// No output directory (neither [`out_dir`](Self::out_dir) nor `OUT_DIR`); an invalid
+    /// description (the message holds every diagnostic with its excerpt); a description the
+    /// generator refuses; two descriptions with the same `name`; an I/O failure.
+    pub fn compile(self) -> Result<Vec<Generated>, Error> {
+        let dir = match self.out_dir {
+            Some(dir) => dir,
+            None => std::env::var_os("OUT_DIR").map(PathBuf::from).ok_or_else(|| {
+                Error::new("OUT_DIR is not set: call out_dir(…) outside a build script")
+            })?,
+        };
+        std::fs::create_dir_all(&dir).map_err(|e| Error::new(format!("{}: {e}", dir.display())))?;
+        let mut generated: Vec<Generated> = Vec::new();
+        for file in &self.files {
+            if !self.quiet {
+                println!("cargo:rerun-if-changed={}", file.display());
+            }
+            let (module, text, warnings) = generate(file)?;
+            if !self.quiet {
+                for w in warnings {
+                    println!("cargo:warning={w}");
+                }
+            }
+            if generated.iter().any(|g| g.module == module) {
+                return Err(Error::new(format!(
+                    "{}: a second description named \"{module}\"; module names must differ",
+                    file.display()
+                )));
+            }
+            let path = dir.join(format!("{module}.rs"));
+            write_if_changed(&path, &text)?;
+            generated.push(Generated { module, path });
+        }
+        let mut index = String::from(
+            "// @generated by codegen::build. Do not edit.\n\
+             // One module per description; include with\n\
+             // include!(concat!(env!(\"OUT_DIR\"), \"/mechgen.rs\"));\n",
+        );
+        for g in &generated {
+            let path = g.path.to_str().ok_or_else(|| {
+                Error::new(format!("{}: the output path is not UTF-8", g.path.display()))
+            })?;
+            index.push_str(&format!("\n#[path = {path:?}]\npub mod {};\n", g.module));
+        }
+        write_if_changed(&dir.join("mechgen.rs"), &index)?;
+        Ok(generated)
+    }
+}
+
+/// The module name and text of one description, and its warnings (one line each).
+fn generate(file: &Path) -> Result<(String, String, Vec<String>), Error> {
+    let render_all = |diags: &[diag::Diagnostic], text: Option<&str>| {
+        Error::new(diag::render(diags, text, false).trim_end().to_owned())
+    };
+    let (text, format) = validate::read_file(file).map_err(|d| render_all(&d, None))?;
+    let loaded = validate::load_str(&text, format, Some(&file.display().to_string()))
+        .map_err(|d| render_all(&d, Some(&text)))?;
+    let sys = Symbolic::build(&loaded.mechanism)
+        .map_err(|e| Error::new(format!("{}: {e}", file.display())))?;
+    let source = file.display().to_string().replace('\\', "/");
+    let warnings = loaded.warnings.iter().map(ToString::to_string).collect();
+    Ok((loaded.mechanism.name.clone(), emit::module(&loaded.mechanism, &sys, &source), warnings))
+}
+
+/// Writes `text` unless the file already holds it (so cargo sees no change).
+fn write_if_changed(path: &Path, text: &str) -> Result<(), Error> {
+    if std::fs::read_to_string(path).is_ok_and(|have| have == text) {
+        return Ok(());
+    }
+    std::fs::write(path, text).map_err(|e| Error::new(format!("{}: {e}", path.display())))
+}
+
+#[cfg(test)]
+mod tests;

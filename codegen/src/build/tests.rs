@@ -1,0 +1,73 @@
+//! `Builder` writing into a temporary directory.
+
+use std::path::PathBuf;
+
+use super::Builder;
+
+fn example(name: &str) -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../examples").join(name)
+}
+
+fn temp_dir(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("mechgen-build-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    dir
+}
+
+#[test]
+fn compile_writes_each_module_and_an_index_that_declares_them() {
+    let dir = temp_dir("index");
+    let generated = Builder::new()
+        .files([example("rssr.toml"), example("four_bar.toml")])
+        .out_dir(&dir)
+        .quiet()
+        .compile()
+        .expect("both shipped examples generate");
+    let modules: Vec<&str> = generated.iter().map(|g| g.module.as_str()).collect();
+    assert_eq!(modules, ["rssr", "four_bar"]);
+    let rssr = std::fs::read_to_string(dir.join("rssr.rs")).expect("rssr.rs written");
+    assert!(rssr.contains("pub struct Rssr;"));
+    let index = std::fs::read_to_string(dir.join("mechgen.rs")).expect("index written");
+    let rssr_path = dir.join("rssr.rs");
+    assert!(index.contains(&format!("#[path = {:?}]\npub mod rssr;", rssr_path.to_str().unwrap())));
+    assert!(index.contains("pub mod four_bar;"));
+}
+
+#[test]
+fn an_unchanged_description_leaves_the_files_untouched() {
+    let dir = temp_dir("unchanged");
+    let build = || Builder::new().file(example("rssr.toml")).out_dir(&dir).quiet().compile();
+    build().expect("generates");
+    let path = dir.join("rssr.rs");
+    let before = std::fs::metadata(&path).and_then(|m| m.modified()).expect("mtime");
+    std::thread::sleep(std::time::Duration::from_millis(20));
+    build().expect("generates again");
+    let after = std::fs::metadata(&path).and_then(|m| m.modified()).expect("mtime");
+    assert_eq!(before, after, "no rewrite, so cargo sees no change");
+}
+
+#[test]
+fn an_invalid_description_fails_with_the_excerpt() {
+    let dir = temp_dir("invalid");
+    std::fs::create_dir_all(&dir).unwrap();
+    let text = std::fs::read_to_string(example("rssr.toml")).unwrap();
+    let file = dir.join("typo.toml");
+    std::fs::write(&file, text.replacen("axis_i", "axsi_i", 1)).unwrap();
+    let e = Builder::new().file(&file).out_dir(dir.join("out")).quiet().compile().unwrap_err();
+    let message = e.to_string();
+    assert!(message.contains("unknown field `axsi_i`: did you mean `axis_i`?"), "{message}");
+    assert!(message.contains("| ^^^^^^"), "{message}");
+    assert!(!dir.join("out/mechgen.rs").exists());
+}
+
+#[test]
+fn two_descriptions_with_one_name_are_refused() {
+    let dir = temp_dir("twice");
+    let e = Builder::new()
+        .files([example("rssr.toml"), example("rssr.toml")])
+        .out_dir(&dir)
+        .quiet()
+        .compile()
+        .unwrap_err();
+    assert!(e.to_string().contains("a second description named \"rssr\""), "{e}");
+}
