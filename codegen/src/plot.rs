@@ -239,7 +239,7 @@ pub fn draw(
         .map_err(|x| e(&x))?;
     chart
         .configure_mesh()
-        .light_line_style(BLACK.mix(0.04))
+        .max_light_lines(0)
         .axis_desc_style(("sans-serif", 15))
         .x_desc("t (s)")
         .y_desc(format!("{symbol} ({unit})"))
@@ -271,16 +271,24 @@ pub fn draw(
     Ok(())
 }
 
-/// The path in a 3D projection with axes labelled in metres; the start is a filled circle.
+/// The path in a 3D projection, every tick labelled with its axis (metres, as the caption
+/// says); the start is a filled circle.
 fn draw_path<DB: DrawingBackend>(
     area: &DrawingArea<DB, plotters::coord::Shift>,
     path: &[[f64; 3]],
 ) -> Result<(), String> {
     let e = |e: &dyn std::fmt::Display| e.to_string();
     // One cube around the path, so that the projection does not distort its shape.
-    let ranges: Vec<std::ops::Range<f64>> =
-        (0..3).map(|k| padded(path.iter().map(|p| p[k]))).collect();
-    let half = ranges.iter().map(|r| (r.end - r.start) / 2.0).fold(0.0, f64::max);
+    let ranges: Vec<std::ops::Range<f64>> = (0..3)
+        .map(|k| {
+            let (lo, hi) =
+                path.iter().fold((f64::MAX, f64::MIN), |(lo, hi), p| (lo.min(p[k]), hi.max(p[k])));
+            lo..hi
+        })
+        .collect();
+    // Half the largest extent with 5% room; a path that does not move gets a unit cube.
+    let half = 1.05 * ranges.iter().map(|r| (r.end - r.start) / 2.0).fold(0.0, f64::max);
+    let half = if half > 0.0 { half } else { 1.0 };
     let cube: Vec<std::ops::Range<f64>> = ranges
         .iter()
         .map(|r| {
@@ -299,7 +307,12 @@ fn draw_path<DB: DrawingBackend>(
         p.scale = 0.8;
         p.into_matrix()
     });
-    let fmt = |v: &f64| tick(*v);
+    // Each tick names its axis, so that the projection cannot be misread.
+    let (fx, fy, fz) = (
+        |v: &f64| format!("x {}", tick(*v)),
+        |v: &f64| format!("y {}", tick(*v)),
+        |v: &f64| format!("z {}", tick(*v)),
+    );
     chart
         .configure_axes()
         .light_grid_style(BLACK.mix(0.08))
@@ -307,19 +320,10 @@ fn draw_path<DB: DrawingBackend>(
         .x_labels(4)
         .y_labels(4)
         .z_labels(4)
-        .x_formatter(&fmt)
-        .y_formatter(&fmt)
-        .z_formatter(&fmt)
+        .x_formatter(&fx)
+        .y_formatter(&fy)
+        .z_formatter(&fz)
         .draw()
-        .map_err(|x| e(&x))?;
-    let style = ("sans-serif", 15).into_font();
-    let (x, y, z) = (&cube[0], &cube[1], &cube[2]);
-    chart
-        .draw_series([
-            Text::new("x (m)", (x.end, y.start, z.start), style.clone()),
-            Text::new("y (m)", (x.start, y.end, z.start), style.clone()),
-            Text::new("z (m)", (x.start, y.start, z.end), style),
-        ])
         .map_err(|x| e(&x))?;
     let points = path.iter().map(|p| (p[0], p[1], p[2]));
     chart.draw_series(LineSeries::new(points, COLORS[0].stroke_width(2))).map_err(|x| e(&x))?;

@@ -34,7 +34,7 @@ fn a_point_plot_has_labelled_axes_and_the_path() {
     // The four-bar's grid has 26 time points (0 to 2.5 s by 0.1 s).
     assert!(out.contains("26 time points"), "{out}");
     let text = std::fs::read_to_string(&svg).expect("the SVG was written");
-    for label in ["t (s)", "r_P (m)", "r_P.x", "r_P.z", "path (m)", "x (m)", "y (m)", "z (m)"] {
+    for label in ["t (s)", "r_P (m)", "r_P.x", "r_P.z", "path (m)", "\nx ", "\ny ", "\nz "] {
         assert!(text.contains(label), "missing label {label}");
     }
     assert!(text.contains("four_bar: point B"));
