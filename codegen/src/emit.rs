@@ -943,8 +943,30 @@ pub fn module_in(mech: &Mechanism, sys: &Symbolic, source: &str, scalar: Scalar)
                 .join(", ")
         ));
     }
+    let float = if scalar == Scalar::F32 { "f32" } else { "f64" };
+    text.push_str(&format!(
+        "//!\n\
+         //! # Example\n\
+         //!\n\
+         //! Every time point of the description's grid: positions by Newton's method, then\n\
+         //! velocities and accelerations with the same factors of Φ_q (the module's path depends\n\
+         //! on where it is included, so the example is not compiled here).\n\
+         //!\n\
+         //! ```ignore\n\
+         //! let mut solver = runtime::Solver::new({m}::{ty}, {m}::Q0);\n\
+         //! for k in 0..{m}::T_COUNT {{\n\
+         //!     let t = {m}::T_START + k as {float} * {m}::T_STEP;\n\
+         //!     solver.position(t)?; // Φ(q, t) = 0\n\
+         //!     solver.velocity()?; // Φ_q q̇ = ν\n\
+         //!     solver.acceleration()?; // Φ_q q̈ = γ\n\
+         //!     let (q, qd, qdd) = (solver.q(), solver.qd(), solver.qdd());\n\
+         //! }}\n\
+         //! ```\n",
+        m = mech.name,
+        ty = type_name(&mech.name),
+    ));
     if scalar == Scalar::F32 {
-        text.push_str("//! Single precision: every value, literal and operation is `f32`.\n");
+        text.push_str("//!\n//! Single precision: every value, literal and operation is `f32`.\n");
         items.iter_mut().for_each(scalar::to_f32);
     }
     for item in items {

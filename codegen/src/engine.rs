@@ -546,10 +546,10 @@ pub fn bench(
     bench_with(built, tolerance, repeats, Settings::default())
 }
 
-/// [`bench`] with the given [`Settings`].
+/// [`bench()`] with the given [`Settings`].
 ///
 /// # Errors
-/// As [`bench`].
+/// As [`bench()`].
 pub fn bench_with(
     built: &Built,
     tolerance: f64,

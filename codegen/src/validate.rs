@@ -84,7 +84,7 @@ pub fn read_file(path: &Path) -> Result<(String, Format), Vec<Diagnostic>> {
 
 /// The largest description file accepted, in bytes (16 MiB).
 ///
-/// A description of [`rules::MAX_BODIES`] bodies with a joint and a point each takes well under
+/// A description of `rules::MAX_BODIES` bodies with a joint and a point each takes well under
 /// 1 MiB; the bound keeps a mistaken argument (a log, a disk image) from being read into memory.
 pub const MAX_FILE_BYTES: u64 = 16 << 20;
 

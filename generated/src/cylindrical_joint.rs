@@ -2,6 +2,23 @@
 
 #![cfg_attr(rustfmt, rustfmt::skip)]
 //! A sleeve on a cylindrical joint along global y: 5 unknowns and 5 equations after eliminating constraint no_rotation_y, driver drive_y (ground bodies carry none).
+//!
+//! # Example
+//!
+//! Every time point of the description's grid: positions by Newton's method, then
+//! velocities and accelerations with the same factors of Φ_q (the module's path depends
+//! on where it is included, so the example is not compiled here).
+//!
+//! ```ignore
+//! let mut solver = runtime::Solver::new(cylindrical_joint::CylindricalJoint, cylindrical_joint::Q0);
+//! for k in 0..cylindrical_joint::T_COUNT {
+//!     let t = cylindrical_joint::T_START + k as f64 * cylindrical_joint::T_STEP;
+//!     solver.position(t)?; // Φ(q, t) = 0
+//!     solver.velocity()?; // Φ_q q̇ = ν
+//!     solver.acceleration()?; // Φ_q q̈ = γ
+//!     let (q, qd, qdd) = (solver.q(), solver.qd(), solver.qdd());
+//! }
+//! ```
 
 /// Number of unknowns (and of equations) of the reduced system.
 pub const N: usize = 5;

@@ -2,6 +2,23 @@
 
 #![cfg_attr(rustfmt, rustfmt::skip)]
 //! Spatial four-bar of Haug (1989), p. 407: 21 unknowns and 21 equations after eliminating nothing (ground bodies carry none).
+//!
+//! # Example
+//!
+//! Every time point of the description's grid: positions by Newton's method, then
+//! velocities and accelerations with the same factors of Φ_q (the module's path depends
+//! on where it is included, so the example is not compiled here).
+//!
+//! ```ignore
+//! let mut solver = runtime::Solver::new(four_bar::FourBar, four_bar::Q0);
+//! for k in 0..four_bar::T_COUNT {
+//!     let t = four_bar::T_START + k as f64 * four_bar::T_STEP;
+//!     solver.position(t)?; // Φ(q, t) = 0
+//!     solver.velocity()?; // Φ_q q̇ = ν
+//!     solver.acceleration()?; // Φ_q q̈ = γ
+//!     let (q, qd, qdd) = (solver.q(), solver.qd(), solver.qdd());
+//! }
+//! ```
 
 /// Number of unknowns (and of equations) of the reduced system.
 pub const N: usize = 21;

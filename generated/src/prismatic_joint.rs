@@ -2,6 +2,23 @@
 
 #![cfg_attr(rustfmt, rustfmt::skip)]
 //! A slider on a prismatic joint along global y: 6 unknowns and 6 equations after eliminating driver drive_y (ground bodies carry none).
+//!
+//! # Example
+//!
+//! Every time point of the description's grid: positions by Newton's method, then
+//! velocities and accelerations with the same factors of Φ_q (the module's path depends
+//! on where it is included, so the example is not compiled here).
+//!
+//! ```ignore
+//! let mut solver = runtime::Solver::new(prismatic_joint::PrismaticJoint, prismatic_joint::Q0);
+//! for k in 0..prismatic_joint::T_COUNT {
+//!     let t = prismatic_joint::T_START + k as f64 * prismatic_joint::T_STEP;
+//!     solver.position(t)?; // Φ(q, t) = 0
+//!     solver.velocity()?; // Φ_q q̇ = ν
+//!     solver.acceleration()?; // Φ_q q̈ = γ
+//!     let (q, qd, qdd) = (solver.q(), solver.qd(), solver.qdd());
+//! }
+//! ```
 
 /// Number of unknowns (and of equations) of the reduced system.
 pub const N: usize = 6;

@@ -2,6 +2,23 @@
 
 #![cfg_attr(rustfmt, rustfmt::skip)]
 //! Spatial slider-crank of Haug (1989), p. 396, with 5 bodies: 28 unknowns and 28 equations after eliminating nothing (ground bodies carry none).
+//!
+//! # Example
+//!
+//! Every time point of the description's grid: positions by Newton's method, then
+//! velocities and accelerations with the same factors of Φ_q (the module's path depends
+//! on where it is included, so the example is not compiled here).
+//!
+//! ```ignore
+//! let mut solver = runtime::Solver::new(slider_crank_5body::SliderCrank5body, slider_crank_5body::Q0);
+//! for k in 0..slider_crank_5body::T_COUNT {
+//!     let t = slider_crank_5body::T_START + k as f64 * slider_crank_5body::T_STEP;
+//!     solver.position(t)?; // Φ(q, t) = 0
+//!     solver.velocity()?; // Φ_q q̇ = ν
+//!     solver.acceleration()?; // Φ_q q̈ = γ
+//!     let (q, qd, qdd) = (solver.q(), solver.qd(), solver.qdd());
+//! }
+//! ```
 
 /// Number of unknowns (and of equations) of the reduced system.
 pub const N: usize = 28;

@@ -2,6 +2,23 @@
 
 #![cfg_attr(rustfmt, rustfmt::skip)]
 //! A body translated along global x and y by two absolute drivers: 1 unknowns and 1 equations after eliminating constraint fix_z, constraint fix_e1, constraint fix_e2, constraint fix_e3, driver drive_x, driver drive_y (ground bodies carry none).
+//!
+//! # Example
+//!
+//! Every time point of the description's grid: positions by Newton's method, then
+//! velocities and accelerations with the same factors of Φ_q (the module's path depends
+//! on where it is included, so the example is not compiled here).
+//!
+//! ```ignore
+//! let mut solver = runtime::Solver::new(translation_xy::TranslationXy, translation_xy::Q0);
+//! for k in 0..translation_xy::T_COUNT {
+//!     let t = translation_xy::T_START + k as f64 * translation_xy::T_STEP;
+//!     solver.position(t)?; // Φ(q, t) = 0
+//!     solver.velocity()?; // Φ_q q̇ = ν
+//!     solver.acceleration()?; // Φ_q q̈ = γ
+//!     let (q, qd, qdd) = (solver.q(), solver.qd(), solver.qdd());
+//! }
+//! ```
 
 /// Number of unknowns (and of equations) of the reduced system.
 pub const N: usize = 1;

@@ -38,6 +38,46 @@ use crate::{Mechanism, Real};
 /// be built at compile time).
 /// [`Solver::with_storage`] takes any `J: BorrowMut<[[R; N]; N]>` instead, such as a
 /// `&mut [[R; N]; N]` or a `Box<[[R; N]; N]>` built without passing through the stack.
+///
+/// # Example
+///
+/// A slider whose position x follows s(t) = sin t: Φ = x − sin t, so ν = cos t and
+/// γ = −sin t. Each step asks for what it needs; velocity and acceleration reuse the factors
+/// of the converged position.
+///
+/// ```
+/// use runtime::{Mechanism, Solver};
+///
+/// struct Slider;
+///
+/// impl Mechanism<1> for Slider {
+///     fn residual(&self, q: &[f64; 1], t: f64, phi: &mut [f64; 1]) {
+///         phi[0] = q[0] - t.sin();
+///     }
+///     fn jacobian(&self, _q: &[f64; 1], _t: f64, jac: &mut [[f64; 1]; 1]) {
+///         jac[0][0] = 1.0;
+///     }
+///     fn velocity_rhs(&self, _q: &[f64; 1], t: f64, nu: &mut [f64; 1]) {
+///         nu[0] = t.cos();
+///     }
+///     fn acceleration_rhs(&self, _q: &[f64; 1], _qd: &[f64; 1], t: f64, gamma: &mut [f64; 1]) {
+///         gamma[0] = -t.sin();
+///     }
+/// }
+///
+/// let mut solver = Solver::new(Slider, [0.0]);
+/// for k in 0..=10 {
+///     let t = 0.1 * f64::from(k);
+///     solver.position(t).expect("a linear system converges");
+///     solver.velocity().expect("Φ_q is regular");
+///     solver.acceleration().expect("q̇ is known");
+///     // The solver stops at max |Φ| ≤ 1e-10 by default, and Φ is linear here: one Newton
+///     // step is exact up to round-off, so 1e-12 is loose.
+///     assert!((solver.q()[0] - t.sin()).abs() < 1e-12);
+///     assert!((solver.qd()[0] - t.cos()).abs() < 1e-12);
+///     assert!((solver.qdd()[0] + t.sin()).abs() < 1e-12);
+/// }
+/// ```
 #[derive(Clone, Debug)]
 pub struct Solver<M, const N: usize, R = f64, J = [[R; N]; N]> {
     mechanism: M,

@@ -47,14 +47,14 @@ pub const RUNTIME_MAX_MULTIPLIER: f64 = 10.0;
 /// A static pivot order for Φ_q and the structure of its L and U factors.
 ///
 /// Step coordinates: step k pivots on row `rows[k]` and column `cols[k]` of Φ_q, so the
-/// permuted matrix B = P Φ_q Q has B[k][l] = Φ_q[rows[k]][cols[l]], and B = L U.
+/// permuted matrix B = P Φ_q Q has `B[k][l] = Φ_q[rows[k]][cols[l]]`, and B = L U.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct Order {
     /// The row of Φ_q pivoted at each step.
     pub rows: Vec<usize>,
     /// The column of Φ_q pivoted at each step.
     pub cols: Vec<usize>,
-    /// For each step k, the steps l (ascending) where B[k][l] is a structural non-zero of L
+    /// For each step k, the steps l (ascending) where `B[k][l]` is a structural non-zero of L
     /// (l < k) or of U (l ≥ k).
     pub pattern: Vec<Vec<usize>>,
 }

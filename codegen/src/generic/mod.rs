@@ -4,7 +4,7 @@
 //! body order. Equations come in a fixed order: joint rows (joints in file order), then
 //! constraint rows, then driver rows, then one Euler-parameter normalisation per non-ground
 //! body (thesis eq. 3.13: pᵀp − 1 = 0). Each row is written once, as a function of vector
-//! primitives ([`kin`]), which carry its Jacobian and its ν and γ terms along.
+//! primitives (`kin`), which carry its Jacobian and its ν and γ terms along.
 //!
 //! Row forms (all free of singularities at every relative angle):
 //! - spherical (eq. 4.11): P_j − P_i = 0, 3 rows;
@@ -21,9 +21,9 @@
 //!   position. It states θ ≡ φ (mod π) with no arccos and no stored turn count, so it holds
 //!   through any number of turns;
 //! - distance: (d·d − L²)/(2L) = 0 (≈ |d| − L near the solution, in length units);
-//! - fix (eq. 4.57): q_b[c] − value; coordinate difference: q_i[c] − q_j[c] − value;
+//! - fix (eq. 4.57): `q_b[c] − value`; coordinate difference: `q_i[c] − q_j[c] − value`;
 //! - joint rotation driver: x sin s(t) − y cos s(t) = sin(s − θ) = 0; joint translation
-//!   driver: d·a_i − s(t) = 0; absolute drivers: q_b[c] − s(t) = 0 or, for rotations about a
+//!   driver: d·a_i − s(t) = 0; absolute drivers: `q_b[c] − s(t) = 0` or, for rotations about a
 //!   global axis (eq. 4.62), e_k cos(s/2) − e0 sin(s/2) = 0.
 
 pub(crate) mod kin;
