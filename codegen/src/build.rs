@@ -23,7 +23,7 @@
 //! The workspace's `examples/build-rs-user` crate does exactly this and tests the generated
 //! solver against the closed form of its four-bar.
 //!
-//! ```ignore
+//! ```text
 //! // src/lib.rs: one module per description, named after its `name`.
 //! include!(concat!(env!("OUT_DIR"), "/mechgen.rs"));
 //!

@@ -950,9 +950,9 @@ pub fn module_in(mech: &Mechanism, sys: &Symbolic, source: &str, scalar: Scalar)
          //!\n\
          //! Every time point of the description's grid: positions by Newton's method, then\n\
          //! velocities and accelerations with the same factors of Φ_q (the module's path depends\n\
-         //! on where it is included, so the example is not compiled here).\n\
+         //! on where it is included, so the example is not compiled as a test here).\n\
          //!\n\
-         //! ```ignore\n\
+         //! ```text\n\
          //! let mut solver = runtime::Solver::new({m}::{ty}, {m}::Q0);\n\
          //! for k in 0..{m}::T_COUNT {{\n\
          //!     let t = {m}::T_START + k as {float} * {m}::T_STEP;\n\

@@ -7,9 +7,9 @@
 //!
 //! Every time point of the description's grid: positions by Newton's method, then
 //! velocities and accelerations with the same factors of Φ_q (the module's path depends
-//! on where it is included, so the example is not compiled here).
+//! on where it is included, so the example is not compiled as a test here).
 //!
-//! ```ignore
+//! ```text
 //! let mut solver = runtime::Solver::new(cylindrical_joint::CylindricalJoint, cylindrical_joint::Q0);
 //! for k in 0..cylindrical_joint::T_COUNT {
 //!     let t = cylindrical_joint::T_START + k as f64 * cylindrical_joint::T_STEP;

@@ -7,9 +7,9 @@
 //!
 //! Every time point of the description's grid: positions by Newton's method, then
 //! velocities and accelerations with the same factors of Φ_q (the module's path depends
-//! on where it is included, so the example is not compiled here).
+//! on where it is included, so the example is not compiled as a test here).
 //!
-//! ```ignore
+//! ```text
 //! let mut solver = runtime::Solver::new(static_body_offset::StaticBodyOffset, static_body_offset::Q0);
 //! for k in 0..static_body_offset::T_COUNT {
 //!     let t = static_body_offset::T_START + k as f64 * static_body_offset::T_STEP;

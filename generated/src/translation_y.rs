@@ -7,9 +7,9 @@
 //!
 //! Every time point of the description's grid: positions by Newton's method, then
 //! velocities and accelerations with the same factors of Φ_q (the module's path depends
-//! on where it is included, so the example is not compiled here).
+//! on where it is included, so the example is not compiled as a test here).
 //!
-//! ```ignore
+//! ```text
 //! let mut solver = runtime::Solver::new(translation_y::TranslationY, translation_y::Q0);
 //! for k in 0..translation_y::T_COUNT {
 //!     let t = translation_y::T_START + k as f64 * translation_y::T_STEP;
