@@ -190,6 +190,9 @@ pub fn draw(marks: &[Mark], title: &str, path: &Path) -> Result<(), String> {
     if marks.is_empty() {
         return Err("nothing to draw".to_owned());
     }
+    // Headroom above the highest mark, a third of the decades spanned, so the legend in the
+    // upper right corner covers no mark.
+    let top = y1 * 10.0 * ((y1 * 10.0) / (y0 / 10.0)).powf(1.0 / 3.0);
     let root = SVGBackend::new(path, (900, 600)).into_drawing_area();
     let e = |e: &dyn std::fmt::Display| e.to_string();
     root.fill(&WHITE).map_err(|x| e(&x))?;
@@ -198,7 +201,7 @@ pub fn draw(marks: &[Mark], title: &str, path: &Path) -> Result<(), String> {
         .margin(15)
         .x_label_area_size(50)
         .y_label_area_size(80)
-        .build_cartesian_2d((x0 / 1.5..x1 * 1.5).log_scale(), (y0 / 10.0..y1 * 10.0).log_scale())
+        .build_cartesian_2d((x0 / 1.5..x1 * 1.5).log_scale(), (y0 / 10.0..top).log_scale())
         .map_err(|x| e(&x))?;
     chart
         .configure_mesh()
