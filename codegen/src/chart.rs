@@ -174,6 +174,22 @@ pub fn measure_with(
     Ok((marks, skipped))
 }
 
+/// Draws a chart's series labels in its upper right corner, on a translucent white box.
+///
+/// # Errors
+/// The drawing backend's error, as text.
+pub(crate) fn legend<'a, DB: DrawingBackend + 'a, CT: plotters::coord::CoordTranslate>(
+    chart: &mut ChartContext<'a, DB, CT>,
+) -> Result<(), String> {
+    chart
+        .configure_series_labels()
+        .background_style(WHITE.mix(0.8))
+        .border_style(BLACK)
+        .position(SeriesLabelPosition::UpperRight)
+        .draw()
+        .map_err(|x| x.to_string())
+}
+
 /// Draws the marks as an SVG chart at `path`.
 ///
 /// # Errors
@@ -248,13 +264,7 @@ pub fn draw(marks: &[Mark], title: &str, path: &Path) -> Result<(), String> {
             }))
             .map_err(|x| e(&x))?;
     }
-    chart
-        .configure_series_labels()
-        .background_style(WHITE.mix(0.8))
-        .border_style(BLACK)
-        .position(SeriesLabelPosition::UpperRight)
-        .draw()
-        .map_err(|x| e(&x))?;
+    legend(&mut chart)?;
     root.present().map_err(|x| e(&x))?;
     Ok(())
 }
@@ -381,13 +391,7 @@ pub fn draw_conditioning(points: &[Conditioning], title: &str, path: &Path) -> R
         .map_err(|x| e(&x))?
         .label("1/ρ: max / min LU pivot (the step control's estimate)")
         .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], orange.stroke_width(2)));
-    chart
-        .configure_series_labels()
-        .background_style(WHITE.mix(0.8))
-        .border_style(BLACK)
-        .position(SeriesLabelPosition::UpperRight)
-        .draw()
-        .map_err(|x| e(&x))?;
+    legend(&mut chart)?;
     let mut chart = ChartBuilder::on(&lower)
         .margin(15)
         .x_label_area_size(40)
@@ -421,13 +425,7 @@ pub fn draw_conditioning(points: &[Conditioning], title: &str, path: &Path) -> R
                 PathElement::new(vec![(x, y), (x + 20, y)], green.stroke_width(2))
             });
     }
-    chart
-        .configure_series_labels()
-        .background_style(WHITE.mix(0.8))
-        .border_style(BLACK)
-        .position(SeriesLabelPosition::UpperRight)
-        .draw()
-        .map_err(|x| e(&x))?;
+    legend(&mut chart)?;
     root.present().map_err(|x| e(&x))?;
     Ok(())
 }

@@ -256,13 +256,7 @@ pub fn draw(
             .label(format!("{symbol}.{name}"))
             .legend(move |(x, y)| PathElement::new([(x, y), (x + 18, y)], color.stroke_width(2)));
     }
-    chart
-        .configure_series_labels()
-        .background_style(WHITE.mix(0.8))
-        .border_style(BLACK)
-        .position(SeriesLabelPosition::UpperRight)
-        .draw()
-        .map_err(|x| e(&x))?;
+    crate::chart::legend(&mut chart)?;
 
     if with_path {
         draw_path(&right, &trace.path)?;

@@ -18,8 +18,8 @@ fn temp_file(name: &str, text: &str) -> PathBuf {
     path
 }
 
-/// Runs mechgen and returns (status, stdout, stderr).
-fn mechgen(args: &[&str]) -> (i32, String, String) {
+/// Runs mechgen and returns (status, stdout, stderr); the plot tests use it too.
+pub(super) fn mechgen(args: &[&str]) -> (i32, String, String) {
     let mut argv = vec!["mechgen".into()];
     argv.extend(args.iter().map(Into::into));
     let (mut out, mut err) = (Vec::new(), Vec::new());

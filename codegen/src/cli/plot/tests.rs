@@ -2,7 +2,8 @@
 
 use std::path::PathBuf;
 
-use crate::cli::{EXIT_INVALID, EXIT_OK, run};
+use crate::cli::tests::mechgen;
+use crate::cli::{EXIT_INVALID, EXIT_OK};
 
 fn example(name: &str) -> String {
     let path = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../examples").join(name);
@@ -14,15 +15,6 @@ fn output(name: &str) -> PathBuf {
     let dir = std::env::temp_dir().join(format!("mechgen-plot-{}", std::process::id()));
     std::fs::create_dir_all(&dir).expect("temporary directory");
     dir.join(name)
-}
-
-/// Runs mechgen and returns (status, stdout, stderr).
-fn mechgen(args: &[&str]) -> (i32, String, String) {
-    let mut argv = vec!["mechgen".into()];
-    argv.extend(args.iter().map(Into::into));
-    let (mut out, mut err) = (Vec::new(), Vec::new());
-    let code = run(argv, &mut out, &mut err);
-    (code, String::from_utf8(out).expect("utf-8"), String::from_utf8(err).expect("utf-8"))
 }
 
 #[test]
