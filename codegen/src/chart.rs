@@ -82,11 +82,35 @@ pub fn measure(mech: &Mechanism, repeats: usize) -> Result<(Vec<Mark>, Vec<Strin
     measure_with(mech, repeats, &mut |_, _| {})
 }
 
-/// The number of marks [`measure`] attempts: two generic and three generated series at
-/// every tolerance of [`TOLERANCES`], and one single-precision series at [`F32_TOLERANCES`].
+/// A floating-point type of the generated solver, its series (name and settings) and their
+/// tolerances.
+type Variant = (Scalar, &'static [(&'static str, Settings)], &'static [f64]);
+
+/// The generated solver's series: in double precision with and without the predictor and
+/// with dense LU only, at [`TOLERANCES`]; in single precision at [`F32_TOLERANCES`].
+const GENERATED: [Variant; 2] = [
+    (
+        Scalar::F64,
+        &[
+            ("generated", Settings::DEFAULT),
+            ("generated, no predictor", Settings { predictor: false, ..Settings::DEFAULT }),
+            ("generated, dense LU", Settings { dense_lu: true, ..Settings::DEFAULT }),
+        ],
+        &TOLERANCES,
+    ),
+    (Scalar::F32, &[("generated, f32", Settings::DEFAULT)], &F32_TOLERANCES),
+];
+
+/// The number of marks [`measure`] attempts: the generic engine with and without its
+/// predictor at every tolerance of [`TOLERANCES`], and every series of [`GENERATED`] at its
+/// tolerances.
 #[must_use]
 pub fn mark_count() -> usize {
-    5 * TOLERANCES.len() + F32_TOLERANCES.len()
+    2 * TOLERANCES.len()
+        + GENERATED
+            .iter()
+            .map(|(_, series, tolerances)| series.len() * tolerances.len())
+            .sum::<usize>()
 }
 
 /// As [`measure`], calling `done(series, tolerance)` after each mark is attempted (for
@@ -125,18 +149,7 @@ pub fn measure_with(
             done(&series, tolerance);
         }
     }
-    let f64_settings = [
-        ("generated", Settings::default()),
-        ("generated, no predictor", Settings { predictor: false, ..Settings::default() }),
-        ("generated, dense LU", Settings { dense_lu: true, ..Settings::default() }),
-    ];
-    /// A floating-point type, its series and their tolerances.
-    type Variant<'a> = (Scalar, &'a [(&'a str, Settings)], &'a [f64]);
-    let variants: [Variant<'_>; 2] = [
-        (Scalar::F64, &f64_settings, &TOLERANCES),
-        (Scalar::F32, &[("generated, f32", Settings::default())], &F32_TOLERANCES),
-    ];
-    for (scalar, series, tolerances) in variants {
+    for (scalar, series, tolerances) in GENERATED {
         let built = match crate::engine::build_in(mech, scalar) {
             Ok(b) => b,
             Err(e) => {

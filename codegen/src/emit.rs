@@ -71,8 +71,28 @@ fn let_stmt(name: Ident, e: Expr) -> syn::Stmt {
     })
 }
 
-/// `target = value;`.
+/// `target = value;`, or `target op= rhs;` when value is `target op rhs` (clippy's
+/// `assign_op_pattern`); the same floating-point operation either way.
 fn assign(target: Expr, value: Expr) -> syn::Stmt {
+    use quote::ToTokens;
+    let same = |e: &Expr| e.to_token_stream().to_string() == target.to_token_stream().to_string();
+    if let Expr::Binary(b) = &value
+        && same(&b.left)
+    {
+        let op = match b.op {
+            syn::BinOp::Add(_) => Some(syn::BinOp::AddAssign(Default::default())),
+            syn::BinOp::Sub(_) => Some(syn::BinOp::SubAssign(Default::default())),
+            syn::BinOp::Mul(_) => Some(syn::BinOp::MulAssign(Default::default())),
+            syn::BinOp::Div(_) => Some(syn::BinOp::DivAssign(Default::default())),
+            _ => None,
+        };
+        if let Some(op) = op {
+            return syn::Stmt::Expr(
+                binary(target, op, (*b.right).clone()),
+                Some(Default::default()),
+            );
+        }
+    }
     syn::Stmt::Expr(
         Expr::Assign(syn::ExprAssign {
             attrs: Vec::new(),

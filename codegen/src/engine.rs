@@ -412,11 +412,14 @@ pub struct Settings {
 
 impl Default for Settings {
     fn default() -> Self {
-        Settings { predictor: true, dense_lu: false }
+        Settings::DEFAULT
     }
 }
 
 impl Settings {
+    /// Predictor on, structured LU: what `run` and `bench` use.
+    pub const DEFAULT: Settings = Settings { predictor: true, dense_lu: false };
+
     /// The driver's flags for these settings.
     fn flags(self) -> impl Iterator<Item = &'static str> {
         [(!self.predictor).then_some("no-predictor"), self.dense_lu.then_some("dense")]

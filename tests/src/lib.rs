@@ -20,6 +20,8 @@ mod seed_examples;
 #[cfg(test)]
 mod single_precision;
 #[cfg(test)]
+mod split_modules;
+#[cfg(test)]
 mod stability;
 #[cfg(test)]
 mod structured_lu;

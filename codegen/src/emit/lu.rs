@@ -864,11 +864,18 @@ fn emit_solve(f: &Factored<'_>, which: usize) -> Vec<syn::Item> {
                 Val::Run(super::path(ident(&format!("{prefix}{k}"))), Prec::Atom)
             }
         };
-        let define = |prefix: &str, k: usize, e: Expr| -> syn::Stmt {
+        // In the split form, x_k = y_k (a unit diagonal without off-diagonal terms) leaves
+        // `y[k]` as it is: no statement.
+        let define = |prefix: &str, k: usize, e: Expr| -> Vec<syn::Stmt> {
             if split {
-                super::assign(super::element("y", &[k]), e)
+                use quote::ToTokens;
+                let target = super::element("y", &[k]);
+                if e.to_token_stream().to_string() == target.to_token_stream().to_string() {
+                    return Vec::new();
+                }
+                vec![super::assign(target, e)]
             } else {
-                super::let_stmt(ident(&format!("{prefix}{k}")), e)
+                vec![super::let_stmt(ident(&format!("{prefix}{k}")), e)]
             }
         };
         let mut out = Vec::with_capacity(2 * n + 1);
@@ -877,7 +884,7 @@ fn emit_solve(f: &Factored<'_>, which: usize) -> Vec<syn::Item> {
             for &l in order.pattern[k].iter().filter(|&&l| l < k) {
                 v = v.minus(&stored_val(k, l).mul(&named("y", l)));
             }
-            out.push((vec![define("y", k, v.into_expr(Prec::Sum))], true));
+            out.push((define("y", k, v.into_expr(Prec::Sum)), true));
         }
         for k in (0..n).rev() {
             let mut v = named("y", k);
@@ -885,7 +892,7 @@ fn emit_solve(f: &Factored<'_>, which: usize) -> Vec<syn::Item> {
                 v = v.minus(&stored_val(k, l).mul(&named("x", l)));
             }
             let v = v.mul(&stored_val(k, k));
-            out.push((vec![define("x", k, v.into_expr(Prec::Sum))], false));
+            out.push((define("x", k, v.into_expr(Prec::Sum)), false));
         }
         out.push((
             (0..n)
@@ -933,10 +940,18 @@ fn emit_solve(f: &Factored<'_>, which: usize) -> Vec<syn::Item> {
         let helper = ident(&format!("solve_{which}_{c}"));
         let doc = format!(" Part {c} of [`solve_{which}`], with y_k and then x_k in `y[k]`.");
         let b = if uses_b { ident("b") } else { ident("_b") };
+        // A part whose factors are all constants does not read `lu`.
+        let uses_lu = stmts.iter().any(|s| {
+            use quote::ToTokens;
+            s.to_token_stream()
+                .into_iter()
+                .any(|t| matches!(&t, proc_macro2::TokenTree::Ident(i) if i == "lu"))
+        });
+        let lu = if uses_lu { ident("lu") } else { ident("_lu") };
         let item: syn::ItemFn = parse_quote! {
             #[doc = #doc]
             #[inline(never)]
-            fn #helper(lu: &[[f64; N]; N], #b: &mut [f64; N], y: &mut [f64; N]) {}
+            fn #helper(#lu: &[[f64; N]; N], #b: &mut [f64; N], y: &mut [f64; N]) {}
         };
         items.push(super::item_fn(item, stmts));
         calls.push(parse_quote!(#helper(lu, b, &mut y);));
@@ -960,6 +975,10 @@ fn assigned_operations(s: &syn::Stmt) -> usize {
             let l = super::let_stmt(ident("v"), (*a.right).clone());
             operations(std::slice::from_ref(&l))
         }
+        // A compound assignment `t op= e`: its operation and those of e.
+        syn::Stmt::Expr(e @ Expr::Binary(_), _) => {
+            operations(std::slice::from_ref(&super::let_stmt(ident("v"), e.clone())))
+        }
         _ => operations(std::slice::from_ref(s)),
     }
 }
@@ -975,6 +994,10 @@ fn operations(stmts: &[syn::Stmt]) -> usize {
                         | syn::BinOp::Sub(_)
                         | syn::BinOp::Mul(_)
                         | syn::BinOp::Div(_)
+                        | syn::BinOp::AddAssign(_)
+                        | syn::BinOp::SubAssign(_)
+                        | syn::BinOp::MulAssign(_)
+                        | syn::BinOp::DivAssign(_)
                 );
                 usize::from(arithmetic) + count(&b.left) + count(&b.right)
             }

@@ -74,3 +74,19 @@ fn large_mechanisms_are_emitted_as_bounded_functions() {
     let helpers = module.matches("#[inline(never)]").count();
     assert!(helpers >= 10, "{helpers} helpers");
 }
+
+#[test]
+fn a_split_module_is_rewritten_to_single_precision_throughout() {
+    // The f32 rewrite works item by item, so the split helpers must come out in f32 too.
+    let text = crate::scale::chain(30, 2);
+    let mech =
+        crate::validate::load_str(&text, crate::validate::Format::Toml, None).unwrap().mechanism;
+    let sys = crate::symbolic::Symbolic::build(&mech).unwrap();
+    let module = super::module_in(&mech, &sys, "a test", super::Scalar::F32);
+    assert!(module.matches("#[inline(never)]").count() >= 10);
+    // Code lines only: doc comments may name f64 in prose.
+    let code: Vec<&str> = module.lines().filter(|l| !l.trim_start().starts_with("//")).collect();
+    let leaks: Vec<&&str> = code.iter().filter(|l| l.contains("f64")).collect();
+    assert!(leaks.is_empty(), "{} lines keep f64, e.g. {:?}", leaks.len(), leaks.first());
+    assert!(code.iter().any(|l| l.contains("[f32; N]")));
+}
