@@ -40,31 +40,6 @@ type Real = __REAL__;
 
 const N: usize = mechanism::N;
 
-/// The mechanism with its static pivot orders hidden, so that every factorisation is the
-/// runtime's dense LU with partial pivoting.
-struct Dense;
-
-impl Mechanism<N, Real> for Dense {
-    fn residual(&self, q: &[Real; N], t: Real, phi: &mut [Real; N]) {
-        mechanism::residual(q, t, phi);
-    }
-    fn jacobian(&self, q: &[Real; N], t: Real, jac: &mut [[Real; N]; N]) {
-        mechanism::jacobian(q, t, jac);
-    }
-    fn residual_jacobian(&self, q: &[Real; N], t: Real, phi: &mut [Real; N], jac: &mut [[Real; N]; N]) {
-        mechanism::residual_jacobian(q, t, phi, jac);
-    }
-    fn velocity_rhs(&self, q: &[Real; N], t: Real, nu: &mut [Real; N]) {
-        mechanism::velocity_rhs(q, t, nu);
-    }
-    fn acceleration_rhs(&self, q: &[Real; N], qd: &[Real; N], t: Real, gamma: &mut [Real; N]) {
-        mechanism::acceleration_rhs(q, qd, t, gamma);
-    }
-    fn normalize(&self, q: &mut [Real; N]) {
-        mechanism::normalize(q);
-    }
-}
-
 fn main() {
     let args: Vec<String> = std::env::args().collect();
     let mode = args.get(1).map_or("run", String::as_str);
@@ -73,7 +48,8 @@ fn main() {
     let flag = |name: &str| args.iter().skip(2).any(|a| a == name);
     let predictor = !flag("no-predictor");
     if flag("dense") {
-        drive(Dense, mode, tolerance, repeats, predictor);
+        // Static pivot orders hidden: every factorisation is dense LU with partial pivoting.
+        drive(runtime::factors::DenseOnly(mechanism::__TYPE__), mode, tolerance, repeats, predictor);
     } else {
         drive(mechanism::__TYPE__, mode, tolerance, repeats, predictor);
     }
@@ -85,13 +61,7 @@ fn drive<M: Mechanism<N, Real>>(m: M, mode: &str, tolerance: Real, repeats: usiz
         max_iterations: mechanism::MAX_ITERATIONS,
         ..NewtonOptions::DEFAULT
     };
-    // The Jacobian lives on the heap: large mechanisms would overflow the stack.
-    let jac: Box<[[Real; N]; N]> =
-        match vec![[0.0; N]; N].into_boxed_slice().try_into() {
-            Ok(b) => b,
-            Err(_) => unreachable!("the vector has N rows"),
-        };
-    let mut solver = Solver::with_storage(m, mechanism::Q0, jac);
+    let mut solver = Solver::with_storage(m, mechanism::Q0, jacobian());
     solver.set_options(options);
     solver.set_predictor(predictor);
     let stdout = std::io::stdout();

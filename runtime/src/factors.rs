@@ -212,3 +212,49 @@ impl<const N: usize> Factors<N> {
         }
     }
 }
+
+/// A mechanism with its static pivot orders hidden, so that every factorisation of Φ_q is
+/// dense LU with partial pivoting: the reference the structured factorisations are compared
+/// with, in tests and benchmarks.
+///
+/// ```
+/// use runtime::Mechanism;
+/// use runtime::factors::DenseOnly;
+///
+/// struct Line;
+/// impl Mechanism<1> for Line {
+///     fn residual(&self, q: &[f64; 1], t: f64, phi: &mut [f64; 1]) { phi[0] = q[0] - t; }
+///     fn jacobian(&self, _: &[f64; 1], _: f64, jac: &mut [[f64; 1]; 1]) { jac[0][0] = 1.0; }
+///     fn velocity_rhs(&self, _: &[f64; 1], _: f64, nu: &mut [f64; 1]) { nu[0] = 1.0; }
+///     fn acceleration_rhs(&self, _: &[f64; 1], _: &[f64; 1], _: f64, g: &mut [f64; 1]) {
+///         g[0] = 0.0;
+///     }
+/// }
+/// assert_eq!(<DenseOnly<Line> as Mechanism<1>>::PIVOT_ORDERS, 0);
+/// let mut phi = [0.0];
+/// DenseOnly(Line).residual(&[2.0], 0.5, &mut phi);
+/// assert_eq!(phi, [1.5]);
+/// ```
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct DenseOnly<M>(pub M);
+
+impl<M: Mechanism<N, R>, const N: usize, R: Real> Mechanism<N, R> for DenseOnly<M> {
+    fn residual(&self, q: &[R; N], t: R, phi: &mut [R; N]) {
+        self.0.residual(q, t, phi);
+    }
+    fn jacobian(&self, q: &[R; N], t: R, jac: &mut [[R; N]; N]) {
+        self.0.jacobian(q, t, jac);
+    }
+    fn residual_jacobian(&self, q: &[R; N], t: R, phi: &mut [R; N], jac: &mut [[R; N]; N]) {
+        self.0.residual_jacobian(q, t, phi, jac);
+    }
+    fn velocity_rhs(&self, q: &[R; N], t: R, nu: &mut [R; N]) {
+        self.0.velocity_rhs(q, t, nu);
+    }
+    fn acceleration_rhs(&self, q: &[R; N], qd: &[R; N], t: R, gamma: &mut [R; N]) {
+        self.0.acceleration_rhs(q, qd, t, gamma);
+    }
+    fn normalize(&self, q: &mut [R; N]) {
+        self.0.normalize(q);
+    }
+}

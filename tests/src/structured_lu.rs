@@ -5,7 +5,7 @@
 
 use rand::rngs::StdRng;
 use rand::{RngExt, SeedableRng};
-use runtime::factors::FactorCounts;
+use runtime::factors::{DenseOnly, FactorCounts};
 use runtime::lu::{self, PivotInfo};
 use runtime::{Mechanism, NewtonOptions, Solver};
 
@@ -19,30 +19,6 @@ const AGREEMENT: f64 = 1e-12;
 
 /// Random configurations per module.
 const SAMPLES: usize = 200;
-
-/// A generated mechanism with its static orders hidden: the solvers use dense LU only.
-struct Dense<M>(M);
-
-impl<M: Mechanism<N>, const N: usize> Mechanism<N> for Dense<M> {
-    fn residual(&self, q: &[f64; N], t: f64, phi: &mut [f64; N]) {
-        self.0.residual(q, t, phi);
-    }
-    fn jacobian(&self, q: &[f64; N], t: f64, jac: &mut [[f64; N]; N]) {
-        self.0.jacobian(q, t, jac);
-    }
-    fn residual_jacobian(&self, q: &[f64; N], t: f64, phi: &mut [f64; N], jac: &mut [[f64; N]; N]) {
-        self.0.residual_jacobian(q, t, phi, jac);
-    }
-    fn velocity_rhs(&self, q: &[f64; N], t: f64, nu: &mut [f64; N]) {
-        self.0.velocity_rhs(q, t, nu);
-    }
-    fn acceleration_rhs(&self, q: &[f64; N], qd: &[f64; N], t: f64, gamma: &mut [f64; N]) {
-        self.0.acceleration_rhs(q, qd, t, gamma);
-    }
-    fn normalize(&self, q: &mut [f64; N]) {
-        self.0.normalize(q);
-    }
-}
 
 /// A generated mechanism with only its static order `K`.
 struct Only<M, const K: usize>(M);
@@ -244,7 +220,7 @@ fn difference<const N: usize>(a: &[State<N>], b: &[State<N>]) -> [f64; 3] {
 #[test]
 fn rssr_revolution_matches_dense_lu_with_and_without_the_fallback() {
     use generated::rssr::{Q0, Rssr};
-    let (dense, dense_counts) = revolution(Dense(Rssr), Q0);
+    let (dense, dense_counts) = revolution(DenseOnly(Rssr), Q0);
     assert_eq!(dense_counts.structured, 0);
     let (all, all_counts) = revolution(Rssr, Q0);
     // Order 0 alone meets a near-zero pivot around half a turn (its largest multiplier there
