@@ -50,12 +50,18 @@ fn functions(module: &str) -> Vec<(String, String)> {
     out
 }
 
-#[test]
-fn large_mechanisms_are_emitted_as_bounded_functions() {
+/// A chain of 30 links (scale.rs) and its reduced system: large enough to be split.
+fn chain_30() -> (crate::model::Mechanism, crate::symbolic::Symbolic) {
     let text = crate::scale::chain(30, 2);
     let mech =
         crate::validate::load_str(&text, crate::validate::Format::Toml, None).unwrap().mechanism;
     let sys = crate::symbolic::Symbolic::build(&mech).unwrap();
+    (mech, sys)
+}
+
+#[test]
+fn large_mechanisms_are_emitted_as_bounded_functions() {
+    let (mech, sys) = chain_30();
     let module = super::module(&mech, &sys, "a test");
     let functions = functions(&module);
     // Without splitting, Φ and Φ_q together take far more than the bound.
@@ -78,10 +84,7 @@ fn large_mechanisms_are_emitted_as_bounded_functions() {
 #[test]
 fn a_split_module_is_rewritten_to_single_precision_throughout() {
     // The f32 rewrite works item by item, so the split helpers must come out in f32 too.
-    let text = crate::scale::chain(30, 2);
-    let mech =
-        crate::validate::load_str(&text, crate::validate::Format::Toml, None).unwrap().mechanism;
-    let sys = crate::symbolic::Symbolic::build(&mech).unwrap();
+    let (mech, sys) = chain_30();
     let module = super::module_in(&mech, &sys, "a test", super::Scalar::F32);
     assert!(module.matches("#[inline(never)]").count() >= 10);
     // Code lines only: doc comments may name f64 in prose.
