@@ -2,8 +2,8 @@
 //! closed forms and an independent solution; the RSSR against Appendix C; and the invariants
 //! every analysis must keep.
 //!
-//! The reference data live in `shared/reference/seed-examples` beside the workspace; the
-//! tests say, at each comparison, which reference value is trusted and how far.
+//! The reference data live in `tests/reference/seed-examples` (see `tests/reference/README.md`);
+//! the tests say, at each comparison, which reference value is trusted and how far.
 
 #[cfg(test)]
 mod generated_engine;

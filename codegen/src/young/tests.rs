@@ -8,7 +8,7 @@ use crate::desc::{
 use crate::diag::Diagnostic;
 
 /// The thesis' 18 decks, shipped beside the examples (copies of
-/// `shared/reference/seed-examples/*.deck`).
+/// `tests/reference/seed-examples/*.deck`).
 fn deck_dir() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples/decks")
 }
