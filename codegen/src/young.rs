@@ -50,6 +50,7 @@ use crate::desc::{
 };
 use crate::diag::Diagnostic;
 
+mod layout;
 #[cfg(test)]
 mod tests;
 
@@ -275,6 +276,11 @@ impl<'a> Parser<'a> {
             ngroun,
         ] = counts;
         self.nbody = nbody;
+        if let Some((field, message, line)) = layout::mismatch(self.lexer.src, &counts) {
+            return Err(Box::new(
+                Diagnostic::error(message).entity(header.entity).field(field).at(None, line, 1),
+            ));
+        }
 
         let mut bodies = Vec::new();
         for k in 1..=nbody {

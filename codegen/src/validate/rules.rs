@@ -994,15 +994,53 @@ impl Rules<'_> {
             } else {
                 ("drivers or constraints", "are")
             };
-            let message = format!(
+            let mut message = format!(
                 "{unknowns} unknowns (7 per moving body) but only {equations} equations: \
                  {missing} {noun} {verb} missing"
             );
+            for idle in idle_spins(desc) {
+                message.push_str("; ");
+                message.push_str(&idle);
+            }
             let diag = Diagnostic::error(message).entity(self.mechanism().entity).path("drivers");
             self.diags.push(diag);
         }
         Some(equations)
     }
+}
+
+/// The moving bodies held only by two spherical joints, each with the reason and the fix: such
+/// a body (the coupler of an R-S-S-R without its spin constraint) can turn freely about the
+/// line through the two joint centres, a degree of freedom no driver is meant to fix.
+fn idle_spins(desc: &MechanismDesc) -> Vec<String> {
+    let mut found = Vec::new();
+    for body in desc.bodies.iter().filter(|b| !b.ground) {
+        let name = body.name.as_str();
+        let touches = |i: &str, j: &str| i == name || j == name;
+        let joints: Vec<&JointDesc> =
+            desc.joints.iter().filter(|j| touches(&j.body_i, &j.body_j)).collect();
+        let held =
+            desc.constraints.iter().any(|c| {
+                [&c.body, &c.body_i, &c.body_j].iter().any(|b| b.as_deref() == Some(name))
+            }) || desc.drivers.iter().any(|d| d.body.as_deref() == Some(name));
+        let spherical = joints.iter().all(|j| j.kind == JointType::Spherical);
+        if held || joints.len() != 2 || !spherical {
+            continue;
+        }
+        let other =
+            |j: &JointDesc| if j.body_i == name { j.body_j.clone() } else { j.body_i.clone() };
+        let (a, b) = (joints[0], joints[1]);
+        found.push(format!(
+            "body \"{name}\" spins idly about the line through its spherical joints \"{}\" and \
+             \"{}\": replace it and those joints by one `distance` joint between \"{}\" and \
+             \"{}\" (a rod with spherical ends), or fix its spin with a constraint",
+            a.name,
+            b.name,
+            other(a),
+            other(b)
+        ));
+    }
+    found
 }
 
 /// P = r + A(p)·s', global.
