@@ -49,7 +49,7 @@ fn args(list: &[&dyn AsRef<std::ffi::OsStr>]) -> Vec<OsString> {
 /// it (it reaches the generated module's docs through `generate`).
 fn hostile_path(dir: &Path, stem: &str) -> PathBuf {
     if cfg!(unix) {
-        dir.join(format!("{stem} \"#]] \n//! \u{202e}.toml"))
+        dir.join(format!("{stem} \"#]] \n#![doc = \"x\"] \r\u{202e}.toml"))
     } else {
         dir.join(format!("{stem}.toml"))
     }
@@ -58,9 +58,10 @@ fn hostile_path(dir: &Path, stem: &str) -> PathBuf {
 /// Runs cargo with `args` on the crate at `dir`; panics with its output when it fails.
 fn cargo(dir: &Path, args: &[&str]) -> String {
     let output = Command::new(std::env::var_os("CARGO").unwrap_or_else(|| "cargo".into()))
-        .args(args)
+        .arg(args[0])
         .arg("--manifest-path")
         .arg(dir.join("Cargo.toml"))
+        .args(&args[1..])
         .env("CARGO_TARGET_DIR", dir.join("target"))
         .output()
         .expect("cargo runs");
@@ -141,8 +142,9 @@ fn hostile_descriptions_are_refused_or_stay_data() {
                 mechgen(&args(&[&"generate", &path, &"--float", &float, &"-o", &file]));
             assert_eq!(status, 0, "{why}: generate status {status}\n{out}\n{err}");
             let text = std::fs::read_to_string(&file).unwrap();
-            // Comments and docs are whole lines of `//` text; no block comment is opened.
-            assert!(!text.contains("/**") && !text.contains("/*!"), "{why}: a block doc comment");
+            // Docs are whole `///` or `//!` lines; no block doc comment is opened.
+            let block = |l: &str| l.trim_start().starts_with("/**") || l.trim_start().starts_with("/*!");
+            assert!(!text.lines().any(block), "{why}: a block doc comment");
             assert!(!text.contains('\r') && !text.contains('\u{202e}'), "{why}: a raw control");
             lib.push_str(&format!("pub mod {module};\n"));
         }
