@@ -986,7 +986,10 @@ pub fn module_in(mech: &Mechanism, sys: &Symbolic, source: &str, scalar: Scalar)
         .map(str::to_owned),
     );
     if scalar == Scalar::F32 {
-        docs.extend(["", " Single precision: every value, literal and operation is `f32`."].map(String::from));
+        docs.extend(
+            ["", " Single precision: every value, literal and operation is `f32`."]
+                .map(String::from),
+        );
         items.iter_mut().for_each(scalar::to_f32);
     }
     let mut attrs = vec![parse_quote!(#![cfg_attr(rustfmt, rustfmt::skip)])];

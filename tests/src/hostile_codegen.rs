@@ -143,7 +143,8 @@ fn hostile_descriptions_are_refused_or_stay_data() {
             assert_eq!(status, 0, "{why}: generate status {status}\n{out}\n{err}");
             let text = std::fs::read_to_string(&file).unwrap();
             // Docs are whole `///` or `//!` lines; no block doc comment is opened.
-            let block = |l: &str| l.trim_start().starts_with("/**") || l.trim_start().starts_with("/*!");
+            let block =
+                |l: &str| l.trim_start().starts_with("/**") || l.trim_start().starts_with("/*!");
             assert!(!text.lines().any(block), "{why}: a block doc comment");
             assert!(!text.contains('\r') && !text.contains('\u{202e}'), "{why}: a raw control");
             lib.push_str(&format!("pub mod {module};\n"));

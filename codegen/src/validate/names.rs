@@ -22,11 +22,11 @@ pub const MAX_NAME_CHARS: usize = 64;
 
 /// Rust's strict and reserved keywords of every edition.
 const KEYWORDS: [&str; 51] = [
-    "as", "async", "await", "break", "const", "continue", "crate", "dyn", "else", "enum",
-    "extern", "false", "fn", "for", "if", "impl", "in", "let", "loop", "match", "mod", "move",
-    "mut", "pub", "ref", "return", "self", "static", "struct", "super", "trait", "true", "type",
-    "unsafe", "use", "where", "while", "abstract", "become", "box", "do", "final", "macro",
-    "override", "priv", "typeof", "unsized", "virtual", "yield", "try", "gen",
+    "as", "async", "await", "break", "const", "continue", "crate", "dyn", "else", "enum", "extern",
+    "false", "fn", "for", "if", "impl", "in", "let", "loop", "match", "mod", "move", "mut", "pub",
+    "ref", "return", "self", "static", "struct", "super", "trait", "true", "type", "unsafe", "use",
+    "where", "while", "abstract", "become", "box", "do", "final", "macro", "override", "priv",
+    "typeof", "unsized", "virtual", "yield", "try", "gen",
 ];
 
 /// Crates the generated code names by path (`runtime::…`, `core::…`), which a module of the
@@ -130,8 +130,7 @@ pub fn name_problem(name: &str) -> Option<String> {
     if count > MAX_NAME_CHARS {
         return Some(format!("a name has at most {MAX_NAME_CHARS} characters, this one {count}"));
     }
-    let (k, c) =
-        name.chars().enumerate().find(|&(_, c)| hidden(c))?;
+    let (k, c) = name.chars().enumerate().find(|&(_, c)| hidden(c))?;
     let what = if c.is_control() {
         "a control character"
     } else if is_bidi(c) {

@@ -255,7 +255,9 @@ impl Rules<'_> {
         let drivers =
             desc.drivers.iter().enumerate().map(|(k, d)| ("driver", "drivers", k, &d.name));
         let points = desc.points.iter().enumerate().map(|(k, p)| ("point", "points", k, &p.name));
-        for (kind, section, k, name) in bodies.chain(joints).chain(constraints).chain(drivers).chain(points) {
+        for (kind, section, k, name) in
+            bodies.chain(joints).chain(constraints).chain(drivers).chain(points)
+        {
             if let Some(message) = names::name_problem(name) {
                 self.error(&At::item(kind, name, section, k), "name", message);
             }
