@@ -18,6 +18,7 @@
 
 mod de;
 mod locate;
+pub mod names;
 mod rules;
 #[cfg(test)]
 mod tests;

@@ -12,6 +12,8 @@ mod harness;
 #[cfg(test)]
 mod hostile;
 #[cfg(test)]
+mod hostile_codegen;
+#[cfg(test)]
 mod random_mechanisms;
 #[cfg(test)]
 mod rssr_reference;

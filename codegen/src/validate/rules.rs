@@ -6,7 +6,7 @@ use std::collections::BTreeMap;
 
 use nalgebra::{Matrix3, Vector3, Vector4};
 
-use super::closest;
+use super::{closest, names};
 use crate::desc::{
     BodyDesc, ConstraintDesc, ConstraintType, CoordinateName, DriverDesc, JointDesc, JointType,
     LawDesc, MechanismDesc, Motion, PointDesc, SolverDesc, TimeDesc,
@@ -65,6 +65,7 @@ const P_NORM_WARNING: f64 = 1e-6;
 pub(super) fn check(desc: &MechanismDesc) -> (Option<model::Mechanism>, Vec<Diagnostic>) {
     let mut r = Rules { desc, diags: Vec::new() };
     r.name();
+    r.names();
     let time = r.time(&desc.time);
     let solver = r.solver(desc.solver.as_ref());
     let bodies: Vec<_> = desc.bodies.iter().enumerate().map(|(k, b)| r.body(k, b)).collect();
@@ -212,7 +213,8 @@ impl Rules<'_> {
         At::section(&format!("mechanism \"{}\"", self.desc.name), "")
     }
 
-    /// Rule: `name` matches `[a-z][a-z0-9_]*`.
+    /// Rules: `name` matches `[a-z][a-z0-9_]*` and can name the generated module and type;
+    /// the description is printable text (see [`names`]).
     fn name(&mut self) {
         let name = &self.desc.name;
         let mut chars = name.chars();
@@ -231,6 +233,34 @@ impl Rules<'_> {
                  module's name), e.g. \"{fixed}\""
             );
             self.error(&At::section("name", ""), "name", message);
+        } else if let Some(message) =
+            names::mechanism_name_problem(name, &crate::emit::type_name(name))
+        {
+            self.error(&At::section("name", ""), "name", message);
+        }
+        if let Some(message) = self.desc.description.as_deref().and_then(names::description_problem)
+        {
+            self.error(&At::section("description", ""), "description", message);
+        }
+    }
+
+    /// Rule: every entity's name is printable text of at most [`names::MAX_NAME_CHARS`]
+    /// characters (see [`names`]).
+    fn names(&mut self) {
+        let desc = self.desc;
+        let bodies = desc.bodies.iter().enumerate().map(|(k, b)| ("body", "bodies", k, &b.name));
+        let joints = desc.joints.iter().enumerate().map(|(k, j)| ("joint", "joints", k, &j.name));
+        let constraints = (desc.constraints.iter().enumerate())
+            .map(|(k, c)| ("constraint", "constraints", k, &c.name));
+        let drivers =
+            desc.drivers.iter().enumerate().map(|(k, d)| ("driver", "drivers", k, &d.name));
+        let points = desc.points.iter().enumerate().map(|(k, p)| ("point", "points", k, &p.name));
+        for (kind, section, k, name) in
+            bodies.chain(joints).chain(constraints).chain(drivers).chain(points)
+        {
+            if let Some(message) = names::name_problem(name) {
+                self.error(&At::item(kind, name, section, k), "name", message);
+            }
         }
     }
 
