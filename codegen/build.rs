@@ -6,11 +6,13 @@ use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
 fn main() {
-    let manifest_dir = PathBuf::from(std::env::var_os("CARGO_MANIFEST_DIR").expect("cargo sets it"));
+    let manifest_dir =
+        PathBuf::from(std::env::var_os("CARGO_MANIFEST_DIR").expect("cargo sets it"));
     let root = manifest_dir.parent().expect("codegen lies inside the workspace").to_path_buf();
     let runtime = root.join("runtime");
     let lock = root.join("Cargo.lock");
-    for path in [runtime.join("src"), runtime.join("Cargo.toml"), root.join("Cargo.toml"), lock.clone()]
+    for path in
+        [runtime.join("src"), runtime.join("Cargo.toml"), root.join("Cargo.toml"), lock.clone()]
     {
         println!("cargo:rerun-if-changed={}", path.display());
     }
@@ -68,11 +70,8 @@ fn main() {
         names.join(", ")
     )
     .unwrap();
-    let lock_text = if lock.is_file() {
-        format!("include_str!({:?})", utf8(&lock))
-    } else {
-        "\"\"".to_owned()
-    };
+    let lock_text =
+        if lock.is_file() { format!("include_str!({:?})", utf8(&lock)) } else { "\"\"".to_owned() };
     writeln!(
         out,
         "/// The workspace's `Cargo.lock` (empty when there was none): generated solvers build \
@@ -80,7 +79,8 @@ fn main() {
     )
     .unwrap();
 
-    let dest = PathBuf::from(std::env::var_os("OUT_DIR").expect("cargo sets it")).join("embedded.rs");
+    let dest =
+        PathBuf::from(std::env::var_os("OUT_DIR").expect("cargo sets it")).join("embedded.rs");
     std::fs::write(&dest, out).unwrap_or_else(|e| panic!("{}: {e}", dest.display()));
 }
 

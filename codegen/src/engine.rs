@@ -602,7 +602,8 @@ mod tests {
     fn the_solver_is_killed_when_the_sink_stops_reading() {
         use std::os::unix::fs::PermissionsExt;
         // A stand-in solver that writes its process id, then steps of one body without end.
-        let dir = std::env::temp_dir().join(format!("mechgen-endless-solver-{}", std::process::id()));
+        let dir =
+            std::env::temp_dir().join(format!("mechgen-endless-solver-{}", std::process::id()));
         std::fs::create_dir_all(&dir).unwrap();
         let pid_file = dir.join("pid");
         let step = format!("step 0.0 1 1e-12{}", " 0.5".repeat(21));

@@ -59,8 +59,7 @@ fn entry_of(cache: &Path, ty: &str) -> PathBuf {
         .unwrap()
         .map(|e| e.unwrap().path())
         .find(|dir| {
-            std::fs::read_to_string(dir.join("src/mechanism.rs"))
-                .is_ok_and(|t| t.contains(&needle))
+            std::fs::read_to_string(dir.join("src/mechanism.rs")).is_ok_and(|t| t.contains(&needle))
         })
         .unwrap_or_else(|| panic!("no entry for {ty} in {}", cache.display()))
 }
@@ -99,8 +98,7 @@ fn a_garbage_binary_in_an_entry_is_rebuilt() {
     assert!(stderr.contains("does not match its recorded hash; rebuilding it"), "{stderr}");
     assert_eq!(stdout, expected);
     // Unchanged bytes that cannot be executed: the hash matches, running it fails.
-    std::fs::set_permissions(entry.join("solver"), std::fs::Permissions::from_mode(0o644))
-        .unwrap();
+    std::fs::set_permissions(entry.join("solver"), std::fs::Permissions::from_mode(0o644)).unwrap();
     let (stdout, stderr) = solve(&cache, &file);
     assert!(stderr.contains("does not run"), "{stderr}");
     assert_eq!(stdout, expected);
@@ -156,7 +154,8 @@ fn a_corrupt_runtime_build_is_cleaned_with_a_note() {
         }
     }
     assert!(damaged > 0, "the runtime's build is in {}", deps.display());
-    let (expected, _) = solve(&scratch("corrupt-rlib-reference"), &example("rotation_about_y.toml"));
+    let (expected, _) =
+        solve(&scratch("corrupt-rlib-reference"), &example("rotation_about_y.toml"));
     let (stdout, stderr) = solve(&cache, &example("rotation_about_y.toml"));
     assert!(stderr.contains("cleaning the cache's build of the runtime"), "{stderr}");
     assert_eq!(stdout, expected);
@@ -198,10 +197,11 @@ fn a_build_that_fails_exits_3_and_the_default_engine_falls_back() {
         assert!(stderr.contains("could not compile `mechgen-gen` (stand-in)"), "{stderr}");
         assert!(stderr.contains("fix: "), "{stderr}");
     }
-    let out =
-        mechgen(&cache, &["solve", file, "--engine", "generated", "--format", "json"], &[(
-            "CARGO", cargo,
-        )]);
+    let out = mechgen(
+        &cache,
+        &["solve", file, "--engine", "generated", "--format", "json"],
+        &[("CARGO", cargo)],
+    );
     assert_eq!(out.status.code(), Some(3));
     let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     assert_eq!(v["error"]["kind"], "build_failed", "{v}");
@@ -209,7 +209,8 @@ fn a_build_that_fails_exits_3_and_the_default_engine_falls_back() {
     let stderr = text(&out.stderr);
     assert_eq!(out.status.code(), Some(0), "{stderr}");
     assert!(
-        stderr.contains("warning: using the generic engine: the generated solver could not be built"),
+        stderr
+            .contains("warning: using the generic engine: the generated solver could not be built"),
         "{stderr}"
     );
     assert!(stderr.contains("fix: "), "{stderr}");
@@ -292,8 +293,8 @@ fn a_copied_binary_builds_from_its_embedded_runtime() {
         .output()
         .unwrap();
     assert_eq!(out.status.code(), Some(0), "{}", text(&out.stderr));
-    let manifest = std::fs::read_to_string(entry_of(&cache, "TranslationX").join("Cargo.toml"))
-        .unwrap();
+    let manifest =
+        std::fs::read_to_string(entry_of(&cache, "TranslationX").join("Cargo.toml")).unwrap();
     let checkout = Path::new(env!("CARGO_MANIFEST_DIR")).parent().unwrap();
     assert!(manifest.contains("path = \"../runtime-"), "{manifest}");
     assert!(!manifest.contains(&checkout.display().to_string()), "{manifest}");

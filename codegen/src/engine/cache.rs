@@ -180,9 +180,11 @@ impl Recipe {
 
     /// What cargo builds, before it is copied into the entry.
     fn target_binary(&self) -> PathBuf {
-        self.cache
-            .join("target/release")
-            .join(format!("{}{}", self.package(), std::env::consts::EXE_SUFFIX))
+        self.cache.join("target/release").join(format!(
+            "{}{}",
+            self.package(),
+            std::env::consts::EXE_SUFFIX
+        ))
     }
 
     /// The record of a binary: its bytes bound to this entry's key, so that neither another
@@ -272,7 +274,8 @@ impl Recipe {
         for (path, text) in runtime_files {
             let path = runtime.join(path);
             let existed = path.exists();
-            restored |= write_if_changed(&path, text.as_bytes()).map_err(|e| io(&path, e))? && existed;
+            restored |=
+                write_if_changed(&path, text.as_bytes()).map_err(|e| io(&path, e))? && existed;
         }
         if restored {
             notes.push(format!(
@@ -479,7 +482,9 @@ mod tests {
     fn an_empty_mechgen_cache_is_an_error_naming_it() {
         let root = crate::sync::workspace_root();
         match choose_cache_dir(&root, env(&[("MECHGEN_CACHE", "")])) {
-            Err(EngineError::Config(m)) => assert!(m.contains("MECHGEN_CACHE is set but empty"), "{m}"),
+            Err(EngineError::Config(m)) => {
+                assert!(m.contains("MECHGEN_CACHE is set but empty"), "{m}")
+            }
             other => panic!("{other:?}"),
         }
     }
@@ -495,7 +500,8 @@ mod tests {
     fn a_deleted_checkout_is_never_recreated_and_the_user_cache_is_used() {
         // A checkout path that does not exist, as for an installed binary whose source
         // folder was moved or deleted.
-        let gone = std::env::temp_dir().join(format!("mechgen-gone-{}/checkout", std::process::id()));
+        let gone =
+            std::env::temp_dir().join(format!("mechgen-gone-{}/checkout", std::process::id()));
         let dir = choose_cache_dir(&gone, env(&[("HOME", "/home/someone")])).unwrap();
         assert!(!dir.starts_with(&gone), "{}", dir.display());
         if cfg!(target_os = "linux") {
@@ -515,7 +521,10 @@ mod tests {
 
     #[test]
     fn a_lock_file_is_recognised_and_garbage_is_not() {
-        assert!(is_lock_file(embedded::WORKSPACE_LOCK.as_bytes()) || embedded::WORKSPACE_LOCK.is_empty());
+        assert!(
+            is_lock_file(embedded::WORKSPACE_LOCK.as_bytes())
+                || embedded::WORKSPACE_LOCK.is_empty()
+        );
         assert!(!is_lock_file(b"garbage [[["));
         assert!(!is_lock_file(&[0xff, 0xfe, 0x00]));
         assert!(!is_lock_file(b"title = \"not a lock\""));
