@@ -576,17 +576,23 @@ fn solve(
                 .failure
         }
         Some(b) => {
+            let mut written = 0;
             match crate::engine::run(b, &analysis, None, |frame| {
                 bar.inc(1);
+                written += 1;
                 writer.step(&report::step_result(mech, &layout, frame))
             }) {
                 Ok(r) => r.failure,
                 // A closed pipe or a full disk: reported as the generic engine's are.
                 Err(crate::engine::EngineError::Output(e)) => return Err(e),
-                Err(e) => {
-                    writeln!(err, "error: {e}")?;
-                    return Ok(EXIT_STOPPED);
-                }
+                // The solver crashed or printed nonsense: the output still ends with the
+                // error, at the grid time that was not reached.
+                Err(e) => Some(crate::generic::Failure {
+                    kind: crate::generic::FailureKind::NoConvergence,
+                    t: mech.time.at(written),
+                    message: e.to_string(),
+                    constraints: Vec::new(),
+                }),
             }
         }
     };

@@ -238,6 +238,26 @@ impl Recipe {
     /// Makes the entry usable: verified as it is, or rebuilt. `notes` receives what was
     /// found wrong and repaired.
     pub(super) fn ensure(&self, notes: &mut Vec<String>) -> Result<(), EngineError> {
+        // One process at a time checks and builds an entry: another mechgen building the
+        // same solver waits here, then finds it verified.
+        let lock_path = self.dir().join(".lock");
+        let lock = std::fs::create_dir_all(self.dir())
+            .and_then(|()| std::fs::File::options().create(true).append(true).open(&lock_path))
+            .map_err(|e| {
+                EngineError::Build(BuildFailure {
+                    reason: format!("{}: {e}", lock_path.display()),
+                    fix: "set MECHGEN_CACHE to a writable directory".to_owned(),
+                })
+            })?;
+        // Where the file system cannot lock, concurrent builds only repeat work: every file
+        // is put in place by a rename.
+        let _ = lock.lock();
+        let verified = self.verify_or_build(notes);
+        drop(lock);
+        verified
+    }
+
+    fn verify_or_build(&self, notes: &mut Vec<String>) -> Result<(), EngineError> {
         match self.defect() {
             None => return Ok(()),
             Some(why) if why.is_empty() => {}
@@ -257,8 +277,9 @@ impl Recipe {
         }
     }
 
-    /// Writes the sources, builds them with cargo and copies the binary into the entry with
-    /// its record.
+    /// Writes the sources, builds them with cargo and puts the binary into the entry (by a
+    /// rename, so that a solver starting meanwhile runs either the old file or the new one),
+    /// then its record.
     fn build(&self, notes: &mut Vec<String>) -> Result<(), EngineError> {
         let io = |path: &Path, e: std::io::Error| {
             EngineError::Build(BuildFailure {
@@ -302,12 +323,6 @@ impl Recipe {
         if !embedded::WORKSPACE_LOCK.is_empty() {
             write_if_changed(&lock, embedded::WORKSPACE_LOCK.as_bytes())
                 .map_err(|e| io(&lock, e))?;
-        }
-        for stale in [self.binary(), self.record()] {
-            match std::fs::remove_file(&stale) {
-                Err(e) if e.kind() != std::io::ErrorKind::NotFound => return Err(io(&stale, e)),
-                _ => {}
-            }
         }
         if self.target_binary().exists() {
             // Cargo trusts its own outputs by their times: make it compile this crate again
