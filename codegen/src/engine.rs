@@ -1,6 +1,7 @@
 //! The generated engine for any description: generate the module, build it against the
-//! workspace's `runtime` crate (offline, in a cache keyed by content), run it, and read its
-//! frames back.
+//! `runtime` crate's sources embedded in mechgen (in a verified cache, [`cache`]), run it,
+//! and read its frames back. The solver process never outlives the reading: it is killed
+//! when the reader stops, and it stops by itself when its output is closed.
 //!
 //! The built program prints one line per time point: `step t iterations residual` followed
 //! by q, q̇ and q̈ of every moving body (7 each, body by body) in shortest round-trip form,
