@@ -28,6 +28,9 @@ pub const EXIT_OK: i32 = 0;
 pub const EXIT_INVALID: i32 = 1;
 /// Exit status: the analysis stopped (no convergence, singular, branch jump).
 pub const EXIT_STOPPED: i32 = 2;
+/// Exit status: the generated solver could not be built (`--engine generated`, `compare`,
+/// `bench`).
+pub const EXIT_BUILD: i32 = 3;
 
 #[derive(Parser, Debug)]
 #[command(name = "mechgen", version, about = "Kinematic analysis of spatial mechanisms")]
@@ -456,14 +459,47 @@ fn check(
     Ok(EXIT_OK)
 }
 
-/// Builds the generated solver, or says why not as an invalid-input diagnostic.
-fn build_generated(mech: &Mechanism) -> Result<crate::engine::Built, Box<Diagnostic>> {
+/// Builds the generated solver, printing what the cache repaired on the way.
+fn build_generated(
+    mech: &Mechanism,
+    scalar: crate::emit::Scalar,
+    err: &mut dyn Write,
+) -> io::Result<Result<crate::engine::Built, crate::engine::EngineError>> {
     let spinner = term::spinner("building the generated solver");
-    let built = crate::engine::build(mech);
+    let built = crate::engine::build_in(mech, scalar);
     spinner.finish_and_clear();
-    built.map_err(|e| {
-        Box::new(Diagnostic::error(e.to_string()).entity(format!("mechanism \"{}\"", mech.name)))
-    })
+    if let Ok(b) = &built {
+        for n in &b.notes {
+            writeln!(err, "note: {n}")?;
+        }
+    }
+    Ok(built)
+}
+
+/// Reports why the generated solver is not there when it was asked for, with its exit
+/// status: 3 when it could not be built, 1 for what the user must correct first.
+fn engine_unavailable(
+    e: &crate::engine::EngineError,
+    mech: &Mechanism,
+    json: bool,
+    out: &mut dyn Write,
+    err: &mut dyn Write,
+) -> io::Result<i32> {
+    let entity = format!("mechanism \"{}\"", mech.name);
+    if let crate::engine::EngineError::Build(b) = e {
+        writeln!(err, "error: {e}")?;
+        if json {
+            let error = serde_json::json!({
+                "kind": "build_failed",
+                "message": format!("the generated solver could not be built: {}", b.reason),
+                "fix": b.fix,
+                "entity": entity,
+            });
+            writeln!(out, "{}", serde_json::json!({ "error": error }))?;
+        }
+        return Ok(EXIT_BUILD);
+    }
+    Ok(report_invalid(&[Diagnostic::error(e.to_string()).entity(entity)], json, out, err))
 }
 
 fn solve(
@@ -488,14 +524,17 @@ fn solve(
     // The default engine is the generated one when it can be built, else the generic one.
     let built = match engine {
         Some(Engine::Generic) => None,
-        Some(Engine::Generated) => match build_generated(mech) {
+        Some(Engine::Generated) => match build_generated(mech, crate::emit::Scalar::F64, err)? {
             Ok(b) => Some(b),
-            Err(d) => return Ok(report_invalid(&[*d], json, out, err)),
+            Err(e) => return engine_unavailable(&e, mech, json, out, err),
         },
-        None => match build_generated(mech) {
+        None => match build_generated(mech, crate::emit::Scalar::F64, err)? {
             Ok(b) => Some(b),
-            Err(d) => {
-                writeln!(err, "warning: using the generic engine: {}", d.message)?;
+            Err(e @ crate::engine::EngineError::Config(_)) => {
+                return engine_unavailable(&e, mech, json, out, err);
+            }
+            Err(e) => {
+                writeln!(err, "warning: using the generic engine: {e}")?;
                 None
             }
         },
@@ -537,15 +576,23 @@ fn solve(
                 .failure
         }
         Some(b) => {
+            let mut written = 0;
             match crate::engine::run(b, &analysis, None, |frame| {
                 bar.inc(1);
+                written += 1;
                 writer.step(&report::step_result(mech, &layout, frame))
             }) {
                 Ok(r) => r.failure,
-                Err(e) => {
-                    writeln!(err, "error: {e}")?;
-                    return Ok(EXIT_STOPPED);
-                }
+                // A closed pipe or a full disk: reported as the generic engine's are.
+                Err(crate::engine::EngineError::Output(e)) => return Err(e),
+                // The solver crashed or printed nonsense: the output still ends with the
+                // error, at the grid time that was not reached.
+                Err(e) => Some(crate::generic::Failure {
+                    kind: crate::generic::FailureKind::NoConvergence,
+                    t: mech.time.at(written),
+                    message: e.to_string(),
+                    constraints: Vec::new(),
+                }),
             }
         }
     };
@@ -687,13 +734,9 @@ fn bench(
         }
     }
     if engine != BenchEngine::Generic {
-        let built = match crate::engine::build_in(mech, how.float) {
+        let built = match build_generated(mech, how.float, err)? {
             Ok(b) => b,
-            Err(e) => {
-                let d =
-                    Diagnostic::error(e.to_string()).entity(format!("mechanism \"{}\"", mech.name));
-                return Ok(report_invalid(&[d], json, out, err));
-            }
+            Err(e) => return engine_unavailable(&e, mech, json, out, err),
         };
         let spinner = term::spinner(&format!("timing the generated engine ({repeats} passes)"));
         let timed = crate::engine::bench_with(&built, tolerance, repeats, how.settings);
@@ -792,9 +835,9 @@ fn compare(
         writeln!(err, "error: generic engine: {}", report::failure_text(f))?;
         return Ok(EXIT_STOPPED);
     }
-    let built = match build_generated(mech) {
+    let built = match build_generated(mech, crate::emit::Scalar::F64, err)? {
         Ok(b) => b,
-        Err(d) => return Ok(report_invalid(&[*d], json, out, err)),
+        Err(e) => return engine_unavailable(&e, mech, json, out, err),
     };
     let mut generated = Vec::new();
     let bar = term::bar(mech.time.count as u64, "generated");

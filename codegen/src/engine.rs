@@ -1,6 +1,7 @@
 //! The generated engine for any description: generate the module, build it against the
-//! workspace's `runtime` crate (offline, in a cache keyed by content), run it, and read its
-//! frames back.
+//! `runtime` crate's sources embedded in mechgen (in a verified cache, [`cache`]), run it,
+//! and read its frames back. The solver process never outlives the reading: it is killed
+//! when the reader stops, and it stops by itself when its output is closed.
 //!
 //! The built program prints one line per time point: `step t iterations residual` followed
 //! by q, q̇ and q̈ of every moving body (7 each, body by body) in shortest round-trip form,
@@ -9,10 +10,9 @@
 //! [`crate::stepping`], compiled into the program. In `bench` mode it times whole passes
 //! over the grid and prints `bench min_ns median_ns iterations_per_step`.
 
-use std::hash::{DefaultHasher, Hash, Hasher};
-use std::io::{BufRead, BufReader};
-use std::path::{Path, PathBuf};
-use std::process::{Command, Stdio};
+use std::io::{BufRead, BufReader, Read};
+use std::path::PathBuf;
+use std::process::{Child, Command, Stdio};
 
 use nalgebra::DVector;
 
@@ -22,11 +22,15 @@ use crate::model::Mechanism;
 use crate::stepping::{Point, Stop, Trouble};
 use crate::symbolic::Symbolic;
 
+pub mod cache;
+
 /// The driver program compiled with each generated module.
 const DRIVER: &str = r#"//! Runs one generated mechanism over its time grid (written by mechgen; do not edit).
 //!
-//! Usage: `run|bench [tolerance] [repeats] [no-predictor] [dense]`.
+//! Usage: `run|bench [tolerance] [repeats] [no-predictor] [dense]`, or `key` to print the
+//! key of the cache entry it was built for.
 
+mod key;
 mod mechanism;
 mod stepping;
 
@@ -43,6 +47,10 @@ const N: usize = mechanism::N;
 fn main() {
     let args: Vec<String> = std::env::args().collect();
     let mode = args.get(1).map_or("run", String::as_str);
+    if mode == "key" {
+        println!("key {}", key::KEY);
+        return;
+    }
     let tolerance = args.get(2).and_then(|s| s.parse().ok()).unwrap_or(mechanism::TOLERANCE);
     let repeats: usize = args.get(3).and_then(|s| s.parse().ok()).unwrap_or(1);
     let flag = |name: &str| args.iter().skip(2).any(|a| a == name);
@@ -78,7 +86,7 @@ fn drive<M: Mechanism<N, Real>>(m: M, mode: &str, tolerance: Real, repeats: usiz
                 match solver.position(t) {
                     Ok(r) => iterations += u64::from(r.iterations),
                     Err(e) => {
-                        let _ = writeln!(out, "error bench {:?} {e}", f64::from(t));
+                        check(writeln!(out, "error bench {:?} {e}", f64::from(t)));
                         std::process::exit(2);
                     }
                 }
@@ -89,13 +97,13 @@ fn drive<M: Mechanism<N, Real>>(m: M, mode: &str, tolerance: Real, repeats: usiz
             std::hint::black_box(solver.qdd());
         }
         times.sort_by(f64::total_cmp);
-        let _ = writeln!(
+        check(writeln!(
             out,
             "bench {:?} {:?} {:?}",
             times[0],
             times[times.len() / 2],
             iterations as f64 / mechanism::T_COUNT as f64
-        );
+        ));
         return;
     }
     let mut engine = Engine {
@@ -118,30 +126,38 @@ fn drive<M: Mechanism<N, Real>>(m: M, mode: &str, tolerance: Real, repeats: usiz
         };
         match outcome {
             Ok((p, iterations)) => {
-                let _ = write!(out, "step {:?} {iterations} {:?}", f64::from(t), p.residual);
+                check(write!(out, "step {:?} {iterations} {:?}", f64::from(t), p.residual));
                 for v in [&p.q, &p.qd, &p.qdd] {
                     for x in v {
-                        let _ = write!(out, " {x:?}");
+                        check(write!(out, " {x:?}"));
                     }
                 }
-                let _ = writeln!(out);
+                check(writeln!(out));
                 last = Some(p);
             }
             Err(stop) => {
                 if let Some(p) = &stop.near {
-                    let _ = write!(out, "near {:?}", p.t);
+                    check(write!(out, "near {:?}", p.t));
                     for x in &p.q {
-                        let _ = write!(out, " {x:?}");
+                        check(write!(out, " {x:?}"));
                     }
-                    let _ = writeln!(out);
+                    check(writeln!(out));
                 }
                 let body = stop.body.map_or_else(|| "-".to_owned(), |b| b.to_string());
                 let message = stop.message.replace('\n', " ");
-                let _ = writeln!(out, "error {} {:?} {body} {message}", stop.trouble.as_str(), stop.t);
-                let _ = out.flush();
+                check(writeln!(out, "error {} {:?} {body} {message}", stop.trouble.as_str(), stop.t));
+                check(out.flush());
                 std::process::exit(2);
             }
         }
+    }
+}
+
+/// Ends the process when standard output cannot be written: nobody reads the results any
+/// more (mechgen stopped or its own output was closed), so computing on would be wasted.
+fn check(written: std::io::Result<()>) {
+    if written.is_err() {
+        std::process::exit(3);
     }
 }
 
@@ -229,18 +245,36 @@ const STEPPING: &str = include_str!("stepping.rs");
 pub enum EngineError {
     /// The description cannot be generated (e.g. an undriven degree of freedom).
     Generate(String),
-    /// Building the generated crate failed (the compiler's output is attached).
-    Build(String),
+    /// The environment names no usable cache directory (e.g. `MECHGEN_CACHE` set but empty).
+    Config(String),
+    /// The generated crate could not be built.
+    Build(BuildFailure),
     /// Running it failed or printed something unexpected.
     Run(String),
+    /// The sink could not write a frame (e.g. standard output was closed): the solver was
+    /// stopped and the sink's error is handed back as it came.
+    Output(std::io::Error),
+}
+
+/// Why a generated solver could not be built, and what to do about it.
+#[derive(Clone, Debug)]
+pub struct BuildFailure {
+    /// What failed, with cargo's own words where cargo failed.
+    pub reason: String,
+    /// What the user can do.
+    pub fix: String,
 }
 
 impl std::fmt::Display for EngineError {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         match self {
             Self::Generate(m) => write!(f, "cannot generate: {m}"),
-            Self::Build(m) => write!(f, "cannot build the generated solver: {m}"),
+            Self::Config(m) => f.write_str(m),
+            Self::Build(b) => {
+                write!(f, "the generated solver could not be built: {}\nfix: {}", b.reason, b.fix)
+            }
             Self::Run(m) => write!(f, "cannot run the generated solver: {m}"),
+            Self::Output(e) => write!(f, "cannot write the results: {e}"),
         }
     }
 }
@@ -256,20 +290,17 @@ pub struct Built {
     pub unknowns: usize,
     /// The equations the generator left out as redundant (`joint O4 row 2`).
     pub removed: Vec<String>,
+    /// What was found wrong in the cache and repaired on the way (a corrupt lock file, a
+    /// binary that did not match its record), one sentence each.
+    pub notes: Vec<String>,
 }
 
-/// Where built solvers are cached: `$MECHGEN_CACHE`, else `target/mechgen-cache` in the
-/// workspace.
-#[must_use]
-pub fn cache_dir() -> PathBuf {
-    std::env::var_os("MECHGEN_CACHE")
-        .map_or_else(|| crate::sync::workspace_root().join("target/mechgen-cache"), PathBuf::from)
-}
+pub use cache::cache_dir;
 
 /// Generates, writes and builds the solver of `mech` (a no-op build when the cache holds it).
 ///
 /// # Errors
-/// [`EngineError::Generate`] or [`EngineError::Build`].
+/// [`EngineError::Generate`], [`EngineError::Config`] or [`EngineError::Build`].
 pub fn build(mech: &Mechanism) -> Result<Built, EngineError> {
     build_in(mech, Scalar::F64)
 }
@@ -277,7 +308,7 @@ pub fn build(mech: &Mechanism) -> Result<Built, EngineError> {
 /// [`build`] with the module generated in the floating-point type `scalar`.
 ///
 /// # Errors
-/// [`EngineError::Generate`] or [`EngineError::Build`].
+/// [`EngineError::Generate`], [`EngineError::Config`] or [`EngineError::Build`].
 pub fn build_in(mech: &Mechanism, scalar: Scalar) -> Result<Built, EngineError> {
     let sys = Symbolic::build(mech).map_err(|e| EngineError::Generate(e.message))?;
     let module = emit::module_in(mech, &sys, &format!("the description \"{}\"", mech.name), scalar);
@@ -287,10 +318,11 @@ pub fn build_in(mech: &Mechanism, scalar: Scalar) -> Result<Built, EngineError> 
 }
 
 /// Writes and builds a module generated for `mech` (with `unknowns` unknowns) in the
-/// floating-point type `scalar`, as [`build_in`] does after generating it.
+/// floating-point type `scalar`, as [`build_in`] does after generating it. The cache entry
+/// is used when it verifies, and rebuilt otherwise (see [`cache`]).
 ///
 /// # Errors
-/// [`EngineError::Build`].
+/// [`EngineError::Config`] or [`EngineError::Build`].
 pub fn build_module(
     mech: &Mechanism,
     module: &str,
@@ -299,50 +331,22 @@ pub fn build_module(
 ) -> Result<Built, EngineError> {
     let driver =
         DRIVER.replace("__TYPE__", &emit::type_name(&mech.name)).replace("__REAL__", scalar.name());
-    let mut hasher = DefaultHasher::new();
-    (module, &driver, STEPPING).hash(&mut hasher);
-    let key = format!("{:016x}", hasher.finish());
-    let cache = cache_dir();
-    let dir = cache.join(&key);
-    let package = format!("mechgen-gen-{key}");
-    let root = crate::sync::workspace_root();
-    let write = |path: &Path, text: &str| -> Result<(), EngineError> {
-        if std::fs::read_to_string(path).is_ok_and(|t| t == text) {
-            return Ok(());
-        }
-        std::fs::create_dir_all(path.parent().expect("inside the cache"))
-            .and_then(|()| std::fs::write(path, text))
-            .map_err(|e| EngineError::Build(format!("{}: {e}", path.display())))
-    };
-    let runtime = root.join("runtime");
-    let manifest = format!(
-        "[package]\nname = \"{package}\"\nversion = \"0.0.0\"\nedition = \"2024\"\npublish = false\n\n\
-         [dependencies]\nruntime = {{ path = {:?} }}\n\n\
-         [profile.release]\ncodegen-units = 1\npanic = \"abort\"\n\n[workspace]\n",
-        runtime.display().to_string()
-    );
-    write(&dir.join("Cargo.toml"), &manifest)?;
-    write(&dir.join("src/main.rs"), &driver)?;
-    write(&dir.join("src/stepping.rs"), STEPPING)?;
-    write(&dir.join("src/mechanism.rs"), module)?;
-    if let Ok(lock) = std::fs::read_to_string(root.join("Cargo.lock")) {
-        // The workspace's lock pins libm to the version the workspace was tested with.
-        if !dir.join("Cargo.lock").exists() {
-            write(&dir.join("Cargo.lock"), &lock)?;
-        }
+    let recipe = cache::Recipe::new(cache_dir()?, module, &driver, scalar.name());
+    let mut notes = Vec::new();
+    recipe.ensure(&mut notes)?;
+    Ok(Built { binary: recipe.binary(), unknowns, removed: Vec::new(), notes })
+}
+
+/// A running solver, killed and reaped when dropped: no solver outlives the reading side,
+/// whether it stopped at the end, on an error, on a closed pipe or on a panic.
+struct SolverProcess(Child);
+
+impl Drop for SolverProcess {
+    fn drop(&mut self) {
+        // Both are no-ops once the process was waited for.
+        let _ = self.0.kill();
+        let _ = self.0.wait();
     }
-    let output = Command::new(std::env::var_os("CARGO").unwrap_or_else(|| "cargo".into()))
-        .args(["build", "--release", "--offline", "--quiet", "--manifest-path"])
-        .arg(dir.join("Cargo.toml"))
-        .env("CARGO_TARGET_DIR", cache.join("target"))
-        .stdin(Stdio::null())
-        .output()
-        .map_err(|e| EngineError::Build(format!("cannot start cargo: {e}")))?;
-    if !output.status.success() {
-        return Err(EngineError::Build(String::from_utf8_lossy(&output.stderr).into_owned()));
-    }
-    let binary = cache.join("target/release").join(&package);
-    Ok(Built { binary, unknowns, removed: Vec::new() })
 }
 
 /// The outcome of a generated run: frames were handed to the sink as they came.
@@ -359,8 +363,8 @@ pub struct RunReport {
 /// the configuration the solver reports closest to it, as the generic engine names its own.
 ///
 /// # Errors
-/// [`EngineError::Run`] for an unexpected output; the sink's own errors are passed through
-/// as `Run` too.
+/// [`EngineError::Run`] for an unexpected output; [`EngineError::Output`] with the sink's
+/// own error when it fails (the solver is stopped).
 pub fn run(
     built: &Built,
     analysis: &Analysis<'_, '_>,
@@ -417,12 +421,14 @@ pub fn run_with(
         cmd.arg("-");
     }
     cmd.args(settings.flags());
-    let mut child = cmd
+    let child = cmd
         .stdout(Stdio::piped())
         .stdin(Stdio::null())
         .spawn()
         .map_err(|e| EngineError::Run(format!("{}: {e}", built.binary.display())))?;
-    let stdout = child.stdout.take().expect("piped");
+    // Every return below, early or not, ends the solver.
+    let mut child = SolverProcess(child);
+    let stdout = child.0.stdout.take().expect("piped");
     let mut report = RunReport { steps: 0, failure: None };
     let mut near: Option<Point> = None;
     for line in BufReader::new(stdout).lines() {
@@ -453,8 +459,6 @@ pub fn run_with(
                         message,
                         constraints: Vec::new(),
                     });
-                    let _ = child.kill();
-                    let _ = child.wait();
                     return Ok(report);
                 }
                 let frame = Frame {
@@ -466,7 +470,7 @@ pub fn run_with(
                     qd: DVector::from_column_slice(&values[m..2 * m]),
                     qdd: DVector::from_column_slice(&values[2 * m..]),
                 };
-                sink(&frame).map_err(|e| EngineError::Run(e.to_string()))?;
+                sink(&frame).map_err(EngineError::Output)?;
                 report.steps += 1;
             }
             Some("near") => {
@@ -499,7 +503,7 @@ pub fn run_with(
             _ => return Err(EngineError::Run(format!("unexpected output: {line}"))),
         }
     }
-    let status = child.wait().map_err(|e| EngineError::Run(e.to_string()))?;
+    let status = child.0.wait().map_err(|e| EngineError::Run(e.to_string()))?;
     if !status.success() && report.failure.is_none() {
         return Err(EngineError::Run(format!("the solver exited with {status}")));
     }
@@ -529,13 +533,24 @@ pub fn bench_with(
     repeats: usize,
     settings: Settings,
 ) -> Result<(f64, f64, f64), EngineError> {
-    let output = Command::new(&built.binary)
+    let child = Command::new(&built.binary)
         .args(["bench", &format!("{tolerance:?}"), &repeats.to_string()])
         .args(settings.flags())
         .stdin(Stdio::null())
-        .output()
+        .stdout(Stdio::piped())
+        .spawn()
         .map_err(|e| EngineError::Run(format!("{}: {e}", built.binary.display())))?;
-    let text = String::from_utf8_lossy(&output.stdout);
+    let mut child = SolverProcess(child);
+    let mut output = Vec::new();
+    child
+        .0
+        .stdout
+        .take()
+        .expect("piped")
+        .read_to_end(&mut output)
+        .map_err(|e| EngineError::Run(e.to_string()))?;
+    drop(child);
+    let text = String::from_utf8_lossy(&output);
     let words: Vec<&str> = text.split_whitespace().collect();
     match words.as_slice() {
         ["bench", min, median, iters] => {
@@ -560,7 +575,8 @@ mod tests {
         let path = std::env::temp_dir().join(format!("mechgen-fake-solver-{}", std::process::id()));
         std::fs::write(&path, script).unwrap();
         std::fs::set_permissions(&path, std::fs::Permissions::from_mode(0o755)).unwrap();
-        let built = Built { binary: path.clone(), unknowns: 7, removed: Vec::new() };
+        let built =
+            Built { binary: path.clone(), unknowns: 7, removed: Vec::new(), notes: Vec::new() };
         // The one-body revolute example names failures; the stand-in's output has its size.
         let loaded = crate::validate::load_file(
             &crate::sync::workspace_root().join("examples/revolute_joint.toml"),
@@ -581,5 +597,49 @@ mod tests {
         let failure = report.failure.expect("the NaN is reported");
         assert_eq!(failure.t, 0.1);
         assert!(failure.message.contains("non-finite value NaN"), "{}", failure.message);
+    }
+
+    #[test]
+    fn the_solver_is_killed_when_the_sink_stops_reading() {
+        use std::os::unix::fs::PermissionsExt;
+        // A stand-in solver that writes its process id, then steps of one body without end.
+        let dir =
+            std::env::temp_dir().join(format!("mechgen-endless-solver-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let pid_file = dir.join("pid");
+        let step = format!("step 0.0 1 1e-12{}", " 0.5".repeat(21));
+        let script = format!(
+            "#!/bin/sh\necho $$ > '{}'\nwhile :; do echo '{step}'; done\n",
+            pid_file.display()
+        );
+        let path = dir.join("solver");
+        std::fs::write(&path, script).unwrap();
+        std::fs::set_permissions(&path, std::fs::Permissions::from_mode(0o755)).unwrap();
+        let built = Built { binary: path, unknowns: 7, removed: Vec::new(), notes: Vec::new() };
+        let loaded = crate::validate::load_file(
+            &crate::sync::workspace_root().join("examples/revolute_joint.toml"),
+        )
+        .unwrap();
+        let eq = crate::generic::Equations::new(&loaded.mechanism);
+        let prep = eq.prepare();
+        let analysis = Analysis::new(&eq, &prep);
+        let mut frames = 0;
+        let result = run(&built, &analysis, None, |_| {
+            frames += 1;
+            if frames == 3 {
+                Err(std::io::Error::from(std::io::ErrorKind::BrokenPipe))
+            } else {
+                Ok(())
+            }
+        });
+        match result {
+            Err(EngineError::Output(e)) => assert_eq!(e.kind(), std::io::ErrorKind::BrokenPipe),
+            other => panic!("the sink's error is handed back as it came: {other:?}"),
+        }
+        let pid = std::fs::read_to_string(&pid_file).unwrap();
+        std::fs::remove_dir_all(&dir).unwrap();
+        // `kill -0` fails for a process that no longer exists (it was killed and reaped).
+        let alive = Command::new("kill").args(["-0", pid.trim()]).status().unwrap().success();
+        assert!(!alive, "the solver {pid} still runs after the reader stopped");
     }
 }

@@ -1,0 +1,573 @@
+//! The cache of built solvers: one entry per generated crate, verified before it is run.
+//!
+//! Layout under the cache directory:
+//! - `runtime-HASH/`: the `runtime` crate's sources as embedded in mechgen when it was built
+//!   (so building needs no checkout), HASH naming their content;
+//! - `KEY/`: one generated crate (manifest, lock file, `src/`), its binary `solver` and
+//!   `solver.hash`, the hash of the key and the binary's bytes;
+//! - `target/`: cargo's shared build directory (a build cache only: entries keep their own
+//!   copy of their binary).
+//!
+//! KEY hashes everything that decides the binary: the generated module, the driver and the
+//! step control, the float type, the manifest, the lock file, the runtime's sources and
+//! mechgen's version. An entry is used only when its recorded hash matches its binary and
+//! the binary, asked for its key, prints KEY; anything else is rebuilt.
+
+use std::ffi::OsString;
+use std::hash::{DefaultHasher, Hasher};
+use std::io::{BufRead, BufReader};
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+use std::sync::OnceLock;
+use std::sync::atomic::{AtomicUsize, Ordering};
+
+use super::{BuildFailure, EngineError, SolverProcess};
+
+mod embedded {
+    include!(concat!(env!("OUT_DIR"), "/embedded.rs"));
+}
+
+/// Changes whenever the way entries are built changes (cargo's arguments, the layout), so
+/// that entries of an older recipe are never taken for current ones.
+const RECIPE: &str = "mechgen-cache 2: cargo build --release --offline; solver + solver.hash";
+
+/// A 64-bit hash of `parts`, each prefixed by its length, as 16 hex digits. It detects
+/// accidents (a stale, truncated or swapped file), not attacks: whoever can write the cache
+/// can run code as the user anyway.
+fn hash(parts: &[&[u8]]) -> String {
+    let mut h = DefaultHasher::new();
+    for p in parts {
+        h.write_usize(p.len());
+        h.write(p);
+    }
+    format!("{:016x}", h.finish())
+}
+
+/// The hash of the embedded runtime sources and their manifest.
+fn runtime_hash() -> &'static str {
+    static HASH: OnceLock<String> = OnceLock::new();
+    HASH.get_or_init(|| {
+        let mut parts: Vec<&[u8]> = vec![embedded::RUNTIME_MANIFEST.as_bytes()];
+        for (path, text) in embedded::RUNTIME_FILES {
+            parts.push(path.as_bytes());
+            parts.push(text.as_bytes());
+        }
+        hash(&parts)
+    })
+}
+
+/// Where built solvers are cached: `$MECHGEN_CACHE`; else `target/mechgen-cache` in the
+/// checkout mechgen was built from, while that checkout exists; else `mechgen` in the user's
+/// cache directory (`$XDG_CACHE_HOME`, `~/.cache`, `~/Library/Caches` or `%LOCALAPPDATA%`).
+///
+/// # Errors
+/// [`EngineError::Config`] when `MECHGEN_CACHE` is set but empty, or when no directory can
+/// be chosen.
+pub fn cache_dir() -> Result<PathBuf, EngineError> {
+    choose_cache_dir(&crate::sync::workspace_root(), |name| std::env::var_os(name))
+}
+
+/// [`cache_dir`] for a checkout at `root` and the environment `var`.
+pub(super) fn choose_cache_dir(
+    root: &Path,
+    var: impl Fn(&str) -> Option<OsString>,
+) -> Result<PathBuf, EngineError> {
+    if let Some(dir) = var("MECHGEN_CACHE") {
+        if dir.is_empty() {
+            return Err(EngineError::Config(
+                "MECHGEN_CACHE is set but empty: set it to the directory where mechgen should \
+                 keep built solvers, or unset it to use the default"
+                    .to_owned(),
+            ));
+        }
+        return std::path::absolute(&dir).map_err(|e| {
+            EngineError::Config(format!("MECHGEN_CACHE={}: {e}", Path::new(&dir).display()))
+        });
+    }
+    // The checkout is recognised by its own files, so that a moved or deleted one is never
+    // recreated by the cache's `create_dir_all`.
+    if root.join("Cargo.toml").is_file() && root.join("runtime/Cargo.toml").is_file() {
+        return Ok(root.join("target/mechgen-cache"));
+    }
+    let absolute = |name: &str| var(name).map(PathBuf::from).filter(|p| p.is_absolute());
+    let user = if cfg!(windows) {
+        absolute("LOCALAPPDATA")
+    } else if cfg!(target_os = "macos") {
+        absolute("HOME").map(|h| h.join("Library/Caches"))
+    } else {
+        absolute("XDG_CACHE_HOME").or_else(|| absolute("HOME").map(|h| h.join(".cache")))
+    };
+    user.map(|dir| dir.join("mechgen")).ok_or_else(|| {
+        EngineError::Config(format!(
+            "no directory for built solvers: the checkout mechgen was built from ({}) is gone \
+             and the environment names no cache directory (XDG_CACHE_HOME, HOME); set \
+             MECHGEN_CACHE to a writable directory",
+            root.display()
+        ))
+    })
+}
+
+/// How to build one generated crate, and where its entry lies.
+pub(super) struct Recipe {
+    cache: PathBuf,
+    key: String,
+    /// The entry's source files (relative path, text), `src/key.rs` and the lock excepted.
+    files: Vec<(&'static str, String)>,
+}
+
+impl std::fmt::Debug for Recipe {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Recipe").field("cache", &self.cache).field("key", &self.key).finish()
+    }
+}
+
+impl Recipe {
+    /// The recipe of the crate made of `module` and `driver` (in floating-point type
+    /// `real`), in the cache `cache`.
+    pub(super) fn new(cache: PathBuf, module: &str, driver: &str, real: &str) -> Recipe {
+        let manifest = |package: &str| {
+            format!(
+                "[package]\nname = \"{package}\"\nversion = \"0.0.0\"\nedition = \"2024\"\n\
+                 publish = false\n\n[dependencies]\nruntime = {{ path = \"../runtime-{}\" }}\n\n\
+                 [profile.release]\ncodegen-units = 1\npanic = \"abort\"\n\n[workspace]\n",
+                runtime_hash()
+            )
+        };
+        let key = hash(&[
+            RECIPE.as_bytes(),
+            env!("CARGO_PKG_VERSION").as_bytes(),
+            real.as_bytes(),
+            module.as_bytes(),
+            driver.as_bytes(),
+            super::STEPPING.as_bytes(),
+            manifest("").as_bytes(),
+            embedded::WORKSPACE_LOCK.as_bytes(),
+            runtime_hash().as_bytes(),
+        ]);
+        let files = vec![
+            ("Cargo.toml", manifest(&format!("mechgen-gen-{key}"))),
+            ("src/main.rs", driver.to_owned()),
+            ("src/stepping.rs", super::STEPPING.to_owned()),
+            ("src/mechanism.rs", module.to_owned()),
+            (
+                "src/key.rs",
+                format!(
+                    "//! The key of the cache entry this solver was built for.\n\n\
+                     /// Printed by `key`, so that mechgen can tell this binary is the entry's.\n\
+                     pub const KEY: &str = \"{key}\";\n"
+                ),
+            ),
+        ];
+        Recipe { cache, key, files }
+    }
+
+    fn dir(&self) -> PathBuf {
+        self.cache.join(&self.key)
+    }
+
+    /// The entry's copy of its binary: the program that is run.
+    pub(super) fn binary(&self) -> PathBuf {
+        self.dir().join(format!("solver{}", std::env::consts::EXE_SUFFIX))
+    }
+
+    fn record(&self) -> PathBuf {
+        self.dir().join("solver.hash")
+    }
+
+    fn package(&self) -> String {
+        format!("mechgen-gen-{}", self.key)
+    }
+
+    /// What cargo builds, before it is copied into the entry.
+    fn target_binary(&self) -> PathBuf {
+        self.cache.join("target/release").join(format!(
+            "{}{}",
+            self.package(),
+            std::env::consts::EXE_SUFFIX
+        ))
+    }
+
+    /// The record of a binary: its bytes bound to this entry's key, so that neither another
+    /// entry's binary nor its record passes here.
+    fn binary_hash(&self, bytes: &[u8]) -> String {
+        hash(&[self.key.as_bytes(), bytes])
+    }
+
+    /// Why the entry cannot be used as it is: `None` when it is verified, `Some("")` when it
+    /// was never built, else the reason.
+    fn defect(&self) -> Option<String> {
+        let binary = self.binary();
+        let Ok(bytes) = std::fs::read(&binary) else {
+            return Some(String::new());
+        };
+        let recorded = std::fs::read_to_string(self.record()).unwrap_or_default();
+        if recorded.trim() != self.binary_hash(&bytes) {
+            return Some(format!(
+                "the cached solver {} does not match its recorded hash",
+                binary.display()
+            ));
+        }
+        match self.probe() {
+            Ok(()) => None,
+            Err(why) => Some(format!("the cached solver {} {why}", binary.display())),
+        }
+    }
+
+    /// Runs the binary in `key` mode and checks that it names this entry.
+    fn probe(&self) -> Result<(), String> {
+        let child = Command::new(self.binary())
+            .arg("key")
+            .stdin(Stdio::null())
+            .stdout(Stdio::piped())
+            .stderr(Stdio::null())
+            .spawn()
+            .map_err(|e| format!("does not run ({e})"))?;
+        let mut child = SolverProcess(child);
+        let mut line = String::new();
+        let stdout = child.0.stdout.take().expect("piped");
+        // One line only: a binary that is not a solver of this recipe may print without end.
+        let _ = BufReader::new(stdout).read_line(&mut line);
+        let expected = format!("key {}", self.key);
+        if line.trim_end() == expected {
+            Ok(())
+        } else {
+            Err(format!("is not this entry's solver (asked for its key, it printed {line:?})"))
+        }
+    }
+
+    /// Makes the entry usable: verified as it is, or rebuilt. `notes` receives what was
+    /// found wrong and repaired.
+    pub(super) fn ensure(&self, notes: &mut Vec<String>) -> Result<(), EngineError> {
+        // One process at a time checks and builds an entry: another mechgen building the
+        // same solver waits here, then finds it verified.
+        let lock_path = self.dir().join(".lock");
+        let lock = std::fs::create_dir_all(self.dir())
+            .and_then(|()| std::fs::File::options().create(true).append(true).open(&lock_path))
+            .map_err(|e| {
+                EngineError::Build(BuildFailure {
+                    reason: format!("{}: {e}", lock_path.display()),
+                    fix: "set MECHGEN_CACHE to a writable directory".to_owned(),
+                })
+            })?;
+        // Where the file system cannot lock, concurrent builds only repeat work: every file
+        // is put in place by a rename.
+        let _ = lock.lock();
+        let verified = self.verify_or_build(notes);
+        drop(lock);
+        verified
+    }
+
+    fn verify_or_build(&self, notes: &mut Vec<String>) -> Result<(), EngineError> {
+        match self.defect() {
+            None => return Ok(()),
+            Some(why) if why.is_empty() => {}
+            Some(why) => notes.push(format!("{why}; rebuilding it")),
+        }
+        self.build(notes)?;
+        match self.defect() {
+            None => Ok(()),
+            Some(why) => Err(EngineError::Build(BuildFailure {
+                reason: format!("{why} right after it was built"),
+                fix: format!(
+                    "check that {} is on a file system that allows running programs, or set \
+                     MECHGEN_CACHE to a directory that is",
+                    self.cache.display()
+                ),
+            })),
+        }
+    }
+
+    /// Writes the sources, builds them with cargo and puts the binary into the entry (by a
+    /// rename, so that a solver starting meanwhile runs either the old file or the new one),
+    /// then its record.
+    fn build(&self, notes: &mut Vec<String>) -> Result<(), EngineError> {
+        let io = |path: &Path, e: std::io::Error| {
+            EngineError::Build(BuildFailure {
+                reason: format!("{}: {e}", path.display()),
+                fix: "set MECHGEN_CACHE to a writable directory with free space".to_owned(),
+            })
+        };
+        let dir = self.dir();
+        let runtime = self.cache.join(format!("runtime-{}", runtime_hash()));
+        let mut restored = false;
+        let runtime_files = std::iter::once(("Cargo.toml", embedded::RUNTIME_MANIFEST))
+            .chain(embedded::RUNTIME_FILES.iter().copied());
+        for (path, text) in runtime_files {
+            let path = runtime.join(path);
+            let existed = path.exists();
+            restored |=
+                write_if_changed(&path, text.as_bytes()).map_err(|e| io(&path, e))? && existed;
+        }
+        if restored {
+            notes.push(format!(
+                "the cache's copy of the runtime ({}) had been changed; restored it",
+                runtime.display()
+            ));
+        }
+        for (path, text) in &self.files {
+            let path = dir.join(path);
+            write_if_changed(&path, text.as_bytes()).map_err(|e| io(&path, e))?;
+        }
+        // The lock file is written anew before every build, so that versions never drift
+        // from mechgen's lock; a corrupt one is said.
+        let lock = dir.join("Cargo.lock");
+        if let Ok(bytes) = std::fs::read(&lock)
+            && !is_lock_file(&bytes)
+        {
+            notes.push(format!(
+                "the cache's lock file {} was corrupt; rewrote it from mechgen's",
+                lock.display()
+            ));
+            std::fs::remove_file(&lock).map_err(|e| io(&lock, e))?;
+        }
+        if !embedded::WORKSPACE_LOCK.is_empty() {
+            write_if_changed(&lock, embedded::WORKSPACE_LOCK.as_bytes())
+                .map_err(|e| io(&lock, e))?;
+        }
+        if self.target_binary().exists() {
+            // Cargo trusts its own outputs by their times: make it compile this crate again
+            // rather than copy a binary that may be what went wrong.
+            self.touch_main().map_err(|e| io(&dir.join("src/main.rs"), e))?;
+        }
+        self.cargo_build(notes)?;
+        let built = self.target_binary();
+        let tmp = temporary(&self.binary());
+        std::fs::copy(&built, &tmp).map_err(|e| io(&built, e))?;
+        std::fs::rename(&tmp, self.binary()).map_err(|e| io(&self.binary(), e))?;
+        let bytes = std::fs::read(self.binary()).map_err(|e| io(&self.binary(), e))?;
+        write_if_changed(&self.record(), self.binary_hash(&bytes).as_bytes())
+            .map_err(|e| io(&self.record(), e))?;
+        Ok(())
+    }
+
+    fn touch_main(&self) -> std::io::Result<()> {
+        std::fs::File::options()
+            .write(true)
+            .open(self.dir().join("src/main.rs"))?
+            .set_modified(std::time::SystemTime::now())
+    }
+
+    /// `cargo build`, offline first. When crates are missing from cargo's cache, fetches
+    /// exactly those the lock file pins and builds again; any other failure may come from a
+    /// corrupted build of the runtime or its dependencies, so those are cleaned and the
+    /// build is tried once more.
+    fn cargo_build(&self, notes: &mut Vec<String>) -> Result<(), EngineError> {
+        let build = ["build", "--release", "--offline", "--quiet"];
+        let Err(mut failure) = self.cargo(&build)? else { return Ok(()) };
+        if needs_download(&failure) {
+            notes.push(format!(
+                "fetching the crates the generated solver needs ({}) into cargo's cache, at \
+                 the versions mechgen's lock file pins",
+                embedded::RUNTIME_DEPENDENCIES.join(", ")
+            ));
+            if let Err(fetch) = self.cargo(&["fetch", "--quiet"])? {
+                return Err(EngineError::Build(BuildFailure {
+                    reason: format!("cargo could not download them:\n{}", excerpt(&fetch)),
+                    fix: download_fix(),
+                }));
+            }
+            failure = match self.cargo(&build)? {
+                Ok(()) => return Ok(()),
+                Err(f) => f,
+            };
+        }
+        notes.push(format!(
+            "the build failed ({}); cleaning the cache's build of the runtime and building again",
+            failure.lines().find(|l| l.starts_with("error")).unwrap_or("cargo failed").trim()
+        ));
+        let mut clean = vec!["clean", "--release", "--offline", "--quiet", "-p", "runtime"];
+        for dep in embedded::RUNTIME_DEPENDENCIES {
+            clean.extend(["-p", dep]);
+        }
+        // A failed clean leaves the second build to say what is wrong.
+        let _ = self.cargo(&clean)?;
+        let _ = self.touch_main();
+        match self.cargo(&build)? {
+            Ok(()) => Ok(()),
+            Err(f) if needs_download(&f) => Err(EngineError::Build(BuildFailure {
+                reason: format!("crates are missing from cargo's cache:\n{}", excerpt(&f)),
+                fix: download_fix(),
+            })),
+            Err(f) => Err(EngineError::Build(BuildFailure {
+                reason: format!("cargo failed:\n{}", excerpt(&f)),
+                fix: "this is a bug in mechgen's generator or its build of the solver: please \
+                      report it with the description; meanwhile `--engine generic` analyses \
+                      the description without building anything"
+                    .to_owned(),
+            })),
+        }
+    }
+
+    /// Runs cargo on the entry's manifest with the cache's build directory: `Ok(Err(stderr))`
+    /// when cargo fails.
+    fn cargo(&self, args: &[&str]) -> Result<Result<(), String>, EngineError> {
+        let cargo = std::env::var_os("CARGO").unwrap_or_else(|| "cargo".into());
+        let output = Command::new(&cargo)
+            .args(args)
+            .arg("--manifest-path")
+            .arg(self.dir().join("Cargo.toml"))
+            .env("CARGO_TARGET_DIR", self.cache.join("target"))
+            .stdin(Stdio::null())
+            .output()
+            .map_err(|e| {
+                EngineError::Build(BuildFailure {
+                    reason: format!("cannot start cargo ({}): {e}", Path::new(&cargo).display()),
+                    fix: "install Rust's cargo (for example with rustup), or set CARGO to the \
+                          cargo program"
+                        .to_owned(),
+                })
+            })?;
+        Ok(if output.status.success() {
+            Ok(())
+        } else {
+            Err(String::from_utf8_lossy(&output.stderr).into_owned())
+        })
+    }
+}
+
+/// Whether cargo failed for want of a crate it may not download (offline mode).
+fn needs_download(stderr: &str) -> bool {
+    let s = stderr.to_lowercase();
+    s.contains("offline") || s.contains("failed to download") || s.contains("no matching package")
+}
+
+fn download_fix() -> String {
+    format!(
+        "the generated solver needs the crates {} in cargo's cache: run mechgen again with \
+         network access (it fetches the versions its lock file pins), or run `cargo fetch` \
+         once in a mechgen checkout",
+        embedded::RUNTIME_DEPENDENCIES.join(", ")
+    )
+}
+
+/// Cargo's output, at most 40 lines, indented under the message.
+fn excerpt(stderr: &str) -> String {
+    let lines: Vec<&str> = stderr.trim_end().lines().collect();
+    let mut text: Vec<String> = lines.iter().take(40).map(|l| format!("  {l}")).collect();
+    if lines.len() > 40 {
+        text.push(format!("  … ({} more lines)", lines.len() - 40));
+    }
+    text.join("\n")
+}
+
+/// Whether `bytes` parse as a lock file (TOML with a `version` or `package` table).
+fn is_lock_file(bytes: &[u8]) -> bool {
+    std::str::from_utf8(bytes)
+        .ok()
+        .and_then(|t| t.parse::<toml::Table>().ok())
+        .is_some_and(|t| t.contains_key("version") || t.contains_key("package"))
+}
+
+/// A name beside `path` for writing before a rename, unique to this process and call.
+fn temporary(path: &Path) -> PathBuf {
+    static COUNT: AtomicUsize = AtomicUsize::new(0);
+    let name = path.file_name().map_or_else(String::new, |n| n.to_string_lossy().into_owned());
+    let n = COUNT.fetch_add(1, Ordering::Relaxed);
+    path.with_file_name(format!(".{name}.{}.{n}.tmp", std::process::id()))
+}
+
+/// Writes `bytes` to `path` unless it already holds them, through a temporary file and a
+/// rename, so that a concurrent reader (another mechgen, cargo) never sees part of it.
+/// Returns whether it wrote.
+fn write_if_changed(path: &Path, bytes: &[u8]) -> std::io::Result<bool> {
+    if std::fs::read(path).is_ok_and(|t| t == bytes) {
+        return Ok(false);
+    }
+    if let Some(parent) = path.parent() {
+        std::fs::create_dir_all(parent)?;
+    }
+    let tmp = temporary(path);
+    std::fs::write(&tmp, bytes)?;
+    std::fs::rename(&tmp, path)?;
+    Ok(true)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// An environment of the given variables only.
+    fn env(vars: &[(&str, &str)]) -> impl Fn(&str) -> Option<OsString> {
+        let vars: Vec<(String, OsString)> =
+            vars.iter().map(|(k, v)| ((*k).to_owned(), OsString::from(v))).collect();
+        move |name| vars.iter().find(|(k, _)| k == name).map(|(_, v)| v.clone())
+    }
+
+    #[test]
+    fn an_empty_mechgen_cache_is_an_error_naming_it() {
+        let root = crate::sync::workspace_root();
+        match choose_cache_dir(&root, env(&[("MECHGEN_CACHE", "")])) {
+            Err(EngineError::Config(m)) => {
+                assert!(m.contains("MECHGEN_CACHE is set but empty"), "{m}")
+            }
+            other => panic!("{other:?}"),
+        }
+    }
+
+    #[test]
+    fn the_checkout_holds_the_cache_while_it_exists() {
+        let root = crate::sync::workspace_root();
+        let dir = choose_cache_dir(&root, env(&[("HOME", "/home/someone")])).unwrap();
+        assert_eq!(dir, root.join("target/mechgen-cache"));
+    }
+
+    #[test]
+    fn a_deleted_checkout_is_never_recreated_and_the_user_cache_is_used() {
+        // A checkout path that does not exist, as for an installed binary whose source
+        // folder was moved or deleted.
+        let gone =
+            std::env::temp_dir().join(format!("mechgen-gone-{}/checkout", std::process::id()));
+        let dir = choose_cache_dir(&gone, env(&[("HOME", "/home/someone")])).unwrap();
+        assert!(!dir.starts_with(&gone), "{}", dir.display());
+        if cfg!(target_os = "linux") {
+            assert_eq!(dir, Path::new("/home/someone/.cache/mechgen"));
+            let xdg = env(&[("HOME", "/home/someone"), ("XDG_CACHE_HOME", "/var/cache/u")]);
+            assert_eq!(choose_cache_dir(&gone, xdg).unwrap(), Path::new("/var/cache/u/mechgen"));
+        }
+        match choose_cache_dir(&gone, env(&[])) {
+            Err(EngineError::Config(m)) => {
+                assert!(m.contains("set MECHGEN_CACHE"), "{m}");
+                assert!(m.contains(&gone.display().to_string()), "{m}");
+            }
+            other => panic!("{other:?}"),
+        }
+        assert!(!gone.parent().unwrap().exists(), "nothing was created under the old checkout");
+    }
+
+    #[test]
+    fn a_lock_file_is_recognised_and_garbage_is_not() {
+        assert!(
+            is_lock_file(embedded::WORKSPACE_LOCK.as_bytes())
+                || embedded::WORKSPACE_LOCK.is_empty()
+        );
+        assert!(!is_lock_file(b"garbage [[["));
+        assert!(!is_lock_file(&[0xff, 0xfe, 0x00]));
+        assert!(!is_lock_file(b"title = \"not a lock\""));
+    }
+
+    #[test]
+    fn every_runtime_source_file_is_embedded() {
+        // The embedded copy must build on its own: its modules' files are all there.
+        let root = crate::sync::workspace_root().join("runtime");
+        let mut on_disk = Vec::new();
+        let mut stack = vec![root.join("src")];
+        while let Some(dir) = stack.pop() {
+            for e in std::fs::read_dir(&dir).unwrap() {
+                let p = e.unwrap().path();
+                if p.is_dir() {
+                    stack.push(p);
+                } else {
+                    let rel = p.strip_prefix(&root).unwrap().to_string_lossy().replace('\\', "/");
+                    on_disk.push(rel);
+                }
+            }
+        }
+        on_disk.sort();
+        let mut embedded: Vec<&str> = embedded::RUNTIME_FILES.iter().map(|(p, _)| *p).collect();
+        embedded.sort_unstable();
+        assert_eq!(embedded, on_disk);
+        for (path, text) in embedded::RUNTIME_FILES {
+            assert_eq!(std::fs::read_to_string(root.join(path)).unwrap(), *text, "{path}");
+        }
+    }
+}
