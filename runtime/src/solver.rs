@@ -489,6 +489,8 @@ impl<R: Real> fmt::Display for AttemptError<R> {
     }
 }
 
+impl<R: Real> core::error::Error for AttemptError<R> {}
+
 impl<M: Mechanism<N, R>, const N: usize, R: Real, J: BorrowMut<[[R; N]; N]>> Solver<M, N, R, J> {
     /// Solves positions, velocities and accelerations at `t` under the step control of
     /// [`crate::step`], starting from the last point whose velocities and accelerations were
@@ -513,6 +515,48 @@ impl<M: Mechanism<N, R>, const N: usize, R: Real, J: BorrowMut<[[R; N]; N]>> Sol
     /// ([`Stop::near`]). The solver then holds the last accepted sub-step ([`Solver::t`] tells
     /// when), on the starting branch with its q̇ and q̈, or its estimate before the first point,
     /// and a later call continues from there.
+    ///
+    /// # Example
+    ///
+    /// A unit crank driven to the angle t, Φ = (x² + y² − 1, x sin t − y cos t): the second
+    /// row also holds half a turn away, at −(cos t, sin t), where Newton from (1, 0) converges
+    /// after a jump of 179°. Step control sub-steps and stays on the crank's own branch.
+    ///
+    /// ```
+    /// use runtime::{Mechanism, Solver};
+    ///
+    /// struct Crank;
+    ///
+    /// impl Mechanism<2> for Crank {
+    ///     fn residual(&self, q: &[f64; 2], t: f64, phi: &mut [f64; 2]) {
+    ///         *phi = [q[0] * q[0] + q[1] * q[1] - 1.0, q[0] * t.sin() - q[1] * t.cos()];
+    ///     }
+    ///     fn jacobian(&self, q: &[f64; 2], t: f64, jac: &mut [[f64; 2]; 2]) {
+    ///         *jac = [[2.0 * q[0], 2.0 * q[1]], [t.sin(), -t.cos()]];
+    ///     }
+    ///     fn velocity_rhs(&self, q: &[f64; 2], t: f64, nu: &mut [f64; 2]) {
+    ///         *nu = [0.0, -(q[0] * t.cos() + q[1] * t.sin())];
+    ///     }
+    ///     fn acceleration_rhs(&self, q: &[f64; 2], qd: &[f64; 2], t: f64, g: &mut [f64; 2]) {
+    ///         let (s, c) = t.sin_cos();
+    ///         let ([x, y], [xd, yd]) = (*q, *qd);
+    ///         *g = [-2.0 * (xd * xd + yd * yd), -2.0 * (c * xd + s * yd) + x * s - y * c];
+    ///     }
+    /// }
+    ///
+    /// let t = 179f64.to_radians();
+    /// let mut plain = Solver::new(Crank, [1.0, 0.0]);
+    /// plain.position(0.0)?;
+    /// plain.position(t)?; // Ok, but half a turn off
+    /// assert!((plain.q()[0] + t.cos()).abs() < 1e-9);
+    ///
+    /// let mut solver = Solver::new(Crank, [1.0, 0.0]);
+    /// solver.advance_to(0.0)?;
+    /// solver.advance_to(t)?; // on the branch it started from
+    /// assert!((solver.q()[0] - t.cos()).abs() < 1e-9 && (solver.q()[1] - t.sin()).abs() < 1e-9);
+    /// assert!((solver.qd()[0] + t.sin()).abs() < 1e-9);
+    /// # Ok::<(), Box<dyn std::error::Error>>(())
+    /// ```
     pub fn advance_to(&mut self, t: R) -> Result<StepReport<R>, Stop<R, AttemptError<R>>> {
         let start = self.start_sample();
         let mut control = Controlled { solver: self, candidate: start };

@@ -317,6 +317,8 @@ impl<R: Real, C: fmt::Display> fmt::Display for Stop<R, C> {
     }
 }
 
+impl<R: Real, C: fmt::Display + fmt::Debug> core::error::Error for Stop<R, C> {}
+
 /// What an engine provides to the step control.
 ///
 /// It holds two points: the last accepted one and the candidate, the result of the last
@@ -505,10 +507,11 @@ pub fn advance<R: Real, S: Stepper<R>>(
         let end = current.t + one_and_half * h;
         let reaches = if forward { end >= t } else { end <= t };
         let target = if level == 0 || reaches { t } else { current.t + h };
-        if target != t && target == current.t {
-            if let Some(r) = last {
-                return Err(classify(start, current, t, r, Some(h)));
-            }
+        if target != t
+            && target == current.t
+            && let Some(r) = last
+        {
+            return Err(classify(start, current, t, r, Some(h)));
         }
         match try_step(stepper, &current, target) {
             Ok(b) => {
@@ -521,7 +524,7 @@ pub fn advance<R: Real, S: Stepper<R>>(
                 streak += 1;
                 if streak == 2 && level > 0 {
                     level -= 1;
-                    divisor = divisor / two;
+                    divisor /= two;
                     streak = 0;
                 }
             }
@@ -531,7 +534,7 @@ pub fn advance<R: Real, S: Stepper<R>>(
                 streak = 0;
                 if level < MAX_HALVINGS {
                     level += 1;
-                    divisor = divisor * two;
+                    divisor *= two;
                     last = Some(r);
                     continue;
                 }

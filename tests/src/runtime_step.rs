@@ -15,6 +15,7 @@ use runtime::step::Groups;
 use runtime::{Mechanism, Solver};
 
 /// The four-bar's crank law: θ = 3.14159265 t (driver `motor`, coordinate rx).
+#[expect(clippy::approx_constant, reason = "the description's law is this literal, not π")]
 const FOUR_BAR_OMEGA: f64 = 3.14159265;
 
 /// The slider-crank's crank law: θ = 1.52 − 6.2831852 t (driver `motor`, coordinate rx).
