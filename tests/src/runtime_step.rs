@@ -11,7 +11,7 @@ use std::f64::consts::PI;
 
 use generated::four_bar::{self as fb, FourBar};
 use generated::slider_crank_5body::{self as sc, SliderCrank5body};
-use runtime::step::Groups;
+use runtime::step::{Groups, Trouble};
 use runtime::{Mechanism, Solver};
 
 /// The four-bar's crank law: θ = 3.14159265 t (driver `motor`, coordinate rx).
@@ -211,4 +211,54 @@ fn plain_position_jumps_branch_where_advance_to_does_not() {
     // at every call.
     four_bar_with_jumps(179.0, Groups::Each);
     slider_crank_with_jumps(170.0, Groups::Each);
+}
+
+/// An engine that stands still: an attempt succeeds only at the time of the last accepted
+/// point, as one whose every representable sub-step is a jump.
+struct StandStill {
+    at: f64,
+}
+
+impl codegen::stepping::Engine for StandStill {
+    fn attempt(
+        &mut self,
+        t: f64,
+    ) -> Result<codegen::stepping::Point, codegen::stepping::Rejection> {
+        if t == self.at {
+            Ok(codegen::stepping::Point {
+                t,
+                q: vec![0.0; 7],
+                qd: vec![0.0; 7],
+                qdd: vec![0.0; 7],
+                iterations: 1,
+                residual: 0.0,
+                pivot_ratio: 1.0,
+            })
+        } else {
+            Err(codegen::stepping::Rejection {
+                trouble: Trouble::BranchJump,
+                message: format!("no step to t = {t}"),
+                point: None,
+                body: None,
+            })
+        }
+    }
+
+    fn accept(&mut self, p: &codegen::stepping::Point) {
+        self.at = p.t;
+    }
+}
+
+#[test]
+fn the_engines_step_control_ends_where_sub_steps_no_longer_change_t() {
+    // At t = 1e17 the spacing of f64 is 16: a sub-step of 4 rounds back onto the start and
+    // always "succeeds", so halving and doubling would go on forever without the rule.
+    let t0 = 1e17;
+    let mut engine = StandStill { at: t0 };
+    let start = codegen::stepping::first(&mut engine, t0).expect("the start stands");
+    let stop = codegen::stepping::advance(&mut engine, &start, t0 + 64.0).unwrap_err();
+    assert_eq!(stop.trouble, Trouble::NoConvergence, "{}", stop.message);
+    assert_eq!(stop.t, t0 + 64.0);
+    assert!(stop.message.contains("no longer changes t"), "{}", stop.message);
+    assert_eq!(stop.near.map(|p| p.t), Some(t0));
 }
