@@ -7,7 +7,7 @@
 //! by q, q̇ and q̈ of every moving body (7 each, body by body) in shortest round-trip form,
 //! or, when the analysis stops, `near t q…` (the configuration closest to the failure, if
 //! any) and `error kind t body message`. Run mode takes each step under the step control of
-//! [`crate::stepping`], compiled into the program. In `bench` mode it times whole passes
+//! [`runtime::step`], which the program links with the solver. In `bench` mode it times whole passes
 //! over the grid and prints `bench min_ns median_ns iterations_per_step`.
 
 use std::io::{BufRead, BufReader, Read};
@@ -32,12 +32,11 @@ const DRIVER: &str = r#"//! Runs one generated mechanism over its time grid (wri
 
 mod key;
 mod mechanism;
-mod stepping;
 
 use std::io::Write;
 
-use runtime::{Mechanism, NewtonError, NewtonOptions, Solver};
-use stepping::{Point, Rejection, Trouble};
+use runtime::step::{self, Coordinates, Groups, Rejection, Sample, Stepper, Trouble};
+use runtime::{AttemptError, Mechanism, NewtonError, NewtonOptions, Solver};
 
 /// The floating-point type the module was generated in.
 type Real = __REAL__;
@@ -110,24 +109,22 @@ fn drive<M: Mechanism<N, Real>>(m: M, mode: &str, tolerance: Real, repeats: usiz
         solver,
         dense: jacobian(),
         perm: [0; N],
-        full: Box::new([[[0.0; 7]; 3]; mechanism::BODIES]),
+        expanded: Box::new([[[0.0; 7]; 3]; mechanism::BODIES]),
         accepted: None,
-        moved: false,
+        full: Full::default(),
+        candidate: Full::default(),
     };
-    let mut last: Option<Point> = None;
+    let mut last: Option<Sample<f64>> = None;
     for k in 0..mechanism::T_COUNT {
         let t = mechanism::T_START + k as Real * mechanism::T_STEP;
-        let outcome = match &last {
-            None => stepping::first(&mut engine, f64::from(t)).map(|p| {
-                let n = p.iterations;
-                (p, n)
-            }),
-            Some(a) => stepping::advance(&mut engine, a, f64::from(t)),
+        let outcome = match last {
+            None => step::first(&mut engine, f64::from(t)).map(|p| (p, p.iterations)),
+            Some(a) => step::advance(&mut engine, a, f64::from(t)),
         };
         match outcome {
             Ok((p, iterations)) => {
                 check(write!(out, "step {:?} {iterations} {:?}", f64::from(t), p.residual));
-                for v in [&p.q, &p.qd, &p.qdd] {
+                for v in [&engine.full.q, &engine.full.qd, &engine.full.qdd] {
                     for x in v {
                         check(write!(out, " {x:?}"));
                     }
@@ -136,15 +133,16 @@ fn drive<M: Mechanism<N, Real>>(m: M, mode: &str, tolerance: Real, repeats: usiz
                 last = Some(p);
             }
             Err(stop) => {
-                if let Some(p) = &stop.near {
-                    check(write!(out, "near {:?}", p.t));
-                    for x in &p.q {
+                if let Some(near) = stop.near {
+                    check(write!(out, "near {:?}", near.sample.t));
+                    let q = if near.rejected { &engine.candidate.q } else { &engine.full.q };
+                    for x in q {
                         check(write!(out, " {x:?}"));
                     }
                     check(writeln!(out));
                 }
                 let body = stop.body.map_or_else(|| "-".to_owned(), |b| b.to_string());
-                let message = stop.message.replace('\n', " ");
+                let message = stop.to_string().replace('\n', " ");
                 check(writeln!(out, "error {} {:?} {body} {message}", stop.trouble.as_str(), stop.t));
                 check(out.flush());
                 std::process::exit(2);
@@ -171,64 +169,88 @@ fn jacobian() -> Jacobian {
     }
 }
 
-/// The generated solver under the step control of `stepping`.
+/// q, q̇ and q̈ of every moving body (7 each, body by body), as the step control reads them.
+#[derive(Clone, Default)]
+struct Full {
+    q: Vec<f64>,
+    qd: Vec<f64>,
+    qdd: Vec<f64>,
+}
+
+/// The generated solver under the step control of `runtime::step`, which checks continuity
+/// on the full coordinates of every body (position and Euler parameters).
 struct Engine<M> {
     solver: Solver<M, N, Real, Jacobian>,
     /// Φ_q at the last result, factored for its pivot ratio.
     dense: Jacobian,
     perm: [usize; N],
-    full: Box<[[[Real; 7]; 3]; mechanism::BODIES]>,
+    expanded: Box<[[[Real; 7]; 3]; mechanism::BODIES]>,
     /// The last accepted (t, reduced q).
     accepted: Option<(Real, [Real; N])>,
-    /// The solver holds a result that was not accepted yet.
-    moved: bool,
+    /// The last accepted point and the last attempt, in full coordinates.
+    full: Full,
+    candidate: Full,
 }
 
-impl<M: Mechanism<N, Real>> stepping::Engine for Engine<M> {
-    fn attempt(&mut self, t: f64) -> Result<Point, Rejection> {
-        let reject = |trouble, message: String| Rejection { trouble, message, point: None, body: None };
+impl<M: Mechanism<N, Real>> Stepper<f64> for Engine<M> {
+    type Cause = AttemptError<Real>;
+
+    fn attempt(&mut self, t: f64) -> Result<Sample<f64>, Rejection<f64, AttemptError<Real>>> {
         let t = t as Real;
         let report = self.solver.position(t).map_err(|e| {
             let trouble = match e {
                 NewtonError::Singular { .. } => Trouble::Singular,
                 _ => Trouble::NoConvergence,
             };
-            reject(trouble, e.to_string())
+            Rejection::engine(trouble, AttemptError::Newton(e))
         })?;
-        self.moved = true;
-        self.solver
-            .velocity()
-            .and_then(|()| self.solver.acceleration())
-            .map_err(|e| reject(Trouble::Singular, format!("velocities or accelerations: {e}")))?;
+        if let Err(e) = self.solver.velocity().and_then(|()| self.solver.acceleration()) {
+            return Err(Rejection::engine(Trouble::Singular, AttemptError::Solve(e)));
+        }
         self.solver.mechanism().jacobian(self.solver.q(), t, &mut self.dense);
         let pivot_ratio = match runtime::lu::factor_with_ratio(&mut self.dense, &mut self.perm, 0.0) {
             Ok(p) => f64::from(p.smallest) / f64::from(p.largest),
             Err(runtime::lu::Singular::SmallPivot { pivot, largest, .. }) => f64::from(pivot) / f64::from(largest),
             Err(_) => f64::NAN,
         };
-        mechanism::expand(self.solver.q(), self.solver.qd(), self.solver.qdd(), t, &mut self.full);
-        let flat = |d: usize| self.full.iter().flat_map(|b| b[d]).map(f64::from).collect::<Vec<f64>>();
-        Ok(Point {
+        mechanism::expand(self.solver.q(), self.solver.qd(), self.solver.qdd(), t, &mut self.expanded);
+        let c = &mut self.candidate;
+        for (d, v) in [&mut c.q, &mut c.qd, &mut c.qdd].into_iter().enumerate() {
+            v.clear();
+            v.extend(self.expanded.iter().flat_map(|b| b[d]).map(f64::from));
+        }
+        Ok(Sample {
             t: f64::from(t),
-            q: flat(0),
-            qd: flat(1),
-            qdd: flat(2),
             iterations: report.iterations,
             residual: f64::from(report.residual),
             pivot_ratio,
         })
     }
 
-    fn accept(&mut self, p: &Point) {
-        if self.moved && f64::from(self.solver.t()) == p.t {
-            self.accepted = Some((self.solver.t(), *self.solver.q()));
-        } else if let Some((t, q)) = self.accepted {
+    fn accepted(&self) -> Coordinates<'_, f64> {
+        Coordinates { q: &self.full.q, qd: &self.full.qd, qdd: &self.full.qdd }
+    }
+
+    fn candidate(&self) -> Coordinates<'_, f64> {
+        Coordinates { q: &self.candidate.q, qd: &self.candidate.qd, qdd: &self.candidate.qdd }
+    }
+
+    fn groups(&self) -> Groups<'_> {
+        Groups::Bodies
+    }
+
+    fn accept(&mut self) {
+        self.accepted = Some((self.solver.t(), *self.solver.q()));
+        self.full.clone_from(&self.candidate);
+    }
+
+    fn reject(&mut self) {
+        if let Some((t, q)) = self.accepted {
             // Back to the accepted point: Newton converges at once from it.
             self.solver.set_q(q);
             let _ = self.solver.position(t);
             let _ = self.solver.velocity().and_then(|()| self.solver.acceleration());
         }
-        self.moved = false;
     }
 
     fn epsilon(&self) -> f64 {
@@ -236,9 +258,6 @@ impl<M: Mechanism<N, Real>> stepping::Engine for Engine<M> {
     }
 }
 "#;
-
-/// The step control, compiled into the driver as its module `stepping`.
-const STEPPING: &str = include_str!("stepping.rs");
 
 /// Why the generated engine could not run.
 #[derive(Debug)]
@@ -492,6 +511,7 @@ pub fn run_with(
                 let trouble = match words.next() {
                     Some("singular") => Trouble::Singular,
                     Some("branch_jump") => Trouble::BranchJump,
+                    Some("inconsistent") => Trouble::Inconsistent,
                     _ => Trouble::NoConvergence,
                 };
                 let t = words.next().and_then(|s| s.parse().ok()).unwrap_or(f64::NAN);

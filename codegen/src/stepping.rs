@@ -1,66 +1,18 @@
-//! Step control shared by both engines: step subdivision, the continuity check and the
-//! classification of a step that cannot be taken (singular, branch jump, no convergence).
+//! The step control of [`runtime::step`] for engines that keep their points in `Vec`s: the
+//! generic engine ([`crate::generic::Analysis::run`]) and the tests' interpreted engines.
 //!
-//! This file uses `std` only: mechgen compiles it into the generic engine and copies it,
-//! unchanged, into the driver of every generated solver, so that both engines take the same
-//! decisions from the same rules.
-//!
-//! From the last accepted point (t_a, q_a, q̇_a, q̈_a) the engine is asked for the point at the
-//! next grid time t_b, starting Newton from its predictor. An attempt is rejected when
-//! - Newton fails (no convergence, a pivot of Φ_q at most 1e-12 of the largest, NaN), or
-//! - Newton converged but the pivot ratio ρ = min |u_kk| / max |u_kk| of the dense LU with
-//!   partial pivoting of Φ_q at the result (a cheap estimate of 1/κ(Φ_q)) is at most
-//!   [`SINGULAR_RATIO`], or
-//! - the engine's own check fails (the generic engine's joint-angle branch test), or
-//! - the continuity check fails: the Hermite defect of the step,
-//!   E = q_b − q_a − h/2 (q̇_a + q̇_b) − h²/12 (q̈_a − q̈_b),
-//!   exceeds [`CONTINUITY`] times the displacement q_b − q_a, plus [`FLOOR`], in the
-//!   position or the Euler parameters of some body.
-//!   Along a smooth motion E = O(h⁵): for q = sin ωt it is (ωh)⁴/720 of the displacement, so
-//!   0.05 admits steps up to ωh ≈ 2.4 rad; a step that lands on another assembly branch, or on
-//!   a singular configuration whose velocities are unbounded, has a defect of the order of the
-//!   displacement itself.
-//!
-//! A rejected attempt is retried from the last accepted point with half the sub-step, down to
-//! 2⁻[`MAX_HALVINGS`] of the grid step; accepted sub-steps become the new start (they are not
-//! reported) and after two in a row the sub-step doubles again.
-//! When even the smallest sub-step is rejected, the analysis stops at the grid time t_b, and
-//! the failure is classified with ρ:
-//! - `singular` when the last rejection was singular (Newton's pivots, or ρ ≤
-//!   [`SINGULAR_RATIO`] at the result), or when ρ at the configuration closest
-//!   to the failure (the last accepted sub-step, or the rejected attempt if it converged) is
-//!   below [`SINGULAR_DROP`] times ρ at t_a. A step of 2⁻²⁰ of the grid step moves q by about
-//!   that fraction, so, unless Φ_q is becoming singular, it changes ρ by as little; approaching
-//!   a limit (turning) point, σ_min(Φ_q) ∝ √(t* − t), so ρ falls by about 2¹⁰ over the
-//!   sub-steps. By the implicit function theorem Newton can always advance a small enough step
-//!   from a configuration where Φ_q is regular, so a failure at the smallest sub-step with a
-//!   falling ρ is a singular configuration, not a convergence problem;
-//! - `branch_jump` when the last rejection was the continuity or branch check while ρ stayed;
-//! - `no_convergence` otherwise.
+//! The rules (step subdivision, the continuity check and the classification of a step that
+//! cannot be taken as singular, branch jump or no convergence, with their constants) live in
+//! [`runtime::step`], whose module docs state them; the driver of every generated solver runs
+//! them over `runtime::Solver`, and embedded callers through `runtime::Solver::advance_to`.
+//! This module adapts an [`Engine`] that returns whole [`Point`]s to [`runtime::step::Stepper`]
+//! and turns its [`runtime::step::Stop`] into a [`Stop`] with the message written out.
 
-/// Rejected attempts halve the sub-step at most this many times (2⁻²⁰ ≈ 1e-6 of the grid step).
-pub const MAX_HALVINGS: u32 = 20;
+use runtime::step::{self as rules, Coordinates, Groups, Reason, Sample, Stepper};
 
-/// The Hermite defect may be this fraction of the displacement (see the module docs).
-pub const CONTINUITY: f64 = 0.05;
-
-/// Absolute allowance of the continuity check (in f64; it grows as √ε, see [`floor`]), per
-/// unit of max(1, |q|) of the group: a
-/// converged q is only known to about tolerance · ‖Φ_q⁻¹‖, 1e-6 covers a condition of 1e4 at
-/// the default tolerance 1e-10, and any branch jump moves a body by much more than that.
-pub const FLOOR: f64 = 1e-6;
-
-/// A converged attempt whose pivot ratio ρ is at most this (in f64; √ε in general, see
-/// [`singular_ratio`]) is rejected as singular: κ(Φ_q)
-/// ≥ 1/ρ ≈ 1/√ε, so the velocity and acceleration solves keep less than half the digits of
-/// double precision, and the position itself is only known to about tolerance / ρ. Newton
-/// converging onto a singular configuration (a grid time that lands exactly on it) stops
-/// within about the tolerance of it, with ρ of the order of the tolerance.
-pub const SINGULAR_RATIO: f64 = 1.5e-8;
-
-/// A failure at the smallest sub-step is singular when the pivot ratio closest to it fell
-/// below this fraction of the ratio at the start of the step (see the module docs).
-pub const SINGULAR_DROP: f64 = 0.1;
+pub use runtime::step::{
+    CONTINUITY, FLOOR, MAX_HALVINGS, SINGULAR_DROP, SINGULAR_RATIO, Trouble, floor, singular_ratio,
+};
 
 /// One analysed time point, in the coordinates of every moving body (7 each: x, y, z, e0, e1,
 /// e2, e3, body by body).
@@ -81,29 +33,6 @@ pub struct Point {
     /// ρ = min |u_kk| / max |u_kk| of the dense LU with partial pivoting of the engine's Φ_q
     /// at q (0 for an exactly singular Φ_q).
     pub pivot_ratio: f64,
-}
-
-/// Why an attempt was rejected or the analysis stopped.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Trouble {
-    /// Φ_q is singular.
-    Singular,
-    /// Newton did not converge.
-    NoConvergence,
-    /// The step left the assembly branch it started on.
-    BranchJump,
-}
-
-impl Trouble {
-    /// The contract's `error.kind`.
-    #[must_use]
-    pub fn as_str(self) -> &'static str {
-        match self {
-            Self::Singular => "singular",
-            Self::NoConvergence => "no_convergence",
-            Self::BranchJump => "branch_jump",
-        }
-    }
 }
 
 /// A rejected attempt.
@@ -156,85 +85,101 @@ pub trait Engine {
     }
 }
 
-/// [`SINGULAR_RATIO`] for an arithmetic of machine epsilon `eps`: √eps.
-#[must_use]
-pub fn singular_ratio(eps: f64) -> f64 {
-    SINGULAR_RATIO / f64::EPSILON.sqrt() * eps.sqrt()
-}
-
-/// [`FLOOR`] for an arithmetic of machine epsilon `eps`: it grows as √eps.
-#[must_use]
-pub fn floor(eps: f64) -> f64 {
-    FLOOR / f64::EPSILON.sqrt() * eps.sqrt()
-}
-
 /// The body and the ratio of defect to allowance where the continuity check fails worst, or
-/// `None` when the step from `a` to `b` passes (see the module docs).
+/// `None` when the step from `a` to `b` passes ([`runtime::step::discontinuity`] over bodies of
+/// 7 coordinates).
 #[must_use]
 pub fn discontinuity(a: &Point, b: &Point, eps: f64) -> Option<(usize, f64)> {
-    let h = b.t - a.t;
-    let mut worst: Option<(usize, f64)> = None;
-    for body in 0..a.q.len() / 7 {
-        for (lo, hi) in [(0, 3), (3, 7)] {
-            let (mut defect, mut moved, mut size) = (0.0_f64, 0.0_f64, 0.0_f64);
-            for k in 7 * body + lo..7 * body + hi {
-                let dq = b.q[k] - a.q[k];
-                let e = dq - 0.5 * h * (a.qd[k] + b.qd[k]) - h * h / 12.0 * (a.qdd[k] - b.qdd[k]);
-                defect += e * e;
-                moved += dq * dq;
-                size = size.max(b.q[k].abs());
+    rules::discontinuity(Groups::Bodies, b.t - a.t, &coordinates(a), &coordinates(b), eps)
+}
+
+/// The coordinates of `p` as the rules read them.
+fn coordinates(p: &Point) -> Coordinates<'_, f64> {
+    Coordinates { q: &p.q, qd: &p.qd, qdd: &p.qdd }
+}
+
+/// The scalars of `p`.
+fn sample(p: &Point) -> Sample<f64> {
+    Sample { t: p.t, iterations: p.iterations, residual: p.residual, pivot_ratio: p.pivot_ratio }
+}
+
+/// An [`Engine`] under the rules: the last accepted point and the candidate, kept whole.
+struct Adapter<'e, E> {
+    engine: &'e mut E,
+    accepted: Option<Point>,
+    candidate: Option<Point>,
+}
+
+impl<E: Engine> Stepper<f64> for Adapter<'_, E> {
+    type Cause = String;
+
+    fn attempt(&mut self, t: f64) -> Result<Sample<f64>, rules::Rejection<f64, String>> {
+        self.candidate = None;
+        match self.engine.attempt(t) {
+            Ok(p) => {
+                let s = sample(&p);
+                self.candidate = Some(p);
+                Ok(s)
             }
-            let allowed = CONTINUITY * moved.sqrt() + floor(eps) * size.max(1.0);
-            // NaN fails too, and counts as the worst.
-            let ratio = defect.sqrt() / allowed;
-            let fails = ratio.is_nan() || ratio > 1.0;
-            if fails && worst.is_none_or(|(_, r)| ratio.is_nan() || ratio > r) {
-                worst = Some((body, ratio));
+            Err(r) => {
+                let converged = r.point.map(|p| {
+                    let s = sample(&p);
+                    self.candidate = Some(*p);
+                    s
+                });
+                Err(rules::Rejection {
+                    trouble: r.trouble,
+                    reason: Reason::Engine(r.message),
+                    converged,
+                    body: r.body,
+                })
             }
         }
     }
-    worst
-}
 
-/// One attempt from `a` to `t` with every check: the engine's, then continuity.
-fn try_step<E: Engine>(engine: &mut E, a: &Point, t: f64) -> Result<Point, Rejection> {
-    let b = engine.attempt(t)?;
-    let eps = engine.epsilon();
-    if singular(&b, eps) {
-        return Err(singular_point(b, eps));
+    fn accepted(&self) -> Coordinates<'_, f64> {
+        self.accepted.as_ref().map_or(Coordinates { q: &[], qd: &[], qdd: &[] }, coordinates)
     }
-    match discontinuity(a, &b, eps) {
-        None => Ok(b),
-        Some((body, ratio)) => Err(Rejection {
-            trouble: Trouble::BranchJump,
-            message: format!(
-                "the step from t = {} to t = {} is not continuous: its Hermite defect is {ratio:.3e} \
-                 times the allowance",
-                a.t, b.t
-            ),
-            point: Some(Box::new(b)),
-            body: Some(body),
-        }),
+
+    fn candidate(&self) -> Coordinates<'_, f64> {
+        self.candidate.as_ref().map_or(Coordinates { q: &[], qd: &[], qdd: &[] }, coordinates)
+    }
+
+    fn groups(&self) -> Groups<'_> {
+        Groups::Bodies
+    }
+
+    fn accept(&mut self) {
+        if let Some(p) = self.candidate.take() {
+            self.engine.accept(&p);
+            self.accepted = Some(p);
+        }
+    }
+
+    fn reject(&mut self) {
+        if let Some(a) = &self.accepted {
+            self.engine.accept(a);
+        }
+    }
+
+    fn epsilon(&self) -> f64 {
+        self.engine.epsilon()
     }
 }
 
-/// Whether the pivot ratio of a converged point is at most [`SINGULAR_RATIO`] (or NaN).
-fn singular(p: &Point, eps: f64) -> bool {
-    p.pivot_ratio.is_nan() || p.pivot_ratio <= singular_ratio(eps)
-}
-
-/// The rejection of a converged point whose pivot ratio is at most [`SINGULAR_RATIO`].
-fn singular_point(b: Point, eps: f64) -> Rejection {
-    Rejection {
-        trouble: Trouble::Singular,
-        message: format!(
-            "Φ_q is singular at t = {}: the pivot ratio of its LU is {:.3e} (at most {:.1e})",
-            b.t,
-            b.pivot_ratio,
-            singular_ratio(eps)
-        ),
-        point: Some(Box::new(b)),
-        body: None,
+impl<E> Adapter<'_, E> {
+    /// The [`Stop`] of the rules' `stop`, with the configuration closest to the failure.
+    fn stop(&mut self, stop: &rules::Stop<f64, String>) -> Stop {
+        let near = stop
+            .near
+            .and_then(|n| if n.rejected { self.candidate.take() } else { self.accepted.take() });
+        Stop {
+            trouble: stop.trouble,
+            t: stop.t,
+            message: stop.to_string(),
+            near: near.map(Box::new),
+            body: stop.body,
+        }
     }
 }
 
@@ -243,18 +188,10 @@ fn singular_point(b: Point, eps: f64) -> Rejection {
 /// # Errors
 /// [`Stop`] at `t` with the trouble of the attempt.
 pub fn first<E: Engine>(engine: &mut E, t: f64) -> Result<Point, Stop> {
-    let eps = engine.epsilon();
-    let attempt = engine
-        .attempt(t)
-        .and_then(|p| if singular(&p, eps) { Err(singular_point(p, eps)) } else { Ok(p) });
-    match attempt {
-        Ok(p) => {
-            engine.accept(&p);
-            Ok(p)
-        }
-        Err(r) => {
-            Err(Stop { trouble: r.trouble, t, message: r.message, near: r.point, body: r.body })
-        }
+    let mut adapter = Adapter { engine, accepted: None, candidate: None };
+    match rules::first(&mut adapter, t) {
+        Ok(_) => Ok(adapter.accepted.take().expect("the rules accepted the point they return")),
+        Err(stop) => Err(adapter.stop(&stop)),
     }
 }
 
@@ -263,73 +200,15 @@ pub fn first<E: Engine>(engine: &mut E, t: f64) -> Result<Point, Stop> {
 /// (sub-steps and rejected attempts included).
 ///
 /// # Errors
-/// [`Stop`] when even the smallest sub-step is rejected (see the module docs).
+/// [`Stop`] when even the smallest sub-step is rejected, or a sub-step no longer changes t
+/// (see [`runtime::step`]).
 pub fn advance<E: Engine>(engine: &mut E, a: &Point, t: f64) -> Result<(Point, u32), Stop> {
-    let step = t - a.t;
-    let mut current = a.clone();
-    let mut level = 0_u32;
-    let mut streak = 0_u32;
-    let mut iterations = 0_u32;
-    loop {
-        let h = step / f64::from(1_u32 << level);
-        // The last sub-step lands exactly on the grid time.
-        let target = if level == 0 || current.t + 1.5 * h >= t { t } else { current.t + h };
-        match try_step(engine, &current, target) {
-            Ok(b) => {
-                iterations += b.iterations;
-                engine.accept(&b);
-                if target == t {
-                    return Ok((b, iterations));
-                }
-                current = b;
-                streak += 1;
-                if streak == 2 && level > 0 {
-                    level -= 1;
-                    streak = 0;
-                }
-            }
-            Err(r) => {
-                iterations += r.point.as_ref().map_or(0, |p| p.iterations);
-                engine.accept(&current);
-                streak = 0;
-                if level < MAX_HALVINGS {
-                    level += 1;
-                    continue;
-                }
-                return Err(classify(a, &current, t, r));
-            }
-        }
+    let mut adapter = Adapter { engine, accepted: Some(a.clone()), candidate: None };
+    match rules::advance(&mut adapter, sample(a), t) {
+        Ok((_, iterations)) => Ok((
+            adapter.accepted.take().expect("the rules accepted the point they return"),
+            iterations,
+        )),
+        Err(stop) => Err(adapter.stop(&stop)),
     }
-}
-
-/// The verdict on a step rejected at the smallest sub-step (see the module docs).
-fn classify(a: &Point, last: &Point, t: f64, r: Rejection) -> Stop {
-    let start = a.pivot_ratio;
-    let (near, ratio) = match r.point {
-        Some(p) if p.pivot_ratio <= last.pivot_ratio => {
-            let ratio = p.pivot_ratio;
-            (p, ratio)
-        }
-        _ => (Box::new(last.clone()), last.pivot_ratio),
-    };
-    let fell = ratio < SINGULAR_DROP * start;
-    let trouble = match r.trouble {
-        Trouble::Singular => Trouble::Singular,
-        _ if fell => Trouble::Singular,
-        other => other,
-    };
-    let message = match trouble {
-        Trouble::Singular => format!(
-            "Φ_q is singular near t = {}: the pivot ratio of its LU fell from {:.3e} at t = {} \
-             to {:.3e}, and no sub-step down to 2^-{MAX_HALVINGS} of the grid step could pass \
-             (last rejection: {})",
-            near.t, start, a.t, ratio, r.message
-        ),
-        _ => format!(
-            "no sub-step down to 2^-{MAX_HALVINGS} of the grid step could pass near t = {}: {}",
-            last.t, r.message
-        ),
-    };
-    let body = if trouble == Trouble::BranchJump { r.body } else { None };
-    Stop { trouble, t, message, near: Some(near), body }
 }

@@ -194,6 +194,30 @@ impl<const N: usize> Factors<N> {
         Ok(pivots)
     }
 
+    /// Evaluates Φ_q(q, t) in full into `jac` and factors it by dense LU with partial pivoting
+    /// ([`lu::factor_with_ratio`] with `ratio`), whatever static orders the mechanism has: the
+    /// factorisation whose pivots estimate the conditioning of Φ_q the same way for every
+    /// mechanism (the step control's pivot ratio, [`crate::step`]).
+    ///
+    /// # Errors
+    ///
+    /// The [`Singular`] of the factorisation; `jac` then holds no usable factors.
+    pub fn factor_dense<R: Real, M: Mechanism<N, R>>(
+        &mut self,
+        mechanism: &M,
+        q: &[R; N],
+        t: R,
+        jac: &mut [[R; N]; N],
+        ratio: R,
+    ) -> Result<PivotInfo<R>, Singular<R>> {
+        mechanism.jacobian(q, t, jac);
+        self.held = Held::Nothing;
+        self.counts.dense += 1;
+        let pivots = lu::factor_with_ratio(jac, &mut self.perm, ratio)?;
+        self.held = Held::Dense;
+        Ok(pivots)
+    }
+
     /// Solves Φ_q x = b in place with the factors in `lu` from the last successful
     /// [`Factors::factor`].
     ///

@@ -4,8 +4,9 @@
 //! factorisation with partial pivoting ([`lu`]), the choice between a mechanism's own
 //! structured factorisation and that dense one ([`factors`]), a bounded Newton iteration
 //! ([`newton`]), the
-//! step-by-step [`Solver`] for positions, velocities and accelerations, and a slice-based view
-//! of mechanisms ([`dynamic`]).
+//! step-by-step [`Solver`] for positions, velocities and accelerations, the step control that
+//! keeps a step on its assembly branch ([`step`], [`Solver::advance_to`]), and a slice-based
+//! view of mechanisms ([`dynamic`]).
 //! It knows nothing about symbols, descriptions or bodies: a mechanism is a square system of
 //! `N` equations in `N` unknowns, with `N` from 1 to several hundred.
 //! Non-goals: dynamics (forces, mass matrices), redundant or rectangular systems (those are
@@ -130,6 +131,7 @@ mod mechanism;
 pub mod newton;
 mod real;
 mod solver;
+pub mod step;
 
 #[cfg(test)]
 mod fixtures;
@@ -137,4 +139,4 @@ mod fixtures;
 pub use mechanism::Mechanism;
 pub use newton::{NewtonError, NewtonOptions, NewtonReport};
 pub use real::Real;
-pub use solver::{SolveError, Solver};
+pub use solver::{AttemptError, SolveError, Solver, StepReport};

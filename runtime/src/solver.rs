@@ -18,6 +18,13 @@
 //! factorisation and brings it to within round-off of the solution, as a Newton step would.
 //! The factorisation at the converged q, which velocities and accelerations need anyway, is
 //! then the only one of the time step.
+//!
+//! [`Solver::advance_to`] takes a step under the step control of [`crate::step`]: from the last
+//! point whose velocities and accelerations were solved it sub-steps towards the requested time
+//! as the continuity, branch-jump and singularity rules require, and either lands on the branch
+//! it started from or returns the failure as an error value. [`Solver::position`] alone trusts
+//! the caller's step: a step that is large for the motion may converge on another assembly
+//! branch and still succeed.
 
 #[cfg(test)]
 mod tests;
@@ -26,7 +33,9 @@ use core::borrow::BorrowMut;
 use core::fmt;
 
 use crate::factors::{FactorCounts, Factors};
+use crate::lu::Singular;
 use crate::newton::{self, NewtonError, NewtonOptions, NewtonReport};
+use crate::step::{self, Coordinates, Groups, Rejection, Sample, Stepper, Stop, Trouble};
 use crate::{Mechanism, Real};
 
 /// Kinematic analysis of one mechanism, one time step at a time, without allocation.
@@ -99,6 +108,24 @@ pub struct Solver<M, const N: usize, R = f64, J = [[R; N]; N]> {
     /// (t, q̈) at the two converged positions before the current one, the later first, where q̈
     /// was solved there.
     history: History<R, N>,
+    /// The last point accepted by [`Solver::advance_to`]'s step control, to return to after a
+    /// rejected attempt.
+    accepted: Accepted<R, N>,
+    /// How the continuity check groups the unknowns.
+    groups: Groups<'static>,
+}
+
+/// A point accepted by the step control: everything [`Solver::position`] reads or changes.
+#[derive(Clone, Debug)]
+struct Accepted<R, const N: usize> {
+    sample: Sample<R>,
+    q: [R; N],
+    qd: [R; N],
+    qdd: [R; N],
+    history: History<R, N>,
+    known: Known,
+    /// `sample` belongs to (`q`, `sample.t`).
+    valid: bool,
 }
 
 /// The (t, q̈) of the two converged positions before the current one, kept as a ring so
@@ -195,6 +222,21 @@ impl<M, const N: usize, R: Real, J> Solver<M, N, R, J> {
             factored: false,
             known: Known::Nothing,
             history: History::EMPTY,
+            accepted: Accepted {
+                sample: Sample {
+                    t: R::ZERO,
+                    iterations: 0,
+                    residual: R::ZERO,
+                    pivot_ratio: R::ZERO,
+                },
+                q: [R::ZERO; N],
+                qd: [R::ZERO; N],
+                qdd: [R::ZERO; N],
+                history: History::EMPTY,
+                known: Known::Nothing,
+                valid: false,
+            },
+            groups: Groups::Each,
         }
     }
 
@@ -211,6 +253,14 @@ impl<M, const N: usize, R: Real, J> Solver<M, N, R, J> {
     /// Replaces the Newton options used by [`Solver::position`].
     pub const fn set_options(&mut self, options: NewtonOptions<R>) {
         self.options = options;
+    }
+
+    /// Sets how [`Solver::advance_to`]'s continuity check groups the unknowns: by default
+    /// ([`Groups::Each`]) every unknown on its own, the strictest check, since the unknowns of a
+    /// reduced system need not be whole bodies; [`Groups::Ends`] names groups such as the
+    /// position and the Euler parameters of each body.
+    pub const fn set_continuity_groups(&mut self, groups: Groups<'static>) {
+        self.groups = groups;
     }
 
     /// Turns the Taylor predictor of [`Solver::position`] on or off (off by default).
@@ -405,5 +455,227 @@ impl<M: Mechanism<N, R>, const N: usize, R: Real, J: BorrowMut<[[R; N]; N]>> Sol
             return Err(SolveError::NonFinite);
         }
         Ok(())
+    }
+}
+
+/// What [`Solver::advance_to`] did to reach the requested time.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct StepReport<R = f64> {
+    /// Newton steps spent on the way: sub-steps and rejected attempts included.
+    pub iterations: u32,
+    /// max |Φ_i| at the final q.
+    pub residual: R,
+    /// ρ = min |u_kk| / max |u_kk| of the dense LU with partial pivoting of Φ_q at the final q,
+    /// a cheap estimate of 1/κ(Φ_q).
+    pub pivot_ratio: R,
+}
+
+/// Why one attempt of [`Solver::advance_to`] failed before the step control's own checks: the
+/// cause of a [`Rejection`] and of a [`Stop`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum AttemptError<R = f64> {
+    /// Newton failed.
+    Newton(NewtonError<R>),
+    /// The velocity or acceleration solve failed.
+    Solve(SolveError),
+}
+
+impl<R: Real> fmt::Display for AttemptError<R> {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            AttemptError::Newton(e) => e.fmt(f),
+            AttemptError::Solve(e) => write!(f, "velocities or accelerations: {e}"),
+        }
+    }
+}
+
+impl<R: Real> core::error::Error for AttemptError<R> {}
+
+impl<M: Mechanism<N, R>, const N: usize, R: Real, J: BorrowMut<[[R; N]; N]>> Solver<M, N, R, J> {
+    /// Solves positions, velocities and accelerations at `t` under the step control of
+    /// [`crate::step`], starting from the last point whose velocities and accelerations were
+    /// solved (by this call or by [`Solver::velocity`] and [`Solver::acceleration`]).
+    ///
+    /// A step that is too large for the motion is taken in sub-steps, halved down to 2⁻²⁰ of
+    /// the step while an attempt fails Newton, has a pivot ratio of Φ_q at most 1.5e-8 (√ε) or
+    /// fails the Hermite continuity check, which a jump to another assembly branch fails. So
+    /// `Ok` always means q, q̇ and q̈ at `t` on the branch the step started from. Before any
+    /// such point (a new solver, or after [`Solver::set_q`]) the call solves `t` directly from
+    /// the estimate, refusing only a singular result.
+    ///
+    /// Each attempt costs one evaluation and dense factorisation of Φ_q more than
+    /// [`Solver::position`], [`Solver::velocity`] and [`Solver::acceleration`] do (for the pivot
+    /// ratio); afterwards the solver holds those dense factors, so [`Solver::velocity`] still
+    /// works.
+    ///
+    /// # Errors
+    ///
+    /// The [`Stop`]: `branch_jump`, `singular` or `no_convergence` ([`Stop::trouble`]), at the
+    /// requested time ([`Stop::t`]), with the time of the configuration closest to the failure
+    /// ([`Stop::near`]). The solver then holds the last accepted sub-step ([`Solver::t`] tells
+    /// when), on the starting branch with its q̇ and q̈, or its estimate before the first point,
+    /// and a later call continues from there.
+    ///
+    /// # Example
+    ///
+    /// A unit crank driven to the angle t, Φ = (x² + y² − 1, x sin t − y cos t): the second
+    /// row also holds half a turn away, at −(cos t, sin t), where Newton from (1, 0) converges
+    /// after a jump of 179°. Step control sub-steps and stays on the crank's own branch.
+    ///
+    /// ```
+    /// use runtime::{Mechanism, Solver};
+    ///
+    /// struct Crank;
+    ///
+    /// impl Mechanism<2> for Crank {
+    ///     fn residual(&self, q: &[f64; 2], t: f64, phi: &mut [f64; 2]) {
+    ///         *phi = [q[0] * q[0] + q[1] * q[1] - 1.0, q[0] * t.sin() - q[1] * t.cos()];
+    ///     }
+    ///     fn jacobian(&self, q: &[f64; 2], t: f64, jac: &mut [[f64; 2]; 2]) {
+    ///         *jac = [[2.0 * q[0], 2.0 * q[1]], [t.sin(), -t.cos()]];
+    ///     }
+    ///     fn velocity_rhs(&self, q: &[f64; 2], t: f64, nu: &mut [f64; 2]) {
+    ///         *nu = [0.0, -(q[0] * t.cos() + q[1] * t.sin())];
+    ///     }
+    ///     fn acceleration_rhs(&self, q: &[f64; 2], qd: &[f64; 2], t: f64, g: &mut [f64; 2]) {
+    ///         let (s, c) = t.sin_cos();
+    ///         let ([x, y], [xd, yd]) = (*q, *qd);
+    ///         *g = [-2.0 * (xd * xd + yd * yd), -2.0 * (c * xd + s * yd) + x * s - y * c];
+    ///     }
+    /// }
+    ///
+    /// let t = 179f64.to_radians();
+    /// let mut plain = Solver::new(Crank, [1.0, 0.0]);
+    /// plain.position(0.0)?;
+    /// plain.position(t)?; // Ok, but half a turn off
+    /// assert!((plain.q()[0] + t.cos()).abs() < 1e-9);
+    ///
+    /// let mut solver = Solver::new(Crank, [1.0, 0.0]);
+    /// solver.advance_to(0.0)?;
+    /// solver.advance_to(t)?; // on the branch it started from
+    /// assert!((solver.q()[0] - t.cos()).abs() < 1e-9 && (solver.q()[1] - t.sin()).abs() < 1e-9);
+    /// assert!((solver.qd()[0] + t.sin()).abs() < 1e-9);
+    /// # Ok::<(), Box<dyn std::error::Error>>(())
+    /// ```
+    pub fn advance_to(&mut self, t: R) -> Result<StepReport<R>, Stop<R, AttemptError<R>>> {
+        let start = self.start_sample();
+        let mut control = Controlled { solver: self, candidate: start };
+        control.accept();
+        let report = |s: Sample<R>, iterations| StepReport {
+            iterations,
+            residual: s.residual,
+            pivot_ratio: s.pivot_ratio,
+        };
+        match start {
+            None => step::first(&mut control, t).map(|s| report(s, s.iterations)),
+            Some(a) => step::advance(&mut control, a, t).map(|(s, n)| report(s, n)),
+        }
+    }
+
+    /// The sample of the current point, when its q̇ and q̈ are known: the one the step control
+    /// accepted there, or, after plain [`Solver::position`] steps, a new one.
+    fn start_sample(&mut self) -> Option<Sample<R>> {
+        if self.known != Known::Acceleration {
+            return None;
+        }
+        let a = &self.accepted;
+        if a.valid && a.sample.t == self.t && a.q == self.q {
+            return Some(a.sample);
+        }
+        self.mechanism.residual(&self.q, self.t, &mut self.scratch);
+        let residual = newton::max_abs(&self.scratch);
+        let pivot_ratio = self.dense_pivot_ratio();
+        Some(Sample { t: self.t, iterations: 0, residual, pivot_ratio })
+    }
+
+    /// ρ of the dense LU with partial pivoting of Φ_q at the current (q, t), whose factors the
+    /// solver keeps.
+    fn dense_pivot_ratio(&mut self) -> R {
+        let result = self.factors.factor_dense(
+            &self.mechanism,
+            &self.q,
+            self.t,
+            self.jac.borrow_mut(),
+            R::ZERO,
+        );
+        self.factored = result.is_ok();
+        match result {
+            Ok(p) => p.smallest / p.largest,
+            Err(Singular::SmallPivot { pivot, largest, .. }) => pivot / largest,
+            Err(_) => R::NAN,
+        }
+    }
+}
+
+/// A [`Solver`] under the step control: the candidate is the solver's own state, the accepted
+/// point its copy in [`Accepted`].
+struct Controlled<'s, M, const N: usize, R, J> {
+    solver: &'s mut Solver<M, N, R, J>,
+    /// The sample of the solver's state, when it is a solved point.
+    candidate: Option<Sample<R>>,
+}
+
+impl<M: Mechanism<N, R>, const N: usize, R: Real, J: BorrowMut<[[R; N]; N]>> Stepper<R>
+    for Controlled<'_, M, N, R, J>
+{
+    type Cause = AttemptError<R>;
+
+    fn attempt(&mut self, t: R) -> Result<Sample<R>, Rejection<R, AttemptError<R>>> {
+        self.candidate = None;
+        let s = &mut *self.solver;
+        let report = s.position(t).map_err(|e| {
+            let trouble = match e {
+                NewtonError::Singular { .. } => Trouble::Singular,
+                _ => Trouble::NoConvergence,
+            };
+            Rejection::engine(trouble, AttemptError::Newton(e))
+        })?;
+        if let Err(e) = s.velocity().and_then(|()| s.acceleration()) {
+            return Err(Rejection::engine(Trouble::Singular, AttemptError::Solve(e)));
+        }
+        let pivot_ratio = s.dense_pivot_ratio();
+        let sample =
+            Sample { t, iterations: report.iterations, residual: report.residual, pivot_ratio };
+        self.candidate = Some(sample);
+        Ok(sample)
+    }
+
+    fn accepted(&self) -> Coordinates<'_, R> {
+        let a = &self.solver.accepted;
+        Coordinates { q: &a.q, qd: &a.qd, qdd: &a.qdd }
+    }
+
+    fn candidate(&self) -> Coordinates<'_, R> {
+        let s = &self.solver;
+        Coordinates { q: &s.q, qd: &s.qd, qdd: &s.qdd }
+    }
+
+    fn groups(&self) -> Groups<'_> {
+        self.solver.groups
+    }
+
+    fn accept(&mut self) {
+        let s = &mut *self.solver;
+        let a = &mut s.accepted;
+        a.q = s.q;
+        a.qd = s.qd;
+        a.qdd = s.qdd;
+        a.history = s.history.clone();
+        a.known = s.known;
+        a.valid = self.candidate.is_some();
+        a.sample = self.candidate.unwrap_or(Sample { t: s.t, ..a.sample });
+    }
+
+    fn reject(&mut self) {
+        let s = &mut *self.solver;
+        let a = &s.accepted;
+        s.q = a.q;
+        s.qd = a.qd;
+        s.qdd = a.qdd;
+        s.history = a.history.clone();
+        s.known = a.known;
+        s.t = a.sample.t;
+        s.factored = false;
+        s.factors.forget();
     }
 }

@@ -18,6 +18,8 @@ mod random_mechanisms;
 #[cfg(test)]
 mod rssr_reference;
 #[cfg(test)]
+mod runtime_step;
+#[cfg(test)]
 mod seed_examples;
 #[cfg(test)]
 mod single_precision;

@@ -139,7 +139,6 @@ impl Recipe {
             real.as_bytes(),
             module.as_bytes(),
             driver.as_bytes(),
-            super::STEPPING.as_bytes(),
             manifest("").as_bytes(),
             embedded::WORKSPACE_LOCK.as_bytes(),
             runtime_hash().as_bytes(),
@@ -147,7 +146,6 @@ impl Recipe {
         let files = vec![
             ("Cargo.toml", manifest(&format!("mechgen-gen-{key}"))),
             ("src/main.rs", driver.to_owned()),
-            ("src/stepping.rs", super::STEPPING.to_owned()),
             ("src/mechanism.rs", module.to_owned()),
             (
                 "src/key.rs",

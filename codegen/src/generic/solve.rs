@@ -376,6 +376,9 @@ impl<'e, 'm> Analysis<'e, 'm> {
             Trouble::Singular => FailureKind::Singular,
             Trouble::NoConvergence => FailureKind::NoConvergence,
             Trouble::BranchJump => FailureKind::BranchJump,
+            // No engine rejects a step as inconsistent yet (the rules never do): until one
+            // does, it is reported as the failure to converge that it is.
+            Trouble::Inconsistent => FailureKind::NoConvergence,
         };
         let near = stop.near.as_ref().map(|p| (DVector::from_column_slice(&p.q), p.t));
         let constraints =
