@@ -24,8 +24,10 @@
 //! A rejected attempt is retried from the last accepted point with half the sub-step, down to
 //! 2⁻[`MAX_HALVINGS`] of the grid step; accepted sub-steps become the new start (they are not
 //! reported) and after two in a row the sub-step doubles again.
-//! When even the smallest sub-step is rejected, the analysis stops at the grid time t_b, and
-//! the failure is classified with ρ:
+//! When even the smallest sub-step is rejected, or when sub-steps no longer change t (far
+//! from 0 the spacing of floating-point time exceeds 2⁻²⁰ of the grid step: about 1.2e-4 at
+//! t = 1e12 and 16 at t = 1e17, so t + h rounds back to t), the analysis stops at the grid
+//! time t_b, and the failure is classified with ρ:
 //! - `singular` when the last rejection was singular (Newton's pivots, or ρ ≤
 //!   [`SINGULAR_RATIO`] at the result), or when ρ at the configuration closest
 //!   to the failure (the last accepted sub-step, or the rejected attempt if it converged) is
@@ -262,25 +264,45 @@ pub fn first<E: Engine>(engine: &mut E, t: f64) -> Result<Point, Stop> {
 /// attempt is rejected. Returns the point at `t` and the Newton iterations spent on the way
 /// (sub-steps and rejected attempts included).
 ///
+/// Every pass of the loop either returns, raises the halving level (at most
+/// [`MAX_HALVINGS`] times in a row without progress) or accepts a sub-step that moves t
+/// forward by at least one sub-step of the deepest level, so the loop ends. A sub-step that
+/// no longer changes t (t + h rounds to t in the engine's arithmetic, as it does for grids
+/// far from 0, e.g. t ≈ 1e12 with h < 6e-5) cannot make progress: the analysis stops there
+/// as if the smallest sub-step had been rejected.
+///
 /// # Errors
-/// [`Stop`] when even the smallest sub-step is rejected (see the module docs).
+/// [`Stop`] when even the smallest sub-step is rejected, or when sub-steps no longer change
+/// t (see the module docs).
 pub fn advance<E: Engine>(engine: &mut E, a: &Point, t: f64) -> Result<(Point, u32), Stop> {
     let step = t - a.t;
     let mut current = a.clone();
     let mut level = 0_u32;
     let mut streak = 0_u32;
     let mut iterations = 0_u32;
+    // The last rejected attempt: a halving level above 0 always follows one.
+    let mut rejected: Option<Rejection> = None;
     loop {
         let h = step / f64::from(1_u32 << level);
         // The last sub-step lands exactly on the grid time.
         let target = if level == 0 || current.t + 1.5 * h >= t { t } else { current.t + h };
+        if level > 0 && target <= current.t {
+            return Err(stalled(a, &current, t, h, rejected));
+        }
         match try_step(engine, &current, target) {
             Ok(b) => {
-                iterations += b.iterations;
-                engine.accept(&b);
+                iterations = iterations.saturating_add(b.iterations);
                 if target == t {
+                    engine.accept(&b);
                     return Ok((b, iterations));
                 }
+                if b.t <= current.t {
+                    // The engine rounded the target back onto the start (a coarser time
+                    // type than f64): the sub-step changed nothing.
+                    engine.accept(&current);
+                    return Err(stalled(a, &current, t, h, rejected));
+                }
+                engine.accept(&b);
                 current = b;
                 streak += 1;
                 if streak == 2 && level > 0 {
@@ -289,21 +311,48 @@ pub fn advance<E: Engine>(engine: &mut E, a: &Point, t: f64) -> Result<(Point, u
                 }
             }
             Err(r) => {
-                iterations += r.point.as_ref().map_or(0, |p| p.iterations);
+                iterations = iterations.saturating_add(r.point.as_ref().map_or(0, |p| p.iterations));
                 engine.accept(&current);
                 streak = 0;
                 if level < MAX_HALVINGS {
                     level += 1;
+                    rejected = Some(r);
                     continue;
                 }
-                return Err(classify(a, &current, t, r));
+                return Err(classify(a, &current, t, r, None));
             }
         }
     }
 }
 
+/// The stop when a sub-step of length `h` no longer changes t at `current`, classified as a
+/// failure at the smallest sub-step from the last rejection (see the module docs).
+fn stalled(a: &Point, current: &Point, t: f64, h: f64, rejected: Option<Rejection>) -> Stop {
+    let r = rejected.unwrap_or_else(|| Rejection {
+        trouble: Trouble::NoConvergence,
+        message: "no attempt was rejected".to_owned(),
+        point: None,
+        body: None,
+    });
+    let why = format!(
+        "sub-steps of {h:.3e} no longer change t = {} (the spacing of floating-point time there \
+         is {:.3e})",
+        current.t,
+        spacing(current.t)
+    );
+    classify(a, current, t, r, Some(why))
+}
+
+/// The distance from `x` to the next floating-point number away from zero.
+fn spacing(x: f64) -> f64 {
+    let x = x.abs();
+    if x.is_finite() { f64::from_bits(x.to_bits() + 1) - x } else { f64::NAN }
+}
+
 /// The verdict on a step rejected at the smallest sub-step (see the module docs).
-fn classify(a: &Point, last: &Point, t: f64, r: Rejection) -> Stop {
+///
+/// `stalled` says why sub-stepping ended early, when sub-steps no longer changed t.
+fn classify(a: &Point, last: &Point, t: f64, r: Rejection, stalled: Option<String>) -> Stop {
     let start = a.pivot_ratio;
     let (near, ratio) = match r.point {
         Some(p) if p.pivot_ratio <= last.pivot_ratio => {
@@ -318,18 +367,21 @@ fn classify(a: &Point, last: &Point, t: f64, r: Rejection) -> Stop {
         _ if fell => Trouble::Singular,
         other => other,
     };
+    let limit = stalled.map_or_else(
+        || format!("no sub-step down to 2^-{MAX_HALVINGS} of the grid step could pass"),
+        |why| format!("no sub-step could pass: {why}"),
+    );
     let message = match trouble {
         Trouble::Singular => format!(
             "Φ_q is singular near t = {}: the pivot ratio of its LU fell from {:.3e} at t = {} \
-             to {:.3e}, and no sub-step down to 2^-{MAX_HALVINGS} of the grid step could pass \
-             (last rejection: {})",
+             to {:.3e}, and {limit} (last rejection: {})",
             near.t, start, a.t, ratio, r.message
         ),
-        _ => format!(
-            "no sub-step down to 2^-{MAX_HALVINGS} of the grid step could pass near t = {}: {}",
-            last.t, r.message
-        ),
+        _ => format!("{limit} near t = {}: {}", last.t, r.message),
     };
     let body = if trouble == Trouble::BranchJump { r.body } else { None };
     Stop { trouble, t, message, near: Some(near), body }
 }
+
+#[cfg(test)]
+mod tests;
