@@ -311,7 +311,8 @@ pub fn advance<E: Engine>(engine: &mut E, a: &Point, t: f64) -> Result<(Point, u
                 }
             }
             Err(r) => {
-                iterations = iterations.saturating_add(r.point.as_ref().map_or(0, |p| p.iterations));
+                iterations =
+                    iterations.saturating_add(r.point.as_ref().map_or(0, |p| p.iterations));
                 engine.accept(&current);
                 streak = 0;
                 if level < MAX_HALVINGS {
