@@ -78,10 +78,10 @@ enum Command {
         #[arg(long, value_enum, default_value_t = BenchEngine::Both)]
         engine: BenchEngine,
         /// Newton tolerance on max |Φ_i| (default: the description's).
-        #[arg(long)]
+        #[arg(long, value_parser = tolerance_value)]
         tolerance: Option<f64>,
         /// Whole passes over the grid to time.
-        #[arg(long, default_value_t = 20)]
+        #[arg(long, default_value_t = 20, value_parser = repeats_value)]
         repeats: usize,
         /// Output format.
         #[arg(long, value_enum, default_value_t = CheckFormat::Text)]
@@ -104,7 +104,7 @@ enum Command {
         #[arg(short = 'o', long = "output")]
         output: PathBuf,
         /// Whole passes over the grid timed per mark.
-        #[arg(long, default_value_t = 10)]
+        #[arg(long, default_value_t = 10, value_parser = repeats_value)]
         repeats: usize,
     },
     /// Scaling study: generation time, generated lines, build time and ns per step for
@@ -112,10 +112,10 @@ enum Command {
     #[command(hide = true)]
     Scaling {
         /// Body counts to measure.
-        #[arg(long, value_delimiter = ',', default_value = "5,20,50,100")]
+        #[arg(long, value_delimiter = ',', default_value = "5,20,50,100", value_parser = bodies_value)]
         bodies: Vec<usize>,
         /// Whole passes timed per engine.
-        #[arg(long, default_value_t = 3)]
+        #[arg(long, default_value_t = 3, value_parser = repeats_value)]
         repeats: usize,
         /// Also write each description into this directory.
         #[arg(long)]
@@ -206,6 +206,47 @@ impl Float {
 enum Engine {
     Generic,
     Generated,
+}
+
+/// The most whole passes over the grid `bench`, `chart` and `scaling` time: the median of
+/// 10,000 passes is as good as any, and more only delays the answer.
+const MAX_REPEATS: usize = 10_000;
+
+/// A whole number in `range`, or the reason it is not.
+fn whole_in(
+    text: &str,
+    range: std::ops::RangeInclusive<usize>,
+    why: &str,
+) -> Result<usize, String> {
+    let n: usize = text.trim().parse().map_err(|_| {
+        format!("`{text}` is not a whole number from {} to {}", range.start(), range.end())
+    })?;
+    if range.contains(&n) {
+        Ok(n)
+    } else {
+        Err(format!("{n} is not from {} to {}: {why}", range.start(), range.end()))
+    }
+}
+
+/// `--repeats`: 1 to [`MAX_REPEATS`].
+fn repeats_value(text: &str) -> Result<usize, String> {
+    whole_in(text, 1..=MAX_REPEATS, "more passes only delay the answer")
+}
+
+/// `scaling --bodies`: 1 to the most moving bodies a description may have.
+fn bodies_value(text: &str) -> Result<usize, String> {
+    whole_in(text, 1..=validate::MAX_BODIES, "descriptions hold at most that many moving bodies")
+}
+
+/// `--tolerance`: finite, > 0 and at most the largest number a description may hold, as the
+/// description's own `solver.tolerance`.
+fn tolerance_value(text: &str) -> Result<f64, String> {
+    let max = validate::MAX_MAGNITUDE;
+    match text.trim().parse::<f64>() {
+        Ok(x) if x.is_finite() && x > 0.0 && x <= max => Ok(x),
+        Ok(x) => Err(format!("{x} is not a tolerance: it must be finite, > 0 and at most {max:e}")),
+        Err(_) => Err(format!("`{text}` is not a number")),
+    }
 }
 
 /// Whether the user asked for JSON anywhere on the command line (so that even argument

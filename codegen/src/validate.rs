@@ -19,6 +19,8 @@
 mod de;
 mod locate;
 mod rules;
+
+pub(crate) use rules::{MAX_BODIES, MAX_MAGNITUDE};
 #[cfg(test)]
 mod tests;
 
