@@ -321,3 +321,38 @@ fn a_csv_header_line_without_special_characters_is_unquoted() {
     assert_eq!(code, EXIT_OK);
     assert!(!out.lines().next().unwrap().contains('"'));
 }
+
+#[test]
+fn numeric_command_line_values_out_of_range_are_refused_with_status_1() {
+    let i = example("rssr.toml");
+    let i = i.to_str().unwrap();
+    for (args, named) in [
+        (vec!["bench", i, "--repeats", "18446744073709551615"], "--repeats"),
+        (vec!["bench", i, "--repeats", "18446744073709551616"], "--repeats"),
+        (vec!["bench", i, "--repeats", "0"], "--repeats"),
+        (vec!["bench", i, "--tolerance", "nan"], "--tolerance"),
+        (vec!["bench", i, "--tolerance=-1e-10"], "--tolerance"),
+        (vec!["bench", i, "--tolerance", "inf"], "--tolerance"),
+        (vec!["chart", i, "-o", "x.svg", "--repeats", "99999999"], "--repeats"),
+        (vec!["scaling", "--bodies", "1000000000000"], "--bodies"),
+    ] {
+        let (code, _, err) = mechgen(&args);
+        assert_eq!(code, EXIT_INVALID, "{args:?}: {err}");
+        assert!(err.contains(named), "{args:?}: {err}");
+    }
+}
+
+#[test]
+fn a_law_whose_derivatives_overflow_is_refused_by_every_command() {
+    let text = std::fs::read_to_string(example("rssr.toml")).expect("the example").replace(
+        "law = { start = 0.0, velocity = 146.6, acceleration = 0.0 }",
+        "law = { amplitude = 1e10, frequency = 1e150 }",
+    );
+    let file = super::temp_file("sinusoid_overflow.toml", &text);
+    let f = file.to_str().unwrap();
+    for args in [vec!["check", f], vec!["generate", f], vec!["solve", f, "--engine", "generic"]] {
+        let (code, _, err) = mechgen(&args);
+        assert_eq!(code, EXIT_INVALID, "{args:?}: {err}");
+        assert!(err.contains("driver \"motor\""), "{args:?}: {err}");
+    }
+}
