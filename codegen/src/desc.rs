@@ -3,7 +3,7 @@
 //! Nothing here is checked beyond what serde checks (field names, types, enum spellings):
 //! `validate` turns a [`MechanismDesc`] into a `model::Mechanism` and reports every semantic
 //! problem with the entity, the field and the place in the file. The format is specified in
-//! `shared/spec/mechanism-format.md` §1.
+//! `docs/contract.md` §1.
 
 use serde::{Deserialize, Serialize};
 

@@ -6,9 +6,15 @@
 //! assembles Φ, Φ_q, ν and γ at run time and solves positions by Newton–Raphson, velocities
 //! from Φ_q q̇ = ν and accelerations from Φ_q q̈ = γ. `young` imports the thesis' legacy decks;
 //! `report` writes the results as the contract's table, CSV or JSON.
+//!
+//! The feature `cli` (on by default) adds the `mechgen` command line (`cli`) and its charts
+//! (`chart`, `plot`); without it, the crate is the model, both engines and the generator, which
+//! is what a build script calling [`build::Builder`] needs.
 
 pub mod build;
+#[cfg(feature = "cli")]
 pub mod chart;
+#[cfg(feature = "cli")]
 pub mod cli;
 pub mod desc;
 pub mod diag;
@@ -17,6 +23,7 @@ pub mod engine;
 pub mod expr;
 pub mod generic;
 pub mod model;
+#[cfg(feature = "cli")]
 pub mod plot;
 pub mod report;
 pub mod scale;

@@ -18,12 +18,16 @@
 
 mod de;
 mod locate;
+pub mod names;
 mod rules;
 
+// The command line bounds its own numbers by these.
+#[cfg(feature = "cli")]
 pub(crate) use rules::{MAX_BODIES, MAX_MAGNITUDE};
 #[cfg(test)]
 mod tests;
 
+use std::fmt::Write as _;
 use std::path::Path;
 
 use crate::desc::MechanismDesc;
@@ -183,7 +187,18 @@ fn syntax_errors(
         Format::Json => "JSON",
     };
     let diags = unparsed.errors.into_iter().map(|e| {
-        let diag = Diagnostic::error(format!("{syntax} syntax: {}", e.message));
+        let mut message = format!("{syntax} syntax: {}", e.message);
+        if format == Format::Toml
+            && let Some(open) = open_inline_table(text, e.offset)
+        {
+            let (line, column) = locate::line_column(text, open);
+            let _ = write!(
+                message,
+                " (inside the inline table `{{ … }}` opened at line {line}, column {column}; \
+                 an inline table is written on one line, with `,` between its keys)"
+            );
+        }
+        let diag = Diagnostic::error(message);
         // The entity and field come from the tree recovered around the error; a path into
         // it may name elements that are not in the file, so none is given.
         let placed = src.place(diag, e.offset);
@@ -192,6 +207,39 @@ fn syntax_errors(
         Diagnostic { path: None, entity, ..placed }
     });
     in_file_order(diags.collect())
+}
+
+/// The byte offset of the innermost TOML inline table `{` still open at byte `offset` of
+/// `text` (strings and comments skipped), so that a syntax error inside a table written across
+/// lines also points at the line where the table opens.
+fn open_inline_table(text: &str, offset: usize) -> Option<usize> {
+    let mut open = Vec::new();
+    let mut chars = text.char_indices().take_while(|&(i, _)| i < offset).peekable();
+    while let Some((i, c)) = chars.next() {
+        match c {
+            '{' => open.push(i),
+            '}' => {
+                open.pop();
+            }
+            '#' => while chars.next_if(|&(_, c)| c != '\n').is_some() {},
+            '"' | '\'' => {
+                // A basic string honours `\` escapes; a literal string does not. Multi-line
+                // strings are skipped by the same rule, one delimiter at a time.
+                let mut escaped = false;
+                for (_, s) in chars.by_ref() {
+                    if escaped {
+                        escaped = false;
+                    } else if s == '\\' && c == '"' {
+                        escaped = true;
+                    } else if s == c {
+                        break;
+                    }
+                }
+            }
+            _ => {}
+        }
+    }
+    open.pop()
 }
 
 /// Sorts located diagnostics by place; the sort is stable, so problems found at the same

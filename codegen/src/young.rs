@@ -4,10 +4,10 @@
 //! Pascal `READ`, so line breaks do not matter): a header of 12 counts
 //! `NBODY NDRIVE NPOINT NSPHER NUNIVE NREVOL NCYLIN NTRANS NSCREW NSIMPL NSIMP2 NGROUN`, then
 //! the records of each kind in a fixed order (numbered 1 to 13 as in
-//! `shared/reference/young-program.md` §2.4), ending with the time line `Ti Te dT`. Anything
+//! `tests/reference/young-program.md` §2.4), ending with the time line `Ti Te dT`. Anything
 //! after the time line is ignored; the thesis' decks carry free-text comments there.
 //!
-//! The mapping follows the contract (`shared/spec/mechanism-format.md` §2):
+//! The mapping follows the contract (`docs/contract.md` §2):
 //!
 //! | record | tokens | becomes |
 //! |---|---|---|
@@ -50,6 +50,7 @@ use crate::desc::{
 };
 use crate::diag::Diagnostic;
 
+mod layout;
 #[cfg(test)]
 mod tests;
 
@@ -275,6 +276,11 @@ impl<'a> Parser<'a> {
             ngroun,
         ] = counts;
         self.nbody = nbody;
+        if let Some((field, message, line)) = layout::mismatch(self.lexer.src, &counts) {
+            return Err(Box::new(
+                Diagnostic::error(message).entity(header.entity).field(field).at(None, line, 1),
+            ));
+        }
 
         let mut bodies = Vec::new();
         for k in 1..=nbody {

@@ -12,9 +12,9 @@ use codegen::model;
 use codegen::report::{self, BodyResult, StepResult};
 use serde_json::Value;
 
-/// The thesis' decks and their reference outputs (`shared/reference/seed-examples`).
+/// The thesis' decks and their reference outputs (`tests/reference/seed-examples`, see its README).
 pub(crate) const SEED_EXAMPLES: &str =
-    concat!(env!("CARGO_MANIFEST_DIR"), "/../../shared/reference/seed-examples");
+    concat!(env!("CARGO_MANIFEST_DIR"), "/reference/seed-examples");
 
 /// Two times are the same grid point when they differ by less than this (s). The grids are
 /// `start + k·step` in binary; the references print the same decimal times, which differ from

@@ -2,8 +2,8 @@
 //! closed forms and an independent solution; the RSSR against Appendix C; and the invariants
 //! every analysis must keep.
 //!
-//! The reference data live in `shared/reference/seed-examples` beside the workspace; the
-//! tests say, at each comparison, which reference value is trusted and how far.
+//! The reference data live in `tests/reference/seed-examples` (see `tests/reference/README.md`);
+//! the tests say, at each comparison, which reference value is trusted and how far.
 
 #[cfg(test)]
 mod generated_engine;
@@ -11,6 +11,8 @@ mod generated_engine;
 mod harness;
 #[cfg(test)]
 mod hostile;
+#[cfg(test)]
+mod hostile_codegen;
 #[cfg(test)]
 mod random_mechanisms;
 #[cfg(test)]

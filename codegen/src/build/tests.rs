@@ -71,3 +71,16 @@ fn two_descriptions_with_one_name_are_refused() {
         .unwrap_err();
     assert!(e.to_string().contains("a second description named \"rssr\""), "{e}");
 }
+
+#[test]
+fn a_directive_stays_on_one_line_whatever_the_message_holds() {
+    // A body name with line breaks and directives after them, as a warning would quote it.
+    let hostile =
+        "body \"x\ncargo::rustc-cfg=evil\r\ncargo:rustc-link-arg=-x\u{2028}\u{85}\u{202e}\"";
+    let line = super::one_line(hostile);
+    assert!(!line.contains(['\n', '\r', '\u{2028}', '\u{85}', '\u{202e}']), "{line}");
+    assert!(line.contains("\\u{000a}cargo::rustc-cfg=evil"), "{line}");
+    // A path holding a line break is refused, not written into a directive.
+    let e = super::path_text(std::path::Path::new("a\ncargo::rustc-cfg=evil.toml")).unwrap_err();
+    assert!(e.to_string().contains("control characters"), "{e}");
+}

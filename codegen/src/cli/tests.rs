@@ -248,7 +248,7 @@ law = { start = 0.0, velocity = 1.0 }
 #[test]
 fn import_young_prints_a_valid_description() {
     let deck = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("../../shared/reference/seed-examples/4-bar.deck");
+        .join("../tests/reference/seed-examples/4-bar.deck");
     let (code, out, err) = mechgen(&["import-young", deck.to_str().unwrap()]);
     assert_eq!(code, EXIT_OK, "{err}");
     let loaded = crate::validate::load_str(&out, crate::validate::Format::Toml, None)

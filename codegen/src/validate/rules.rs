@@ -6,7 +6,7 @@ use std::collections::BTreeMap;
 
 use nalgebra::{Matrix3, Vector3, Vector4};
 
-use super::closest;
+use super::{closest, names};
 use crate::desc::{
     BodyDesc, ConstraintDesc, ConstraintType, CoordinateName, DriverDesc, JointDesc, JointType,
     LawDesc, MechanismDesc, Motion, PointDesc, SolverDesc, TimeDesc,
@@ -65,6 +65,7 @@ const P_NORM_WARNING: f64 = 1e-6;
 pub(super) fn check(desc: &MechanismDesc) -> (Option<model::Mechanism>, Vec<Diagnostic>) {
     let mut r = Rules { desc, diags: Vec::new() };
     r.name();
+    r.names();
     let time = r.time(&desc.time);
     let solver = r.solver(desc.solver.as_ref());
     let bodies: Vec<_> = desc.bodies.iter().enumerate().map(|(k, b)| r.body(k, b)).collect();
@@ -219,7 +220,8 @@ impl Rules<'_> {
         At::section(&format!("mechanism \"{}\"", self.desc.name), "")
     }
 
-    /// Rule: `name` matches `[a-z][a-z0-9_]*`.
+    /// Rules: `name` matches `[a-z][a-z0-9_]*` and can name the generated module and type;
+    /// the description is printable text (see [`names`]).
     fn name(&mut self) {
         let name = &self.desc.name;
         let mut chars = name.chars();
@@ -238,6 +240,34 @@ impl Rules<'_> {
                  module's name), e.g. \"{fixed}\""
             );
             self.error(&At::section("name", ""), "name", message);
+        } else if let Some(message) =
+            names::mechanism_name_problem(name, &crate::emit::type_name(name))
+        {
+            self.error(&At::section("name", ""), "name", message);
+        }
+        if let Some(message) = self.desc.description.as_deref().and_then(names::description_problem)
+        {
+            self.error(&At::section("description", ""), "description", message);
+        }
+    }
+
+    /// Rule: every entity's name is printable text of at most [`names::MAX_NAME_CHARS`]
+    /// characters (see [`names`]).
+    fn names(&mut self) {
+        let desc = self.desc;
+        let bodies = desc.bodies.iter().enumerate().map(|(k, b)| ("body", "bodies", k, &b.name));
+        let joints = desc.joints.iter().enumerate().map(|(k, j)| ("joint", "joints", k, &j.name));
+        let constraints = (desc.constraints.iter().enumerate())
+            .map(|(k, c)| ("constraint", "constraints", k, &c.name));
+        let drivers =
+            desc.drivers.iter().enumerate().map(|(k, d)| ("driver", "drivers", k, &d.name));
+        let points = desc.points.iter().enumerate().map(|(k, p)| ("point", "points", k, &p.name));
+        for (kind, section, k, name) in
+            bodies.chain(joints).chain(constraints).chain(drivers).chain(points)
+        {
+            if let Some(message) = names::name_problem(name) {
+                self.error(&At::item(kind, name, section, k), "name", message);
+            }
         }
     }
 
@@ -1064,15 +1094,53 @@ impl Rules<'_> {
             } else {
                 ("drivers or constraints", "are")
             };
-            let message = format!(
+            let mut message = format!(
                 "{unknowns} unknowns (7 per moving body) but only {equations} equations: \
                  {missing} {noun} {verb} missing"
             );
+            for idle in idle_spins(desc) {
+                message.push_str("; ");
+                message.push_str(&idle);
+            }
             let diag = Diagnostic::error(message).entity(self.mechanism().entity).path("drivers");
             self.diags.push(diag);
         }
         Some(equations)
     }
+}
+
+/// The moving bodies held only by two spherical joints, each with the reason and the fix: such
+/// a body (the coupler of an R-S-S-R without its spin constraint) can turn freely about the
+/// line through the two joint centres, a degree of freedom no driver is meant to fix.
+fn idle_spins(desc: &MechanismDesc) -> Vec<String> {
+    let mut found = Vec::new();
+    for body in desc.bodies.iter().filter(|b| !b.ground) {
+        let name = body.name.as_str();
+        let touches = |i: &str, j: &str| i == name || j == name;
+        let joints: Vec<&JointDesc> =
+            desc.joints.iter().filter(|j| touches(&j.body_i, &j.body_j)).collect();
+        let held =
+            desc.constraints.iter().any(|c| {
+                [&c.body, &c.body_i, &c.body_j].iter().any(|b| b.as_deref() == Some(name))
+            }) || desc.drivers.iter().any(|d| d.body.as_deref() == Some(name));
+        let spherical = joints.iter().all(|j| j.kind == JointType::Spherical);
+        if held || joints.len() != 2 || !spherical {
+            continue;
+        }
+        let other =
+            |j: &JointDesc| if j.body_i == name { j.body_j.clone() } else { j.body_i.clone() };
+        let (a, b) = (joints[0], joints[1]);
+        found.push(format!(
+            "body \"{name}\" spins idly about the line through its spherical joints \"{}\" and \
+             \"{}\": replace it and those joints by one `distance` joint between \"{}\" and \
+             \"{}\" (a rod with spherical ends), or fix its spin with a constraint",
+            a.name,
+            b.name,
+            other(a),
+            other(b)
+        ));
+    }
+    found
 }
 
 /// P = r + A(p)·s', global.

@@ -340,6 +340,27 @@ fn toml_syntax_error_has_its_place_and_entity() {
 }
 
 #[test]
+fn toml_syntax_error_in_an_inline_table_points_at_where_it_opens() {
+    // The law's inline table is written across lines and lacks a comma on its second line: the
+    // error is reported where the parser stops, and the message names line 26, where `{` is.
+    let toml = edit(&[(
+        "law = { start = 0.0, velocity = 1.0 }",
+        "law = { start = 0.0, # the position at t = 0\n  velocity = 1.0 acceleration = 0.0 }",
+    )]);
+    let errors = load(&toml).expect_err("a comma is missing");
+    let d = errors.iter().find(|d| d.message.contains("TOML syntax")).expect("a syntax error");
+    assert!(
+        d.message.contains("inside the inline table `{ … }` opened at line 26, column 7"),
+        "{}",
+        render(&errors)
+    );
+    // A syntax error outside any inline table says nothing about one.
+    let toml = edit(&[("axis_j = [1.0, 0.0, 0.0]", "axis_j = [1.0, 0.0 0.0]")]);
+    let errors = load(&toml).expect_err("a missing comma");
+    assert!(errors.iter().all(|d| !d.message.contains("inline table")), "{}", render(&errors));
+}
+
+#[test]
 fn json_syntax_error_has_its_place() {
     let json = edit_text(BASE_JSON, &[("\"body_j\": \"block\",", "\"body_j\": \"block\"")]);
     // The parser stops right after the value that lacks its comma.
@@ -1333,6 +1354,35 @@ fn fewer_equations_than_unknowns_says_how_many_are_missing() {
         22,
         1,
     );
+}
+
+#[test]
+fn a_link_between_two_spherical_joints_is_named_with_the_distance_fix() {
+    // The R-S-S-R without its spin constraint: the coupler turns freely about the line A–B.
+    let rssr = std::fs::read_to_string(
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples/rssr.toml"),
+    )
+    .unwrap();
+    let spin = "[[constraints]]\nname = \"no_spin\"\ntype = \"fix\"\nbody = \"coupler\"\n\
+                coordinate = \"e2\"\nvalue = 0.0\n";
+    let toml = edit_text(&rssr, &[(spin, "")]);
+    let errors = load(&toml).expect_err("one equation is missing");
+    let message = &errors.iter().find(|d| d.message.contains("missing")).unwrap().message;
+    assert!(message.contains("1 driver or constraint is missing"), "{message}");
+    assert!(
+        message.contains(
+            "body \"coupler\" spins idly about the line through its spherical joints \"A\" and \"B\""
+        ),
+        "{message}"
+    );
+    assert!(message.contains("`distance` joint between \"crank\" and \"rocker\""), "{message}");
+    // A missing driver elsewhere does not blame a body.
+    let undriven = edit(&[(
+        "[[drivers]]\nname = \"push\"\njoint = \"rail\"\nmotion = \"translation\"\nlaw = { start = 0.0, velocity = 1.0 }\n",
+        "",
+    )]);
+    let errors = load(&undriven).expect_err("the driver is missing");
+    assert!(errors.iter().all(|d| !d.message.contains("spins idly")), "{}", render(&errors));
 }
 
 #[test]

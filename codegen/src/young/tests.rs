@@ -8,7 +8,7 @@ use crate::desc::{
 use crate::diag::Diagnostic;
 
 /// The thesis' 18 decks, shipped beside the examples (copies of
-/// `shared/reference/seed-examples/*.deck`).
+/// `tests/reference/seed-examples/*.deck`).
 fn deck_dir() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples/decks")
 }
@@ -752,4 +752,52 @@ fn every_shipped_example_loads_and_validates() {
             panic!("{example}:\n{}", errors.join("\n"));
         }
     }
+}
+
+/// The 4-bar deck with its header's `NREVOL` (the sixth count) replaced by `nrevol`.
+fn four_bar_with_nrevol(nrevol: usize, drop_revolute: bool) -> String {
+    let text = std::fs::read_to_string(deck_dir().join("4-bar.deck")).expect("readable deck");
+    let mut lines: Vec<String> = text.lines().map(str::to_owned).collect();
+    let mut header: Vec<String> = lines[0].split_whitespace().map(str::to_owned).collect();
+    assert_eq!(header[5], "2", "the 4-bar deck has two revolute joints");
+    header[5] = nrevol.to_string();
+    lines[0] = header.join(" ");
+    if drop_revolute {
+        // The second revolute record is the last line of 14 numbers.
+        let last = lines.iter().rposition(|l| l.split_whitespace().count() == 14).unwrap();
+        lines.remove(last);
+    }
+    lines.join("\n")
+}
+
+#[test]
+fn a_header_that_counts_too_many_records_is_refused_with_both_counts() {
+    // The 4-bar has one universal and two revolute joints: three lines of 14 numbers.
+    let d = import_error(&four_bar_with_nrevol(3, false));
+    assert_eq!(d.entity.as_deref(), Some("header (the 12 counts)"), "{d}");
+    assert!(d.message.contains("NREVOL = 3 (revolute joints)"), "{d}");
+    assert!(d.message.contains("say 4 such records together of 14 numbers"), "{d}");
+    assert!(d.message.contains("the deck's lines hold 3"), "{d}");
+    // One record removed, the header unchanged: the header says 3, the lines 2.
+    let d = import_error(&four_bar_with_nrevol(2, true));
+    assert!(d.message.contains("say 3 such records together"), "{d}");
+    assert!(d.message.contains("the deck's lines hold 2"), "{d}");
+}
+
+#[test]
+fn a_header_that_counts_too_few_records_is_refused_with_both_counts() {
+    let d = import_error(&four_bar_with_nrevol(1, false));
+    assert!(d.message.contains("NREVOL = 1 (revolute joints)"), "{d}");
+    assert!(d.message.contains("say 2 such records together"), "{d}");
+    assert!(d.message.contains("the deck's lines hold 3"), "{d}");
+    // A simplified constraint too few would turn the last one into the time line.
+    let text = std::fs::read_to_string(deck_dir().join("1-1-1.deck")).expect("readable deck");
+    let mut header: Vec<&str> = text.lines().next().unwrap().split_whitespace().collect();
+    assert_eq!(header[9], "6", "1-1-1 has six simplified constraints");
+    header[9] = "5";
+    let deck = text.replacen(text.lines().next().unwrap(), &header.join(" "), 1);
+    let d = import_error(&deck);
+    assert_eq!(d.field.as_deref(), Some("NSIMPL"), "{d}");
+    assert!(d.message.contains("NSIMPL = 5 (simplified constraints) says 5 such records"), "{d}");
+    assert!(d.message.contains("the deck's lines hold 6"), "{d}");
 }
