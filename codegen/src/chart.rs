@@ -187,6 +187,21 @@ pub fn measure_with(
     Ok((marks, skipped))
 }
 
+/// Draws with `draw` on an SVG drawing area of `size` pixels, then writes the SVG to `path`
+/// all at once ([`crate::report::write_file`]): a failed drawing leaves the previous file.
+///
+/// # Errors
+/// The drawing's error, or the I/O error naming `path`, as text.
+pub(crate) fn write_svg(
+    path: &Path,
+    size: (u32, u32),
+    draw: impl FnOnce(DrawingArea<SVGBackend<'_>, plotters::coord::Shift>) -> Result<(), String>,
+) -> Result<(), String> {
+    let mut svg = String::new();
+    draw(SVGBackend::with_string(&mut svg, size).into_drawing_area())?;
+    crate::report::write_file(path, svg.as_bytes()).map_err(|e| e.to_string())
+}
+
 /// Draws a chart's series labels in its upper right corner, on a translucent white box.
 ///
 /// # Errors
@@ -222,64 +237,65 @@ pub fn draw(marks: &[Mark], title: &str, path: &Path) -> Result<(), String> {
     // Headroom above the highest mark, a third of the decades spanned, so the legend in the
     // upper right corner covers no mark.
     let top = y1 * 10.0 * ((y1 * 10.0) / (y0 / 10.0)).powf(1.0 / 3.0);
-    let root = SVGBackend::new(path, (900, 600)).into_drawing_area();
-    let e = |e: &dyn std::fmt::Display| e.to_string();
-    root.fill(&WHITE).map_err(|x| e(&x))?;
-    let mut chart = ChartBuilder::on(&root)
-        .caption(title, ("sans-serif", 22))
-        .margin(15)
-        .x_label_area_size(50)
-        .y_label_area_size(80)
-        .build_cartesian_2d((x0 / 1.5..x1 * 1.5).log_scale(), (y0 / 10.0..top).log_scale())
-        .map_err(|x| e(&x))?;
-    chart
-        .configure_mesh()
-        .x_labels(12)
-        .y_labels(12)
-        .x_desc("time per step (ns, median; log scale)")
-        .y_desc("max relative error vs reference (log; below 1e-17 drawn at 1e-17)")
-        .y_label_formatter(&|v| format!("{v:.0e}"))
-        .x_label_formatter(&|v| format!("{v:.0}"))
-        .draw()
-        .map_err(|x| e(&x))?;
-    let mut series: Vec<&str> = marks.iter().map(|m| m.series.as_str()).collect();
-    series.dedup();
-    let colors = [
-        RGBColor(31, 119, 180),
-        RGBColor(255, 127, 14),
-        RGBColor(44, 160, 44),
-        RGBColor(214, 39, 40),
-        RGBColor(148, 103, 189),
-        RGBColor(140, 86, 75),
-    ];
-    for (k, name) in series.iter().enumerate() {
-        let color = colors[k % colors.len()];
-        let points: Vec<(f64, f64)> = marks
-            .iter()
-            .filter(|m| m.series == *name)
-            .map(|m| (m.ns_per_step, m.error.max(floor)))
-            .collect();
-        chart
-            .draw_series(LineSeries::new(points.clone(), color.stroke_width(1)))
-            .map_err(|x| e(&x))?
-            .label(*name)
-            .legend(move |(x, y)| Circle::new((x + 10, y), 4, color.filled()));
-        chart
-            .draw_series(points.iter().map(|&p| Circle::new(p, 4, color.filled())))
+    crate::chart::write_svg(path, (900, 600), |root| {
+        let e = |e: &dyn std::fmt::Display| e.to_string();
+        root.fill(&WHITE).map_err(|x| e(&x))?;
+        let mut chart = ChartBuilder::on(&root)
+            .caption(title, ("sans-serif", 22))
+            .margin(15)
+            .x_label_area_size(50)
+            .y_label_area_size(80)
+            .build_cartesian_2d((x0 / 1.5..x1 * 1.5).log_scale(), (y0 / 10.0..top).log_scale())
             .map_err(|x| e(&x))?;
         chart
-            .draw_series(marks.iter().filter(|m| m.series == *name).map(|m| {
-                Text::new(
-                    format!("{:.0e}", m.tolerance),
-                    (m.ns_per_step * 1.04, m.error.max(floor) * 1.6),
-                    ("sans-serif", 11).into_font().color(&color),
-                )
-            }))
+            .configure_mesh()
+            .x_labels(12)
+            .y_labels(12)
+            .x_desc("time per step (ns, median; log scale)")
+            .y_desc("max relative error vs reference (log; below 1e-17 drawn at 1e-17)")
+            .y_label_formatter(&|v| format!("{v:.0e}"))
+            .x_label_formatter(&|v| format!("{v:.0}"))
+            .draw()
             .map_err(|x| e(&x))?;
-    }
-    legend(&mut chart)?;
-    root.present().map_err(|x| e(&x))?;
-    Ok(())
+        let mut series: Vec<&str> = marks.iter().map(|m| m.series.as_str()).collect();
+        series.dedup();
+        let colors = [
+            RGBColor(31, 119, 180),
+            RGBColor(255, 127, 14),
+            RGBColor(44, 160, 44),
+            RGBColor(214, 39, 40),
+            RGBColor(148, 103, 189),
+            RGBColor(140, 86, 75),
+        ];
+        for (k, name) in series.iter().enumerate() {
+            let color = colors[k % colors.len()];
+            let points: Vec<(f64, f64)> = marks
+                .iter()
+                .filter(|m| m.series == *name)
+                .map(|m| (m.ns_per_step, m.error.max(floor)))
+                .collect();
+            chart
+                .draw_series(LineSeries::new(points.clone(), color.stroke_width(1)))
+                .map_err(|x| e(&x))?
+                .label(*name)
+                .legend(move |(x, y)| Circle::new((x + 10, y), 4, color.filled()));
+            chart
+                .draw_series(points.iter().map(|&p| Circle::new(p, 4, color.filled())))
+                .map_err(|x| e(&x))?;
+            chart
+                .draw_series(marks.iter().filter(|m| m.series == *name).map(|m| {
+                    Text::new(
+                        format!("{:.0e}", m.tolerance),
+                        (m.ns_per_step * 1.04, m.error.max(floor) * 1.6),
+                        ("sans-serif", 11).into_font().color(&color),
+                    )
+                }))
+                .map_err(|x| e(&x))?;
+        }
+        legend(&mut chart)?;
+        root.present().map_err(|x| e(&x))?;
+        Ok(())
+    })
 }
 
 /// The conditioning of one analysed time point (see [`conditioning`]).
@@ -369,76 +385,83 @@ pub fn draw_conditioning(points: &[Conditioning], title: &str, path: &Path) -> R
         .map(|p| p.generic_iterations.max(p.generated_iterations.unwrap_or(0)))
         .max()
         .unwrap_or(1);
-    let root = SVGBackend::new(path, (900, 700)).into_drawing_area();
-    root.fill(&WHITE).map_err(|x| e(&x))?;
-    let root = root.titled(title, ("sans-serif", 22)).map_err(|x| e(&x))?;
-    let (upper, lower) = root.split_vertically(420);
-    let blue = RGBColor(31, 119, 180);
-    let orange = RGBColor(255, 127, 14);
-    let mut chart = ChartBuilder::on(&upper)
-        .margin(15)
-        .x_label_area_size(35)
-        .y_label_area_size(80)
-        .build_cartesian_2d(t0..t1, (c0 / 2.0..c1 * 2.0).log_scale())
-        .map_err(|x| e(&x))?;
-    chart
-        .configure_mesh()
-        .x_desc("t")
-        .y_desc("condition of Φ_q (log scale)")
-        .y_label_formatter(&|v| format!("{v:.0e}"))
-        .draw()
-        .map_err(|x| e(&x))?;
-    chart
-        .draw_series(LineSeries::new(
-            points.iter().map(|p| (p.t, p.condition)),
-            blue.stroke_width(2),
-        ))
-        .map_err(|x| e(&x))?
-        .label("κ₂ = σ_max / σ_min (SVD)")
-        .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], blue.stroke_width(2)));
-    chart
-        .draw_series(LineSeries::new(
-            points.iter().map(|p| (p.t, p.pivot_estimate)),
-            orange.stroke_width(2),
-        ))
-        .map_err(|x| e(&x))?
-        .label("1/ρ: max / min LU pivot (the step control's estimate)")
-        .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], orange.stroke_width(2)));
-    legend(&mut chart)?;
-    let mut chart = ChartBuilder::on(&lower)
-        .margin(15)
-        .x_label_area_size(40)
-        .y_label_area_size(80)
-        .build_cartesian_2d(t0..t1, 0.0..f64::from(most) + 1.0)
-        .map_err(|x| e(&x))?;
-    chart
-        .configure_mesh()
-        .x_desc("t")
-        .y_desc("Newton iterations per step")
-        .draw()
-        .map_err(|x| e(&x))?;
-    chart
-        .draw_series(LineSeries::new(
-            points.iter().map(|p| (p.t, f64::from(p.generic_iterations))),
-            blue.stroke_width(2),
-        ))
-        .map_err(|x| e(&x))?
-        .label("generic")
-        .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], blue.stroke_width(2)));
-    if points.iter().all(|p| p.generated_iterations.is_some()) {
-        let green = RGBColor(44, 160, 44);
+    crate::chart::write_svg(path, (900, 700), |root| {
+        root.fill(&WHITE).map_err(|x| e(&x))?;
+        let root = root.titled(title, ("sans-serif", 22)).map_err(|x| e(&x))?;
+        let (upper, lower) = root.split_vertically(420);
+        let blue = RGBColor(31, 119, 180);
+        let orange = RGBColor(255, 127, 14);
+        let mut chart = ChartBuilder::on(&upper)
+            .margin(15)
+            .x_label_area_size(35)
+            .y_label_area_size(80)
+            .build_cartesian_2d(t0..t1, (c0 / 2.0..c1 * 2.0).log_scale())
+            .map_err(|x| e(&x))?;
+        chart
+            .configure_mesh()
+            .x_desc("t")
+            .y_desc("condition of Φ_q (log scale)")
+            .y_label_formatter(&|v| format!("{v:.0e}"))
+            .draw()
+            .map_err(|x| e(&x))?;
         chart
             .draw_series(LineSeries::new(
-                points.iter().map(|p| (p.t, f64::from(p.generated_iterations.unwrap_or(0)))),
-                green.stroke_width(2),
+                points.iter().map(|p| (p.t, p.condition)),
+                blue.stroke_width(2),
             ))
             .map_err(|x| e(&x))?
-            .label("generated")
+            .label("κ₂ = σ_max / σ_min (SVD)")
             .legend(move |(x, y)| {
-                PathElement::new(vec![(x, y), (x + 20, y)], green.stroke_width(2))
+                PathElement::new(vec![(x, y), (x + 20, y)], blue.stroke_width(2))
             });
-    }
-    legend(&mut chart)?;
-    root.present().map_err(|x| e(&x))?;
-    Ok(())
+        chart
+            .draw_series(LineSeries::new(
+                points.iter().map(|p| (p.t, p.pivot_estimate)),
+                orange.stroke_width(2),
+            ))
+            .map_err(|x| e(&x))?
+            .label("1/ρ: max / min LU pivot (the step control's estimate)")
+            .legend(move |(x, y)| {
+                PathElement::new(vec![(x, y), (x + 20, y)], orange.stroke_width(2))
+            });
+        legend(&mut chart)?;
+        let mut chart = ChartBuilder::on(&lower)
+            .margin(15)
+            .x_label_area_size(40)
+            .y_label_area_size(80)
+            .build_cartesian_2d(t0..t1, 0.0..f64::from(most) + 1.0)
+            .map_err(|x| e(&x))?;
+        chart
+            .configure_mesh()
+            .x_desc("t")
+            .y_desc("Newton iterations per step")
+            .draw()
+            .map_err(|x| e(&x))?;
+        chart
+            .draw_series(LineSeries::new(
+                points.iter().map(|p| (p.t, f64::from(p.generic_iterations))),
+                blue.stroke_width(2),
+            ))
+            .map_err(|x| e(&x))?
+            .label("generic")
+            .legend(move |(x, y)| {
+                PathElement::new(vec![(x, y), (x + 20, y)], blue.stroke_width(2))
+            });
+        if points.iter().all(|p| p.generated_iterations.is_some()) {
+            let green = RGBColor(44, 160, 44);
+            chart
+                .draw_series(LineSeries::new(
+                    points.iter().map(|p| (p.t, f64::from(p.generated_iterations.unwrap_or(0)))),
+                    green.stroke_width(2),
+                ))
+                .map_err(|x| e(&x))?
+                .label("generated")
+                .legend(move |(x, y)| {
+                    PathElement::new(vec![(x, y), (x + 20, y)], green.stroke_width(2))
+                });
+        }
+        legend(&mut chart)?;
+        root.present().map_err(|x| e(&x))?;
+        Ok(())
+    })
 }

@@ -2,13 +2,12 @@
 //! in process: [`run`] takes the arguments and two writers and returns the exit status.
 
 use std::ffi::OsString;
-use std::fs::File;
 use std::io::{self, BufWriter, Write};
 use std::path::{Path, PathBuf};
 
 use clap::{Parser, Subcommand, ValueEnum};
 
-use crate::diag::Diagnostic;
+use crate::diag::{Diagnostic, printable};
 use crate::generic::{Analysis, Equations};
 use crate::model::{ConstraintKind, DriverCoordinate, DriverTarget, Mechanism};
 use crate::report::{self, Writer};
@@ -81,10 +80,10 @@ enum Command {
         #[arg(long, value_enum, default_value_t = BenchEngine::Both)]
         engine: BenchEngine,
         /// Newton tolerance on max |Φ_i| (default: the description's).
-        #[arg(long)]
+        #[arg(long, value_parser = tolerance_value)]
         tolerance: Option<f64>,
         /// Whole passes over the grid to time.
-        #[arg(long, default_value_t = 20)]
+        #[arg(long, default_value_t = 20, value_parser = repeats_value)]
         repeats: usize,
         /// Output format.
         #[arg(long, value_enum, default_value_t = CheckFormat::Text)]
@@ -107,7 +106,7 @@ enum Command {
         #[arg(short = 'o', long = "output")]
         output: PathBuf,
         /// Whole passes over the grid timed per mark.
-        #[arg(long, default_value_t = 10)]
+        #[arg(long, default_value_t = 10, value_parser = repeats_value)]
         repeats: usize,
     },
     /// Scaling study: generation time, generated lines, build time and ns per step for
@@ -115,10 +114,10 @@ enum Command {
     #[command(hide = true)]
     Scaling {
         /// Body counts to measure.
-        #[arg(long, value_delimiter = ',', default_value = "5,20,50,100")]
+        #[arg(long, value_delimiter = ',', default_value = "5,20,50,100", value_parser = bodies_value)]
         bodies: Vec<usize>,
         /// Whole passes timed per engine.
-        #[arg(long, default_value_t = 3)]
+        #[arg(long, default_value_t = 3, value_parser = repeats_value)]
         repeats: usize,
         /// Also write each description into this directory.
         #[arg(long)]
@@ -211,6 +210,47 @@ enum Engine {
     Generated,
 }
 
+/// The most whole passes over the grid `bench`, `chart` and `scaling` time: the median of
+/// 10,000 passes is as good as any, and more only delays the answer.
+const MAX_REPEATS: usize = 10_000;
+
+/// A whole number in `range`, or the reason it is not.
+fn whole_in(
+    text: &str,
+    range: std::ops::RangeInclusive<usize>,
+    why: &str,
+) -> Result<usize, String> {
+    let n: usize = text.trim().parse().map_err(|_| {
+        format!("`{text}` is not a whole number from {} to {}", range.start(), range.end())
+    })?;
+    if range.contains(&n) {
+        Ok(n)
+    } else {
+        Err(format!("{n} is not from {} to {}: {why}", range.start(), range.end()))
+    }
+}
+
+/// `--repeats`: 1 to [`MAX_REPEATS`].
+fn repeats_value(text: &str) -> Result<usize, String> {
+    whole_in(text, 1..=MAX_REPEATS, "more passes only delay the answer")
+}
+
+/// `scaling --bodies`: 1 to the most moving bodies a description may have.
+fn bodies_value(text: &str) -> Result<usize, String> {
+    whole_in(text, 1..=validate::MAX_BODIES, "descriptions hold at most that many moving bodies")
+}
+
+/// `--tolerance`: finite, > 0 and at most the largest number a description may hold, as the
+/// description's own `solver.tolerance`.
+fn tolerance_value(text: &str) -> Result<f64, String> {
+    let max = validate::MAX_MAGNITUDE;
+    match text.trim().parse::<f64>() {
+        Ok(x) if x.is_finite() && x > 0.0 && x <= max => Ok(x),
+        Ok(x) => Err(format!("{x} is not a tolerance: it must be finite, > 0 and at most {max:e}")),
+        Err(_) => Err(format!("`{text}` is not a number")),
+    }
+}
+
 /// Whether the user asked for JSON anywhere on the command line (so that even argument
 /// errors are reported as the contract's JSON error object).
 fn wants_json(args: &[OsString]) -> bool {
@@ -253,6 +293,9 @@ fn dispatch(args: Vec<OsString>, out: &mut dyn Write, err: &mut dyn Write) -> i3
             return EXIT_INVALID;
         }
     };
+    if let Some(d) = cli.command.output().and_then(|(o, inputs)| output_problem(o, &inputs)) {
+        return report_invalid(&[d], json, out, err);
+    }
     let result = match cli.command {
         Command::Check { file, format } => check(&file, format, out, err),
         Command::Solve { file, engine, format, output } => {
@@ -292,13 +335,120 @@ fn dispatch(args: Vec<OsString>, out: &mut dyn Write, err: &mut dyn Write) -> i3
     };
     match result {
         Ok(code) => code,
-        // A closed pipe (`mechgen solve … | head`) is the reader's choice, not an error.
-        Err(e) if e.kind() == io::ErrorKind::BrokenPipe => EXIT_OK,
+        Err(e) if closed_pipe(&e) => EXIT_OK,
         Err(e) => {
-            let _ = writeln!(err, "error: {e}");
+            let _ = writeln!(err, "error: {}", printable(&e.to_string()));
             EXIT_INVALID
         }
     }
+}
+
+/// Whether an error is, or was caused by, a closed pipe: the reader stopped reading
+/// (`mechgen solve … | head -3`), which is its choice, not a failure of the command, so the
+/// command ends quietly with status 0. Every command and both engines' writers come here; an
+/// error that wraps the writer's `io::Error` (as its `source`) is recognised too.
+pub fn closed_pipe(e: &(dyn std::error::Error + 'static)) -> bool {
+    let mut next = Some(e);
+    while let Some(e) = next {
+        if let Some(io) = e.downcast_ref::<io::Error>() {
+            if io.kind() == io::ErrorKind::BrokenPipe {
+                return true;
+            }
+            // An `io::Error` made from another error hides it from `source`.
+            if let Some(inner) = io.get_ref() {
+                next = Some(inner);
+                continue;
+            }
+        }
+        next = e.source();
+    }
+    false
+}
+
+/// Where `solve` writes its results: a file that appears when complete, or standard output.
+enum Sink<'a> {
+    File(report::OutputFile),
+    Out(BufWriter<&'a mut dyn Write>),
+}
+
+impl Sink<'_> {
+    /// Ends the output: the file is renamed into place, standard output flushed.
+    fn close(self) -> io::Result<()> {
+        match self {
+            Self::File(f) => f.commit(),
+            Self::Out(mut o) => o.flush(),
+        }
+    }
+}
+
+impl Write for Sink<'_> {
+    fn write(&mut self, buf: &[u8]) -> io::Result<usize> {
+        match self {
+            Self::File(f) => f.write(buf),
+            Self::Out(o) => o.write(buf),
+        }
+    }
+
+    fn flush(&mut self) -> io::Result<()> {
+        match self {
+            Self::File(f) => f.flush(),
+            Self::Out(o) => o.flush(),
+        }
+    }
+}
+
+impl Command {
+    /// The `-o` file of the command and the files it reads, when it has one.
+    fn output(&self) -> Option<(&Path, Vec<&Path>)> {
+        match self {
+            Self::Solve { file, output: Some(o), .. }
+            | Self::Generate { file, output: Some(o), .. }
+            | Self::ImportYoung { deck: file, output: Some(o) } => Some((o, vec![file])),
+            Self::Chart { file, output, .. } | Self::Plot { file, output, .. } => {
+                Some((output, vec![file]))
+            }
+            _ => None,
+        }
+    }
+}
+
+/// Why `-o OUTPUT` cannot be written, found before any work: its directory is missing, it
+/// is a directory, or it is one of the command's input files (the same path once links are
+/// resolved, or the same file by device and inode), which writing would destroy.
+fn output_problem(output: &Path, inputs: &[&Path]) -> Option<Diagnostic> {
+    let shown = |p: &Path| printable(&p.display().to_string()).into_owned();
+    let problem = |m: String| Diagnostic::error(m).entity("command line").field("--output");
+    let dir = report::directory_of(output);
+    if !dir.is_dir() {
+        let why = if dir.exists() { "is not a directory" } else { "does not exist" };
+        return Some(problem(format!(
+            "cannot write {}: the directory {} {why}",
+            shown(output),
+            shown(dir)
+        )));
+    }
+    if output.is_dir() {
+        return Some(problem(format!("cannot write {}: it is a directory", shown(output))));
+    }
+    let input = inputs.iter().find(|input| same_file(output, input))?;
+    Some(problem(format!(
+        "the output {} is the input file {}: writing it would destroy the input; choose another \
+         output file",
+        shown(output),
+        shown(input)
+    )))
+}
+
+/// Whether two paths name one existing file.
+fn same_file(a: &Path, b: &Path) -> bool {
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::MetadataExt;
+        if let (Ok(x), Ok(y)) = (std::fs::metadata(a), std::fs::metadata(b)) {
+            return x.dev() == y.dev() && x.ino() == y.ino();
+        }
+    }
+    matches!((a.canonicalize(), b.canonicalize()), (Ok(x), Ok(y)) if x == y)
 }
 
 /// Prints diagnostics (all on stderr; the first as the JSON error object on stdout).
@@ -434,7 +584,7 @@ fn check(
         });
         writeln!(out, "{}", serde_json::to_string_pretty(&v)?)?;
     } else {
-        writeln!(out, "mechanism {}: {bodies} bodies ({grounds} ground)", mech.name)?;
+        writeln!(out, "mechanism {}: {bodies} bodies ({grounds} ground)", printable(&mech.name))?;
         writeln!(out, "unknowns:          {}", eq.unknowns())?;
         writeln!(out, "equations:         {}", eq.equations())?;
         writeln!(out, "reduced unknowns:  {reduced} (generated system)")?;
@@ -453,7 +603,7 @@ fn check(
         if redundant.is_empty() {
             writeln!(out, "redundant:         none")?;
         } else {
-            writeln!(out, "redundant:         {}", redundant.join(", "))?;
+            writeln!(out, "redundant:         {}", printable(&redundant.join(", ")))?;
         }
     }
     Ok(EXIT_OK)
@@ -544,11 +694,16 @@ fn solve(
         SolveFormat::Csv => report::Format::Csv,
         SolveFormat::Json => report::Format::Json,
     };
-    let sink: Box<dyn Write + '_> = match output {
-        Some(path) => Box::new(BufWriter::new(File::create(path)?)),
-        None => Box::new(BufWriter::new(out)),
+    let sink = match output {
+        Some(path) => match report::OutputFile::create(path) {
+            Ok(file) => Sink::File(file),
+            Err(e) => {
+                let d = Diagnostic::error(e.to_string()).entity("command line").field("--output");
+                return Ok(report_invalid(&[d], json, out, err));
+            }
+        },
+        None => Sink::Out(BufWriter::new(out)),
     };
-    let layout = report::layout(mech);
     let name = if built.is_some() { "generated" } else { "generic" };
     // The redundant equations each engine leaves out, said in the output itself and on
     // standard error.
@@ -559,45 +714,56 @@ fn solve(
     for r in &removed {
         writeln!(
             err,
-            "warning: equation {r} depends on the others at the initial configuration and is \
-             left out of the analysis"
+            "warning: equation {} depends on the others at the initial configuration and is \
+             left out of the analysis",
+            printable(r)
         )?;
     }
-    let mut writer = Writer::begin(sink, fmt, mech, name, &removed)?;
-    let analysis = Analysis::new(&eq, &prep);
+    let writer = Writer::begin(sink, fmt, mech, name, &removed)?;
+    stream(mech, &Analysis::new(&eq, &prep), built.as_ref(), writer, err)
+}
+
+/// Runs the analysis on the generated solver `built`, or on the generic engine, writing each
+/// time point as it comes, and ends the output with the error if the run stopped; returns
+/// the exit status.
+fn stream(
+    mech: &Mechanism,
+    analysis: &Analysis<'_, '_>,
+    built: Option<&crate::engine::Built>,
+    mut writer: Writer<Sink<'_>>,
+    err: &mut dyn Write,
+) -> io::Result<i32> {
+    let layout = report::layout(mech);
     let bar = term::bar(mech.time.count as u64, "analysis");
-    let failure = match &built {
-        None => {
-            analysis
-                .run(|frame| {
-                    bar.inc(1);
-                    writer.step(&report::step_result(mech, &layout, frame))
-                })?
-                .failure
-        }
-        Some(b) => {
-            let mut written = 0;
-            match crate::engine::run(b, &analysis, None, |frame| {
-                bar.inc(1);
-                written += 1;
-                writer.step(&report::step_result(mech, &layout, frame))
-            }) {
-                Ok(r) => r.failure,
-                // A closed pipe or a full disk: reported as the generic engine's are.
-                Err(crate::engine::EngineError::Output(e)) => return Err(e),
-                // The solver crashed or printed nonsense: the output still ends with the
-                // error, at the grid time that was not reached.
-                Err(e) => Some(crate::generic::Failure {
-                    kind: crate::generic::FailureKind::NoConvergence,
-                    t: mech.time.at(written),
-                    message: e.to_string(),
-                    constraints: Vec::new(),
-                }),
+    // The writer's own error, kept whatever the engine makes of it: a closed pipe ends the
+    // command quietly on either engine.
+    let mut sink_error: Option<io::Error> = None;
+    let mut sink = |frame: &crate::generic::Frame| {
+        bar.inc(1);
+        writer.step(&report::step_result(mech, &layout, frame)).inspect_err(|e| {
+            sink_error = Some(io::Error::new(e.kind(), e.to_string()));
+        })
+    };
+    let failure = match built {
+        None => analysis.run(&mut sink)?.failure,
+        Some(b) => match crate::engine::run(b, analysis, None, &mut sink) {
+            Ok(r) => r.failure,
+            Err(e) => {
+                bar.finish_and_clear();
+                if let Some(e) = sink_error {
+                    return Err(e);
+                }
+                // The solver broke off without a verdict: the output still ends as a whole
+                // document, with the error.
+                let message = e.to_string();
+                writer.finish_broken("solver_failed", &message)?.close()?;
+                writeln!(err, "error: {}", printable(&message))?;
+                return Ok(EXIT_STOPPED);
             }
-        }
+        },
     };
     bar.finish_and_clear();
-    writer.finish(failure.as_ref())?;
+    writer.finish(failure.as_ref())?.close()?;
     if let Some(f) = &failure {
         writeln!(err, "error: {}", report::failure_text(f))?;
         return Ok(EXIT_STOPPED);
@@ -621,7 +787,7 @@ fn import_young(
     let toml =
         young::to_toml(&desc, &format!("Imported by mechgen from the YOUNG deck {file_name}."));
     match output {
-        Some(path) => std::fs::write(path, toml)?,
+        Some(path) => report::write_file(path, toml.as_bytes())?,
         None => out.write_all(toml.as_bytes())?,
     }
     Ok(EXIT_OK)
@@ -657,7 +823,7 @@ fn generate(
         )?;
     }
     match output {
-        Some(path) => std::fs::write(path, text)?,
+        Some(path) => report::write_file(path, text.as_bytes())?,
         None => out.write_all(text.as_bytes())?,
     }
     Ok(EXIT_OK)
@@ -787,7 +953,7 @@ fn bench(
         writeln!(
             out,
             "{} ({steps} time points, tolerance {tolerance:e}, {} repeats{})",
-            mech.name,
+            printable(&mech.name),
             repeats.max(1),
             notes.concat()
         )?;
@@ -877,7 +1043,12 @@ fn compare(
         });
         writeln!(out, "{}", serde_json::to_string_pretty(&v)?)?;
     } else {
-        writeln!(out, "{}: {} time points, generic vs generated", mech.name, generic.len())?;
+        writeln!(
+            out,
+            "{}: {} time points, generic vs generated",
+            printable(&mech.name),
+            generic.len()
+        )?;
         writeln!(out, "{:>8} {:>14} {:>14}", "quantity", "max abs diff", "max rel diff")?;
         for (name, abs, rel) in &diffs {
             writeln!(out, "{name:>8} {abs:>14.3e} {rel:>14.3e}")?;
@@ -932,7 +1103,7 @@ fn chart(
         writeln!(err, "error: {e}")?;
         return Ok(EXIT_INVALID);
     }
-    writeln!(out, "wrote {}", output.display())?;
+    writeln!(out, "wrote {}", printable(&output.display().to_string()))?;
     Ok(EXIT_OK)
 }
 

@@ -217,6 +217,52 @@ pub fn render(diags: &[Diagnostic], source: Option<&str>, color: bool) -> String
     out
 }
 
+/// `text` made safe to show on a terminal: the replacements [`render`] applies to its
+/// excerpts (annotate-snippets' `normalize_untrusted_str`: control characters as their
+/// Unicode pictures, ␛ for ESC, a tab as four spaces, bidi embeddings and isolates as �, the
+/// zero-width joiner removed), and also a line feed as ␤, C1 controls, bidi marks and the
+/// other zero-width and invisible format characters as �. Names written into the table and
+/// the text outputs go through it, so a name shows the same there as in a diagnostic and
+/// can neither move the cursor nor reorder what follows it.
+///
+/// ```
+/// use codegen::diag::printable;
+///
+/// assert_eq!(printable("crank"), "crank");
+/// assert_eq!(printable("a\u{1b}[2Jb\nc\u{202e}d\u{200b}"), "a␛[2Jb␤c�d�");
+/// ```
+#[must_use]
+pub fn printable(text: &str) -> std::borrow::Cow<'_, str> {
+    let hidden = |c: char| {
+        c == '\n'
+            || ('\u{80}'..='\u{9f}').contains(&c)
+            || matches!(
+                c,
+                '\u{ad}'
+                    | '\u{61c}'
+                    | '\u{180e}'
+                    | '\u{200b}'..='\u{200f}'
+                    | '\u{2028}'..='\u{202e}'
+                    | '\u{2060}'..='\u{206f}'
+                    | '\u{feff}'
+                    | '\u{fff9}'..='\u{fffb}'
+            )
+    };
+    if !text.chars().any(|c| c.is_control() || hidden(c)) {
+        return std::borrow::Cow::Borrowed(text);
+    }
+    std::borrow::Cow::Owned(
+        annotate_snippets::normalize_untrusted_str(text)
+            .chars()
+            .map(|c| match c {
+                '\n' => '␤',
+                c if hidden(c) => '\u{fffd}',
+                c => c,
+            })
+            .collect(),
+    )
+}
+
 /// `span` cut at the end of its first line, and at least one character long where the line
 /// has one, so that the caret stays under the offending text.
 fn single_line(text: &str, span: Range<usize>) -> Range<usize> {

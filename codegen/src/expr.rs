@@ -6,7 +6,9 @@
 //! common subexpressions are shared across Φ, Φ_q, ν and γ for free. The smart constructors
 //! fold constants, drop neutral elements (x + 0, x·1), turn x·0 into 0 (all values are
 //! finite by construction, so IEEE's 0·∞ = NaN cannot arise) and order the operands of
-//! commutative operators by id, so that a·b and b·a are one node.
+//! commutative operators by id, so that a·b and b·a are one node. A fold whose result would
+//! overflow is not made: the operation stays in the expression, and evaluating it gives the
+//! infinity that stops an analysis as a non-finite value, never a panic while generating.
 
 use std::collections::HashMap;
 use std::fmt;
@@ -165,7 +167,7 @@ impl ExprPool {
     /// a + b.
     pub fn add(&mut self, a: ExprId, b: ExprId) -> ExprId {
         match (self.as_const(a), self.as_const(b)) {
-            (Some(x), Some(y)) => return self.constant(x + y),
+            (Some(x), Some(y)) if (x + y).is_finite() => return self.constant(x + y),
             (Some(0.0), None) => return b,
             (None, Some(0.0)) => return a,
             _ => {}
@@ -187,7 +189,7 @@ impl ExprPool {
     /// a · b.
     pub fn mul(&mut self, a: ExprId, b: ExprId) -> ExprId {
         match (self.as_const(a), self.as_const(b)) {
-            (Some(x), Some(y)) => return self.constant(x * y),
+            (Some(x), Some(y)) if (x * y).is_finite() => return self.constant(x * y),
             (Some(0.0), _) | (_, Some(0.0)) => return self.constant(0.0),
             (Some(1.0), None) => return b,
             (None, Some(1.0)) => return a,
@@ -213,6 +215,7 @@ impl ExprPool {
             if let Some(c) = self.as_const(k)
                 && let Node::Mul(x, y) = self[m]
                 && let Some(d) = self.as_const(x)
+                && (c * d).is_finite()
             {
                 let cd = self.constant(c * d);
                 return self.mul(cd, y);

@@ -221,48 +221,53 @@ pub fn draw(
     }
     let e = |e: &dyn std::fmt::Display| e.to_string();
     let size = if with_path { (1200, 480) } else { (720, 480) };
-    let root = SVGBackend::new(path, size).into_drawing_area();
-    root.fill(&WHITE).map_err(|x| e(&x))?;
-    let root = root.titled(title, ("sans-serif", 20)).map_err(|x| e(&x))?;
-    let (left, right) = if with_path { root.split_horizontally(720) } else { (root.clone(), root) };
+    crate::chart::write_svg(path, size, |root| {
+        root.fill(&WHITE).map_err(|x| e(&x))?;
+        let root = root.titled(title, ("sans-serif", 20)).map_err(|x| e(&x))?;
+        let (left, right) =
+            if with_path { root.split_horizontally(720) } else { (root.clone(), root) };
 
-    let (symbol, unit) = quantity.label(target);
-    let names = quantity.components();
-    let t_range = padded(trace.t.iter().copied());
-    let t_range = if trace.t.len() == 1 { t_range } else { trace.t[0]..trace.t[trace.t.len() - 1] };
-    let v_range = padded(trace.values.iter().flatten().copied());
-    let mut chart = ChartBuilder::on(&left)
-        .margin(12)
-        .x_label_area_size(40)
-        .y_label_area_size(70)
-        .build_cartesian_2d(t_range, v_range)
-        .map_err(|x| e(&x))?;
-    chart
-        .configure_mesh()
-        .max_light_lines(0)
-        .axis_desc_style(("sans-serif", 15))
-        .x_desc("t (s)")
-        .y_desc(format!("{symbol} ({unit})"))
-        .x_label_formatter(&|v| tick(*v))
-        .y_label_formatter(&|v| tick(*v))
-        .draw()
-        .map_err(|x| e(&x))?;
-    for (k, name) in names.iter().enumerate() {
-        let color = COLORS[k % COLORS.len()];
-        let points = trace.t.iter().zip(&trace.values).map(|(&t, v)| (t, v[k]));
+        let (symbol, unit) = quantity.label(target);
+        let names = quantity.components();
+        let t_range = padded(trace.t.iter().copied());
+        let t_range =
+            if trace.t.len() == 1 { t_range } else { trace.t[0]..trace.t[trace.t.len() - 1] };
+        let v_range = padded(trace.values.iter().flatten().copied());
+        let mut chart = ChartBuilder::on(&left)
+            .margin(12)
+            .x_label_area_size(40)
+            .y_label_area_size(70)
+            .build_cartesian_2d(t_range, v_range)
+            .map_err(|x| e(&x))?;
         chart
-            .draw_series(LineSeries::new(points, color.stroke_width(2)))
-            .map_err(|x| e(&x))?
-            .label(format!("{symbol}.{name}"))
-            .legend(move |(x, y)| PathElement::new([(x, y), (x + 18, y)], color.stroke_width(2)));
-    }
-    crate::chart::legend(&mut chart)?;
+            .configure_mesh()
+            .max_light_lines(0)
+            .axis_desc_style(("sans-serif", 15))
+            .x_desc("t (s)")
+            .y_desc(format!("{symbol} ({unit})"))
+            .x_label_formatter(&|v| tick(*v))
+            .y_label_formatter(&|v| tick(*v))
+            .draw()
+            .map_err(|x| e(&x))?;
+        for (k, name) in names.iter().enumerate() {
+            let color = COLORS[k % COLORS.len()];
+            let points = trace.t.iter().zip(&trace.values).map(|(&t, v)| (t, v[k]));
+            chart
+                .draw_series(LineSeries::new(points, color.stroke_width(2)))
+                .map_err(|x| e(&x))?
+                .label(format!("{symbol}.{name}"))
+                .legend(move |(x, y)| {
+                    PathElement::new([(x, y), (x + 18, y)], color.stroke_width(2))
+                });
+        }
+        crate::chart::legend(&mut chart)?;
 
-    if with_path {
-        draw_path(&right, &trace.path)?;
-    }
-    left.present().map_err(|x| e(&x))?;
-    Ok(())
+        if with_path {
+            draw_path(&right, &trace.path)?;
+        }
+        left.present().map_err(|x| e(&x))?;
+        Ok(())
+    })
 }
 
 /// The path in a 3D projection, every tick labelled with its axis (metres, as the caption

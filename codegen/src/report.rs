@@ -2,10 +2,13 @@
 //! JSON, CSV and the thesis-style table. Writers stream: each frame is written as soon as it
 //! is computed, so the memory used does not grow with the number of time points.
 
-use std::io::{self, Write};
+use std::borrow::Cow;
+use std::io::{self, BufWriter, Write};
+use std::path::{Path, PathBuf};
 
 use nalgebra::{DVector, Vector3, Vector4};
 
+use crate::diag::printable;
 use crate::generic::kin::{g_matrix, rotation};
 use crate::generic::{Failure, Frame};
 use crate::model::Mechanism;
@@ -232,15 +235,24 @@ impl<W: Write> Writer<W> {
                     serde_json::to_string(removed)?
                 )?;
             }
-            Format::Csv => writeln!(out, "{}", csv_header(mech).join(","))?,
+            Format::Csv => {
+                let header: Vec<Cow<'_, str>> =
+                    csv_header(mech).into_iter().map(|h| csv_field(h.into())).collect();
+                writeln!(out, "{}", header.join(","))?;
+            }
             Format::Table => {
-                writeln!(out, "mechgen: kinematic analysis of {} ({engine} engine)", mech.name)?;
+                writeln!(
+                    out,
+                    "mechgen: kinematic analysis of {} ({} engine)",
+                    printable(&mech.name),
+                    printable(engine)
+                )?;
                 if !removed.is_empty() {
                     writeln!(
                         out,
                         "redundant equations removed (dependent on the others at the initial \
                          configuration): {}",
-                        removed.join(", ")
+                        printable(&removed.join(", "))
                     )?;
                 }
             }
@@ -269,11 +281,32 @@ impl<W: Write> Writer<W> {
     ///
     /// # Errors
     /// Returns I/O errors of `out`.
-    pub fn finish(mut self, failure: Option<&Failure>) -> io::Result<W> {
+    pub fn finish(self, failure: Option<&Failure>) -> io::Result<W> {
+        self.close(failure.map(|f| (failure_json(f), failure_text(f))))
+    }
+
+    /// Ends the output of a run that broke off for a reason other than the analysis (the
+    /// generated solver stopped without a verdict): the error object has `kind`, the
+    /// `message`, no time and no equations, so that JSON output stays one valid document.
+    ///
+    /// # Errors
+    /// Returns I/O errors of `out`.
+    pub fn finish_broken(self, kind: &str, message: &str) -> io::Result<W> {
+        let json = serde_json::json!({
+            "kind": kind,
+            "t": null,
+            "message": message,
+            "constraints": [],
+        });
+        self.close(Some((json, format!("{kind}: {message}"))))
+    }
+
+    /// Writes the end of the output with `error` (its JSON object and its line of text).
+    fn close(mut self, error: Option<(serde_json::Value, String)>) -> io::Result<W> {
         match self.format {
             Format::Json => {
                 let close = if self.steps == 0 { "]" } else { "\n  ]" };
-                let error = failure.map_or(serde_json::Value::Null, failure_json);
+                let error = error.map_or(serde_json::Value::Null, |e| e.0);
                 writeln!(
                     self.out,
                     "{close},\n  \"error\": {}\n}}",
@@ -282,12 +315,12 @@ impl<W: Write> Writer<W> {
             }
             Format::Csv | Format::Table => {
                 if self.format == Format::Csv && !self.removed.is_empty() {
-                    writeln!(self.out, "# removed: {}", self.removed.join(", "))?;
+                    writeln!(self.out, "# removed: {}", printable(&self.removed.join(", ")))?;
                 }
-                if let Some(f) = failure {
+                if let Some((_, text)) = error {
                     // CSV readers skip comment lines; the table is for people.
                     let lead = if self.format == Format::Csv { "# " } else { "" };
-                    writeln!(self.out, "{lead}ANALYSIS STOPPED: {}", failure_text(f))?;
+                    writeln!(self.out, "{lead}ANALYSIS STOPPED: {}", printable(&text))?;
                 }
             }
         }
@@ -307,14 +340,14 @@ pub fn failure_json(f: &Failure) -> serde_json::Value {
     })
 }
 
-/// A one-line account of a numerical failure.
+/// A one-line account of a numerical failure, safe to show on a terminal ([`printable`]).
 #[must_use]
 pub fn failure_text(f: &Failure) -> String {
     let mut s = format!("{} at t = {}: {}", f.kind.as_str(), f.t, f.message);
     if !f.constraints.is_empty() {
         s.push_str(&format!(" (involved: {})", f.constraints.join(", ")));
     }
-    s
+    printable(&s).into_owned()
 }
 
 /// The JSON object of one step (contract §4).
@@ -376,6 +409,24 @@ pub fn csv_header(mech: &Mechanism) -> Vec<String> {
     h
 }
 
+/// A CSV field as RFC 4180 writes it: in double quotes, with its quotes doubled, when it
+/// holds a comma, a quote, a carriage return or a line feed; as it is otherwise.
+///
+/// ```
+/// use codegen::report::csv_field;
+///
+/// assert_eq!(csv_field("crank.r.x".into()), "crank.r.x");
+/// assert_eq!(csv_field("a,\"b\"\nc.r.x".into()), "\"a,\"\"b\"\"\nc.r.x\"");
+/// ```
+#[must_use]
+pub fn csv_field(field: Cow<'_, str>) -> Cow<'_, str> {
+    if field.contains([',', '"', '\r', '\n']) {
+        Cow::Owned(format!("\"{}\"", field.replace('"', "\"\"")))
+    } else {
+        field
+    }
+}
+
 /// Shortest round-trip text of a number.
 fn num(x: f64) -> String {
     format!("{x:?}")
@@ -397,7 +448,10 @@ fn csv_row(s: &StepResult) -> Vec<String> {
 }
 
 fn write_table_step(out: &mut impl Write, s: &StepResult) -> io::Result<()> {
-    let w = s.bodies.iter().map(|b| b.name.len()).chain(s.points.iter().map(|p| p.name.len()));
+    // Names as a terminal shows them safely (the same replacements as diagnostics).
+    let bodies: Vec<Cow<'_, str>> = s.bodies.iter().map(|b| printable(&b.name)).collect();
+    let points: Vec<Cow<'_, str>> = s.points.iter().map(|p| printable(&p.name)).collect();
+    let w = bodies.iter().chain(&points).map(|n| n.chars().count());
     let w = w.chain([5]).max().unwrap_or(5);
     let cells = |vals: &[&[f64]]| {
         vals.iter().flat_map(|v| v.iter()).map(|x| format!(" {x:>13.6}")).collect::<String>()
@@ -411,8 +465,8 @@ fn write_table_step(out: &mut impl Write, s: &StepResult) -> io::Result<()> {
     )?;
     writeln!(out, "POSITION")?;
     writeln!(out, "{:<w$}{}", "BODY", head(&["X", "Y", "Z", "e0", "e1", "e2", "e3"]))?;
-    for b in &s.bodies {
-        writeln!(out, "{:<w$}{}", b.name, cells(&[&b.r, &b.p]))?;
+    for (b, name) in s.bodies.iter().zip(&bodies) {
+        writeln!(out, "{name:<w$}{}", cells(&[&b.r, &b.p]))?;
     }
     writeln!(out, "VELOCITY")?;
     writeln!(
@@ -421,8 +475,8 @@ fn write_table_step(out: &mut impl Write, s: &StepResult) -> io::Result<()> {
         "BODY",
         head(&["dX", "dY", "dZ", "de0", "de1", "de2", "de3", "w-x", "w-y", "w-z"])
     )?;
-    for b in &s.bodies {
-        writeln!(out, "{:<w$}{}", b.name, cells(&[&b.r_dot, &b.p_dot, &b.omega]))?;
+    for (b, name) in s.bodies.iter().zip(&bodies) {
+        writeln!(out, "{name:<w$}{}", cells(&[&b.r_dot, &b.p_dot, &b.omega]))?;
     }
     writeln!(out, "ACCELERATION")?;
     writeln!(
@@ -431,8 +485,8 @@ fn write_table_step(out: &mut impl Write, s: &StepResult) -> io::Result<()> {
         "BODY",
         head(&["ddX", "ddY", "ddZ", "dde0", "dde1", "dde2", "dde3", "dw-x", "dw-y", "dw-z"])
     )?;
-    for b in &s.bodies {
-        writeln!(out, "{:<w$}{}", b.name, cells(&[&b.r_ddot, &b.p_ddot, &b.alpha]))?;
+    for (b, name) in s.bodies.iter().zip(&bodies) {
+        writeln!(out, "{name:<w$}{}", cells(&[&b.r_ddot, &b.p_ddot, &b.alpha]))?;
     }
     if !s.points.is_empty() {
         writeln!(out, "POINTS OF INTEREST")?;
@@ -442,8 +496,8 @@ fn write_table_step(out: &mut impl Write, s: &StepResult) -> io::Result<()> {
             "POINT",
             head(&["X", "Y", "Z", "dX", "dY", "dZ", "ddX", "ddY", "ddZ"])
         )?;
-        for p in &s.points {
-            writeln!(out, "{:<w$}{}", p.name, cells(&[&p.r, &p.v, &p.a]))?;
+        for (p, name) in s.points.iter().zip(&points) {
+            writeln!(out, "{name:<w$}{}", cells(&[&p.r, &p.v, &p.a]))?;
         }
     }
     Ok(())
@@ -494,4 +548,131 @@ pub fn differences(a: &[StepResult], b: &[StepResult]) -> Vec<(&'static str, f64
             (name, diff, if scale > 0.0 { diff / scale } else { diff })
         })
         .collect()
+}
+
+/// An output file that appears only when complete: the text goes to a temporary file in the
+/// same directory, which [`commit`](Self::commit) renames over the target. A run that fails
+/// or is interrupted before leaves the previous file as it was (an interrupted process may
+/// leave its temporary file, named `.NAME.XXXXXX.tmp`, beside it). A target that exists and
+/// is not a regular file (`/dev/stdout`, a named pipe) is written directly: renaming over it
+/// would replace the device instead of writing to it.
+pub struct OutputFile {
+    out: BufWriter<Target>,
+    path: PathBuf,
+}
+
+/// Where an [`OutputFile`] writes.
+enum Target {
+    Temporary(tempfile::NamedTempFile),
+    Direct(std::fs::File),
+}
+
+impl Write for Target {
+    fn write(&mut self, buf: &[u8]) -> io::Result<usize> {
+        match self {
+            Self::Temporary(f) => f.write(buf),
+            Self::Direct(f) => f.write(buf),
+        }
+    }
+
+    fn flush(&mut self) -> io::Result<()> {
+        match self {
+            Self::Temporary(f) => f.flush(),
+            Self::Direct(f) => f.flush(),
+        }
+    }
+}
+
+impl OutputFile {
+    /// Starts writing `path`. The file keeps the permissions it had, or gets the usual ones
+    /// of a new file (0666 less the umask), not the temporary file's private ones.
+    ///
+    /// # Errors
+    /// When the temporary file cannot be created; the message names `path`.
+    pub fn create(path: &Path) -> io::Result<Self> {
+        let previous = std::fs::metadata(path).ok();
+        if previous.as_ref().is_some_and(|m| !m.is_file()) {
+            let file =
+                std::fs::OpenOptions::new().write(true).open(path).map_err(|e| naming(path, e))?;
+            return Ok(Self { out: BufWriter::new(Target::Direct(file)), path: path.to_owned() });
+        }
+        let name = path.file_name().ok_or_else(|| {
+            naming(path, io::Error::new(io::ErrorKind::InvalidInput, "not a file name"))
+        })?;
+        let prefix = format!(".{}.", name.to_string_lossy());
+        let mut builder = tempfile::Builder::new();
+        builder.prefix(&prefix).suffix(".tmp");
+        #[cfg(unix)]
+        let permissions = {
+            use std::os::unix::fs::PermissionsExt;
+            std::fs::Permissions::from_mode(0o666)
+        };
+        #[cfg(unix)]
+        builder.permissions(permissions);
+        let temp = builder.tempfile_in(directory_of(path)).map_err(|e| naming(path, e))?;
+        if let Some(previous) = previous {
+            temp.as_file().set_permissions(previous.permissions()).map_err(|e| naming(path, e))?;
+        }
+        Ok(Self { out: BufWriter::new(Target::Temporary(temp)), path: path.to_owned() })
+    }
+
+    /// The file to be written.
+    #[must_use]
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
+    /// Writes the rest out, syncs it to the disk and renames it over the target.
+    ///
+    /// # Errors
+    /// When writing, syncing or renaming fails (the target is then unchanged); the message
+    /// names the file.
+    pub fn commit(self) -> io::Result<()> {
+        let path = self.path;
+        match self.out.into_inner().map_err(|e| naming(&path, e.into_error()))? {
+            Target::Temporary(temp) => {
+                temp.as_file().sync_all().map_err(|e| naming(&path, e))?;
+                temp.persist(&path).map_err(|e| naming(&path, e.error))?;
+            }
+            Target::Direct(mut file) => file.flush().map_err(|e| naming(&path, e))?,
+        }
+        Ok(())
+    }
+}
+
+impl Write for OutputFile {
+    fn write(&mut self, buf: &[u8]) -> io::Result<usize> {
+        self.out.write(buf)
+    }
+
+    fn flush(&mut self) -> io::Result<()> {
+        self.out.flush()
+    }
+}
+
+/// Writes `contents` to `path` through an [`OutputFile`]: all of it, or nothing.
+///
+/// # Errors
+/// As [`OutputFile::create`] and [`OutputFile::commit`].
+pub fn write_file(path: &Path, contents: &[u8]) -> io::Result<()> {
+    let mut file = OutputFile::create(path)?;
+    file.write_all(contents).map_err(|e| naming(path, e))?;
+    file.commit()
+}
+
+/// The directory a file is written in (`.` for a bare file name).
+#[must_use]
+pub fn directory_of(path: &Path) -> &Path {
+    match path.parent() {
+        Some(dir) if !dir.as_os_str().is_empty() => dir,
+        _ => Path::new("."),
+    }
+}
+
+/// `e` with the file it concerns named, keeping its kind.
+fn naming(path: &Path, e: io::Error) -> io::Error {
+    io::Error::new(
+        e.kind(),
+        format!("cannot write {}: {e}", printable(&path.display().to_string())),
+    )
 }

@@ -212,3 +212,6 @@ pub fn advance<E: Engine>(engine: &mut E, a: &Point, t: f64) -> Result<(Point, u
         Err(stop) => Err(adapter.stop(&stop)),
     }
 }
+
+#[cfg(test)]
+mod tests;

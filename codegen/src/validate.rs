@@ -20,6 +20,10 @@ mod de;
 mod locate;
 pub mod names;
 mod rules;
+
+// The command line bounds its own numbers by these.
+#[cfg(feature = "cli")]
+pub(crate) use rules::{MAX_BODIES, MAX_MAGNITUDE};
 #[cfg(test)]
 mod tests;
 

@@ -127,7 +127,8 @@ pub(super) fn plot(
         writeln!(err, "error: {e}")?;
         return Ok(if failure.is_some() { EXIT_STOPPED } else { EXIT_INVALID });
     }
-    writeln!(out, "wrote {} ({} time points)", output.display(), trace.t.len())?;
+    let shown = crate::diag::printable(&output.display().to_string()).into_owned();
+    writeln!(out, "wrote {shown} ({} time points)", trace.t.len())?;
     if let Some(f) = &failure {
         writeln!(err, "error: {}", report::failure_text(f))?;
         return Ok(EXIT_STOPPED);

@@ -293,3 +293,6 @@ fn the_json_error_object_stays_as_the_contract_says_when_the_text_has_an_excerpt
     assert_eq!(keys, ["column", "entity", "field", "kind", "line", "message"]);
     assert_eq!(v["error"]["field"], "axsi_i");
 }
+
+mod far_time;
+mod output;

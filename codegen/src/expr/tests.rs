@@ -93,3 +93,23 @@ fn children_come_before_parents() {
         assert!(node.children().all(|c| c.index() < k));
     }
 }
+
+#[test]
+fn a_fold_that_would_overflow_stays_an_operation_and_evaluates_to_infinity() {
+    // 1e10 · (1e150)² is the acceleration amplitude of a sinusoid whose members are each
+    // within the description's bound: folding it panicked on the infinite constant.
+    let mut p = ExprPool::new();
+    let (a, w) = (p.constant(1e10), p.constant(1e150));
+    let aw = p.mul(a, w);
+    assert_eq!(p.as_const(aw), Some(1e160), "a finite product still folds");
+    let aww = p.mul(aw, w);
+    assert_eq!(p.as_const(aww), None);
+    let t = p.var(Var::T);
+    let scaled = p.mul(w, t);
+    let twice = p.mul(aw, scaled);
+    let big = p.constant(f64::MAX);
+    let sum = p.add(big, big);
+    assert_eq!(p.as_const(sum), None);
+    let values = p.eval(&[aww, twice, sum], &[], &[], 1.0);
+    assert!(values.iter().all(|v| v.is_infinite()), "{values:?}");
+}

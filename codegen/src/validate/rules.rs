@@ -75,6 +75,13 @@ pub(super) fn check(desc: &MechanismDesc) -> (Option<model::Mechanism>, Vec<Diag
     let constraints: Vec<_> =
         desc.constraints.iter().enumerate().map(|(k, c)| r.constraint(k, c)).collect();
     let drivers: Vec<_> = desc.drivers.iter().enumerate().map(|(k, d)| r.driver(k, d)).collect();
+    if let Some(grid) = &time {
+        for (k, driver) in drivers.iter().enumerate() {
+            if let Some(d) = driver {
+                r.law_bounds(k, d, grid);
+            }
+        }
+    }
     let points: Vec<_> = desc.points.iter().enumerate().map(|(k, p)| r.point(k, p)).collect();
     let equations = r.counting();
     let failed = r.diags.iter().any(|d| d.severity == Severity::Error);
@@ -692,7 +699,7 @@ impl Rules<'_> {
         }
     }
 
-    /// Rule: a screw's lead is finite and non-zero.
+    /// Rule: a screw's lead is finite and at least 1/[`MAX_MAGNITUDE`] in magnitude.
     fn lead(&mut self, at: &At, lead: f64) -> Option<f64> {
         if !self.finite_number(at, "lead", lead) {
             return None;
@@ -703,16 +710,32 @@ impl Rules<'_> {
             self.error(at, "lead", message);
             return None;
         }
+        if lead.abs() < 1.0 / MAX_MAGNITUDE {
+            let message = format!(
+                "`lead` = {lead:e} is below {:e} in magnitude: the screw's 2π/lead overflows",
+                1.0 / MAX_MAGNITUDE
+            );
+            self.error(at, "lead", message);
+            return None;
+        }
         Some(lead)
     }
 
-    /// Rule: a given rod length is finite and > 0.
+    /// Rule: a given rod length is finite and at least 1/[`MAX_MAGNITUDE`].
     fn length(&mut self, at: &At, length: f64) -> bool {
         if !self.finite_number(at, "distance", length) {
             return false;
         }
         if length <= 0.0 {
             self.error(at, "distance", format!("`distance` = {length} must be > 0"));
+            return false;
+        }
+        if length < 1.0 / MAX_MAGNITUDE {
+            let message = format!(
+                "`distance` = {length:e} is below {:e}: the rod's 1/distance overflows",
+                1.0 / MAX_MAGNITUDE
+            );
+            self.error(at, "distance", message);
             return false;
         }
         true
@@ -981,6 +1004,53 @@ impl Rules<'_> {
             }
         };
         finite.then_some(law)
+    }
+
+    /// Rule: a law's value s and its derivatives ṡ and s̈ stay within [`MAX_MAGNITUDE`] over
+    /// the time grid, by their bounds: for the polynomial law |s0| + |v|·T + |a|·T²/2,
+    /// |v| + |a|·T and |a|; for the harmonic one |c| + |A|, |A|·ω and |A|·ω², where T is the
+    /// largest |t| of the grid. Every member is within the bound on its own, but their
+    /// products are not (A = 1e10, ω = 1e150: A·ω² = 1e310 overflows), and both engines
+    /// evaluate these products.
+    fn law_bounds(&mut self, k: usize, d: &model::Driver, grid: &TimeGrid) {
+        let at = At::item("driver", &d.name, "drivers", k);
+        let last = grid.at(grid.count.saturating_sub(1));
+        let t = grid.start.abs().max(last.abs());
+        let bounds = match d.law {
+            Law::Polynomial { start, velocity, acceleration } => {
+                let (v, a) = (velocity.abs(), acceleration.abs());
+                [
+                    (
+                        "s",
+                        start.abs() + v * t + 0.5 * a * t * t,
+                        "|start| + |velocity|·|t| + |acceleration|·t²/2",
+                    ),
+                    ("ṡ", v + a * t, "|velocity| + |acceleration|·|t|"),
+                    ("s̈", a, "|acceleration|"),
+                ]
+            }
+            Law::Harmonic { offset, amplitude, frequency, .. } => {
+                let (a, w) = (amplitude.abs(), frequency.abs());
+                [
+                    ("s", offset.abs() + a, "|offset| + |amplitude|"),
+                    ("ṡ", a * w, "|amplitude|·|frequency|"),
+                    ("s̈", a * w * w, "|amplitude|·frequency²"),
+                ]
+            }
+        };
+        let beyond = |v: f64| v.is_nan() || v > MAX_MAGNITUDE;
+        if let Some((what, value, how)) = bounds.into_iter().find(|b| beyond(b.1)) {
+            let value = if value.is_finite() {
+                format!("{value:?}")
+            } else {
+                format!("more than {:e}", f64::MAX)
+            };
+            let message = format!(
+                "{what} reaches {value} over the time grid ({how}, with |t| up to {t:?}), \
+                 beyond ±{MAX_MAGNITUDE:e}: the equations would overflow; use smaller values"
+            );
+            self.error(&at, "law", message);
+        }
     }
 
     /// Rules for a point of interest: a known body and finite local coordinates.
