@@ -520,6 +520,13 @@ pub fn advance<R: Real, S: Stepper<R>>(
                 if target == t {
                     return Ok((b, iterations));
                 }
+                // An engine that rounds t (a single-precision solver) can accept a sub-step
+                // that leaves t where it was: no progress, so the step stalls here.
+                if b.t == current.t
+                    && let Some(r) = last
+                {
+                    return Err(classify(start, current, t, r, Some(h)));
+                }
                 current = b;
                 streak += 1;
                 if streak == 2 && level > 0 {

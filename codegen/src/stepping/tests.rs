@@ -78,7 +78,7 @@ fn sub_steps_below_the_spacing_of_t_stop_instead_of_cycling() {
         let (t, message, last) = run(&mut e, step);
         assert_eq!(t, origin + 4.0 * step, "stops at the grid time past the wall");
         assert_eq!(last, origin + 3.0 * step, "every grid time before the wall is reached");
-        assert!(message.contains("no longer change t"), "{message}");
+        assert!(message.contains("no longer change"), "{message}");
         assert!(e.attempts < 1000, "{} attempts at t = {origin}", e.attempts);
     }
 }
@@ -90,6 +90,6 @@ fn an_engine_that_rounds_t_to_single_precision_cannot_stall_the_step_control() {
     let origin = 1e5;
     let mut e = Slider { origin, wall: origin + 0.1, coarse: true, attempts: 0 };
     let (_, message, _) = run(&mut e, 0.03);
-    assert!(message.contains("no longer change t"), "{message}");
+    assert!(message.contains("no longer change"), "{message}");
     assert!(e.attempts < 1000, "{} attempts", e.attempts);
 }
