@@ -16,6 +16,8 @@ mod random_mechanisms;
 #[cfg(test)]
 mod rssr_reference;
 #[cfg(test)]
+mod scale_invariance;
+#[cfg(test)]
 mod seed_examples;
 #[cfg(test)]
 mod single_precision;
