@@ -31,7 +31,7 @@ fn times(value: &mut Value, s: f64) {
 /// scaled with `s` outright: it also bounds the dimensionless rows, which do not scale).
 pub(crate) fn scaled(text: &str, s: f64) -> String {
     let mut doc: Table = text.parse().unwrap();
-    let tables = |doc: &mut Table, key: &str| -> Vec<Table> {
+    let tables = |doc: &Table, key: &str| -> Vec<Table> {
         doc.get(key)
             .and_then(Value::as_array)
             .map_or_else(Vec::new, |a| a.iter().map(|v| v.as_table().unwrap().clone()).collect())
@@ -40,18 +40,18 @@ pub(crate) fn scaled(text: &str, s: f64) -> String {
         matches!(t.get("coordinate").and_then(Value::as_str), Some("x" | "y" | "z"))
             || t.get("motion").and_then(Value::as_str) == Some("translation")
     };
-    let mut put = |doc: &mut Table, key: &str, items: Vec<Table>| {
+    let put = |doc: &mut Table, key: &str, items: Vec<Table>| {
         if !items.is_empty() {
             doc.insert(key.into(), Value::Array(items.into_iter().map(Value::Table).collect()));
         }
     };
-    let mut bodies = tables(&mut doc, "bodies");
+    let mut bodies = tables(&doc, "bodies");
     for b in &mut bodies {
         if let Some(r) = b.get_mut("r") {
             times(r, s);
         }
     }
-    let mut joints = tables(&mut doc, "joints");
+    let mut joints = tables(&doc, "joints");
     for j in &mut joints {
         for key in ["point_i", "point_j", "lead"] {
             if let Some(v) = j.get_mut(key) {
@@ -59,13 +59,13 @@ pub(crate) fn scaled(text: &str, s: f64) -> String {
             }
         }
     }
-    let mut constraints = tables(&mut doc, "constraints");
+    let mut constraints = tables(&doc, "constraints");
     for c in &mut constraints {
         if translational(c) {
             times(c.get_mut("value").unwrap(), s);
         }
     }
-    let mut drivers = tables(&mut doc, "drivers");
+    let mut drivers = tables(&doc, "drivers");
     for d in &mut drivers {
         if translational(d) {
             let law = d.get_mut("law").unwrap().as_table_mut().unwrap();
@@ -77,7 +77,7 @@ pub(crate) fn scaled(text: &str, s: f64) -> String {
             }
         }
     }
-    let mut points = tables(&mut doc, "points");
+    let mut points = tables(&doc, "points");
     for p in &mut points {
         times(p.get_mut("local").unwrap(), s);
     }
