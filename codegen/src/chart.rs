@@ -3,9 +3,12 @@
 //!
 //! The reference is the generic engine at a Newton tolerance of 1e-13 (tight enough that its
 //! own error is at round-off level for the shipped mechanisms). The error of a run is the
-//! largest difference from the reference over all time points, taken separately for
+//! largest difference from the reference over the compared time points, taken separately for
 //! positions, velocities and accelerations, each relative to the largest magnitude of that
-//! quantity in the reference, and then the largest of the three.
+//! quantity in the reference there, and then the largest of the three. The compared points
+//! are every point of a grid of at most [`ERROR_SAMPLES`] points, else that many evenly spaced
+//! ones (the first and last among them): only they are kept from the reference, so memory does
+//! not grow with the grid, and runs are compared as their frames arrive.
 
 use std::path::Path;
 
@@ -41,33 +44,84 @@ pub struct Mark {
     pub error: f64,
 }
 
-/// Largest relative difference of `run` from `reference` (see the module docs).
-fn error(reference: &[Frame], run: &[Frame]) -> f64 {
-    let parts: [fn(&Frame) -> &nalgebra::DVector<f64>; 3] = [|f| &f.q, |f| &f.qd, |f| &f.qdd];
-    parts
-        .iter()
-        .map(|get| {
-            let scale = reference.iter().map(|f| get(f).amax()).fold(f64::MIN_POSITIVE, f64::max);
-            let diff = reference
-                .iter()
-                .zip(run)
-                .map(|(a, b)| (get(a) - get(b)).amax())
-                .fold(0.0, f64::max);
-            diff / scale
-        })
-        .fold(0.0, f64::max)
+/// The most time points a run is compared with the reference at (see the module docs): every
+/// shipped example and benchmark has fewer.
+pub const ERROR_SAMPLES: usize = 4096;
+
+/// q, q̇ and q̈ of a frame.
+const PARTS: [fn(&Frame) -> &nalgebra::DVector<f64>; 3] = [|f| &f.q, |f| &f.qd, |f| &f.qdd];
+
+/// A run's difference from the reference, accumulated frame by frame (see the module docs).
+struct Error<'r> {
+    /// The reference's frames at the compared time points, by grid index.
+    reference: &'r [Frame],
+    /// The largest difference so far in q, q̇ and q̈.
+    diff: [f64; 3],
+    /// Frames seen.
+    frames: usize,
 }
 
-/// Frames of one generic run, `None` if it fails.
-fn generic_frames(eq: &Equations<'_>, analysis: &Analysis<'_, '_>) -> Option<Vec<Frame>> {
+impl<'r> Error<'r> {
+    fn new(reference: &'r [Frame]) -> Self {
+        Error { reference, diff: [0.0; 3], frames: 0 }
+    }
+
+    fn add(&mut self, f: &Frame) {
+        self.frames += 1;
+        if let Ok(k) = self.reference.binary_search_by_key(&f.index, |r| r.index) {
+            for (d, get) in self.diff.iter_mut().zip(PARTS) {
+                *d = d.max((get(&self.reference[k]) - get(f)).amax());
+            }
+        }
+    }
+
+    /// The largest relative difference, `None` unless the run gave every time point.
+    fn finish(&self, count: usize) -> Option<f64> {
+        (self.frames == count).then(|| {
+            self.diff
+                .iter()
+                .zip(PARTS)
+                .map(|(d, get)| {
+                    let scale = self
+                        .reference
+                        .iter()
+                        .map(|f| get(f).amax())
+                        .fold(f64::MIN_POSITIVE, f64::max);
+                    d / scale
+                })
+                .fold(0.0, f64::max)
+        })
+    }
+}
+
+/// The frames of one generic run at the compared time points, `None` if it fails.
+fn reference_frames(eq: &Equations<'_>, analysis: &Analysis<'_, '_>) -> Option<Vec<Frame>> {
+    let grid = eq.mechanism().time;
     let mut frames = Vec::new();
+    let mut count = 0;
     let r = analysis
         .run(|f| {
-            frames.push(f.clone());
+            count += 1;
+            if grid.sampled(f.index, ERROR_SAMPLES) {
+                frames.push(f.clone());
+            }
             Ok::<(), ()>(())
         })
         .ok()?;
-    (r.failure.is_none() && frames.len() == eq.mechanism().time.count).then_some(frames)
+    (r.failure.is_none() && count == grid.count).then_some(frames)
+}
+
+/// The error of one generic run against `reference`, `None` if it fails.
+fn generic_error(analysis: &Analysis<'_, '_>, reference: &[Frame], count: usize) -> Option<f64> {
+    let mut error = Error::new(reference);
+    let r = analysis
+        .run(|f| {
+            error.add(f);
+            Ok::<(), ()>(())
+        })
+        .ok()?;
+    r.failure.is_none().then_some(())?;
+    error.finish(count)
 }
 
 /// Measures every mark of `mech`: the generic engine with and without its predictor, and
@@ -125,8 +179,9 @@ pub fn measure_with(
 ) -> Result<(Vec<Mark>, Vec<String>), String> {
     let eq = Equations::new(mech);
     let prep = eq.prepare();
+    let count = mech.time.count;
     let reference =
-        generic_frames(&eq, &Analysis::new(&eq, &prep).with_tolerance(REFERENCE_TOLERANCE))
+        reference_frames(&eq, &Analysis::new(&eq, &prep).with_tolerance(REFERENCE_TOLERANCE))
             .ok_or("the reference run (generic, tolerance 1e-13) failed")?;
     let mut marks = Vec::new();
     let mut skipped = Vec::new();
@@ -136,13 +191,13 @@ pub fn measure_with(
         for &tolerance in &TOLERANCES {
             let analysis =
                 Analysis::new(&eq, &prep).with_tolerance(tolerance).with_predictor(predictor);
-            match (generic_frames(&eq, &analysis), analysis.time(repeats)) {
-                (Some(frames), Some((_, median, iterations))) => marks.push(Mark {
+            match (generic_error(&analysis, &reference, count), analysis.time(repeats)) {
+                (Some(error), Some((_, median, iterations))) => marks.push(Mark {
                     series: series.clone(),
                     tolerance,
                     ns_per_step: median,
                     iterations,
-                    error: error(&reference, &frames),
+                    error,
                 }),
                 _ => skipped.push(format!("{series} at tolerance {tolerance:e}")),
             }
@@ -159,23 +214,21 @@ pub fn measure_with(
         };
         for &(name, settings) in series {
             for &tolerance in tolerances {
-                let mut frames = Vec::new();
+                let mut error = Error::new(&reference);
                 let namer = Analysis::new(&eq, &prep);
                 let run = crate::engine::run_with(&built, &namer, Some(tolerance), settings, |f| {
-                    frames.push(f.clone());
+                    error.add(f);
                     Ok(())
                 });
                 let timing = crate::engine::bench_with(&built, tolerance, repeats, settings);
-                match (run, timing) {
-                    (Ok(r), Ok((_, median, iterations)))
-                        if r.failure.is_none() && frames.len() == reference.len() =>
-                    {
+                match (run, timing, error.finish(count)) {
+                    (Ok(r), Ok((_, median, iterations)), Some(error)) if r.failure.is_none() => {
                         marks.push(Mark {
                             series: name.to_owned(),
                             tolerance,
                             ns_per_step: median,
                             iterations,
-                            error: error(&reference, &frames),
+                            error,
                         });
                     }
                     _ => skipped.push(format!("{name} at tolerance {tolerance:e}")),
@@ -314,8 +367,22 @@ pub struct Conditioning {
     pub generated_iterations: Option<u32>,
 }
 
+/// Frames of one generic run at every time point, `None` if it fails.
+fn all_frames(eq: &Equations<'_>, analysis: &Analysis<'_, '_>) -> Option<Vec<Frame>> {
+    let mut frames = Vec::new();
+    let r = analysis
+        .run(|f| {
+            frames.push(f.clone());
+            Ok::<(), ()>(())
+        })
+        .ok()?;
+    (r.failure.is_none() && frames.len() == eq.mechanism().time.count).then_some(frames)
+}
+
 /// Runs both engines over the grid of `mech` (a description without redundant equations)
 /// and returns, per time point, the condition of Φ_q and the Newton iterations each took.
+/// Its result, and the frames it is computed from, grow with the grid: it draws every point
+/// of a chart (`examples/conditioning_chart`) and is meant for grids of hundreds of points.
 ///
 /// # Errors
 /// When Φ_q is not square (redundant equations) or an engine stops.
@@ -326,7 +393,7 @@ pub fn conditioning(mech: &Mechanism) -> Result<Vec<Conditioning>, String> {
     }
     let prep = eq.prepare();
     let analysis = Analysis::new(&eq, &prep);
-    let frames = generic_frames(&eq, &analysis).ok_or("the generic analysis stopped")?;
+    let frames = all_frames(&eq, &analysis).ok_or("the generic analysis stopped")?;
     let generated: Option<Vec<u32>> = match crate::engine::build(mech) {
         Ok(built) => {
             let mut its = Vec::new();

@@ -987,33 +987,53 @@ fn compare(
     if let Some(d) = undriven(&eq, &prep) {
         return Ok(report_invalid(&[d], json, out, err));
     }
-    let layout = report::layout(mech);
-    let mut generic = Vec::new();
-    let bar = term::bar(mech.time.count as u64, "generic");
-    let r = Analysis::new(&eq, &prep).run(|f| {
-        bar.inc(1);
-        generic.push(report::step_result(mech, &layout, f));
-        Ok::<(), ()>(())
-    });
-    bar.finish_and_clear();
-    let Ok(r) = r else { unreachable!("the sink never fails") };
-    if let Some(f) = &r.failure {
-        writeln!(err, "error: generic engine: {}", report::failure_text(f))?;
-        return Ok(EXIT_STOPPED);
-    }
     let built = match build_generated(mech, crate::emit::Scalar::F64, err)? {
         Ok(b) => b,
         Err(e) => return engine_unavailable(&e, mech, json, out, err),
     };
-    let mut generated = Vec::new();
-    let bar = term::bar(mech.time.count as u64, "generated");
-    let r = crate::engine::run(&built, &Analysis::new(&eq, &prep), None, |f| {
-        bar.inc(1);
-        generated.push(report::step_result(mech, &layout, f));
-        Ok(())
+    // Both engines run at once, the generic one on a thread of its own sending its steps
+    // through a short queue, and the differences are taken as the pairs arrive: neither run
+    // is kept, so memory does not grow with the grid.
+    let layout = report::layout(mech);
+    let mut diffs = report::Differences::default();
+    let bar = term::bar(mech.time.count as u64, "both engines");
+    let (generic, generated) = std::thread::scope(|scope| {
+        let (send, receive) = std::sync::mpsc::sync_channel(64);
+        let (eq, prep, layout) = (&eq, &prep, &layout);
+        let generic = scope.spawn(move || {
+            let mut steps = 0usize;
+            // A closed queue (the generated run stopped) ends the generic run too.
+            let r = Analysis::new(eq, prep).run(|f| {
+                steps += 1;
+                send.send(report::step_result(mech, layout, f)).map_err(|_| ())
+            });
+            (r.ok(), steps)
+        });
+        let generated = crate::engine::run(&built, &Analysis::new(eq, prep), None, |f| {
+            bar.inc(1);
+            if let Ok(a) = receive.recv() {
+                diffs.add(&a, &report::step_result(mech, layout, f));
+            }
+            Ok(())
+        });
+        // Let a generic run still going finish without anyone reading.
+        drop(receive);
+        let generic = generic.join().unwrap_or_else(|e| std::panic::resume_unwind(e));
+        (generic, generated)
     });
     bar.finish_and_clear();
-    match r {
+    let steps = match generic {
+        (Some(r), steps) => {
+            if let Some(f) = &r.failure {
+                writeln!(err, "error: generic engine: {}", report::failure_text(f))?;
+                return Ok(EXIT_STOPPED);
+            }
+            steps
+        }
+        // The generated run stopped first; its error is reported below.
+        (None, steps) => steps,
+    };
+    match generated {
         Ok(r) if r.failure.is_none() => {}
         Ok(r) => {
             let f = r.failure.expect("checked");
@@ -1025,7 +1045,7 @@ fn compare(
             return Ok(EXIT_STOPPED);
         }
     }
-    let diffs = report::differences(&generic, &generated);
+    let diffs = diffs.finish();
     let repeats = 10;
     let spinner = term::spinner("timing both engines");
     let tg =
@@ -1035,7 +1055,7 @@ fn compare(
     if json {
         let v = serde_json::json!({
             "mechanism": mech.name,
-            "steps": generic.len(),
+            "steps": steps,
             "max_abs_diff": diffs.iter().map(|d| (d.0.to_owned(), serde_json::json!(d.1))).collect::<serde_json::Map<_, _>>(),
             "max_rel_diff": diffs.iter().map(|d| (d.0.to_owned(), serde_json::json!(d.2))).collect::<serde_json::Map<_, _>>(),
             "ns_per_step": { "generic": tg, "generated": td },
@@ -1043,12 +1063,7 @@ fn compare(
         });
         writeln!(out, "{}", serde_json::to_string_pretty(&v)?)?;
     } else {
-        writeln!(
-            out,
-            "{}: {} time points, generic vs generated",
-            printable(&mech.name),
-            generic.len()
-        )?;
+        writeln!(out, "{}: {} time points, generic vs generated", printable(&mech.name), steps)?;
         writeln!(out, "{:>8} {:>14} {:>14}", "quantity", "max abs diff", "max rel diff")?;
         for (name, abs, rel) in &diffs {
             writeln!(out, "{name:>8} {abs:>14.3e} {rel:>14.3e}")?;

@@ -760,7 +760,7 @@ pub fn module_in(mech: &Mechanism, sys: &Symbolic, source: &str, scalar: Scalar)
     items.extend(emit_function(pool, n, &sig, &doc, Vec::new(), &varying));
 
     // The structured LU: static pivot orders over the description's motion.
-    let orders = if n == 0 { Vec::new() } else { lu::plan(sys, &lu::motion(mech, sys)) };
+    let orders = if n == 0 { Vec::new() } else { lu::plan_motion(mech, sys) };
     let structure = lu::structure(sys);
     let constant = lu::constants(sys);
     for (k, order) in orders.iter().enumerate() {

@@ -57,6 +57,23 @@ impl TimeGrid {
     pub fn at(&self, k: usize) -> f64 {
         self.start + k as f64 * self.step
     }
+
+    /// Whether point k is among `bound` (≥ 2) evenly spaced points of the grid: every point
+    /// when there are at most `bound`, else the points round(j (count − 1) / (bound − 1)) for
+    /// j = 0, …, bound − 1, the first and the last among them. Lets a pass over the grid keep
+    /// a bounded sample of it without allocating.
+    #[must_use]
+    pub fn sampled(&self, k: usize, bound: usize) -> bool {
+        if self.count <= bound {
+            return true;
+        }
+        // Integer arithmetic: count ≤ 10⁷ and bound ≤ count, so the products fit in u128
+        // with room to spare, and rounding is exact.
+        let (last, gaps) = ((self.count - 1) as u128, (bound.max(2) - 1) as u128);
+        let point = |j: u128| (2 * j * last + gaps) / (2 * gaps);
+        let j = k as u128 * gaps / last;
+        (j.saturating_sub(1)..=(j + 1).min(gaps)).any(|j| point(j) == k as u128)
+    }
 }
 
 /// Newton controls.

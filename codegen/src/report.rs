@@ -503,51 +503,78 @@ fn write_table_step(out: &mut impl Write, s: &StepResult) -> io::Result<()> {
     Ok(())
 }
 
-/// For each output quantity of the contract's `compare` (`r`, `p`, `r_dot`, …, `point_a`):
-/// the largest absolute difference between two runs, and that difference relative to the
-/// largest magnitude of the quantity over the first run.
+/// The quantities [`Differences`] compares, in output order.
+const DIFFERENCE_NAMES: [&str; 11] = [
+    "r", "p", "r_dot", "p_dot", "omega", "r_ddot", "p_ddot", "alpha", "point_r", "point_v",
+    "point_a",
+];
+
+/// The largest differences between two runs, accumulated step by step so that neither run is
+/// kept: per quantity, the largest absolute difference and the largest magnitude in the first
+/// run.
+#[derive(Clone, Debug, Default)]
+pub struct Differences {
+    diff: [f64; 11],
+    scale: [f64; 11],
+}
+
+impl Differences {
+    /// Adds the step `a` of the first run and the step `b` of the second at the same time.
+    pub fn add(&mut self, a: &StepResult, b: &StepResult) {
+        let values = |s: &StepResult, k: usize| -> Vec<f64> {
+            if k < 8 {
+                s.bodies
+                    .iter()
+                    .flat_map(|b| {
+                        let v: &[f64] = [
+                            &b.r[..],
+                            &b.p,
+                            &b.r_dot,
+                            &b.p_dot,
+                            &b.omega,
+                            &b.r_ddot,
+                            &b.p_ddot,
+                            &b.alpha,
+                        ][k];
+                        v.to_vec()
+                    })
+                    .collect()
+            } else {
+                s.points.iter().flat_map(|p| [p.r, p.v, p.a][k - 8]).collect()
+            }
+        };
+        for k in 0..DIFFERENCE_NAMES.len() {
+            for (u, v) in values(a, k).into_iter().zip(values(b, k)) {
+                self.diff[k] = self.diff[k].max((u - v).abs());
+                self.scale[k] = self.scale[k].max(u.abs());
+            }
+        }
+    }
+
+    /// Per quantity, the largest absolute difference and that relative to the largest
+    /// magnitude in the first run (absolute when that is zero).
+    #[must_use]
+    pub fn finish(&self) -> Vec<(&'static str, f64, f64)> {
+        DIFFERENCE_NAMES
+            .iter()
+            .enumerate()
+            .map(|(k, &name)| {
+                let (diff, scale) = (self.diff[k], self.scale[k]);
+                (name, diff, if scale > 0.0 { diff / scale } else { diff })
+            })
+            .collect()
+    }
+}
+
+/// Largest absolute and relative differences between two runs ([`Differences`] over their
+/// steps in pairs).
 #[must_use]
 pub fn differences(a: &[StepResult], b: &[StepResult]) -> Vec<(&'static str, f64, f64)> {
-    const NAMES: [&str; 11] = [
-        "r", "p", "r_dot", "p_dot", "omega", "r_ddot", "p_ddot", "alpha", "point_r", "point_v",
-        "point_a",
-    ];
-    let values = |s: &StepResult, k: usize| -> Vec<f64> {
-        if k < 8 {
-            s.bodies
-                .iter()
-                .flat_map(|b| {
-                    let v: &[f64] = [
-                        &b.r[..],
-                        &b.p,
-                        &b.r_dot,
-                        &b.p_dot,
-                        &b.omega,
-                        &b.r_ddot,
-                        &b.p_ddot,
-                        &b.alpha,
-                    ][k];
-                    v.to_vec()
-                })
-                .collect()
-        } else {
-            s.points.iter().flat_map(|p| [p.r, p.v, p.a][k - 8]).collect()
-        }
-    };
-    NAMES
-        .iter()
-        .enumerate()
-        .map(|(k, &name)| {
-            let (mut diff, mut scale) = (0.0_f64, 0.0_f64);
-            for (x, y) in a.iter().zip(b) {
-                for (u, v) in values(x, k).into_iter().zip(values(y, k)) {
-                    diff = diff.max((u - v).abs());
-                    scale = scale.max(u.abs());
-                }
-            }
-            (name, diff, if scale > 0.0 { diff / scale } else { diff })
-        })
-        .collect()
+    let mut d = Differences::default();
+    for (x, y) in a.iter().zip(b) {
+        d.add(x, y);
+    }
+    d.finish()
 }
 
 /// An output file that appears only when complete: the text goes to a temporary file in the

@@ -528,7 +528,22 @@ impl Symbolic {
             let prep = eq.prepare();
             self.reduce(eq, &prep.q).as_slice().to_vec()
         });
-        independent(&at(&q), self.unknowns.len(), normalisation)
+        independent(&self.balanced(at(&q), mech), self.unknowns.len(), normalisation)
+    }
+
+    /// Sparse rows of Φ_q with the translational columns times the mechanism's characteristic
+    /// length, so that the redundancy test, relative to each row, does not depend on the unit
+    /// of length (`generic::scaling`).
+    fn balanced(&self, mut rows: SparseRows, mech: &Mechanism) -> SparseRows {
+        let l = crate::generic::scaling::length_scale(mech);
+        for row in &mut rows {
+            for (c, x) in row.iter_mut() {
+                if self.unknowns[*c].1 < 3 {
+                    *x *= l;
+                }
+            }
+        }
+        rows
     }
 
     /// Newton–Raphson at the first time point on the rows independent at the current
@@ -553,7 +568,8 @@ impl Symbolic {
                 return Some(q);
             }
             let jac = at(&q);
-            let rows: Vec<usize> = independent(&jac, n, &[]).into_iter().collect();
+            let rows: Vec<usize> =
+                independent(&self.balanced(jac.clone(), mech), n, &[]).into_iter().collect();
             if rows.len() != n || jac_rows.len() < n {
                 return None;
             }

@@ -20,6 +20,8 @@ mod rssr_reference;
 #[cfg(test)]
 mod runtime_step;
 #[cfg(test)]
+mod scale_invariance;
+#[cfg(test)]
 mod seed_examples;
 #[cfg(test)]
 mod single_precision;

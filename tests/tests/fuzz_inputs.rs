@@ -7,51 +7,13 @@
 //! The budget is 256 cases per family (under a second in all); a longer campaign runs with
 //! `PROPTEST_CASES=100000 cargo test -p tests --test fuzz_inputs` (README, Limits).
 
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::sync::Mutex;
-use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::{Duration, Instant};
 
 use codegen::validate::{Format, load_str};
+use counting::peak_of;
 use proptest::prelude::*;
 
-/// The system allocator, counting the bytes live and their peak.
-struct Counting;
-
-static LIVE: AtomicUsize = AtomicUsize::new(0);
-static PEAK: AtomicUsize = AtomicUsize::new(0);
-
-// SAFETY: every call is forwarded to `System` unchanged; the counters only observe sizes.
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        let live = LIVE.fetch_add(layout.size(), Ordering::Relaxed) + layout.size();
-        PEAK.fetch_max(live, Ordering::Relaxed);
-        // SAFETY: the caller's contract is passed on.
-        unsafe { System.alloc(layout) }
-    }
-    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-        LIVE.fetch_sub(layout.size(), Ordering::Relaxed);
-        // SAFETY: the caller's contract is passed on.
-        unsafe { System.dealloc(ptr, layout) }
-    }
-    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
-        if new_size > layout.size() {
-            let live = LIVE.fetch_add(new_size - layout.size(), Ordering::Relaxed) + new_size
-                - layout.size();
-            PEAK.fetch_max(live, Ordering::Relaxed);
-        } else {
-            LIVE.fetch_sub(layout.size() - new_size, Ordering::Relaxed);
-        }
-        // SAFETY: the caller's contract is passed on.
-        unsafe { System.realloc(ptr, layout, new_size) }
-    }
-}
-
-#[global_allocator]
-static ALLOCATOR: Counting = Counting;
-
-/// One measurement at a time: the counters are global.
-static MEASURE: Mutex<()> = Mutex::new(());
+mod counting;
 
 /// The most a loader may take for one input: well above the linear passes it makes (a parse
 /// tree, a located tree, the description, the model, the diagnostics), far below what an
@@ -65,13 +27,12 @@ const TIME_BOUND: Duration = Duration::from_secs(2);
 
 /// Runs `f` on `input`, checking time and extra peak memory, and returns its result.
 fn bounded<T>(what: &str, input: &str, f: impl FnOnce() -> T) -> T {
-    let _guard = MEASURE.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
-    let base = LIVE.load(Ordering::Relaxed);
-    PEAK.store(base, Ordering::Relaxed);
-    let started = Instant::now();
-    let result = f();
-    let elapsed = started.elapsed();
-    let extra = PEAK.load(Ordering::Relaxed).saturating_sub(base);
+    // Timed inside the measurement, so that waiting for another test's measurement is not.
+    let ((result, elapsed), extra) = peak_of(|| {
+        let started = Instant::now();
+        let result = f();
+        (result, started.elapsed())
+    });
     assert!(elapsed < TIME_BOUND, "{what} took {elapsed:?} on {} bytes", input.len());
     assert!(
         extra <= memory_bound(input.len()),

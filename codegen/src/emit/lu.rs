@@ -11,8 +11,9 @@
 //!
 //! A static order is only safe where its pivots stay large, and over a motion an entry that is
 //! a fine pivot at one crank angle passes through zero at another. The generator therefore
-//! walks the configurations the generic engine computes over the description's time grid,
-//! and whenever no order chosen so far passes the run-time guard with a margin there
+//! walks the description's motion over its time grid (at most [`MAX_SAMPLES`] configurations
+//! of it, evenly spaced, so that memory and planning time do not grow with the grid), and
+//! whenever no order chosen so far passes the run-time guard with a margin there
 //! ([`COVER_THRESHOLD`]), it chooses a new one at that configuration, up to [`MAX_ORDERS`].
 //! At run time the guard decides (see `runtime::lu::MAX_MULTIPLIER`), and a factorisation
 //! that no order passes falls back to dense LU with partial pivoting.
@@ -356,56 +357,107 @@ impl Sampler<'_> {
     }
 }
 
-/// The configurations (t, reduced q) of the description's motion, solved on the reduced
-/// system (Newton–Raphson from a Taylor predictor, sparse LU with the static orders' own
-/// rules), up to the first point where Newton fails; the initial estimates when it fails at
-/// once.
-#[must_use]
-pub fn motion(mech: &Mechanism, sys: &Symbolic) -> Vec<(f64, Vec<f64>)> {
+/// The most configurations of the motion that pivot planning looks at: evenly spaced grid
+/// points, the first and the last always among them (see [`TimeGrid::sampled`]). Every shipped
+/// example and benchmark has fewer points, so all of theirs are looked at; a grid of 10⁷ points
+/// is planned from one point in about 2,400, which is still about a thousand samples per
+/// revolution of a crank turning a few times, and keeps planning's memory and time independent
+/// of the grid's length.
+///
+/// [`TimeGrid::sampled`]: crate::model::TimeGrid::sampled
+pub const MAX_SAMPLES: usize = 4096;
+
+/// Walks the description's motion, solved on the reduced system at every point of the time
+/// grid (Newton–Raphson from a Taylor predictor, sparse LU with the static orders' own rules,
+/// so that it stays on the assembly branch the grid's spacing resolves), and calls
+/// `visit(t, q)` with the reduced q at the grid points [`MAX_SAMPLES`] selects, up to the first
+/// point where Newton fails; then with the last configuration solved if it was not visited, or
+/// with the initial estimates when Newton fails at once. Stops early when `visit` returns false.
+///
+/// Only the last configuration is kept, so memory does not grow with the grid.
+pub fn motion(mech: &Mechanism, sys: &Symbolic, mut visit: impl FnMut(f64, &[f64]) -> bool) {
     let q0 = sys.initial_estimate(mech);
     let mut sampler = Sampler { sys, structure: structure(sys), orders: Vec::new() };
-    let mut out = Vec::new();
-    let mut prev: Option<(f64, [Vec<f64>; 3])> = None;
+    // The last configuration solved, and whether it has been visited.
+    let mut prev: Option<(f64, [Vec<f64>; 3], bool)> = None;
     let (tolerance, max_iterations) = (mech.solver.tolerance, mech.solver.max_iterations);
     for k in 0..mech.time.count {
         let t = mech.time.at(k);
         let guess = match &prev {
             // Taylor predictor q + h q̇ + h²/2 q̈ from the previous time point.
-            Some((t0, [q, qd, qdd])) => {
+            Some((t0, [q, qd, qdd], _)) => {
                 let h = t - t0;
                 (0..q.len()).map(|i| q[i] + qd[i] * h + qdd[i] * (0.5 * h * h)).collect()
             }
             None => q0.clone(),
         };
         let Some(state) = sampler.step(guess, t, tolerance, max_iterations) else { break };
-        out.push((t, state[0].clone()));
-        prev = Some((t, state));
+        let sampled = mech.time.sampled(k, MAX_SAMPLES);
+        if sampled && !visit(t, &state[0]) {
+            return;
+        }
+        prev = Some((t, state, sampled));
     }
-    if out.is_empty() {
-        out.push((mech.time.start, q0));
+    match prev {
+        Some((t, [q, ..], false)) => {
+            visit(t, &q);
+        }
+        Some(_) => {}
+        None => {
+            visit(mech.time.start, &q0);
+        }
     }
-    out
 }
 
-/// The static orders for the configurations `samples`: the first chosen at the first sample,
-/// each further one at the first sample the orders so far do not cover.
-#[must_use]
-pub fn plan(sys: &Symbolic, samples: &[(f64, Vec<f64>)]) -> Vec<Order> {
-    let s = structure(sys);
-    let mut orders: Vec<Order> = Vec::new();
-    for (t, q) in samples {
-        if orders.len() == MAX_ORDERS {
-            break;
+/// Static orders chosen along a sequence of configurations: the first at the first one, each
+/// further one at the first configuration the orders so far do not cover.
+struct Planner<'s> {
+    sys: &'s Symbolic,
+    structure: Vec<Vec<bool>>,
+    orders: Vec<Order>,
+}
+
+impl<'s> Planner<'s> {
+    fn new(sys: &'s Symbolic) -> Self {
+        Planner { sys, structure: structure(sys), orders: Vec::new() }
+    }
+
+    /// Looks at configuration (t, q); false once [`MAX_ORDERS`] orders are chosen.
+    fn visit(&mut self, t: f64, q: &[f64]) -> bool {
+        if self.orders.len() == MAX_ORDERS {
+            return false;
         }
-        let a = numeric(sys, q, *t);
-        let covered = orders
+        let a = numeric(self.sys, q, t);
+        let covered = self
+            .orders
             .iter()
             .any(|o| largest_multiplier(o, &a).is_some_and(|m| m <= 1.0 / COVER_THRESHOLD));
-        if !covered && let Some(o) = choose(&s, &a) {
-            orders.push(o);
+        if !covered && let Some(o) = choose(&self.structure, &a) {
+            self.orders.push(o);
+        }
+        self.orders.len() < MAX_ORDERS
+    }
+}
+
+/// The static orders for the configurations `samples` (see [`Planner`]).
+#[must_use]
+pub fn plan(sys: &Symbolic, samples: &[(f64, Vec<f64>)]) -> Vec<Order> {
+    let mut planner = Planner::new(sys);
+    for (t, q) in samples {
+        if !planner.visit(*t, q) {
+            break;
         }
     }
-    orders
+    planner.orders
+}
+
+/// The static orders for the description's motion: [`plan`] over the configurations
+/// [`motion`] visits, without keeping them.
+#[must_use]
+pub fn plan_motion(mech: &Mechanism, sys: &Symbolic) -> Vec<Order> {
+    let mut planner = Planner::new(sys);
+    motion(mech, sys, |t, q| planner.visit(t, q));
+    planner.orders
 }
 
 /// `jac[r][c]` (or `lu[r][c]`).

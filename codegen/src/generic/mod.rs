@@ -27,6 +27,7 @@
 //!   global axis (eq. 4.62), e_k cos(s/2) − e0 sin(s/2) = 0.
 
 pub(crate) mod kin;
+pub mod scaling;
 mod solve;
 #[cfg(test)]
 mod tests;

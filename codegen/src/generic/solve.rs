@@ -4,18 +4,22 @@
 
 use nalgebra::{DMatrix, DVector, SVD, Vector4};
 
+use super::scaling::balanced;
 use super::{Equations, angle_alignment};
 use crate::model::{DriverTarget, JointKind, Motion};
 use crate::stepping::{self, Engine, Point, Rejection, Stop, Trouble};
 
 /// A pivot smaller than this fraction of the largest pivot of the LU factorisation marks
 /// Φ_q as singular: with partial pivoting the pivots bound the conditioning from below, and
-/// 1e-12 leaves four orders of magnitude above f64 round-off before a step is refused.
+/// 1e-12 leaves four orders of magnitude above f64 round-off before a step is refused. Φ_q is
+/// factored in balanced units ([`super::scaling`]), so the ratio does not depend on the unit of
+/// length.
 const SINGULAR_PIVOT_RATIO: f64 = 1e-12;
 
 /// Singular values below this fraction of the largest count as zero in rank decisions: an
 /// exact dependency shows up at round-off level (≈1e-16 relative), a genuine but poorly
-/// conditioned configuration far above it.
+/// conditioned configuration far above it. Every rank decision looks at Φ_q in balanced units
+/// ([`super::scaling`]), so that this holds whatever the unit of length.
 const RANK_TOLERANCE: f64 = 1e-10;
 
 /// A row whose component outside the span of the rows before it is below this fraction of
@@ -121,6 +125,7 @@ impl Equations<'_> {
         let mut q = self.initial_estimate();
         let mut assembled = false;
         let iterations = mech.solver.max_iterations.max(50);
+        let columns = self.column_scales();
         for _ in 0..iterations {
             let sys = self.evaluate(&q, &zero, t0);
             if !all_finite(&sys.phi) || !all_finite(&sys.jac) {
@@ -130,17 +135,19 @@ impl Equations<'_> {
                 assembled = true;
                 break;
             }
-            let svd = SVD::new(sys.jac, true, true);
+            // The least-squares step in balanced units: (R Φ_q C) y = R Φ, Δq = C y.
+            let (jac, rows) = balanced(sys.jac, &columns);
+            let svd = SVD::new(jac, true, true);
             let eps = RANK_TOLERANCE * svd.singular_values.max();
-            match svd.solve(&sys.phi, eps) {
-                Ok(dq) => q -= dq,
+            match svd.solve(&sys.phi.component_mul(&rows), eps) {
+                Ok(y) => q -= y.component_mul(&columns),
                 Err(_) => break,
             }
         }
         if !assembled || !all_finite(&q) {
             q = self.initial_estimate();
         }
-        let jac = self.evaluate(&q, &zero, t0).jac;
+        let (jac, _) = balanced(self.evaluate(&q, &zero, t0).jac, &columns);
         let svd = SVD::new(jac.clone(), false, true);
         let smax = svd.singular_values.max();
         let rank = svd.singular_values.iter().filter(|&&s| s > RANK_TOLERANCE * smax).count();
@@ -185,7 +192,7 @@ impl Equations<'_> {
     }
 }
 
-/// Marks the bodies with a noticeable share of the null vector `v`.
+/// Marks the bodies with a noticeable share of the null vector `v` (in balanced units).
 fn mark_moving(eq: &Equations<'_>, v: &DVector<f64>, moving: &mut [bool]) {
     for (b, flag) in moving.iter_mut().enumerate() {
         if let Some(o) = eq.offset(crate::model::BodyId(b)) {
@@ -198,7 +205,7 @@ fn mark_moving(eq: &Equations<'_>, v: &DVector<f64>, moving: &mut [bool]) {
     }
 }
 
-/// The numeric rank of a matrix (see [`RANK_TOLERANCE`]).
+/// The numeric rank of a matrix (see [`RANK_TOLERANCE`]), in the units it is given in.
 fn numeric_rank(m: &DMatrix<f64>) -> usize {
     if m.nrows() == 0 {
         return 0;
@@ -209,7 +216,9 @@ fn numeric_rank(m: &DMatrix<f64>) -> usize {
 }
 
 /// Splits the rows into a maximal independent set, greedily (modified Gram–Schmidt), and the
-/// rows that depend on the ones taken before them; both lists in row order.
+/// rows that depend on the ones taken before them; both lists in row order. The test is
+/// relative to each row's norm, so only the columns' units matter: pass Φ_q with balanced
+/// columns ([`super::scaling`]).
 ///
 /// The rows marked in `first` (the Euler-parameter normalisations) are taken first and the
 /// others in row order, so that a dependency is blamed on the joint, constraint or driver
@@ -261,6 +270,8 @@ pub struct Analysis<'e, 'm> {
     max_iterations: u32,
     /// Whether Newton starts from the Taylor predictor (else from the previous q).
     predictor: bool,
+    /// The column factors of Φ_q in balanced units ([`Equations::column_scales`]).
+    columns: DVector<f64>,
 }
 
 impl<'e, 'm> Analysis<'e, 'm> {
@@ -276,6 +287,7 @@ impl<'e, 'm> Analysis<'e, 'm> {
             tolerance: mech.solver.tolerance,
             max_iterations: mech.solver.max_iterations,
             predictor: true,
+            columns: eq.column_scales(),
         }
     }
 
@@ -424,6 +436,7 @@ impl<'e, 'm> Analysis<'e, 'm> {
                 if !all_finite(&jac) {
                     return Vec::new();
                 }
+                let (jac, _) = balanced(jac, &self.columns);
                 let svd = SVD::new(jac, true, false);
                 let u = svd.u.as_ref().expect("requested U");
                 let (kmin, _) = svd.singular_values.iter().enumerate().fold(
@@ -542,7 +555,7 @@ impl<'e, 'm> Analysis<'e, 'm> {
                 ));
             }
             let jac = self.restrict_mat(sys.jac);
-            let dq = factor(&jac)?.solve(&(-phi)).expect("checked non-singular");
+            let dq = self.factor(jac)?.solve(&(-phi));
             q += dq;
             normalised = false;
             iterations += 1;
@@ -550,17 +563,17 @@ impl<'e, 'm> Analysis<'e, 'm> {
         // Redundant rows left out of the analysis are satisfied too when they are consistent;
         // the reported residual covers every row.
         let residual = residual.max(max_abs(&sys.phi));
-        let lu = factor(&self.restrict_mat(sys.jac))?;
-        let qd = lu.solve(&self.restrict_vec(sys.nu)).expect("checked non-singular");
+        let lu = self.factor(self.restrict_mat(sys.jac))?;
+        let qd = lu.solve(&self.restrict_vec(sys.nu));
         let gamma = self.restrict_vec(self.eq.evaluate(&q, &qd, t).gamma);
-        let qdd = lu.solve(&gamma).expect("checked non-singular");
+        let qdd = lu.solve(&gamma);
         if !all_finite(&qd) || !all_finite(&qdd) {
             return Err(rejection(
                 Trouble::Singular,
                 "velocities or accelerations are not finite".to_owned(),
             ));
         }
-        let (min, max) = pivot_extremes(&lu);
+        let (min, max) = pivot_extremes(&lu.lu);
         let point = Point {
             t,
             q: q.as_slice().to_vec(),
@@ -657,20 +670,39 @@ fn pivot_extremes(lu: &nalgebra::LU<f64, nalgebra::Dyn, nalgebra::Dyn>) -> (f64,
         .fold((f64::INFINITY, 0.0_f64), |(lo, hi), x| (lo.min(x.abs()), hi.max(x.abs())))
 }
 
-/// LU with partial pivoting of the (square) Jacobian, refused when a pivot is at most
-/// [`SINGULAR_PIVOT_RATIO`] of the largest.
-fn factor(
-    jac: &DMatrix<f64>,
-) -> Result<nalgebra::LU<f64, nalgebra::Dyn, nalgebra::Dyn>, Rejection> {
-    let lu = jac.clone().lu();
-    let (min, max) = pivot_extremes(&lu);
-    if min.is_nan() || min <= SINGULAR_PIVOT_RATIO * max {
-        return Err(rejection(
-            Trouble::Singular,
-            format!("the Jacobian is singular (smallest LU pivot {min:e}, largest {max:e})"),
-        ));
+/// The LU factors of R Φ_q C (Φ_q in balanced units) with the scales, to solve Φ_q x = b.
+struct Factors {
+    lu: nalgebra::LU<f64, nalgebra::Dyn, nalgebra::Dyn>,
+    rows: DVector<f64>,
+    columns: DVector<f64>,
+}
+
+impl Factors {
+    /// x = C (R Φ_q C)⁻¹ R b; exact scalings, the factors being powers of two.
+    fn solve(&self, b: &DVector<f64>) -> DVector<f64> {
+        let y = self.lu.solve(&b.component_mul(&self.rows)).expect("checked non-singular");
+        y.component_mul(&self.columns)
     }
-    Ok(lu)
+}
+
+impl Analysis<'_, '_> {
+    /// LU with partial pivoting of the (square) Jacobian in balanced units, refused when a
+    /// pivot is at most [`SINGULAR_PIVOT_RATIO`] of the largest.
+    fn factor(&self, jac: DMatrix<f64>) -> Result<Factors, Rejection> {
+        let (jac, rows) = balanced(jac, &self.columns);
+        let lu = jac.lu();
+        let (min, max) = pivot_extremes(&lu);
+        if min.is_nan() || min <= SINGULAR_PIVOT_RATIO * max {
+            return Err(rejection(
+                Trouble::Singular,
+                format!(
+                    "the Jacobian is singular (smallest LU pivot {min:e}, largest {max:e}, in \
+                     balanced units)"
+                ),
+            ));
+        }
+        Ok(Factors { lu, rows, columns: self.columns.clone() })
+    }
 }
 
 /// The generic engine under the step control of [`crate::stepping`].

@@ -72,7 +72,11 @@ fn fill_in_is_structural_and_markowitz_avoids_it() {
 #[test]
 fn two_orders_cover_a_full_rssr_revolution() {
     let (mech, sys) = load("benches/rssr_revolution.toml");
-    let samples = motion(&mech, &sys);
+    let mut samples = Vec::new();
+    motion(&mech, &sys, |t, q| {
+        samples.push((t, q.to_vec()));
+        true
+    });
     assert_eq!(samples.len(), 1001);
     let s = structure(&sys);
     assert_eq!((s.len(), s.iter().flatten().filter(|&&b| b).count()), (20, 78));
@@ -118,4 +122,40 @@ fn constant_folding_is_exact() {
     // Other constants stay factors, with parentheses where precedence needs them.
     assert_eq!(shown(&Val::Const(2.0).mul(&y.sub(&x))), "2.0 * (y - x)");
     assert_eq!(shown(&y.sub(&x).negated().mul(&x)), "- (y - x) * x");
+}
+
+#[test]
+fn planning_samples_a_bounded_evenly_spaced_subset_of_the_grid() {
+    use crate::model::TimeGrid;
+    for count in [1, 2, MAX_SAMPLES, MAX_SAMPLES + 1, 10_007, 10_000_000] {
+        let grid = TimeGrid { start: 0.0, step: 1.0, count };
+        let kept: Vec<usize> = (0..count).filter(|&k| grid.sampled(k, MAX_SAMPLES)).collect();
+        assert_eq!(kept.len(), count.min(MAX_SAMPLES), "{count} points");
+        assert_eq!((kept[0], kept[kept.len() - 1]), (0, count - 1), "{count} points");
+        // Evenly spaced: consecutive gaps differ by at most one grid step (rounding).
+        let gaps: Vec<usize> = kept.windows(2).map(|w| w[1] - w[0]).collect();
+        if let (Some(lo), Some(hi)) = (gaps.iter().min(), gaps.iter().max()) {
+            assert!(hi - lo <= 1, "{count} points: gaps from {lo} to {hi}");
+        }
+    }
+}
+
+#[test]
+fn the_motion_visits_at_most_max_samples_configurations() {
+    let (mut mech, sys) = load("benches/rssr_revolution.toml");
+    // Ten times the benchmark's points over the same revolution: every one is solved (the
+    // branch is followed at the grid's spacing), MAX_SAMPLES of them are visited.
+    mech.time.count = 10 * (mech.time.count - 1) + 1;
+    mech.time.step /= 10.0;
+    let mut visited = Vec::new();
+    motion(&mech, &sys, |t, _| {
+        visited.push(t);
+        true
+    });
+    assert_eq!(visited.len(), MAX_SAMPLES);
+    let last = mech.time.at(mech.time.count - 1);
+    assert_eq!((visited[0], visited[MAX_SAMPLES - 1]), (mech.time.start, last));
+    // The same two orders as from every point of the benchmark's grid.
+    let orders = plan_motion(&mech, &sys);
+    assert_eq!(orders.len(), 2);
 }
