@@ -91,6 +91,8 @@ fn real_cargo() -> String {
 fn a_garbage_binary_in_an_entry_is_rebuilt() {
     let cache = shared_cache();
     let file = example("revolute_joint.toml");
+    // Entries left by earlier runs of other mechgen versions would be found first.
+    forget(&cache, "RevoluteJoint");
     let (expected, _) = solve(&cache, &file);
     let entry = entry_of(&cache, "RevoluteJoint");
     std::fs::write(entry.join("solver"), "garbage").unwrap();
@@ -109,6 +111,9 @@ fn a_garbage_binary_in_an_entry_is_rebuilt() {
 #[test]
 fn another_mechanisms_binary_in_an_entry_is_detected_and_rebuilt() {
     let cache = shared_cache();
+    // Entries left by earlier runs of other mechgen versions would be found first.
+    forget(&cache, "SphericalJoint");
+    forget(&cache, "PrismaticJoint");
     let (_, _) = solve(&cache, &example("spherical_joint.toml"));
     let (expected, _) = solve(&cache, &example("prismatic_joint.toml"));
     let other = entry_of(&cache, "SphericalJoint");
@@ -126,6 +131,8 @@ fn another_mechanisms_binary_in_an_entry_is_detected_and_rebuilt() {
 fn a_corrupt_lock_file_is_rewritten_with_a_note() {
     let cache = shared_cache();
     let file = example("screw_joint.toml");
+    // Entries left by earlier runs of other mechgen versions would be found first.
+    forget(&cache, "ScrewJoint");
     let (expected, _) = solve(&cache, &file);
     let entry = entry_of(&cache, "ScrewJoint");
     std::fs::write(entry.join("Cargo.lock"), "garbage [[[").unwrap();
