@@ -1,6 +1,7 @@
 //! Emission details: literals, precedence, names.
 
-use super::{literal, type_name};
+use super::syntax::literal;
+use super::type_name;
 
 #[test]
 fn type_names_are_upper_camel_case() {
