@@ -116,10 +116,12 @@ impl LawNames {
 
 impl VisitMut for LawNames {
     fn visit_expr_mut(&mut self, e: &mut Expr) {
-        if let Some(v) = value(e)
-            && let Some(name) = self.name_of(v)
-        {
-            *e = name;
+        // A literal is named as a whole, sign included: the 0.2 of a −0.2 (say a folded
+        // −a/2) is not the coefficient 0.2.
+        if let Some(v) = value(e) {
+            if let Some(name) = self.name_of(v) {
+                *e = name;
+            }
             return;
         }
         syn::visit_mut::visit_expr_mut(self, e);
