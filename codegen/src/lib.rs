@@ -23,6 +23,7 @@ pub mod engine;
 pub mod expr;
 pub mod generic;
 pub mod model;
+pub mod pivot;
 #[cfg(feature = "cli")]
 pub mod plot;
 pub mod report;
