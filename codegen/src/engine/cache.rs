@@ -107,6 +107,26 @@ pub(super) fn choose_cache_dir(
     })
 }
 
+/// The driver program of every generated solver (`src/driver.rs`; see its module docs).
+const DRIVER: &str = include_str!("driver.rs");
+
+/// The generated crate's `main.rs`: the driver and the modules it reads.
+const MAIN: &str = "//! A generated solver (written by mechgen; do not edit): see `driver.rs`.\n\n\
+                    mod config;\nmod driver;\nmod key;\nmod mechanism;\n\n\
+                    fn main() {\n    driver::main();\n}\n";
+
+/// The generated crate's `config.rs`: what the driver reads about the module, the
+/// mechanism's type `type_name` and the floating-point type `real`.
+fn config(type_name: &str, real: &str) -> String {
+    format!(
+        "//! What the driver reads about the generated module (written by mechgen).\n\n\
+         /// The floating-point type the module was generated in.\n\
+         pub type Real = {real};\n\n\
+         /// The generated mechanism.\n\
+         pub use crate::mechanism::{type_name} as Generated;\n"
+    )
+}
+
 /// How to build one generated crate, and where its entry lies.
 pub(super) struct Recipe {
     cache: PathBuf,
@@ -122,9 +142,10 @@ impl std::fmt::Debug for Recipe {
 }
 
 impl Recipe {
-    /// The recipe of the crate made of `module` and `driver` (in floating-point type
-    /// `real`), in the cache `cache`.
-    pub(super) fn new(cache: PathBuf, module: &str, driver: &str, real: &str) -> Recipe {
+    /// The recipe of the crate made of `module` (whose mechanism is the type `type_name`, in
+    /// floating-point type `real`) and the driver, in the cache `cache`.
+    pub(super) fn new(cache: PathBuf, module: &str, type_name: &str, real: &str) -> Recipe {
+        let config = config(type_name, real);
         let manifest = |package: &str| {
             format!(
                 "[package]\nname = \"{package}\"\nversion = \"0.0.0\"\nedition = \"2024\"\n\
@@ -138,14 +159,18 @@ impl Recipe {
             env!("CARGO_PKG_VERSION").as_bytes(),
             real.as_bytes(),
             module.as_bytes(),
-            driver.as_bytes(),
+            DRIVER.as_bytes(),
+            MAIN.as_bytes(),
+            config.as_bytes(),
             manifest("").as_bytes(),
             embedded::WORKSPACE_LOCK.as_bytes(),
             runtime_hash().as_bytes(),
         ]);
         let files = vec![
             ("Cargo.toml", manifest(&format!("mechgen-gen-{key}"))),
-            ("src/main.rs", driver.to_owned()),
+            ("src/main.rs", MAIN.to_owned()),
+            ("src/driver.rs", DRIVER.to_owned()),
+            ("src/config.rs", config),
             ("src/mechanism.rs", module.to_owned()),
             (
                 "src/key.rs",
