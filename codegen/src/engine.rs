@@ -20,24 +20,87 @@ use crate::emit::{self, Scalar};
 use crate::generic::{Analysis, Failure, FailureKind, Frame};
 use crate::model::Mechanism;
 use crate::stepping::{Point, Stop, Trouble};
-use crate::symbolic::Symbolic;
+use crate::symbolic::{GenerateError, Symbolic};
 
 pub mod cache;
 
 /// Why the generated engine could not run.
-#[derive(Debug)]
+#[derive(Debug, thiserror::Error)]
 pub enum EngineError {
     /// The description cannot be generated (e.g. an undriven degree of freedom).
-    Generate(String),
+    #[error("cannot generate: {0}")]
+    Generate(#[from] GenerateError),
     /// The environment names no usable cache directory (e.g. `MECHGEN_CACHE` set but empty).
-    Config(String),
+    #[error(transparent)]
+    Config(#[from] ConfigError),
     /// The generated crate could not be built.
+    #[error("the generated solver could not be built: {}\nfix: {}", .0.reason, .0.fix)]
     Build(BuildFailure),
     /// Running it failed or printed something unexpected.
-    Run(String),
+    #[error("cannot run the generated solver: {0}")]
+    Run(#[from] RunError),
     /// The sink could not write a frame (e.g. standard output was closed): the solver was
     /// stopped and the sink's error is handed back as it came.
-    Output(std::io::Error),
+    #[error("cannot write the results: {0}")]
+    Output(#[source] std::io::Error),
+}
+
+/// Why no directory for built solvers can be used: the user sets `MECHGEN_CACHE`.
+#[derive(Debug, thiserror::Error)]
+pub enum ConfigError {
+    /// `MECHGEN_CACHE` is set to the empty string.
+    #[error(
+        "MECHGEN_CACHE is set but empty: set it to the directory where mechgen should keep \
+         built solvers, or unset it to use the default"
+    )]
+    EmptyCache,
+    /// `MECHGEN_CACHE` names a directory that cannot be made absolute.
+    #[error("MECHGEN_CACHE={}: {source}", .dir.display())]
+    BadCache {
+        /// The value of `MECHGEN_CACHE`.
+        dir: PathBuf,
+        /// Why it cannot be used.
+        source: std::io::Error,
+    },
+    /// The checkout mechgen was built from is gone and the environment names no user cache.
+    #[error(
+        "no directory for built solvers: the checkout mechgen was built from ({}) is gone and \
+         the environment names no cache directory (XDG_CACHE_HOME, HOME); set MECHGEN_CACHE \
+         to a writable directory",
+        .checkout.display()
+    )]
+    NoCacheDir {
+        /// Where the checkout was.
+        checkout: PathBuf,
+    },
+}
+
+/// Why a built solver could not be run or read.
+#[derive(Debug, thiserror::Error)]
+pub enum RunError {
+    /// The program could not be started.
+    #[error("{}: {source}", .binary.display())]
+    Start {
+        /// The solver's program.
+        binary: PathBuf,
+        /// The operating system's reason.
+        source: std::io::Error,
+    },
+    /// Its output could not be read.
+    #[error(transparent)]
+    Read(std::io::Error),
+    /// A line of the expected kind whose numbers do not parse.
+    #[error("malformed line: {0}")]
+    Malformed(String),
+    /// A line the protocol does not have (see the module docs).
+    #[error("unexpected output: {0}")]
+    Unexpected(String),
+    /// `bench` printed something else than its one line.
+    #[error("unexpected benchmark output: {0}")]
+    Benchmark(String),
+    /// The solver exited with a failure status without reporting a failure.
+    #[error("the solver exited with {0}")]
+    Exit(std::process::ExitStatus),
 }
 
 /// Why a generated solver could not be built, and what to do about it.
@@ -48,22 +111,6 @@ pub struct BuildFailure {
     /// What the user can do.
     pub fix: String,
 }
-
-impl std::fmt::Display for EngineError {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        match self {
-            Self::Generate(m) => write!(f, "cannot generate: {m}"),
-            Self::Config(m) => f.write_str(m),
-            Self::Build(b) => {
-                write!(f, "the generated solver could not be built: {}\nfix: {}", b.reason, b.fix)
-            }
-            Self::Run(m) => write!(f, "cannot run the generated solver: {m}"),
-            Self::Output(e) => write!(f, "cannot write the results: {e}"),
-        }
-    }
-}
-
-impl std::error::Error for EngineError {}
 
 /// A generated solver, built and ready to run.
 #[derive(Clone, Debug)]
@@ -94,8 +141,17 @@ pub fn build(mech: &Mechanism) -> Result<Built, EngineError> {
 /// # Errors
 /// [`EngineError::Generate`], [`EngineError::Config`] or [`EngineError::Build`].
 pub fn build_in(mech: &Mechanism, scalar: Scalar) -> Result<Built, EngineError> {
-    let sys = Symbolic::build(mech).map_err(|e| EngineError::Generate(e.message))?;
+    let start = std::time::Instant::now();
+    let sys = Symbolic::build(mech)?;
     let module = emit::module_in(mech, &sys, &format!("the description \"{}\"", mech.name), scalar);
+    log::debug!(
+        "generated {} in {} ({} unknowns, {} lines) in {:.3} s",
+        mech.name,
+        scalar.name(),
+        sys.unknowns.len(),
+        module.lines().count(),
+        start.elapsed().as_secs_f64()
+    );
     let mut built = build_module(mech, &module, sys.unknowns.len(), scalar)?;
     built.removed = sys.redundant.iter().map(crate::generic::RowLabel::equation).collect();
     Ok(built)
@@ -208,22 +264,23 @@ pub fn run_with(
         .stdout(Stdio::piped())
         .stdin(Stdio::null())
         .spawn()
-        .map_err(|e| EngineError::Run(format!("{}: {e}", built.binary.display())))?;
+        .map_err(|source| RunError::Start { binary: built.binary.clone(), source })?;
     // Every return below, early or not, ends the solver.
+    log::debug!("running {} {:?}", built.binary.display(), settings);
     let mut child = SolverProcess(child);
     let stdout = child.0.stdout.take().expect("piped");
     let mut report = RunReport { steps: 0, failure: None };
     let mut near: Option<Point> = None;
     for line in BufReader::new(stdout).lines() {
-        let line = line.map_err(|e| EngineError::Run(e.to_string()))?;
+        let line = line.map_err(RunError::Read)?;
         let mut words = line.split(' ');
         match words.next() {
             Some("step") => {
                 let nums: Vec<&str> = words.collect();
-                let bad = || EngineError::Run(format!("malformed line: {line}"));
+                let bad = || RunError::Malformed(line.clone());
                 let parse = |s: &str| s.parse::<f64>().map_err(|_| bad());
                 if nums.len() < 3 || !(nums.len() - 3).is_multiple_of(21) {
-                    return Err(bad());
+                    return Err(bad().into());
                 }
                 let m = (nums.len() - 3) / 3;
                 let values: Vec<f64> =
@@ -257,7 +314,7 @@ pub fn run_with(
                 report.steps += 1;
             }
             Some("near") => {
-                let bad = || EngineError::Run(format!("malformed line: {line}"));
+                let bad = || RunError::Malformed(line.clone());
                 let nums: Vec<f64> =
                     words.map(|s| s.parse::<f64>().map_err(|_| bad())).collect::<Result<_, _>>()?;
                 let (&t, q) = nums.split_first().ok_or_else(bad)?;
@@ -284,12 +341,12 @@ pub fn run_with(
                 let stop = Stop { trouble, t, message, near: near.take().map(Box::new), body };
                 report.failure = Some(analysis.failure_of(&stop));
             }
-            _ => return Err(EngineError::Run(format!("unexpected output: {line}"))),
+            _ => return Err(RunError::Unexpected(line).into()),
         }
     }
-    let status = child.0.wait().map_err(|e| EngineError::Run(e.to_string()))?;
+    let status = child.0.wait().map_err(RunError::Read)?;
     if !status.success() && report.failure.is_none() {
-        return Err(EngineError::Run(format!("the solver exited with {status}")));
+        return Err(RunError::Exit(status).into());
     }
     Ok(report)
 }
@@ -323,25 +380,19 @@ pub fn bench_with(
         .stdin(Stdio::null())
         .stdout(Stdio::piped())
         .spawn()
-        .map_err(|e| EngineError::Run(format!("{}: {e}", built.binary.display())))?;
+        .map_err(|source| RunError::Start { binary: built.binary.clone(), source })?;
     let mut child = SolverProcess(child);
     let mut output = Vec::new();
-    child
-        .0
-        .stdout
-        .take()
-        .expect("piped")
-        .read_to_end(&mut output)
-        .map_err(|e| EngineError::Run(e.to_string()))?;
+    child.0.stdout.take().expect("piped").read_to_end(&mut output).map_err(RunError::Read)?;
     drop(child);
     let text = String::from_utf8_lossy(&output);
     let words: Vec<&str> = text.split_whitespace().collect();
     match words.as_slice() {
         ["bench", min, median, iters] => {
-            let p = |s: &str| s.parse::<f64>().map_err(|_| EngineError::Run(text.to_string()));
+            let p = |s: &str| s.parse::<f64>().map_err(|_| RunError::Benchmark(text.to_string()));
             Ok((p(min)?, p(median)?, p(iters)?))
         }
-        _ => Err(EngineError::Run(format!("unexpected benchmark output: {text}"))),
+        _ => Err(RunError::Benchmark(text.to_string()).into()),
     }
 }
 

@@ -46,6 +46,7 @@ pub(super) fn solve(
                 return engine_unavailable(&e, mech, json, out, err);
             }
             Err(e) => {
+                log::info!("falling back to the generic engine: {e}");
                 writeln!(err, "warning: using the generic engine: {e}")?;
                 None
             }
