@@ -423,6 +423,24 @@ pub fn draw_conditioning(
         return Err(DrawError::NoMarks);
     };
     let (t0, t1) = (first.t, last.t);
+    draw::write_svg(path, (900, 700), |root| {
+        root.fill(&WHITE).map_err(backend)?;
+        let root = root.titled(title, ("sans-serif", 22)).map_err(backend)?;
+        let (upper, lower) = root.split_vertically(420);
+        condition_panel(&upper, points, t0..t1)?;
+        iterations_panel(&lower, points, t0..t1)?;
+        root.present().map_err(backend)?;
+        Ok(())
+    })
+}
+
+/// The conditioning chart's upper panel: κ₂ and the pivot estimate against time.
+fn condition_panel<DB: DrawingBackend>(
+    area: &DrawingArea<DB, plotters::coord::Shift>,
+    points: &[Conditioning],
+    time: std::ops::Range<f64>,
+) -> Result<(), DrawError> {
+    let (t0, t1) = (time.start, time.end);
     let (mut c0, mut c1) = (f64::MAX, f64::MIN);
     for p in points {
         for c in [p.condition, p.pivot_estimate] {
@@ -430,78 +448,83 @@ pub fn draw_conditioning(
             c1 = c1.max(c);
         }
     }
+    let [blue, orange, ..] = PALETTE;
+    let mut chart = ChartBuilder::on(area)
+        .margin(15)
+        .x_label_area_size(35)
+        .y_label_area_size(80)
+        .build_cartesian_2d(t0..t1, (c0 / 2.0..c1 * 2.0).log_scale())
+        .map_err(backend)?;
+    chart
+        .configure_mesh()
+        .x_desc("t")
+        .y_desc("condition of Φ_q (log scale)")
+        .y_label_formatter(&|v| format!("{v:.0e}"))
+        .draw()
+        .map_err(backend)?;
+    chart
+        .draw_series(LineSeries::new(
+            points.iter().map(|p| (p.t, p.condition)),
+            blue.stroke_width(2),
+        ))
+        .map_err(backend)?
+        .label("κ₂ = σ_max / σ_min (SVD)")
+        .legend(draw::line_key(blue, 20));
+    chart
+        .draw_series(LineSeries::new(
+            points.iter().map(|p| (p.t, p.pivot_estimate)),
+            orange.stroke_width(2),
+        ))
+        .map_err(backend)?
+        .label("1/ρ: max / min LU pivot (the step control's estimate)")
+        .legend(draw::line_key(orange, 20));
+    draw::legend(&mut chart)?;
+    Ok(())
+}
+
+/// The conditioning chart's lower panel: Newton iterations per grid step of each engine.
+fn iterations_panel<DB: DrawingBackend>(
+    area: &DrawingArea<DB, plotters::coord::Shift>,
+    points: &[Conditioning],
+    time: std::ops::Range<f64>,
+) -> Result<(), DrawError> {
+    let (t0, t1) = (time.start, time.end);
     let most = points
         .iter()
         .map(|p| p.generic_iterations.max(p.generated_iterations.unwrap_or(0)))
         .max()
         .unwrap_or(1);
-    draw::write_svg(path, (900, 700), |root| {
-        root.fill(&WHITE).map_err(backend)?;
-        let root = root.titled(title, ("sans-serif", 22)).map_err(backend)?;
-        let (upper, lower) = root.split_vertically(420);
-        let [blue, orange, green, ..] = PALETTE;
-        let mut chart = ChartBuilder::on(&upper)
-            .margin(15)
-            .x_label_area_size(35)
-            .y_label_area_size(80)
-            .build_cartesian_2d(t0..t1, (c0 / 2.0..c1 * 2.0).log_scale())
-            .map_err(backend)?;
-        chart
-            .configure_mesh()
-            .x_desc("t")
-            .y_desc("condition of Φ_q (log scale)")
-            .y_label_formatter(&|v| format!("{v:.0e}"))
-            .draw()
-            .map_err(backend)?;
-        chart
-            .draw_series(LineSeries::new(
-                points.iter().map(|p| (p.t, p.condition)),
-                blue.stroke_width(2),
-            ))
-            .map_err(backend)?
-            .label("κ₂ = σ_max / σ_min (SVD)")
-            .legend(draw::line_key(blue, 20));
+    let [blue, _, green, ..] = PALETTE;
+    let mut chart = ChartBuilder::on(area)
+        .margin(15)
+        .x_label_area_size(40)
+        .y_label_area_size(80)
+        .build_cartesian_2d(t0..t1, 0.0..f64::from(most) + 1.0)
+        .map_err(backend)?;
+    chart
+        .configure_mesh()
+        .x_desc("t")
+        .y_desc("Newton iterations per step")
+        .draw()
+        .map_err(backend)?;
+    chart
+        .draw_series(LineSeries::new(
+            points.iter().map(|p| (p.t, f64::from(p.generic_iterations))),
+            blue.stroke_width(2),
+        ))
+        .map_err(backend)?
+        .label("generic")
+        .legend(draw::line_key(blue, 20));
+    if points.iter().all(|p| p.generated_iterations.is_some()) {
         chart
             .draw_series(LineSeries::new(
-                points.iter().map(|p| (p.t, p.pivot_estimate)),
-                orange.stroke_width(2),
+                points.iter().map(|p| (p.t, f64::from(p.generated_iterations.unwrap_or(0)))),
+                green.stroke_width(2),
             ))
             .map_err(backend)?
-            .label("1/ρ: max / min LU pivot (the step control's estimate)")
-            .legend(draw::line_key(orange, 20));
-        draw::legend(&mut chart)?;
-        let mut chart = ChartBuilder::on(&lower)
-            .margin(15)
-            .x_label_area_size(40)
-            .y_label_area_size(80)
-            .build_cartesian_2d(t0..t1, 0.0..f64::from(most) + 1.0)
-            .map_err(backend)?;
-        chart
-            .configure_mesh()
-            .x_desc("t")
-            .y_desc("Newton iterations per step")
-            .draw()
-            .map_err(backend)?;
-        chart
-            .draw_series(LineSeries::new(
-                points.iter().map(|p| (p.t, f64::from(p.generic_iterations))),
-                blue.stroke_width(2),
-            ))
-            .map_err(backend)?
-            .label("generic")
-            .legend(draw::line_key(blue, 20));
-        if points.iter().all(|p| p.generated_iterations.is_some()) {
-            chart
-                .draw_series(LineSeries::new(
-                    points.iter().map(|p| (p.t, f64::from(p.generated_iterations.unwrap_or(0)))),
-                    green.stroke_width(2),
-                ))
-                .map_err(backend)?
-                .label("generated")
-                .legend(draw::line_key(green, 20));
-        }
-        draw::legend(&mut chart)?;
-        root.present().map_err(backend)?;
-        Ok(())
-    })
+            .label("generated")
+            .legend(draw::line_key(green, 20));
+    }
+    draw::legend(&mut chart)?;
+    Ok(())
 }

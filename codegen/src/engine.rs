@@ -260,13 +260,13 @@ pub fn run_with(
         cmd.arg("-");
     }
     cmd.args(settings.flags());
+    log::debug!("running {} {:?}", built.binary.display(), settings);
     let child = cmd
         .stdout(Stdio::piped())
         .stdin(Stdio::null())
         .spawn()
         .map_err(|source| RunError::Start { binary: built.binary.clone(), source })?;
     // Every return below, early or not, ends the solver.
-    log::debug!("running {} {:?}", built.binary.display(), settings);
     let mut child = SolverProcess(child);
     let stdout = child.0.stdout.take().expect("piped");
     let mut report = RunReport { steps: 0, failure: None };
@@ -275,70 +275,19 @@ pub fn run_with(
         let line = line.map_err(RunError::Read)?;
         let mut words = line.split(' ');
         match words.next() {
-            Some("step") => {
-                let nums: Vec<&str> = words.collect();
-                let bad = || RunError::Malformed(line.clone());
-                let parse = |s: &str| s.parse::<f64>().map_err(|_| bad());
-                if nums.len() < 3 || !(nums.len() - 3).is_multiple_of(21) {
-                    return Err(bad().into());
+            Some("step") => match step_line(&line, report.steps)? {
+                Ok(frame) => {
+                    sink(&frame).map_err(EngineError::Output)?;
+                    report.steps += 1;
                 }
-                let m = (nums.len() - 3) / 3;
-                let values: Vec<f64> =
-                    nums[3..].iter().map(|s| parse(s)).collect::<Result<_, _>>()?;
-                if let Some(bad) = values.iter().chain(&[parse(nums[2])?]).find(|v| !v.is_finite())
-                {
-                    // Never written: the analysis stops here, saying why.
-                    let message = format!(
-                        "the generated solver produced the non-finite value {bad} (the steps \
-                         before this one are kept)"
-                    );
-                    let t = parse(nums[0]).unwrap_or(f64::NAN);
-                    report.failure = Some(Failure {
-                        kind: FailureKind::NoConvergence,
-                        t,
-                        message,
-                        constraints: Vec::new(),
-                    });
+                Err(failure) => {
+                    report.failure = Some(failure);
                     return Ok(report);
                 }
-                let frame = Frame {
-                    index: report.steps,
-                    t: parse(nums[0])?,
-                    iterations: nums[1].parse().map_err(|_| bad())?,
-                    residual: parse(nums[2])?,
-                    q: DVector::from_column_slice(&values[..m]),
-                    qd: DVector::from_column_slice(&values[m..2 * m]),
-                    qdd: DVector::from_column_slice(&values[2 * m..]),
-                };
-                sink(&frame).map_err(EngineError::Output)?;
-                report.steps += 1;
-            }
-            Some("near") => {
-                let bad = || RunError::Malformed(line.clone());
-                let nums: Vec<f64> =
-                    words.map(|s| s.parse::<f64>().map_err(|_| bad())).collect::<Result<_, _>>()?;
-                let (&t, q) = nums.split_first().ok_or_else(bad)?;
-                near = Some(Point {
-                    t,
-                    q: q.to_vec(),
-                    qd: Vec::new(),
-                    qdd: Vec::new(),
-                    iterations: 0,
-                    residual: f64::NAN,
-                    pivot_ratio: f64::NAN,
-                });
-            }
+            },
+            Some("near") => near = Some(near_line(&line)?),
             Some("error") => {
-                let trouble = match words.next() {
-                    Some("singular") => Trouble::Singular,
-                    Some("branch_jump") => Trouble::BranchJump,
-                    Some("inconsistent") => Trouble::Inconsistent,
-                    _ => Trouble::NoConvergence,
-                };
-                let t = words.next().and_then(|s| s.parse().ok()).unwrap_or(f64::NAN);
-                let body = words.next().and_then(|s| s.parse().ok());
-                let message = words.collect::<Vec<_>>().join(" ");
-                let stop = Stop { trouble, t, message, near: near.take().map(Box::new), body };
+                let stop = error_line(&line, near.take());
                 report.failure = Some(analysis.failure_of(&stop));
             }
             _ => return Err(RunError::Unexpected(line).into()),
@@ -349,6 +298,73 @@ pub fn run_with(
         return Err(RunError::Exit(status).into());
     }
     Ok(report)
+}
+
+/// The frame of a `step t iterations residual q… q̇… q̈…` line (the `index`-th), or the
+/// failure it is when it holds a non-finite value (never written: the analysis stops
+/// there, saying why).
+fn step_line(line: &str, index: usize) -> Result<Result<Frame, Failure>, RunError> {
+    let nums: Vec<&str> = line.split(' ').skip(1).collect();
+    let bad = || RunError::Malformed(line.to_owned());
+    let parse = |s: &str| s.parse::<f64>().map_err(|_| bad());
+    if nums.len() < 3 || !(nums.len() - 3).is_multiple_of(21) {
+        return Err(bad());
+    }
+    let m = (nums.len() - 3) / 3;
+    let values: Vec<f64> = nums[3..].iter().map(|s| parse(s)).collect::<Result<_, _>>()?;
+    if let Some(bad) = values.iter().chain(&[parse(nums[2])?]).find(|v| !v.is_finite()) {
+        let message = format!(
+            "the generated solver produced the non-finite value {bad} (the steps before this \
+             one are kept)"
+        );
+        let t = parse(nums[0]).unwrap_or(f64::NAN);
+        let kind = FailureKind::NoConvergence;
+        return Ok(Err(Failure { kind, t, message, constraints: Vec::new() }));
+    }
+    Ok(Ok(Frame {
+        index,
+        t: parse(nums[0])?,
+        iterations: nums[1].parse().map_err(|_| bad())?,
+        residual: parse(nums[2])?,
+        q: DVector::from_column_slice(&values[..m]),
+        qd: DVector::from_column_slice(&values[m..2 * m]),
+        qdd: DVector::from_column_slice(&values[2 * m..]),
+    }))
+}
+
+/// The configuration of a `near t q…` line: the one closest to the failure that follows.
+fn near_line(line: &str) -> Result<Point, RunError> {
+    let bad = || RunError::Malformed(line.to_owned());
+    let nums: Vec<f64> = line
+        .split(' ')
+        .skip(1)
+        .map(|s| s.parse::<f64>().map_err(|_| bad()))
+        .collect::<Result<_, _>>()?;
+    let (&t, q) = nums.split_first().ok_or_else(bad)?;
+    Ok(Point {
+        t,
+        q: q.to_vec(),
+        qd: Vec::new(),
+        qdd: Vec::new(),
+        iterations: 0,
+        residual: f64::NAN,
+        pivot_ratio: f64::NAN,
+    })
+}
+
+/// The stop of an `error kind t body message` line, at the configuration `near`.
+fn error_line(line: &str, near: Option<Point>) -> Stop {
+    let mut words = line.split(' ').skip(1);
+    let trouble = match words.next() {
+        Some("singular") => Trouble::Singular,
+        Some("branch_jump") => Trouble::BranchJump,
+        Some("inconsistent") => Trouble::Inconsistent,
+        _ => Trouble::NoConvergence,
+    };
+    let t = words.next().and_then(|s| s.parse().ok()).unwrap_or(f64::NAN);
+    let body = words.next().and_then(|s| s.parse().ok());
+    let message = words.collect::<Vec<_>>().join(" ");
+    Stop { trouble, t, message, near: near.map(Box::new), body }
 }
 
 /// Times whole passes over the grid: (min ns per step, median ns per step, Newton

@@ -41,6 +41,7 @@ pub(crate) fn main() {
     }
 }
 
+/// The solver of `m` with the module's settings, in `mode` (`bench` or `run`).
 fn drive<M: Mechanism<N, Real>>(
     m: M,
     mode: &str,
@@ -59,37 +60,57 @@ fn drive<M: Mechanism<N, Real>>(
     let stdout = std::io::stdout();
     let mut out = std::io::BufWriter::new(stdout.lock());
     if mode == "bench" {
-        let mut times = Vec::with_capacity(repeats);
-        let mut iterations = 0u64;
-        for _ in 0..repeats.max(1) {
-            solver.set_q(mechanism::Q0);
-            iterations = 0;
-            let start = std::time::Instant::now();
-            for k in 0..mechanism::T_COUNT {
-                let t = mechanism::T_START + k as Real * mechanism::T_STEP;
-                match solver.position(t) {
-                    Ok(r) => iterations += u64::from(r.iterations),
-                    Err(e) => {
-                        check(writeln!(out, "error bench {:?} {e}", wide(t)));
-                        std::process::exit(2);
-                    }
-                }
-                let _ = solver.velocity();
-                let _ = solver.acceleration();
-            }
-            times.push(start.elapsed().as_nanos() as f64 / mechanism::T_COUNT as f64);
-            std::hint::black_box(solver.qdd());
-        }
-        times.sort_by(f64::total_cmp);
-        check(writeln!(
-            out,
-            "bench {:?} {:?} {:?}",
-            times[0],
-            times[times.len() / 2],
-            iterations as f64 / mechanism::T_COUNT as f64
-        ));
-        return;
+        bench(solver, repeats, &mut out);
+    } else {
+        run(solver, &mut out);
     }
+}
+
+/// The grid's time point `k`.
+fn time(k: usize) -> Real {
+    mechanism::T_START + k as Real * mechanism::T_STEP
+}
+
+/// Times `repeats` whole passes of plain stepping (no step control) and prints
+/// `bench min_ns median_ns iterations_per_step`.
+fn bench<M: Mechanism<N, Real>>(
+    mut solver: Solver<M, N, Real, Jacobian>,
+    repeats: usize,
+    out: &mut impl Write,
+) {
+    let mut times = Vec::with_capacity(repeats);
+    let mut iterations = 0u64;
+    for _ in 0..repeats.max(1) {
+        solver.set_q(mechanism::Q0);
+        iterations = 0;
+        let start = std::time::Instant::now();
+        for k in 0..mechanism::T_COUNT {
+            match solver.position(time(k)) {
+                Ok(r) => iterations += u64::from(r.iterations),
+                Err(e) => {
+                    check(writeln!(out, "error bench {:?} {e}", wide(time(k))));
+                    std::process::exit(2);
+                }
+            }
+            let _ = solver.velocity();
+            let _ = solver.acceleration();
+        }
+        times.push(start.elapsed().as_nanos() as f64 / mechanism::T_COUNT as f64);
+        std::hint::black_box(solver.qdd());
+    }
+    times.sort_by(f64::total_cmp);
+    check(writeln!(
+        out,
+        "bench {:?} {:?} {:?}",
+        times[0],
+        times[times.len() / 2],
+        iterations as f64 / mechanism::T_COUNT as f64
+    ));
+}
+
+/// Steps over the grid under the step control, printing a `step` line per time point, or
+/// `near` and `error` lines and exit status 2 when the analysis stops.
+fn run<M: Mechanism<N, Real>>(solver: Solver<M, N, Real, Jacobian>, out: &mut impl Write) {
     let mut engine = Engine {
         solver,
         dense: jacobian(),
@@ -101,43 +122,41 @@ fn drive<M: Mechanism<N, Real>>(
     };
     let mut last: Option<Sample<f64>> = None;
     for k in 0..mechanism::T_COUNT {
-        let t = mechanism::T_START + k as Real * mechanism::T_STEP;
+        let t = wide(time(k));
         let outcome = match last {
-            None => step::first(&mut engine, wide(t)).map(|p| (p, p.iterations)),
-            Some(a) => step::advance(&mut engine, a, wide(t)),
+            None => step::first(&mut engine, t).map(|p| (p, p.iterations)),
+            Some(a) => step::advance(&mut engine, a, t),
         };
         match outcome {
             Ok((p, iterations)) => {
-                check(write!(out, "step {:?} {iterations} {:?}", wide(t), p.residual));
+                check(write!(out, "step {t:?} {iterations} {:?}", p.residual));
                 for v in [&engine.full.q, &engine.full.qd, &engine.full.qdd] {
-                    for x in v {
-                        check(write!(out, " {x:?}"));
-                    }
+                    numbers(out, v);
                 }
                 check(writeln!(out));
                 last = Some(p);
             }
             Err(stop) => {
-                if let Some(near) = stop.near {
+                if let Some(near) = &stop.near {
                     check(write!(out, "near {:?}", near.sample.t));
-                    let q = if near.rejected { &engine.candidate.q } else { &engine.full.q };
-                    for x in q {
-                        check(write!(out, " {x:?}"));
-                    }
+                    numbers(out, if near.rejected { &engine.candidate.q } else { &engine.full.q });
                     check(writeln!(out));
                 }
                 let body = stop.body.map_or_else(|| "-".to_owned(), |b| b.to_string());
                 let message = stop.to_string().replace('\n', " ");
-                check(writeln!(
-                    out,
-                    "error {} {:?} {body} {message}",
-                    stop.trouble.as_str(),
-                    stop.t
-                ));
+                let kind = stop.trouble.as_str();
+                check(writeln!(out, "error {kind} {:?} {body} {message}", stop.t));
                 check(out.flush());
                 std::process::exit(2);
             }
         }
+    }
+}
+
+/// Writes each of `values` after a space, in shortest round-trip form.
+fn numbers(out: &mut impl Write, values: &[f64]) {
+    for x in values {
+        check(write!(out, " {x:?}"));
     }
 }
 
