@@ -108,8 +108,6 @@ fn real_cargo() -> String {
 fn a_garbage_binary_in_an_entry_is_rebuilt() {
     let cache = shared_cache();
     let file = example("revolute_joint.toml");
-    // Entries left by earlier runs of other mechgen versions would be found first.
-    forget(&cache, "RevoluteJoint");
     let (expected, _) = solve(&cache, &file);
     let entry = entry_used(&cache, &file);
     std::fs::write(entry.join("solver"), "garbage").unwrap();
@@ -128,9 +126,6 @@ fn a_garbage_binary_in_an_entry_is_rebuilt() {
 #[test]
 fn another_mechanisms_binary_in_an_entry_is_detected_and_rebuilt() {
     let cache = shared_cache();
-    // Entries left by earlier runs of other mechgen versions would be found first.
-    forget(&cache, "SphericalJoint");
-    forget(&cache, "PrismaticJoint");
     let (_, _) = solve(&cache, &example("spherical_joint.toml"));
     let (expected, _) = solve(&cache, &example("prismatic_joint.toml"));
     let other = entry_used(&cache, &example("spherical_joint.toml"));
@@ -148,8 +143,6 @@ fn another_mechanisms_binary_in_an_entry_is_detected_and_rebuilt() {
 fn a_corrupt_lock_file_is_rewritten_with_a_note() {
     let cache = shared_cache();
     let file = example("screw_joint.toml");
-    // Entries left by earlier runs of other mechgen versions would be found first.
-    forget(&cache, "ScrewJoint");
     let (expected, _) = solve(&cache, &file);
     let entry = entry_used(&cache, &file);
     std::fs::write(entry.join("Cargo.lock"), "garbage [[[").unwrap();
