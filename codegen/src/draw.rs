@@ -42,7 +42,7 @@ pub(crate) const PALETTE: [RGBColor; 6] = [
 ];
 
 /// Draws with `draw` on an SVG drawing area of `size` pixels, then writes the SVG to `path`
-/// all at once ([`crate::report::write_file`]): a failed drawing leaves the previous file.
+/// all at once ([`crate::output::write_file`]): a failed drawing leaves the previous file.
 ///
 /// # Errors
 /// The drawing's error, or the I/O error naming `path`.
@@ -53,7 +53,7 @@ pub(crate) fn write_svg(
 ) -> Result<(), DrawError> {
     let mut svg = String::new();
     draw(SVGBackend::with_string(&mut svg, size).into_drawing_area())?;
-    Ok(crate::report::write_file(path, svg.as_bytes())?)
+    Ok(crate::output::write_file(path, svg.as_bytes())?)
 }
 
 /// Draws a chart's series labels in its upper right corner, on a translucent white box.

@@ -25,6 +25,8 @@ pub mod engine;
 pub mod expr;
 pub mod generic;
 pub mod model;
+#[cfg(feature = "cli")]
+pub mod output;
 pub mod pivot;
 #[cfg(feature = "cli")]
 pub mod plot;

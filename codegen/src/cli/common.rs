@@ -8,7 +8,6 @@ use super::term;
 use crate::diag::{Diagnostic, printable};
 use crate::generic::{Analysis, Equations, Preparation};
 use crate::model::Mechanism;
-use crate::report;
 use crate::validate::{self, Loaded};
 
 /// Exit status: success.
@@ -45,7 +44,7 @@ pub fn closed_pipe(e: &(dyn std::error::Error + 'static)) -> bool {
 
 /// Where `solve` writes its results: a file that appears when complete, or standard output.
 pub(super) enum Sink<'a> {
-    File(report::OutputFile),
+    File(crate::output::OutputFile),
     Out(BufWriter<&'a mut dyn Write>),
 }
 
@@ -81,7 +80,7 @@ impl Write for Sink<'_> {
 pub(super) fn output_problem(output: &Path, inputs: &[&Path]) -> Option<Diagnostic> {
     let shown = |p: &Path| printable(&p.display().to_string()).into_owned();
     let problem = |m: String| Diagnostic::error(m).entity("command line").field("--output");
-    let dir = report::directory_of(output);
+    let dir = crate::output::directory_of(output);
     if !dir.is_dir() {
         let why = if dir.exists() { "is not a directory" } else { "does not exist" };
         return Some(problem(format!(

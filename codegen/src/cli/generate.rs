@@ -5,7 +5,6 @@ use std::path::Path;
 
 use super::common::{EXIT_OK, load, report_invalid};
 use crate::diag::Diagnostic;
-use crate::report;
 
 pub(super) fn generate(
     file: &Path,
@@ -37,7 +36,7 @@ pub(super) fn generate(
         )?;
     }
     match output {
-        Some(path) => report::write_file(path, text.as_bytes())?,
+        Some(path) => crate::output::write_file(path, text.as_bytes())?,
         None => out.write_all(text.as_bytes())?,
     }
     Ok(EXIT_OK)

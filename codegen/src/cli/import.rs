@@ -4,7 +4,7 @@ use std::io::{self, Write};
 use std::path::Path;
 
 use super::common::{EXIT_OK, report_invalid};
-use crate::{report, young};
+use crate::young;
 
 pub(super) fn import_young(
     deck: &Path,
@@ -22,7 +22,7 @@ pub(super) fn import_young(
     let toml =
         young::to_toml(&desc, &format!("Imported by mechgen from the YOUNG deck {file_name}."));
     match output {
-        Some(path) => report::write_file(path, toml.as_bytes())?,
+        Some(path) => crate::output::write_file(path, toml.as_bytes())?,
         None => out.write_all(toml.as_bytes())?,
     }
     Ok(EXIT_OK)

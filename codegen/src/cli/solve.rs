@@ -58,7 +58,7 @@ pub(super) fn solve(
         SolveFormat::Json => report::Format::Json,
     };
     let sink = match output {
-        Some(path) => match report::OutputFile::create(path) {
+        Some(path) => match crate::output::OutputFile::create(path) {
             Ok(file) => Sink::File(file),
             Err(e) => {
                 let d = Diagnostic::error(e.to_string()).entity("command line").field("--output");

@@ -125,7 +125,7 @@ fn an_output_file_not_committed_leaves_the_previous_file_and_no_temporary_file()
     let path = dir.join("results.json");
     std::fs::write(&path, "previous").expect("writable");
     {
-        let mut file = report::OutputFile::create(&path).expect("created");
+        let mut file = crate::output::OutputFile::create(&path).expect("created");
         file.write_all(&vec![b'x'; 1 << 20]).expect("written");
         // Dropped without commit: a run that failed half-way.
     }
@@ -135,7 +135,7 @@ fn an_output_file_not_committed_leaves_the_previous_file_and_no_temporary_file()
     {
         use std::os::unix::fs::PermissionsExt;
         std::fs::set_permissions(&path, std::fs::Permissions::from_mode(0o640)).expect("chmod");
-        report::write_file(&path, b"new").expect("written");
+        crate::output::write_file(&path, b"new").expect("written");
         let mode = std::fs::metadata(&path).expect("exists").permissions().mode();
         assert_eq!(mode & 0o777, 0o640, "the file keeps its permissions");
         assert_eq!(std::fs::read_to_string(&path).expect("readable"), "new");
