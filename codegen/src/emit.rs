@@ -641,7 +641,7 @@ pub fn module_in(mech: &Mechanism, sys: &Symbolic, source: &str, scalar: Scalar)
         /// The equation of each row.
         pub const EQUATIONS: [&str; N] = [#(#rows),*];
     });
-    let grid = mech.time;
+    let grid = &mech.time;
     let (start, step, count) =
         (literal_signed(grid.start), literal_signed(grid.step), index(grid.count));
     items.push(parse_quote! {

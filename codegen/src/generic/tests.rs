@@ -147,7 +147,7 @@ fn zoo(seed: u64) -> Mechanism {
     Mechanism {
         name: "zoo".to_owned(),
         description: None,
-        time: TimeGrid { start: 0.0, step: 0.1, count: 2 },
+        time: TimeGrid::uniform(0.0, 0.1, 2),
         solver: SolverOptions::default(),
         bodies,
         joints,
