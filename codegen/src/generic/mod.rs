@@ -453,7 +453,7 @@ fn references(joint: &Joint, bi: &BodyState, bj: &BodyState) -> (Vk, Vk) {
 }
 
 /// (x, y) = (ref_i·ref_j, (ref_i × ref_j)·axis_i): the joint angle is θ = atan2(y, x).
-fn joint_angle(joint: &Joint, bi: &BodyState, bj: &BodyState) -> (Sk, Sk) {
+pub(crate) fn joint_angle(joint: &Joint, bi: &BodyState, bj: &BodyState) -> (Sk, Sk) {
     let (ri, rj) = references(joint, bi, bj);
     let (ai, _) = joint.axis.expect("validated: joint has axes");
     let ai = Vk::vector(0, bi, &ai);
@@ -461,7 +461,7 @@ fn joint_angle(joint: &Joint, bi: &BodyState, bj: &BodyState) -> (Sk, Sk) {
 }
 
 /// The axial position (P_j − P_i)·axis_i.
-fn axial_position(joint: &Joint, bi: &BodyState, bj: &BodyState) -> Sk {
+pub(crate) fn axial_position(joint: &Joint, bi: &BodyState, bj: &BodyState) -> Sk {
     let d = Vk::point(1, bj, &joint.point_j).sub(&Vk::point(0, bi, &joint.point_i));
     let (ai, _) = joint.axis.expect("validated: joint has axes");
     d.dot(&Vk::vector(0, bi, &ai))

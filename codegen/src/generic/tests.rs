@@ -8,7 +8,8 @@ use rand::{RngExt, SeedableRng};
 use super::Equations;
 use crate::model::{
     Body, BodyId, Constraint, ConstraintKind, CoordinateName, Driver, DriverCoordinate,
-    DriverTarget, Joint, JointId, JointKind, Law, Mechanism, Motion, SolverOptions, TimeGrid,
+    DriverTarget, Joint, JointId, JointKind, Law, Mechanism, Motion, Point, PointId, SolverOptions,
+    TimeGrid,
 };
 
 fn unit(rng: &mut StdRng) -> Vector3<f64> {
@@ -115,6 +116,16 @@ fn zoo(seed: u64) -> Mechanism {
         driver("d_rx", absolute(DriverCoordinate::Rx), harm),
         driver("d_ry", absolute(DriverCoordinate::Ry), poly),
         driver("d_rz", absolute(DriverCoordinate::Rz), harm),
+        driver("d_e1", DriverTarget::Absolute { body: BodyId(1), coordinate: DriverCoordinate::E1 }, poly),
+        driver("d_e2", absolute(DriverCoordinate::E2), harm),
+        driver("d_e3", absolute(DriverCoordinate::E3), poly),
+        driver("d_px", DriverTarget::Point { point: PointId(0), axis: 0 }, harm),
+        driver("d_py", DriverTarget::Point { point: PointId(1), axis: 1 }, poly),
+        driver("d_pz", DriverTarget::Point { point: PointId(0), axis: 2 }, harm),
+    ];
+    let points = vec![
+        Point { name: "pa".to_owned(), body: BodyId(1), local: vec3(&mut rng) },
+        Point { name: "pb".to_owned(), body: BodyId(2), local: vec3(&mut rng) },
     ];
     let constraints = vec![
         Constraint {
@@ -153,7 +164,7 @@ fn zoo(seed: u64) -> Mechanism {
         joints,
         constraints,
         drivers,
-        points: Vec::new(),
+        points,
     }
 }
 
