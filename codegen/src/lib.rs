@@ -18,6 +18,8 @@ pub mod chart;
 pub mod cli;
 pub mod desc;
 pub mod diag;
+#[cfg(feature = "cli")]
+pub mod draw;
 pub mod emit;
 pub mod engine;
 pub mod expr;

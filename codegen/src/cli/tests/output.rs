@@ -210,10 +210,10 @@ fn a_generated_solver_that_breaks_off_still_ends_the_json_with_its_error() {
     built.binary = script;
     let mut out = Vec::new();
     let mut err = Vec::new();
-    let sink = super::super::Sink::Out(io::BufWriter::new(&mut out));
+    let sink = super::super::common::Sink::Out(io::BufWriter::new(&mut out));
     let writer = Writer::begin(sink, Format::Json, mech, "generated", &[]).expect("begun");
     let analysis = crate::generic::Analysis::new(&eq, &prep);
-    let code = super::super::stream(mech, &analysis, Some(&built), writer, &mut err)
+    let code = super::super::solve::stream(mech, &analysis, Some(&built), writer, &mut err)
         .expect("no I/O error");
     assert_eq!(code, EXIT_STOPPED);
     let v: serde_json::Value = serde_json::from_slice(&out).expect("one valid JSON document");
