@@ -67,8 +67,9 @@ pub fn read(path: &Path, mech: &Mechanism) -> Result<Read, Diagnostic> {
         )));
     }
     let bytes = std::fs::read(path).map_err(|e| fail(format!("cannot read {file}: {e}")))?;
-    let text = String::from_utf8(bytes)
-        .map_err(|e| fail(format!("{file} is not UTF-8 text (byte {})", e.utf8_error().valid_up_to())))?;
+    let text = String::from_utf8(bytes).map_err(|e| {
+        fail(format!("{file} is not UTF-8 text (byte {})", e.utf8_error().valid_up_to()))
+    })?;
     parse(&text, &file, mech)
 }
 
@@ -176,7 +177,8 @@ pub fn parse(text: &str, file: &str, mech: &Mechanism) -> Result<Read, Diagnosti
     }
     for &(d, name) in &inputs {
         if !has(Column::Input(d, 0)) {
-            let message = format!("missing column \"{name}\": input driver \"{name}\" needs its values");
+            let message =
+                format!("missing column \"{name}\": input driver \"{name}\" needs its values");
             return Err(err(header_line, end, Some(name), message));
         }
     }
@@ -204,10 +206,8 @@ pub fn parse(text: &str, file: &str, mech: &Mechanism) -> Result<Read, Diagnosti
                 err(line, cell.column, Some(head.text), message)
             })?;
             if !x.is_finite() || x.abs() > MAX_MAGNITUDE {
-                let message = format!(
-                    "{} is not a finite number within ±{MAX_MAGNITUDE:e}",
-                    cell.text
-                );
+                let message =
+                    format!("{} is not a finite number within ±{MAX_MAGNITUDE:e}", cell.text);
                 return Err(err(line, cell.column, Some(head.text), message));
             }
             match *column {
@@ -219,7 +219,8 @@ pub fn parse(text: &str, file: &str, mech: &Mechanism) -> Result<Read, Diagnosti
             && time <= last
         {
             let at = columns.iter().position(|c| *c == Column::Time).expect("checked");
-            let message = format!("t = {time:?} does not increase (the previous row has t = {last:?})");
+            let message =
+                format!("t = {time:?} does not increase (the previous row has t = {last:?})");
             return Err(err(line, cells[at].column, Some("t"), message));
         }
         t.push(time);

@@ -374,7 +374,11 @@ impl Mechanism {
         match d.law {
             Law::Input => match self.time.replay.as_ref().and_then(|r| r.series(k)) {
                 Some(values) => {
-                    let [s, sd, sdd] = runtime::input::sample(&self.time.replay.as_ref().expect("series").t, values, t);
+                    let [s, sd, sdd] = runtime::input::sample(
+                        &self.time.replay.as_ref().expect("series").t,
+                        values,
+                        t,
+                    );
                     (s, sd, sdd)
                 }
                 None => (held(), 0.0, 0.0),

@@ -168,8 +168,8 @@ fn joint_results(
                 let acc = (x * ydd - y * xdd - 2.0 * rate * (x * xd + y * yd)) / r2;
                 [theta, rate, acc]
             });
-            let translation = translation
-                .then(|| total(&crate::generic::axial_position(jt, &bi, &bj), bodies));
+            let translation =
+                translation.then(|| total(&crate::generic::axial_position(jt, &bi, &bj), bodies));
             JointResult { name: jt.name.clone(), angle, translation }
         })
         .collect()
@@ -655,7 +655,13 @@ fn write_table_step(out: &mut impl Write, s: &StepResult) -> io::Result<()> {
         writeln!(out, "JOINTS")?;
         let wj = s.joints.iter().map(|j| printable(&j.name).chars().count()).chain([5]).max();
         let wj = wj.unwrap_or(5);
-        writeln!(out, "{:<wj$} {:<11}{}", "JOINT", "COORDINATE", head(&["VALUE", "RATE", "ACCEL"]))?;
+        writeln!(
+            out,
+            "{:<wj$} {:<11}{}",
+            "JOINT",
+            "COORDINATE",
+            head(&["VALUE", "RATE", "ACCEL"])
+        )?;
         for j in &s.joints {
             for (q, v) in [("angle", &j.angle), ("translation", &j.translation)] {
                 if let Some(v) = v {

@@ -275,7 +275,8 @@ impl Builder {
 
 /// Why a description with input drivers has no generated solver yet: the reduced system is a
 /// function of t only (ν and γ come from ∂/∂t), and input drivers need their own symbols.
-pub const INPUTS_NOT_SUPPORTED: &str = "input drivers are not supported by the generated engine yet";
+pub const INPUTS_NOT_SUPPORTED: &str =
+    "input drivers are not supported by the generated engine yet";
 
 /// What the generator refuses.
 #[derive(Clone, Debug, PartialEq, Eq)]

@@ -36,7 +36,8 @@ pub fn hermite<R: Real>(t0: R, a: [R; 3], t1: R, b: [R; 3], t: R) -> [R; 3] {
     let s = c0 + u * (c1 + u * (c2 + u * (c3 + u * (c4 + u * c5))));
     let du = c1
         + u * (two * c2
-            + u * (R::from_f64(3.0) * c3 + u * (R::from_f64(4.0) * c4 + u * R::from_f64(5.0) * c5)));
+            + u * (R::from_f64(3.0) * c3
+                + u * (R::from_f64(4.0) * c4 + u * R::from_f64(5.0) * c5)));
     let ddu = two * c2
         + u * (R::from_f64(6.0) * c3 + u * (R::from_f64(12.0) * c4 + u * R::from_f64(20.0) * c5));
     [s, du / h, ddu / (h * h)]

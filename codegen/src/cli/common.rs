@@ -188,9 +188,7 @@ pub(super) fn replay(
             names.join(", driver "),
             names.join(", ")
         );
-        let d = Diagnostic::error(message)
-            .entity(format!("driver \"{}\"", names[0]))
-            .field("law");
+        let d = Diagnostic::error(message).entity(format!("driver \"{}\"", names[0])).field("law");
         return Ok(Err(report_invalid(&[d], json, out, err)));
     };
     match crate::inputs::read(path, mech) {

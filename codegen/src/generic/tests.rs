@@ -116,7 +116,11 @@ fn zoo(seed: u64) -> Mechanism {
         driver("d_rx", absolute(DriverCoordinate::Rx), harm),
         driver("d_ry", absolute(DriverCoordinate::Ry), poly),
         driver("d_rz", absolute(DriverCoordinate::Rz), harm),
-        driver("d_e1", DriverTarget::Absolute { body: BodyId(1), coordinate: DriverCoordinate::E1 }, poly),
+        driver(
+            "d_e1",
+            DriverTarget::Absolute { body: BodyId(1), coordinate: DriverCoordinate::E1 },
+            poly,
+        ),
         driver("d_e2", absolute(DriverCoordinate::E2), harm),
         driver("d_e3", absolute(DriverCoordinate::E3), poly),
         driver("d_px", DriverTarget::Point { point: PointId(0), axis: 0 }, harm),

@@ -46,7 +46,11 @@ fn every_bad_file_is_refused_with_its_line_column_and_header() {
         ("overflow", "t,crank\n0,1e400\n", &["line 2", "not a finite"]),
         ("short row", "t,crank\n0,1\n0.1\n", &["line 3", "1 cells", "2 columns"]),
         ("long row", "t,crank\n0,1,2\n", &["line 2", "3 cells"]),
-        ("decreasing t", "t,crank\n0,1\n0.2,1\n0.1,1\n", &["line 4", "(\"t\")", "does not increase"]),
+        (
+            "decreasing t",
+            "t,crank\n0,1\n0.2,1\n0.1,1\n",
+            &["line 4", "(\"t\")", "does not increase"],
+        ),
         ("repeated t", "t,crank\n0,1\n0,1\n", &["line 3", "does not increase"]),
         ("empty", "# only a comment\n\n", &["line 1", "empty"]),
         ("header only", "# c\nt,crank\n", &["line 2", "no rows"]),
@@ -82,11 +86,15 @@ fn finite_differences_are_second_order_on_uneven_spacing() {
     // f = t³ on uneven points: the three-point formulas are exact for quadratics, so the error
     // is the cubic term, O(h²); halving every spacing must divide it by about 4.
     let error = |h: f64| {
-        let t: Vec<f64> = (0..12).map(|k| f64::from(k) * h * (1.0 + 0.3 * f64::from(k % 3))).collect();
-        let t: Vec<f64> = t.iter().scan(0.0, |acc, dt| {
-            *acc += dt;
-            Some(*acc)
-        }).collect();
+        let t: Vec<f64> =
+            (0..12).map(|k| f64::from(k) * h * (1.0 + 0.3 * f64::from(k % 3))).collect();
+        let t: Vec<f64> = t
+            .iter()
+            .scan(0.0, |acc, dt| {
+                *acc += dt;
+                Some(*acc)
+            })
+            .collect();
         let f: Vec<f64> = t.iter().map(|x| x * x * x).collect();
         derivative(&t, &f).iter().zip(&t).map(|(d, x)| (d - 3.0 * x * x).abs()).fold(0.0, f64::max)
     };

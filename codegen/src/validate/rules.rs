@@ -863,9 +863,9 @@ impl Rules<'_> {
         let at = At::item("driver", &d.name, "drivers", k);
         let target = match (&d.joint, &d.body, &d.point) {
             (Some(_), Some(_), _) | (Some(_), _, Some(_)) | (_, Some(_), Some(_)) => {
-                let message = "a driver is either a joint driver (`joint`, `motion`), an \
-                               absolute one (`body`, `coordinate`) or a point driver (`point`, \
-                               `coordinate`), not several";
+                let message = "a driver is either a joint driver (`joint`, `motion`) or an absolute \
+                               one (`body`, `coordinate`) or a point driver (`point`, \
+                               `coordinate`): give only one of joint, body and point";
                 let field = if d.point.is_some() { "point" } else { "body" };
                 self.error(&at, field, message);
                 None
@@ -937,8 +937,7 @@ impl Rules<'_> {
         }
         let id = self.body_ref(at, "body", body);
         let Some(coordinate) = d.coordinate else {
-            let message =
-                "missing `coordinate` (x, y, z, rx, ry, rz, e1, e2 or e3): an absolute driver \
+            let message = "missing `coordinate` (x, y, z, rx, ry, rz, e1, e2 or e3): an absolute driver \
                  needs it";
             self.error(at, "coordinate", message);
             return None;
@@ -994,16 +993,16 @@ impl Rules<'_> {
         };
         let body = &self.desc.points[k].body;
         if self.desc.bodies.iter().any(|b| &b.name == body && b.ground) {
-            let message = format!(
-                "point \"{point}\" is on ground body \"{body}\": it cannot be driven"
-            );
+            let message =
+                format!("point \"{point}\" is on ground body \"{body}\": it cannot be driven");
             self.error(at, "point", message);
             return None;
         }
-        self.desc.bodies.iter().any(|b| &b.name == body).then_some(DriverTarget::Point {
-            point: model::PointId(k),
-            axis,
-        })
+        self.desc
+            .bodies
+            .iter()
+            .any(|b| &b.name == body)
+            .then_some(DriverTarget::Point { point: model::PointId(k), axis })
     }
 
     /// Rules for a law: `"input"`, or the polynomial members or the harmonic ones, not both,

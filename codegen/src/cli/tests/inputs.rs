@@ -29,8 +29,16 @@ fn input_drivers_without_inputs_are_invalid_input_naming_them_and_the_option() {
 
 #[test]
 fn the_recorded_encoder_replays_on_the_generic_engine_and_the_default_falls_back() {
-    let (code, out, err) =
-        mechgen(&["solve", &four_bar(), "--inputs", &encoder(), "--engine", "generic", "--format", "json"]);
+    let (code, out, err) = mechgen(&[
+        "solve",
+        &four_bar(),
+        "--inputs",
+        &encoder(),
+        "--engine",
+        "generic",
+        "--format",
+        "json",
+    ]);
     assert_eq!(code, EXIT_OK, "{err}");
     assert!(err.contains("crank.dot") && err.contains("finite differences"), "{err}");
     let v: serde_json::Value = serde_json::from_str(&out).expect("JSON");
@@ -43,17 +51,21 @@ fn the_recorded_encoder_replays_on_the_generic_engine_and_the_default_falls_back
     assert_eq!(last["t"].as_f64(), Some(2.0));
     assert!(last["joints"]["O4"]["angle_ddot"].is_f64() && last["joints"]["O2"]["angle"].is_f64());
 
-    let (code, _, err) = mechgen(&["solve", &four_bar(), "--inputs", &encoder(), "--engine", "generated"]);
+    let (code, _, err) =
+        mechgen(&["solve", &four_bar(), "--inputs", &encoder(), "--engine", "generated"]);
     assert_eq!(code, EXIT_BUILD, "{err}");
     assert!(
         err.contains("the generated solver could not be built: input drivers are not supported"),
         "{err}"
     );
-    let (code, out, err) = mechgen(&["solve", &four_bar(), "--inputs", &encoder(), "--format", "csv"]);
+    let (code, out, err) =
+        mechgen(&["solve", &four_bar(), "--inputs", &encoder(), "--format", "csv"]);
     assert_eq!(code, EXIT_OK, "{err}");
     assert!(err.contains("warning: using the generic engine"), "{err}");
     let header = out.lines().next().expect("header");
-    assert!(header.ends_with("O2.angle,O2.angle_dot,O2.angle_ddot,O4.angle,O4.angle_dot,O4.angle_ddot"));
+    assert!(
+        header.ends_with("O2.angle,O2.angle_dot,O2.angle_ddot,O4.angle,O4.angle_dot,O4.angle_ddot")
+    );
 }
 
 #[test]
@@ -84,7 +96,10 @@ fn law_spellings_and_point_driver_mistakes_are_named() {
         ("law = 3.0", "expected a law table"),
     ];
     for (law, want) in cases {
-        let text = rssr_with(&format!("[[drivers]]\nname = \"m\"\njoint = \"O2\"\nmotion = \"rotation\"\n{law}\n"), false);
+        let text = rssr_with(
+            &format!("[[drivers]]\nname = \"m\"\njoint = \"O2\"\nmotion = \"rotation\"\n{law}\n"),
+            false,
+        );
         let path = temp_file("law.toml", &text);
         let (code, _, err) = mechgen(&["check", &path.display().to_string()]);
         assert_eq!(code, EXIT_INVALID, "{law}: {err}");
