@@ -20,8 +20,9 @@ use crate::model::{Law, Mechanism};
 pub const MAX_BYTES: u64 = 16 * 1024 * 1024;
 /// The most time points (data rows) a file may hold, as for a `[time]` grid.
 pub const MAX_ROWS: usize = 10_000_000;
-/// The largest magnitude of a cell, as for every number of a description.
-const MAX_MAGNITUDE: f64 = crate::validate::MAX_MAGNITUDE;
+/// The largest magnitude of a cell, as for every number of a description (1e150: the
+/// engines' products of such numbers stay finite).
+const MAX_MAGNITUDE: f64 = 1e150;
 
 /// A replayed series: the time points and, for every input driver, (s, ṡ, s̈) at each.
 #[derive(Clone, Debug, PartialEq)]
@@ -56,9 +57,10 @@ pub struct Read {
 /// # Errors
 /// A diagnostic naming the file (and line, column and header where there is one) when the file
 /// cannot be read or is not a valid inputs file.
-pub fn read(path: &Path, mech: &Mechanism) -> Result<Read, Diagnostic> {
+pub fn read(path: &Path, mech: &Mechanism) -> Result<Read, Box<Diagnostic>> {
     let file = path.display().to_string();
-    let fail = |message: String| Diagnostic::error(message).entity(format!("inputs {file}"));
+    let fail =
+        |message: String| Box::new(Diagnostic::error(message).entity(format!("inputs {file}")));
     let meta = std::fs::metadata(path).map_err(|e| fail(format!("cannot read {file}: {e}")))?;
     if meta.len() > MAX_BYTES {
         return Err(fail(format!(
@@ -109,7 +111,7 @@ enum Column {
 ///
 /// # Errors
 /// See [`read`].
-pub fn parse(text: &str, file: &str, mech: &Mechanism) -> Result<Read, Diagnostic> {
+pub fn parse(text: &str, file: &str, mech: &Mechanism) -> Result<Read, Box<Diagnostic>> {
     let err = |line: usize, column: usize, header: Option<&str>, message: String| {
         let place = match header {
             Some(h) => format!("{file}, line {line}, column {column} (\"{h}\"): "),
@@ -120,7 +122,7 @@ pub fn parse(text: &str, file: &str, mech: &Mechanism) -> Result<Read, Diagnosti
             Some(h) => d.field(h),
             None => d,
         };
-        d.at(Some(file), line, column)
+        Box::new(d.at(Some(file), line, column))
     };
     let inputs: Vec<(usize, &str)> = mech
         .drivers

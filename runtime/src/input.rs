@@ -51,13 +51,13 @@ pub fn hermite<R: Real>(t0: R, a: [R; 3], t1: R, b: [R; 3], t: R) -> [R; 3] {
 #[must_use]
 pub fn sample<R: Real>(times: &[R], values: &[[R; 3]], t: R) -> [R; 3] {
     let n = times.len().min(values.len());
-    if n == 0 {
+    if n == 0 || t.is_nan() {
         return [R::NAN; 3];
     }
-    if !(t > times[0]) {
+    if t <= times[0] {
         return values[0];
     }
-    if !(t < times[n - 1]) {
+    if t >= times[n - 1] {
         return values[n - 1];
     }
     // The last sample at or before t: times[lo] ≤ t < times[hi].
@@ -115,5 +115,6 @@ mod tests {
         // Within one interval the interpolant is the quintic (see above).
         assert!((mid[0] - quintic(0.2)[0]).abs() < 1e-12);
         assert!(sample::<f64>(&[], &[], 0.0)[0].is_nan());
+        assert!(sample(&times, &values, f64::NAN)[0].is_nan());
     }
 }

@@ -199,7 +199,7 @@ pub(super) fn replay(
             mech.time = crate::model::TimeGrid::replaying(std::sync::Arc::new(read.replay));
             Ok(Ok(()))
         }
-        Err(d) => Ok(Err(report_invalid(&[d], json, out, err))),
+        Err(d) => Ok(Err(report_invalid(&[*d], json, out, err))),
     }
 }
 
