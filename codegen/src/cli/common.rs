@@ -183,8 +183,8 @@ pub(super) fn replay(
             return Ok(Ok(()));
         }
         let message = format!(
-            "driver {} has law = \"input\": its values come from a recorded series; give \
-             them with --inputs FILE.csv (columns t, {})",
+            "driver {} has law = \"input\": its values come from a recorded series, which \
+             solve, compare and bench take with --inputs FILE.csv (columns t, {})",
             names.join(", driver "),
             names.join(", ")
         );
