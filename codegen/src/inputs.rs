@@ -185,6 +185,7 @@ pub fn parse(text: &str, file: &str, mech: &Mechanism) -> Result<Read, Box<Diagn
         }
     }
     let mut t = Vec::new();
+    let mut row_lines = Vec::new();
     let mut values: Vec<Vec<[f64; 3]>> = vec![Vec::new(); mech.drivers.len()];
     for (line, row) in lines {
         let cells = cells(row);
@@ -226,6 +227,7 @@ pub fn parse(text: &str, file: &str, mech: &Mechanism) -> Result<Read, Box<Diagn
             return Err(err(line, cells[at].column, Some("t"), message));
         }
         t.push(time);
+        row_lines.push(line);
         for &(d, _) in &inputs {
             values[d].push(row_values[d]);
         }
@@ -241,7 +243,15 @@ pub fn parse(text: &str, file: &str, mech: &Mechanism) -> Result<Read, Box<Diagn
                 continue;
             }
             let f: Vec<f64> = values[d].iter().map(|v| v[order - 1]).collect();
-            for (v, x) in values[d].iter_mut().zip(derivative(&t, &f)) {
+            for ((v, x), line) in values[d].iter_mut().zip(derivative(&t, &f)).zip(&row_lines) {
+                // Differences over rows very close in t can exceed every bound of the engines.
+                if !x.is_finite() || x.abs() > MAX_MAGNITUDE {
+                    let message = format!(
+                        "the estimated {name}.{suffix} is {x:e}, beyond ±{MAX_MAGNITUDE:e} (rows \
+                         too close in t for finite differences): give the column"
+                    );
+                    return Err(err(*line, 1, Some(name), message));
+                }
                 v[order] = x;
             }
             warnings.push(format!(

@@ -372,17 +372,15 @@ impl Mechanism {
     pub fn drive(&self, k: usize, t: f64, held: impl FnOnce() -> f64) -> (f64, f64, f64) {
         let d = &self.drivers[k];
         match d.law {
-            Law::Input => match self.time.replay.as_ref().and_then(|r| r.series(k)) {
-                Some(values) => {
-                    let [s, sd, sdd] = runtime::input::sample(
-                        &self.time.replay.as_ref().expect("series").t,
-                        values,
-                        t,
-                    );
-                    (s, sd, sdd)
+            Law::Input => {
+                match self.time.replay.as_ref().and_then(|r| Some((&r.t, r.series(k)?))) {
+                    Some((times, values)) => {
+                        let [s, sd, sdd] = runtime::input::sample(times, values, t);
+                        (s, sd, sdd)
+                    }
+                    None => (held(), 0.0, 0.0),
                 }
-                None => (held(), 0.0, 0.0),
-            },
+            }
             _ => d.law.eval(t),
         }
     }

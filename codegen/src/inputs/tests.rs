@@ -35,7 +35,12 @@ fn refused(text: &str) -> String {
 
 #[test]
 fn every_bad_file_is_refused_with_its_line_column_and_header() {
-    let cases: [(&str, &str, &[&str]); 14] = [
+    let cases: [(&str, &str, &[&str]); 15] = [
+        (
+            "overflowing estimate",
+            "t,crank\n0,0\n1e-200,1e150\n",
+            &["line 2", "estimated crank.dot"],
+        ),
         ("missing input column", "t\n0,\n", &["line 1", "missing column \"crank\""]),
         ("missing t", "crank\n0.1\n", &["line 1", "missing column \"t\""]),
         ("unknown column", "t,crank,crank.dt\n0,1,2\n", &["column 9", "\"crank.dt\"", "unknown"]),
