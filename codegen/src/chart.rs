@@ -117,7 +117,7 @@ impl<'r> Error<'r> {
 
 /// The frames of one generic run at the compared time points, `None` if it fails.
 fn reference_frames(eq: &Equations<'_>, analysis: &Analysis<'_, '_>) -> Option<Vec<Frame>> {
-    let grid = eq.mechanism().time;
+    let grid = &eq.mechanism().time;
     let mut frames = Vec::new();
     let mut count = 0;
     let r = analysis

@@ -90,8 +90,8 @@ fn argument_error(e: &clap::Error, json: bool, out: &mut dyn Write, err: &mut dy
 fn execute(command: Command, out: &mut dyn Write, err: &mut dyn Write) -> std::io::Result<i32> {
     match command {
         Command::Check { file, format } => check::check(&file, format, out, err),
-        Command::Solve { file, engine, format, output } => {
-            solve::solve(&file, engine, format, output.as_deref(), out, err)
+        Command::Solve { file, engine, format, output, inputs } => {
+            solve::solve(&file, engine, format, output.as_deref(), inputs.as_deref(), out, err)
         }
         Command::ImportYoung { deck, output } => {
             import::import_young(&deck, output.as_deref(), out, err)
@@ -103,7 +103,9 @@ fn execute(command: Command, out: &mut dyn Write, err: &mut dyn Write) -> std::i
         Command::Scaling { bodies, repeats, write } => {
             scaling::scaling(&bodies, repeats, write.as_deref(), out, err)
         }
-        Command::Compare { file, format } => compare::compare(&file, format, out, err),
+        Command::Compare { file, format, inputs } => {
+            compare::compare(&file, format, inputs.as_deref(), out, err)
+        }
         Command::Bench {
             file,
             engine,
@@ -113,10 +115,11 @@ fn execute(command: Command, out: &mut dyn Write, err: &mut dyn Write) -> std::i
             float,
             no_predictor,
             dense_lu,
+            inputs,
         } => {
             let settings = crate::engine::Settings { predictor: !no_predictor, dense_lu };
             let how = bench::BenchHow { tolerance, repeats, float: float.scalar(), settings };
-            bench::bench(&file, engine, &how, format, out, err)
+            bench::bench(&file, engine, &how, format, inputs.as_deref(), out, err)
         }
         Command::Codegen { check } => codegen::codegen(check, out, err),
         Command::Plot { file, point, body, quantity, output } => {

@@ -273,6 +273,12 @@ pub enum DriverCoordinate {
     Ry,
     /// Rotation about the global z axis.
     Rz,
+    /// Euler parameter e1 (q_body[e1] = s).
+    E1,
+    /// Euler parameter e2.
+    E2,
+    /// Euler parameter e3.
+    E3,
 }
 
 impl DriverCoordinate {
@@ -286,12 +292,17 @@ impl DriverCoordinate {
             Self::Rx => "rx",
             Self::Ry => "ry",
             Self::Rz => "rz",
+            Self::E1 => "e1",
+            Self::E2 => "e2",
+            Self::E3 => "e3",
         }
     }
 }
 
 /// `law`: either the polynomial `{ start, velocity, acceleration }` or the harmonic
 /// `{ offset, amplitude, frequency, phase }`; missing members of the chosen form are 0.
+/// The string `"input"` instead of a table makes the driver a run-time input (`input` set,
+/// every member `None`).
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct LawDesc {
@@ -316,9 +327,54 @@ pub struct LawDesc {
     /// φ (rad).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub phase: Option<f64>,
+    /// `law = "input"`: s, ṡ and s̈ are supplied at run time.
+    #[serde(skip)]
+    pub input: bool,
 }
 
-/// `[[drivers]]`: a joint driver (`joint`, `motion`) or an absolute one (`body`, `coordinate`).
+/// The `law` key: the string `"input"` or a law table, with the table's own diagnostics
+/// (unknown members keep their place in the file).
+mod law_or_input {
+    use std::fmt;
+
+    use serde::de::{self, MapAccess, Visitor};
+    use serde::{Deserialize, Deserializer, Serialize, Serializer};
+
+    use super::LawDesc;
+
+    pub(super) fn serialize<S: Serializer>(law: &LawDesc, ser: S) -> Result<S::Ok, S::Error> {
+        if law.input { ser.serialize_str("input") } else { law.serialize(ser) }
+    }
+
+    pub(super) fn deserialize<'de, D: Deserializer<'de>>(de: D) -> Result<LawDesc, D::Error> {
+        de.deserialize_any(LawVisitor)
+    }
+
+    struct LawVisitor;
+
+    impl<'de> Visitor<'de> for LawVisitor {
+        type Value = LawDesc;
+
+        fn expecting(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+            f.write_str("a law table ({ start, velocity, acceleration } or { offset, amplitude, frequency, phase }) or the string \"input\"")
+        }
+
+        fn visit_str<E: de::Error>(self, v: &str) -> Result<LawDesc, E> {
+            if v == "input" {
+                Ok(LawDesc { input: true, ..LawDesc::default() })
+            } else {
+                Err(E::unknown_variant(v, &["input"]))
+            }
+        }
+
+        fn visit_map<A: MapAccess<'de>>(self, map: A) -> Result<LawDesc, A::Error> {
+            LawDesc::deserialize(de::value::MapAccessDeserializer::new(map))
+        }
+    }
+}
+
+/// `[[drivers]]`: a joint driver (`joint`, `motion`), an absolute one (`body`, `coordinate`)
+/// or a point driver (`point`, `coordinate` x, y or z).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct DriverDesc {
@@ -333,10 +389,14 @@ pub struct DriverDesc {
     /// Absolute driver: the body.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub body: Option<String>,
-    /// Absolute driver: the coordinate.
+    /// Point driver: the point of interest whose global coordinate is driven.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub point: Option<String>,
+    /// Absolute or point driver: the coordinate.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub coordinate: Option<DriverCoordinate>,
-    /// The motion law s(t).
+    /// The motion law s(t), or `"input"`.
+    #[serde(with = "law_or_input")]
     pub law: LawDesc,
 }
 

@@ -119,7 +119,7 @@ fn constants(mech: &Mechanism, sys: &Symbolic, bodies: usize) -> Vec<syn::Item> 
     let unknowns =
         sys.unknowns.iter().map(|&(b, c)| format!("{}.{}", mech.bodies[b.0].name, COORDINATE[c]));
     let rows = sys.rows.iter().map(crate::generic::RowLabel::equation);
-    let grid = mech.time;
+    let grid = &mech.time;
     let max_it = Literal::u32_unsuffixed(mech.solver.max_iterations);
     let q0 = sys.unknowns.iter().map(|&(b, c)| {
         let body = &mech.bodies[b.0];

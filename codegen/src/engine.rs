@@ -142,6 +142,23 @@ pub fn build(mech: &Mechanism) -> Result<Built, EngineError> {
 /// [`EngineError::Generate`], [`EngineError::Config`] or [`EngineError::Build`].
 pub fn build_in(mech: &Mechanism, scalar: Scalar) -> Result<Built, EngineError> {
     let start = std::time::Instant::now();
+    // Until the generated module takes its inputs at run time, it runs its own [time] grid
+    // with laws only: input drivers and replayed time points are the generic engine's.
+    let inputs = mech.input_drivers();
+    if !inputs.is_empty() || mech.time.replay.is_some() {
+        let reason = if inputs.is_empty() {
+            "replayed time points (--inputs) are not supported by the generated engine yet"
+                .to_owned()
+        } else {
+            format!(
+                "{} (driver {})",
+                crate::symbolic::INPUTS_NOT_SUPPORTED,
+                inputs.join(", driver ")
+            )
+        };
+        let fix = "use --engine generic (the default engine falls back to it)".to_owned();
+        return Err(EngineError::Build(BuildFailure { reason, fix }));
+    }
     let sys = Symbolic::build(mech)?;
     let module = emit::module_in(mech, &sys, &format!("the description \"{}\"", mech.name), scalar);
     log::debug!(

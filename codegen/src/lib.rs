@@ -24,6 +24,7 @@ pub mod emit;
 pub mod engine;
 pub mod expr;
 pub mod generic;
+pub mod inputs;
 pub mod model;
 #[cfg(feature = "cli")]
 pub mod output;

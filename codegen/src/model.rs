@@ -13,6 +13,10 @@ pub use crate::desc::{CoordinateName, DriverCoordinate, JointType, Motion};
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
 pub struct BodyId(pub usize);
 
+/// Index of a point of interest in [`Mechanism::points`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub struct PointId(pub usize);
+
 /// Index of a joint in [`Mechanism::joints`].
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
 pub struct JointId(pub usize);
@@ -40,22 +44,43 @@ pub struct Mechanism {
     pub points: Vec<Point>,
 }
 
-/// The time points `start + k·step`, `k = 0 … count − 1`.
-#[derive(Clone, Copy, Debug, PartialEq)]
+/// The time points `start + k·step`, `k = 0 … count − 1`, or those of a replayed series
+/// of recorded inputs (`solve --inputs`).
+#[derive(Clone, Debug, PartialEq)]
 pub struct TimeGrid {
     /// First time point.
     pub start: f64,
-    /// Spacing (> 0).
+    /// Spacing (> 0); for a replay, the mean spacing.
     pub step: f64,
     /// Number of time points (≥ 1, ≤ 10,000,000).
     pub count: usize,
+    /// The recorded inputs whose rows are the time points, when replaying.
+    pub replay: Option<std::sync::Arc<crate::inputs::Replay>>,
 }
 
 impl TimeGrid {
+    /// The grid `start + k·step`, `k < count`.
+    #[must_use]
+    pub fn uniform(start: f64, step: f64, count: usize) -> Self {
+        Self { start, step, count, replay: None }
+    }
+
+    /// The time points of a replayed series (non-empty, strictly increasing).
+    #[must_use]
+    pub fn replaying(replay: std::sync::Arc<crate::inputs::Replay>) -> Self {
+        let count = replay.t.len();
+        let (first, last) = (replay.t[0], replay.t[count - 1]);
+        let step = if count > 1 { (last - first) / (count - 1) as f64 } else { 1.0 };
+        Self { start: first, step, count, replay: Some(replay) }
+    }
+
     /// The k-th time point, computed without accumulating sums.
     #[must_use]
     pub fn at(&self, k: usize) -> f64 {
-        self.start + k as f64 * self.step
+        match &self.replay {
+            Some(r) => r.t[k],
+            None => self.start + k as f64 * self.step,
+        }
     }
 
     /// Whether point k is among `bound` (≥ 2) evenly spaced points of the grid: every point
@@ -267,6 +292,13 @@ pub enum DriverTarget {
         /// The coordinate.
         coordinate: DriverCoordinate,
     },
+    /// A global coordinate of a point of interest, on a body that is not ground.
+    Point {
+        /// The point.
+        point: PointId,
+        /// 0, 1 or 2 for x, y or z.
+        axis: usize,
+    },
 }
 
 /// A motion law s(t).
@@ -292,13 +324,17 @@ pub enum Law {
         /// φ.
         phase: f64,
     },
+    /// `law = "input"`: s, ṡ, s̈ are supplied at run time ([`Mechanism::drive`]).
+    Input,
 }
 
 impl Law {
-    /// `(s, ṡ, s̈)` at time `t`.
+    /// `(s, ṡ, s̈)` at time `t`; an input has no law and gives zeros (engines ask
+    /// [`Mechanism::drive`], which knows the inputs).
     #[must_use]
     pub fn eval(&self, t: f64) -> (f64, f64, f64) {
         match *self {
+            Self::Input => (0.0, 0.0, 0.0),
             Self::Polynomial { start, velocity, acceleration } => (
                 start + velocity * t + 0.5 * acceleration * t * t,
                 velocity + acceleration * t,
@@ -328,6 +364,33 @@ pub struct Point {
 }
 
 impl Mechanism {
+    /// `(s, ṡ, s̈)` of driver `k` at time `t`: its law, or for an input driver the replayed
+    /// series interpolated at t (`runtime::input::sample`), or, with no series, the value
+    /// `held` gives (engines pass the driven quantity at the initial estimates, so that
+    /// `check` and the assembly of a description with inputs see a consistent driver).
+    #[must_use]
+    pub fn drive(&self, k: usize, t: f64, held: impl FnOnce() -> f64) -> (f64, f64, f64) {
+        let d = &self.drivers[k];
+        match d.law {
+            Law::Input => {
+                match self.time.replay.as_ref().and_then(|r| Some((&r.t, r.series(k)?))) {
+                    Some((times, values)) => {
+                        let [s, sd, sdd] = runtime::input::sample(times, values, t);
+                        (s, sd, sdd)
+                    }
+                    None => (held(), 0.0, 0.0),
+                }
+            }
+            _ => d.law.eval(t),
+        }
+    }
+
+    /// The names of the input drivers, in file order.
+    #[must_use]
+    pub fn input_drivers(&self) -> Vec<&str> {
+        self.drivers.iter().filter(|d| d.law == Law::Input).map(|d| d.name.as_str()).collect()
+    }
+
     /// Bodies that carry unknowns (all but ground), in file order.
     pub fn moving_bodies(&self) -> impl Iterator<Item = BodyId> + '_ {
         self.bodies.iter().enumerate().filter(|(_, b)| !b.ground).map(|(k, _)| BodyId(k))

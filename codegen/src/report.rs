@@ -48,6 +48,19 @@ pub struct PointResult {
     pub a: [f64; 3],
 }
 
+/// One joint coordinate at one time point: the angle θ from ref_i to ref_j about axis_i
+/// (revolute, cylindrical and screw joints with references) and the translation
+/// d = (P_j − P_i)·axis_i (prismatic, cylindrical, screw), each with its two time derivatives.
+#[derive(Clone, Debug, PartialEq)]
+pub struct JointResult {
+    /// Joint name.
+    pub name: String,
+    /// (θ, θ̇, θ̈); θ in (−π, π] here, unwrapped along the run by [`Unwrap`].
+    pub angle: Option<[f64; 3]>,
+    /// (d, ḋ, d̈).
+    pub translation: Option<[f64; 3]>,
+}
+
 /// Everything reported at one time point.
 #[derive(Clone, Debug, PartialEq)]
 pub struct StepResult {
@@ -61,6 +74,104 @@ pub struct StepResult {
     pub bodies: Vec<BodyResult>,
     /// Every point of interest, in file order.
     pub points: Vec<PointResult>,
+    /// Every joint with a reported coordinate ([`reported_joints`]), in file order.
+    pub joints: Vec<JointResult>,
+}
+
+/// The joints whose coordinates are reported, with (angle, translation): revolute,
+/// cylindrical and screw joints with ref_i and ref_j report θ; prismatic, cylindrical and
+/// screw joints report d.
+#[must_use]
+pub fn reported_joints(mech: &Mechanism) -> Vec<(usize, bool, bool)> {
+    use crate::model::JointKind as K;
+    mech.joints
+        .iter()
+        .enumerate()
+        .filter_map(|(k, j)| {
+            let angle = j.reference.is_some()
+                && matches!(j.kind, K::Revolute | K::Cylindrical | K::Screw { .. });
+            let translation = matches!(j.kind, K::Prismatic | K::Cylindrical | K::Screw { .. });
+            (angle || translation).then_some((k, angle, translation))
+        })
+        .collect()
+}
+
+/// Makes the joint angles of successive steps continuous across turns: each angle is moved by
+/// the multiple of 2π that brings it closest to the previous step's (the first stays in
+/// (−π, π]).
+#[derive(Clone, Debug, Default)]
+pub struct Unwrap {
+    previous: Vec<Option<f64>>,
+}
+
+impl Unwrap {
+    /// Unwraps the angles of `s` in place.
+    pub fn apply(&mut self, s: &mut StepResult) {
+        use std::f64::consts::TAU;
+        self.previous.resize(s.joints.len(), None);
+        for (j, prev) in s.joints.iter_mut().zip(&mut self.previous) {
+            if let Some(a) = j.angle.as_mut() {
+                if let Some(p) = *prev {
+                    a[0] += TAU * ((p - a[0]) / TAU).round();
+                }
+                *prev = Some(a[0]);
+            }
+        }
+    }
+}
+
+/// The joint coordinates (θ, d and their derivatives) from q, q̇ and q̈.
+fn joint_results(
+    mech: &Mechanism,
+    layout: &[Option<usize>],
+    q: &DVector<f64>,
+    qd: &DVector<f64>,
+    qdd: &DVector<f64>,
+) -> Vec<JointResult> {
+    use crate::generic::kin::{BodyState, Sk};
+    let reported = reported_joints(mech);
+    if reported.is_empty() {
+        return Vec::new();
+    }
+    let state = |b: usize| match layout[b] {
+        Some(o) => BodyState::new(&q.as_slice()[o..o + 7], &qd.as_slice()[o..o + 7]),
+        None => {
+            let (r, p) = (mech.bodies[b].r, mech.bodies[b].p);
+            BodyState::new(&[r.x, r.y, r.z, p[0], p[1], p[2], p[3]], &[0.0; 7])
+        }
+    };
+    // (u, u̇, ü) of a quantity carried with its Jacobian: ü = u_q q̈ + ü* (kin's module docs).
+    let total = |u: &Sk, bodies: [usize; 2]| {
+        let mut dd = u.d2;
+        for (slot, b) in bodies.iter().enumerate() {
+            if let Some(o) = layout[*b] {
+                dd += (0..7).map(|c| u.jac[slot][c] * qdd[o + c]).sum::<f64>();
+            }
+        }
+        [u.v, u.d1, dd]
+    };
+    reported
+        .into_iter()
+        .map(|(k, angle, translation)| {
+            let jt = &mech.joints[k];
+            let bodies = [jt.body_i.0, jt.body_j.0];
+            let (bi, bj) = (state(bodies[0]), state(bodies[1]));
+            let angle = angle.then(|| {
+                let (x, y) = crate::generic::joint_angle(jt, &bi, &bj);
+                let ([x, xd, xdd], [y, yd, ydd]) = (total(&x, bodies), total(&y, bodies));
+                // θ = atan2(y, x); θ̇ r² = x ẏ − y ẋ; θ̈ r² = x ÿ − y ẍ − 2 θ̇ (x ẋ + y ẏ).
+                let r2 = x * x + y * y;
+                let theta = y.atan2(x);
+                let theta = if theta == -std::f64::consts::PI { -theta } else { theta };
+                let rate = (x * yd - y * xd) / r2;
+                let acc = (x * ydd - y * xdd - 2.0 * rate * (x * xd + y * yd)) / r2;
+                [theta, rate, acc]
+            });
+            let translation =
+                translation.then(|| total(&crate::generic::axial_position(jt, &bi, &bj), bodies));
+            JointResult { name: jt.name.clone(), angle, translation }
+        })
+        .collect()
 }
 
 /// Where each body's 7 coordinates sit in q (`None` for ground bodies).
@@ -183,7 +294,8 @@ pub fn from_coordinates(
             }
         })
         .collect();
-    StepResult { t, iterations, residual, bodies, points }
+    let joints = joint_results(mech, layout, q, qd, qdd);
+    StepResult { t, iterations, residual, bodies, points, joints }
 }
 
 /// The output formats of `solve`.
@@ -204,6 +316,8 @@ pub struct Writer<W: Write> {
     steps: usize,
     /// Equations left out of the analysis as redundant (written by `finish` in CSV).
     removed: Vec<String>,
+    /// Continuity of the joint angles across steps.
+    unwrap: Unwrap,
 }
 
 impl<W: Write> Writer<W> {
@@ -256,7 +370,7 @@ impl<W: Write> Writer<W> {
                 }
             }
         }
-        Ok(Self { out, format, steps: 0, removed: removed.to_vec() })
+        Ok(Self { out, format, steps: 0, removed: removed.to_vec(), unwrap: Unwrap::default() })
     }
 
     /// Writes one time point.
@@ -264,6 +378,14 @@ impl<W: Write> Writer<W> {
     /// # Errors
     /// Returns I/O errors of `out`.
     pub fn step(&mut self, s: &StepResult) -> io::Result<()> {
+        let mut unwrapped;
+        let s = if s.joints.iter().any(|j| j.angle.is_some()) {
+            unwrapped = s.clone();
+            self.unwrap.apply(&mut unwrapped);
+            &unwrapped
+        } else {
+            s
+        };
         match self.format {
             Format::Json => {
                 let sep = if self.steps == 0 { "\n    " } else { ",\n    " };
@@ -370,12 +492,28 @@ pub fn step_json(s: &StepResult) -> serde_json::Value {
         .iter()
         .map(|p| (p.name.clone(), serde_json::json!({ "r": p.r, "v": p.v, "a": p.a })))
         .collect();
+    let joints: serde_json::Map<String, serde_json::Value> = s
+        .joints
+        .iter()
+        .map(|j| {
+            let mut o = serde_json::Map::new();
+            for (q, v) in [("angle", j.angle), ("translation", j.translation)] {
+                if let Some([x, xd, xdd]) = v {
+                    o.insert(q.to_owned(), x.into());
+                    o.insert(format!("{q}_dot"), xd.into());
+                    o.insert(format!("{q}_ddot"), xdd.into());
+                }
+            }
+            (j.name.clone(), serde_json::Value::Object(o))
+        })
+        .collect();
     serde_json::json!({
         "t": s.t,
         "iterations": s.iterations,
         "residual": s.residual,
         "bodies": bodies,
         "points": points,
+        "joints": joints,
     })
 }
 
@@ -403,6 +541,14 @@ pub fn csv_header(mech: &Mechanism) -> Vec<String> {
     for p in &mech.points {
         for q in ["r", "v", "a"] {
             h.extend(XYZ.iter().map(|c| format!("{}.{q}.{c}", p.name)));
+        }
+    }
+    for (k, angle, translation) in reported_joints(mech) {
+        let name = &mech.joints[k].name;
+        for (q, on) in [("angle", angle), ("translation", translation)] {
+            if on {
+                h.extend(["", "_dot", "_ddot"].iter().map(|d| format!("{name}.{q}{d}")));
+            }
         }
     }
     h
@@ -440,6 +586,11 @@ fn csv_row(s: &StepResult) -> Vec<String> {
     }
     for p in &s.points {
         for v in [&p.r, &p.v, &p.a] {
+            row.extend(v.iter().map(|&x| num(x)));
+        }
+    }
+    for j in &s.joints {
+        for v in [&j.angle, &j.translation].into_iter().flatten() {
             row.extend(v.iter().map(|&x| num(x)));
         }
     }
@@ -497,6 +648,25 @@ fn write_table_step(out: &mut impl Write, s: &StepResult) -> io::Result<()> {
         )?;
         for (p, name) in s.points.iter().zip(&points) {
             writeln!(out, "{name:<w$}{}", cells(&[&p.r, &p.v, &p.a]))?;
+        }
+    }
+    if !s.joints.is_empty() {
+        writeln!(out, "JOINTS")?;
+        let wj = s.joints.iter().map(|j| printable(&j.name).chars().count()).chain([5]).max();
+        let wj = wj.unwrap_or(5);
+        writeln!(
+            out,
+            "{:<wj$} {:<11}{}",
+            "JOINT",
+            "COORDINATE",
+            head(&["VALUE", "RATE", "ACCEL"])
+        )?;
+        for j in &s.joints {
+            for (q, v) in [("angle", &j.angle), ("translation", &j.translation)] {
+                if let Some(v) = v {
+                    writeln!(out, "{:<wj$} {q:<11}{}", printable(&j.name), cells(&[v]))?;
+                }
+            }
         }
     }
     Ok(())

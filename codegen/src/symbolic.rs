@@ -97,6 +97,9 @@ impl Builder {
                 let s = p.add(s0, vt);
                 p.add(s, att)
             }
+            // Never reached: `Symbolic::build` refuses input drivers (see
+            // [`INPUTS_NOT_SUPPORTED`]) before any row is written.
+            Law::Input => p.constant(0.0),
             Law::Harmonic { offset, amplitude, frequency, phase } => {
                 let (c, amp, w, ph) = (
                     p.constant(offset),
@@ -270,6 +273,11 @@ impl Builder {
     }
 }
 
+/// Why a description with input drivers has no generated solver yet: the reduced system is a
+/// function of t only (ν and γ come from ∂/∂t), and input drivers need their own symbols.
+pub const INPUTS_NOT_SUPPORTED: &str =
+    "input drivers are not supported by the generated engine yet";
+
 /// What the generator refuses.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct GenerateError {
@@ -292,6 +300,12 @@ impl Symbolic {
     /// When the reduced system is not square with full rank at the initial configuration
     /// (an undriven degree of freedom, or a coordinate fixed twice).
     pub fn build(mech: &Mechanism) -> Result<Self, GenerateError> {
+        let inputs = mech.input_drivers();
+        if !inputs.is_empty() {
+            return Err(GenerateError {
+                message: format!("{INPUTS_NOT_SUPPORTED} (driver {})", inputs.join(", driver ")),
+            });
+        }
         let eq = Equations::new(mech);
         let labels = eq.labels().to_vec();
         let placeholder = Source::Unknown(usize::MAX);
@@ -404,17 +418,20 @@ impl Symbolic {
                         }
                     }
                 }
+                DriverTarget::Point { point, axis } => {
+                    let pt = &mech.points[point.0];
+                    let r = builder.point(pt.body, &pt.local);
+                    builder.pool.sub(r[axis], s)
+                }
                 DriverTarget::Absolute { body, coordinate } => {
-                    let k = match coordinate {
-                        DriverCoordinate::X => 0,
-                        DriverCoordinate::Y => 1,
-                        DriverCoordinate::Z => 2,
-                        DriverCoordinate::Rx => 4,
-                        DriverCoordinate::Ry => 5,
-                        DriverCoordinate::Rz => 6,
-                    };
+                    let k = crate::generic::absolute_index(coordinate);
                     let q = builder.coordinate(body, k);
-                    if k < 3 {
+                    let rotation = matches!(
+                        coordinate,
+                        DriverCoordinate::Rx | DriverCoordinate::Ry | DriverCoordinate::Rz
+                    );
+                    if !rotation {
+                        // x, y, z, e1, e2, e3: q_b[c] − s.
                         builder.pool.sub(q, s)
                     } else {
                         // e_k cos(s/2) − e0 sin(s/2) (thesis eq. 4.62, one-equation form).

@@ -318,6 +318,7 @@ impl<'a> Parser<'a> {
                 joint: None,
                 motion: None,
                 body: Some(body_name(body)),
+                point: None,
                 coordinate: Some(coordinate),
                 law,
             });
@@ -866,10 +867,17 @@ pub fn to_toml(desc: &MechanismDesc, comment: &str) -> String {
         if let Some(body) = &driver.body {
             w.string("body", body);
         }
+        if let Some(point) = &driver.point {
+            w.string("point", point);
+        }
         if let Some(coordinate) = driver.coordinate {
             w.string("coordinate", coordinate.as_str());
         }
         let law = &driver.law;
+        if law.input {
+            w.string("law", "input");
+            continue;
+        }
         let members = [
             ("start", law.start),
             ("velocity", law.velocity),

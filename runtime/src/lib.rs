@@ -125,6 +125,7 @@
 
 pub mod dynamic;
 pub mod factors;
+pub mod input;
 pub mod lu;
 pub mod math;
 mod mechanism;

@@ -38,6 +38,10 @@ pub(super) enum Command {
         /// Write the results here instead of standard output.
         #[arg(short = 'o', long = "output")]
         output: Option<PathBuf>,
+        /// Recorded inputs (CSV: `t`, then NAME, NAME.dot, NAME.ddot per input driver): the
+        /// time points come from the file.
+        #[arg(long)]
+        inputs: Option<PathBuf>,
     },
     /// Run both engines; report the largest difference of every output quantity and the
     /// time per step of each.
@@ -47,6 +51,10 @@ pub(super) enum Command {
         /// Output format.
         #[arg(long, value_enum, default_value_t = CheckFormat::Text)]
         format: CheckFormat,
+        /// Recorded inputs (CSV: `t`, then NAME, NAME.dot, NAME.ddot per input driver): the
+        /// time points come from the file.
+        #[arg(long)]
+        inputs: Option<PathBuf>,
     },
     /// Time the analysis: ns per time step (min and median over repeats), Newton
     /// iterations per step.
@@ -74,6 +82,10 @@ pub(super) enum Command {
         /// Factor the generated solver's Jacobian by dense LU only (no static pivot orders).
         #[arg(long)]
         dense_lu: bool,
+        /// Recorded inputs (CSV: `t`, then NAME, NAME.dot, NAME.ddot per input driver): the
+        /// time points come from the file.
+        #[arg(long)]
+        inputs: Option<PathBuf>,
     },
     /// Chart speed against accuracy: one mark per engine and setting (SVG).
     Chart {
@@ -239,6 +251,7 @@ impl Command {
     /// The `-o` file of the command and the files it reads, when it has one.
     pub(super) fn output(&self) -> Option<(&Path, Vec<&Path>)> {
         match self {
+            Self::Solve { file, output: Some(o), inputs: Some(i), .. } => Some((o, vec![file, i])),
             Self::Solve { file, output: Some(o), .. }
             | Self::Generate { file, output: Some(o), .. }
             | Self::ImportYoung { deck: file, output: Some(o) } => Some((o, vec![file])),

@@ -14,10 +14,14 @@ pub(super) fn chart(
     out: &mut dyn Write,
     err: &mut dyn Write,
 ) -> io::Result<i32> {
-    let loaded = match load(file, false, out, err) {
+    let mut loaded = match load(file, false, out, err) {
         Ok(l) => l,
         Err(code) => return Ok(code),
     };
+    // Input drivers need a recorded series, which only solve, compare and bench take.
+    if let Err(code) = super::common::replay(&mut loaded.mechanism, None, false, out, err)? {
+        return Ok(code);
+    }
     let mech = &loaded.mechanism;
     let bar = term::bar(crate::chart::mark_count() as u64, "marks");
     let measured = crate::chart::measure_with(mech, repeats, &mut |series, tolerance| {

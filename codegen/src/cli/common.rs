@@ -166,6 +166,42 @@ pub(super) fn load(
     }
 }
 
+/// Applies `--inputs`: reads the recorded series (printing its warnings) and makes its rows
+/// the time points of `mech`; without `--inputs`, a description with input drivers is
+/// invalid input naming them. `Err` carries the exit status.
+pub(super) fn replay(
+    mech: &mut Mechanism,
+    inputs: Option<&Path>,
+    json: bool,
+    out: &mut dyn Write,
+    err: &mut dyn Write,
+) -> io::Result<Result<(), i32>> {
+    let Some(path) = inputs else {
+        let names = mech.input_drivers();
+        if names.is_empty() {
+            return Ok(Ok(()));
+        }
+        let message = format!(
+            "driver {} has law = \"input\": its values come from a recorded series, which \
+             solve, compare and bench take with --inputs FILE.csv (columns t, {})",
+            names.join(", driver "),
+            names.join(", ")
+        );
+        let d = Diagnostic::error(message).entity(format!("driver \"{}\"", names[0])).field("law");
+        return Ok(Err(report_invalid(&[d], json, out, err)));
+    };
+    match crate::inputs::read(path, mech) {
+        Ok(read) => {
+            for w in &read.warnings {
+                writeln!(err, "warning: {}", printable(w))?;
+            }
+            mech.time = crate::model::TimeGrid::replaying(std::sync::Arc::new(read.replay));
+            Ok(Ok(()))
+        }
+        Err(d) => Ok(Err(report_invalid(&[*d], json, out, err))),
+    }
+}
+
 /// The invalid-input diagnostic for an undriven degree of freedom, if Φ_q has lower column
 /// rank than the unknowns.
 pub(super) fn undriven(eq: &Equations<'_>, prep: &Preparation) -> Option<Diagnostic> {

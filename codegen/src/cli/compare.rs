@@ -20,14 +20,18 @@ use crate::report;
 pub(super) fn compare(
     file: &Path,
     format: CheckFormat,
+    inputs: Option<&Path>,
     out: &mut dyn Write,
     err: &mut dyn Write,
 ) -> io::Result<i32> {
     let json = format == CheckFormat::Json;
-    let loaded = match load(file, json, out, err) {
+    let mut loaded = match load(file, json, out, err) {
         Ok(l) => l,
         Err(code) => return Ok(code),
     };
+    if let Err(code) = super::common::replay(&mut loaded.mechanism, inputs, json, out, err)? {
+        return Ok(code);
+    }
     let mech = &loaded.mechanism;
     let eq = Equations::new(mech);
     let prep = eq.prepare();

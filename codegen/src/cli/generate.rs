@@ -19,6 +19,11 @@ pub(super) fn generate(
     };
     let sys = match crate::symbolic::Symbolic::build(&loaded.mechanism) {
         Ok(s) => s,
+        Err(e) if !loaded.mechanism.input_drivers().is_empty() => {
+            // A valid description the generator cannot emit yet: not invalid input.
+            writeln!(err, "error: the generated solver could not be built: {e}")?;
+            return Ok(super::common::EXIT_BUILD);
+        }
         Err(e) => {
             let d = Diagnostic::error(e.message)
                 .entity(format!("mechanism \"{}\"", loaded.mechanism.name));

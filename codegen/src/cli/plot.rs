@@ -80,10 +80,14 @@ pub(super) fn plot(
     out: &mut dyn Write,
     err: &mut dyn Write,
 ) -> io::Result<i32> {
-    let loaded = match load(file, false, out, err) {
+    let mut loaded = match load(file, false, out, err) {
         Ok(l) => l,
         Err(code) => return Ok(code),
     };
+    // Input drivers need a recorded series, which only solve, compare and bench take.
+    if let Err(code) = super::common::replay(&mut loaded.mechanism, None, false, out, err)? {
+        return Ok(code);
+    }
     let mech = &loaded.mechanism;
     if let Some(d) = unknown_target(mech, target) {
         return Ok(report_invalid(&[d], false, out, err));

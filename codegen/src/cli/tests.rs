@@ -295,4 +295,5 @@ fn the_json_error_object_stays_as_the_contract_says_when_the_text_has_an_excerpt
 }
 
 mod far_time;
+mod inputs;
 mod output;

@@ -52,6 +52,8 @@ impl LawNames {
                     ("frequency", frequency),
                     ("phase", phase),
                 ],
+                // An input has no coefficients: its values come from the caller.
+                Law::Input => Vec::new(),
             };
             for (field, value) in fields {
                 let doc = format!(

@@ -109,7 +109,11 @@ fn form(mech: &Mechanism, label: &RowLabel) -> String {
                     DriverCoordinate::Rx => "e1 cos(s/2) − e0 sin(s/2)",
                     DriverCoordinate::Ry => "e2 cos(s/2) − e0 sin(s/2)",
                     DriverCoordinate::Rz => "e3 cos(s/2) − e0 sin(s/2)",
+                    DriverCoordinate::E1 => "e1 − s",
+                    DriverCoordinate::E2 => "e2 − s",
+                    DriverCoordinate::E3 => "e3 − s",
                 },
+                DriverTarget::Point { axis, .. } => ["r_P.x − s", "r_P.y − s", "r_P.z − s"][axis],
             };
             format!("{lhs} = 0, s = {}", law(&d.law))
         }
@@ -134,6 +138,7 @@ fn law(law: &Law) -> String {
             };
             vec![(offset, String::new()), (amplitude, format!(" sin({argument})"))]
         }
+        Law::Input => return "the input".to_owned(),
     };
     let mut text = String::new();
     for (c, unit) in terms.into_iter().filter(|(c, _)| *c != 0.0) {

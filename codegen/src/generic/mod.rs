@@ -97,6 +97,9 @@ pub struct Equations<'m> {
     normals: Vec<Option<(Vector3<f64>, Vector3<f64>)>>,
     /// The bodies each row acts on.
     row_bodies: Vec<Vec<BodyId>>,
+    /// Each driver's driven quantity at the initial estimates: what an input driver holds
+    /// when no series is replayed (`check`, `generate`).
+    held: Vec<f64>,
 }
 
 impl<'m> Equations<'m> {
@@ -152,11 +155,56 @@ impl<'m> Equations<'m> {
                     vec![mech.joints[joint.0].body_i, mech.joints[joint.0].body_j]
                 }
                 DriverTarget::Absolute { body, .. } => vec![body],
+                DriverTarget::Point { point, .. } => vec![mech.points[point.0].body],
             });
         }
         row_bodies.extend(mech.moving_bodies().map(|b| vec![b]));
         debug_assert_eq!(row_bodies.len(), labels.len());
-        Self { mech, offset, labels, unknowns, normals, row_bodies }
+        let mut eq = Self { mech, offset, labels, unknowns, normals, row_bodies, held: Vec::new() };
+        let q = eq.initial_estimate();
+        let states = eq.states(&q, &DVector::zeros(q.len()));
+        eq.held = (0..mech.drivers.len()).map(|k| eq.driven(k, &states).v).collect();
+        eq
+    }
+
+    /// `(s, ṡ, s̈)` of driver `k` at time `t` (see [`Mechanism::drive`]).
+    #[must_use]
+    pub fn driver_value(&self, k: usize, t: f64) -> (f64, f64, f64) {
+        self.mech.drive(k, t, || self.held[k])
+    }
+
+    /// The quantity driver `k` prescribes, as a function of the body states: the joint angle
+    /// atan2(y, x), the axial position, the body coordinate, the rotation 2 atan2(e_k, e0)
+    /// about a global axis or the point's coordinate (only its value is meaningful for the
+    /// angles).
+    fn driven(&self, k: usize, states: &[BodyState]) -> Sk {
+        match self.mech.drivers[k].target {
+            DriverTarget::Joint { joint, motion } => {
+                let jt = &self.mech.joints[joint.0];
+                let (bi, bj) = (&states[jt.body_i.0], &states[jt.body_j.0]);
+                match motion {
+                    Motion::Rotation => {
+                        let (x, y) = joint_angle(jt, bi, bj);
+                        Sk::constant(y.v.atan2(x.v))
+                    }
+                    Motion::Translation => axial_position(jt, bi, bj),
+                }
+            }
+            DriverTarget::Absolute { body, coordinate } => {
+                let b = &states[body.0];
+                match coordinate {
+                    DriverCoordinate::Rx | DriverCoordinate::Ry | DriverCoordinate::Rz => {
+                        let e = Sk::coordinate(0, b, absolute_index(coordinate));
+                        Sk::constant(2.0 * e.v.atan2(b.p[0]))
+                    }
+                    _ => Sk::coordinate(0, b, absolute_index(coordinate)),
+                }
+            }
+            DriverTarget::Point { point, axis } => {
+                let pt = &self.mech.points[point.0];
+                Vk::point(0, &states[pt.body.0], &pt.local).component(axis)
+            }
+        }
     }
 
     /// The bodies equation `row` acts on.
@@ -274,8 +322,8 @@ impl<'m> Equations<'m> {
                 }
             }
         }
-        for d in &self.mech.drivers {
-            let s = Sk::time(d.law.eval(t));
+        for (k, d) in self.mech.drivers.iter().enumerate() {
+            let s = Sk::time(self.driver_value(k, t));
             match d.target {
                 DriverTarget::Joint { joint, motion } => {
                     let jt = &self.mech.joints[joint.0];
@@ -291,25 +339,27 @@ impl<'m> Equations<'m> {
                 }
                 DriverTarget::Absolute { body, coordinate } => {
                     let b = &states[body.0];
+                    let index = absolute_index(coordinate);
                     let sk = match coordinate {
-                        DriverCoordinate::X => Sk::coordinate(0, b, 0).sub(&s),
-                        DriverCoordinate::Y => Sk::coordinate(0, b, 1).sub(&s),
-                        DriverCoordinate::Z => Sk::coordinate(0, b, 2).sub(&s),
                         DriverCoordinate::Rx | DriverCoordinate::Ry | DriverCoordinate::Rz => {
-                            let k = match coordinate {
-                                DriverCoordinate::Rx => 4,
-                                DriverCoordinate::Ry => 5,
-                                _ => 6,
-                            };
                             // Thesis eq. 4.62 in the one-equation form of the contract:
                             // e_k cos(s/2) − e0 sin(s/2) = 0.
                             let (sin, cos) = s.scale(0.5).sin_cos();
-                            Sk::coordinate(0, b, k)
+                            Sk::coordinate(0, b, index)
                                 .mul(&cos)
                                 .sub(&Sk::coordinate(0, b, 3).mul(&sin))
                         }
+                        // x, y, z, e1, e2, e3: q_b[c] − s = 0.
+                        _ => Sk::coordinate(0, b, index).sub(&s),
                     };
                     emit([self.offset[body.0], None], sk, &mut sys);
+                }
+                DriverTarget::Point { point, axis } => {
+                    // The point's global coordinate r + A s' minus s: its Jacobian, ṙ + B ṗ
+                    // and the κ term 2 A(ṗ) s' come from the point primitive.
+                    let pt = &self.mech.points[point.0];
+                    let sk = Vk::point(0, &states[pt.body.0], &pt.local).component(axis).sub(&s);
+                    emit([self.offset[pt.body.0], None], sk, &mut sys);
                 }
             }
         }
@@ -383,6 +433,19 @@ impl<'m> Equations<'m> {
     }
 }
 
+/// Index in `[x, y, z, e0, e1, e2, e3]` of the coordinate an absolute driver moves (for rx, ry
+/// and rz, the Euler parameter e_k of its equation).
+pub(crate) fn absolute_index(c: DriverCoordinate) -> usize {
+    match c {
+        DriverCoordinate::X => 0,
+        DriverCoordinate::Y => 1,
+        DriverCoordinate::Z => 2,
+        DriverCoordinate::Rx | DriverCoordinate::E1 => 4,
+        DriverCoordinate::Ry | DriverCoordinate::E2 => 5,
+        DriverCoordinate::Rz | DriverCoordinate::E3 => 6,
+    }
+}
+
 /// The global reference vectors (ref_i, ref_j) of a joint.
 fn references(joint: &Joint, bi: &BodyState, bj: &BodyState) -> (Vk, Vk) {
     let (ri, rj) = joint.reference.expect("validated: joint has references");
@@ -390,7 +453,7 @@ fn references(joint: &Joint, bi: &BodyState, bj: &BodyState) -> (Vk, Vk) {
 }
 
 /// (x, y) = (ref_i·ref_j, (ref_i × ref_j)·axis_i): the joint angle is θ = atan2(y, x).
-fn joint_angle(joint: &Joint, bi: &BodyState, bj: &BodyState) -> (Sk, Sk) {
+pub(crate) fn joint_angle(joint: &Joint, bi: &BodyState, bj: &BodyState) -> (Sk, Sk) {
     let (ri, rj) = references(joint, bi, bj);
     let (ai, _) = joint.axis.expect("validated: joint has axes");
     let ai = Vk::vector(0, bi, &ai);
@@ -398,7 +461,7 @@ fn joint_angle(joint: &Joint, bi: &BodyState, bj: &BodyState) -> (Sk, Sk) {
 }
 
 /// The axial position (P_j − P_i)·axis_i.
-fn axial_position(joint: &Joint, bi: &BodyState, bj: &BodyState) -> Sk {
+pub(crate) fn axial_position(joint: &Joint, bi: &BodyState, bj: &BodyState) -> Sk {
     let d = Vk::point(1, bj, &joint.point_j).sub(&Vk::point(0, bi, &joint.point_i));
     let (ai, _) = joint.axis.expect("validated: joint has axes");
     d.dot(&Vk::vector(0, bi, &ai))

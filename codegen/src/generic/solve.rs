@@ -306,7 +306,7 @@ impl<'e, 'm> Analysis<'e, 'm> {
     /// check, subdivision) is not timed.
     #[must_use]
     pub fn time(&self, repeats: usize) -> Option<(f64, f64, f64)> {
-        let grid = self.eq.mechanism().time;
+        let grid = &self.eq.mechanism().time;
         let mut times = Vec::with_capacity(repeats.max(1));
         let mut iterations = 0.0;
         for _ in 0..repeats.max(1) {
@@ -342,7 +342,7 @@ impl<'e, 'm> Analysis<'e, 'm> {
     /// # Errors
     /// Returns the first error of `sink`.
     pub fn run<E>(&self, mut sink: impl FnMut(&Frame) -> Result<(), E>) -> Result<StepReport, E> {
-        let grid = self.eq.mechanism().time;
+        let grid = &self.eq.mechanism().time;
         let mut report = StepReport { steps: 0, iterations: 0, failure: None };
         let mut engine = GenericEngine { analysis: self, prev: None };
         let mut last: Option<Point> = None;
@@ -605,10 +605,10 @@ impl<'e, 'm> Analysis<'e, 'm> {
         let mech = self.eq.mechanism();
         let states = self.eq.states(q, &DVector::zeros(q.len()));
         let moving = |b: crate::model::BodyId| mech.moving_bodies().position(|m| m == b);
-        for d in &mech.drivers {
+        for (k, d) in mech.drivers.iter().enumerate() {
             if let DriverTarget::Joint { joint, motion: Motion::Rotation } = d.target {
                 let jt = &mech.joints[joint.0];
-                let s = d.law.eval(t).0;
+                let s = self.eq.driver_value(k, t).0;
                 if angle_alignment(jt, &states[jt.body_i.0], &states[jt.body_j.0], s) <= 0.0 {
                     return Err(Rejection {
                         trouble: Trouble::BranchJump,

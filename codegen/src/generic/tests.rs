@@ -8,7 +8,8 @@ use rand::{RngExt, SeedableRng};
 use super::Equations;
 use crate::model::{
     Body, BodyId, Constraint, ConstraintKind, CoordinateName, Driver, DriverCoordinate,
-    DriverTarget, Joint, JointId, JointKind, Law, Mechanism, Motion, SolverOptions, TimeGrid,
+    DriverTarget, Joint, JointId, JointKind, Law, Mechanism, Motion, Point, PointId, SolverOptions,
+    TimeGrid,
 };
 
 fn unit(rng: &mut StdRng) -> Vector3<f64> {
@@ -115,6 +116,20 @@ fn zoo(seed: u64) -> Mechanism {
         driver("d_rx", absolute(DriverCoordinate::Rx), harm),
         driver("d_ry", absolute(DriverCoordinate::Ry), poly),
         driver("d_rz", absolute(DriverCoordinate::Rz), harm),
+        driver(
+            "d_e1",
+            DriverTarget::Absolute { body: BodyId(1), coordinate: DriverCoordinate::E1 },
+            poly,
+        ),
+        driver("d_e2", absolute(DriverCoordinate::E2), harm),
+        driver("d_e3", absolute(DriverCoordinate::E3), poly),
+        driver("d_px", DriverTarget::Point { point: PointId(0), axis: 0 }, harm),
+        driver("d_py", DriverTarget::Point { point: PointId(1), axis: 1 }, poly),
+        driver("d_pz", DriverTarget::Point { point: PointId(0), axis: 2 }, harm),
+    ];
+    let points = vec![
+        Point { name: "pa".to_owned(), body: BodyId(1), local: vec3(&mut rng) },
+        Point { name: "pb".to_owned(), body: BodyId(2), local: vec3(&mut rng) },
     ];
     let constraints = vec![
         Constraint {
@@ -147,13 +162,13 @@ fn zoo(seed: u64) -> Mechanism {
     Mechanism {
         name: "zoo".to_owned(),
         description: None,
-        time: TimeGrid { start: 0.0, step: 0.1, count: 2 },
+        time: TimeGrid::uniform(0.0, 0.1, 2),
         solver: SolverOptions::default(),
         bodies,
         joints,
         constraints,
         drivers,
-        points: Vec::new(),
+        points,
     }
 }
 
@@ -459,5 +474,155 @@ ref_j = {rj}
             let (th, thd, thdd) = spin(t);
             [(th, thd, thdd), (k * th, k * thd, k * thdd)]
         });
+    }
+}
+
+/// Inverse kinematics as a description: a spatial 3R arm whose tool point's x, y and z are
+/// driven, its joint angles read back and checked by forward kinematics written here.
+mod inverse_kinematics {
+    use nalgebra::DVector;
+
+    use crate::generic::{Analysis, Equations};
+    use crate::report::{self, Unwrap};
+    use crate::symbolic::Symbolic;
+    use crate::validate::{Format, load_str};
+
+    /// Base yaw J1 about z at the origin, shoulder J2 and elbow J3 about y; upper arm 1 along x
+    /// from (0, 0, 1), forearm 0.8 pointing down from the elbow at zero angles (bent, away from
+    /// the stretched-arm singularity). Every frame is the global one at zero angles.
+    const ARM: &str = r#"
+name = "arm3r"
+[time]
+start = 0.0
+end = 2.0
+step = 0.02
+[[bodies]]
+name = "ground"
+ground = true
+[[bodies]]
+name = "base"
+[[bodies]]
+name = "upper"
+[[bodies]]
+name = "fore"
+[[joints]]
+name = "J1"
+type = "revolute"
+body_i = "ground"
+body_j = "base"
+point_i = [0.0, 0.0, 0.0]
+point_j = [0.0, 0.0, 0.0]
+axis_i = [0.0, 0.0, 1.0]
+axis_j = [0.0, 0.0, 1.0]
+ref_i = [1.0, 0.0, 0.0]
+ref_j = [1.0, 0.0, 0.0]
+[[joints]]
+name = "J2"
+type = "revolute"
+body_i = "base"
+body_j = "upper"
+point_i = [0.0, 0.0, 1.0]
+point_j = [0.0, 0.0, 1.0]
+axis_i = [0.0, 1.0, 0.0]
+axis_j = [0.0, 1.0, 0.0]
+ref_i = [1.0, 0.0, 0.0]
+ref_j = [1.0, 0.0, 0.0]
+[[joints]]
+name = "J3"
+type = "revolute"
+body_i = "upper"
+body_j = "fore"
+point_i = [1.0, 0.0, 1.0]
+point_j = [1.0, 0.0, 1.0]
+axis_i = [0.0, 1.0, 0.0]
+axis_j = [0.0, 1.0, 0.0]
+ref_i = [1.0, 0.0, 0.0]
+ref_j = [1.0, 0.0, 0.0]
+[[points]]
+name = "tool"
+body = "fore"
+local = [1.0, 0.0, 0.2]
+[[drivers]]
+name = "tool_x"
+point = "tool"
+coordinate = "x"
+law = { offset = 1.0, amplitude = 0.2, frequency = 2.0 }
+[[drivers]]
+name = "tool_y"
+point = "tool"
+coordinate = "y"
+law = { offset = 0.0, amplitude = 0.3, frequency = 1.5 }
+[[drivers]]
+name = "tool_z"
+point = "tool"
+coordinate = "z"
+law = { offset = 0.2, amplitude = 0.1, frequency = 3.0 }
+"#;
+
+    /// The tool point for joint angles θ1 (yaw about z), θ2 and θ3 (about y, which turns x
+    /// towards −z): (0, 0, 1) + R_z(θ1) [u (cos θ2, 0, −sin θ2) + f (−sin φ, 0, −cos φ)],
+    /// φ = θ2 + θ3, upper arm u = 1, forearm f = 0.8.
+    fn forward(t1: f64, t2: f64, t3: f64) -> [f64; 3] {
+        let (u, f, phi) = (1.0, 0.8, t2 + t3);
+        let reach = u * t2.cos() - f * phi.sin();
+        let z = 1.0 - u * t2.sin() - f * phi.cos();
+        [reach * t1.cos(), reach * t1.sin(), z]
+    }
+
+    #[test]
+    fn the_joint_angles_of_a_driven_tool_point_reproduce_it_by_forward_kinematics() {
+        let mech = load_str(ARM, Format::Toml, None).expect("valid").mechanism;
+        let eq = Equations::new(&mech);
+        let prep = eq.prepare();
+        assert_eq!(prep.rank, eq.unknowns(), "the three point drivers fix the arm");
+        let sys = Symbolic::build(&mech).expect("the generator takes point drivers");
+        let layout = report::layout(&mech);
+        let mut unwrap = Unwrap::default();
+        let mut steps = 0;
+        let law = |t: f64| {
+            [1.0 + 0.2 * (2.0 * t).sin(), 0.3 * (1.5 * t).sin(), 0.2 + 0.1 * (3.0 * t).sin()]
+        };
+        let r = Analysis::new(&eq, &prep)
+            .run(|frame| {
+                let mut s = report::step_result(&mech, &layout, frame);
+                unwrap.apply(&mut s);
+                let angle = |k: usize| s.joints[k].angle.expect("revolute with refs")[0];
+                let (tool, want) = (forward(angle(0), angle(1), angle(2)), law(frame.t));
+                for c in 0..3 {
+                    // The Newton tolerance (1e-10) on unit links bounds the tool's error.
+                    assert!(
+                        (tool[c] - want[c]).abs() < 1e-9,
+                        "t {}: tool {tool:?} for {want:?}",
+                        frame.t
+                    );
+                }
+                // The symbolic rows of the point drivers agree with the generic solution:
+                // Φ = 0, Φ_q q̇ = ν and Φ_q q̈ = γ (differentiated symbolically there, by
+                // hand-written product rules here).
+                let q = sys.reduce(&eq, &frame.q);
+                let (qd, qdd) = (sys.reduce(&eq, &frame.qd), sys.reduce(&eq, &frame.qdd));
+                let phi = sys.pool.eval(&sys.phi, q.as_slice(), qd.as_slice(), frame.t);
+                let nu = sys.pool.eval(&sys.nu, q.as_slice(), qd.as_slice(), frame.t);
+                let gamma = sys.pool.eval(&sys.gamma, q.as_slice(), qd.as_slice(), frame.t);
+                for (row, entries) in sys.jac.iter().enumerate() {
+                    let values: Vec<f64> = {
+                        let ids: Vec<_> = entries.iter().map(|e| e.1).collect();
+                        sys.pool.eval(&ids, q.as_slice(), qd.as_slice(), frame.t)
+                    };
+                    let dot = |v: &DVector<f64>| {
+                        entries.iter().zip(&values).map(|((c, _), x)| x * v[*c]).sum::<f64>()
+                    };
+                    // Residuals of a converged step: tolerance 1e-10 on Φ; ν and γ are O(1)
+                    // here, solved by LU to about 1e-12.
+                    assert!(phi[row].abs() < 1e-9, "t {}: Φ {row} = {}", frame.t, phi[row]);
+                    assert!((dot(&qd) - nu[row]).abs() < 1e-8, "t {}: ν row {row}", frame.t);
+                    assert!((dot(&qdd) - gamma[row]).abs() < 1e-7, "t {}: γ row {row}", frame.t);
+                }
+                steps += 1;
+                Ok::<(), ()>(())
+            })
+            .expect("the sink never fails");
+        assert!(r.failure.is_none(), "{:?}", r.failure);
+        assert_eq!(steps, mech.time.count);
     }
 }

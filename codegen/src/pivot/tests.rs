@@ -102,7 +102,7 @@ fn two_orders_cover_a_full_rssr_revolution() {
 fn planning_samples_a_bounded_evenly_spaced_subset_of_the_grid() {
     use crate::model::TimeGrid;
     for count in [1, 2, MAX_SAMPLES, MAX_SAMPLES + 1, 10_007, 10_000_000] {
-        let grid = TimeGrid { start: 0.0, step: 1.0, count };
+        let grid = TimeGrid::uniform(0.0, 1.0, count);
         let kept: Vec<usize> = (0..count).filter(|&k| grid.sampled(k, MAX_SAMPLES)).collect();
         assert_eq!(kept.len(), count.min(MAX_SAMPLES), "{count} points");
         assert_eq!((kept[0], kept[kept.len() - 1]), (0, count - 1), "{count} points");

@@ -415,7 +415,7 @@ impl Rules<'_> {
                 // The end is included when it lies within step/1000 of a grid point.
                 let points = ((t.end - t.start) / step + 1e-3).floor() + 1.0;
                 let count = self.time_points(&at, "step", points)?;
-                Some(TimeGrid { start: t.start, step, count })
+                Some(TimeGrid::uniform(t.start, step, count))
             }
             (None, Some(steps)) => {
                 if steps == 0 {
@@ -438,7 +438,7 @@ impl Rules<'_> {
                     return None;
                 }
                 let count = self.time_points(&at, "steps", steps as f64 + 1.0)?;
-                Some(TimeGrid { start: t.start, step, count })
+                Some(TimeGrid::uniform(t.start, step, count))
             }
         }
     }
@@ -861,21 +861,25 @@ impl Rules<'_> {
     /// form (`body`, `coordinate`); a law of one form.
     fn driver(&mut self, k: usize, d: &DriverDesc) -> Option<model::Driver> {
         let at = At::item("driver", &d.name, "drivers", k);
-        let target = match (&d.joint, &d.body) {
-            (Some(_), Some(_)) => {
-                let message = "a driver is either a joint driver (`joint`, `motion`) or an \
-                               absolute one (`body`, `coordinate`), not both";
-                self.error(&at, "body", message);
+        let target = match (&d.joint, &d.body, &d.point) {
+            (Some(_), Some(_), _) | (Some(_), _, Some(_)) | (_, Some(_), Some(_)) => {
+                let message = "a driver is either a joint driver (`joint`, `motion`) or an absolute \
+                               one (`body`, `coordinate`) or a point driver (`point`, \
+                               `coordinate`): give only one of joint, body and point";
+                let field = if d.point.is_some() { "point" } else { "body" };
+                self.error(&at, field, message);
                 None
             }
-            (None, None) => {
-                let message = "missing `joint` or `body`: a driver moves a joint (`joint`, \
-                               `motion`) or a body coordinate (`body`, `coordinate`)";
+            (None, None, None) => {
+                let message = "missing `joint`, `body` or `point`: a driver moves a joint \
+                               (`joint`, `motion`), a body coordinate (`body`, `coordinate`) or \
+                               a point of interest's coordinate (`point`, `coordinate`)";
                 self.error(&at, "joint", message);
                 None
             }
-            (Some(joint), None) => self.joint_driver(&at, d, joint),
-            (None, Some(body)) => self.absolute_driver(&at, d, body),
+            (Some(joint), None, None) => self.joint_driver(&at, d, joint),
+            (None, Some(body), None) => self.absolute_driver(&at, d, body),
+            (None, None, Some(point)) => self.point_driver(&at, d, point),
         };
         let law = self.law(&at, &d.law);
         Some(model::Driver { name: d.name.clone(), target: target?, law: law? })
@@ -933,8 +937,8 @@ impl Rules<'_> {
         }
         let id = self.body_ref(at, "body", body);
         let Some(coordinate) = d.coordinate else {
-            let message =
-                "missing `coordinate` (x, y, z, rx, ry or rz): an absolute driver needs it";
+            let message = "missing `coordinate` (x, y, z, rx, ry, rz, e1, e2 or e3): an absolute driver \
+                 needs it";
             self.error(at, "coordinate", message);
             return None;
         };
@@ -947,9 +951,66 @@ impl Rules<'_> {
         Some(DriverTarget::Absolute { body: id, coordinate })
     }
 
-    /// Rules for a law: the polynomial members or the harmonic ones, not both, not none;
-    /// the harmonic form needs amplitude and frequency; every number finite.
+    /// Rules: a point driver names a point of interest on a body that is not ground and a
+    /// coordinate x, y or z.
+    fn point_driver(&mut self, at: &At, d: &DriverDesc, point: &str) -> Option<DriverTarget> {
+        if d.motion.is_some() {
+            let message = "field `motion` is not used by a point driver (it goes with `joint`)";
+            self.error(at, "motion", message);
+        }
+        let Some(k) = self.desc.points.iter().position(|p| p.name == point) else {
+            let names: Vec<&str> = self.desc.points.iter().map(|p| p.name.as_str()).collect();
+            let message = match super::closest(point, names.iter().copied()) {
+                Some(near) => {
+                    format!("unknown point \"{point}\" in `point`: did you mean \"{near}\"?")
+                }
+                None => format!(
+                    "unknown point \"{point}\" in `point`: a point driver names one of the \
+                     [[points]] ({})",
+                    names.join(", ")
+                ),
+            };
+            self.error(at, "point", message);
+            return None;
+        };
+        let axis = match d.coordinate {
+            Some(model::DriverCoordinate::X) => 0,
+            Some(model::DriverCoordinate::Y) => 1,
+            Some(model::DriverCoordinate::Z) => 2,
+            Some(c) => {
+                let message = format!(
+                    "coordinate \"{}\" cannot be driven on a point: a point driver takes x, y or z",
+                    c.as_str()
+                );
+                self.error(at, "coordinate", message);
+                return None;
+            }
+            None => {
+                let message = "missing `coordinate` (x, y or z): a point driver needs it";
+                self.error(at, "coordinate", message);
+                return None;
+            }
+        };
+        let body = &self.desc.points[k].body;
+        if self.desc.bodies.iter().any(|b| &b.name == body && b.ground) {
+            let message =
+                format!("point \"{point}\" is on ground body \"{body}\": it cannot be driven");
+            self.error(at, "point", message);
+            return None;
+        }
+        self.desc
+            .bodies
+            .iter()
+            .any(|b| &b.name == body)
+            .then_some(DriverTarget::Point { point: model::PointId(k), axis })
+    }
+
+    /// Rules for a law: `"input"`, or the polynomial members or the harmonic ones, not both,
+    /// not none; the harmonic form needs amplitude and frequency; every number finite.
     fn law(&mut self, at: &At, law: &LawDesc) -> Option<Law> {
+        if law.input {
+            return Some(Law::Input);
+        }
         let polynomial =
             [("start", law.start), ("velocity", law.velocity), ("acceleration", law.acceleration)];
         let harmonic = [
@@ -1017,6 +1078,7 @@ impl Rules<'_> {
         let last = grid.at(grid.count.saturating_sub(1));
         let t = grid.start.abs().max(last.abs());
         let bounds = match d.law {
+            Law::Input => return,
             Law::Polynomial { start, velocity, acceleration } => {
                 let (v, a) = (velocity.abs(), acceleration.abs());
                 [

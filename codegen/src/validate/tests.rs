@@ -1047,7 +1047,7 @@ fn driver_cannot_be_both_joint_and_absolute() {
 fn driver_needs_a_joint_or_a_body() {
     check_error(
         &edit(&[("joint = \"rail\"\nmotion = \"translation\"\n", "")]),
-        "missing `joint` or `body`",
+        "missing `joint`, `body` or `point`",
         22,
         1,
     );
@@ -1123,7 +1123,7 @@ fn absolute_driver_on_a_ground_body_is_an_error() {
 fn absolute_driver_needs_a_coordinate_and_no_motion() {
     let toml = edit(&[("joint = \"rail\"", "body = \"block\"")]);
     check_error(&toml, "field `motion` is not used by an absolute driver", 25, 10);
-    check_error(&toml, "missing `coordinate` (x, y, z, rx, ry or rz)", 22, 1);
+    check_error(&toml, "missing `coordinate` (x, y, z, rx, ry, rz, e1, e2 or e3)", 22, 1);
 }
 
 #[test]
