@@ -112,18 +112,6 @@ enum Column {
 /// # Errors
 /// See [`read`].
 pub fn parse(text: &str, file: &str, mech: &Mechanism) -> Result<Read, Box<Diagnostic>> {
-    let err = |line: usize, column: usize, header: Option<&str>, message: String| {
-        let place = match header {
-            Some(h) => format!("{file}, line {line}, column {column} (\"{h}\"): "),
-            None => format!("{file}, line {line}: "),
-        };
-        let d = Diagnostic::error(format!("{place}{message}")).entity(format!("inputs {file}"));
-        let d = match header {
-            Some(h) => d.field(h),
-            None => d,
-        };
-        Box::new(d.at(Some(file), line, column))
-    };
     let inputs: Vec<(usize, &str)> = mech
         .drivers
         .iter()
@@ -137,11 +125,58 @@ pub fn parse(text: &str, file: &str, mech: &Mechanism) -> Result<Read, Box<Diagn
         .map(|(k, l)| (k + 1, l.strip_suffix('\r').unwrap_or(l)))
         .filter(|(_, l)| !l.trim().is_empty() && !l.trim_start().starts_with('#'));
     let Some((header_line, header)) = lines.next() else {
-        return Err(err(1, 1, None, "the file is empty: it needs a header row `t,NAME,…`".into()));
+        let message = "the file is empty: it needs a header row `t,NAME,…`".into();
+        return Err(fail(file, 1, 1, None, message));
     };
     let heads = cells(header);
+    let columns = header_columns(file, header_line, header, &heads, &inputs)?;
+    let mut rows =
+        Rows { t: Vec::new(), lines: Vec::new(), values: vec![Vec::new(); mech.drivers.len()] };
+    for (line, row) in lines {
+        rows.push(file, line, row, &heads, &columns, &inputs)?;
+    }
+    if rows.t.is_empty() {
+        let message = "the file has a header but no rows of values".to_owned();
+        return Err(fail(file, header_line, 1, None, message));
+    }
+    let warnings = estimate_rates(file, &mut rows, &columns, &inputs)?;
+    let mut values = rows.values;
+    let series = (0..mech.drivers.len())
+        .map(|d| inputs.iter().any(|&(k, _)| k == d).then(|| std::mem::take(&mut values[d])))
+        .collect();
+    Ok(Read { replay: Replay { file: file.to_owned(), t: rows.t, series }, warnings })
+}
+
+/// An input file's error at `line` and `column`, under the column `header` if there is one.
+fn fail(
+    file: &str,
+    line: usize,
+    column: usize,
+    header: Option<&str>,
+    message: String,
+) -> Box<Diagnostic> {
+    let place = match header {
+        Some(h) => format!("{file}, line {line}, column {column} (\"{h}\"): "),
+        None => format!("{file}, line {line}: "),
+    };
+    let d = Diagnostic::error(format!("{place}{message}")).entity(format!("inputs {file}"));
+    let d = match header {
+        Some(h) => d.field(h),
+        None => d,
+    };
+    Box::new(d.at(Some(file), line, column))
+}
+
+/// What each header cell names; refuses unknown, duplicate and missing columns.
+fn header_columns(
+    file: &str,
+    header_line: usize,
+    header: &str,
+    heads: &[Cell<'_>],
+    inputs: &[(usize, &str)],
+) -> Result<Vec<Column>, Box<Diagnostic>> {
     let mut columns = Vec::with_capacity(heads.len());
-    for (k, h) in heads.iter().enumerate() {
+    for h in heads {
         let column = if h.text == "t" {
             Column::Time
         } else {
@@ -150,44 +185,58 @@ pub fn parse(text: &str, file: &str, mech: &Mechanism) -> Result<Read, Box<Diagn
                 Some((n, "ddot")) => (n, 2),
                 _ => (h.text, 0),
             };
-            match inputs.iter().find(|(_, n)| *n == name) {
-                Some(&(d, _)) => Column::Input(d, order),
-                None => {
-                    let names: Vec<&str> = inputs.iter().map(|(_, n)| *n).collect();
-                    let message = format!(
-                        "unknown column \"{}\": the columns are `t` and, for the input drivers \
-                         ({}), NAME, NAME.dot and NAME.ddot",
-                        h.text,
-                        names.join(", ")
-                    );
-                    return Err(err(header_line, h.column, Some(h.text), message));
-                }
-            }
+            let Some(&(d, _)) = inputs.iter().find(|(_, n)| *n == name) else {
+                let names: Vec<&str> = inputs.iter().map(|(_, n)| *n).collect();
+                let message = format!(
+                    "unknown column \"{}\": the columns are `t` and, for the input drivers \
+                     ({}), NAME, NAME.dot and NAME.ddot",
+                    h.text,
+                    names.join(", ")
+                );
+                return Err(fail(file, header_line, h.column, Some(h.text), message));
+            };
+            Column::Input(d, order)
         };
         if let Some(first) = columns.iter().position(|c| *c == column) {
             let message = format!("duplicate column \"{}\" (also column {})", h.text, first + 1);
-            return Err(err(header_line, h.column, Some(h.text), message));
+            return Err(fail(file, header_line, h.column, Some(h.text), message));
         }
-        debug_assert_eq!(k, columns.len());
         columns.push(column);
     }
-    let has = |c: Column| columns.contains(&c);
     let end = header.chars().count() + 1;
-    if !has(Column::Time) {
+    if !columns.contains(&Column::Time) {
         let message = "missing column \"t\": the header row starts with the time".to_owned();
-        return Err(err(header_line, end, None, message));
+        return Err(fail(file, header_line, end, None, message));
     }
-    for &(d, name) in &inputs {
-        if !has(Column::Input(d, 0)) {
+    for &(d, name) in inputs {
+        if !columns.contains(&Column::Input(d, 0)) {
             let message =
                 format!("missing column \"{name}\": input driver \"{name}\" needs its values");
-            return Err(err(header_line, end, Some(name), message));
+            return Err(fail(file, header_line, end, Some(name), message));
         }
     }
-    let mut t = Vec::new();
-    let mut row_lines = Vec::new();
-    let mut values: Vec<Vec<[f64; 3]>> = vec![Vec::new(); mech.drivers.len()];
-    for (line, row) in lines {
+    Ok(columns)
+}
+
+/// The rows read so far: times, their line numbers, and s, ṡ, s̈ per driver (NaN where a
+/// column is absent, until [`estimate_rates`] fills it).
+struct Rows {
+    t: Vec<f64>,
+    lines: Vec<usize>,
+    values: Vec<Vec<[f64; 3]>>,
+}
+
+impl Rows {
+    /// Reads the row at `line`: as many cells as the header, finite numbers, t increasing.
+    fn push(
+        &mut self,
+        file: &str,
+        line: usize,
+        row: &str,
+        heads: &[Cell<'_>],
+        columns: &[Column],
+        inputs: &[(usize, &str)],
+    ) -> Result<(), Box<Diagnostic>> {
         let cells = cells(row);
         if cells.len() != heads.len() {
             let message = format!(
@@ -195,62 +244,70 @@ pub fn parse(text: &str, file: &str, mech: &Mechanism) -> Result<Read, Box<Diagn
                 cells.len(),
                 heads.len()
             );
-            return Err(err(line, 1, None, message));
+            return Err(fail(file, line, 1, None, message));
         }
-        if t.len() == MAX_ROWS {
+        if self.t.len() == MAX_ROWS {
             let message = format!("more than {MAX_ROWS} time points (the limit of a time grid)");
-            return Err(err(line, 1, None, message));
+            return Err(fail(file, line, 1, None, message));
         }
         let mut time = f64::NAN;
-        let mut row_values = vec![[f64::NAN; 3]; mech.drivers.len()];
-        for ((cell, column), head) in cells.iter().zip(&columns).zip(&heads) {
+        let mut row_values = vec![[f64::NAN; 3]; self.values.len()];
+        for ((cell, column), head) in cells.iter().zip(columns).zip(heads) {
             let x: f64 = cell.text.parse().map_err(|_| {
                 let message = format!("\"{}\" is not a number", cell.text);
-                err(line, cell.column, Some(head.text), message)
+                fail(file, line, cell.column, Some(head.text), message)
             })?;
             if !x.is_finite() || x.abs() > MAX_MAGNITUDE {
                 let message =
                     format!("{} is not a finite number within ±{MAX_MAGNITUDE:e}", cell.text);
-                return Err(err(line, cell.column, Some(head.text), message));
+                return Err(fail(file, line, cell.column, Some(head.text), message));
             }
             match *column {
                 Column::Time => time = x,
                 Column::Input(d, order) => row_values[d][order] = x,
             }
         }
-        if let Some(&last) = t.last()
+        if let Some(&last) = self.t.last()
             && time <= last
         {
             let at = columns.iter().position(|c| *c == Column::Time).expect("checked");
             let message =
                 format!("t = {time:?} does not increase (the previous row has t = {last:?})");
-            return Err(err(line, cells[at].column, Some("t"), message));
+            return Err(fail(file, line, cells[at].column, Some("t"), message));
         }
-        t.push(time);
-        row_lines.push(line);
-        for &(d, _) in &inputs {
-            values[d].push(row_values[d]);
+        self.t.push(time);
+        self.lines.push(line);
+        for &(d, _) in inputs {
+            self.values[d].push(row_values[d]);
         }
+        Ok(())
     }
-    if t.is_empty() {
-        let message = "the file has a header but no rows of values".to_owned();
-        return Err(err(header_line, 1, None, message));
-    }
+}
+
+/// Fills every absent `NAME.dot` and `NAME.ddot` by second-order finite differences of the
+/// series (with a warning each); refuses estimates beyond the magnitude bound.
+fn estimate_rates(
+    file: &str,
+    rows: &mut Rows,
+    columns: &[Column],
+    inputs: &[(usize, &str)],
+) -> Result<Vec<String>, Box<Diagnostic>> {
     let mut warnings = Vec::new();
-    for &(d, name) in &inputs {
+    for &(d, name) in inputs {
         for (order, suffix) in [(1, "dot"), (2, "ddot")] {
-            if has(Column::Input(d, order)) {
+            if columns.contains(&Column::Input(d, order)) {
                 continue;
             }
-            let f: Vec<f64> = values[d].iter().map(|v| v[order - 1]).collect();
-            for ((v, x), line) in values[d].iter_mut().zip(derivative(&t, &f)).zip(&row_lines) {
+            let f: Vec<f64> = rows.values[d].iter().map(|v| v[order - 1]).collect();
+            let estimates = derivative(&rows.t, &f);
+            for ((v, x), line) in rows.values[d].iter_mut().zip(estimates).zip(&rows.lines) {
                 // Differences over rows very close in t can exceed every bound of the engines.
                 if !x.is_finite() || x.abs() > MAX_MAGNITUDE {
                     let message = format!(
                         "the estimated {name}.{suffix} is {x:e}, beyond ±{MAX_MAGNITUDE:e} (rows \
                          too close in t for finite differences): give the column"
                     );
-                    return Err(err(*line, 1, Some(name), message));
+                    return Err(fail(file, *line, 1, Some(name), message));
                 }
                 v[order] = x;
             }
@@ -261,10 +318,7 @@ pub fn parse(text: &str, file: &str, mech: &Mechanism) -> Result<Read, Box<Diagn
             ));
         }
     }
-    let series = (0..mech.drivers.len())
-        .map(|d| inputs.iter().any(|&(k, _)| k == d).then(|| std::mem::take(&mut values[d])))
-        .collect();
-    Ok(Read { replay: Replay { file: file.to_owned(), t, series }, warnings })
+    Ok(warnings)
 }
 
 /// df/dt at every t by the three-point second-order formulas for non-uniform spacing (central
