@@ -636,7 +636,7 @@ pub fn module_in(mech: &Mechanism, sys: &Symbolic, source: &str, scalar: Scalar)
         /// The body coordinate each unknown stands for.
         pub const UNKNOWNS: [&str; N] = [#(#unknowns),*];
     });
-    let rows = sys.rows.iter().map(crate::generic::RowLabel::equation);
+    let rows = sys.rows.iter().map(crate::model::RowLabel::equation);
     items.push(parse_quote! {
         /// The equation of each row.
         pub const EQUATIONS: [&str; N] = [#(#rows),*];
@@ -942,7 +942,7 @@ pub fn module_in(mech: &Mechanism, sys: &Symbolic, source: &str, scalar: Scalar)
     });
 
     let float = if scalar == Scalar::F32 { "f32" } else { "f64" };
-    let labels = |rows: &[crate::generic::RowLabel]| {
+    let labels = |rows: &[crate::model::RowLabel]| {
         rows.iter().map(|r| markdown_escaped(&r.equation())).collect::<Vec<_>>().join(", ")
     };
     let mut docs = vec![format!(

@@ -7,7 +7,13 @@
 
 use nalgebra::{Vector3, Vector4};
 
+pub mod frame;
+mod joints;
+mod rows;
+
 pub use crate::desc::{CoordinateName, DriverCoordinate, JointType, Motion};
+pub use joints::{DeckRecord, JOINT_TYPES, JointSpec, Need, docs_row};
+pub use rows::RowLabel;
 
 /// Index of a body in [`Mechanism::bodies`].
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
@@ -181,26 +187,13 @@ impl JointKind {
     /// The spelling used in description files.
     #[must_use]
     pub fn type_name(&self) -> &'static str {
-        match self {
-            Self::Spherical => "spherical",
-            Self::Universal => "universal",
-            Self::Revolute => "revolute",
-            Self::Cylindrical => "cylindrical",
-            Self::Prismatic => "prismatic",
-            Self::Screw { .. } => "screw",
-            Self::Distance { .. } => "distance",
-        }
+        self.joint_type().as_str()
     }
 
-    /// Number of constraint equations the joint contributes.
+    /// Number of constraint equations the joint contributes ([`JointSpec::rows`]).
     #[must_use]
     pub fn equations(&self) -> usize {
-        match self {
-            Self::Spherical => 3,
-            Self::Universal | Self::Cylindrical => 4,
-            Self::Revolute | Self::Prismatic | Self::Screw { .. } => 5,
-            Self::Distance { .. } => 1,
-        }
+        self.spec().rows.len()
     }
 }
 

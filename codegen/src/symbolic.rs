@@ -18,10 +18,10 @@ use std::collections::BTreeSet;
 use nalgebra::{DVector, Vector3};
 
 use crate::expr::{ExprId, ExprPool, Node, Var};
-use crate::generic::{Equations, RowLabel};
+use crate::generic::Equations;
 use crate::model::{
     BodyId, ConstraintKind, DriverCoordinate, DriverTarget, Joint, JointKind, Law, Mechanism,
-    Motion,
+    Motion, RowLabel,
 };
 
 /// Where a body coordinate comes from in the reduced system.
@@ -293,7 +293,7 @@ impl Symbolic {
     /// (an undriven degree of freedom, or a coordinate fixed twice).
     pub fn build(mech: &Mechanism) -> Result<Self, GenerateError> {
         let eq = Equations::new(mech);
-        let labels = eq.labels().to_vec();
+        let labels = mech.row_labels();
         let placeholder = Source::Unknown(usize::MAX);
         let mut coords: Vec<[Source; 7]> = mech
             .bodies
@@ -310,8 +310,8 @@ impl Symbolic {
         let mut builder = Builder { pool: ExprPool::new(), coords: Vec::new(), laws: Vec::new() };
         // Row indices (into `labels`) of the eliminated equations.
         let mut eliminated = BTreeSet::new();
-        let first_constraint = mech.joints.iter().map(|j| j.kind.equations()).sum::<usize>();
-        let first_driver = first_constraint + mech.constraints.len();
+        let (first_constraint, first_driver) =
+            (mech.first_constraint_row(), mech.first_driver_row());
         for (k, c) in mech.constraints.iter().enumerate() {
             let target = match c.kind {
                 ConstraintKind::Fix { body, coordinate, value } => {
@@ -462,7 +462,7 @@ impl Symbolic {
             jac_rows.push(sys.jacobian_row(phi_all[k]));
         }
         let kept_phi: Vec<ExprId> = kept.iter().map(|&k| phi_all[k]).collect();
-        let normalisation: Vec<bool> = kept.iter().map(|&k| labels[k].kind == "body").collect();
+        let normalisation: Vec<bool> = kept.iter().map(|&k| labels[k].is_normalisation()).collect();
         let independent = sys.independent_rows(&eq, &kept_phi, &jac_rows, &normalisation);
         for (pos, &k) in kept.iter().enumerate() {
             if independent.contains(&pos) {

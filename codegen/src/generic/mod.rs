@@ -41,36 +41,8 @@ use kin::{BodyState, Sk, Vk};
 
 pub use solve::{Analysis, Failure, FailureKind, Frame, Preparation, StepReport};
 
-/// The entity an equation belongs to, for labels and error reports.
-#[derive(Clone, Debug, PartialEq, Eq)]
-pub struct RowLabel {
-    /// `joint "O4"`-style entity kind: `joint`, `constraint`, `driver` or `body`.
-    pub kind: &'static str,
-    /// The entity's name.
-    pub name: String,
-    /// 1-based row within the entity (joints have several).
-    pub row: usize,
-    /// Number of rows of the entity.
-    pub rows: usize,
-}
-
-impl RowLabel {
-    /// `joint O4 row 2`, `driver motor`, `body crank normalisation`.
-    #[must_use]
-    pub fn equation(&self) -> String {
-        match self.kind {
-            "body" => format!("body {} normalisation", self.name),
-            _ if self.rows > 1 => format!("{} {} row {}", self.kind, self.name, self.row),
-            _ => format!("{} {}", self.kind, self.name),
-        }
-    }
-
-    /// `joint O4`: the entity without the row.
-    #[must_use]
-    pub fn entity(&self) -> String {
-        format!("{} {}", self.kind, self.name)
-    }
-}
+/// Re-exported from the model, where the row layout lives, for the tool's existing paths.
+pub use crate::model::RowLabel;
 
 /// The assembled system at one evaluation.
 #[derive(Clone, Debug)]
@@ -113,26 +85,7 @@ impl<'m> Equations<'m> {
                 unknowns += 7;
             }
         }
-        let mut labels = Vec::new();
-        let mut push = |kind: &'static str, name: &str, rows: usize| {
-            for row in 1..=rows {
-                labels.push(RowLabel { kind, name: name.to_owned(), row, rows });
-            }
-        };
-        for joint in &mech.joints {
-            push("joint", &joint.name, joint.kind.equations());
-        }
-        for c in &mech.constraints {
-            push("constraint", &c.name, 1);
-        }
-        for d in &mech.drivers {
-            push("driver", &d.name, 1);
-        }
-        for b in &mech.bodies {
-            if !b.ground {
-                push("body", &b.name, 1);
-            }
-        }
+        let labels = mech.row_labels();
         let normals = mech.joints.iter().map(Joint::normals).collect();
         let mut row_bodies = Vec::with_capacity(labels.len());
         for joint in &mech.joints {

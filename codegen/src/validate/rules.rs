@@ -4,7 +4,7 @@
 
 use std::collections::BTreeMap;
 
-use nalgebra::{Matrix3, Vector3, Vector4};
+use nalgebra::{Vector3, Vector4};
 
 use super::{closest, names};
 use crate::desc::{
@@ -12,8 +12,10 @@ use crate::desc::{
     LawDesc, MechanismDesc, Motion, PointDesc, SolverDesc, TimeDesc,
 };
 use crate::diag::{Diagnostic, Severity};
+use crate::model::frame::{self, rotation};
 use crate::model::{
-    self, BodyId, ConstraintKind, DriverTarget, JointId, JointKind, Law, SolverOptions, TimeGrid,
+    self, BodyId, ConstraintKind, DriverTarget, JointId, JointKind, Law, Need, SolverOptions,
+    TimeGrid,
 };
 
 /// The largest time grid accepted (contract).
@@ -129,37 +131,6 @@ impl At {
     }
 }
 
-/// Whether a joint type takes a field.
-#[derive(Clone, Copy, PartialEq, Eq)]
-enum Need {
-    Required,
-    Optional,
-    Unused,
-}
-
-/// The fields of the contract's joint table beyond the two points, which every type needs.
-struct Needs {
-    axes: Need,
-    refs: Need,
-    lead: Need,
-    distance: Need,
-}
-
-impl Needs {
-    fn of(kind: JointType) -> Self {
-        use Need::{Optional as O, Required as R, Unused as U};
-        let (axes, refs, lead, distance) = match kind {
-            JointType::Spherical => (U, U, U, U),
-            JointType::Universal => (R, U, U, U),
-            JointType::Revolute | JointType::Cylindrical => (R, O, U, U),
-            JointType::Prismatic => (R, R, U, U),
-            JointType::Screw => (R, R, R, U),
-            JointType::Distance => (U, U, U, O),
-        };
-        Self { axes, refs, lead, distance }
-    }
-}
-
 /// What a missing joint field is, for the message that asks for it.
 fn joint_field_meaning(field: &str) -> &'static str {
     match field {
@@ -172,29 +143,6 @@ fn joint_field_meaning(field: &str) -> &'static str {
         "lead" => "the axial advance of j relative to i per full turn",
         _ => "",
     }
-}
-
-/// Equation rows of a joint type, as `model::JointKind::equations` counts them.
-fn joint_rows(kind: JointType) -> usize {
-    let kind = match kind {
-        JointType::Spherical => JointKind::Spherical,
-        JointType::Universal => JointKind::Universal,
-        JointType::Revolute => JointKind::Revolute,
-        JointType::Cylindrical => JointKind::Cylindrical,
-        JointType::Prismatic => JointKind::Prismatic,
-        JointType::Screw => JointKind::Screw { lead: 1.0, d0: 0.0, theta0: 0.0 },
-        JointType::Distance => JointKind::Distance { length: 1.0 },
-    };
-    kind.equations()
-}
-
-/// The rotation matrix A(p) = (e0² − eᵀe)I + 2eeᵀ + 2e0·[e]× of unit Euler parameters.
-fn rotation(p: &Vector4<f64>) -> Matrix3<f64> {
-    let e0 = p[0];
-    let e = Vector3::new(p[1], p[2], p[3]);
-    Matrix3::identity() * (e0 * e0 - e.dot(&e))
-        + 2.0 * e * e.transpose()
-        + 2.0 * e0 * e.cross_matrix()
 }
 
 struct Rules<'a> {
@@ -564,7 +512,7 @@ impl Rules<'_> {
         if let (Some(bi), Some(bj)) = (body_i, body_j) {
             self.joint_bodies(&at, bi, bj);
         }
-        let needs = Needs::of(j.kind);
+        let needs = j.kind.spec();
         let ty = j.kind.as_str();
         let mut usage =
             |field: &str, given: bool, need: Need| self.usage(&at, ty, field, given, need);
@@ -1073,7 +1021,7 @@ impl Rules<'_> {
             return None;
         }
         let unknowns = 7 * moving;
-        let equations = desc.joints.iter().map(|j| joint_rows(j.kind)).sum::<usize>()
+        let equations = desc.joints.iter().map(|j| j.kind.spec().rows.len()).sum::<usize>()
             + desc.constraints.len()
             + desc.drivers.len()
             + moving;
@@ -1145,7 +1093,7 @@ fn idle_spins(desc: &MechanismDesc) -> Vec<String> {
 
 /// P = r + A(p)·s', global.
 fn global_point(body: &model::Body, local: &Vector3<f64>) -> Vector3<f64> {
-    body.r + rotation(&body.p) * local
+    frame::global_point(&body.r, &body.p, local)
 }
 
 /// The screw's d0 = (P_j − P_i)·a and θ0 = atan2((g_i × g_j)·a, g_i·g_j) in (−π, π], with
