@@ -215,58 +215,131 @@ impl Builder {
         self.sub(&pj, &pi)
     }
 
-    /// The rows of one joint (same forms and order as `generic`).
+    /// The rows of one joint, in the order of [`crate::model::JointSpec::rows`]; one
+    /// method per type below, as in `generic`.
     fn joint_rows(&mut self, j: &Joint) -> Vec<ExprId> {
+        let v = self.joint_vectors(j);
+        let rows = match j.kind {
+            JointKind::Spherical => self.spherical(&v),
+            JointKind::Universal => self.universal(&v),
+            JointKind::Revolute => self.revolute(&v),
+            JointKind::Cylindrical => self.cylindrical(&v),
+            JointKind::Prismatic => self.prismatic(&v, j),
+            JointKind::Screw { lead, d0, theta0 } => self.screw(&v, j, lead, d0, theta0),
+            JointKind::Distance { length } => self.distance(&v, length),
+        };
+        debug_assert_eq!(rows.len(), j.kind.equations());
+        rows
+    }
+
+    /// d, the axes and the normals of a joint, written into the pool in that order.
+    fn joint_vectors(&mut self, j: &Joint) -> JointVectors {
         let d = self.separation(j);
-        let mut rows = Vec::new();
-        if matches!(j.kind, JointKind::Spherical | JointKind::Universal | JointKind::Revolute) {
-            rows.extend(d);
-        }
         let axes = j.axis.map(|(ai, aj)| (self.vector(j.body_i, &ai), self.vector(j.body_j, &aj)));
         let normals =
             j.normals().map(|(b, c)| (self.vector(j.body_i, &b), self.vector(j.body_i, &c)));
-        if let (Some((_, aj)), Some((b, c))) = (&axes, &normals)
-            && !matches!(j.kind, JointKind::Universal)
-        {
-            rows.push(self.dot(b, aj));
-            rows.push(self.dot(c, aj));
-            if !matches!(j.kind, JointKind::Revolute) {
-                rows.push(self.dot(b, &d));
-                rows.push(self.dot(c, &d));
-            }
-        }
-        match j.kind {
-            JointKind::Universal => {
-                let (ai, aj) = axes.expect("validated: universal has axes");
-                rows.push(self.dot(&ai, &aj));
-            }
-            JointKind::Prismatic => {
-                let (ri, rj) = j.reference.expect("validated: prismatic has references");
-                let (ri, rj) = (self.vector(j.body_i, &ri), self.vector(j.body_j, &rj));
-                rows.push(self.dot(&ri, &rj));
-            }
-            JointKind::Screw { lead, d0, theta0 } => {
-                let (x, y) = self.joint_angle(j);
-                let ax = self.axial_position(j);
-                let d0 = self.pool.constant(d0);
-                let k = self.pool.constant(2.0 * std::f64::consts::PI / lead);
-                let th0 = self.pool.constant(theta0);
-                let dd = self.pool.sub(ax, d0);
-                let kd = self.pool.mul(k, dd);
-                let phi = self.pool.add(kd, th0);
-                rows.push(self.angle_residual(x, y, phi));
-            }
-            JointKind::Distance { length } => {
-                let dd = self.dot(&d, &d);
-                let l2 = self.pool.constant(length * length);
-                let diff = self.pool.sub(dd, l2);
-                let half = self.pool.constant(0.5 / length);
-                rows.push(self.pool.mul(half, diff));
-            }
-            _ => {}
-        }
-        debug_assert_eq!(rows.len(), j.kind.equations());
+        JointVectors { d, axes, normals }
+    }
+
+    /// d = 0: the joint points coincide.
+    fn coincident(v: &JointVectors) -> Vec<ExprId> {
+        v.d.to_vec()
+    }
+
+    /// b_i·a_j = 0, c_i·a_j = 0: the axes are parallel.
+    fn parallel(&mut self, v: &JointVectors) -> Vec<ExprId> {
+        let (_, aj) = v.axes();
+        let (b, c) = v.normals();
+        vec![self.dot(b, aj), self.dot(c, aj)]
+    }
+
+    /// Spherical: d = 0.
+    fn spherical(&mut self, v: &JointVectors) -> Vec<ExprId> {
+        Self::coincident(v)
+    }
+
+    /// Universal: d = 0; a_i·a_j = 0.
+    fn universal(&mut self, v: &JointVectors) -> Vec<ExprId> {
+        let (ai, aj) = v.axes();
+        let mut rows = Self::coincident(v);
+        rows.push(self.dot(ai, aj));
         rows
+    }
+
+    /// Revolute: d = 0; axes parallel.
+    fn revolute(&mut self, v: &JointVectors) -> Vec<ExprId> {
+        let mut rows = Self::coincident(v);
+        rows.extend(self.parallel(v));
+        rows
+    }
+
+    /// Cylindrical: axes parallel; b_i·d = 0, c_i·d = 0.
+    fn cylindrical(&mut self, v: &JointVectors) -> Vec<ExprId> {
+        let (b, c) = v.normals();
+        let mut rows = self.parallel(v);
+        rows.push(self.dot(b, &v.d));
+        rows.push(self.dot(c, &v.d));
+        rows
+    }
+
+    /// Prismatic: cylindrical; ref_i·ref_j = 0.
+    fn prismatic(&mut self, v: &JointVectors, j: &Joint) -> Vec<ExprId> {
+        let mut rows = self.cylindrical(v);
+        let (ri, rj) = j.reference.expect("validated: prismatic has references");
+        let (ri, rj) = (self.vector(j.body_i, &ri), self.vector(j.body_j, &rj));
+        rows.push(self.dot(&ri, &rj));
+        rows
+    }
+
+    /// Screw: cylindrical; x sin φ − y cos φ = 0 with φ = θ0 + 2π (d·a_i − d0)/lead.
+    fn screw(
+        &mut self,
+        v: &JointVectors,
+        j: &Joint,
+        lead: f64,
+        d0: f64,
+        theta0: f64,
+    ) -> Vec<ExprId> {
+        let mut rows = self.cylindrical(v);
+        let (x, y) = self.joint_angle(j);
+        let ax = self.axial_position(j);
+        let d0 = self.pool.constant(d0);
+        let k = self.pool.constant(2.0 * std::f64::consts::PI / lead);
+        let th0 = self.pool.constant(theta0);
+        let dd = self.pool.sub(ax, d0);
+        let kd = self.pool.mul(k, dd);
+        let phi = self.pool.add(kd, th0);
+        rows.push(self.angle_residual(x, y, phi));
+        rows
+    }
+
+    /// Distance: (d·d − L²)/(2L) = 0.
+    fn distance(&mut self, v: &JointVectors, length: f64) -> Vec<ExprId> {
+        let dd = self.dot(&v.d, &v.d);
+        let l2 = self.pool.constant(length * length);
+        let diff = self.pool.sub(dd, l2);
+        let half = self.pool.constant(0.5 / length);
+        vec![self.pool.mul(half, diff)]
+    }
+}
+
+/// The global vectors of one joint that its rows combine, as expressions.
+struct JointVectors {
+    /// d = P_j − P_i.
+    d: V3,
+    /// (a_i, a_j), the axes, for the types that have them.
+    axes: Option<(V3, V3)>,
+    /// (b_i, c_i), the body-i unit vectors ⟂ axis_i.
+    normals: Option<(V3, V3)>,
+}
+
+impl JointVectors {
+    fn axes(&self) -> &(V3, V3) {
+        self.axes.as_ref().expect("validated: joint has axes")
+    }
+
+    fn normals(&self) -> &(V3, V3) {
+        self.normals.as_ref().expect("validated: joint has axes")
     }
 }
 

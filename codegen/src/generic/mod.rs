@@ -278,62 +278,125 @@ impl<'m> Equations<'m> {
         sys
     }
 
-    /// The rows of joint `k`.
+    /// The rows of joint `k`, in the order of [`crate::model::JointSpec::rows`]; one
+    /// function per type below, as in `symbolic`.
     fn joint_rows(&self, k: usize, joint: &Joint, bi: &BodyState, bj: &BodyState) -> Vec<Sk> {
-        let pi = Vk::point(0, bi, &joint.point_i);
-        let pj = Vk::point(1, bj, &joint.point_j);
-        let d = pj.sub(&pi);
-        let spherical = || (0..3).map(|c| d.component(c)).collect::<Vec<_>>();
-        let axes = joint.axis.map(|(ai, aj)| (Vk::vector(0, bi, &ai), Vk::vector(1, bj, &aj)));
-        let normals = self.normals[k].map(|(b, c)| (Vk::vector(0, bi, &b), Vk::vector(0, bi, &c)));
-        let parallel = || {
-            let (_, aj) = axes.as_ref().expect("validated: joint has axes");
-            let (b, c) = normals.as_ref().expect("validated: joint has axes");
-            vec![b.dot(aj), c.dot(aj)]
-        };
-        let cylindrical = || {
-            let (b, c) = normals.as_ref().expect("validated: joint has axes");
-            let mut rows = parallel();
-            rows.push(b.dot(&d));
-            rows.push(c.dot(&d));
-            rows
-        };
+        let v = JointVectors::new(joint, self.normals[k], bi, bj);
         match joint.kind {
-            JointKind::Spherical => spherical(),
-            JointKind::Universal => {
-                let (ai, aj) = axes.as_ref().expect("validated: universal has axes");
-                let mut rows = spherical();
-                rows.push(ai.dot(aj));
-                rows
-            }
-            JointKind::Revolute => {
-                let mut rows = spherical();
-                rows.extend(parallel());
-                rows
-            }
-            JointKind::Cylindrical => cylindrical(),
-            JointKind::Prismatic => {
-                let (ri, rj) = references(joint, bi, bj);
-                let mut rows = cylindrical();
-                rows.push(ri.dot(&rj));
-                rows
-            }
-            JointKind::Screw { lead, d0, theta0 } => {
-                let (x, y) = joint_angle(joint, bi, bj);
-                let k = 2.0 * std::f64::consts::PI / lead;
-                let phi = axial_position(joint, bi, bj)
-                    .sub(&Sk::constant(d0))
-                    .scale(k)
-                    .add(&Sk::constant(theta0));
-                let mut rows = cylindrical();
-                rows.push(angle_residual(&x, &y, &phi));
-                rows
-            }
-            JointKind::Distance { length } => {
-                vec![d.dot(&d).sub(&Sk::constant(length * length)).scale(0.5 / length)]
-            }
+            JointKind::Spherical => spherical(&v),
+            JointKind::Universal => universal(&v),
+            JointKind::Revolute => revolute(&v),
+            JointKind::Cylindrical => cylindrical(&v),
+            JointKind::Prismatic => prismatic(&v, joint, bi, bj),
+            JointKind::Screw { lead, d0, theta0 } => screw(&v, joint, bi, bj, lead, d0, theta0),
+            JointKind::Distance { length } => distance(&v, length),
         }
     }
+}
+
+/// The global vectors of one joint that its rows combine.
+struct JointVectors {
+    /// d = P_j − P_i.
+    d: Vk,
+    /// (a_i, a_j), the axes, for the types that have them.
+    axes: Option<(Vk, Vk)>,
+    /// (b_i, c_i), the body-i unit vectors ⟂ axis_i.
+    normals: Option<(Vk, Vk)>,
+}
+
+impl JointVectors {
+    fn new(
+        joint: &Joint,
+        normals: Option<(Vector3<f64>, Vector3<f64>)>,
+        bi: &BodyState,
+        bj: &BodyState,
+    ) -> Self {
+        let d = Vk::point(1, bj, &joint.point_j).sub(&Vk::point(0, bi, &joint.point_i));
+        let axes = joint.axis.map(|(ai, aj)| (Vk::vector(0, bi, &ai), Vk::vector(1, bj, &aj)));
+        let normals = normals.map(|(b, c)| (Vk::vector(0, bi, &b), Vk::vector(0, bi, &c)));
+        Self { d, axes, normals }
+    }
+
+    fn axes(&self) -> &(Vk, Vk) {
+        self.axes.as_ref().expect("validated: joint has axes")
+    }
+
+    fn normals(&self) -> &(Vk, Vk) {
+        self.normals.as_ref().expect("validated: joint has axes")
+    }
+}
+
+/// d = 0: the joint points coincide.
+fn coincident(v: &JointVectors) -> Vec<Sk> {
+    (0..3).map(|c| v.d.component(c)).collect()
+}
+
+/// b_i·a_j = 0, c_i·a_j = 0: the axes are parallel.
+fn parallel(v: &JointVectors) -> Vec<Sk> {
+    let (_, aj) = v.axes();
+    let (b, c) = v.normals();
+    vec![b.dot(aj), c.dot(aj)]
+}
+
+/// Spherical: d = 0.
+fn spherical(v: &JointVectors) -> Vec<Sk> {
+    coincident(v)
+}
+
+/// Universal: d = 0; a_i·a_j = 0.
+fn universal(v: &JointVectors) -> Vec<Sk> {
+    let (ai, aj) = v.axes();
+    let mut rows = coincident(v);
+    rows.push(ai.dot(aj));
+    rows
+}
+
+/// Revolute: d = 0; axes parallel.
+fn revolute(v: &JointVectors) -> Vec<Sk> {
+    let mut rows = coincident(v);
+    rows.extend(parallel(v));
+    rows
+}
+
+/// Cylindrical: axes parallel; b_i·d = 0, c_i·d = 0.
+fn cylindrical(v: &JointVectors) -> Vec<Sk> {
+    let (b, c) = v.normals();
+    let mut rows = parallel(v);
+    rows.push(b.dot(&v.d));
+    rows.push(c.dot(&v.d));
+    rows
+}
+
+/// Prismatic: cylindrical; ref_i·ref_j = 0.
+fn prismatic(v: &JointVectors, joint: &Joint, bi: &BodyState, bj: &BodyState) -> Vec<Sk> {
+    let (ri, rj) = references(joint, bi, bj);
+    let mut rows = cylindrical(v);
+    rows.push(ri.dot(&rj));
+    rows
+}
+
+/// Screw: cylindrical; x sin φ − y cos φ = 0 with φ = θ0 + 2π (d·a_i − d0)/lead.
+fn screw(
+    v: &JointVectors,
+    joint: &Joint,
+    bi: &BodyState,
+    bj: &BodyState,
+    lead: f64,
+    d0: f64,
+    theta0: f64,
+) -> Vec<Sk> {
+    let (x, y) = joint_angle(joint, bi, bj);
+    let k = 2.0 * std::f64::consts::PI / lead;
+    let phi =
+        axial_position(joint, bi, bj).sub(&Sk::constant(d0)).scale(k).add(&Sk::constant(theta0));
+    let mut rows = cylindrical(v);
+    rows.push(angle_residual(&x, &y, &phi));
+    rows
+}
+
+/// Distance: (d·d − L²)/(2L) = 0.
+fn distance(v: &JointVectors, length: f64) -> Vec<Sk> {
+    vec![v.d.dot(&v.d).sub(&Sk::constant(length * length)).scale(0.5 / length)]
 }
 
 /// The global reference vectors (ref_i, ref_j) of a joint.
