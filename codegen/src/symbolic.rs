@@ -20,8 +20,8 @@ use nalgebra::{DVector, Vector3};
 use crate::expr::{ExprId, ExprPool, Node, Var};
 use crate::generic::Equations;
 use crate::model::{
-    BodyId, ConstraintKind, DriverCoordinate, DriverTarget, Joint, JointKind, Law, Mechanism,
-    Motion, RowLabel,
+    BodyId, Constraint, ConstraintKind, Driver, DriverCoordinate, DriverTarget, Joint, JointKind,
+    Law, Mechanism, Motion, RowLabel,
 };
 
 /// Where a body coordinate comes from in the reduced system.
@@ -215,6 +215,164 @@ impl Builder {
         self.sub(&pj, &pi)
     }
 
+    /// The coordinates ground bodies, `fix` constraints, coordinate differences against
+    /// ground and absolute x/y/z drivers hold (the others left [`PLACEHOLDER`]), and the rows
+    /// (indices into the row labels) eliminated with them.
+    fn eliminate(&mut self, mech: &Mechanism) -> (Vec<[Source; 7]>, BTreeSet<usize>) {
+        let mut coords: Vec<[Source; 7]> = mech
+            .bodies
+            .iter()
+            .map(|b| {
+                if b.ground {
+                    let q = [b.r.x, b.r.y, b.r.z, b.p[0], b.p[1], b.p[2], b.p[3]];
+                    q.map(Source::Fixed)
+                } else {
+                    [PLACEHOLDER; 7]
+                }
+            })
+            .collect();
+        // Row indices (into `labels`) of the eliminated equations.
+        let mut eliminated = BTreeSet::new();
+        let (first_constraint, first_driver) =
+            (mech.first_constraint_row(), mech.first_driver_row());
+        for (k, c) in mech.constraints.iter().enumerate() {
+            let target = match c.kind {
+                ConstraintKind::Fix { body, coordinate, value } => {
+                    Some((body, coordinate.index(), value))
+                }
+                ConstraintKind::CoordinateDifference { body_i, body_j, coordinate, value } => {
+                    let c = coordinate.index();
+                    match (&coords[body_i.0][c], &coords[body_j.0][c]) {
+                        (Source::Fixed(g), _) if mech.bodies[body_i.0].ground => {
+                            Some((body_j, c, g - value))
+                        }
+                        (_, Source::Fixed(g)) if mech.bodies[body_j.0].ground => {
+                            Some((body_i, c, g + value))
+                        }
+                        _ => None,
+                    }
+                }
+            };
+            if let Some((body, idx, value)) = target
+                && coords[body.0][idx] == PLACEHOLDER
+            {
+                coords[body.0][idx] = Source::Fixed(value);
+                eliminated.insert(first_constraint + k);
+            }
+        }
+        for (k, d) in mech.drivers.iter().enumerate() {
+            if let DriverTarget::Absolute { body, coordinate } = d.target {
+                let idx = match coordinate {
+                    DriverCoordinate::X => 0,
+                    DriverCoordinate::Y => 1,
+                    DriverCoordinate::Z => 2,
+                    _ => continue,
+                };
+                if coords[body.0][idx] == PLACEHOLDER {
+                    let s = self.law(&d.law);
+                    let t = Var::T;
+                    let sd = self.pool.diff(s, t);
+                    let sdd = self.pool.diff(sd, t);
+                    coords[body.0][idx] = Source::Driven(self.laws.len());
+                    self.laws.push([s, sd, sdd]);
+                    eliminated.insert(first_driver + k);
+                }
+            }
+        }
+        (coords, eliminated)
+    }
+
+    /// Φ of every row in the generic engine's order: joints, constraints, drivers,
+    /// normalisations.
+    fn phi(&mut self, mech: &Mechanism) -> Vec<ExprId> {
+        let mut phi_all = Vec::with_capacity(mech.equations());
+        for j in &mech.joints {
+            phi_all.extend(self.joint_rows(j));
+        }
+        for c in &mech.constraints {
+            let e = self.constraint_row(c);
+            phi_all.push(e);
+        }
+        for d in &mech.drivers {
+            let e = self.driver_row(d, &mech.joints);
+            phi_all.push(e);
+        }
+        for b in mech.moving_bodies() {
+            let terms: Vec<ExprId> = (3..7)
+                .map(|c| {
+                    let e = self.coordinate(b, c);
+                    self.pool.mul(e, e)
+                })
+                .collect();
+            let s = self.pool.sum(terms);
+            let one = self.pool.constant(1.0);
+            phi_all.push(self.pool.sub(s, one));
+        }
+        phi_all
+    }
+
+    /// A constraint's row: `q_b[c] − value` or `q_i[c] − q_j[c] − value`.
+    fn constraint_row(&mut self, c: &Constraint) -> ExprId {
+        match c.kind {
+            ConstraintKind::Fix { body, coordinate, value } => {
+                let q = self.coordinate(body, coordinate.index());
+                let v = self.pool.constant(value);
+                self.pool.sub(q, v)
+            }
+            ConstraintKind::CoordinateDifference { body_i, body_j, coordinate, value } => {
+                let qi = self.coordinate(body_i, coordinate.index());
+                let qj = self.coordinate(body_j, coordinate.index());
+                let v = self.pool.constant(value);
+                let d = self.pool.sub(qi, qj);
+                self.pool.sub(d, v)
+            }
+        }
+    }
+
+    /// A driver's row: the joint angle's x sin s − y cos s, the axial position − s, or an
+    /// absolute coordinate's row.
+    fn driver_row(&mut self, d: &Driver, joints: &[Joint]) -> ExprId {
+        let s = self.law(&d.law);
+        match d.target {
+            DriverTarget::Joint { joint, motion } => {
+                let j = &joints[joint.0];
+                match motion {
+                    Motion::Rotation => {
+                        let (x, y) = self.joint_angle(j);
+                        self.angle_residual(x, y, s)
+                    }
+                    Motion::Translation => {
+                        let ax = self.axial_position(j);
+                        self.pool.sub(ax, s)
+                    }
+                }
+            }
+            DriverTarget::Absolute { body, coordinate } => {
+                let k = match coordinate {
+                    DriverCoordinate::X => 0,
+                    DriverCoordinate::Y => 1,
+                    DriverCoordinate::Z => 2,
+                    DriverCoordinate::Rx => 4,
+                    DriverCoordinate::Ry => 5,
+                    DriverCoordinate::Rz => 6,
+                };
+                let q = self.coordinate(body, k);
+                if k < 3 {
+                    self.pool.sub(q, s)
+                } else {
+                    // e_k cos(s/2) − e0 sin(s/2) (thesis eq. 4.62, one-equation form).
+                    let half = self.pool.constant(0.5);
+                    let hs = self.pool.mul(half, s);
+                    let (sin, cos) = (self.pool.sin(hs), self.pool.cos(hs));
+                    let e0 = self.coordinate(body, 3);
+                    let a = self.pool.mul(q, cos);
+                    let b = self.pool.mul(e0, sin);
+                    self.pool.sub(a, b)
+                }
+            }
+        }
+    }
+
     /// The rows of one joint, in the order of [`crate::model::JointSpec::rows`]; one
     /// method per type below, as in `generic`.
     fn joint_rows(&mut self, j: &Joint) -> Vec<ExprId> {
@@ -323,6 +481,23 @@ impl Builder {
     }
 }
 
+/// A coordinate not yet assigned a source while the system is laid out.
+const PLACEHOLDER: Source = Source::Unknown(usize::MAX);
+
+/// Numbers the coordinates still [`PLACEHOLDER`] as the reduced unknowns, body by body.
+fn number_unknowns(coords: &mut [[Source; 7]]) -> Vec<(BodyId, usize)> {
+    let mut unknowns = Vec::new();
+    for (b, c) in coords.iter_mut().enumerate() {
+        for (i, s) in c.iter_mut().enumerate() {
+            if *s == PLACEHOLDER {
+                *s = Source::Unknown(unknowns.len());
+                unknowns.push((BodyId(b), i));
+            }
+        }
+    }
+    unknowns
+}
+
 /// The global vectors of one joint that its rows combine, as expressions.
 struct JointVectors {
     /// d = P_j − P_i.
@@ -365,155 +540,13 @@ impl Symbolic {
     /// When the reduced system is not square with full rank at the initial configuration
     /// (an undriven degree of freedom, or a coordinate fixed twice).
     pub fn build(mech: &Mechanism) -> Result<Self, GenerateError> {
-        let eq = Equations::new(mech);
         let labels = mech.row_labels();
-        let placeholder = Source::Unknown(usize::MAX);
-        let mut coords: Vec<[Source; 7]> = mech
-            .bodies
-            .iter()
-            .map(|b| {
-                if b.ground {
-                    let q = [b.r.x, b.r.y, b.r.z, b.p[0], b.p[1], b.p[2], b.p[3]];
-                    q.map(Source::Fixed)
-                } else {
-                    [placeholder; 7]
-                }
-            })
-            .collect();
         let mut builder = Builder { pool: ExprPool::new(), coords: Vec::new(), laws: Vec::new() };
-        // Row indices (into `labels`) of the eliminated equations.
-        let mut eliminated = BTreeSet::new();
-        let (first_constraint, first_driver) =
-            (mech.first_constraint_row(), mech.first_driver_row());
-        for (k, c) in mech.constraints.iter().enumerate() {
-            let target = match c.kind {
-                ConstraintKind::Fix { body, coordinate, value } => {
-                    Some((body, coordinate.index(), value))
-                }
-                ConstraintKind::CoordinateDifference { body_i, body_j, coordinate, value } => {
-                    let c = coordinate.index();
-                    match (&coords[body_i.0][c], &coords[body_j.0][c]) {
-                        (Source::Fixed(g), _) if mech.bodies[body_i.0].ground => {
-                            Some((body_j, c, g - value))
-                        }
-                        (_, Source::Fixed(g)) if mech.bodies[body_j.0].ground => {
-                            Some((body_i, c, g + value))
-                        }
-                        _ => None,
-                    }
-                }
-            };
-            if let Some((body, idx, value)) = target
-                && coords[body.0][idx] == placeholder
-            {
-                coords[body.0][idx] = Source::Fixed(value);
-                eliminated.insert(first_constraint + k);
-            }
-        }
-        for (k, d) in mech.drivers.iter().enumerate() {
-            if let DriverTarget::Absolute { body, coordinate } = d.target {
-                let idx = match coordinate {
-                    DriverCoordinate::X => 0,
-                    DriverCoordinate::Y => 1,
-                    DriverCoordinate::Z => 2,
-                    _ => continue,
-                };
-                if coords[body.0][idx] == placeholder {
-                    let s = builder.law(&d.law);
-                    let t = Var::T;
-                    let sd = builder.pool.diff(s, t);
-                    let sdd = builder.pool.diff(sd, t);
-                    coords[body.0][idx] = Source::Driven(builder.laws.len());
-                    builder.laws.push([s, sd, sdd]);
-                    eliminated.insert(first_driver + k);
-                }
-            }
-        }
-        let mut unknowns = Vec::new();
-        for (b, c) in coords.iter_mut().enumerate() {
-            for (i, s) in c.iter_mut().enumerate() {
-                if *s == placeholder {
-                    *s = Source::Unknown(unknowns.len());
-                    unknowns.push((BodyId(b), i));
-                }
-            }
-        }
+        let (mut coords, eliminated) = builder.eliminate(mech);
+        let unknowns = number_unknowns(&mut coords);
         builder.coords = coords;
-        // Φ for every row that is not eliminated, in the generic engine's order.
-        let mut phi_all = Vec::with_capacity(labels.len());
-        for j in &mech.joints {
-            phi_all.extend(builder.joint_rows(j));
-        }
-        for c in &mech.constraints {
-            let e = match c.kind {
-                ConstraintKind::Fix { body, coordinate, value } => {
-                    let q = builder.coordinate(body, coordinate.index());
-                    let v = builder.pool.constant(value);
-                    builder.pool.sub(q, v)
-                }
-                ConstraintKind::CoordinateDifference { body_i, body_j, coordinate, value } => {
-                    let qi = builder.coordinate(body_i, coordinate.index());
-                    let qj = builder.coordinate(body_j, coordinate.index());
-                    let v = builder.pool.constant(value);
-                    let d = builder.pool.sub(qi, qj);
-                    builder.pool.sub(d, v)
-                }
-            };
-            phi_all.push(e);
-        }
-        for d in &mech.drivers {
-            let s = builder.law(&d.law);
-            let e = match d.target {
-                DriverTarget::Joint { joint, motion } => {
-                    let j = &mech.joints[joint.0];
-                    match motion {
-                        Motion::Rotation => {
-                            let (x, y) = builder.joint_angle(j);
-                            builder.angle_residual(x, y, s)
-                        }
-                        Motion::Translation => {
-                            let ax = builder.axial_position(j);
-                            builder.pool.sub(ax, s)
-                        }
-                    }
-                }
-                DriverTarget::Absolute { body, coordinate } => {
-                    let k = match coordinate {
-                        DriverCoordinate::X => 0,
-                        DriverCoordinate::Y => 1,
-                        DriverCoordinate::Z => 2,
-                        DriverCoordinate::Rx => 4,
-                        DriverCoordinate::Ry => 5,
-                        DriverCoordinate::Rz => 6,
-                    };
-                    let q = builder.coordinate(body, k);
-                    if k < 3 {
-                        builder.pool.sub(q, s)
-                    } else {
-                        // e_k cos(s/2) − e0 sin(s/2) (thesis eq. 4.62, one-equation form).
-                        let half = builder.pool.constant(0.5);
-                        let hs = builder.pool.mul(half, s);
-                        let (sin, cos) = (builder.pool.sin(hs), builder.pool.cos(hs));
-                        let e0 = builder.coordinate(body, 3);
-                        let a = builder.pool.mul(q, cos);
-                        let b = builder.pool.mul(e0, sin);
-                        builder.pool.sub(a, b)
-                    }
-                }
-            };
-            phi_all.push(e);
-        }
-        for b in mech.moving_bodies() {
-            let terms: Vec<ExprId> = (3..7)
-                .map(|c| {
-                    let e = builder.coordinate(b, c);
-                    builder.pool.mul(e, e)
-                })
-                .collect();
-            let s = builder.pool.sum(terms);
-            let one = builder.pool.constant(1.0);
-            phi_all.push(builder.pool.sub(s, one));
-        }
+        // Φ for every row, eliminated ones included, in the generic engine's order.
+        let phi_all = builder.phi(mech);
         debug_assert_eq!(phi_all.len(), labels.len());
         let kept: Vec<usize> = (0..labels.len()).filter(|k| !eliminated.contains(k)).collect();
         let mut sys = Self {
@@ -529,23 +562,7 @@ impl Symbolic {
             gamma: Vec::new(),
             laws: builder.laws,
         };
-        // Jacobian rows of every kept equation, then the redundancy analysis on them.
-        let mut jac_rows = Vec::with_capacity(kept.len());
-        for &k in &kept {
-            jac_rows.push(sys.jacobian_row(phi_all[k]));
-        }
-        let kept_phi: Vec<ExprId> = kept.iter().map(|&k| phi_all[k]).collect();
-        let normalisation: Vec<bool> = kept.iter().map(|&k| labels[k].is_normalisation()).collect();
-        let independent = sys.independent_rows(&eq, &kept_phi, &jac_rows, &normalisation);
-        for (pos, &k) in kept.iter().enumerate() {
-            if independent.contains(&pos) {
-                sys.rows.push(labels[k].clone());
-                sys.phi.push(phi_all[k]);
-                sys.jac.push(std::mem::take(&mut jac_rows[pos]));
-            } else {
-                sys.redundant.push(labels[k].clone());
-            }
-        }
+        sys.keep_independent(mech, &labels, &kept, &phi_all);
         let n = sys.unknowns.len();
         if sys.rows.len() != n {
             return Err(GenerateError {
@@ -559,6 +576,33 @@ impl Symbolic {
         }
         sys.derive_rates();
         Ok(sys)
+    }
+
+    /// Keeps the rows `kept` (indices into `labels` and `phi_all`) that do not depend on the
+    /// others, with their Jacobian rows; the others become `redundant`.
+    fn keep_independent(
+        &mut self,
+        mech: &Mechanism,
+        labels: &[RowLabel],
+        kept: &[usize],
+        phi_all: &[ExprId],
+    ) {
+        let mut jac_rows = Vec::with_capacity(kept.len());
+        for &k in kept {
+            jac_rows.push(self.jacobian_row(phi_all[k]));
+        }
+        let kept_phi: Vec<ExprId> = kept.iter().map(|&k| phi_all[k]).collect();
+        let normalisation: Vec<bool> = kept.iter().map(|&k| labels[k].is_normalisation()).collect();
+        let independent = self.independent_rows(mech, &kept_phi, &jac_rows, &normalisation);
+        for (pos, &k) in kept.iter().enumerate() {
+            if independent.contains(&pos) {
+                self.rows.push(labels[k].clone());
+                self.phi.push(phi_all[k]);
+                self.jac.push(std::mem::take(&mut jac_rows[pos]));
+            } else {
+                self.redundant.push(labels[k].clone());
+            }
+        }
     }
 
     /// The structurally non-zero entries of ∂e/∂q.
@@ -582,12 +626,11 @@ impl Symbolic {
     /// Gauss–Newton assembly (`Equations::prepare`, dense, with the SVD) decides instead.
     fn independent_rows(
         &self,
-        eq: &Equations<'_>,
+        mech: &Mechanism,
         phi: &[ExprId],
         jac_rows: &[Vec<(usize, ExprId)>],
         normalisation: &[bool],
     ) -> BTreeSet<usize> {
-        let mech = eq.mechanism();
         let t = mech.time.start;
         let at = |q: &[f64]| -> SparseRows {
             let roots: Vec<ExprId> = jac_rows.iter().flatten().map(|&(_, e)| e).collect();
@@ -598,8 +641,10 @@ impl Symbolic {
                 .collect()
         };
         let q = self.assemble(mech, phi, jac_rows, &at).unwrap_or_else(|| {
+            // The one use of the generic engine in building: its dense assembly as a fall-back.
+            let eq = Equations::new(mech);
             let prep = eq.prepare();
-            self.reduce(eq, &prep.q).as_slice().to_vec()
+            self.reduce(&eq, &prep.q).as_slice().to_vec()
         });
         independent(&self.balanced(at(&q), mech), self.unknowns.len(), normalisation)
     }
