@@ -35,7 +35,8 @@ mod tests;
 use nalgebra::{DMatrix, DVector, Vector3};
 
 use crate::model::{
-    BodyId, ConstraintKind, DriverCoordinate, DriverTarget, Joint, JointKind, Mechanism, Motion,
+    BodyId, Constraint, ConstraintKind, Driver, DriverCoordinate, DriverTarget, Joint, JointKind,
+    Mechanism, Motion,
 };
 use kin::{BodyState, Sk, Vk};
 
@@ -212,59 +213,12 @@ impl<'m> Equations<'m> {
             }
         }
         for c in &self.mech.constraints {
-            match c.kind {
-                ConstraintKind::Fix { body, coordinate, value } => {
-                    let sk = Sk::coordinate(0, &states[body.0], coordinate.index())
-                        .sub(&Sk::constant(value));
-                    emit([self.offset[body.0], None], sk, &mut sys);
-                }
-                ConstraintKind::CoordinateDifference { body_i, body_j, coordinate, value } => {
-                    let idx = coordinate.index();
-                    let sk = Sk::coordinate(0, &states[body_i.0], idx)
-                        .sub(&Sk::coordinate(1, &states[body_j.0], idx))
-                        .sub(&Sk::constant(value));
-                    emit([self.offset[body_i.0], self.offset[body_j.0]], sk, &mut sys);
-                }
-            }
+            let (bodies, sk) = self.constraint_row(c, &states);
+            emit(bodies, sk, &mut sys);
         }
         for d in &self.mech.drivers {
-            let s = Sk::time(d.law.eval(t));
-            match d.target {
-                DriverTarget::Joint { joint, motion } => {
-                    let jt = &self.mech.joints[joint.0];
-                    let (bi, bj) = (&states[jt.body_i.0], &states[jt.body_j.0]);
-                    let sk = match motion {
-                        Motion::Rotation => {
-                            let (x, y) = joint_angle(jt, bi, bj);
-                            angle_residual(&x, &y, &s)
-                        }
-                        Motion::Translation => axial_position(jt, bi, bj).sub(&s),
-                    };
-                    emit([self.offset[jt.body_i.0], self.offset[jt.body_j.0]], sk, &mut sys);
-                }
-                DriverTarget::Absolute { body, coordinate } => {
-                    let b = &states[body.0];
-                    let sk = match coordinate {
-                        DriverCoordinate::X => Sk::coordinate(0, b, 0).sub(&s),
-                        DriverCoordinate::Y => Sk::coordinate(0, b, 1).sub(&s),
-                        DriverCoordinate::Z => Sk::coordinate(0, b, 2).sub(&s),
-                        DriverCoordinate::Rx | DriverCoordinate::Ry | DriverCoordinate::Rz => {
-                            let k = match coordinate {
-                                DriverCoordinate::Rx => 4,
-                                DriverCoordinate::Ry => 5,
-                                _ => 6,
-                            };
-                            // Thesis eq. 4.62 in the one-equation form of the contract:
-                            // e_k cos(s/2) − e0 sin(s/2) = 0.
-                            let (sin, cos) = s.scale(0.5).sin_cos();
-                            Sk::coordinate(0, b, k)
-                                .mul(&cos)
-                                .sub(&Sk::coordinate(0, b, 3).mul(&sin))
-                        }
-                    };
-                    emit([self.offset[body.0], None], sk, &mut sys);
-                }
-            }
+            let (bodies, sk) = self.driver_row(d, &states, t);
+            emit(bodies, sk, &mut sys);
         }
         for (b, off) in states.iter().zip(&self.offset) {
             if off.is_some() {
@@ -276,6 +230,46 @@ impl<'m> Equations<'m> {
         }
         debug_assert_eq!(row, m);
         sys
+    }
+
+    /// A constraint's row and the column offsets of its bodies.
+    fn constraint_row(&self, c: &Constraint, states: &[BodyState]) -> ([Option<usize>; 2], Sk) {
+        match c.kind {
+            ConstraintKind::Fix { body, coordinate, value } => {
+                let sk = Sk::coordinate(0, &states[body.0], coordinate.index())
+                    .sub(&Sk::constant(value));
+                ([self.offset[body.0], None], sk)
+            }
+            ConstraintKind::CoordinateDifference { body_i, body_j, coordinate, value } => {
+                let idx = coordinate.index();
+                let sk = Sk::coordinate(0, &states[body_i.0], idx)
+                    .sub(&Sk::coordinate(1, &states[body_j.0], idx))
+                    .sub(&Sk::constant(value));
+                ([self.offset[body_i.0], self.offset[body_j.0]], sk)
+            }
+        }
+    }
+
+    /// A driver's row at time `t` and the column offsets of its bodies.
+    fn driver_row(&self, d: &Driver, states: &[BodyState], t: f64) -> ([Option<usize>; 2], Sk) {
+        let s = Sk::time(d.law.eval(t));
+        match d.target {
+            DriverTarget::Joint { joint, motion } => {
+                let jt = &self.mech.joints[joint.0];
+                let (bi, bj) = (&states[jt.body_i.0], &states[jt.body_j.0]);
+                let sk = match motion {
+                    Motion::Rotation => {
+                        let (x, y) = joint_angle(jt, bi, bj);
+                        angle_residual(&x, &y, &s)
+                    }
+                    Motion::Translation => axial_position(jt, bi, bj).sub(&s),
+                };
+                ([self.offset[jt.body_i.0], self.offset[jt.body_j.0]], sk)
+            }
+            DriverTarget::Absolute { body, coordinate } => {
+                ([self.offset[body.0], None], absolute_row(&states[body.0], coordinate, &s))
+            }
+        }
     }
 
     /// The rows of joint `k`, in the order of [`crate::model::JointSpec::rows`]; one
@@ -397,6 +391,27 @@ fn screw(
 /// Distance: (d·d − L²)/(2L) = 0.
 fn distance(v: &JointVectors, length: f64) -> Vec<Sk> {
     vec![v.d.dot(&v.d).sub(&Sk::constant(length * length)).scale(0.5 / length)]
+}
+
+/// An absolute driver's row: `q_b[c] − s(t)`, or for a rotation about a global axis
+/// e_k cos(s/2) − e0 sin(s/2).
+fn absolute_row(b: &BodyState, coordinate: DriverCoordinate, s: &Sk) -> Sk {
+    match coordinate {
+        DriverCoordinate::X => Sk::coordinate(0, b, 0).sub(s),
+        DriverCoordinate::Y => Sk::coordinate(0, b, 1).sub(s),
+        DriverCoordinate::Z => Sk::coordinate(0, b, 2).sub(s),
+        DriverCoordinate::Rx | DriverCoordinate::Ry | DriverCoordinate::Rz => {
+            let k = match coordinate {
+                DriverCoordinate::Rx => 4,
+                DriverCoordinate::Ry => 5,
+                _ => 6,
+            };
+            // Thesis eq. 4.62 in the one-equation form of the contract:
+            // e_k cos(s/2) − e0 sin(s/2) = 0.
+            let (sin, cos) = s.scale(0.5).sin_cos();
+            Sk::coordinate(0, b, k).mul(&cos).sub(&Sk::coordinate(0, b, 3).mul(&sin))
+        }
+    }
 }
 
 /// The global reference vectors (ref_i, ref_j) of a joint.

@@ -14,8 +14,8 @@ use crate::desc::{
 use crate::diag::{Diagnostic, Severity};
 use crate::model::frame::{self, rotation};
 use crate::model::{
-    self, BodyId, ConstraintKind, DriverTarget, JointId, JointKind, Law, Need, SolverOptions,
-    TimeGrid,
+    self, BodyId, ConstraintKind, DriverTarget, JointId, JointKind, JointSpec, Law, Need,
+    SolverOptions, TimeGrid,
 };
 
 /// The largest time grid accepted (contract).
@@ -143,6 +143,28 @@ fn joint_field_meaning(field: &str) -> &'static str {
         "lead" => "the axial advance of j relative to i per full turn",
         _ => "",
     }
+}
+
+/// Which of a joint's vector fields are given and used.
+struct Used {
+    point_i: bool,
+    point_j: bool,
+    axis_i: bool,
+    axis_j: bool,
+    ref_i: bool,
+    ref_j: bool,
+}
+
+/// A joint's vector fields as read (`None` when absent, unused or invalid).
+struct Vectors {
+    point_i: Option<Vector3<f64>>,
+    point_j: Option<Vector3<f64>>,
+    axis_i: Option<Vector3<f64>>,
+    axis_j: Option<Vector3<f64>>,
+    ref_i: Option<Vector3<f64>>,
+    ref_j: Option<Vector3<f64>>,
+    /// Both references given and used.
+    refs_given: bool,
 }
 
 struct Rules<'a> {
@@ -513,38 +535,8 @@ impl Rules<'_> {
             self.joint_bodies(&at, bi, bj);
         }
         let needs = j.kind.spec();
-        let ty = j.kind.as_str();
-        let mut usage =
-            |field: &str, given: bool, need: Need| self.usage(&at, ty, field, given, need);
-        let use_point_i = usage("point_i", j.point_i.is_some(), Need::Required);
-        let use_point_j = usage("point_j", j.point_j.is_some(), Need::Required);
-        let use_axis_i = usage("axis_i", j.axis_i.is_some(), needs.axes);
-        let use_axis_j = usage("axis_j", j.axis_j.is_some(), needs.axes);
-        let use_ref_i = usage("ref_i", j.ref_i.is_some(), needs.refs);
-        let use_ref_j = usage("ref_j", j.ref_j.is_some(), needs.refs);
-        usage("lead", j.lead.is_some(), needs.lead);
-        usage("distance", j.distance.is_some(), needs.distance);
-        if needs.refs == Need::Optional && use_ref_i != use_ref_j {
-            let (given, missing) = if use_ref_i { ("ref_i", "ref_j") } else { ("ref_j", "ref_i") };
-            let message = format!("`{given}` is given without `{missing}`: give both or neither");
-            self.error(&at, missing, message);
-        }
-
-        let point_i =
-            j.point_i.filter(|_| use_point_i).and_then(|v| self.point3(&at, "point_i", v));
-        let point_j =
-            j.point_j.filter(|_| use_point_j).and_then(|v| self.point3(&at, "point_j", v));
-        let axis_i = j.axis_i.filter(|_| use_axis_i).and_then(|v| self.direction(&at, "axis_i", v));
-        let axis_j = j.axis_j.filter(|_| use_axis_j).and_then(|v| self.direction(&at, "axis_j", v));
-        let ref_i = j.ref_i.filter(|_| use_ref_i).and_then(|v| self.direction(&at, "ref_i", v));
-        let ref_j = j.ref_j.filter(|_| use_ref_j).and_then(|v| self.direction(&at, "ref_j", v));
-        for (r, a, rf, af) in
-            [(ref_i, axis_i, "ref_i", "axis_i"), (ref_j, axis_j, "ref_j", "axis_j")]
-        {
-            if let (Some(r), Some(a)) = (r, a) {
-                self.perpendicular(&at, rf, af, &r, &a);
-            }
-        }
+        let Vectors { point_i, point_j, axis_i, axis_j, ref_i, ref_j, refs_given } =
+            self.joint_vectors(&at, j, needs);
         let lead = j.lead.filter(|_| needs.lead != Need::Unused).and_then(|l| self.lead(&at, l));
         let length = j.distance.filter(|_| needs.distance != Need::Unused);
         let length_ok = length.is_none_or(|d| self.length(&at, d));
@@ -556,7 +548,7 @@ impl Rules<'_> {
             Need::Unused => None,
             _ => Some((axis_i?, axis_j?)),
         };
-        let reference = match (needs.refs, use_ref_i && use_ref_j) {
+        let reference = match (needs.refs, refs_given) {
             (Need::Unused, _) | (Need::Optional, false) => None,
             _ => Some((ref_i?, ref_j?)),
         };
@@ -597,6 +589,53 @@ impl Rules<'_> {
             reference,
             kind,
         })
+    }
+
+    /// Rules: the joint gives the fields its type requires, not those it does not use, and
+    /// optional references in pairs (the table [`crate::model::JOINT_TYPES`]).
+    fn joint_usage(&mut self, at: &At, j: &JointDesc, needs: &JointSpec) -> Used {
+        let ty = j.kind.as_str();
+        let mut usage =
+            |field: &str, given: bool, need: Need| self.usage(at, ty, field, given, need);
+        let used = Used {
+            point_i: usage("point_i", j.point_i.is_some(), Need::Required),
+            point_j: usage("point_j", j.point_j.is_some(), Need::Required),
+            axis_i: usage("axis_i", j.axis_i.is_some(), needs.axes),
+            axis_j: usage("axis_j", j.axis_j.is_some(), needs.axes),
+            ref_i: usage("ref_i", j.ref_i.is_some(), needs.refs),
+            ref_j: usage("ref_j", j.ref_j.is_some(), needs.refs),
+        };
+        usage("lead", j.lead.is_some(), needs.lead);
+        usage("distance", j.distance.is_some(), needs.distance);
+        if needs.refs == Need::Optional && used.ref_i != used.ref_j {
+            let (given, missing) = if used.ref_i { ("ref_i", "ref_j") } else { ("ref_j", "ref_i") };
+            let message = format!("`{given}` is given without `{missing}`: give both or neither");
+            self.error(at, missing, message);
+        }
+        used
+    }
+
+    /// Rules: the vector fields are finite, directions non-zero, references ⟂ their axes;
+    /// returns those given and used (unit directions), after [`Rules::joint_usage`].
+    fn joint_vectors(&mut self, at: &At, j: &JointDesc, needs: &JointSpec) -> Vectors {
+        let used = self.joint_usage(at, j, needs);
+        let point_i =
+            j.point_i.filter(|_| used.point_i).and_then(|v| self.point3(at, "point_i", v));
+        let point_j =
+            j.point_j.filter(|_| used.point_j).and_then(|v| self.point3(at, "point_j", v));
+        let axis_i = j.axis_i.filter(|_| used.axis_i).and_then(|v| self.direction(at, "axis_i", v));
+        let axis_j = j.axis_j.filter(|_| used.axis_j).and_then(|v| self.direction(at, "axis_j", v));
+        let ref_i = j.ref_i.filter(|_| used.ref_i).and_then(|v| self.direction(at, "ref_i", v));
+        let ref_j = j.ref_j.filter(|_| used.ref_j).and_then(|v| self.direction(at, "ref_j", v));
+        for (r, a, rf, af) in
+            [(ref_i, axis_i, "ref_i", "axis_i"), (ref_j, axis_j, "ref_j", "axis_j")]
+        {
+            if let (Some(r), Some(a)) = (r, a) {
+                self.perpendicular(at, rf, af, &r, &a);
+            }
+        }
+        let refs_given = used.ref_i && used.ref_j;
+        Vectors { point_i, point_j, axis_i, axis_j, ref_i, ref_j, refs_given }
     }
 
     /// Rules: a joint connects two different bodies, not both ground.
