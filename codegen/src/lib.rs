@@ -30,5 +30,7 @@ pub mod scale;
 pub mod stepping;
 pub mod symbolic;
 pub mod sync;
+#[cfg(any(test, feature = "test-support"))]
+pub mod testing;
 pub mod validate;
 pub mod young;
