@@ -329,16 +329,7 @@ impl<'p> Body<'p> {
     }
 }
 
-/// `rssr` → `Rssr`, `four_bar` → `FourBar`, `ex_2_6_1` → `Ex261`.
-#[must_use]
-pub fn type_name(name: &str) -> String {
-    name.split('_')
-        .map(|w| {
-            let mut c = w.chars();
-            c.next().map_or_else(String::new, |f| f.to_ascii_uppercase().to_string() + c.as_str())
-        })
-        .collect()
-}
+pub use crate::model::type_name;
 
 /// `let [q0, _q1, …] = *q;` naming the unused entries with a leading underscore.
 fn destructure(prefix: &str, n: usize, used: &[bool]) -> syn::Stmt {

@@ -22,6 +22,8 @@ pub mod emit;
 pub mod engine;
 pub mod expr;
 pub mod generic;
+#[cfg(test)]
+mod layers;
 pub mod model;
 #[cfg(feature = "cli")]
 pub mod plot;

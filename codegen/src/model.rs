@@ -15,6 +15,19 @@ pub use crate::desc::{CoordinateName, DriverCoordinate, JointType, Motion};
 pub use joints::{DeckRecord, JOINT_TYPES, JointSpec, Need, docs_row};
 pub use rows::RowLabel;
 
+/// The type a generated module declares for the mechanism `name`: `rssr` → `Rssr`,
+/// `four_bar` → `FourBar`, `ex_2_6_1` → `Ex261`. Validation checks that it is a usable Rust
+/// type name, the emitter and the engine's driver use it.
+#[must_use]
+pub fn type_name(name: &str) -> String {
+    name.split('_')
+        .map(|w| {
+            let mut c = w.chars();
+            c.next().map_or_else(String::new, |f| f.to_ascii_uppercase().to_string() + c.as_str())
+        })
+        .collect()
+}
+
 /// Index of a body in [`Mechanism::bodies`].
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
 pub struct BodyId(pub usize);

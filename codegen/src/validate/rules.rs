@@ -210,9 +210,7 @@ impl Rules<'_> {
                  module's name), e.g. \"{fixed}\""
             );
             self.error(&At::section("name", ""), "name", message);
-        } else if let Some(message) =
-            names::mechanism_name_problem(name, &crate::emit::type_name(name))
-        {
+        } else if let Some(message) = names::mechanism_name_problem(name, &model::type_name(name)) {
             self.error(&At::section("name", ""), "name", message);
         }
         if let Some(message) = self.desc.description.as_deref().and_then(names::description_problem)
