@@ -167,20 +167,21 @@ impl Joint {
     }
 }
 
-/// Joint types with the data only they carry.
+/// Joint types with the data only they carry; their fields and rows are described by
+/// [`JOINT_TYPES`].
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum JointKind {
-    /// Points coincide (3 equations).
+    /// Points coincide.
     Spherical,
-    /// Points coincide, axis_i ⟂ axis_j (4 equations).
+    /// Points coincide, axis_i ⟂ axis_j.
     Universal,
-    /// Points coincide, axes parallel (5 equations).
+    /// Points coincide, axes parallel.
     Revolute,
-    /// Axes parallel, P_j − P_i parallel to the axis (4 equations).
+    /// Axes parallel, P_j − P_i parallel to the axis.
     Cylindrical,
-    /// Cylindrical plus ref_i ⟂ ref_j (5 equations).
+    /// Cylindrical plus ref_i ⟂ ref_j.
     Prismatic,
-    /// Cylindrical plus d − d0 = lead·(θ − θ0)/(2π) (5 equations).
+    /// Cylindrical plus d − d0 = lead·(θ − θ0)/(2π).
     Screw {
         /// Axial advance per full turn (non-zero).
         lead: f64,
@@ -189,7 +190,7 @@ pub enum JointKind {
         /// θ, the angle from ref_i to ref_j about axis_i, at the initial estimates, in (−π, π].
         theta0: f64,
     },
-    /// |P_j − P_i| = length (1 equation).
+    /// |P_j − P_i| = length.
     Distance {
         /// The rod length (> 0).
         length: f64,
