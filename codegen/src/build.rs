@@ -38,12 +38,11 @@
 //! change, so an unchanged description costs no rebuild. An invalid description fails the
 //! build with the same excerpt and caret as `mechgen check`.
 
-use std::fmt;
 use std::path::{Path, PathBuf};
 
 use crate::diag;
 use crate::emit;
-use crate::symbolic::Symbolic;
+use crate::symbolic::{GenerateError, Symbolic};
 use crate::validate;
 
 /// Generates solvers for a list of description files into a directory (`OUT_DIR` by default).
@@ -63,25 +62,52 @@ pub struct Generated {
     pub path: PathBuf,
 }
 
-/// Why generation failed: an invalid description (with its rendered diagnostics), a
-/// description the generator cannot handle, or an I/O problem.
-#[derive(Clone, Debug, PartialEq, Eq)]
-pub struct Error {
-    message: String,
-}
-
-impl fmt::Display for Error {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str(&self.message)
-    }
-}
-
-impl std::error::Error for Error {}
-
-impl Error {
-    fn new(message: impl Into<String>) -> Self {
-        Self { message: message.into() }
-    }
+/// Why generation failed.
+#[derive(Debug, thiserror::Error)]
+pub enum Error {
+    /// Neither [`Builder::out_dir`] nor `OUT_DIR` names where to write.
+    #[error("OUT_DIR is not set: call out_dir(…) outside a build script")]
+    NoOutDir,
+    /// A description is invalid: its diagnostics, rendered with their excerpts.
+    #[error("{rendered}")]
+    Invalid {
+        /// The description file.
+        file: PathBuf,
+        /// Every diagnostic found.
+        diagnostics: Vec<diag::Diagnostic>,
+        /// The diagnostics as text, with the file's excerpts (no colour).
+        rendered: String,
+    },
+    /// The generator refuses a valid description (e.g. an undriven degree of freedom).
+    #[error("{}: {source}", .file.display())]
+    Generate {
+        /// The description file.
+        file: PathBuf,
+        /// The generator's reason.
+        source: GenerateError,
+    },
+    /// Two descriptions have the same `name`, so their modules would collide.
+    #[error("{}: a second description named \"{module}\"; module names must differ", .file.display())]
+    DuplicateName {
+        /// The second description file.
+        file: PathBuf,
+        /// The name both have.
+        module: String,
+    },
+    /// A path cargo cannot be told about (`rerun-if-changed`, `#[path]`).
+    #[error("{}: the path is not UTF-8 or holds control characters", one_line(&.path.display().to_string()))]
+    Path {
+        /// The path.
+        path: PathBuf,
+    },
+    /// Reading or writing a file or directory failed.
+    #[error("{}: {source}", .path.display())]
+    Io {
+        /// The file or directory.
+        path: PathBuf,
+        /// The operating system's reason.
+        source: std::io::Error,
+    },
 }
 
 impl Builder {
@@ -130,11 +156,9 @@ impl Builder {
     pub fn compile(self) -> Result<Vec<Generated>, Error> {
         let dir = match self.out_dir {
             Some(dir) => dir,
-            None => std::env::var_os("OUT_DIR").map(PathBuf::from).ok_or_else(|| {
-                Error::new("OUT_DIR is not set: call out_dir(…) outside a build script")
-            })?,
+            None => std::env::var_os("OUT_DIR").map(PathBuf::from).ok_or(Error::NoOutDir)?,
         };
-        std::fs::create_dir_all(&dir).map_err(|e| Error::new(format!("{}: {e}", dir.display())))?;
+        std::fs::create_dir_all(&dir).map_err(|source| Error::Io { path: dir.clone(), source })?;
         let mut generated: Vec<Generated> = Vec::new();
         for file in &self.files {
             if !self.quiet {
@@ -147,10 +171,7 @@ impl Builder {
                 }
             }
             if generated.iter().any(|g| g.module == module) {
-                return Err(Error::new(format!(
-                    "{}: a second description named \"{module}\"; module names must differ",
-                    file.display()
-                )));
+                return Err(Error::DuplicateName { file: file.clone(), module });
             }
             let path = dir.join(format!("{module}.rs"));
             write_if_changed(&path, &text)?;
@@ -202,23 +223,22 @@ fn one_line(value: &str) -> String {
 fn path_text(path: &Path) -> Result<String, Error> {
     match path.to_str() {
         Some(text) if !text.chars().any(crate::validate::names::hidden) => Ok(text.to_owned()),
-        _ => Err(Error::new(format!(
-            "{}: the path is not UTF-8 or holds control characters",
-            one_line(&path.display().to_string())
-        ))),
+        _ => Err(Error::Path { path: path.to_path_buf() }),
     }
 }
 
 /// The module name and text of one description, and its warnings (one line each).
 fn generate(file: &Path) -> Result<(String, String, Vec<String>), Error> {
-    let render_all = |diags: &[diag::Diagnostic], text: Option<&str>| {
-        Error::new(diag::render(diags, text, false).trim_end().to_owned())
+    let render_all = |diagnostics: Vec<diag::Diagnostic>, text: Option<&str>| Error::Invalid {
+        file: file.to_path_buf(),
+        rendered: diag::render(&diagnostics, text, false).trim_end().to_owned(),
+        diagnostics,
     };
-    let (text, format) = validate::read_file(file).map_err(|d| render_all(&d, None))?;
+    let (text, format) = validate::read_file(file).map_err(|d| render_all(d, None))?;
     let loaded = validate::load_str(&text, format, Some(&file.display().to_string()))
-        .map_err(|d| render_all(&d, Some(&text)))?;
+        .map_err(|d| render_all(d, Some(&text)))?;
     let sys = Symbolic::build(&loaded.mechanism)
-        .map_err(|e| Error::new(format!("{}: {e}", file.display())))?;
+        .map_err(|source| Error::Generate { file: file.to_path_buf(), source })?;
     let source = file.display().to_string().replace('\\', "/");
     let warnings = loaded.warnings.iter().map(ToString::to_string).collect();
     Ok((loaded.mechanism.name.clone(), emit::module(&loaded.mechanism, &sys, &source), warnings))
@@ -229,7 +249,7 @@ fn write_if_changed(path: &Path, text: &str) -> Result<(), Error> {
     if std::fs::read_to_string(path).is_ok_and(|have| have == text) {
         return Ok(());
     }
-    std::fs::write(path, text).map_err(|e| Error::new(format!("{}: {e}", path.display())))
+    std::fs::write(path, text).map_err(|source| Error::Io { path: path.to_path_buf(), source })
 }
 
 #[cfg(test)]

@@ -14,8 +14,9 @@ use std::path::Path;
 
 use plotters::prelude::*;
 
+use crate::draw::{self, DrawError, PALETTE, backend};
 use crate::emit::Scalar;
-use crate::engine::Settings;
+use crate::engine::{EngineError, Settings};
 use crate::generic::{Analysis, Equations, Frame};
 use crate::model::Mechanism;
 
@@ -28,6 +29,26 @@ pub const F32_TOLERANCES: [f64; 3] = [1e-3, 1e-4, 1e-5];
 
 /// Tolerance of the reference run (see the module docs).
 const REFERENCE_TOLERANCE: f64 = 1e-13;
+
+/// Why a chart's runs could not be measured.
+#[derive(Debug, thiserror::Error)]
+pub enum ChartError {
+    /// The reference run, which every mark is compared with, stopped.
+    #[error("the reference run (generic, tolerance 1e-13) failed")]
+    Reference,
+    /// The conditioning chart needs as many equations as unknowns.
+    #[error("the chart needs a square Φ_q (no redundant equations)")]
+    NotSquare,
+    /// The generic analysis stopped before the end of the grid.
+    #[error("the generic analysis stopped")]
+    GenericStopped,
+    /// The generated engine stopped before the end of the grid, with its failure's message.
+    #[error("the generated engine stopped: {0}")]
+    GeneratedStopped(String),
+    /// The generated engine could not run.
+    #[error(transparent)]
+    Engine(#[from] EngineError),
+}
 
 /// One engine and setting.
 #[derive(Clone, Debug, PartialEq)]
@@ -132,7 +153,7 @@ fn generic_error(analysis: &Analysis<'_, '_>, reference: &[Frame], count: usize)
 ///
 /// # Errors
 /// When the reference run itself fails.
-pub fn measure(mech: &Mechanism, repeats: usize) -> Result<(Vec<Mark>, Vec<String>), String> {
+pub fn measure(mech: &Mechanism, repeats: usize) -> Result<(Vec<Mark>, Vec<String>), ChartError> {
     measure_with(mech, repeats, &mut |_, _| {})
 }
 
@@ -176,13 +197,13 @@ pub fn measure_with(
     mech: &Mechanism,
     repeats: usize,
     done: &mut dyn FnMut(&str, f64),
-) -> Result<(Vec<Mark>, Vec<String>), String> {
+) -> Result<(Vec<Mark>, Vec<String>), ChartError> {
     let eq = Equations::new(mech);
     let prep = eq.prepare();
     let count = mech.time.count;
     let reference =
         reference_frames(&eq, &Analysis::new(&eq, &prep).with_tolerance(REFERENCE_TOLERANCE))
-            .ok_or("the reference run (generic, tolerance 1e-13) failed")?;
+            .ok_or(ChartError::Reference)?;
     let mut marks = Vec::new();
     let mut skipped = Vec::new();
     for predictor in [true, false] {
@@ -240,42 +261,11 @@ pub fn measure_with(
     Ok((marks, skipped))
 }
 
-/// Draws with `draw` on an SVG drawing area of `size` pixels, then writes the SVG to `path`
-/// all at once ([`crate::report::write_file`]): a failed drawing leaves the previous file.
-///
-/// # Errors
-/// The drawing's error, or the I/O error naming `path`, as text.
-pub(crate) fn write_svg(
-    path: &Path,
-    size: (u32, u32),
-    draw: impl FnOnce(DrawingArea<SVGBackend<'_>, plotters::coord::Shift>) -> Result<(), String>,
-) -> Result<(), String> {
-    let mut svg = String::new();
-    draw(SVGBackend::with_string(&mut svg, size).into_drawing_area())?;
-    crate::report::write_file(path, svg.as_bytes()).map_err(|e| e.to_string())
-}
-
-/// Draws a chart's series labels in its upper right corner, on a translucent white box.
-///
-/// # Errors
-/// The drawing backend's error, as text.
-pub(crate) fn legend<'a, DB: DrawingBackend + 'a, CT: plotters::coord::CoordTranslate>(
-    chart: &mut ChartContext<'a, DB, CT>,
-) -> Result<(), String> {
-    chart
-        .configure_series_labels()
-        .background_style(WHITE.mix(0.8))
-        .border_style(BLACK)
-        .position(SeriesLabelPosition::UpperRight)
-        .draw()
-        .map_err(|x| x.to_string())
-}
-
 /// Draws the marks as an SVG chart at `path`.
 ///
 /// # Errors
-/// Drawing or I/O failures, as text.
-pub fn draw(marks: &[Mark], title: &str, path: &Path) -> Result<(), String> {
+/// Drawing or I/O failures.
+pub fn draw(marks: &[Mark], title: &str, path: &Path) -> Result<(), DrawError> {
     let floor = 1e-17;
     let (mut x0, mut x1, mut y0, mut y1) = (f64::MAX, f64::MIN, f64::MAX, f64::MIN);
     for m in marks {
@@ -285,21 +275,20 @@ pub fn draw(marks: &[Mark], title: &str, path: &Path) -> Result<(), String> {
         y1 = y1.max(m.error.max(floor));
     }
     if marks.is_empty() {
-        return Err("nothing to draw".to_owned());
+        return Err(DrawError::NoMarks);
     }
     // Headroom above the highest mark, a third of the decades spanned, so the legend in the
     // upper right corner covers no mark.
     let top = y1 * 10.0 * ((y1 * 10.0) / (y0 / 10.0)).powf(1.0 / 3.0);
-    crate::chart::write_svg(path, (900, 600), |root| {
-        let e = |e: &dyn std::fmt::Display| e.to_string();
-        root.fill(&WHITE).map_err(|x| e(&x))?;
+    draw::write_svg(path, (900, 600), |root| {
+        root.fill(&WHITE).map_err(backend)?;
         let mut chart = ChartBuilder::on(&root)
             .caption(title, ("sans-serif", 22))
             .margin(15)
             .x_label_area_size(50)
             .y_label_area_size(80)
             .build_cartesian_2d((x0 / 1.5..x1 * 1.5).log_scale(), (y0 / 10.0..top).log_scale())
-            .map_err(|x| e(&x))?;
+            .map_err(backend)?;
         chart
             .configure_mesh()
             .x_labels(12)
@@ -309,19 +298,11 @@ pub fn draw(marks: &[Mark], title: &str, path: &Path) -> Result<(), String> {
             .y_label_formatter(&|v| format!("{v:.0e}"))
             .x_label_formatter(&|v| format!("{v:.0}"))
             .draw()
-            .map_err(|x| e(&x))?;
+            .map_err(backend)?;
         let mut series: Vec<&str> = marks.iter().map(|m| m.series.as_str()).collect();
         series.dedup();
-        let colors = [
-            RGBColor(31, 119, 180),
-            RGBColor(255, 127, 14),
-            RGBColor(44, 160, 44),
-            RGBColor(214, 39, 40),
-            RGBColor(148, 103, 189),
-            RGBColor(140, 86, 75),
-        ];
         for (k, name) in series.iter().enumerate() {
-            let color = colors[k % colors.len()];
+            let color = PALETTE[k % PALETTE.len()];
             let points: Vec<(f64, f64)> = marks
                 .iter()
                 .filter(|m| m.series == *name)
@@ -329,12 +310,12 @@ pub fn draw(marks: &[Mark], title: &str, path: &Path) -> Result<(), String> {
                 .collect();
             chart
                 .draw_series(LineSeries::new(points.clone(), color.stroke_width(1)))
-                .map_err(|x| e(&x))?
+                .map_err(backend)?
                 .label(*name)
                 .legend(move |(x, y)| Circle::new((x + 10, y), 4, color.filled()));
             chart
                 .draw_series(points.iter().map(|&p| Circle::new(p, 4, color.filled())))
-                .map_err(|x| e(&x))?;
+                .map_err(backend)?;
             chart
                 .draw_series(marks.iter().filter(|m| m.series == *name).map(|m| {
                     Text::new(
@@ -343,10 +324,10 @@ pub fn draw(marks: &[Mark], title: &str, path: &Path) -> Result<(), String> {
                         ("sans-serif", 11).into_font().color(&color),
                     )
                 }))
-                .map_err(|x| e(&x))?;
+                .map_err(backend)?;
         }
-        legend(&mut chart)?;
-        root.present().map_err(|x| e(&x))?;
+        draw::legend(&mut chart)?;
+        root.present().map_err(backend)?;
         Ok(())
     })
 }
@@ -386,24 +367,23 @@ fn all_frames(eq: &Equations<'_>, analysis: &Analysis<'_, '_>) -> Option<Vec<Fra
 ///
 /// # Errors
 /// When Φ_q is not square (redundant equations) or an engine stops.
-pub fn conditioning(mech: &Mechanism) -> Result<Vec<Conditioning>, String> {
+pub fn conditioning(mech: &Mechanism) -> Result<Vec<Conditioning>, ChartError> {
     let eq = Equations::new(mech);
     if eq.equations() != eq.unknowns() {
-        return Err("the chart needs a square Φ_q (no redundant equations)".to_owned());
+        return Err(ChartError::NotSquare);
     }
     let prep = eq.prepare();
     let analysis = Analysis::new(&eq, &prep);
-    let frames = all_frames(&eq, &analysis).ok_or("the generic analysis stopped")?;
+    let frames = all_frames(&eq, &analysis).ok_or(ChartError::GenericStopped)?;
     let generated: Option<Vec<u32>> = match crate::engine::build(mech) {
         Ok(built) => {
             let mut its = Vec::new();
             let r = crate::engine::run(&built, &analysis, None, |f| {
                 its.push(f.iterations);
                 Ok(())
-            })
-            .map_err(|e| e.to_string())?;
+            })?;
             if let Some(f) = r.failure {
-                return Err(format!("the generated engine stopped: {}", f.message));
+                return Err(ChartError::GeneratedStopped(f.message));
             }
             Some(its)
         }
@@ -433,13 +413,34 @@ pub fn conditioning(mech: &Mechanism) -> Result<Vec<Conditioning>, String> {
 /// Newton iterations per grid step below, against time.
 ///
 /// # Errors
-/// Drawing or I/O failures, as text.
-pub fn draw_conditioning(points: &[Conditioning], title: &str, path: &Path) -> Result<(), String> {
-    let e = |e: &dyn std::fmt::Display| e.to_string();
+/// Drawing or I/O failures.
+pub fn draw_conditioning(
+    points: &[Conditioning],
+    title: &str,
+    path: &Path,
+) -> Result<(), DrawError> {
     let (Some(first), Some(last)) = (points.first(), points.last()) else {
-        return Err("nothing to draw".to_owned());
+        return Err(DrawError::NoMarks);
     };
     let (t0, t1) = (first.t, last.t);
+    draw::write_svg(path, (900, 700), |root| {
+        root.fill(&WHITE).map_err(backend)?;
+        let root = root.titled(title, ("sans-serif", 22)).map_err(backend)?;
+        let (upper, lower) = root.split_vertically(420);
+        condition_panel(&upper, points, t0..t1)?;
+        iterations_panel(&lower, points, t0..t1)?;
+        root.present().map_err(backend)?;
+        Ok(())
+    })
+}
+
+/// The conditioning chart's upper panel: κ₂ and the pivot estimate against time.
+fn condition_panel<DB: DrawingBackend>(
+    area: &DrawingArea<DB, plotters::coord::Shift>,
+    points: &[Conditioning],
+    time: std::ops::Range<f64>,
+) -> Result<(), DrawError> {
+    let (t0, t1) = (time.start, time.end);
     let (mut c0, mut c1) = (f64::MAX, f64::MIN);
     for p in points {
         for c in [p.condition, p.pivot_estimate] {
@@ -447,88 +448,83 @@ pub fn draw_conditioning(points: &[Conditioning], title: &str, path: &Path) -> R
             c1 = c1.max(c);
         }
     }
+    let [blue, orange, ..] = PALETTE;
+    let mut chart = ChartBuilder::on(area)
+        .margin(15)
+        .x_label_area_size(35)
+        .y_label_area_size(80)
+        .build_cartesian_2d(t0..t1, (c0 / 2.0..c1 * 2.0).log_scale())
+        .map_err(backend)?;
+    chart
+        .configure_mesh()
+        .x_desc("t")
+        .y_desc("condition of Φ_q (log scale)")
+        .y_label_formatter(&|v| format!("{v:.0e}"))
+        .draw()
+        .map_err(backend)?;
+    chart
+        .draw_series(LineSeries::new(
+            points.iter().map(|p| (p.t, p.condition)),
+            blue.stroke_width(2),
+        ))
+        .map_err(backend)?
+        .label("κ₂ = σ_max / σ_min (SVD)")
+        .legend(draw::line_key(blue, 20));
+    chart
+        .draw_series(LineSeries::new(
+            points.iter().map(|p| (p.t, p.pivot_estimate)),
+            orange.stroke_width(2),
+        ))
+        .map_err(backend)?
+        .label("1/ρ: max / min LU pivot (the step control's estimate)")
+        .legend(draw::line_key(orange, 20));
+    draw::legend(&mut chart)?;
+    Ok(())
+}
+
+/// The conditioning chart's lower panel: Newton iterations per grid step of each engine.
+fn iterations_panel<DB: DrawingBackend>(
+    area: &DrawingArea<DB, plotters::coord::Shift>,
+    points: &[Conditioning],
+    time: std::ops::Range<f64>,
+) -> Result<(), DrawError> {
+    let (t0, t1) = (time.start, time.end);
     let most = points
         .iter()
         .map(|p| p.generic_iterations.max(p.generated_iterations.unwrap_or(0)))
         .max()
         .unwrap_or(1);
-    crate::chart::write_svg(path, (900, 700), |root| {
-        root.fill(&WHITE).map_err(|x| e(&x))?;
-        let root = root.titled(title, ("sans-serif", 22)).map_err(|x| e(&x))?;
-        let (upper, lower) = root.split_vertically(420);
-        let blue = RGBColor(31, 119, 180);
-        let orange = RGBColor(255, 127, 14);
-        let mut chart = ChartBuilder::on(&upper)
-            .margin(15)
-            .x_label_area_size(35)
-            .y_label_area_size(80)
-            .build_cartesian_2d(t0..t1, (c0 / 2.0..c1 * 2.0).log_scale())
-            .map_err(|x| e(&x))?;
-        chart
-            .configure_mesh()
-            .x_desc("t")
-            .y_desc("condition of Φ_q (log scale)")
-            .y_label_formatter(&|v| format!("{v:.0e}"))
-            .draw()
-            .map_err(|x| e(&x))?;
-        chart
-            .draw_series(LineSeries::new(
-                points.iter().map(|p| (p.t, p.condition)),
-                blue.stroke_width(2),
-            ))
-            .map_err(|x| e(&x))?
-            .label("κ₂ = σ_max / σ_min (SVD)")
-            .legend(move |(x, y)| {
-                PathElement::new(vec![(x, y), (x + 20, y)], blue.stroke_width(2))
-            });
+    let [blue, _, green, ..] = PALETTE;
+    let mut chart = ChartBuilder::on(area)
+        .margin(15)
+        .x_label_area_size(40)
+        .y_label_area_size(80)
+        .build_cartesian_2d(t0..t1, 0.0..f64::from(most) + 1.0)
+        .map_err(backend)?;
+    chart
+        .configure_mesh()
+        .x_desc("t")
+        .y_desc("Newton iterations per step")
+        .draw()
+        .map_err(backend)?;
+    chart
+        .draw_series(LineSeries::new(
+            points.iter().map(|p| (p.t, f64::from(p.generic_iterations))),
+            blue.stroke_width(2),
+        ))
+        .map_err(backend)?
+        .label("generic")
+        .legend(draw::line_key(blue, 20));
+    if points.iter().all(|p| p.generated_iterations.is_some()) {
         chart
             .draw_series(LineSeries::new(
-                points.iter().map(|p| (p.t, p.pivot_estimate)),
-                orange.stroke_width(2),
+                points.iter().map(|p| (p.t, f64::from(p.generated_iterations.unwrap_or(0)))),
+                green.stroke_width(2),
             ))
-            .map_err(|x| e(&x))?
-            .label("1/ρ: max / min LU pivot (the step control's estimate)")
-            .legend(move |(x, y)| {
-                PathElement::new(vec![(x, y), (x + 20, y)], orange.stroke_width(2))
-            });
-        legend(&mut chart)?;
-        let mut chart = ChartBuilder::on(&lower)
-            .margin(15)
-            .x_label_area_size(40)
-            .y_label_area_size(80)
-            .build_cartesian_2d(t0..t1, 0.0..f64::from(most) + 1.0)
-            .map_err(|x| e(&x))?;
-        chart
-            .configure_mesh()
-            .x_desc("t")
-            .y_desc("Newton iterations per step")
-            .draw()
-            .map_err(|x| e(&x))?;
-        chart
-            .draw_series(LineSeries::new(
-                points.iter().map(|p| (p.t, f64::from(p.generic_iterations))),
-                blue.stroke_width(2),
-            ))
-            .map_err(|x| e(&x))?
-            .label("generic")
-            .legend(move |(x, y)| {
-                PathElement::new(vec![(x, y), (x + 20, y)], blue.stroke_width(2))
-            });
-        if points.iter().all(|p| p.generated_iterations.is_some()) {
-            let green = RGBColor(44, 160, 44);
-            chart
-                .draw_series(LineSeries::new(
-                    points.iter().map(|p| (p.t, f64::from(p.generated_iterations.unwrap_or(0)))),
-                    green.stroke_width(2),
-                ))
-                .map_err(|x| e(&x))?
-                .label("generated")
-                .legend(move |(x, y)| {
-                    PathElement::new(vec![(x, y), (x + 20, y)], green.stroke_width(2))
-                });
-        }
-        legend(&mut chart)?;
-        root.present().map_err(|x| e(&x))?;
-        Ok(())
-    })
+            .map_err(backend)?
+            .label("generated")
+            .legend(draw::line_key(green, 20));
+    }
+    draw::legend(&mut chart)?;
+    Ok(())
 }

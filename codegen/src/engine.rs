@@ -20,259 +20,87 @@ use crate::emit::{self, Scalar};
 use crate::generic::{Analysis, Failure, FailureKind, Frame};
 use crate::model::Mechanism;
 use crate::stepping::{Point, Stop, Trouble};
-use crate::symbolic::Symbolic;
+use crate::symbolic::{GenerateError, Symbolic};
 
 pub mod cache;
 
-/// The driver program compiled with each generated module.
-const DRIVER: &str = r#"//! Runs one generated mechanism over its time grid (written by mechgen; do not edit).
-//!
-//! Usage: `run|bench [tolerance] [repeats] [no-predictor] [dense]`, or `key` to print the
-//! key of the cache entry it was built for.
-
-mod key;
-mod mechanism;
-
-use std::io::Write;
-
-use runtime::step::{self, Coordinates, Groups, Rejection, Sample, Stepper, Trouble};
-use runtime::{AttemptError, Mechanism, NewtonError, NewtonOptions, Solver};
-
-/// The floating-point type the module was generated in.
-type Real = __REAL__;
-
-const N: usize = mechanism::N;
-
-fn main() {
-    let args: Vec<String> = std::env::args().collect();
-    let mode = args.get(1).map_or("run", String::as_str);
-    if mode == "key" {
-        println!("key {}", key::KEY);
-        return;
-    }
-    let tolerance = args.get(2).and_then(|s| s.parse().ok()).unwrap_or(mechanism::TOLERANCE);
-    let repeats: usize = args.get(3).and_then(|s| s.parse().ok()).unwrap_or(1);
-    let flag = |name: &str| args.iter().skip(2).any(|a| a == name);
-    let predictor = !flag("no-predictor");
-    if flag("dense") {
-        // Static pivot orders hidden: every factorisation is dense LU with partial pivoting.
-        drive(runtime::factors::DenseOnly(mechanism::__TYPE__), mode, tolerance, repeats, predictor);
-    } else {
-        drive(mechanism::__TYPE__, mode, tolerance, repeats, predictor);
-    }
-}
-
-fn drive<M: Mechanism<N, Real>>(m: M, mode: &str, tolerance: Real, repeats: usize, predictor: bool) {
-    let options = NewtonOptions {
-        tolerance,
-        max_iterations: mechanism::MAX_ITERATIONS,
-        ..NewtonOptions::DEFAULT
-    };
-    let mut solver = Solver::with_storage(m, mechanism::Q0, jacobian());
-    solver.set_options(options);
-    solver.set_predictor(predictor);
-    let stdout = std::io::stdout();
-    let mut out = std::io::BufWriter::new(stdout.lock());
-    if mode == "bench" {
-        let mut times = Vec::with_capacity(repeats);
-        let mut iterations = 0u64;
-        for _ in 0..repeats.max(1) {
-            solver.set_q(mechanism::Q0);
-            iterations = 0;
-            let start = std::time::Instant::now();
-            for k in 0..mechanism::T_COUNT {
-                let t = mechanism::T_START + k as Real * mechanism::T_STEP;
-                match solver.position(t) {
-                    Ok(r) => iterations += u64::from(r.iterations),
-                    Err(e) => {
-                        check(writeln!(out, "error bench {:?} {e}", f64::from(t)));
-                        std::process::exit(2);
-                    }
-                }
-                let _ = solver.velocity();
-                let _ = solver.acceleration();
-            }
-            times.push(start.elapsed().as_nanos() as f64 / mechanism::T_COUNT as f64);
-            std::hint::black_box(solver.qdd());
-        }
-        times.sort_by(f64::total_cmp);
-        check(writeln!(
-            out,
-            "bench {:?} {:?} {:?}",
-            times[0],
-            times[times.len() / 2],
-            iterations as f64 / mechanism::T_COUNT as f64
-        ));
-        return;
-    }
-    let mut engine = Engine {
-        solver,
-        dense: jacobian(),
-        perm: [0; N],
-        expanded: Box::new([[[0.0; 7]; 3]; mechanism::BODIES]),
-        accepted: None,
-        full: Full::default(),
-        candidate: Full::default(),
-    };
-    let mut last: Option<Sample<f64>> = None;
-    for k in 0..mechanism::T_COUNT {
-        let t = mechanism::T_START + k as Real * mechanism::T_STEP;
-        let outcome = match last {
-            None => step::first(&mut engine, f64::from(t)).map(|p| (p, p.iterations)),
-            Some(a) => step::advance(&mut engine, a, f64::from(t)),
-        };
-        match outcome {
-            Ok((p, iterations)) => {
-                check(write!(out, "step {:?} {iterations} {:?}", f64::from(t), p.residual));
-                for v in [&engine.full.q, &engine.full.qd, &engine.full.qdd] {
-                    for x in v {
-                        check(write!(out, " {x:?}"));
-                    }
-                }
-                check(writeln!(out));
-                last = Some(p);
-            }
-            Err(stop) => {
-                if let Some(near) = stop.near {
-                    check(write!(out, "near {:?}", near.sample.t));
-                    let q = if near.rejected { &engine.candidate.q } else { &engine.full.q };
-                    for x in q {
-                        check(write!(out, " {x:?}"));
-                    }
-                    check(writeln!(out));
-                }
-                let body = stop.body.map_or_else(|| "-".to_owned(), |b| b.to_string());
-                let message = stop.to_string().replace('\n', " ");
-                check(writeln!(out, "error {} {:?} {body} {message}", stop.trouble.as_str(), stop.t));
-                check(out.flush());
-                std::process::exit(2);
-            }
-        }
-    }
-}
-
-/// Ends the process when standard output cannot be written: nobody reads the results any
-/// more (mechgen stopped or its own output was closed), so computing on would be wasted.
-fn check(written: std::io::Result<()>) {
-    if written.is_err() {
-        std::process::exit(3);
-    }
-}
-
-/// The Jacobian of `N` rows, on the heap: large mechanisms would overflow the stack.
-type Jacobian = Box<[[Real; N]; N]>;
-
-fn jacobian() -> Jacobian {
-    match vec![[0.0; N]; N].into_boxed_slice().try_into() {
-        Ok(b) => b,
-        Err(_) => unreachable!("the vector has N rows"),
-    }
-}
-
-/// q, q̇ and q̈ of every moving body (7 each, body by body), as the step control reads them.
-#[derive(Clone, Default)]
-struct Full {
-    q: Vec<f64>,
-    qd: Vec<f64>,
-    qdd: Vec<f64>,
-}
-
-/// The generated solver under the step control of `runtime::step`, which checks continuity
-/// on the full coordinates of every body (position and Euler parameters).
-struct Engine<M> {
-    solver: Solver<M, N, Real, Jacobian>,
-    /// Φ_q at the last result, factored for its pivot ratio.
-    dense: Jacobian,
-    perm: [usize; N],
-    expanded: Box<[[[Real; 7]; 3]; mechanism::BODIES]>,
-    /// The last accepted (t, reduced q).
-    accepted: Option<(Real, [Real; N])>,
-    /// The last accepted point and the last attempt, in full coordinates.
-    full: Full,
-    candidate: Full,
-}
-
-impl<M: Mechanism<N, Real>> Stepper<f64> for Engine<M> {
-    type Cause = AttemptError<Real>;
-
-    fn attempt(&mut self, t: f64) -> Result<Sample<f64>, Rejection<f64, AttemptError<Real>>> {
-        let t = t as Real;
-        let report = self.solver.position(t).map_err(|e| {
-            let trouble = match e {
-                NewtonError::Singular { .. } => Trouble::Singular,
-                _ => Trouble::NoConvergence,
-            };
-            Rejection::engine(trouble, AttemptError::Newton(e))
-        })?;
-        if let Err(e) = self.solver.velocity().and_then(|()| self.solver.acceleration()) {
-            return Err(Rejection::engine(Trouble::Singular, AttemptError::Solve(e)));
-        }
-        self.solver.mechanism().jacobian(self.solver.q(), t, &mut self.dense);
-        let pivot_ratio = match runtime::lu::factor_with_ratio(&mut self.dense, &mut self.perm, 0.0) {
-            Ok(p) => f64::from(p.smallest) / f64::from(p.largest),
-            Err(runtime::lu::Singular::SmallPivot { pivot, largest, .. }) => f64::from(pivot) / f64::from(largest),
-            Err(_) => f64::NAN,
-        };
-        mechanism::expand(self.solver.q(), self.solver.qd(), self.solver.qdd(), t, &mut self.expanded);
-        let c = &mut self.candidate;
-        for (d, v) in [&mut c.q, &mut c.qd, &mut c.qdd].into_iter().enumerate() {
-            v.clear();
-            v.extend(self.expanded.iter().flat_map(|b| b[d]).map(f64::from));
-        }
-        Ok(Sample {
-            t: f64::from(t),
-            iterations: report.iterations,
-            residual: f64::from(report.residual),
-            pivot_ratio,
-        })
-    }
-
-    fn accepted(&self) -> Coordinates<'_, f64> {
-        Coordinates { q: &self.full.q, qd: &self.full.qd, qdd: &self.full.qdd }
-    }
-
-    fn candidate(&self) -> Coordinates<'_, f64> {
-        Coordinates { q: &self.candidate.q, qd: &self.candidate.qd, qdd: &self.candidate.qdd }
-    }
-
-    fn groups(&self) -> Groups<'_> {
-        Groups::Bodies
-    }
-
-    fn accept(&mut self) {
-        self.accepted = Some((self.solver.t(), *self.solver.q()));
-        self.full.clone_from(&self.candidate);
-    }
-
-    fn reject(&mut self) {
-        if let Some((t, q)) = self.accepted {
-            // Back to the accepted point: Newton converges at once from it.
-            self.solver.set_q(q);
-            let _ = self.solver.position(t);
-            let _ = self.solver.velocity().and_then(|()| self.solver.acceleration());
-        }
-    }
-
-    fn epsilon(&self) -> f64 {
-        f64::from(Real::EPSILON)
-    }
-}
-"#;
-
 /// Why the generated engine could not run.
-#[derive(Debug)]
+#[derive(Debug, thiserror::Error)]
 pub enum EngineError {
     /// The description cannot be generated (e.g. an undriven degree of freedom).
-    Generate(String),
+    #[error("cannot generate: {0}")]
+    Generate(#[from] GenerateError),
     /// The environment names no usable cache directory (e.g. `MECHGEN_CACHE` set but empty).
-    Config(String),
+    #[error(transparent)]
+    Config(#[from] ConfigError),
     /// The generated crate could not be built.
+    #[error("the generated solver could not be built: {}\nfix: {}", .0.reason, .0.fix)]
     Build(BuildFailure),
     /// Running it failed or printed something unexpected.
-    Run(String),
+    #[error("cannot run the generated solver: {0}")]
+    Run(#[from] RunError),
     /// The sink could not write a frame (e.g. standard output was closed): the solver was
     /// stopped and the sink's error is handed back as it came.
-    Output(std::io::Error),
+    #[error("cannot write the results: {0}")]
+    Output(#[source] std::io::Error),
+}
+
+/// Why no directory for built solvers can be used: the user sets `MECHGEN_CACHE`.
+#[derive(Debug, thiserror::Error)]
+pub enum ConfigError {
+    /// `MECHGEN_CACHE` is set to the empty string.
+    #[error(
+        "MECHGEN_CACHE is set but empty: set it to the directory where mechgen should keep \
+         built solvers, or unset it to use the default"
+    )]
+    EmptyCache,
+    /// `MECHGEN_CACHE` names a directory that cannot be made absolute.
+    #[error("MECHGEN_CACHE={}: {source}", .dir.display())]
+    BadCache {
+        /// The value of `MECHGEN_CACHE`.
+        dir: PathBuf,
+        /// Why it cannot be used.
+        source: std::io::Error,
+    },
+    /// The checkout mechgen was built from is gone and the environment names no user cache.
+    #[error(
+        "no directory for built solvers: the checkout mechgen was built from ({}) is gone and \
+         the environment names no cache directory (XDG_CACHE_HOME, HOME); set MECHGEN_CACHE \
+         to a writable directory",
+        .checkout.display()
+    )]
+    NoCacheDir {
+        /// Where the checkout was.
+        checkout: PathBuf,
+    },
+}
+
+/// Why a built solver could not be run or read.
+#[derive(Debug, thiserror::Error)]
+pub enum RunError {
+    /// The program could not be started.
+    #[error("{}: {source}", .binary.display())]
+    Start {
+        /// The solver's program.
+        binary: PathBuf,
+        /// The operating system's reason.
+        source: std::io::Error,
+    },
+    /// Its output could not be read.
+    #[error(transparent)]
+    Read(std::io::Error),
+    /// A line of the expected kind whose numbers do not parse.
+    #[error("malformed line: {0}")]
+    Malformed(String),
+    /// A line the protocol does not have (see the module docs).
+    #[error("unexpected output: {0}")]
+    Unexpected(String),
+    /// `bench` printed something else than its one line.
+    #[error("unexpected benchmark output: {0}")]
+    Benchmark(String),
+    /// The solver exited with a failure status without reporting a failure.
+    #[error("the solver exited with {0}")]
+    Exit(std::process::ExitStatus),
 }
 
 /// Why a generated solver could not be built, and what to do about it.
@@ -283,22 +111,6 @@ pub struct BuildFailure {
     /// What the user can do.
     pub fix: String,
 }
-
-impl std::fmt::Display for EngineError {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        match self {
-            Self::Generate(m) => write!(f, "cannot generate: {m}"),
-            Self::Config(m) => f.write_str(m),
-            Self::Build(b) => {
-                write!(f, "the generated solver could not be built: {}\nfix: {}", b.reason, b.fix)
-            }
-            Self::Run(m) => write!(f, "cannot run the generated solver: {m}"),
-            Self::Output(e) => write!(f, "cannot write the results: {e}"),
-        }
-    }
-}
-
-impl std::error::Error for EngineError {}
 
 /// A generated solver, built and ready to run.
 #[derive(Clone, Debug)]
@@ -329,8 +141,17 @@ pub fn build(mech: &Mechanism) -> Result<Built, EngineError> {
 /// # Errors
 /// [`EngineError::Generate`], [`EngineError::Config`] or [`EngineError::Build`].
 pub fn build_in(mech: &Mechanism, scalar: Scalar) -> Result<Built, EngineError> {
-    let sys = Symbolic::build(mech).map_err(|e| EngineError::Generate(e.message))?;
+    let start = std::time::Instant::now();
+    let sys = Symbolic::build(mech)?;
     let module = emit::module_in(mech, &sys, &format!("the description \"{}\"", mech.name), scalar);
+    log::debug!(
+        "generated {} in {} ({} unknowns, {} lines) in {:.3} s",
+        mech.name,
+        scalar.name(),
+        sys.unknowns.len(),
+        module.lines().count(),
+        start.elapsed().as_secs_f64()
+    );
     let mut built = build_module(mech, &module, sys.unknowns.len(), scalar)?;
     built.removed = sys.redundant.iter().map(crate::generic::RowLabel::equation).collect();
     Ok(built)
@@ -348,9 +169,8 @@ pub fn build_module(
     unknowns: usize,
     scalar: Scalar,
 ) -> Result<Built, EngineError> {
-    let driver =
-        DRIVER.replace("__TYPE__", &emit::type_name(&mech.name)).replace("__REAL__", scalar.name());
-    let recipe = cache::Recipe::new(cache_dir()?, module, &driver, scalar.name());
+    let recipe =
+        cache::Recipe::new(cache_dir()?, module, &emit::type_name(&mech.name), scalar.name());
     let mut notes = Vec::new();
     recipe.ensure(&mut notes)?;
     Ok(Built { binary: recipe.binary(), unknowns, removed: Vec::new(), notes })
@@ -440,94 +260,111 @@ pub fn run_with(
         cmd.arg("-");
     }
     cmd.args(settings.flags());
+    log::debug!("running {} {:?}", built.binary.display(), settings);
     let child = cmd
         .stdout(Stdio::piped())
         .stdin(Stdio::null())
         .spawn()
-        .map_err(|e| EngineError::Run(format!("{}: {e}", built.binary.display())))?;
+        .map_err(|source| RunError::Start { binary: built.binary.clone(), source })?;
     // Every return below, early or not, ends the solver.
     let mut child = SolverProcess(child);
     let stdout = child.0.stdout.take().expect("piped");
     let mut report = RunReport { steps: 0, failure: None };
     let mut near: Option<Point> = None;
     for line in BufReader::new(stdout).lines() {
-        let line = line.map_err(|e| EngineError::Run(e.to_string()))?;
+        let line = line.map_err(RunError::Read)?;
         let mut words = line.split(' ');
         match words.next() {
-            Some("step") => {
-                let nums: Vec<&str> = words.collect();
-                let bad = || EngineError::Run(format!("malformed line: {line}"));
-                let parse = |s: &str| s.parse::<f64>().map_err(|_| bad());
-                if nums.len() < 3 || !(nums.len() - 3).is_multiple_of(21) {
-                    return Err(bad());
+            Some("step") => match step_line(&line, report.steps)? {
+                Ok(frame) => {
+                    sink(&frame).map_err(EngineError::Output)?;
+                    report.steps += 1;
                 }
-                let m = (nums.len() - 3) / 3;
-                let values: Vec<f64> =
-                    nums[3..].iter().map(|s| parse(s)).collect::<Result<_, _>>()?;
-                if let Some(bad) = values.iter().chain(&[parse(nums[2])?]).find(|v| !v.is_finite())
-                {
-                    // Never written: the analysis stops here, saying why.
-                    let message = format!(
-                        "the generated solver produced the non-finite value {bad} (the steps \
-                         before this one are kept)"
-                    );
-                    let t = parse(nums[0]).unwrap_or(f64::NAN);
-                    report.failure = Some(Failure {
-                        kind: FailureKind::NoConvergence,
-                        t,
-                        message,
-                        constraints: Vec::new(),
-                    });
+                Err(failure) => {
+                    report.failure = Some(failure);
                     return Ok(report);
                 }
-                let frame = Frame {
-                    index: report.steps,
-                    t: parse(nums[0])?,
-                    iterations: nums[1].parse().map_err(|_| bad())?,
-                    residual: parse(nums[2])?,
-                    q: DVector::from_column_slice(&values[..m]),
-                    qd: DVector::from_column_slice(&values[m..2 * m]),
-                    qdd: DVector::from_column_slice(&values[2 * m..]),
-                };
-                sink(&frame).map_err(EngineError::Output)?;
-                report.steps += 1;
-            }
-            Some("near") => {
-                let bad = || EngineError::Run(format!("malformed line: {line}"));
-                let nums: Vec<f64> =
-                    words.map(|s| s.parse::<f64>().map_err(|_| bad())).collect::<Result<_, _>>()?;
-                let (&t, q) = nums.split_first().ok_or_else(bad)?;
-                near = Some(Point {
-                    t,
-                    q: q.to_vec(),
-                    qd: Vec::new(),
-                    qdd: Vec::new(),
-                    iterations: 0,
-                    residual: f64::NAN,
-                    pivot_ratio: f64::NAN,
-                });
-            }
+            },
+            Some("near") => near = Some(near_line(&line)?),
             Some("error") => {
-                let trouble = match words.next() {
-                    Some("singular") => Trouble::Singular,
-                    Some("branch_jump") => Trouble::BranchJump,
-                    Some("inconsistent") => Trouble::Inconsistent,
-                    _ => Trouble::NoConvergence,
-                };
-                let t = words.next().and_then(|s| s.parse().ok()).unwrap_or(f64::NAN);
-                let body = words.next().and_then(|s| s.parse().ok());
-                let message = words.collect::<Vec<_>>().join(" ");
-                let stop = Stop { trouble, t, message, near: near.take().map(Box::new), body };
+                let stop = error_line(&line, near.take());
                 report.failure = Some(analysis.failure_of(&stop));
             }
-            _ => return Err(EngineError::Run(format!("unexpected output: {line}"))),
+            _ => return Err(RunError::Unexpected(line).into()),
         }
     }
-    let status = child.0.wait().map_err(|e| EngineError::Run(e.to_string()))?;
+    let status = child.0.wait().map_err(RunError::Read)?;
     if !status.success() && report.failure.is_none() {
-        return Err(EngineError::Run(format!("the solver exited with {status}")));
+        return Err(RunError::Exit(status).into());
     }
     Ok(report)
+}
+
+/// The frame of a `step t iterations residual q… q̇… q̈…` line (the `index`-th), or the
+/// failure it is when it holds a non-finite value (never written: the analysis stops
+/// there, saying why).
+fn step_line(line: &str, index: usize) -> Result<Result<Frame, Failure>, RunError> {
+    let nums: Vec<&str> = line.split(' ').skip(1).collect();
+    let bad = || RunError::Malformed(line.to_owned());
+    let parse = |s: &str| s.parse::<f64>().map_err(|_| bad());
+    if nums.len() < 3 || !(nums.len() - 3).is_multiple_of(21) {
+        return Err(bad());
+    }
+    let m = (nums.len() - 3) / 3;
+    let values: Vec<f64> = nums[3..].iter().map(|s| parse(s)).collect::<Result<_, _>>()?;
+    if let Some(bad) = values.iter().chain(&[parse(nums[2])?]).find(|v| !v.is_finite()) {
+        let message = format!(
+            "the generated solver produced the non-finite value {bad} (the steps before this \
+             one are kept)"
+        );
+        let t = parse(nums[0]).unwrap_or(f64::NAN);
+        let kind = FailureKind::NoConvergence;
+        return Ok(Err(Failure { kind, t, message, constraints: Vec::new() }));
+    }
+    Ok(Ok(Frame {
+        index,
+        t: parse(nums[0])?,
+        iterations: nums[1].parse().map_err(|_| bad())?,
+        residual: parse(nums[2])?,
+        q: DVector::from_column_slice(&values[..m]),
+        qd: DVector::from_column_slice(&values[m..2 * m]),
+        qdd: DVector::from_column_slice(&values[2 * m..]),
+    }))
+}
+
+/// The configuration of a `near t q…` line: the one closest to the failure that follows.
+fn near_line(line: &str) -> Result<Point, RunError> {
+    let bad = || RunError::Malformed(line.to_owned());
+    let nums: Vec<f64> = line
+        .split(' ')
+        .skip(1)
+        .map(|s| s.parse::<f64>().map_err(|_| bad()))
+        .collect::<Result<_, _>>()?;
+    let (&t, q) = nums.split_first().ok_or_else(bad)?;
+    Ok(Point {
+        t,
+        q: q.to_vec(),
+        qd: Vec::new(),
+        qdd: Vec::new(),
+        iterations: 0,
+        residual: f64::NAN,
+        pivot_ratio: f64::NAN,
+    })
+}
+
+/// The stop of an `error kind t body message` line, at the configuration `near`.
+fn error_line(line: &str, near: Option<Point>) -> Stop {
+    let mut words = line.split(' ').skip(1);
+    let trouble = match words.next() {
+        Some("singular") => Trouble::Singular,
+        Some("branch_jump") => Trouble::BranchJump,
+        Some("inconsistent") => Trouble::Inconsistent,
+        _ => Trouble::NoConvergence,
+    };
+    let t = words.next().and_then(|s| s.parse().ok()).unwrap_or(f64::NAN);
+    let body = words.next().and_then(|s| s.parse().ok());
+    let message = words.collect::<Vec<_>>().join(" ");
+    Stop { trouble, t, message, near: near.map(Box::new), body }
 }
 
 /// Times whole passes over the grid: (min ns per step, median ns per step, Newton
@@ -559,25 +396,19 @@ pub fn bench_with(
         .stdin(Stdio::null())
         .stdout(Stdio::piped())
         .spawn()
-        .map_err(|e| EngineError::Run(format!("{}: {e}", built.binary.display())))?;
+        .map_err(|source| RunError::Start { binary: built.binary.clone(), source })?;
     let mut child = SolverProcess(child);
     let mut output = Vec::new();
-    child
-        .0
-        .stdout
-        .take()
-        .expect("piped")
-        .read_to_end(&mut output)
-        .map_err(|e| EngineError::Run(e.to_string()))?;
+    child.0.stdout.take().expect("piped").read_to_end(&mut output).map_err(RunError::Read)?;
     drop(child);
     let text = String::from_utf8_lossy(&output);
     let words: Vec<&str> = text.split_whitespace().collect();
     match words.as_slice() {
         ["bench", min, median, iters] => {
-            let p = |s: &str| s.parse::<f64>().map_err(|_| EngineError::Run(text.to_string()));
+            let p = |s: &str| s.parse::<f64>().map_err(|_| RunError::Benchmark(text.to_string()));
             Ok((p(min)?, p(median)?, p(iters)?))
         }
-        _ => Err(EngineError::Run(format!("unexpected benchmark output: {text}"))),
+        _ => Err(RunError::Benchmark(text.to_string()).into()),
     }
 }
 

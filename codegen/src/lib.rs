@@ -18,6 +18,8 @@ pub mod chart;
 pub mod cli;
 pub mod desc;
 pub mod diag;
+#[cfg(feature = "cli")]
+pub mod draw;
 pub mod emit;
 pub mod engine;
 pub mod expr;
@@ -25,6 +27,9 @@ pub mod generic;
 #[cfg(test)]
 mod layers;
 pub mod model;
+#[cfg(feature = "cli")]
+pub mod output;
+pub mod pivot;
 #[cfg(feature = "cli")]
 pub mod plot;
 pub mod report;

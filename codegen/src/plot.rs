@@ -9,6 +9,7 @@ use std::path::Path;
 
 use plotters::prelude::*;
 
+use crate::draw::{self, DrawError, PALETTE, backend, padded, tick};
 use crate::report::StepResult;
 
 /// The most time points a trace keeps; longer runs are sampled evenly (every k-th step,
@@ -64,6 +65,20 @@ impl Quantity {
     }
 }
 
+/// Why a step holds no value of the quantity for the target.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+pub enum TraceError {
+    /// The step has no point of interest of this name.
+    #[error("no point \"{0}\"")]
+    NoPoint(String),
+    /// The step has no moving body of this name (it does not exist or is ground).
+    #[error("no moving body \"{0}\"")]
+    NoBody(String),
+    /// `p`, `omega` or `alpha` was asked of this point.
+    #[error("a point has no orientation: use --quantity r, v or a for point \"{0}\"")]
+    NoOrientation(String),
+}
+
 /// One quantity of one body or point over time, and the path of its position.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct Trace {
@@ -99,7 +114,7 @@ impl Trace {
         step: &StepResult,
         target: &Target,
         quantity: Quantity,
-    ) -> Result<(), String> {
+    ) -> Result<(), TraceError> {
         let (value, position) = extract(step, target, quantity)?;
         if self.seen.is_multiple_of(self.stride) {
             self.t.push(step.t);
@@ -130,22 +145,20 @@ fn extract(
     step: &StepResult,
     target: &Target,
     quantity: Quantity,
-) -> Result<(Vec<f64>, [f64; 3]), String> {
+) -> Result<(Vec<f64>, [f64; 3]), TraceError> {
     match target {
         Target::Point(name) => {
             let p = step
                 .points
                 .iter()
                 .find(|p| p.name == *name)
-                .ok_or_else(|| format!("no point \"{name}\""))?;
+                .ok_or_else(|| TraceError::NoPoint(name.clone()))?;
             let value = match quantity {
                 Quantity::R => p.r,
                 Quantity::V => p.v,
                 Quantity::A => p.a,
                 Quantity::P | Quantity::Omega | Quantity::Alpha => {
-                    return Err(format!(
-                        "a point has no orientation: use --quantity r, v or a for point \"{name}\""
-                    ));
+                    return Err(TraceError::NoOrientation(name.clone()));
                 }
             };
             Ok((value.to_vec(), p.r))
@@ -155,7 +168,7 @@ fn extract(
                 .bodies
                 .iter()
                 .find(|b| b.name == *name)
-                .ok_or_else(|| format!("no moving body \"{name}\""))?;
+                .ok_or_else(|| TraceError::NoBody(name.clone()))?;
             let value = match quantity {
                 Quantity::R => b.r.to_vec(),
                 Quantity::V => b.r_dot.to_vec(),
@@ -169,45 +182,12 @@ fn extract(
     }
 }
 
-/// Line colours, one per component (the common Tableau 10 palette).
-const COLORS: [RGBColor; 4] =
-    [RGBColor(31, 119, 180), RGBColor(255, 127, 14), RGBColor(44, 160, 44), RGBColor(214, 39, 40)];
-
-/// A tick label: plain decimals with four significant digits from 1e-3 to 1e5, scientific
-/// notation beyond.
-fn tick(v: f64) -> String {
-    let a = v.abs();
-    if a < 1e-12 {
-        "0".to_owned()
-    } else if (1e-3..1e5).contains(&a) {
-        let decimals = (3 - a.log10().floor() as i32).max(0) as usize;
-        let text = format!("{v:.decimals$}");
-        if text.contains('.') {
-            text.trim_end_matches('0').trim_end_matches('.').to_owned()
-        } else {
-            text
-        }
-    } else {
-        format!("{v:.2e}")
-    }
-}
-
-/// The range of `values` with 5% room on each side (one unit around a constant).
-fn padded(values: impl Iterator<Item = f64>) -> std::ops::Range<f64> {
-    let (lo, hi) = values.fold((f64::MAX, f64::MIN), |(lo, hi), v| (lo.min(v), hi.max(v)));
-    if lo > hi {
-        return -1.0..1.0;
-    }
-    let room = if hi - lo > 1e-12 * hi.abs().max(lo.abs()) { 0.05 * (hi - lo) } else { 1.0 };
-    lo - room..hi + room
-}
-
 /// Writes the chart of `trace` as SVG at `path`: the quantity's components against time and,
 /// when `with_path` is set, the path of the position in a 3D projection beside it.
 ///
 /// # Errors
 ///
-/// An empty trace, or a drawing or I/O failure, as text.
+/// An empty trace, or a drawing or I/O failure.
 pub fn draw(
     trace: &Trace,
     target: &Target,
@@ -215,15 +195,14 @@ pub fn draw(
     title: &str,
     with_path: bool,
     path: &Path,
-) -> Result<(), String> {
+) -> Result<(), DrawError> {
     if trace.t.is_empty() {
-        return Err("nothing to draw: the analysis computed no time point".to_owned());
+        return Err(DrawError::NoTimePoints);
     }
-    let e = |e: &dyn std::fmt::Display| e.to_string();
     let size = if with_path { (1200, 480) } else { (720, 480) };
-    crate::chart::write_svg(path, size, |root| {
-        root.fill(&WHITE).map_err(|x| e(&x))?;
-        let root = root.titled(title, ("sans-serif", 20)).map_err(|x| e(&x))?;
+    draw::write_svg(path, size, |root| {
+        root.fill(&WHITE).map_err(backend)?;
+        let root = root.titled(title, ("sans-serif", 20)).map_err(backend)?;
         let (left, right) =
             if with_path { root.split_horizontally(720) } else { (root.clone(), root) };
 
@@ -238,7 +217,7 @@ pub fn draw(
             .x_label_area_size(40)
             .y_label_area_size(70)
             .build_cartesian_2d(t_range, v_range)
-            .map_err(|x| e(&x))?;
+            .map_err(backend)?;
         chart
             .configure_mesh()
             .max_light_lines(0)
@@ -248,24 +227,22 @@ pub fn draw(
             .x_label_formatter(&|v| tick(*v))
             .y_label_formatter(&|v| tick(*v))
             .draw()
-            .map_err(|x| e(&x))?;
+            .map_err(backend)?;
         for (k, name) in names.iter().enumerate() {
-            let color = COLORS[k % COLORS.len()];
+            let color = PALETTE[k % PALETTE.len()];
             let points = trace.t.iter().zip(&trace.values).map(|(&t, v)| (t, v[k]));
             chart
                 .draw_series(LineSeries::new(points, color.stroke_width(2)))
-                .map_err(|x| e(&x))?
+                .map_err(backend)?
                 .label(format!("{symbol}.{name}"))
-                .legend(move |(x, y)| {
-                    PathElement::new([(x, y), (x + 18, y)], color.stroke_width(2))
-                });
+                .legend(draw::line_key(color, 18));
         }
-        crate::chart::legend(&mut chart)?;
+        draw::legend(&mut chart)?;
 
         if with_path {
             draw_path(&right, &trace.path)?;
         }
-        left.present().map_err(|x| e(&x))?;
+        left.present().map_err(backend)?;
         Ok(())
     })
 }
@@ -275,8 +252,7 @@ pub fn draw(
 fn draw_path<DB: DrawingBackend>(
     area: &DrawingArea<DB, plotters::coord::Shift>,
     path: &[[f64; 3]],
-) -> Result<(), String> {
-    let e = |e: &dyn std::fmt::Display| e.to_string();
+) -> Result<(), DrawError> {
     // One cube around the path, so that the projection does not distort its shape.
     let ranges: Vec<std::ops::Range<f64>> = (0..3)
         .map(|k| {
@@ -299,7 +275,7 @@ fn draw_path<DB: DrawingBackend>(
         .margin(20)
         .caption("path (m)", ("sans-serif", 16))
         .build_cartesian_3d(cube[0].clone(), cube[1].clone(), cube[2].clone())
-        .map_err(|x| e(&x))?;
+        .map_err(backend)?;
     chart.with_projection(|mut p| {
         p.yaw = 0.6;
         p.pitch = 0.35;
@@ -323,13 +299,13 @@ fn draw_path<DB: DrawingBackend>(
         .y_formatter(&fy)
         .z_formatter(&fz)
         .draw()
-        .map_err(|x| e(&x))?;
+        .map_err(backend)?;
     let points = path.iter().map(|p| (p[0], p[1], p[2]));
-    chart.draw_series(LineSeries::new(points, COLORS[0].stroke_width(2))).map_err(|x| e(&x))?;
+    chart.draw_series(LineSeries::new(points, PALETTE[0].stroke_width(2))).map_err(backend)?;
     if let Some(p) = path.first() {
         chart
-            .draw_series([Circle::new((p[0], p[1], p[2]), 4, COLORS[3].filled())])
-            .map_err(|x| e(&x))?;
+            .draw_series([Circle::new((p[0], p[1], p[2]), 4, PALETTE[3].filled())])
+            .map_err(backend)?;
     }
     Ok(())
 }

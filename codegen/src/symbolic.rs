@@ -708,7 +708,7 @@ impl Symbolic {
                 })
                 .collect();
             let b: Vec<f64> = rows.iter().map(|&r| res[r]).collect();
-            let dq = crate::emit::lu::solve(&s, &a, &b)?;
+            let dq = crate::pivot::solve(&s, &a, &b)?;
             for (x, d) in q.iter_mut().zip(&dq) {
                 *x -= d;
             }

@@ -4,8 +4,9 @@
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
+use crate::diag::Diagnostic;
 use crate::emit;
-use crate::symbolic::Symbolic;
+use crate::symbolic::{GenerateError, Symbolic};
 use crate::validate::load_file;
 
 /// Whether [`sync`] only reports differences or also rewrites `generated/src`.
@@ -33,14 +34,60 @@ pub enum Stale {
     Orphan(PathBuf),
 }
 
+/// Why `generated/src` could not be compared or written.
+#[derive(Debug, thiserror::Error)]
+pub enum SyncError {
+    /// A shipped description is invalid.
+    #[error("{}", lines(.diagnostics))]
+    Invalid {
+        /// The description file.
+        file: PathBuf,
+        /// Every diagnostic found.
+        diagnostics: Vec<Diagnostic>,
+    },
+    /// The generator refuses a shipped description.
+    #[error("{}: {source}", .file.display())]
+    Generate {
+        /// The description file.
+        file: PathBuf,
+        /// The generator's reason.
+        source: GenerateError,
+    },
+    /// A description's file name is not UTF-8, so it names no module.
+    #[error("{}: non-UTF-8 file name", .path.display())]
+    FileName {
+        /// The file.
+        path: PathBuf,
+    },
+    /// Reading or writing a file or directory failed.
+    #[error("{}: {source}", .path.display())]
+    Io {
+        /// The file or directory.
+        path: PathBuf,
+        /// The operating system's reason.
+        source: std::io::Error,
+    },
+}
+
+/// Diagnostics one per line.
+fn lines(diagnostics: &[Diagnostic]) -> String {
+    diagnostics.iter().map(ToString::to_string).collect::<Vec<_>>().join("\n")
+}
+
+/// An I/O error on `path`, for `map_err`.
+fn io(path: &Path) -> impl FnOnce(std::io::Error) -> SyncError + '_ {
+    move |source| SyncError::Io { path: path.to_path_buf(), source }
+}
+
 /// The generated module of one description file, with the header naming `source`.
 ///
 /// # Errors
-/// A message when the description is invalid or cannot be generated.
-pub fn render(file: &Path, source: &str) -> Result<String, String> {
+/// When the description is invalid or cannot be generated.
+pub fn render(file: &Path, source: &str) -> Result<String, SyncError> {
     let loaded = load_file(file)
-        .map_err(|d| d.iter().map(ToString::to_string).collect::<Vec<_>>().join("\n"))?;
-    let sys = Symbolic::build(&loaded.mechanism).map_err(|e| format!("{}: {e}", file.display()))?;
+        .map_err(|diagnostics| SyncError::Invalid { file: file.to_path_buf(), diagnostics })?;
+    let sys = Symbolic::build(&loaded.mechanism)
+        .map_err(|source| SyncError::Generate { file: file.to_path_buf(), source })?;
     Ok(emit::module(&loaded.mechanism, &sys, source))
 }
 
@@ -48,9 +95,10 @@ pub fn render(file: &Path, source: &str) -> Result<String, String> {
 ///
 /// # Errors
 /// The first description that fails.
-pub fn expected(root: &Path) -> Result<BTreeMap<String, String>, String> {
-    let mut descriptions: Vec<PathBuf> = std::fs::read_dir(root.join("examples"))
-        .map_err(|e| format!("examples/: {e}"))?
+pub fn expected(root: &Path) -> Result<BTreeMap<String, String>, SyncError> {
+    let examples = root.join("examples");
+    let mut descriptions: Vec<PathBuf> = std::fs::read_dir(&examples)
+        .map_err(io(&examples))?
         .filter_map(|e| e.ok().map(|e| e.path()))
         .filter(|p| p.extension().is_some_and(|x| x == "toml") && !p.ends_with("Cargo.toml"))
         .collect();
@@ -58,7 +106,10 @@ pub fn expected(root: &Path) -> Result<BTreeMap<String, String>, String> {
     let mut files = BTreeMap::new();
     let mut modules = Vec::new();
     for d in &descriptions {
-        let stem = d.file_stem().and_then(|s| s.to_str()).ok_or("non-UTF-8 file name")?;
+        let stem = d
+            .file_stem()
+            .and_then(|s| s.to_str())
+            .ok_or_else(|| SyncError::FileName { path: d.clone() })?;
         let source = format!("examples/{stem}.toml");
         files.insert(format!("{stem}.rs"), render(d, &source)?);
         modules.push(stem.to_owned());
@@ -82,7 +133,7 @@ pub fn expected(root: &Path) -> Result<BTreeMap<String, String>, String> {
 ///
 /// # Errors
 /// Generation or I/O failures.
-pub fn sync(root: &Path, mode: Mode) -> Result<Vec<Stale>, String> {
+pub fn sync(root: &Path, mode: Mode) -> Result<Vec<Stale>, SyncError> {
     let dir = root.join("generated/src");
     let want = expected(root)?;
     let mut stale = Vec::new();
@@ -98,11 +149,11 @@ pub fn sync(root: &Path, mode: Mode) -> Result<Vec<Stale>, String> {
             Err(_) => stale.push(Stale::Missing(path.clone())),
         }
         if mode == Mode::Write {
-            std::fs::write(&path, text).map_err(|e| format!("{}: {e}", path.display()))?;
+            std::fs::write(&path, text).map_err(io(&path))?;
         }
     }
     let mut present: Vec<PathBuf> = std::fs::read_dir(&dir)
-        .map_err(|e| format!("{}: {e}", dir.display()))?
+        .map_err(io(&dir))?
         .filter_map(|e| e.ok().map(|e| e.path()))
         .filter(|p| p.extension().is_some_and(|x| x == "rs"))
         .collect();
@@ -111,7 +162,7 @@ pub fn sync(root: &Path, mode: Mode) -> Result<Vec<Stale>, String> {
         let name = path.file_name().and_then(|s| s.to_str()).unwrap_or_default();
         if !want.contains_key(name) {
             if mode == Mode::Write {
-                std::fs::remove_file(&path).map_err(|e| format!("{}: {e}", path.display()))?;
+                std::fs::remove_file(&path).map_err(io(&path))?;
             }
             stale.push(Stale::Orphan(path));
         }

@@ -52,7 +52,7 @@ fn solve(cache: &Path, file: &Path) -> (String, String) {
 }
 
 /// The cache entry whose module defines the solver type `ty` (every example names its
-/// own).
+/// own), in a cache that holds one entry of it.
 fn entry_of(cache: &Path, ty: &str) -> PathBuf {
     let needle = format!("pub struct {ty};");
     std::fs::read_dir(cache)
@@ -62,6 +62,23 @@ fn entry_of(cache: &Path, ty: &str) -> PathBuf {
             std::fs::read_to_string(dir.join("src/mechanism.rs")).is_ok_and(|t| t.contains(&needle))
         })
         .unwrap_or_else(|| panic!("no entry for {ty} in {}", cache.display()))
+}
+
+/// The cache entry `mechgen solve --engine generated file` uses, as its log says. The shared
+/// cache may hold older entries of the same mechanism (every change to the generator or the
+/// driver changes the keys), which a search by type could find instead.
+fn entry_used(cache: &Path, file: &Path) -> PathBuf {
+    let args = ["solve", file.to_str().unwrap(), "--engine", "generated", "--format", "csv"];
+    let out = mechgen(cache, &args, &[("MECHGEN_LOG", "info")]);
+    let stderr = text(&out.stderr);
+    stderr
+        .lines()
+        .find_map(|l| {
+            let rest =
+                l.split_once("cache hit: ").or_else(|| l.split_once("cache miss: building "))?.1;
+            Some(PathBuf::from(rest.trim_end_matches(" (verified)")))
+        })
+        .unwrap_or_else(|| panic!("no cache entry logged: {stderr}"))
 }
 
 /// Removes every entry of `ty`, so that the next solve builds it.
@@ -92,7 +109,7 @@ fn a_garbage_binary_in_an_entry_is_rebuilt() {
     let cache = shared_cache();
     let file = example("revolute_joint.toml");
     let (expected, _) = solve(&cache, &file);
-    let entry = entry_of(&cache, "RevoluteJoint");
+    let entry = entry_used(&cache, &file);
     std::fs::write(entry.join("solver"), "garbage").unwrap();
     let (stdout, stderr) = solve(&cache, &file);
     assert!(stderr.contains("does not match its recorded hash; rebuilding it"), "{stderr}");
@@ -111,8 +128,8 @@ fn another_mechanisms_binary_in_an_entry_is_detected_and_rebuilt() {
     let cache = shared_cache();
     let (_, _) = solve(&cache, &example("spherical_joint.toml"));
     let (expected, _) = solve(&cache, &example("prismatic_joint.toml"));
-    let other = entry_of(&cache, "SphericalJoint");
-    let entry = entry_of(&cache, "PrismaticJoint");
+    let other = entry_used(&cache, &example("spherical_joint.toml"));
+    let entry = entry_used(&cache, &example("prismatic_joint.toml"));
     // The binary and its record, both copied: the record binds the binary to its own entry.
     for name in ["solver", "solver.hash"] {
         std::fs::copy(other.join(name), entry.join(name)).unwrap();
@@ -127,7 +144,7 @@ fn a_corrupt_lock_file_is_rewritten_with_a_note() {
     let cache = shared_cache();
     let file = example("screw_joint.toml");
     let (expected, _) = solve(&cache, &file);
-    let entry = entry_of(&cache, "ScrewJoint");
+    let entry = entry_used(&cache, &file);
     std::fs::write(entry.join("Cargo.lock"), "garbage [[[").unwrap();
     // A build is needed for the lock file to matter.
     std::fs::remove_file(entry.join("solver")).unwrap();
@@ -348,7 +365,7 @@ fn a_closed_pipe_ends_mechgen_and_its_solver_quietly() {
         assert!(stderr.is_empty(), "{engine}: a closed pipe is not reported: {stderr}");
     }
     // Other tests run in the same cache: only this mechanism's entry is looked for.
-    let entry = entry_of(&cache, "RssrPipe");
+    let entry = entry_used(&cache, &file);
     let solvers = processes_mentioning(&entry.display().to_string());
     assert!(solvers.is_empty(), "solvers outlived mechgen: {solvers:?}");
 }

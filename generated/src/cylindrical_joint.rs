@@ -77,10 +77,15 @@ pub const Q0: [f64; N] = [0.0, 0.0, 1.0, 0.0, 0.0];
 /// 13 operations, 0 shared subexpressions.
 pub fn residual(q: &[f64; N], _t: f64, phi: &mut [f64; N]) {
     let [q0, q1, q2, q3, q4] = *q;
+    // joint cylinder row 1: b_i · a_j = 0
     phi[0] = -(2.0 * (q2 * q4));
+    // joint cylinder row 2: c_i · a_j = 0
     phi[1] = -(2.0 * (q2 * q3));
+    // joint cylinder row 3: b_i · (P_j − P_i) = 0
     phi[2] = q0;
+    // joint cylinder row 4: c_i · (P_j − P_i) = 0
     phi[3] = -q1;
+    // body sleeve normalisation: e0² + e1² + e2² + e3² − 1 = 0
     phi[4] = q4 * q4 + (q2 * q2 + q3 * q3) - 1.0;
 }
 
@@ -91,12 +96,17 @@ pub fn jacobian(q: &[f64; N], _t: f64, jac: &mut [[f64; N]; N]) {
     *jac = [[0.0; N]; N];
     let [_q0, _q1, q2, q3, q4] = *q;
     let t0 = -(2.0 * q2);
+    // joint cylinder row 1: b_i · a_j = 0
     jac[0][2] = -(2.0 * q4);
     jac[0][4] = t0;
+    // joint cylinder row 2: c_i · a_j = 0
     jac[1][2] = -(2.0 * q3);
     jac[1][3] = t0;
+    // joint cylinder row 3: b_i · (P_j − P_i) = 0
     jac[2][0] = 1.0;
+    // joint cylinder row 4: c_i · (P_j − P_i) = 0
     jac[3][1] = -1.0;
+    // body sleeve normalisation: e0² + e1² + e2² + e3² − 1 = 0
     jac[4][2] = q2 + q2;
     jac[4][3] = q3 + q3;
     jac[4][4] = q4 + q4;
@@ -114,17 +124,27 @@ pub fn residual_jacobian(
     *jac = [[0.0; N]; N];
     let [q0, q1, q2, q3, q4] = *q;
     let t0 = -(2.0 * q2);
+    // joint cylinder row 1: b_i · a_j = 0
     phi[0] = -(2.0 * (q2 * q4));
+    // joint cylinder row 2: c_i · a_j = 0
     phi[1] = -(2.0 * (q2 * q3));
+    // joint cylinder row 3: b_i · (P_j − P_i) = 0
     phi[2] = q0;
+    // joint cylinder row 4: c_i · (P_j − P_i) = 0
     phi[3] = -q1;
+    // body sleeve normalisation: e0² + e1² + e2² + e3² − 1 = 0
     phi[4] = q4 * q4 + (q2 * q2 + q3 * q3) - 1.0;
+    // joint cylinder row 1: b_i · a_j = 0
     jac[0][2] = -(2.0 * q4);
     jac[0][4] = t0;
+    // joint cylinder row 2: c_i · a_j = 0
     jac[1][2] = -(2.0 * q3);
     jac[1][3] = t0;
+    // joint cylinder row 3: b_i · (P_j − P_i) = 0
     jac[2][0] = 1.0;
+    // joint cylinder row 4: c_i · (P_j − P_i) = 0
     jac[3][1] = -1.0;
+    // body sleeve normalisation: e0² + e1² + e2² + e3² − 1 = 0
     jac[4][2] = q2 + q2;
     jac[4][3] = q3 + q3;
     jac[4][4] = q4 + q4;
@@ -133,7 +153,7 @@ pub fn residual_jacobian(
 /// Φ and the 7 entries of Φ_q that depend on q or t, the others of `jac` left as they were: what the `factor_k` functions read (2 of the 9 structurally non-zero entries are constants, which they know).
 ///
 /// 22 operations, 1 shared subexpressions.
-pub fn residual_jacobian_structural(
+fn residual_jacobian_structural(
     q: &[f64; N],
     _t: f64,
     phi: &mut [f64; N],
@@ -141,15 +161,23 @@ pub fn residual_jacobian_structural(
 ) {
     let [q0, q1, q2, q3, q4] = *q;
     let t0 = -(2.0 * q2);
+    // joint cylinder row 1: b_i · a_j = 0
     phi[0] = -(2.0 * (q2 * q4));
+    // joint cylinder row 2: c_i · a_j = 0
     phi[1] = -(2.0 * (q2 * q3));
+    // joint cylinder row 3: b_i · (P_j − P_i) = 0
     phi[2] = q0;
+    // joint cylinder row 4: c_i · (P_j − P_i) = 0
     phi[3] = -q1;
+    // body sleeve normalisation: e0² + e1² + e2² + e3² − 1 = 0
     phi[4] = q4 * q4 + (q2 * q2 + q3 * q3) - 1.0;
+    // joint cylinder row 1: b_i · a_j = 0
     jac[0][2] = -(2.0 * q4);
     jac[0][4] = t0;
+    // joint cylinder row 2: c_i · a_j = 0
     jac[1][2] = -(2.0 * q3);
     jac[1][3] = t0;
+    // body sleeve normalisation: e0² + e1² + e2² + e3² − 1 = 0
     jac[4][2] = q2 + q2;
     jac[4][3] = q3 + q3;
     jac[4][4] = q4 + q4;
@@ -161,7 +189,7 @@ pub fn residual_jacobian_structural(
 ///
 /// Returns the smallest and largest |pivot|, or `None` when a pivot is not finite or a multiplier exceeds [`runtime::lu::MAX_MULTIPLIER`] in magnitude; `jac` is then partly factored and must be evaluated again.
 #[must_use]
-pub fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
+fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     let p2 = jac[1][3];
     let d2 = 1.0 / p2;
     jac[1][3] = d2;
@@ -199,7 +227,7 @@ pub fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
 /// Solves Φ_q x = b in place with the factors [`factor_0`] left in `lu`.
 ///
 /// 12 operations.
-pub fn solve_0(lu: &[[f64; N]; N], b: &mut [f64; N]) {
+fn solve_0(lu: &[[f64; N]; N], b: &mut [f64; N]) {
     let y0 = b[2];
     let y1 = b[3];
     let y2 = b[1];
@@ -221,10 +249,15 @@ pub fn solve_0(lu: &[[f64; N]; N], b: &mut [f64; N]) {
 ///
 /// 0 operations, 0 shared subexpressions.
 pub fn velocity_rhs(_q: &[f64; N], _t: f64, nu: &mut [f64; N]) {
+    // joint cylinder row 1: b_i · a_j = 0
     nu[0] = 0.0;
+    // joint cylinder row 2: c_i · a_j = 0
     nu[1] = 0.0;
+    // joint cylinder row 3: b_i · (P_j − P_i) = 0
     nu[2] = 0.0;
+    // joint cylinder row 4: c_i · (P_j − P_i) = 0
     nu[3] = 0.0;
+    // body sleeve normalisation: e0² + e1² + e2² + e3² − 1 = 0
     nu[4] = 0.0;
 }
 
@@ -238,10 +271,15 @@ pub fn acceleration_rhs(_q: &[f64; N], qd: &[f64; N], _t: f64, gamma: &mut [f64;
     let t2 = qd4 * qd4;
     let t3 = qd2 * qd2;
     let t4 = qd3 * qd3;
+    // joint cylinder row 1: b_i · a_j = 0
     gamma[0] = 2.0 * (t0 + t0);
+    // joint cylinder row 2: c_i · a_j = 0
     gamma[1] = 2.0 * (t1 + t1);
+    // joint cylinder row 3: b_i · (P_j − P_i) = 0
     gamma[2] = 0.0;
+    // joint cylinder row 4: c_i · (P_j − P_i) = 0
     gamma[3] = 0.0;
+    // body sleeve normalisation: e0² + e1² + e2² + e3² − 1 = 0
     gamma[4] = -(t2 + t2 + (t3 + t3 + (t4 + t4)));
 }
 
@@ -249,7 +287,7 @@ pub fn acceleration_rhs(_q: &[f64; N], qd: &[f64; N], _t: f64, gamma: &mut [f64;
 /// ones keep their values).
 pub fn normalize(q: &mut [f64; N]) {
     {
-        let free = 0.0 + q[2] * q[2] + q[3] * q[3] + q[4] * q[4];
+        let free = q[2] * q[2] + q[3] * q[3] + q[4] * q[4];
         if free > 0.0 {
             let scale = runtime::math::sqrt(1.0 / free);
             q[2] *= scale;

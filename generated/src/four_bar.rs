@@ -165,12 +165,19 @@ pub fn residual(q: &[f64; N], t: f64, phi: &mut [f64; N]) {
     let t30 = q3 * q4;
     let t31 = 1.570796325 * t;
     let (t32, t33) = runtime::math::sin_cos(t31);
+    // joint C row 1: (P_j − P_i)_x = 0
     phi[0] = -7.4 * t14 + q14 - (-12.2 * t5 + q7);
+    // joint C row 2: (P_j − P_i)_y = 0
     phi[1] = -3.7 * t13 + q15 - (-6.1 * t4 + q8);
+    // joint C row 3: (P_j − P_i)_z = 0
     phi[2] = -7.4 * t17 + q16 - (-12.2 * t8 + q9);
+    // joint B row 1: (P_j − P_i)_x = 0
     phi[3] = q7 + 12.2 * t5 - (4.0 * t28 + q0);
+    // joint B row 2: (P_j − P_i)_y = 0
     phi[4] = q8 + 6.1 * t4 - (4.0 * (t29 - t30) + q1);
+    // joint B row 3: (P_j − P_i)_z = 0
     phi[5] = q9 + 12.2 * t8 - (2.0 * (t18 + t21 - (t19 + t20)) + q2);
+    // joint B row 4: a_i · a_j = 0
     phi[6] = (t0 + t3 - (t1 + t2))
         * (1.5014270338455107 * (t26 - t27) + -1.3212557897840493 * (t29 + t30))
         + (2.0 * (q11 * q13 + q10 * q12)
@@ -178,19 +185,33 @@ pub fn residual(q: &[f64; N], t: f64, phi: &mut [f64; N]) {
             + 2.0 * (t6 - t7)
                 * (1.5014270338455107 * (t23 + t24)
                     + -0.6606278948920247 * (t18 + t20 - (t19 + t21))));
+    // joint A row 1: (P_j − P_i)_x = 0
     phi[7] = -q0;
+    // joint A row 2: (P_j − P_i)_y = 0
     phi[8] = -q1;
+    // joint A row 3: (P_j − P_i)_z = 0
     phi[9] = -q2;
+    // joint A row 4: b_i · a_j = 0
     phi[10] = 2.0 * t25;
+    // joint A row 5: c_i · a_j = 0
     phi[11] = 2.0 * t28;
+    // joint D row 1: (P_j − P_i)_x = 0
     phi[12] = -4.0 - (q14 + 7.4 * t14);
+    // joint D row 2: (P_j − P_i)_y = 0
     phi[13] = -8.5 - (q15 + 3.7 * t13);
+    // joint D row 3: (P_j − P_i)_z = 0
     phi[14] = -(q16 + 7.4 * t17);
+    // joint D row 4: b_i · a_j = 0
     phi[15] = -t13;
+    // joint D row 5: c_i · a_j = 0
     phi[16] = -(2.0 * (t15 - t16));
+    // driver motor: e1 cos(s/2) − e0 sin(s/2) = 0, s = 3.14159265 t
     phi[17] = q4 * t33 - q3 * t32;
+    // body crank normalisation: e0² + e1² + e2² + e3² − 1 = 0
     phi[18] = t21 + (t20 + t22) - 1.0;
+    // body coupler normalisation: e0² + e1² + e2² + e3² − 1 = 0
     phi[19] = t3 + (t2 + (t0 + t1)) - 1.0;
+    // body rocker normalisation: e0² + e1² + e2² + e3² − 1 = 0
     phi[20] = t12 + (t11 + (t9 + t10)) - 1.0;
 }
 
@@ -266,6 +287,7 @@ pub fn jacobian(q: &[f64; N], t: f64, jac: &mut [[f64; N]; N]) {
     let t60 = -(7.4 * q19);
     let t61 = -(7.4 * q18);
     let t62 = 7.4 * q17;
+    // joint C row 1: (P_j − P_i)_x = 0
     jac[0][7] = -1.0;
     jac[0][10] = t15;
     jac[0][11] = t16;
@@ -276,6 +298,7 @@ pub fn jacobian(q: &[f64; N], t: f64, jac: &mut [[f64; N]; N]) {
     jac[0][18] = t20;
     jac[0][19] = t21;
     jac[0][20] = -t22;
+    // joint C row 2: (P_j − P_i)_y = 0
     jac[1][8] = -1.0;
     jac[1][10] = -(-6.1 * t23);
     jac[1][11] = -6.1 * t24;
@@ -286,6 +309,7 @@ pub fn jacobian(q: &[f64; N], t: f64, jac: &mut [[f64; N]; N]) {
     jac[1][18] = -(-3.7 * t28);
     jac[1][19] = -3.7 * t29;
     jac[1][20] = -(-3.7 * t30);
+    // joint C row 3: (P_j − P_i)_z = 0
     jac[2][9] = -1.0;
     jac[2][10] = t17;
     jac[2][11] = -t18;
@@ -296,6 +320,7 @@ pub fn jacobian(q: &[f64; N], t: f64, jac: &mut [[f64; N]; N]) {
     jac[2][18] = t22;
     jac[2][19] = t19;
     jac[2][20] = t20;
+    // joint B row 1: (P_j − P_i)_x = 0
     jac[3][0] = -1.0;
     jac[3][3] = t31;
     jac[3][4] = t32;
@@ -306,6 +331,7 @@ pub fn jacobian(q: &[f64; N], t: f64, jac: &mut [[f64; N]; N]) {
     jac[3][11] = t36;
     jac[3][12] = t37;
     jac[3][13] = -t38;
+    // joint B row 2: (P_j − P_i)_y = 0
     jac[4][1] = -1.0;
     jac[4][3] = t34;
     jac[4][4] = t33;
@@ -316,6 +342,7 @@ pub fn jacobian(q: &[f64; N], t: f64, jac: &mut [[f64; N]; N]) {
     jac[4][11] = -(6.1 * t24);
     jac[4][12] = 6.1 * t25;
     jac[4][13] = -(6.1 * t26);
+    // joint B row 3: (P_j − P_i)_z = 0
     jac[5][2] = -1.0;
     jac[5][3] = -(2.0 * t39);
     jac[5][4] = 2.0 * t40;
@@ -326,6 +353,7 @@ pub fn jacobian(q: &[f64; N], t: f64, jac: &mut [[f64; N]; N]) {
     jac[5][11] = t38;
     jac[5][12] = t35;
     jac[5][13] = t36;
+    // joint B row 4: a_i · a_j = 0
     jac[6][3] = t0 * (t44 - t43)
         + (t1 * (0.7507135169227553 * t39 - t45)
             + t2 * (t46 + -0.6606278948920247 * t39));
@@ -342,50 +370,64 @@ pub fn jacobian(q: &[f64; N], t: f64, jac: &mut [[f64; N]; N]) {
     jac[6][11] = t9 * t53 - t10 * t54 - t11 * t24;
     jac[6][12] = t9 * t54 + t10 * t53 - t11 * t25;
     jac[6][13] = t11 * t26 + (t9 * t52 + t10 * t51);
+    // joint A row 1: (P_j − P_i)_x = 0
     jac[7][0] = -1.0;
+    // joint A row 2: (P_j − P_i)_y = 0
     jac[8][1] = -1.0;
+    // joint A row 3: (P_j − P_i)_z = 0
     jac[9][2] = -1.0;
+    // joint A row 4: b_i · a_j = 0
     jac[10][3] = -t55;
     jac[10][4] = t56;
     jac[10][5] = t57;
     jac[10][6] = -t58;
+    // joint A row 5: c_i · a_j = 0
     jac[11][3] = t56;
     jac[11][4] = t55;
     jac[11][5] = t58;
     jac[11][6] = t57;
+    // joint D row 1: (P_j − P_i)_x = 0
     jac[12][14] = -1.0;
     jac[12][17] = t59;
     jac[12][18] = t60;
     jac[12][19] = t61;
     jac[12][20] = t62;
+    // joint D row 2: (P_j − P_i)_y = 0
     jac[13][15] = -1.0;
     jac[13][17] = -(3.7 * t27);
     jac[13][18] = 3.7 * t28;
     jac[13][19] = -(3.7 * t29);
     jac[13][20] = 3.7 * t30;
+    // joint D row 3: (P_j − P_i)_z = 0
     jac[14][16] = -1.0;
     jac[14][17] = t61;
     jac[14][18] = -t62;
     jac[14][19] = -t59;
     jac[14][20] = t60;
+    // joint D row 4: b_i · a_j = 0
     jac[15][17] = -t27;
     jac[15][18] = t28;
     jac[15][19] = -t29;
     jac[15][20] = t30;
+    // joint D row 5: c_i · a_j = 0
     jac[16][17] = 2.0 * q18;
     jac[16][18] = 2.0 * q17;
     jac[16][19] = -(2.0 * q20);
     jac[16][20] = -(2.0 * q19);
+    // driver motor: e1 cos(s/2) − e0 sin(s/2) = 0, s = 3.14159265 t
     jac[17][3] = -t13;
     jac[17][4] = t14;
+    // body crank normalisation: e0² + e1² + e2² + e3² − 1 = 0
     jac[18][3] = t39;
     jac[18][4] = t40;
     jac[18][5] = t41;
     jac[18][6] = t42;
+    // body coupler normalisation: e0² + e1² + e2² + e3² − 1 = 0
     jac[19][10] = t23;
     jac[19][11] = t24;
     jac[19][12] = t25;
     jac[19][13] = t26;
+    // body rocker normalisation: e0² + e1² + e2² + e3² − 1 = 0
     jac[20][17] = t27;
     jac[20][18] = t28;
     jac[20][19] = t29;
@@ -492,27 +534,49 @@ pub fn residual_jacobian(
     let t85 = -(7.4 * q19);
     let t86 = -(7.4 * q18);
     let t87 = 7.4 * q17;
+    // joint C row 1: (P_j − P_i)_x = 0
     phi[0] = -7.4 * t17 + q14 - (-12.2 * t6 + q7);
+    // joint C row 2: (P_j − P_i)_y = 0
     phi[1] = -3.7 * t16 + q15 - (-6.1 * t4 + q8);
+    // joint C row 3: (P_j − P_i)_z = 0
     phi[2] = -7.4 * t20 + q16 - (-12.2 * t11 + q9);
+    // joint B row 1: (P_j − P_i)_x = 0
     phi[3] = q7 + 12.2 * t6 - (4.0 * t31 + q0);
+    // joint B row 2: (P_j − P_i)_y = 0
     phi[4] = q8 + 6.1 * t4 - (4.0 * (t32 - t33) + q1);
+    // joint B row 3: (P_j − P_i)_z = 0
     phi[5] = q9 + 12.2 * t11 - (2.0 * (t21 + t24 - (t22 + t23)) + q2);
+    // joint B row 4: a_i · a_j = 0
     phi[6] = t5 * t36 + (t7 * t34 + t10 * t35);
+    // joint A row 1: (P_j − P_i)_x = 0
     phi[7] = -q0;
+    // joint A row 2: (P_j − P_i)_y = 0
     phi[8] = -q1;
+    // joint A row 3: (P_j − P_i)_z = 0
     phi[9] = -q2;
+    // joint A row 4: b_i · a_j = 0
     phi[10] = 2.0 * t28;
+    // joint A row 5: c_i · a_j = 0
     phi[11] = 2.0 * t31;
+    // joint D row 1: (P_j − P_i)_x = 0
     phi[12] = -4.0 - (q14 + 7.4 * t17);
+    // joint D row 2: (P_j − P_i)_y = 0
     phi[13] = -8.5 - (q15 + 3.7 * t16);
+    // joint D row 3: (P_j − P_i)_z = 0
     phi[14] = -(q16 + 7.4 * t20);
+    // joint D row 4: b_i · a_j = 0
     phi[15] = -t16;
+    // joint D row 5: c_i · a_j = 0
     phi[16] = -(2.0 * (t18 - t19));
+    // driver motor: e1 cos(s/2) − e0 sin(s/2) = 0, s = 3.14159265 t
     phi[17] = q4 * t39 - q3 * t38;
+    // body crank normalisation: e0² + e1² + e2² + e3² − 1 = 0
     phi[18] = t24 + (t23 + t25) - 1.0;
+    // body coupler normalisation: e0² + e1² + e2² + e3² − 1 = 0
     phi[19] = t3 + (t2 + (t0 + t1)) - 1.0;
+    // body rocker normalisation: e0² + e1² + e2² + e3² − 1 = 0
     phi[20] = t15 + (t14 + (t12 + t13)) - 1.0;
+    // joint C row 1: (P_j − P_i)_x = 0
     jac[0][7] = -1.0;
     jac[0][10] = t40;
     jac[0][11] = t41;
@@ -523,6 +587,7 @@ pub fn residual_jacobian(
     jac[0][18] = t45;
     jac[0][19] = t46;
     jac[0][20] = -t47;
+    // joint C row 2: (P_j − P_i)_y = 0
     jac[1][8] = -1.0;
     jac[1][10] = -(-6.1 * t48);
     jac[1][11] = -6.1 * t49;
@@ -533,6 +598,7 @@ pub fn residual_jacobian(
     jac[1][18] = -(-3.7 * t53);
     jac[1][19] = -3.7 * t54;
     jac[1][20] = -(-3.7 * t55);
+    // joint C row 3: (P_j − P_i)_z = 0
     jac[2][9] = -1.0;
     jac[2][10] = t42;
     jac[2][11] = -t43;
@@ -543,6 +609,7 @@ pub fn residual_jacobian(
     jac[2][18] = t47;
     jac[2][19] = t44;
     jac[2][20] = t45;
+    // joint B row 1: (P_j − P_i)_x = 0
     jac[3][0] = -1.0;
     jac[3][3] = t56;
     jac[3][4] = t57;
@@ -553,6 +620,7 @@ pub fn residual_jacobian(
     jac[3][11] = t61;
     jac[3][12] = t62;
     jac[3][13] = -t63;
+    // joint B row 2: (P_j − P_i)_y = 0
     jac[4][1] = -1.0;
     jac[4][3] = t59;
     jac[4][4] = t58;
@@ -563,6 +631,7 @@ pub fn residual_jacobian(
     jac[4][11] = -(6.1 * t49);
     jac[4][12] = 6.1 * t50;
     jac[4][13] = -(6.1 * t51);
+    // joint B row 3: (P_j − P_i)_z = 0
     jac[5][2] = -1.0;
     jac[5][3] = -(2.0 * t64);
     jac[5][4] = 2.0 * t65;
@@ -573,6 +642,7 @@ pub fn residual_jacobian(
     jac[5][11] = t63;
     jac[5][12] = t60;
     jac[5][13] = t61;
+    // joint B row 4: a_i · a_j = 0
     jac[6][3] = t5 * (t69 - t68)
         + (t7 * (0.7507135169227553 * t64 - t70)
             + t10 * (t71 + -0.6606278948920247 * t64));
@@ -589,50 +659,64 @@ pub fn residual_jacobian(
     jac[6][11] = t34 * t78 - t35 * t79 - t36 * t49;
     jac[6][12] = t34 * t79 + t35 * t78 - t36 * t50;
     jac[6][13] = t36 * t51 + (t34 * t77 + t35 * t76);
+    // joint A row 1: (P_j − P_i)_x = 0
     jac[7][0] = -1.0;
+    // joint A row 2: (P_j − P_i)_y = 0
     jac[8][1] = -1.0;
+    // joint A row 3: (P_j − P_i)_z = 0
     jac[9][2] = -1.0;
+    // joint A row 4: b_i · a_j = 0
     jac[10][3] = -t80;
     jac[10][4] = t81;
     jac[10][5] = t82;
     jac[10][6] = -t83;
+    // joint A row 5: c_i · a_j = 0
     jac[11][3] = t81;
     jac[11][4] = t80;
     jac[11][5] = t83;
     jac[11][6] = t82;
+    // joint D row 1: (P_j − P_i)_x = 0
     jac[12][14] = -1.0;
     jac[12][17] = t84;
     jac[12][18] = t85;
     jac[12][19] = t86;
     jac[12][20] = t87;
+    // joint D row 2: (P_j − P_i)_y = 0
     jac[13][15] = -1.0;
     jac[13][17] = -(3.7 * t52);
     jac[13][18] = 3.7 * t53;
     jac[13][19] = -(3.7 * t54);
     jac[13][20] = 3.7 * t55;
+    // joint D row 3: (P_j − P_i)_z = 0
     jac[14][16] = -1.0;
     jac[14][17] = t86;
     jac[14][18] = -t87;
     jac[14][19] = -t84;
     jac[14][20] = t85;
+    // joint D row 4: b_i · a_j = 0
     jac[15][17] = -t52;
     jac[15][18] = t53;
     jac[15][19] = -t54;
     jac[15][20] = t55;
+    // joint D row 5: c_i · a_j = 0
     jac[16][17] = 2.0 * q18;
     jac[16][18] = 2.0 * q17;
     jac[16][19] = -(2.0 * q20);
     jac[16][20] = -(2.0 * q19);
+    // driver motor: e1 cos(s/2) − e0 sin(s/2) = 0, s = 3.14159265 t
     jac[17][3] = -t38;
     jac[17][4] = t39;
+    // body crank normalisation: e0² + e1² + e2² + e3² − 1 = 0
     jac[18][3] = t64;
     jac[18][4] = t65;
     jac[18][5] = t66;
     jac[18][6] = t67;
+    // body coupler normalisation: e0² + e1² + e2² + e3² − 1 = 0
     jac[19][10] = t48;
     jac[19][11] = t49;
     jac[19][12] = t50;
     jac[19][13] = t51;
+    // body rocker normalisation: e0² + e1² + e2² + e3² − 1 = 0
     jac[20][17] = t52;
     jac[20][18] = t53;
     jac[20][19] = t54;
@@ -642,7 +726,7 @@ pub fn residual_jacobian(
 /// Φ and the 98 entries of Φ_q that depend on q or t, the others of `jac` left as they were: what the `factor_k` functions read (18 of the 116 structurally non-zero entries are constants, which they know).
 ///
 /// 338 operations, 88 shared subexpressions.
-pub fn residual_jacobian_structural(
+fn residual_jacobian_structural(
     q: &[f64; N],
     t: f64,
     phi: &mut [f64; N],
@@ -738,27 +822,49 @@ pub fn residual_jacobian_structural(
     let t85 = -(7.4 * q19);
     let t86 = -(7.4 * q18);
     let t87 = 7.4 * q17;
+    // joint C row 1: (P_j − P_i)_x = 0
     phi[0] = -7.4 * t17 + q14 - (-12.2 * t6 + q7);
+    // joint C row 2: (P_j − P_i)_y = 0
     phi[1] = -3.7 * t16 + q15 - (-6.1 * t4 + q8);
+    // joint C row 3: (P_j − P_i)_z = 0
     phi[2] = -7.4 * t20 + q16 - (-12.2 * t11 + q9);
+    // joint B row 1: (P_j − P_i)_x = 0
     phi[3] = q7 + 12.2 * t6 - (4.0 * t31 + q0);
+    // joint B row 2: (P_j − P_i)_y = 0
     phi[4] = q8 + 6.1 * t4 - (4.0 * (t32 - t33) + q1);
+    // joint B row 3: (P_j − P_i)_z = 0
     phi[5] = q9 + 12.2 * t11 - (2.0 * (t21 + t24 - (t22 + t23)) + q2);
+    // joint B row 4: a_i · a_j = 0
     phi[6] = t5 * t36 + (t7 * t34 + t10 * t35);
+    // joint A row 1: (P_j − P_i)_x = 0
     phi[7] = -q0;
+    // joint A row 2: (P_j − P_i)_y = 0
     phi[8] = -q1;
+    // joint A row 3: (P_j − P_i)_z = 0
     phi[9] = -q2;
+    // joint A row 4: b_i · a_j = 0
     phi[10] = 2.0 * t28;
+    // joint A row 5: c_i · a_j = 0
     phi[11] = 2.0 * t31;
+    // joint D row 1: (P_j − P_i)_x = 0
     phi[12] = -4.0 - (q14 + 7.4 * t17);
+    // joint D row 2: (P_j − P_i)_y = 0
     phi[13] = -8.5 - (q15 + 3.7 * t16);
+    // joint D row 3: (P_j − P_i)_z = 0
     phi[14] = -(q16 + 7.4 * t20);
+    // joint D row 4: b_i · a_j = 0
     phi[15] = -t16;
+    // joint D row 5: c_i · a_j = 0
     phi[16] = -(2.0 * (t18 - t19));
+    // driver motor: e1 cos(s/2) − e0 sin(s/2) = 0, s = 3.14159265 t
     phi[17] = q4 * t39 - q3 * t38;
+    // body crank normalisation: e0² + e1² + e2² + e3² − 1 = 0
     phi[18] = t24 + (t23 + t25) - 1.0;
+    // body coupler normalisation: e0² + e1² + e2² + e3² − 1 = 0
     phi[19] = t3 + (t2 + (t0 + t1)) - 1.0;
+    // body rocker normalisation: e0² + e1² + e2² + e3² − 1 = 0
     phi[20] = t15 + (t14 + (t12 + t13)) - 1.0;
+    // joint C row 1: (P_j − P_i)_x = 0
     jac[0][10] = t40;
     jac[0][11] = t41;
     jac[0][12] = t42;
@@ -767,6 +873,7 @@ pub fn residual_jacobian_structural(
     jac[0][18] = t45;
     jac[0][19] = t46;
     jac[0][20] = -t47;
+    // joint C row 2: (P_j − P_i)_y = 0
     jac[1][10] = -(-6.1 * t48);
     jac[1][11] = -6.1 * t49;
     jac[1][12] = -(-6.1 * t50);
@@ -775,6 +882,7 @@ pub fn residual_jacobian_structural(
     jac[1][18] = -(-3.7 * t53);
     jac[1][19] = -3.7 * t54;
     jac[1][20] = -(-3.7 * t55);
+    // joint C row 3: (P_j − P_i)_z = 0
     jac[2][10] = t42;
     jac[2][11] = -t43;
     jac[2][12] = -t40;
@@ -783,6 +891,7 @@ pub fn residual_jacobian_structural(
     jac[2][18] = t47;
     jac[2][19] = t44;
     jac[2][20] = t45;
+    // joint B row 1: (P_j − P_i)_x = 0
     jac[3][3] = t56;
     jac[3][4] = t57;
     jac[3][5] = -t58;
@@ -791,6 +900,7 @@ pub fn residual_jacobian_structural(
     jac[3][11] = t61;
     jac[3][12] = t62;
     jac[3][13] = -t63;
+    // joint B row 2: (P_j − P_i)_y = 0
     jac[4][3] = t59;
     jac[4][4] = t58;
     jac[4][5] = t57;
@@ -799,6 +909,7 @@ pub fn residual_jacobian_structural(
     jac[4][11] = -(6.1 * t49);
     jac[4][12] = 6.1 * t50;
     jac[4][13] = -(6.1 * t51);
+    // joint B row 3: (P_j − P_i)_z = 0
     jac[5][3] = -(2.0 * t64);
     jac[5][4] = 2.0 * t65;
     jac[5][5] = 2.0 * t66;
@@ -807,6 +918,7 @@ pub fn residual_jacobian_structural(
     jac[5][11] = t63;
     jac[5][12] = t60;
     jac[5][13] = t61;
+    // joint B row 4: a_i · a_j = 0
     jac[6][3] = t5 * (t69 - t68)
         + (t7 * (0.7507135169227553 * t64 - t70)
             + t10 * (t71 + -0.6606278948920247 * t64));
@@ -823,44 +935,55 @@ pub fn residual_jacobian_structural(
     jac[6][11] = t34 * t78 - t35 * t79 - t36 * t49;
     jac[6][12] = t34 * t79 + t35 * t78 - t36 * t50;
     jac[6][13] = t36 * t51 + (t34 * t77 + t35 * t76);
+    // joint A row 4: b_i · a_j = 0
     jac[10][3] = -t80;
     jac[10][4] = t81;
     jac[10][5] = t82;
     jac[10][6] = -t83;
+    // joint A row 5: c_i · a_j = 0
     jac[11][3] = t81;
     jac[11][4] = t80;
     jac[11][5] = t83;
     jac[11][6] = t82;
+    // joint D row 1: (P_j − P_i)_x = 0
     jac[12][17] = t84;
     jac[12][18] = t85;
     jac[12][19] = t86;
     jac[12][20] = t87;
+    // joint D row 2: (P_j − P_i)_y = 0
     jac[13][17] = -(3.7 * t52);
     jac[13][18] = 3.7 * t53;
     jac[13][19] = -(3.7 * t54);
     jac[13][20] = 3.7 * t55;
+    // joint D row 3: (P_j − P_i)_z = 0
     jac[14][17] = t86;
     jac[14][18] = -t87;
     jac[14][19] = -t84;
     jac[14][20] = t85;
+    // joint D row 4: b_i · a_j = 0
     jac[15][17] = -t52;
     jac[15][18] = t53;
     jac[15][19] = -t54;
     jac[15][20] = t55;
+    // joint D row 5: c_i · a_j = 0
     jac[16][17] = 2.0 * q18;
     jac[16][18] = 2.0 * q17;
     jac[16][19] = -(2.0 * q20);
     jac[16][20] = -(2.0 * q19);
+    // driver motor: e1 cos(s/2) − e0 sin(s/2) = 0, s = 3.14159265 t
     jac[17][3] = -t38;
     jac[17][4] = t39;
+    // body crank normalisation: e0² + e1² + e2² + e3² − 1 = 0
     jac[18][3] = t64;
     jac[18][4] = t65;
     jac[18][5] = t66;
     jac[18][6] = t67;
+    // body coupler normalisation: e0² + e1² + e2² + e3² − 1 = 0
     jac[19][10] = t48;
     jac[19][11] = t49;
     jac[19][12] = t50;
     jac[19][13] = t51;
+    // body rocker normalisation: e0² + e1² + e2² + e3² − 1 = 0
     jac[20][17] = t52;
     jac[20][18] = t53;
     jac[20][19] = t54;
@@ -873,7 +996,7 @@ pub fn residual_jacobian_structural(
 ///
 /// Returns the smallest and largest |pivot|, or `None` when a pivot is not finite or a multiplier exceeds [`runtime::lu::MAX_MULTIPLIER`] in magnitude; `jac` is then partly factored and must be evaluated again.
 #[must_use]
-pub fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
+fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     let u6_17 = jac[0][17] + jac[12][17];
     jac[0][17] = u6_17;
     let u6_18 = jac[0][18] + jac[12][18];
@@ -1193,7 +1316,7 @@ pub fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
 /// Solves Φ_q x = b in place with the factors [`factor_0`] left in `lu`.
 ///
 /// 258 operations.
-pub fn solve_0(lu: &[[f64; N]; N], b: &mut [f64; N]) {
+fn solve_0(lu: &[[f64; N]; N], b: &mut [f64; N]) {
     let y0 = b[7];
     let y1 = b[8];
     let y2 = b[9];
@@ -1284,7 +1407,7 @@ pub fn solve_0(lu: &[[f64; N]; N], b: &mut [f64; N]) {
 ///
 /// Returns the smallest and largest |pivot|, or `None` when a pivot is not finite or a multiplier exceeds [`runtime::lu::MAX_MULTIPLIER`] in magnitude; `jac` is then partly factored and must be evaluated again.
 #[must_use]
-pub fn factor_1(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
+fn factor_1(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     let u6_17 = jac[0][17] + jac[12][17];
     jac[0][17] = u6_17;
     let u6_18 = jac[0][18] + jac[12][18];
@@ -1604,7 +1727,7 @@ pub fn factor_1(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
 /// Solves Φ_q x = b in place with the factors [`factor_1`] left in `lu`.
 ///
 /// 258 operations.
-pub fn solve_1(lu: &[[f64; N]; N], b: &mut [f64; N]) {
+fn solve_1(lu: &[[f64; N]; N], b: &mut [f64; N]) {
     let y0 = b[7];
     let y1 = b[8];
     let y2 = b[9];
@@ -1695,7 +1818,7 @@ pub fn solve_1(lu: &[[f64; N]; N], b: &mut [f64; N]) {
 ///
 /// Returns the smallest and largest |pivot|, or `None` when a pivot is not finite or a multiplier exceeds [`runtime::lu::MAX_MULTIPLIER`] in magnitude; `jac` is then partly factored and must be evaluated again.
 #[must_use]
-pub fn factor_2(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
+fn factor_2(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     let u6_17 = jac[0][17] + jac[12][17];
     jac[0][17] = u6_17;
     let u6_18 = jac[0][18] + jac[12][18];
@@ -2019,7 +2142,7 @@ pub fn factor_2(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
 /// Solves Φ_q x = b in place with the factors [`factor_2`] left in `lu`.
 ///
 /// 258 operations.
-pub fn solve_2(lu: &[[f64; N]; N], b: &mut [f64; N]) {
+fn solve_2(lu: &[[f64; N]; N], b: &mut [f64; N]) {
     let y0 = b[7];
     let y1 = b[8];
     let y2 = b[9];
@@ -2109,7 +2232,7 @@ pub fn solve_2(lu: &[[f64; N]; N], b: &mut [f64; N]) {
 ///
 /// Returns the smallest and largest |pivot|, or `None` when a pivot is not finite or a multiplier exceeds [`runtime::lu::MAX_MULTIPLIER`] in magnitude; `jac` is then partly factored and must be evaluated again.
 #[must_use]
-pub fn factor_3(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
+fn factor_3(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     let u6_17 = jac[0][17] + jac[12][17];
     jac[0][17] = u6_17;
     let u6_18 = jac[0][18] + jac[12][18];
@@ -2433,7 +2556,7 @@ pub fn factor_3(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
 /// Solves Φ_q x = b in place with the factors [`factor_3`] left in `lu`.
 ///
 /// 258 operations.
-pub fn solve_3(lu: &[[f64; N]; N], b: &mut [f64; N]) {
+fn solve_3(lu: &[[f64; N]; N], b: &mut [f64; N]) {
     let y0 = b[7];
     let y1 = b[8];
     let y2 = b[9];
@@ -2525,26 +2648,47 @@ pub fn velocity_rhs(q: &[f64; N], t: f64, nu: &mut [f64; N]) {
     _q15, _q16, _q17, _q18, _q19, _q20] = *q;
     let t0 = 1.570796325 * t;
     let (t1, t2) = runtime::math::sin_cos(t0);
+    // joint C row 1: (P_j − P_i)_x = 0
     nu[0] = 0.0;
+    // joint C row 2: (P_j − P_i)_y = 0
     nu[1] = 0.0;
+    // joint C row 3: (P_j − P_i)_z = 0
     nu[2] = 0.0;
+    // joint B row 1: (P_j − P_i)_x = 0
     nu[3] = 0.0;
+    // joint B row 2: (P_j − P_i)_y = 0
     nu[4] = 0.0;
+    // joint B row 3: (P_j − P_i)_z = 0
     nu[5] = 0.0;
+    // joint B row 4: a_i · a_j = 0
     nu[6] = 0.0;
+    // joint A row 1: (P_j − P_i)_x = 0
     nu[7] = 0.0;
+    // joint A row 2: (P_j − P_i)_y = 0
     nu[8] = 0.0;
+    // joint A row 3: (P_j − P_i)_z = 0
     nu[9] = 0.0;
+    // joint A row 4: b_i · a_j = 0
     nu[10] = 0.0;
+    // joint A row 5: c_i · a_j = 0
     nu[11] = 0.0;
+    // joint D row 1: (P_j − P_i)_x = 0
     nu[12] = 0.0;
+    // joint D row 2: (P_j − P_i)_y = 0
     nu[13] = 0.0;
+    // joint D row 3: (P_j − P_i)_z = 0
     nu[14] = 0.0;
+    // joint D row 4: b_i · a_j = 0
     nu[15] = 0.0;
+    // joint D row 5: c_i · a_j = 0
     nu[16] = 0.0;
+    // driver motor: e1 cos(s/2) − e0 sin(s/2) = 0, s = 3.14159265 t
     nu[17] = -(-(q4 * (1.570796325 * t1)) - q3 * (1.570796325 * t2));
+    // body crank normalisation: e0² + e1² + e2² + e3² − 1 = 0
     nu[18] = 0.0;
+    // body coupler normalisation: e0² + e1² + e2² + e3² − 1 = 0
     nu[19] = 0.0;
+    // body rocker normalisation: e0² + e1² + e2² + e3² − 1 = 0
     nu[20] = 0.0;
 }
 
@@ -2648,12 +2792,19 @@ pub fn acceleration_rhs(q: &[f64; N], qd: &[f64; N], t: f64, gamma: &mut [f64; N
             + -0.6606278948920247 * (t57 + t63 - (t59 + t61)));
     let t85 = qd4 * (1.570796325 * t7);
     let t86 = qd3 * (1.570796325 * t8);
+    // joint C row 1: (P_j − P_i)_x = 0
     gamma[0] = -(-7.4 * t11 - -12.2 * t14);
+    // joint C row 2: (P_j − P_i)_y = 0
     gamma[1] = -(-3.7 * t27 - -6.1 * t36);
+    // joint C row 3: (P_j − P_i)_z = 0
     gamma[2] = -(-7.4 * t41 - -12.2 * t46);
+    // joint B row 1: (P_j − P_i)_x = 0
     gamma[3] = -(12.2 * t14 - 4.0 * t51);
+    // joint B row 2: (P_j − P_i)_y = 0
     gamma[4] = -(6.1 * t36 - 4.0 * (t53 - t55));
+    // joint B row 3: (P_j − P_i)_z = 0
     gamma[5] = -(12.2 * t46 - 2.0 * (t65 + t67 - (t69 + t71)));
+    // joint B row 4: a_i · a_j = 0
     gamma[6] = -(t74
         + (1.5014270338455107 * (q4 * q6 - q3 * q5)
             + -1.3212557897840493 * (q5 * q6 + q3 * q4)) * (t29 + t35 - (t31 + t33))
@@ -2674,20 +2825,34 @@ pub fn acceleration_rhs(q: &[f64; N], qd: &[f64; N], t: f64, gamma: &mut [f64; N
                     + 2.0 * (q12 * q13 - q10 * q11)
                         * (1.5014270338455107 * (t80 + t82)
                             + -0.6606278948920247 * (t65 + t71 - (t67 + t69)))))));
+    // joint A row 1: (P_j − P_i)_x = 0
     gamma[7] = 0.0;
+    // joint A row 2: (P_j − P_i)_y = 0
     gamma[8] = 0.0;
+    // joint A row 3: (P_j − P_i)_z = 0
     gamma[9] = 0.0;
+    // joint A row 4: b_i · a_j = 0
     gamma[10] = -(2.0 * t83);
+    // joint A row 5: c_i · a_j = 0
     gamma[11] = -(2.0 * t51);
+    // joint D row 1: (P_j − P_i)_x = 0
     gamma[12] = 7.4 * t11;
+    // joint D row 2: (P_j − P_i)_y = 0
     gamma[13] = 3.7 * t27;
+    // joint D row 3: (P_j − P_i)_z = 0
     gamma[14] = 7.4 * t41;
+    // joint D row 4: b_i · a_j = 0
     gamma[15] = t27;
+    // joint D row 5: c_i · a_j = 0
     gamma[16] = 2.0 * (t38 - t40);
+    // driver motor: e1 cos(s/2) − e0 sin(s/2) = 0, s = 3.14159265 t
     gamma[17] = -(-(t85 + q4 * (2.467401094633506 * t8)) - t85
         - (t86 + (t86 - q3 * (2.467401094633506 * t7))));
+    // body crank normalisation: e0² + e1² + e2² + e3² − 1 = 0
     gamma[18] = -(t67 + (t71 + t78));
+    // body coupler normalisation: e0² + e1² + e2² + e3² − 1 = 0
     gamma[19] = -(t35 + (t31 + (t29 + t33)));
+    // body rocker normalisation: e0² + e1² + e2² + e3² − 1 = 0
     gamma[20] = -(t26 + (t22 + (t20 + t24)));
 }
 
@@ -2695,7 +2860,7 @@ pub fn acceleration_rhs(q: &[f64; N], qd: &[f64; N], t: f64, gamma: &mut [f64; N
 /// ones keep their values).
 pub fn normalize(q: &mut [f64; N]) {
     {
-        let free = 0.0 + q[3] * q[3] + q[4] * q[4] + q[5] * q[5] + q[6] * q[6];
+        let free = q[3] * q[3] + q[4] * q[4] + q[5] * q[5] + q[6] * q[6];
         if free > 0.0 {
             let scale = runtime::math::sqrt(1.0 / free);
             q[3] *= scale;
@@ -2705,7 +2870,7 @@ pub fn normalize(q: &mut [f64; N]) {
         }
     }
     {
-        let free = 0.0 + q[10] * q[10] + q[11] * q[11] + q[12] * q[12] + q[13] * q[13];
+        let free = q[10] * q[10] + q[11] * q[11] + q[12] * q[12] + q[13] * q[13];
         if free > 0.0 {
             let scale = runtime::math::sqrt(1.0 / free);
             q[10] *= scale;
@@ -2715,7 +2880,7 @@ pub fn normalize(q: &mut [f64; N]) {
         }
     }
     {
-        let free = 0.0 + q[17] * q[17] + q[18] * q[18] + q[19] * q[19] + q[20] * q[20];
+        let free = q[17] * q[17] + q[18] * q[18] + q[19] * q[19] + q[20] * q[20];
         if free > 0.0 {
             let scale = runtime::math::sqrt(1.0 / free);
             q[17] *= scale;

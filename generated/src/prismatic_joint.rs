@@ -79,11 +79,17 @@ pub const Q0: [f64; N] = [0.0, 0.0, 1.0, 0.0, 0.0, 0.0];
 /// 23 operations, 0 shared subexpressions.
 pub fn residual(q: &[f64; N], _t: f64, phi: &mut [f64; N]) {
     let [q0, q1, q2, q3, q4, q5] = *q;
+    // joint slide row 1: b_i · a_j = 0
     phi[0] = 2.0 * (q3 * q4 - q2 * q5);
+    // joint slide row 2: c_i · a_j = 0
     phi[1] = -(2.0 * (q4 * q5 + q2 * q3));
+    // joint slide row 3: b_i · (P_j − P_i) = 0
     phi[2] = q0;
+    // joint slide row 4: c_i · (P_j − P_i) = 0
     phi[3] = -q1;
+    // joint slide row 5: r_i · r_j = 0
     phi[4] = 2.0 * (q3 * q5 + q2 * q4);
+    // body slider normalisation: e0² + e1² + e2² + e3² − 1 = 0
     phi[5] = q5 * q5 + (q4 * q4 + (q2 * q2 + q3 * q3)) - 1.0;
 }
 
@@ -99,20 +105,26 @@ pub fn jacobian(q: &[f64; N], _t: f64, jac: &mut [[f64; N]; N]) {
     let t3 = 2.0 * q3;
     let t4 = 2.0 * q2;
     let t5 = -t4;
+    // joint slide row 1: b_i · a_j = 0
     jac[0][2] = t1;
     jac[0][3] = t2;
     jac[0][4] = t3;
     jac[0][5] = t5;
+    // joint slide row 2: c_i · a_j = 0
     jac[1][2] = -t3;
     jac[1][3] = t5;
     jac[1][4] = t1;
     jac[1][5] = -t2;
+    // joint slide row 3: b_i · (P_j − P_i) = 0
     jac[2][0] = 1.0;
+    // joint slide row 4: c_i · (P_j − P_i) = 0
     jac[3][1] = -1.0;
+    // joint slide row 5: r_i · r_j = 0
     jac[4][2] = t2;
     jac[4][3] = t0;
     jac[4][4] = t4;
     jac[4][5] = t3;
+    // body slider normalisation: e0² + e1² + e2² + e3² − 1 = 0
     jac[5][2] = q2 + q2;
     jac[5][3] = q3 + q3;
     jac[5][4] = q4 + q4;
@@ -136,26 +148,38 @@ pub fn residual_jacobian(
     let t3 = 2.0 * q3;
     let t4 = 2.0 * q2;
     let t5 = -t4;
+    // joint slide row 1: b_i · a_j = 0
     phi[0] = 2.0 * (q3 * q4 - q2 * q5);
+    // joint slide row 2: c_i · a_j = 0
     phi[1] = -(2.0 * (q4 * q5 + q2 * q3));
+    // joint slide row 3: b_i · (P_j − P_i) = 0
     phi[2] = q0;
+    // joint slide row 4: c_i · (P_j − P_i) = 0
     phi[3] = -q1;
+    // joint slide row 5: r_i · r_j = 0
     phi[4] = 2.0 * (q3 * q5 + q2 * q4);
+    // body slider normalisation: e0² + e1² + e2² + e3² − 1 = 0
     phi[5] = q5 * q5 + (q4 * q4 + (q2 * q2 + q3 * q3)) - 1.0;
+    // joint slide row 1: b_i · a_j = 0
     jac[0][2] = t1;
     jac[0][3] = t2;
     jac[0][4] = t3;
     jac[0][5] = t5;
+    // joint slide row 2: c_i · a_j = 0
     jac[1][2] = -t3;
     jac[1][3] = t5;
     jac[1][4] = t1;
     jac[1][5] = -t2;
+    // joint slide row 3: b_i · (P_j − P_i) = 0
     jac[2][0] = 1.0;
+    // joint slide row 4: c_i · (P_j − P_i) = 0
     jac[3][1] = -1.0;
+    // joint slide row 5: r_i · r_j = 0
     jac[4][2] = t2;
     jac[4][3] = t0;
     jac[4][4] = t4;
     jac[4][5] = t3;
+    // body slider normalisation: e0² + e1² + e2² + e3² − 1 = 0
     jac[5][2] = q2 + q2;
     jac[5][3] = q3 + q3;
     jac[5][4] = q4 + q4;
@@ -165,7 +189,7 @@ pub fn residual_jacobian(
 /// Φ and the 16 entries of Φ_q that depend on q or t, the others of `jac` left as they were: what the `factor_k` functions read (2 of the 18 structurally non-zero entries are constants, which they know).
 ///
 /// 35 operations, 6 shared subexpressions.
-pub fn residual_jacobian_structural(
+fn residual_jacobian_structural(
     q: &[f64; N],
     _t: f64,
     phi: &mut [f64; N],
@@ -178,24 +202,34 @@ pub fn residual_jacobian_structural(
     let t3 = 2.0 * q3;
     let t4 = 2.0 * q2;
     let t5 = -t4;
+    // joint slide row 1: b_i · a_j = 0
     phi[0] = 2.0 * (q3 * q4 - q2 * q5);
+    // joint slide row 2: c_i · a_j = 0
     phi[1] = -(2.0 * (q4 * q5 + q2 * q3));
+    // joint slide row 3: b_i · (P_j − P_i) = 0
     phi[2] = q0;
+    // joint slide row 4: c_i · (P_j − P_i) = 0
     phi[3] = -q1;
+    // joint slide row 5: r_i · r_j = 0
     phi[4] = 2.0 * (q3 * q5 + q2 * q4);
+    // body slider normalisation: e0² + e1² + e2² + e3² − 1 = 0
     phi[5] = q5 * q5 + (q4 * q4 + (q2 * q2 + q3 * q3)) - 1.0;
+    // joint slide row 1: b_i · a_j = 0
     jac[0][2] = t1;
     jac[0][3] = t2;
     jac[0][4] = t3;
     jac[0][5] = t5;
+    // joint slide row 2: c_i · a_j = 0
     jac[1][2] = -t3;
     jac[1][3] = t5;
     jac[1][4] = t1;
     jac[1][5] = -t2;
+    // joint slide row 5: r_i · r_j = 0
     jac[4][2] = t2;
     jac[4][3] = t0;
     jac[4][4] = t4;
     jac[4][5] = t3;
+    // body slider normalisation: e0² + e1² + e2² + e3² − 1 = 0
     jac[5][2] = q2 + q2;
     jac[5][3] = q3 + q3;
     jac[5][4] = q4 + q4;
@@ -208,7 +242,7 @@ pub fn residual_jacobian_structural(
 ///
 /// Returns the smallest and largest |pivot|, or `None` when a pivot is not finite or a multiplier exceeds [`runtime::lu::MAX_MULTIPLIER`] in magnitude; `jac` is then partly factored and must be evaluated again.
 #[must_use]
-pub fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
+fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     let p2 = jac[5][2];
     let d2 = 1.0 / p2;
     jac[5][2] = d2;
@@ -273,7 +307,7 @@ pub fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
 /// Solves Φ_q x = b in place with the factors [`factor_0`] left in `lu`.
 ///
 /// 29 operations.
-pub fn solve_0(lu: &[[f64; N]; N], b: &mut [f64; N]) {
+fn solve_0(lu: &[[f64; N]; N], b: &mut [f64; N]) {
     let y0 = b[2];
     let y1 = b[3];
     let y2 = b[5];
@@ -298,11 +332,17 @@ pub fn solve_0(lu: &[[f64; N]; N], b: &mut [f64; N]) {
 ///
 /// 0 operations, 0 shared subexpressions.
 pub fn velocity_rhs(_q: &[f64; N], _t: f64, nu: &mut [f64; N]) {
+    // joint slide row 1: b_i · a_j = 0
     nu[0] = 0.0;
+    // joint slide row 2: c_i · a_j = 0
     nu[1] = 0.0;
+    // joint slide row 3: b_i · (P_j − P_i) = 0
     nu[2] = 0.0;
+    // joint slide row 4: c_i · (P_j − P_i) = 0
     nu[3] = 0.0;
+    // joint slide row 5: r_i · r_j = 0
     nu[4] = 0.0;
+    // body slider normalisation: e0² + e1² + e2² + e3² − 1 = 0
     nu[5] = 0.0;
 }
 
@@ -321,11 +361,17 @@ pub fn acceleration_rhs(_q: &[f64; N], qd: &[f64; N], _t: f64, gamma: &mut [f64;
     let t7 = qd4 * qd4;
     let t8 = qd2 * qd2;
     let t9 = qd3 * qd3;
+    // joint slide row 1: b_i · a_j = 0
     gamma[0] = -(2.0 * (t0 + t0 - (t1 + t1)));
+    // joint slide row 2: c_i · a_j = 0
     gamma[1] = 2.0 * (t2 + t2 + (t3 + t3));
+    // joint slide row 3: b_i · (P_j − P_i) = 0
     gamma[2] = 0.0;
+    // joint slide row 4: c_i · (P_j − P_i) = 0
     gamma[3] = 0.0;
+    // joint slide row 5: r_i · r_j = 0
     gamma[4] = -(2.0 * (t4 + t4 + (t5 + t5)));
+    // body slider normalisation: e0² + e1² + e2² + e3² − 1 = 0
     gamma[5] = -(t6 + t6 + (t7 + t7 + (t8 + t8 + (t9 + t9))));
 }
 
@@ -333,7 +379,7 @@ pub fn acceleration_rhs(_q: &[f64; N], qd: &[f64; N], _t: f64, gamma: &mut [f64;
 /// ones keep their values).
 pub fn normalize(q: &mut [f64; N]) {
     {
-        let free = 0.0 + q[2] * q[2] + q[3] * q[3] + q[4] * q[4] + q[5] * q[5];
+        let free = q[2] * q[2] + q[3] * q[3] + q[4] * q[4] + q[5] * q[5];
         if free > 0.0 {
             let scale = runtime::math::sqrt(1.0 / free);
             q[2] *= scale;

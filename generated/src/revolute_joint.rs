@@ -89,12 +89,19 @@ pub fn residual(q: &[f64; N], t: f64, phi: &mut [f64; N]) {
     let t5 = q3 * q6;
     let t6 = f64::from_bits(4602890488355133325) * t;
     let (t7, t8) = runtime::math::sin_cos(t6);
+    // joint hinge row 1: (P_j − P_i)_x = 0
     phi[0] = q0 - 2.0 * (t4 - t5);
+    // joint hinge row 2: (P_j − P_i)_y = 0
     phi[1] = q1 - (t0 + t2 - (t1 + t3));
+    // joint hinge row 3: (P_j − P_i)_z = 0
     phi[2] = q2 - 2.0 * (q5 * q6 + q3 * q4);
+    // joint hinge row 4: b_i · a_j = 0
     phi[3] = -(2.0 * (t4 + t5));
+    // joint hinge row 5: c_i · a_j = 0
     phi[4] = -(2.0 * (q4 * q6 - q3 * q5));
+    // driver drive_rx: e1 cos(s/2) − e0 sin(s/2) = 0, s = 1.047 t
     phi[5] = q4 * t8 - q3 * t7;
+    // body bar normalisation: e0² + e1² + e2² + e3² − 1 = 0
     phi[6] = t3 + (t2 + (t0 + t1)) - 1.0;
 }
 
@@ -117,31 +124,38 @@ pub fn jacobian(q: &[f64; N], t: f64, jac: &mut [[f64; N]; N]) {
     let t11 = q4 + q4;
     let t12 = q5 + q5;
     let t13 = q6 + q6;
+    // joint hinge row 1: (P_j − P_i)_x = 0
     jac[0][0] = 1.0;
     jac[0][3] = t3;
     jac[0][4] = t6;
     jac[0][5] = t7;
     jac[0][6] = t8;
+    // joint hinge row 2: (P_j − P_i)_y = 0
     jac[1][1] = 1.0;
     jac[1][3] = -t10;
     jac[1][4] = t11;
     jac[1][5] = -t12;
     jac[1][6] = t13;
+    // joint hinge row 3: (P_j − P_i)_z = 0
     jac[2][2] = 1.0;
     jac[2][3] = t7;
     jac[2][4] = t9;
     jac[2][5] = t4;
     jac[2][6] = t6;
+    // joint hinge row 4: b_i · a_j = 0
     jac[3][3] = t4;
     jac[3][4] = t6;
     jac[3][5] = t7;
     jac[3][6] = t9;
+    // joint hinge row 5: c_i · a_j = 0
     jac[4][3] = t5;
     jac[4][4] = t4;
     jac[4][5] = t8;
     jac[4][6] = t7;
+    // driver drive_rx: e1 cos(s/2) − e0 sin(s/2) = 0, s = 1.047 t
     jac[5][3] = -t1;
     jac[5][4] = t2;
+    // body bar normalisation: e0² + e1² + e2² + e3² − 1 = 0
     jac[6][3] = t10;
     jac[6][4] = t11;
     jac[6][5] = t12;
@@ -178,38 +192,52 @@ pub fn residual_jacobian(
     let t17 = q4 + q4;
     let t18 = q5 + q5;
     let t19 = q6 + q6;
+    // joint hinge row 1: (P_j − P_i)_x = 0
     phi[0] = q0 - 2.0 * (t4 - t5);
+    // joint hinge row 2: (P_j − P_i)_y = 0
     phi[1] = q1 - (t0 + t2 - (t1 + t3));
+    // joint hinge row 3: (P_j − P_i)_z = 0
     phi[2] = q2 - 2.0 * (q5 * q6 + q3 * q4);
+    // joint hinge row 4: b_i · a_j = 0
     phi[3] = -(2.0 * (t4 + t5));
+    // joint hinge row 5: c_i · a_j = 0
     phi[4] = -(2.0 * (q4 * q6 - q3 * q5));
+    // driver drive_rx: e1 cos(s/2) − e0 sin(s/2) = 0, s = 1.047 t
     phi[5] = q4 * t8 - q3 * t7;
+    // body bar normalisation: e0² + e1² + e2² + e3² − 1 = 0
     phi[6] = t3 + (t2 + (t0 + t1)) - 1.0;
+    // joint hinge row 1: (P_j − P_i)_x = 0
     jac[0][0] = 1.0;
     jac[0][3] = t9;
     jac[0][4] = t12;
     jac[0][5] = t13;
     jac[0][6] = t14;
+    // joint hinge row 2: (P_j − P_i)_y = 0
     jac[1][1] = 1.0;
     jac[1][3] = -t16;
     jac[1][4] = t17;
     jac[1][5] = -t18;
     jac[1][6] = t19;
+    // joint hinge row 3: (P_j − P_i)_z = 0
     jac[2][2] = 1.0;
     jac[2][3] = t13;
     jac[2][4] = t15;
     jac[2][5] = t10;
     jac[2][6] = t12;
+    // joint hinge row 4: b_i · a_j = 0
     jac[3][3] = t10;
     jac[3][4] = t12;
     jac[3][5] = t13;
     jac[3][6] = t15;
+    // joint hinge row 5: c_i · a_j = 0
     jac[4][3] = t11;
     jac[4][4] = t10;
     jac[4][5] = t14;
     jac[4][6] = t13;
+    // driver drive_rx: e1 cos(s/2) − e0 sin(s/2) = 0, s = 1.047 t
     jac[5][3] = -t7;
     jac[5][4] = t8;
+    // body bar normalisation: e0² + e1² + e2² + e3² − 1 = 0
     jac[6][3] = t16;
     jac[6][4] = t17;
     jac[6][5] = t18;
@@ -219,7 +247,7 @@ pub fn residual_jacobian(
 /// Φ and the 26 entries of Φ_q that depend on q or t, the others of `jac` left as they were: what the `factor_k` functions read (3 of the 29 structurally non-zero entries are constants, which they know).
 ///
 /// 58 operations, 20 shared subexpressions.
-pub fn residual_jacobian_structural(
+fn residual_jacobian_structural(
     q: &[f64; N],
     t: f64,
     phi: &mut [f64; N],
@@ -245,35 +273,49 @@ pub fn residual_jacobian_structural(
     let t17 = q4 + q4;
     let t18 = q5 + q5;
     let t19 = q6 + q6;
+    // joint hinge row 1: (P_j − P_i)_x = 0
     phi[0] = q0 - 2.0 * (t4 - t5);
+    // joint hinge row 2: (P_j − P_i)_y = 0
     phi[1] = q1 - (t0 + t2 - (t1 + t3));
+    // joint hinge row 3: (P_j − P_i)_z = 0
     phi[2] = q2 - 2.0 * (q5 * q6 + q3 * q4);
+    // joint hinge row 4: b_i · a_j = 0
     phi[3] = -(2.0 * (t4 + t5));
+    // joint hinge row 5: c_i · a_j = 0
     phi[4] = -(2.0 * (q4 * q6 - q3 * q5));
+    // driver drive_rx: e1 cos(s/2) − e0 sin(s/2) = 0, s = 1.047 t
     phi[5] = q4 * t8 - q3 * t7;
+    // body bar normalisation: e0² + e1² + e2² + e3² − 1 = 0
     phi[6] = t3 + (t2 + (t0 + t1)) - 1.0;
+    // joint hinge row 1: (P_j − P_i)_x = 0
     jac[0][3] = t9;
     jac[0][4] = t12;
     jac[0][5] = t13;
     jac[0][6] = t14;
+    // joint hinge row 2: (P_j − P_i)_y = 0
     jac[1][3] = -t16;
     jac[1][4] = t17;
     jac[1][5] = -t18;
     jac[1][6] = t19;
+    // joint hinge row 3: (P_j − P_i)_z = 0
     jac[2][3] = t13;
     jac[2][4] = t15;
     jac[2][5] = t10;
     jac[2][6] = t12;
+    // joint hinge row 4: b_i · a_j = 0
     jac[3][3] = t10;
     jac[3][4] = t12;
     jac[3][5] = t13;
     jac[3][6] = t15;
+    // joint hinge row 5: c_i · a_j = 0
     jac[4][3] = t11;
     jac[4][4] = t10;
     jac[4][5] = t14;
     jac[4][6] = t13;
+    // driver drive_rx: e1 cos(s/2) − e0 sin(s/2) = 0, s = 1.047 t
     jac[5][3] = -t7;
     jac[5][4] = t8;
+    // body bar normalisation: e0² + e1² + e2² + e3² − 1 = 0
     jac[6][3] = t16;
     jac[6][4] = t17;
     jac[6][5] = t18;
@@ -286,7 +328,7 @@ pub fn residual_jacobian_structural(
 ///
 /// Returns the smallest and largest |pivot|, or `None` when a pivot is not finite or a multiplier exceeds [`runtime::lu::MAX_MULTIPLIER`] in magnitude; `jac` is then partly factored and must be evaluated again.
 #[must_use]
-pub fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
+fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     let p3 = jac[5][4];
     let d3 = 1.0 / p3;
     jac[5][4] = d3;
@@ -347,7 +389,7 @@ pub fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
 /// Solves Φ_q x = b in place with the factors [`factor_0`] left in `lu`.
 ///
 /// 48 operations.
-pub fn solve_0(lu: &[[f64; N]; N], b: &mut [f64; N]) {
+fn solve_0(lu: &[[f64; N]; N], b: &mut [f64; N]) {
     let y0 = b[0];
     let y1 = b[1];
     let y2 = b[2];
@@ -377,7 +419,7 @@ pub fn solve_0(lu: &[[f64; N]; N], b: &mut [f64; N]) {
 ///
 /// Returns the smallest and largest |pivot|, or `None` when a pivot is not finite or a multiplier exceeds [`runtime::lu::MAX_MULTIPLIER`] in magnitude; `jac` is then partly factored and must be evaluated again.
 #[must_use]
-pub fn factor_1(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
+fn factor_1(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     let p3 = jac[5][3];
     let d3 = 1.0 / p3;
     jac[5][3] = d3;
@@ -438,7 +480,7 @@ pub fn factor_1(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
 /// Solves Φ_q x = b in place with the factors [`factor_1`] left in `lu`.
 ///
 /// 48 operations.
-pub fn solve_1(lu: &[[f64; N]; N], b: &mut [f64; N]) {
+fn solve_1(lu: &[[f64; N]; N], b: &mut [f64; N]) {
     let y0 = b[0];
     let y1 = b[1];
     let y2 = b[2];
@@ -469,13 +511,20 @@ pub fn velocity_rhs(q: &[f64; N], t: f64, nu: &mut [f64; N]) {
     let [_q0, _q1, _q2, q3, q4, _q5, _q6] = *q;
     let t0 = f64::from_bits(4602890488355133325) * t;
     let (t1, t2) = runtime::math::sin_cos(t0);
+    // joint hinge row 1: (P_j − P_i)_x = 0
     nu[0] = 0.0;
+    // joint hinge row 2: (P_j − P_i)_y = 0
     nu[1] = 0.0;
+    // joint hinge row 3: (P_j − P_i)_z = 0
     nu[2] = 0.0;
+    // joint hinge row 4: b_i · a_j = 0
     nu[3] = 0.0;
+    // joint hinge row 5: c_i · a_j = 0
     nu[4] = 0.0;
+    // driver drive_rx: e1 cos(s/2) − e0 sin(s/2) = 0, s = 1.047 t
     nu[5] = -(-(q4 * (f64::from_bits(4602890488355133325) * t1))
         - q3 * (f64::from_bits(4602890488355133325) * t2));
+    // body bar normalisation: e0² + e1² + e2² + e3² − 1 = 0
     nu[6] = 0.0;
 }
 
@@ -505,13 +554,20 @@ pub fn acceleration_rhs(q: &[f64; N], qd: &[f64; N], t: f64, gamma: &mut [f64; N
     let t18 = qd5 * qd3;
     let t19 = qd4 * (f64::from_bits(4602890488355133325) * t1);
     let t20 = qd3 * (f64::from_bits(4602890488355133325) * t2);
+    // joint hinge row 1: (P_j − P_i)_x = 0
     gamma[0] = 2.0 * (t4 - t6);
+    // joint hinge row 2: (P_j − P_i)_y = 0
     gamma[1] = t8 + t10 - (t12 + t14);
+    // joint hinge row 3: (P_j − P_i)_z = 0
     gamma[2] = 2.0 * (t15 + t15 + (t16 + t16));
+    // joint hinge row 4: b_i · a_j = 0
     gamma[3] = 2.0 * (t4 + t6);
+    // joint hinge row 5: c_i · a_j = 0
     gamma[4] = 2.0 * (t17 + t17 - (t18 + t18));
+    // driver drive_rx: e1 cos(s/2) − e0 sin(s/2) = 0, s = 1.047 t
     gamma[5] = -(-(t19 + q4 * (0.27405224999999994 * t2)) - t19
         - (t20 + (t20 - q3 * (0.27405224999999994 * t1))));
+    // body bar normalisation: e0² + e1² + e2² + e3² − 1 = 0
     gamma[6] = -(t14 + (t10 + (t8 + t12)));
 }
 
@@ -519,7 +575,7 @@ pub fn acceleration_rhs(q: &[f64; N], qd: &[f64; N], t: f64, gamma: &mut [f64; N
 /// ones keep their values).
 pub fn normalize(q: &mut [f64; N]) {
     {
-        let free = 0.0 + q[3] * q[3] + q[4] * q[4] + q[5] * q[5] + q[6] * q[6];
+        let free = q[3] * q[3] + q[4] * q[4] + q[5] * q[5] + q[6] * q[6];
         if free > 0.0 {
             let scale = runtime::math::sqrt(1.0 / free);
             q[3] *= scale;

@@ -67,7 +67,9 @@ pub fn residual(q: &[f64; N], t: f64, phi: &mut [f64; N]) {
     let [q0, q1] = *q;
     let t0 = f64::from_bits(4602890488355133325) * t;
     let (t1, t2) = runtime::math::sin_cos(t0);
+    // driver drive_ry: e2 cos(s/2) − e0 sin(s/2) = 0, s = 1.047 t
     phi[0] = q1 * t2 - t1 * q0;
+    // body block normalisation: e0² + e1² + e2² + e3² − 1 = 0
     phi[1] = q0 * q0 + q1 * q1 - 1.0;
 }
 
@@ -79,8 +81,10 @@ pub fn jacobian(q: &[f64; N], t: f64, jac: &mut [[f64; N]; N]) {
     let [q0, q1] = *q;
     let t0 = f64::from_bits(4602890488355133325) * t;
     let (t1, t2) = runtime::math::sin_cos(t0);
+    // driver drive_ry: e2 cos(s/2) − e0 sin(s/2) = 0, s = 1.047 t
     jac[0][0] = -t1;
     jac[0][1] = t2;
+    // body block normalisation: e0² + e1² + e2² + e3² − 1 = 0
     jac[1][0] = q0 + q0;
     jac[1][1] = q1 + q1;
 }
@@ -98,10 +102,14 @@ pub fn residual_jacobian(
     let [q0, q1] = *q;
     let t0 = f64::from_bits(4602890488355133325) * t;
     let (t1, t2) = runtime::math::sin_cos(t0);
+    // driver drive_ry: e2 cos(s/2) − e0 sin(s/2) = 0, s = 1.047 t
     phi[0] = q1 * t2 - t1 * q0;
+    // body block normalisation: e0² + e1² + e2² + e3² − 1 = 0
     phi[1] = q0 * q0 + q1 * q1 - 1.0;
+    // driver drive_ry: e2 cos(s/2) − e0 sin(s/2) = 0, s = 1.047 t
     jac[0][0] = -t1;
     jac[0][1] = t2;
+    // body block normalisation: e0² + e1² + e2² + e3² − 1 = 0
     jac[1][0] = q0 + q0;
     jac[1][1] = q1 + q1;
 }
@@ -109,7 +117,7 @@ pub fn residual_jacobian(
 /// Φ and the 4 entries of Φ_q that depend on q or t, the others of `jac` left as they were: what the `factor_k` functions read (0 of the 4 structurally non-zero entries are constants, which they know).
 ///
 /// 14 operations, 3 shared subexpressions.
-pub fn residual_jacobian_structural(
+fn residual_jacobian_structural(
     q: &[f64; N],
     t: f64,
     phi: &mut [f64; N],
@@ -118,10 +126,14 @@ pub fn residual_jacobian_structural(
     let [q0, q1] = *q;
     let t0 = f64::from_bits(4602890488355133325) * t;
     let (t1, t2) = runtime::math::sin_cos(t0);
+    // driver drive_ry: e2 cos(s/2) − e0 sin(s/2) = 0, s = 1.047 t
     phi[0] = q1 * t2 - t1 * q0;
+    // body block normalisation: e0² + e1² + e2² + e3² − 1 = 0
     phi[1] = q0 * q0 + q1 * q1 - 1.0;
+    // driver drive_ry: e2 cos(s/2) − e0 sin(s/2) = 0, s = 1.047 t
     jac[0][0] = -t1;
     jac[0][1] = t2;
+    // body block normalisation: e0² + e1² + e2² + e3² − 1 = 0
     jac[1][0] = q0 + q0;
     jac[1][1] = q1 + q1;
 }
@@ -132,7 +144,7 @@ pub fn residual_jacobian_structural(
 ///
 /// Returns the smallest and largest |pivot|, or `None` when a pivot is not finite or a multiplier exceeds [`runtime::lu::MAX_MULTIPLIER`] in magnitude; `jac` is then partly factored and must be evaluated again.
 #[must_use]
-pub fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
+fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     let p0 = jac[1][0];
     let d0 = 1.0 / p0;
     jac[1][0] = d0;
@@ -160,7 +172,7 @@ pub fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
 /// Solves Φ_q x = b in place with the factors [`factor_0`] left in `lu`.
 ///
 /// 6 operations.
-pub fn solve_0(lu: &[[f64; N]; N], b: &mut [f64; N]) {
+fn solve_0(lu: &[[f64; N]; N], b: &mut [f64; N]) {
     let y0 = b[1];
     let y1 = b[0] - lu[0][0] * y0;
     let x1 = y1 * lu[0][1];
@@ -175,7 +187,7 @@ pub fn solve_0(lu: &[[f64; N]; N], b: &mut [f64; N]) {
 ///
 /// Returns the smallest and largest |pivot|, or `None` when a pivot is not finite or a multiplier exceeds [`runtime::lu::MAX_MULTIPLIER`] in magnitude; `jac` is then partly factored and must be evaluated again.
 #[must_use]
-pub fn factor_1(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
+fn factor_1(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     let p0 = jac[0][0];
     let d0 = 1.0 / p0;
     jac[0][0] = d0;
@@ -203,7 +215,7 @@ pub fn factor_1(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
 /// Solves Φ_q x = b in place with the factors [`factor_1`] left in `lu`.
 ///
 /// 6 operations.
-pub fn solve_1(lu: &[[f64; N]; N], b: &mut [f64; N]) {
+fn solve_1(lu: &[[f64; N]; N], b: &mut [f64; N]) {
     let y0 = b[0];
     let y1 = b[1] - lu[1][0] * y0;
     let x1 = y1 * lu[1][1];
@@ -219,8 +231,10 @@ pub fn velocity_rhs(q: &[f64; N], t: f64, nu: &mut [f64; N]) {
     let [q0, q1] = *q;
     let t0 = f64::from_bits(4602890488355133325) * t;
     let (t1, t2) = runtime::math::sin_cos(t0);
+    // driver drive_ry: e2 cos(s/2) − e0 sin(s/2) = 0, s = 1.047 t
     nu[0] = -(-(q1 * (f64::from_bits(4602890488355133325) * t1))
         - q0 * (f64::from_bits(4602890488355133325) * t2));
+    // body block normalisation: e0² + e1² + e2² + e3² − 1 = 0
     nu[1] = 0.0;
 }
 
@@ -236,8 +250,10 @@ pub fn acceleration_rhs(q: &[f64; N], qd: &[f64; N], t: f64, gamma: &mut [f64; N
     let t4 = f64::from_bits(4602890488355133325) * t2 * qd0;
     let t5 = qd0 * qd0;
     let t6 = qd1 * qd1;
+    // driver drive_ry: e2 cos(s/2) − e0 sin(s/2) = 0, s = 1.047 t
     gamma[0] = -(-(t3 + q1 * (0.27405224999999994 * t2)) - t3
         - (t4 + (t4 - q0 * (0.27405224999999994 * t1))));
+    // body block normalisation: e0² + e1² + e2² + e3² − 1 = 0
     gamma[1] = -(t5 + t5 + (t6 + t6));
 }
 
@@ -245,7 +261,7 @@ pub fn acceleration_rhs(q: &[f64; N], qd: &[f64; N], t: f64, gamma: &mut [f64; N
 /// ones keep their values).
 pub fn normalize(q: &mut [f64; N]) {
     {
-        let free = 0.0 + q[0] * q[0] + q[1] * q[1];
+        let free = q[0] * q[0] + q[1] * q[1];
         if free > 0.0 {
             let scale = runtime::math::sqrt(1.0 / free);
             q[0] *= scale;

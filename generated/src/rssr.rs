@@ -155,30 +155,50 @@ pub fn residual(q: &[f64; N], t: f64, phi: &mut [f64; N]) {
     let t23 = q16 * q17;
     let t24 = 73.3 * t;
     let (t25, t26) = runtime::math::sin_cos(t24);
+    // joint A row 1: (P_j − P_i)_x = 0
     phi[0] = q7 - (0.13134 * t4 + 0.2 * (q4 * q6 + q3 * q5) + q0);
+    // joint A row 2: (P_j − P_i)_y = 0
     phi[1] = q8 - (0.06567 * (t0 + t2 - (t1 + t3)) + 0.2 * (t5 - t6) + q1);
+    // joint A row 3: (P_j − P_i)_z = 0
     phi[2] = q9 - (0.13134 * t7 + 0.1 * (t0 + t3 - (t1 + t2)) + q2);
+    // joint B row 1: (P_j − P_i)_x = 0
     phi[3] = 0.2 * t21 + (0.0475 * (t15 - (t13 + t14)) + -0.03714 * t18) + q13
         - (q7 - 0.9624 * (q10 * q12));
+    // joint B row 2: (P_j − P_i)_y = 0
     phi[4] = 0.2 * (t22 - t23)
         + (0.095 * (t16 + t17) + -0.01857 * (t11 + t13 - (t12 + t14))) + q14
         - (q8 + 0.4812 * (t8 - (t9 + t10)));
+    // joint B row 3: (P_j − P_i)_z = 0
     phi[5] = 0.1 * (t11 + t14 - (t12 + t13))
         + (0.095 * (t19 - t20) + -0.03714 * (t22 + t23)) + q15
         - (q9 + 0.9624 * (q10 * q11));
+    // joint O2 row 1: (P_j − P_i)_x = 0
     phi[6] = q0;
+    // joint O2 row 2: (P_j − P_i)_y = 0
     phi[7] = 0.06567 + q1;
+    // joint O2 row 3: (P_j − P_i)_z = 0
     phi[8] = q2;
+    // joint O2 row 4: b_i · a_j = 0
     phi[9] = 2.0 * t4;
+    // joint O2 row 5: c_i · a_j = 0
     phi[10] = 2.0 * t7;
+    // joint O4 row 1: (P_j − P_i)_x = 0
     phi[11] = -0.0475 - q13;
+    // joint O4 row 2: (P_j − P_i)_y = 0
     phi[12] = 0.49977 - q14;
+    // joint O4 row 3: (P_j − P_i)_z = 0
     phi[13] = -q15;
+    // joint O4 row 4: b_i · a_j = 0
     phi[14] = -(2.0 * t18);
+    // joint O4 row 5: c_i · a_j = 0
     phi[15] = -(2.0 * t21);
+    // driver motor: e2 cos(s/2) − e0 sin(s/2) = 0, s = 146.6 t
     phi[16] = q5 * t26 - q3 * t25;
+    // body crank normalisation: e0² + e1² + e2² + e3² − 1 = 0
     phi[17] = t3 + (t2 + (t0 + t1)) - 1.0;
+    // body coupler normalisation: e0² + e1² + e2² + e3² − 1 = 0
     phi[18] = t10 + (t8 + t9) - 1.0;
+    // body rocker normalisation: e0² + e1² + e2² + e3² − 1 = 0
     phi[19] = t14 + (t13 + t15) - 1.0;
 }
 
@@ -231,24 +251,28 @@ pub fn jacobian(q: &[f64; N], t: f64, jac: &mut [[f64; N]; N]) {
     let t40 = -(2.0 * q18);
     let t41 = -(2.0 * q17);
     let t42 = 2.0 * q16;
+    // joint A row 1: (P_j − P_i)_x = 0
     jac[0][0] = -1.0;
     jac[0][3] = -(t4 - t3);
     jac[0][4] = -(t5 + t6);
     jac[0][5] = -(t7 + t8);
     jac[0][6] = -(t10 - t9);
     jac[0][7] = 1.0;
+    // joint A row 2: (P_j − P_i)_y = 0
     jac[1][1] = -1.0;
     jac[1][3] = -(0.06567 * t11 - t10);
     jac[1][4] = -(-(0.06567 * t12) - t8);
     jac[1][5] = -(t6 + 0.06567 * t13);
     jac[1][6] = -(t4 - 0.06567 * t14);
     jac[1][8] = 1.0;
+    // joint A row 3: (P_j − P_i)_z = 0
     jac[2][2] = -1.0;
     jac[2][3] = -(t7 + 0.1 * t11);
     jac[2][4] = -(t9 - 0.1 * t12);
     jac[2][5] = -(t3 - 0.1 * t13);
     jac[2][6] = -(t5 + 0.1 * t14);
     jac[2][9] = 1.0;
+    // joint B row 1: (P_j − P_i)_x = 0
     jac[3][7] = -1.0;
     jac[3][10] = 0.9624 * q12;
     jac[3][12] = t15;
@@ -257,6 +281,7 @@ pub fn jacobian(q: &[f64; N], t: f64, jac: &mut [[f64; N]; N]) {
     jac[3][17] = t19 + (0.0475 * t20 + t21);
     jac[3][18] = t22 + (t24 - 0.0475 * t23);
     jac[3][19] = t25 + (-(0.0475 * t26) - t27);
+    // joint B row 2: (P_j − P_i)_y = 0
     jac[4][8] = -1.0;
     jac[4][10] = -(0.4812 * t28);
     jac[4][11] = 0.4812 * t29;
@@ -266,6 +291,7 @@ pub fn jacobian(q: &[f64; N], t: f64, jac: &mut [[f64; N]; N]) {
     jac[4][17] = t32 - -0.01857 * t20 - t22;
     jac[4][18] = t19 + (t33 + -0.01857 * t23);
     jac[4][19] = t16 + (t34 - -0.01857 * t26);
+    // joint B row 3: (P_j − P_i)_z = 0
     jac[5][9] = -1.0;
     jac[5][10] = -(0.9624 * q11);
     jac[5][11] = -t15;
@@ -274,37 +300,51 @@ pub fn jacobian(q: &[f64; N], t: f64, jac: &mut [[f64; N]; N]) {
     jac[5][17] = t27 + t31 - 0.1 * t20;
     jac[5][18] = t18 - t34 - 0.1 * t23;
     jac[5][19] = 0.1 * t26 + (t21 + t33);
+    // joint O2 row 1: (P_j − P_i)_x = 0
     jac[6][0] = 1.0;
+    // joint O2 row 2: (P_j − P_i)_y = 0
     jac[7][1] = 1.0;
+    // joint O2 row 3: (P_j − P_i)_z = 0
     jac[8][2] = 1.0;
+    // joint O2 row 4: b_i · a_j = 0
     jac[9][3] = -t35;
     jac[9][4] = t36;
     jac[9][5] = t37;
     jac[9][6] = -t38;
+    // joint O2 row 5: c_i · a_j = 0
     jac[10][3] = t37;
     jac[10][4] = t38;
     jac[10][5] = t35;
     jac[10][6] = t36;
+    // joint O4 row 1: (P_j − P_i)_x = 0
     jac[11][13] = -1.0;
+    // joint O4 row 2: (P_j − P_i)_y = 0
     jac[12][14] = -1.0;
+    // joint O4 row 3: (P_j − P_i)_z = 0
     jac[13][15] = -1.0;
+    // joint O4 row 4: b_i · a_j = 0
     jac[14][16] = t39;
     jac[14][17] = t40;
     jac[14][18] = t41;
     jac[14][19] = t42;
+    // joint O4 row 5: c_i · a_j = 0
     jac[15][16] = t40;
     jac[15][17] = -t39;
     jac[15][18] = -t42;
     jac[15][19] = t41;
+    // driver motor: e2 cos(s/2) − e0 sin(s/2) = 0, s = 146.6 t
     jac[16][3] = -t1;
     jac[16][5] = t2;
+    // body crank normalisation: e0² + e1² + e2² + e3² − 1 = 0
     jac[17][3] = t11;
     jac[17][4] = t12;
     jac[17][5] = t13;
     jac[17][6] = t14;
+    // body coupler normalisation: e0² + e1² + e2² + e3² − 1 = 0
     jac[18][10] = t28;
     jac[18][11] = t29;
     jac[18][12] = t30;
+    // body rocker normalisation: e0² + e1² + e2² + e3² − 1 = 0
     jac[19][16] = t17;
     jac[19][17] = t20;
     jac[19][18] = t23;
@@ -389,49 +429,73 @@ pub fn residual_jacobian(
     let t64 = -(2.0 * q18);
     let t65 = -(2.0 * q17);
     let t66 = 2.0 * q16;
+    // joint A row 1: (P_j − P_i)_x = 0
     phi[0] = q7 - (0.13134 * t4 + 0.2 * (q4 * q6 + q3 * q5) + q0);
+    // joint A row 2: (P_j − P_i)_y = 0
     phi[1] = q8 - (0.06567 * (t0 + t2 - (t1 + t3)) + 0.2 * (t5 - t6) + q1);
+    // joint A row 3: (P_j − P_i)_z = 0
     phi[2] = q9 - (0.13134 * t7 + 0.1 * (t0 + t3 - (t1 + t2)) + q2);
+    // joint B row 1: (P_j − P_i)_x = 0
     phi[3] = 0.2 * t21 + (0.0475 * (t15 - (t13 + t14)) + -0.03714 * t18) + q13
         - (q7 - 0.9624 * (q10 * q12));
+    // joint B row 2: (P_j − P_i)_y = 0
     phi[4] = 0.2 * (t22 - t23)
         + (0.095 * (t16 + t17) + -0.01857 * (t11 + t13 - (t12 + t14))) + q14
         - (q8 + 0.4812 * (t8 - (t9 + t10)));
+    // joint B row 3: (P_j − P_i)_z = 0
     phi[5] = 0.1 * (t11 + t14 - (t12 + t13))
         + (0.095 * (t19 - t20) + -0.03714 * (t22 + t23)) + q15
         - (q9 + 0.9624 * (q10 * q11));
+    // joint O2 row 1: (P_j − P_i)_x = 0
     phi[6] = q0;
+    // joint O2 row 2: (P_j − P_i)_y = 0
     phi[7] = 0.06567 + q1;
+    // joint O2 row 3: (P_j − P_i)_z = 0
     phi[8] = q2;
+    // joint O2 row 4: b_i · a_j = 0
     phi[9] = 2.0 * t4;
+    // joint O2 row 5: c_i · a_j = 0
     phi[10] = 2.0 * t7;
+    // joint O4 row 1: (P_j − P_i)_x = 0
     phi[11] = -0.0475 - q13;
+    // joint O4 row 2: (P_j − P_i)_y = 0
     phi[12] = 0.49977 - q14;
+    // joint O4 row 3: (P_j − P_i)_z = 0
     phi[13] = -q15;
+    // joint O4 row 4: b_i · a_j = 0
     phi[14] = -(2.0 * t18);
+    // joint O4 row 5: c_i · a_j = 0
     phi[15] = -(2.0 * t21);
+    // driver motor: e2 cos(s/2) − e0 sin(s/2) = 0, s = 146.6 t
     phi[16] = q5 * t26 - q3 * t25;
+    // body crank normalisation: e0² + e1² + e2² + e3² − 1 = 0
     phi[17] = t3 + (t2 + (t0 + t1)) - 1.0;
+    // body coupler normalisation: e0² + e1² + e2² + e3² − 1 = 0
     phi[18] = t10 + (t8 + t9) - 1.0;
+    // body rocker normalisation: e0² + e1² + e2² + e3² − 1 = 0
     phi[19] = t14 + (t13 + t15) - 1.0;
+    // joint A row 1: (P_j − P_i)_x = 0
     jac[0][0] = -1.0;
     jac[0][3] = -(t28 - t27);
     jac[0][4] = -(t29 + t30);
     jac[0][5] = -(t31 + t32);
     jac[0][6] = -(t34 - t33);
     jac[0][7] = 1.0;
+    // joint A row 2: (P_j − P_i)_y = 0
     jac[1][1] = -1.0;
     jac[1][3] = -(0.06567 * t35 - t34);
     jac[1][4] = -(-(0.06567 * t36) - t32);
     jac[1][5] = -(t30 + 0.06567 * t37);
     jac[1][6] = -(t28 - 0.06567 * t38);
     jac[1][8] = 1.0;
+    // joint A row 3: (P_j − P_i)_z = 0
     jac[2][2] = -1.0;
     jac[2][3] = -(t31 + 0.1 * t35);
     jac[2][4] = -(t33 - 0.1 * t36);
     jac[2][5] = -(t27 - 0.1 * t37);
     jac[2][6] = -(t29 + 0.1 * t38);
     jac[2][9] = 1.0;
+    // joint B row 1: (P_j − P_i)_x = 0
     jac[3][7] = -1.0;
     jac[3][10] = 0.9624 * q12;
     jac[3][12] = t39;
@@ -440,6 +504,7 @@ pub fn residual_jacobian(
     jac[3][17] = t43 + (0.0475 * t44 + t45);
     jac[3][18] = t46 + (t48 - 0.0475 * t47);
     jac[3][19] = t49 + (-(0.0475 * t50) - t51);
+    // joint B row 2: (P_j − P_i)_y = 0
     jac[4][8] = -1.0;
     jac[4][10] = -(0.4812 * t52);
     jac[4][11] = 0.4812 * t53;
@@ -449,6 +514,7 @@ pub fn residual_jacobian(
     jac[4][17] = t56 - -0.01857 * t44 - t46;
     jac[4][18] = t43 + (t57 + -0.01857 * t47);
     jac[4][19] = t40 + (t58 - -0.01857 * t50);
+    // joint B row 3: (P_j − P_i)_z = 0
     jac[5][9] = -1.0;
     jac[5][10] = -(0.9624 * q11);
     jac[5][11] = -t39;
@@ -457,37 +523,51 @@ pub fn residual_jacobian(
     jac[5][17] = t51 + t55 - 0.1 * t44;
     jac[5][18] = t42 - t58 - 0.1 * t47;
     jac[5][19] = 0.1 * t50 + (t45 + t57);
+    // joint O2 row 1: (P_j − P_i)_x = 0
     jac[6][0] = 1.0;
+    // joint O2 row 2: (P_j − P_i)_y = 0
     jac[7][1] = 1.0;
+    // joint O2 row 3: (P_j − P_i)_z = 0
     jac[8][2] = 1.0;
+    // joint O2 row 4: b_i · a_j = 0
     jac[9][3] = -t59;
     jac[9][4] = t60;
     jac[9][5] = t61;
     jac[9][6] = -t62;
+    // joint O2 row 5: c_i · a_j = 0
     jac[10][3] = t61;
     jac[10][4] = t62;
     jac[10][5] = t59;
     jac[10][6] = t60;
+    // joint O4 row 1: (P_j − P_i)_x = 0
     jac[11][13] = -1.0;
+    // joint O4 row 2: (P_j − P_i)_y = 0
     jac[12][14] = -1.0;
+    // joint O4 row 3: (P_j − P_i)_z = 0
     jac[13][15] = -1.0;
+    // joint O4 row 4: b_i · a_j = 0
     jac[14][16] = t63;
     jac[14][17] = t64;
     jac[14][18] = t65;
     jac[14][19] = t66;
+    // joint O4 row 5: c_i · a_j = 0
     jac[15][16] = t64;
     jac[15][17] = -t63;
     jac[15][18] = -t66;
     jac[15][19] = t65;
+    // driver motor: e2 cos(s/2) − e0 sin(s/2) = 0, s = 146.6 t
     jac[16][3] = -t25;
     jac[16][5] = t26;
+    // body crank normalisation: e0² + e1² + e2² + e3² − 1 = 0
     jac[17][3] = t35;
     jac[17][4] = t36;
     jac[17][5] = t37;
     jac[17][6] = t38;
+    // body coupler normalisation: e0² + e1² + e2² + e3² − 1 = 0
     jac[18][10] = t52;
     jac[18][11] = t53;
     jac[18][12] = t54;
+    // body rocker normalisation: e0² + e1² + e2² + e3² − 1 = 0
     jac[19][16] = t41;
     jac[19][17] = t44;
     jac[19][18] = t47;
@@ -497,7 +577,7 @@ pub fn residual_jacobian(
 /// Φ and the 60 entries of Φ_q that depend on q or t, the others of `jac` left as they were: what the `factor_k` functions read (18 of the 78 structurally non-zero entries are constants, which they know).
 ///
 /// 284 operations, 67 shared subexpressions.
-pub fn residual_jacobian_structural(
+fn residual_jacobian_structural(
     q: &[f64; N],
     t: f64,
     phi: &mut [f64; N],
@@ -571,49 +651,74 @@ pub fn residual_jacobian_structural(
     let t64 = -(2.0 * q18);
     let t65 = -(2.0 * q17);
     let t66 = 2.0 * q16;
+    // joint A row 1: (P_j − P_i)_x = 0
     phi[0] = q7 - (0.13134 * t4 + 0.2 * (q4 * q6 + q3 * q5) + q0);
+    // joint A row 2: (P_j − P_i)_y = 0
     phi[1] = q8 - (0.06567 * (t0 + t2 - (t1 + t3)) + 0.2 * (t5 - t6) + q1);
+    // joint A row 3: (P_j − P_i)_z = 0
     phi[2] = q9 - (0.13134 * t7 + 0.1 * (t0 + t3 - (t1 + t2)) + q2);
+    // joint B row 1: (P_j − P_i)_x = 0
     phi[3] = 0.2 * t21 + (0.0475 * (t15 - (t13 + t14)) + -0.03714 * t18) + q13
         - (q7 - 0.9624 * (q10 * q12));
+    // joint B row 2: (P_j − P_i)_y = 0
     phi[4] = 0.2 * (t22 - t23)
         + (0.095 * (t16 + t17) + -0.01857 * (t11 + t13 - (t12 + t14))) + q14
         - (q8 + 0.4812 * (t8 - (t9 + t10)));
+    // joint B row 3: (P_j − P_i)_z = 0
     phi[5] = 0.1 * (t11 + t14 - (t12 + t13))
         + (0.095 * (t19 - t20) + -0.03714 * (t22 + t23)) + q15
         - (q9 + 0.9624 * (q10 * q11));
+    // joint O2 row 1: (P_j − P_i)_x = 0
     phi[6] = q0;
+    // joint O2 row 2: (P_j − P_i)_y = 0
     phi[7] = 0.06567 + q1;
+    // joint O2 row 3: (P_j − P_i)_z = 0
     phi[8] = q2;
+    // joint O2 row 4: b_i · a_j = 0
     phi[9] = 2.0 * t4;
+    // joint O2 row 5: c_i · a_j = 0
     phi[10] = 2.0 * t7;
+    // joint O4 row 1: (P_j − P_i)_x = 0
     phi[11] = -0.0475 - q13;
+    // joint O4 row 2: (P_j − P_i)_y = 0
     phi[12] = 0.49977 - q14;
+    // joint O4 row 3: (P_j − P_i)_z = 0
     phi[13] = -q15;
+    // joint O4 row 4: b_i · a_j = 0
     phi[14] = -(2.0 * t18);
+    // joint O4 row 5: c_i · a_j = 0
     phi[15] = -(2.0 * t21);
+    // driver motor: e2 cos(s/2) − e0 sin(s/2) = 0, s = 146.6 t
     phi[16] = q5 * t26 - q3 * t25;
+    // body crank normalisation: e0² + e1² + e2² + e3² − 1 = 0
     phi[17] = t3 + (t2 + (t0 + t1)) - 1.0;
+    // body coupler normalisation: e0² + e1² + e2² + e3² − 1 = 0
     phi[18] = t10 + (t8 + t9) - 1.0;
+    // body rocker normalisation: e0² + e1² + e2² + e3² − 1 = 0
     phi[19] = t14 + (t13 + t15) - 1.0;
+    // joint A row 1: (P_j − P_i)_x = 0
     jac[0][3] = -(t28 - t27);
     jac[0][4] = -(t29 + t30);
     jac[0][5] = -(t31 + t32);
     jac[0][6] = -(t34 - t33);
+    // joint A row 2: (P_j − P_i)_y = 0
     jac[1][3] = -(0.06567 * t35 - t34);
     jac[1][4] = -(-(0.06567 * t36) - t32);
     jac[1][5] = -(t30 + 0.06567 * t37);
     jac[1][6] = -(t28 - 0.06567 * t38);
+    // joint A row 3: (P_j − P_i)_z = 0
     jac[2][3] = -(t31 + 0.1 * t35);
     jac[2][4] = -(t33 - 0.1 * t36);
     jac[2][5] = -(t27 - 0.1 * t37);
     jac[2][6] = -(t29 + 0.1 * t38);
+    // joint B row 1: (P_j − P_i)_x = 0
     jac[3][10] = 0.9624 * q12;
     jac[3][12] = t39;
     jac[3][16] = t40 + (0.0475 * t41 - t42);
     jac[3][17] = t43 + (0.0475 * t44 + t45);
     jac[3][18] = t46 + (t48 - 0.0475 * t47);
     jac[3][19] = t49 + (-(0.0475 * t50) - t51);
+    // joint B row 2: (P_j − P_i)_y = 0
     jac[4][10] = -(0.4812 * t52);
     jac[4][11] = 0.4812 * t53;
     jac[4][12] = 0.4812 * t54;
@@ -621,37 +726,46 @@ pub fn residual_jacobian_structural(
     jac[4][17] = t56 - -0.01857 * t44 - t46;
     jac[4][18] = t43 + (t57 + -0.01857 * t47);
     jac[4][19] = t40 + (t58 - -0.01857 * t50);
+    // joint B row 3: (P_j − P_i)_z = 0
     jac[5][10] = -(0.9624 * q11);
     jac[5][11] = -t39;
     jac[5][16] = 0.1 * t41 + (t48 - t56);
     jac[5][17] = t51 + t55 - 0.1 * t44;
     jac[5][18] = t42 - t58 - 0.1 * t47;
     jac[5][19] = 0.1 * t50 + (t45 + t57);
+    // joint O2 row 4: b_i · a_j = 0
     jac[9][3] = -t59;
     jac[9][4] = t60;
     jac[9][5] = t61;
     jac[9][6] = -t62;
+    // joint O2 row 5: c_i · a_j = 0
     jac[10][3] = t61;
     jac[10][4] = t62;
     jac[10][5] = t59;
     jac[10][6] = t60;
+    // joint O4 row 4: b_i · a_j = 0
     jac[14][16] = t63;
     jac[14][17] = t64;
     jac[14][18] = t65;
     jac[14][19] = t66;
+    // joint O4 row 5: c_i · a_j = 0
     jac[15][16] = t64;
     jac[15][17] = -t63;
     jac[15][18] = -t66;
     jac[15][19] = t65;
+    // driver motor: e2 cos(s/2) − e0 sin(s/2) = 0, s = 146.6 t
     jac[16][3] = -t25;
     jac[16][5] = t26;
+    // body crank normalisation: e0² + e1² + e2² + e3² − 1 = 0
     jac[17][3] = t35;
     jac[17][4] = t36;
     jac[17][5] = t37;
     jac[17][6] = t38;
+    // body coupler normalisation: e0² + e1² + e2² + e3² − 1 = 0
     jac[18][10] = t52;
     jac[18][11] = t53;
     jac[18][12] = t54;
+    // body rocker normalisation: e0² + e1² + e2² + e3² − 1 = 0
     jac[19][16] = t41;
     jac[19][17] = t44;
     jac[19][18] = t47;
@@ -664,7 +778,7 @@ pub fn residual_jacobian_structural(
 ///
 /// Returns the smallest and largest |pivot|, or `None` when a pivot is not finite or a multiplier exceeds [`runtime::lu::MAX_MULTIPLIER`] in magnitude; `jac` is then partly factored and must be evaluated again.
 #[must_use]
-pub fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
+fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     let p9 = jac[16][5];
     let d9 = 1.0 / p9;
     jac[16][5] = d9;
@@ -870,7 +984,7 @@ pub fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
 /// Solves Φ_q x = b in place with the factors [`factor_0`] left in `lu`.
 ///
 /// 149 operations.
-pub fn solve_0(lu: &[[f64; N]; N], b: &mut [f64; N]) {
+fn solve_0(lu: &[[f64; N]; N], b: &mut [f64; N]) {
     let y0 = b[6];
     let y1 = b[7];
     let y2 = b[8];
@@ -946,7 +1060,7 @@ pub fn solve_0(lu: &[[f64; N]; N], b: &mut [f64; N]) {
 ///
 /// Returns the smallest and largest |pivot|, or `None` when a pivot is not finite or a multiplier exceeds [`runtime::lu::MAX_MULTIPLIER`] in magnitude; `jac` is then partly factored and must be evaluated again.
 #[must_use]
-pub fn factor_1(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
+fn factor_1(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     let p9 = jac[16][3];
     let d9 = 1.0 / p9;
     jac[16][3] = d9;
@@ -1154,7 +1268,7 @@ pub fn factor_1(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
 /// Solves Φ_q x = b in place with the factors [`factor_1`] left in `lu`.
 ///
 /// 149 operations.
-pub fn solve_1(lu: &[[f64; N]; N], b: &mut [f64; N]) {
+fn solve_1(lu: &[[f64; N]; N], b: &mut [f64; N]) {
     let y0 = b[6];
     let y1 = b[7];
     let y2 = b[8];
@@ -1232,25 +1346,45 @@ pub fn velocity_rhs(q: &[f64; N], t: f64, nu: &mut [f64; N]) {
     _q15, _q16, _q17, _q18, _q19] = *q;
     let t0 = 73.3 * t;
     let (t1, t2) = runtime::math::sin_cos(t0);
+    // joint A row 1: (P_j − P_i)_x = 0
     nu[0] = 0.0;
+    // joint A row 2: (P_j − P_i)_y = 0
     nu[1] = 0.0;
+    // joint A row 3: (P_j − P_i)_z = 0
     nu[2] = 0.0;
+    // joint B row 1: (P_j − P_i)_x = 0
     nu[3] = 0.0;
+    // joint B row 2: (P_j − P_i)_y = 0
     nu[4] = 0.0;
+    // joint B row 3: (P_j − P_i)_z = 0
     nu[5] = 0.0;
+    // joint O2 row 1: (P_j − P_i)_x = 0
     nu[6] = 0.0;
+    // joint O2 row 2: (P_j − P_i)_y = 0
     nu[7] = 0.0;
+    // joint O2 row 3: (P_j − P_i)_z = 0
     nu[8] = 0.0;
+    // joint O2 row 4: b_i · a_j = 0
     nu[9] = 0.0;
+    // joint O2 row 5: c_i · a_j = 0
     nu[10] = 0.0;
+    // joint O4 row 1: (P_j − P_i)_x = 0
     nu[11] = 0.0;
+    // joint O4 row 2: (P_j − P_i)_y = 0
     nu[12] = 0.0;
+    // joint O4 row 3: (P_j − P_i)_z = 0
     nu[13] = 0.0;
+    // joint O4 row 4: b_i · a_j = 0
     nu[14] = 0.0;
+    // joint O4 row 5: c_i · a_j = 0
     nu[15] = 0.0;
+    // driver motor: e2 cos(s/2) − e0 sin(s/2) = 0, s = 146.6 t
     nu[16] = -(-(q5 * (73.3 * t1)) - q3 * (73.3 * t2));
+    // body crank normalisation: e0² + e1² + e2² + e3² − 1 = 0
     nu[17] = 0.0;
+    // body coupler normalisation: e0² + e1² + e2² + e3² − 1 = 0
     nu[18] = 0.0;
+    // body rocker normalisation: e0² + e1² + e2² + e3² − 1 = 0
     nu[19] = 0.0;
 }
 
@@ -1315,30 +1449,50 @@ pub fn acceleration_rhs(q: &[f64; N], qd: &[f64; N], t: f64, gamma: &mut [f64; N
     let t51 = qd10 * qd11;
     let t52 = qd5 * (73.3 * t1);
     let t53 = qd3 * (73.3 * t2);
+    // joint A row 1: (P_j − P_i)_x = 0
     gamma[0] = 0.13134 * t5 + 0.2 * (t6 + t6 + (t7 + t7));
+    // joint A row 2: (P_j − P_i)_y = 0
     gamma[1] = 0.06567 * (t9 + t11 - (t13 + t15)) + 0.2 * (t17 - t19);
+    // joint A row 3: (P_j − P_i)_z = 0
     gamma[2] = 0.13134 * t20 + 0.1 * (t9 + t15 - (t11 + t13));
+    // joint B row 1: (P_j − P_i)_x = 0
     gamma[3] = -(0.2 * t25 + (0.0475 * (t30 - (t32 + t34)) + -0.03714 * t39)
         + 0.9624 * (t40 + t40));
+    // joint B row 2: (P_j − P_i)_y = 0
     gamma[4] = -(0.2 * (t42 - t44)
         + (0.095 * (t36 + t38) + -0.01857 * (t27 + t32 - (t29 + t34)))
         - 0.4812 * (t46 - (t48 + t50)));
+    // joint B row 3: (P_j − P_i)_z = 0
     gamma[5] = -(0.1 * (t27 + t34 - (t29 + t32))
         + (0.095 * (t22 - t24) + -0.03714 * (t42 + t44)) - 0.9624 * (t51 + t51));
+    // joint O2 row 1: (P_j − P_i)_x = 0
     gamma[6] = 0.0;
+    // joint O2 row 2: (P_j − P_i)_y = 0
     gamma[7] = 0.0;
+    // joint O2 row 3: (P_j − P_i)_z = 0
     gamma[8] = 0.0;
+    // joint O2 row 4: b_i · a_j = 0
     gamma[9] = -(2.0 * t5);
+    // joint O2 row 5: c_i · a_j = 0
     gamma[10] = -(2.0 * t20);
+    // joint O4 row 1: (P_j − P_i)_x = 0
     gamma[11] = 0.0;
+    // joint O4 row 2: (P_j − P_i)_y = 0
     gamma[12] = 0.0;
+    // joint O4 row 3: (P_j − P_i)_z = 0
     gamma[13] = 0.0;
+    // joint O4 row 4: b_i · a_j = 0
     gamma[14] = 2.0 * t39;
+    // joint O4 row 5: c_i · a_j = 0
     gamma[15] = 2.0 * t25;
+    // driver motor: e2 cos(s/2) − e0 sin(s/2) = 0, s = 146.6 t
     gamma[16] = -(-(t52 + q5 * (5372.889999999999 * t2)) - t52
         - (t53 + (t53 - q3 * (5372.889999999999 * t1))));
+    // body crank normalisation: e0² + e1² + e2² + e3² − 1 = 0
     gamma[17] = -(t15 + (t11 + (t9 + t13)));
+    // body coupler normalisation: e0² + e1² + e2² + e3² − 1 = 0
     gamma[18] = -(t50 + (t46 + t48));
+    // body rocker normalisation: e0² + e1² + e2² + e3² − 1 = 0
     gamma[19] = -(t34 + (t30 + t32));
 }
 
@@ -1346,7 +1500,7 @@ pub fn acceleration_rhs(q: &[f64; N], qd: &[f64; N], t: f64, gamma: &mut [f64; N
 /// ones keep their values).
 pub fn normalize(q: &mut [f64; N]) {
     {
-        let free = 0.0 + q[3] * q[3] + q[4] * q[4] + q[5] * q[5] + q[6] * q[6];
+        let free = q[3] * q[3] + q[4] * q[4] + q[5] * q[5] + q[6] * q[6];
         if free > 0.0 {
             let scale = runtime::math::sqrt(1.0 / free);
             q[3] *= scale;
@@ -1356,7 +1510,7 @@ pub fn normalize(q: &mut [f64; N]) {
         }
     }
     {
-        let free = 0.0 + q[10] * q[10] + q[11] * q[11] + q[12] * q[12];
+        let free = q[10] * q[10] + q[11] * q[11] + q[12] * q[12];
         if free > 0.0 {
             let scale = runtime::math::sqrt(1.0 / free);
             q[10] *= scale;
@@ -1365,7 +1519,7 @@ pub fn normalize(q: &mut [f64; N]) {
         }
     }
     {
-        let free = 0.0 + q[16] * q[16] + q[17] * q[17] + q[18] * q[18] + q[19] * q[19];
+        let free = q[16] * q[16] + q[17] * q[17] + q[18] * q[18] + q[19] * q[19];
         if free > 0.0 {
             let scale = runtime::math::sqrt(1.0 / free);
             q[16] *= scale;

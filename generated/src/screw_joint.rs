@@ -88,12 +88,19 @@ pub fn residual(q: &[f64; N], t: f64, phi: &mut [f64; N]) {
     let (t4, t5) = runtime::math::sin_cos(t3);
     let t6 = f64::from_bits(4602890488355133325) * t;
     let (t7, t8) = runtime::math::sin_cos(t6);
+    // joint screw row 1: b_i · a_j = 0
     phi[0] = 2.0 * (q4 * q5 - q3 * q6);
+    // joint screw row 2: c_i · a_j = 0
     phi[1] = -(2.0 * (q5 * q6 + q3 * q4));
+    // joint screw row 3: b_i · (P_j − P_i) = 0
     phi[2] = q0;
+    // joint screw row 4: c_i · (P_j − P_i) = 0
     phi[3] = -q2;
+    // joint screw row 5: r_i · r_j sin θ − (r_i × r_j) · a_i cos θ = 0, θ = θ0 + 2π ((P_j − P_i) · a_i − d0) / lead
     phi[4] = (t2 - (t0 + t1)) * t4 + 2.0 * (q4 * q6 - q3 * q5) * t5;
+    // driver drive_ry: e2 cos(s/2) − e0 sin(s/2) = 0, s = 1.047 t
     phi[5] = q5 * t8 - q3 * t7;
+    // body nut normalisation: e0² + e1² + e2² + e3² − 1 = 0
     phi[6] = t1 + (t0 + t2) - 1.0;
 }
 
@@ -117,24 +124,31 @@ pub fn jacobian(q: &[f64; N], t: f64, jac: &mut [[f64; N]; N]) {
     let t13 = q4 + q4;
     let t14 = q5 + q5;
     let t15 = q6 + q6;
+    // joint screw row 1: b_i · a_j = 0
     jac[0][3] = t7;
     jac[0][4] = t8;
     jac[0][5] = t9;
     jac[0][6] = t11;
+    // joint screw row 2: c_i · a_j = 0
     jac[1][3] = -t9;
     jac[1][4] = t11;
     jac[1][5] = t7;
     jac[1][6] = -t8;
+    // joint screw row 3: b_i · (P_j − P_i) = 0
     jac[2][0] = 1.0;
+    // joint screw row 4: c_i · (P_j − P_i) = 0
     jac[3][2] = -1.0;
+    // joint screw row 5: r_i · r_j sin θ − (r_i × r_j) · a_i cos θ = 0, θ = θ0 + 2π ((P_j − P_i) · a_i − d0) / lead
     jac[4][1] = (q3 * q3 + q4 * q4 - (q5 * q5 + q6 * q6)) * (2.0 * t2)
         - 2.0 * (q4 * q6 - q3 * q5) * (2.0 * t1);
     jac[4][3] = t1 * t12 - t2 * t8;
     jac[4][4] = t1 * t13 + t2 * t6;
     jac[4][5] = -(t1 * t14) - t2 * t10;
     jac[4][6] = t2 * t9 - t1 * t15;
+    // driver drive_ry: e2 cos(s/2) − e0 sin(s/2) = 0, s = 1.047 t
     jac[5][3] = -t4;
     jac[5][5] = t5;
+    // body nut normalisation: e0² + e1² + e2² + e3² − 1 = 0
     jac[6][3] = t12;
     jac[6][4] = t13;
     jac[6][5] = t14;
@@ -171,30 +185,44 @@ pub fn residual_jacobian(
     let t18 = q4 + q4;
     let t19 = q5 + q5;
     let t20 = q6 + q6;
+    // joint screw row 1: b_i · a_j = 0
     phi[0] = 2.0 * (q4 * q5 - q3 * q6);
+    // joint screw row 2: c_i · a_j = 0
     phi[1] = -(2.0 * (q5 * q6 + q3 * q4));
+    // joint screw row 3: b_i · (P_j − P_i) = 0
     phi[2] = q0;
+    // joint screw row 4: c_i · (P_j − P_i) = 0
     phi[3] = -q2;
+    // joint screw row 5: r_i · r_j sin θ − (r_i × r_j) · a_i cos θ = 0, θ = θ0 + 2π ((P_j − P_i) · a_i − d0) / lead
     phi[4] = t3 * t6 + t4 * t7;
+    // driver drive_ry: e2 cos(s/2) − e0 sin(s/2) = 0, s = 1.047 t
     phi[5] = q5 * t10 - q3 * t9;
+    // body nut normalisation: e0² + e1² + e2² + e3² − 1 = 0
     phi[6] = t1 + (t0 + t2) - 1.0;
+    // joint screw row 1: b_i · a_j = 0
     jac[0][3] = t12;
     jac[0][4] = t13;
     jac[0][5] = t14;
     jac[0][6] = t16;
+    // joint screw row 2: c_i · a_j = 0
     jac[1][3] = -t14;
     jac[1][4] = t16;
     jac[1][5] = t12;
     jac[1][6] = -t13;
+    // joint screw row 3: b_i · (P_j − P_i) = 0
     jac[2][0] = 1.0;
+    // joint screw row 4: c_i · (P_j − P_i) = 0
     jac[3][2] = -1.0;
+    // joint screw row 5: r_i · r_j sin θ − (r_i × r_j) · a_i cos θ = 0, θ = θ0 + 2π ((P_j − P_i) · a_i − d0) / lead
     jac[4][1] = t3 * (2.0 * t7) - t4 * (2.0 * t6);
     jac[4][3] = t6 * t17 - t7 * t13;
     jac[4][4] = t6 * t18 + t7 * t11;
     jac[4][5] = -(t6 * t19) - t7 * t15;
     jac[4][6] = t7 * t14 - t6 * t20;
+    // driver drive_ry: e2 cos(s/2) − e0 sin(s/2) = 0, s = 1.047 t
     jac[5][3] = -t9;
     jac[5][5] = t10;
+    // body nut normalisation: e0² + e1² + e2² + e3² − 1 = 0
     jac[6][3] = t17;
     jac[6][4] = t18;
     jac[6][5] = t19;
@@ -204,7 +232,7 @@ pub fn residual_jacobian(
 /// Φ and the 19 entries of Φ_q that depend on q or t, the others of `jac` left as they were: what the `factor_k` functions read (2 of the 21 structurally non-zero entries are constants, which they know).
 ///
 /// 76 operations, 21 shared subexpressions.
-pub fn residual_jacobian_structural(
+fn residual_jacobian_structural(
     q: &[f64; N],
     t: f64,
     phi: &mut [f64; N],
@@ -230,28 +258,40 @@ pub fn residual_jacobian_structural(
     let t18 = q4 + q4;
     let t19 = q5 + q5;
     let t20 = q6 + q6;
+    // joint screw row 1: b_i · a_j = 0
     phi[0] = 2.0 * (q4 * q5 - q3 * q6);
+    // joint screw row 2: c_i · a_j = 0
     phi[1] = -(2.0 * (q5 * q6 + q3 * q4));
+    // joint screw row 3: b_i · (P_j − P_i) = 0
     phi[2] = q0;
+    // joint screw row 4: c_i · (P_j − P_i) = 0
     phi[3] = -q2;
+    // joint screw row 5: r_i · r_j sin θ − (r_i × r_j) · a_i cos θ = 0, θ = θ0 + 2π ((P_j − P_i) · a_i − d0) / lead
     phi[4] = t3 * t6 + t4 * t7;
+    // driver drive_ry: e2 cos(s/2) − e0 sin(s/2) = 0, s = 1.047 t
     phi[5] = q5 * t10 - q3 * t9;
+    // body nut normalisation: e0² + e1² + e2² + e3² − 1 = 0
     phi[6] = t1 + (t0 + t2) - 1.0;
+    // joint screw row 1: b_i · a_j = 0
     jac[0][3] = t12;
     jac[0][4] = t13;
     jac[0][5] = t14;
     jac[0][6] = t16;
+    // joint screw row 2: c_i · a_j = 0
     jac[1][3] = -t14;
     jac[1][4] = t16;
     jac[1][5] = t12;
     jac[1][6] = -t13;
+    // joint screw row 5: r_i · r_j sin θ − (r_i × r_j) · a_i cos θ = 0, θ = θ0 + 2π ((P_j − P_i) · a_i − d0) / lead
     jac[4][1] = t3 * (2.0 * t7) - t4 * (2.0 * t6);
     jac[4][3] = t6 * t17 - t7 * t13;
     jac[4][4] = t6 * t18 + t7 * t11;
     jac[4][5] = -(t6 * t19) - t7 * t15;
     jac[4][6] = t7 * t14 - t6 * t20;
+    // driver drive_ry: e2 cos(s/2) − e0 sin(s/2) = 0, s = 1.047 t
     jac[5][3] = -t9;
     jac[5][5] = t10;
+    // body nut normalisation: e0² + e1² + e2² + e3² − 1 = 0
     jac[6][3] = t17;
     jac[6][4] = t18;
     jac[6][5] = t19;
@@ -264,7 +304,7 @@ pub fn residual_jacobian_structural(
 ///
 /// Returns the smallest and largest |pivot|, or `None` when a pivot is not finite or a multiplier exceeds [`runtime::lu::MAX_MULTIPLIER`] in magnitude; `jac` is then partly factored and must be evaluated again.
 #[must_use]
-pub fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
+fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     let p1 = jac[4][1];
     let d1 = 1.0 / p1;
     jac[4][1] = d1;
@@ -333,7 +373,7 @@ pub fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
 /// Solves Φ_q x = b in place with the factors [`factor_0`] left in `lu`.
 ///
 /// 34 operations.
-pub fn solve_0(lu: &[[f64; N]; N], b: &mut [f64; N]) {
+fn solve_0(lu: &[[f64; N]; N], b: &mut [f64; N]) {
     let y0 = b[2];
     let y1 = b[4];
     let y2 = b[3];
@@ -364,7 +404,7 @@ pub fn solve_0(lu: &[[f64; N]; N], b: &mut [f64; N]) {
 ///
 /// Returns the smallest and largest |pivot|, or `None` when a pivot is not finite or a multiplier exceeds [`runtime::lu::MAX_MULTIPLIER`] in magnitude; `jac` is then partly factored and must be evaluated again.
 #[must_use]
-pub fn factor_1(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
+fn factor_1(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     let p1 = jac[4][1];
     let d1 = 1.0 / p1;
     jac[4][1] = d1;
@@ -435,7 +475,7 @@ pub fn factor_1(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
 /// Solves Φ_q x = b in place with the factors [`factor_1`] left in `lu`.
 ///
 /// 34 operations.
-pub fn solve_1(lu: &[[f64; N]; N], b: &mut [f64; N]) {
+fn solve_1(lu: &[[f64; N]; N], b: &mut [f64; N]) {
     let y0 = b[2];
     let y1 = b[4];
     let y2 = b[3];
@@ -467,13 +507,20 @@ pub fn velocity_rhs(q: &[f64; N], t: f64, nu: &mut [f64; N]) {
     let [_q0, _q1, _q2, q3, _q4, q5, _q6] = *q;
     let t0 = f64::from_bits(4602890488355133325) * t;
     let (t1, t2) = runtime::math::sin_cos(t0);
+    // joint screw row 1: b_i · a_j = 0
     nu[0] = 0.0;
+    // joint screw row 2: c_i · a_j = 0
     nu[1] = 0.0;
+    // joint screw row 3: b_i · (P_j − P_i) = 0
     nu[2] = 0.0;
+    // joint screw row 4: c_i · (P_j − P_i) = 0
     nu[3] = 0.0;
+    // joint screw row 5: r_i · r_j sin θ − (r_i × r_j) · a_i cos θ = 0, θ = θ0 + 2π ((P_j − P_i) · a_i − d0) / lead
     nu[4] = 0.0;
+    // driver drive_ry: e2 cos(s/2) − e0 sin(s/2) = 0, s = 1.047 t
     nu[5] = -(-(q5 * (f64::from_bits(4602890488355133325) * t1))
         - q3 * (f64::from_bits(4602890488355133325) * t2));
+    // body nut normalisation: e0² + e1² + e2² + e3² − 1 = 0
     nu[6] = 0.0;
 }
 
@@ -511,16 +558,23 @@ pub fn acceleration_rhs(q: &[f64; N], qd: &[f64; N], t: f64, gamma: &mut [f64; N
     let t27 = 2.0 * (q6 * qd4 + q4 * qd6 - (q5 * qd3 + q3 * qd5)) * t16;
     let t28 = qd5 * (f64::from_bits(4602890488355133325) * t4);
     let t29 = qd3 * (f64::from_bits(4602890488355133325) * t5);
+    // joint screw row 1: b_i · a_j = 0
     gamma[0] = -(2.0 * (t6 + t6 - (t7 + t7)));
+    // joint screw row 2: c_i · a_j = 0
     gamma[1] = 2.0 * (t8 + t8 + (t9 + t9));
+    // joint screw row 3: b_i · (P_j − P_i) = 0
     gamma[2] = 0.0;
+    // joint screw row 4: c_i · (P_j − P_i) = 0
     gamma[3] = 0.0;
+    // joint screw row 5: r_i · r_j sin θ − (r_i × r_j) · a_i cos θ = 0, θ = θ0 + 2π ((P_j − P_i) · a_i − d0) / lead
     gamma[4] = -(t24 + t1 * (t19 - (t21 + t23))
         + (t24 - (q3 * q3 + q4 * q4 - (q5 * q5 + q6 * q6)) * (t14 * t16))
         + (t2 * (2.0 * (t25 + t25 - (t26 + t26))) - t27
             - (t27 + 2.0 * (q4 * q6 - q3 * q5) * (t14 * t15))));
+    // driver drive_ry: e2 cos(s/2) − e0 sin(s/2) = 0, s = 1.047 t
     gamma[5] = -(-(t28 + q5 * (0.27405224999999994 * t5)) - t28
         - (t29 + (t29 - q3 * (0.27405224999999994 * t4))));
+    // body nut normalisation: e0² + e1² + e2² + e3² − 1 = 0
     gamma[6] = -(t23 + (t19 + t21));
 }
 
@@ -528,7 +582,7 @@ pub fn acceleration_rhs(q: &[f64; N], qd: &[f64; N], t: f64, gamma: &mut [f64; N
 /// ones keep their values).
 pub fn normalize(q: &mut [f64; N]) {
     {
-        let free = 0.0 + q[3] * q[3] + q[4] * q[4] + q[5] * q[5] + q[6] * q[6];
+        let free = q[3] * q[3] + q[4] * q[4] + q[5] * q[5] + q[6] * q[6];
         if free > 0.0 {
             let scale = runtime::math::sqrt(1.0 / free);
             q[3] *= scale;

@@ -147,6 +147,12 @@ pub const Q0: [f64; N] = [
     -0.0002499999903875005,
 ];
 
+/// The `start` of the law of driver "motor".
+pub const LAW_MOTOR_START: f64 = 1.52;
+
+/// The `velocity` of the law of driver "motor".
+pub const LAW_MOTOR_VELOCITY: f64 = -6.2831852;
+
 /// Constraint residuals Φ(q, t), 28 rows.
 ///
 /// 254 operations, 66 shared subexpressions.
@@ -216,36 +222,64 @@ pub fn residual(q: &[f64; N], t: f64, phi: &mut [f64; N]) {
     let t60 = 0.8 * t55 + q23 - (q16 + 0.4 * (t26 - t27));
     let t61 = -q21;
     let t62 = 0.2 + t61;
-    let t63 = 0.5 * (1.52 + -6.2831852 * t);
+    let t63 = 0.5 * (LAW_MOTOR_START + LAW_MOTOR_VELOCITY * t);
     let (t64, t65) = runtime::math::sin_cos(t63);
+    // joint B row 1: (P_j − P_i)_x = 0
     phi[0] = -0.15 * t10 + q7 - (0.16 * t4 + q0);
+    // joint B row 2: (P_j − P_i)_y = 0
     phi[1] = -0.3 * t13 + q8 - (0.08 * (t0 + t2 - (t1 + t3)) + q1);
+    // joint B row 3: (P_j − P_i)_z = 0
     phi[2] = -0.3 * t14 + q9 - (0.16 * (q5 * q6 + q3 * q4) + q2);
+    // joint A row 1: (P_j − P_i)_x = 0
     phi[3] = -q0;
+    // joint A row 2: (P_j − P_i)_y = 0
     phi[4] = 0.1 - q1;
+    // joint A row 3: (P_j − P_i)_z = 0
     phi[5] = 0.12 - q2;
+    // joint A row 4: b_i · a_j = 0
     phi[6] = 2.0 * t4;
+    // joint A row 5: c_i · a_j = 0
     phi[7] = 2.0 * (q4 * q6 + q3 * q5);
+    // joint C_revolute row 1: (P_j − P_i)_x = 0
     phi[8] = q14 - (q7 + 0.15 * t10);
+    // joint C_revolute row 2: (P_j − P_i)_y = 0
     phi[9] = q15 - (q8 + 0.3 * t13);
+    // joint C_revolute row 3: (P_j − P_i)_z = 0
     phi[10] = q16 - (q9 + 0.3 * t14);
+    // joint C_revolute row 4: b_i · a_j = 0
     phi[11] = 2.0 * t14 * t38 + (t10 * t36 + 2.0 * t13 * t37);
+    // joint C_revolute row 5: c_i · a_j = 0
     phi[12] = -(2.0 * (t11 + t12) * t36) - 2.0 * (q12 * q13 - q10 * q11) * t37
         - (t5 + t8 - (t6 + t7)) * t38;
+    // joint C_cylindrical row 1: b_i · a_j = 0
     phi[13] = t35 * t56 + (t25 * t44 + t20 * t52);
+    // joint C_cylindrical row 2: c_i · a_j = 0
     phi[14] = t21 * t56 + (t29 * t44 + t33 * t52);
+    // joint C_cylindrical row 3: b_i · (P_j − P_i) = 0
     phi[15] = t35 * t60 + (t25 * t58 + t20 * t59);
+    // joint C_cylindrical row 4: c_i · (P_j − P_i) = 0
     phi[16] = t21 * t60 + (t29 * t58 + t33 * t59);
+    // joint D row 1: b_i · a_j = 0
     phi[17] = t47;
+    // joint D row 2: c_i · a_j = 0
     phi[18] = t50;
+    // joint D row 3: b_i · (P_j − P_i) = 0
     phi[19] = t47 * t62 - (t39 + t41 - (t40 + t42)) * q22 - t57 * q23;
+    // joint D row 4: c_i · (P_j − P_i) = 0
     phi[20] = t50 * t62 - 2.0 * (t53 - t54) * q22 - (t39 + t42 - (t40 + t41)) * q23;
+    // joint D row 5: r_i · r_j = 0
     phi[21] = t57;
+    // constraint same_x: x_i − x_j − 0.0 = 0
     phi[22] = q14 + t61;
+    // driver motor: e1 cos(s/2) − e0 sin(s/2) = 0, s = 1.52 − 6.2831852 t
     phi[23] = q4 * t65 - q3 * t64;
+    // body crank normalisation: e0² + e1² + e2² + e3² − 1 = 0
     phi[24] = t3 + (t2 + (t0 + t1)) - 1.0;
+    // body rod normalisation: e0² + e1² + e2² + e3² − 1 = 0
     phi[25] = t8 + (t7 + t9) - 1.0;
+    // body cylinder normalisation: e0² + e1² + e2² + e3² − 1 = 0
     phi[26] = t18 + (t17 + t19) - 1.0;
+    // body slider normalisation: e0² + e1² + e2² + e3² − 1 = 0
     phi[27] = t42 + (t41 + t43) - 1.0;
 }
 
@@ -310,7 +344,7 @@ pub fn jacobian(q: &[f64; N], t: f64, jac: &mut [[f64; N]; N]) {
     let t51 = 0.8 * t44 + q22 - (q15 + 0.4 * (t18 + t19));
     let t52 = 0.8 * t48 + q23 - (q16 + 0.4 * (t22 - t23));
     let t53 = 0.2 - q21;
-    let t54 = 0.5 * (1.52 + -6.2831852 * t);
+    let t54 = 0.5 * (LAW_MOTOR_START + LAW_MOTOR_VELOCITY * t);
     let (t55, t56) = runtime::math::sin_cos(t54);
     let t57 = 0.16 * q6;
     let t58 = -(0.16 * q5);
@@ -408,6 +442,7 @@ pub fn jacobian(q: &[f64; N], t: f64, jac: &mut [[f64; N]; N]) {
     let t150 = t53 * t121;
     let t151 = t53 * t127;
     let t152 = t53 * t125;
+    // joint B row 1: (P_j − P_i)_x = 0
     jac[0][0] = -1.0;
     jac[0][3] = t57;
     jac[0][4] = t58;
@@ -418,6 +453,7 @@ pub fn jacobian(q: &[f64; N], t: f64, jac: &mut [[f64; N]; N]) {
     jac[0][11] = -0.15 * t62;
     jac[0][12] = -(-0.15 * t63);
     jac[0][13] = -(-0.15 * t64);
+    // joint B row 2: (P_j − P_i)_y = 0
     jac[1][1] = -1.0;
     jac[1][3] = -(0.08 * t65);
     jac[1][4] = 0.08 * t66;
@@ -428,6 +464,7 @@ pub fn jacobian(q: &[f64; N], t: f64, jac: &mut [[f64; N]; N]) {
     jac[1][11] = t70;
     jac[1][12] = t71;
     jac[1][13] = t72;
+    // joint B row 3: (P_j − P_i)_z = 0
     jac[2][2] = -1.0;
     jac[2][3] = t59;
     jac[2][4] = -t60;
@@ -438,35 +475,44 @@ pub fn jacobian(q: &[f64; N], t: f64, jac: &mut [[f64; N]; N]) {
     jac[2][11] = t69;
     jac[2][12] = -t72;
     jac[2][13] = t71;
+    // joint A row 1: (P_j − P_i)_x = 0
     jac[3][0] = -1.0;
+    // joint A row 2: (P_j − P_i)_y = 0
     jac[4][1] = -1.0;
+    // joint A row 3: (P_j − P_i)_z = 0
     jac[5][2] = -1.0;
+    // joint A row 4: b_i · a_j = 0
     jac[6][3] = -t73;
     jac[6][4] = t74;
     jac[6][5] = t75;
     jac[6][6] = -t76;
+    // joint A row 5: c_i · a_j = 0
     jac[7][3] = t74;
     jac[7][4] = t73;
     jac[7][5] = t76;
     jac[7][6] = t75;
+    // joint C_revolute row 1: (P_j − P_i)_x = 0
     jac[8][7] = -1.0;
     jac[8][10] = -(0.15 * t61);
     jac[8][11] = -(0.15 * t62);
     jac[8][12] = 0.15 * t63;
     jac[8][13] = 0.15 * t64;
     jac[8][14] = 1.0;
+    // joint C_revolute row 2: (P_j − P_i)_y = 0
     jac[9][8] = -1.0;
     jac[9][10] = t77;
     jac[9][11] = -t78;
     jac[9][12] = t79;
     jac[9][13] = -t80;
     jac[9][15] = 1.0;
+    // joint C_revolute row 3: (P_j − P_i)_z = 0
     jac[10][9] = -1.0;
     jac[10][10] = t78;
     jac[10][11] = t77;
     jac[10][12] = t80;
     jac[10][13] = t79;
     jac[10][16] = 1.0;
+    // joint C_revolute row 4: b_i · a_j = 0
     jac[11][10] = t32 * t61 + t83 - t34 * t81;
     jac[11][11] = t34 * t82 + (t32 * t62 + t84);
     jac[11][12] = t87 - t32 * t63 - t34 * t85;
@@ -475,6 +521,7 @@ pub fn jacobian(q: &[f64; N], t: f64, jac: &mut [[f64; N]; N]) {
     jac[11][18] = t11 * t99 + (t4 * t102 + t9 * t104);
     jac[11][19] = t11 * t106 + (t4 * t107 + t9 * t108);
     jac[11][20] = t11 * t110 + (t4 * t111 + t9 * t112);
+    // joint C_revolute row 5: c_i · a_j = 0
     jac[12][10] = t87 - t32 * t81 - t34 * t61;
     jac[12][11] = t34 * t62 + (t88 - t32 * t82);
     jac[12][12] = t34 * t63 + (-(t32 * t85) - t83);
@@ -483,6 +530,7 @@ pub fn jacobian(q: &[f64; N], t: f64, jac: &mut [[f64; N]; N]) {
     jac[12][18] = -(t8 * t102) - t10 * t104 - t5 * t99;
     jac[12][19] = -(t8 * t107) - t10 * t108 - t5 * t106;
     jac[12][20] = -(t8 * t111) - t10 * t112 - t5 * t110;
+    // joint C_cylindrical row 1: b_i · a_j = 0
     jac[13][17] = t49 * t113 + (t45 * t90 - t115);
     jac[13][18] = t49 * t116 + (t118 - t45 * t98);
     jac[13][19] = t49 * t114 + (t119 + t45 * t105);
@@ -491,6 +539,7 @@ pub fn jacobian(q: &[f64; N], t: f64, jac: &mut [[f64; N]; N]) {
     jac[13][25] = t31 * t123 + (t21 * t124 + t16 * t121);
     jac[13][26] = t16 * t127 - t21 * t126 - t31 * t125;
     jac[13][27] = t31 * t127 + (t16 * t125 - t21 * t128);
+    // joint C_cylindrical row 2: c_i · a_j = 0
     jac[14][17] = t49 * t90 + (t118 - t45 * t113);
     jac[14][18] = t115 - t45 * t116 - t49 * t98;
     jac[14][19] = t120 + t45 * t114 - t49 * t105;
@@ -499,6 +548,7 @@ pub fn jacobian(q: &[f64; N], t: f64, jac: &mut [[f64; N]; N]) {
     jac[14][25] = t17 * t123 + (t25 * t124 + t29 * t121);
     jac[14][26] = t29 * t127 - t25 * t126 - t17 * t125;
     jac[14][27] = t17 * t127 + (t29 * t125 - t25 * t128);
+    // joint C_cylindrical row 3: b_i · (P_j − P_i) = 0
     jac[15][14] = -t21;
     jac[15][15] = -t16;
     jac[15][16] = -t31;
@@ -517,6 +567,7 @@ pub fn jacobian(q: &[f64; N], t: f64, jac: &mut [[f64; N]; N]) {
     jac[15][25] = t31 * t143 + (t21 * t144 + t16 * t141);
     jac[15][26] = t16 * t147 - t21 * t146 - t31 * t145;
     jac[15][27] = t31 * t147 + (t16 * t145 - t21 * t148);
+    // joint C_cylindrical row 4: c_i · (P_j − P_i) = 0
     jac[16][14] = -t25;
     jac[16][15] = -t29;
     jac[16][16] = -t17;
@@ -535,14 +586,17 @@ pub fn jacobian(q: &[f64; N], t: f64, jac: &mut [[f64; N]; N]) {
     jac[16][25] = t17 * t143 + (t25 * t144 + t29 * t141);
     jac[16][26] = t29 * t147 - t25 * t146 - t17 * t145;
     jac[16][27] = t17 * t147 + (t29 * t145 - t25 * t148);
+    // joint D row 1: b_i · a_j = 0
     jac[17][24] = -t123;
     jac[17][25] = t121;
     jac[17][26] = t127;
     jac[17][27] = -t125;
+    // joint D row 2: c_i · a_j = 0
     jac[18][24] = t121;
     jac[18][25] = t123;
     jac[18][26] = t125;
     jac[18][27] = t127;
+    // joint D row 3: b_i · (P_j − P_i) = 0
     jac[19][21] = -(2.0 * (t40 - t41));
     jac[19][22] = -(t35 + t37 - (t36 + t38));
     jac[19][23] = -(2.0 * (t46 + t47));
@@ -550,6 +604,7 @@ pub fn jacobian(q: &[f64; N], t: f64, jac: &mut [[f64; N]; N]) {
     jac[19][25] = t150 + q22 * t124 - q23 * t125;
     jac[19][26] = t151 - q22 * t126 - q23 * t123;
     jac[19][27] = q22 * t128 - t152 - q23 * t121;
+    // joint D row 4: c_i · (P_j − P_i) = 0
     jac[20][21] = -(2.0 * (t42 + t43));
     jac[20][22] = -(2.0 * (t46 - t47));
     jac[20][23] = -(t35 + t38 - (t36 + t37));
@@ -557,26 +612,33 @@ pub fn jacobian(q: &[f64; N], t: f64, jac: &mut [[f64; N]; N]) {
     jac[20][25] = q23 * t124 + (t149 + q22 * t125);
     jac[20][26] = q23 * t126 + (t152 - q22 * t123);
     jac[20][27] = t151 - q22 * t121 - q23 * t128;
+    // joint D row 5: r_i · r_j = 0
     jac[21][24] = t127;
     jac[21][25] = t125;
     jac[21][26] = t123;
     jac[21][27] = t121;
+    // constraint same_x: x_i − x_j − 0.0 = 0
     jac[22][14] = 1.0;
     jac[22][21] = -1.0;
+    // driver motor: e1 cos(s/2) − e0 sin(s/2) = 0, s = 1.52 − 6.2831852 t
     jac[23][3] = -t55;
     jac[23][4] = t56;
+    // body crank normalisation: e0² + e1² + e2² + e3² − 1 = 0
     jac[24][3] = t65;
     jac[24][4] = t66;
     jac[24][5] = t67;
     jac[24][6] = t68;
+    // body rod normalisation: e0² + e1² + e2² + e3² − 1 = 0
     jac[25][10] = t61;
     jac[25][11] = t62;
     jac[25][12] = t63;
     jac[25][13] = t64;
+    // body cylinder normalisation: e0² + e1² + e2² + e3² − 1 = 0
     jac[26][17] = t90;
     jac[26][18] = t98;
     jac[26][19] = t105;
     jac[26][20] = t109;
+    // body slider normalisation: e0² + e1² + e2² + e3² − 1 = 0
     jac[27][24] = t122;
     jac[27][25] = t124;
     jac[27][26] = t126;
@@ -666,7 +728,7 @@ pub fn residual_jacobian(
     let t68 = 0.8 * t63 + q23 - (q16 + 0.4 * (t31 - t32));
     let t69 = -q21;
     let t70 = 0.2 + t69;
-    let t71 = 0.5 * (1.52 + -6.2831852 * t);
+    let t71 = 0.5 * (LAW_MOTOR_START + LAW_MOTOR_VELOCITY * t);
     let (t72, t73) = runtime::math::sin_cos(t71);
     let t74 = 0.16 * q6;
     let t75 = -(0.16 * q5);
@@ -764,34 +826,63 @@ pub fn residual_jacobian(
     let t167 = t70 * t138;
     let t168 = t70 * t144;
     let t169 = t70 * t142;
+    // joint B row 1: (P_j − P_i)_x = 0
     phi[0] = -0.15 * t10 + q7 - (0.16 * t4 + q0);
+    // joint B row 2: (P_j − P_i)_y = 0
     phi[1] = -0.3 * t15 + q8 - (0.08 * (t0 + t2 - (t1 + t3)) + q1);
+    // joint B row 3: (P_j − P_i)_z = 0
     phi[2] = -0.3 * t18 + q9 - (0.16 * (q5 * q6 + q3 * q4) + q2);
+    // joint A row 1: (P_j − P_i)_x = 0
     phi[3] = -q0;
+    // joint A row 2: (P_j − P_i)_y = 0
     phi[4] = 0.1 - q1;
+    // joint A row 3: (P_j − P_i)_z = 0
     phi[5] = 0.12 - q2;
+    // joint A row 4: b_i · a_j = 0
     phi[6] = 2.0 * t4;
+    // joint A row 5: c_i · a_j = 0
     phi[7] = 2.0 * (q4 * q6 + q3 * q5);
+    // joint C_revolute row 1: (P_j − P_i)_x = 0
     phi[8] = q14 - (q7 + 0.15 * t10);
+    // joint C_revolute row 2: (P_j − P_i)_y = 0
     phi[9] = q15 - (q8 + 0.3 * t15);
+    // joint C_revolute row 3: (P_j − P_i)_z = 0
     phi[10] = q16 - (q9 + 0.3 * t18);
+    // joint C_revolute row 4: b_i · a_j = 0
     phi[11] = t19 * t43 + (t10 * t41 + t16 * t42);
+    // joint C_revolute row 5: c_i · a_j = 0
     phi[12] = -(t14 * t41) - t17 * t42 - t11 * t43;
+    // joint C_cylindrical row 1: b_i · a_j = 0
     phi[13] = t40 * t64 + (t30 * t49 + t25 * t59);
+    // joint C_cylindrical row 2: c_i · a_j = 0
     phi[14] = t26 * t64 + (t34 * t49 + t38 * t59);
+    // joint C_cylindrical row 3: b_i · (P_j − P_i) = 0
     phi[15] = t40 * t68 + (t30 * t66 + t25 * t67);
+    // joint C_cylindrical row 4: c_i · (P_j − P_i) = 0
     phi[16] = t26 * t68 + (t34 * t66 + t38 * t67);
+    // joint D row 1: b_i · a_j = 0
     phi[17] = t54;
+    // joint D row 2: c_i · a_j = 0
     phi[18] = t57;
+    // joint D row 3: b_i · (P_j − P_i) = 0
     phi[19] = t54 * t70 - t50 * q22 - t65 * q23;
+    // joint D row 4: c_i · (P_j − P_i) = 0
     phi[20] = t57 * t70 - t62 * q22 - t51 * q23;
+    // joint D row 5: r_i · r_j = 0
     phi[21] = t65;
+    // constraint same_x: x_i − x_j − 0.0 = 0
     phi[22] = q14 + t69;
+    // driver motor: e1 cos(s/2) − e0 sin(s/2) = 0, s = 1.52 − 6.2831852 t
     phi[23] = q4 * t73 - q3 * t72;
+    // body crank normalisation: e0² + e1² + e2² + e3² − 1 = 0
     phi[24] = t3 + (t2 + (t0 + t1)) - 1.0;
+    // body rod normalisation: e0² + e1² + e2² + e3² − 1 = 0
     phi[25] = t8 + (t7 + t9) - 1.0;
+    // body cylinder normalisation: e0² + e1² + e2² + e3² − 1 = 0
     phi[26] = t23 + (t22 + t24) - 1.0;
+    // body slider normalisation: e0² + e1² + e2² + e3² − 1 = 0
     phi[27] = t47 + (t46 + t48) - 1.0;
+    // joint B row 1: (P_j − P_i)_x = 0
     jac[0][0] = -1.0;
     jac[0][3] = t74;
     jac[0][4] = t75;
@@ -802,6 +893,7 @@ pub fn residual_jacobian(
     jac[0][11] = -0.15 * t79;
     jac[0][12] = -(-0.15 * t80);
     jac[0][13] = -(-0.15 * t81);
+    // joint B row 2: (P_j − P_i)_y = 0
     jac[1][1] = -1.0;
     jac[1][3] = -(0.08 * t82);
     jac[1][4] = 0.08 * t83;
@@ -812,6 +904,7 @@ pub fn residual_jacobian(
     jac[1][11] = t87;
     jac[1][12] = t88;
     jac[1][13] = t89;
+    // joint B row 3: (P_j − P_i)_z = 0
     jac[2][2] = -1.0;
     jac[2][3] = t76;
     jac[2][4] = -t77;
@@ -822,35 +915,44 @@ pub fn residual_jacobian(
     jac[2][11] = t86;
     jac[2][12] = -t89;
     jac[2][13] = t88;
+    // joint A row 1: (P_j − P_i)_x = 0
     jac[3][0] = -1.0;
+    // joint A row 2: (P_j − P_i)_y = 0
     jac[4][1] = -1.0;
+    // joint A row 3: (P_j − P_i)_z = 0
     jac[5][2] = -1.0;
+    // joint A row 4: b_i · a_j = 0
     jac[6][3] = -t90;
     jac[6][4] = t91;
     jac[6][5] = t92;
     jac[6][6] = -t93;
+    // joint A row 5: c_i · a_j = 0
     jac[7][3] = t91;
     jac[7][4] = t90;
     jac[7][5] = t93;
     jac[7][6] = t92;
+    // joint C_revolute row 1: (P_j − P_i)_x = 0
     jac[8][7] = -1.0;
     jac[8][10] = -(0.15 * t78);
     jac[8][11] = -(0.15 * t79);
     jac[8][12] = 0.15 * t80;
     jac[8][13] = 0.15 * t81;
     jac[8][14] = 1.0;
+    // joint C_revolute row 2: (P_j − P_i)_y = 0
     jac[9][8] = -1.0;
     jac[9][10] = t94;
     jac[9][11] = -t95;
     jac[9][12] = t96;
     jac[9][13] = -t97;
     jac[9][15] = 1.0;
+    // joint C_revolute row 3: (P_j − P_i)_z = 0
     jac[10][9] = -1.0;
     jac[10][10] = t95;
     jac[10][11] = t94;
     jac[10][12] = t97;
     jac[10][13] = t96;
     jac[10][16] = 1.0;
+    // joint C_revolute row 4: b_i · a_j = 0
     jac[11][10] = t41 * t78 + t100 - t43 * t98;
     jac[11][11] = t43 * t99 + (t41 * t79 + t101);
     jac[11][12] = t104 - t41 * t80 - t43 * t102;
@@ -859,6 +961,7 @@ pub fn residual_jacobian(
     jac[11][18] = t19 * t116 + (t10 * t119 + t16 * t121);
     jac[11][19] = t19 * t123 + (t10 * t124 + t16 * t125);
     jac[11][20] = t19 * t127 + (t10 * t128 + t16 * t129);
+    // joint C_revolute row 5: c_i · a_j = 0
     jac[12][10] = t104 - t41 * t98 - t43 * t78;
     jac[12][11] = t43 * t79 + (t105 - t41 * t99);
     jac[12][12] = t43 * t80 + (-(t41 * t102) - t100);
@@ -867,6 +970,7 @@ pub fn residual_jacobian(
     jac[12][18] = -(t14 * t119) - t17 * t121 - t11 * t116;
     jac[12][19] = -(t14 * t124) - t17 * t125 - t11 * t123;
     jac[12][20] = -(t14 * t128) - t17 * t129 - t11 * t127;
+    // joint C_cylindrical row 1: b_i · a_j = 0
     jac[13][17] = t64 * t130 + (t59 * t107 - t132);
     jac[13][18] = t64 * t133 + (t135 - t59 * t115);
     jac[13][19] = t64 * t131 + (t136 + t59 * t122);
@@ -875,6 +979,7 @@ pub fn residual_jacobian(
     jac[13][25] = t40 * t140 + (t30 * t141 + t25 * t138);
     jac[13][26] = t25 * t144 - t30 * t143 - t40 * t142;
     jac[13][27] = t40 * t144 + (t25 * t142 - t30 * t145);
+    // joint C_cylindrical row 2: c_i · a_j = 0
     jac[14][17] = t64 * t107 + (t135 - t59 * t130);
     jac[14][18] = t132 - t59 * t133 - t64 * t115;
     jac[14][19] = t137 + t59 * t131 - t64 * t122;
@@ -883,6 +988,7 @@ pub fn residual_jacobian(
     jac[14][25] = t26 * t140 + (t34 * t141 + t38 * t138);
     jac[14][26] = t38 * t144 - t34 * t143 - t26 * t142;
     jac[14][27] = t26 * t144 + (t38 * t142 - t34 * t145);
+    // joint C_cylindrical row 3: b_i · (P_j − P_i) = 0
     jac[15][14] = -t30;
     jac[15][15] = -t25;
     jac[15][16] = -t40;
@@ -901,6 +1007,7 @@ pub fn residual_jacobian(
     jac[15][25] = t40 * t160 + (t30 * t161 + t25 * t158);
     jac[15][26] = t25 * t164 - t30 * t163 - t40 * t162;
     jac[15][27] = t40 * t164 + (t25 * t162 - t30 * t165);
+    // joint C_cylindrical row 4: c_i · (P_j − P_i) = 0
     jac[16][14] = -t34;
     jac[16][15] = -t38;
     jac[16][16] = -t26;
@@ -919,14 +1026,17 @@ pub fn residual_jacobian(
     jac[16][25] = t26 * t160 + (t34 * t161 + t38 * t158);
     jac[16][26] = t38 * t164 - t34 * t163 - t26 * t162;
     jac[16][27] = t26 * t164 + (t38 * t162 - t34 * t165);
+    // joint D row 1: b_i · a_j = 0
     jac[17][24] = -t140;
     jac[17][25] = t138;
     jac[17][26] = t144;
     jac[17][27] = -t142;
+    // joint D row 2: c_i · a_j = 0
     jac[18][24] = t138;
     jac[18][25] = t140;
     jac[18][26] = t142;
     jac[18][27] = t144;
+    // joint D row 3: b_i · (P_j − P_i) = 0
     jac[19][21] = -t54;
     jac[19][22] = -t50;
     jac[19][23] = -t65;
@@ -934,6 +1044,7 @@ pub fn residual_jacobian(
     jac[19][25] = t167 + q22 * t141 - q23 * t142;
     jac[19][26] = t168 - q22 * t143 - q23 * t140;
     jac[19][27] = q22 * t145 - t169 - q23 * t138;
+    // joint D row 4: c_i · (P_j − P_i) = 0
     jac[20][21] = -t57;
     jac[20][22] = -t62;
     jac[20][23] = -t51;
@@ -941,26 +1052,33 @@ pub fn residual_jacobian(
     jac[20][25] = q23 * t141 + (t166 + q22 * t142);
     jac[20][26] = q23 * t143 + (t169 - q22 * t140);
     jac[20][27] = t168 - q22 * t138 - q23 * t145;
+    // joint D row 5: r_i · r_j = 0
     jac[21][24] = t144;
     jac[21][25] = t142;
     jac[21][26] = t140;
     jac[21][27] = t138;
+    // constraint same_x: x_i − x_j − 0.0 = 0
     jac[22][14] = 1.0;
     jac[22][21] = -1.0;
+    // driver motor: e1 cos(s/2) − e0 sin(s/2) = 0, s = 1.52 − 6.2831852 t
     jac[23][3] = -t72;
     jac[23][4] = t73;
+    // body crank normalisation: e0² + e1² + e2² + e3² − 1 = 0
     jac[24][3] = t82;
     jac[24][4] = t83;
     jac[24][5] = t84;
     jac[24][6] = t85;
+    // body rod normalisation: e0² + e1² + e2² + e3² − 1 = 0
     jac[25][10] = t78;
     jac[25][11] = t79;
     jac[25][12] = t80;
     jac[25][13] = t81;
+    // body cylinder normalisation: e0² + e1² + e2² + e3² − 1 = 0
     jac[26][17] = t107;
     jac[26][18] = t115;
     jac[26][19] = t122;
     jac[26][20] = t126;
+    // body slider normalisation: e0² + e1² + e2² + e3² − 1 = 0
     jac[27][24] = t139;
     jac[27][25] = t141;
     jac[27][26] = t143;
@@ -970,7 +1088,7 @@ pub fn residual_jacobian(
 /// Φ and the 148 entries of Φ_q that depend on q or t, the others of `jac` left as they were: what the `factor_k` functions read (17 of the 165 structurally non-zero entries are constants, which they know).
 ///
 /// 791 operations, 170 shared subexpressions.
-pub fn residual_jacobian_structural(
+fn residual_jacobian_structural(
     q: &[f64; N],
     t: f64,
     phi: &mut [f64; N],
@@ -1049,7 +1167,7 @@ pub fn residual_jacobian_structural(
     let t68 = 0.8 * t63 + q23 - (q16 + 0.4 * (t31 - t32));
     let t69 = -q21;
     let t70 = 0.2 + t69;
-    let t71 = 0.5 * (1.52 + -6.2831852 * t);
+    let t71 = 0.5 * (LAW_MOTOR_START + LAW_MOTOR_VELOCITY * t);
     let (t72, t73) = runtime::math::sin_cos(t71);
     let t74 = 0.16 * q6;
     let t75 = -(0.16 * q5);
@@ -1147,34 +1265,63 @@ pub fn residual_jacobian_structural(
     let t167 = t70 * t138;
     let t168 = t70 * t144;
     let t169 = t70 * t142;
+    // joint B row 1: (P_j − P_i)_x = 0
     phi[0] = -0.15 * t10 + q7 - (0.16 * t4 + q0);
+    // joint B row 2: (P_j − P_i)_y = 0
     phi[1] = -0.3 * t15 + q8 - (0.08 * (t0 + t2 - (t1 + t3)) + q1);
+    // joint B row 3: (P_j − P_i)_z = 0
     phi[2] = -0.3 * t18 + q9 - (0.16 * (q5 * q6 + q3 * q4) + q2);
+    // joint A row 1: (P_j − P_i)_x = 0
     phi[3] = -q0;
+    // joint A row 2: (P_j − P_i)_y = 0
     phi[4] = 0.1 - q1;
+    // joint A row 3: (P_j − P_i)_z = 0
     phi[5] = 0.12 - q2;
+    // joint A row 4: b_i · a_j = 0
     phi[6] = 2.0 * t4;
+    // joint A row 5: c_i · a_j = 0
     phi[7] = 2.0 * (q4 * q6 + q3 * q5);
+    // joint C_revolute row 1: (P_j − P_i)_x = 0
     phi[8] = q14 - (q7 + 0.15 * t10);
+    // joint C_revolute row 2: (P_j − P_i)_y = 0
     phi[9] = q15 - (q8 + 0.3 * t15);
+    // joint C_revolute row 3: (P_j − P_i)_z = 0
     phi[10] = q16 - (q9 + 0.3 * t18);
+    // joint C_revolute row 4: b_i · a_j = 0
     phi[11] = t19 * t43 + (t10 * t41 + t16 * t42);
+    // joint C_revolute row 5: c_i · a_j = 0
     phi[12] = -(t14 * t41) - t17 * t42 - t11 * t43;
+    // joint C_cylindrical row 1: b_i · a_j = 0
     phi[13] = t40 * t64 + (t30 * t49 + t25 * t59);
+    // joint C_cylindrical row 2: c_i · a_j = 0
     phi[14] = t26 * t64 + (t34 * t49 + t38 * t59);
+    // joint C_cylindrical row 3: b_i · (P_j − P_i) = 0
     phi[15] = t40 * t68 + (t30 * t66 + t25 * t67);
+    // joint C_cylindrical row 4: c_i · (P_j − P_i) = 0
     phi[16] = t26 * t68 + (t34 * t66 + t38 * t67);
+    // joint D row 1: b_i · a_j = 0
     phi[17] = t54;
+    // joint D row 2: c_i · a_j = 0
     phi[18] = t57;
+    // joint D row 3: b_i · (P_j − P_i) = 0
     phi[19] = t54 * t70 - t50 * q22 - t65 * q23;
+    // joint D row 4: c_i · (P_j − P_i) = 0
     phi[20] = t57 * t70 - t62 * q22 - t51 * q23;
+    // joint D row 5: r_i · r_j = 0
     phi[21] = t65;
+    // constraint same_x: x_i − x_j − 0.0 = 0
     phi[22] = q14 + t69;
+    // driver motor: e1 cos(s/2) − e0 sin(s/2) = 0, s = 1.52 − 6.2831852 t
     phi[23] = q4 * t73 - q3 * t72;
+    // body crank normalisation: e0² + e1² + e2² + e3² − 1 = 0
     phi[24] = t3 + (t2 + (t0 + t1)) - 1.0;
+    // body rod normalisation: e0² + e1² + e2² + e3² − 1 = 0
     phi[25] = t8 + (t7 + t9) - 1.0;
+    // body cylinder normalisation: e0² + e1² + e2² + e3² − 1 = 0
     phi[26] = t23 + (t22 + t24) - 1.0;
+    // body slider normalisation: e0² + e1² + e2² + e3² − 1 = 0
     phi[27] = t47 + (t46 + t48) - 1.0;
+    // joint B row 1: (P_j − P_i)_x = 0
     jac[0][3] = t74;
     jac[0][4] = t75;
     jac[0][5] = t76;
@@ -1183,6 +1330,7 @@ pub fn residual_jacobian_structural(
     jac[0][11] = -0.15 * t79;
     jac[0][12] = -(-0.15 * t80);
     jac[0][13] = -(-0.15 * t81);
+    // joint B row 2: (P_j − P_i)_y = 0
     jac[1][3] = -(0.08 * t82);
     jac[1][4] = 0.08 * t83;
     jac[1][5] = -(0.08 * t84);
@@ -1191,6 +1339,7 @@ pub fn residual_jacobian_structural(
     jac[1][11] = t87;
     jac[1][12] = t88;
     jac[1][13] = t89;
+    // joint B row 3: (P_j − P_i)_z = 0
     jac[2][3] = t76;
     jac[2][4] = -t77;
     jac[2][5] = -t74;
@@ -1199,26 +1348,32 @@ pub fn residual_jacobian_structural(
     jac[2][11] = t86;
     jac[2][12] = -t89;
     jac[2][13] = t88;
+    // joint A row 4: b_i · a_j = 0
     jac[6][3] = -t90;
     jac[6][4] = t91;
     jac[6][5] = t92;
     jac[6][6] = -t93;
+    // joint A row 5: c_i · a_j = 0
     jac[7][3] = t91;
     jac[7][4] = t90;
     jac[7][5] = t93;
     jac[7][6] = t92;
+    // joint C_revolute row 1: (P_j − P_i)_x = 0
     jac[8][10] = -(0.15 * t78);
     jac[8][11] = -(0.15 * t79);
     jac[8][12] = 0.15 * t80;
     jac[8][13] = 0.15 * t81;
+    // joint C_revolute row 2: (P_j − P_i)_y = 0
     jac[9][10] = t94;
     jac[9][11] = -t95;
     jac[9][12] = t96;
     jac[9][13] = -t97;
+    // joint C_revolute row 3: (P_j − P_i)_z = 0
     jac[10][10] = t95;
     jac[10][11] = t94;
     jac[10][12] = t97;
     jac[10][13] = t96;
+    // joint C_revolute row 4: b_i · a_j = 0
     jac[11][10] = t41 * t78 + t100 - t43 * t98;
     jac[11][11] = t43 * t99 + (t41 * t79 + t101);
     jac[11][12] = t104 - t41 * t80 - t43 * t102;
@@ -1227,6 +1382,7 @@ pub fn residual_jacobian_structural(
     jac[11][18] = t19 * t116 + (t10 * t119 + t16 * t121);
     jac[11][19] = t19 * t123 + (t10 * t124 + t16 * t125);
     jac[11][20] = t19 * t127 + (t10 * t128 + t16 * t129);
+    // joint C_revolute row 5: c_i · a_j = 0
     jac[12][10] = t104 - t41 * t98 - t43 * t78;
     jac[12][11] = t43 * t79 + (t105 - t41 * t99);
     jac[12][12] = t43 * t80 + (-(t41 * t102) - t100);
@@ -1235,6 +1391,7 @@ pub fn residual_jacobian_structural(
     jac[12][18] = -(t14 * t119) - t17 * t121 - t11 * t116;
     jac[12][19] = -(t14 * t124) - t17 * t125 - t11 * t123;
     jac[12][20] = -(t14 * t128) - t17 * t129 - t11 * t127;
+    // joint C_cylindrical row 1: b_i · a_j = 0
     jac[13][17] = t64 * t130 + (t59 * t107 - t132);
     jac[13][18] = t64 * t133 + (t135 - t59 * t115);
     jac[13][19] = t64 * t131 + (t136 + t59 * t122);
@@ -1243,6 +1400,7 @@ pub fn residual_jacobian_structural(
     jac[13][25] = t40 * t140 + (t30 * t141 + t25 * t138);
     jac[13][26] = t25 * t144 - t30 * t143 - t40 * t142;
     jac[13][27] = t40 * t144 + (t25 * t142 - t30 * t145);
+    // joint C_cylindrical row 2: c_i · a_j = 0
     jac[14][17] = t64 * t107 + (t135 - t59 * t130);
     jac[14][18] = t132 - t59 * t133 - t64 * t115;
     jac[14][19] = t137 + t59 * t131 - t64 * t122;
@@ -1251,6 +1409,7 @@ pub fn residual_jacobian_structural(
     jac[14][25] = t26 * t140 + (t34 * t141 + t38 * t138);
     jac[14][26] = t38 * t144 - t34 * t143 - t26 * t142;
     jac[14][27] = t26 * t144 + (t38 * t142 - t34 * t145);
+    // joint C_cylindrical row 3: b_i · (P_j − P_i) = 0
     jac[15][14] = -t30;
     jac[15][15] = -t25;
     jac[15][16] = -t40;
@@ -1269,6 +1428,7 @@ pub fn residual_jacobian_structural(
     jac[15][25] = t40 * t160 + (t30 * t161 + t25 * t158);
     jac[15][26] = t25 * t164 - t30 * t163 - t40 * t162;
     jac[15][27] = t40 * t164 + (t25 * t162 - t30 * t165);
+    // joint C_cylindrical row 4: c_i · (P_j − P_i) = 0
     jac[16][14] = -t34;
     jac[16][15] = -t38;
     jac[16][16] = -t26;
@@ -1287,14 +1447,17 @@ pub fn residual_jacobian_structural(
     jac[16][25] = t26 * t160 + (t34 * t161 + t38 * t158);
     jac[16][26] = t38 * t164 - t34 * t163 - t26 * t162;
     jac[16][27] = t26 * t164 + (t38 * t162 - t34 * t165);
+    // joint D row 1: b_i · a_j = 0
     jac[17][24] = -t140;
     jac[17][25] = t138;
     jac[17][26] = t144;
     jac[17][27] = -t142;
+    // joint D row 2: c_i · a_j = 0
     jac[18][24] = t138;
     jac[18][25] = t140;
     jac[18][26] = t142;
     jac[18][27] = t144;
+    // joint D row 3: b_i · (P_j − P_i) = 0
     jac[19][21] = -t54;
     jac[19][22] = -t50;
     jac[19][23] = -t65;
@@ -1302,6 +1465,7 @@ pub fn residual_jacobian_structural(
     jac[19][25] = t167 + q22 * t141 - q23 * t142;
     jac[19][26] = t168 - q22 * t143 - q23 * t140;
     jac[19][27] = q22 * t145 - t169 - q23 * t138;
+    // joint D row 4: c_i · (P_j − P_i) = 0
     jac[20][21] = -t57;
     jac[20][22] = -t62;
     jac[20][23] = -t51;
@@ -1309,24 +1473,30 @@ pub fn residual_jacobian_structural(
     jac[20][25] = q23 * t141 + (t166 + q22 * t142);
     jac[20][26] = q23 * t143 + (t169 - q22 * t140);
     jac[20][27] = t168 - q22 * t138 - q23 * t145;
+    // joint D row 5: r_i · r_j = 0
     jac[21][24] = t144;
     jac[21][25] = t142;
     jac[21][26] = t140;
     jac[21][27] = t138;
+    // driver motor: e1 cos(s/2) − e0 sin(s/2) = 0, s = 1.52 − 6.2831852 t
     jac[23][3] = -t72;
     jac[23][4] = t73;
+    // body crank normalisation: e0² + e1² + e2² + e3² − 1 = 0
     jac[24][3] = t82;
     jac[24][4] = t83;
     jac[24][5] = t84;
     jac[24][6] = t85;
+    // body rod normalisation: e0² + e1² + e2² + e3² − 1 = 0
     jac[25][10] = t78;
     jac[25][11] = t79;
     jac[25][12] = t80;
     jac[25][13] = t81;
+    // body cylinder normalisation: e0² + e1² + e2² + e3² − 1 = 0
     jac[26][17] = t107;
     jac[26][18] = t115;
     jac[26][19] = t122;
     jac[26][20] = t126;
+    // body slider normalisation: e0² + e1² + e2² + e3² − 1 = 0
     jac[27][24] = t139;
     jac[27][25] = t141;
     jac[27][26] = t143;
@@ -1339,7 +1509,7 @@ pub fn residual_jacobian_structural(
 ///
 /// Returns the smallest and largest |pivot|, or `None` when a pivot is not finite or a multiplier exceeds [`runtime::lu::MAX_MULTIPLIER`] in magnitude; `jac` is then partly factored and must be evaluated again.
 #[must_use]
-pub fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
+fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     if !(jac[15][14].abs() <= runtime::lu::MAX_MULTIPLIER
         && jac[16][14].abs() <= runtime::lu::MAX_MULTIPLIER)
     {
@@ -1775,7 +1945,7 @@ pub fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
 /// Solves Φ_q x = b in place with the factors [`factor_0`] left in `lu`.
 ///
 /// 315 operations.
-pub fn solve_0(lu: &[[f64; N]; N], b: &mut [f64; N]) {
+fn solve_0(lu: &[[f64; N]; N], b: &mut [f64; N]) {
     let y0 = b[3];
     let y1 = b[4];
     let y2 = b[5];
@@ -1892,7 +2062,7 @@ pub fn solve_0(lu: &[[f64; N]; N], b: &mut [f64; N]) {
 ///
 /// Returns the smallest and largest |pivot|, or `None` when a pivot is not finite or a multiplier exceeds [`runtime::lu::MAX_MULTIPLIER`] in magnitude; `jac` is then partly factored and must be evaluated again.
 #[must_use]
-pub fn factor_1(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
+fn factor_1(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     if !(jac[16][14].abs() <= runtime::lu::MAX_MULTIPLIER
         && jac[15][14].abs() <= runtime::lu::MAX_MULTIPLIER)
     {
@@ -2339,7 +2509,7 @@ pub fn factor_1(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
 /// Solves Φ_q x = b in place with the factors [`factor_1`] left in `lu`.
 ///
 /// 323 operations.
-pub fn solve_1(lu: &[[f64; N]; N], b: &mut [f64; N]) {
+fn solve_1(lu: &[[f64; N]; N], b: &mut [f64; N]) {
     let y0 = b[3];
     let y1 = b[4];
     let y2 = b[5];
@@ -2458,7 +2628,7 @@ pub fn solve_1(lu: &[[f64; N]; N], b: &mut [f64; N]) {
 ///
 /// Returns the smallest and largest |pivot|, or `None` when a pivot is not finite or a multiplier exceeds [`runtime::lu::MAX_MULTIPLIER`] in magnitude; `jac` is then partly factored and must be evaluated again.
 #[must_use]
-pub fn factor_2(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
+fn factor_2(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     if !(jac[16][14].abs() <= runtime::lu::MAX_MULTIPLIER
         && jac[15][14].abs() <= runtime::lu::MAX_MULTIPLIER)
     {
@@ -2905,7 +3075,7 @@ pub fn factor_2(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
 /// Solves Φ_q x = b in place with the factors [`factor_2`] left in `lu`.
 ///
 /// 323 operations.
-pub fn solve_2(lu: &[[f64; N]; N], b: &mut [f64; N]) {
+fn solve_2(lu: &[[f64; N]; N], b: &mut [f64; N]) {
     let y0 = b[3];
     let y1 = b[4];
     let y2 = b[5];
@@ -3024,36 +3194,64 @@ pub fn solve_2(lu: &[[f64; N]; N], b: &mut [f64; N]) {
 pub fn velocity_rhs(q: &[f64; N], t: f64, nu: &mut [f64; N]) {
     let [_q0, _q1, _q2, q3, q4, _q5, _q6, _q7, _q8, _q9, _q10, _q11, _q12, _q13, _q14,
     _q15, _q16, _q17, _q18, _q19, _q20, _q21, _q22, _q23, _q24, _q25, _q26, _q27] = *q;
-    let t0 = 0.5 * (1.52 + -6.2831852 * t);
+    let t0 = 0.5 * (LAW_MOTOR_START + LAW_MOTOR_VELOCITY * t);
     let (t1, t2) = runtime::math::sin_cos(t0);
+    // joint B row 1: (P_j − P_i)_x = 0
     nu[0] = 0.0;
+    // joint B row 2: (P_j − P_i)_y = 0
     nu[1] = 0.0;
+    // joint B row 3: (P_j − P_i)_z = 0
     nu[2] = 0.0;
+    // joint A row 1: (P_j − P_i)_x = 0
     nu[3] = 0.0;
+    // joint A row 2: (P_j − P_i)_y = 0
     nu[4] = 0.0;
+    // joint A row 3: (P_j − P_i)_z = 0
     nu[5] = 0.0;
+    // joint A row 4: b_i · a_j = 0
     nu[6] = 0.0;
+    // joint A row 5: c_i · a_j = 0
     nu[7] = 0.0;
+    // joint C_revolute row 1: (P_j − P_i)_x = 0
     nu[8] = 0.0;
+    // joint C_revolute row 2: (P_j − P_i)_y = 0
     nu[9] = 0.0;
+    // joint C_revolute row 3: (P_j − P_i)_z = 0
     nu[10] = 0.0;
+    // joint C_revolute row 4: b_i · a_j = 0
     nu[11] = 0.0;
+    // joint C_revolute row 5: c_i · a_j = 0
     nu[12] = 0.0;
+    // joint C_cylindrical row 1: b_i · a_j = 0
     nu[13] = 0.0;
+    // joint C_cylindrical row 2: c_i · a_j = 0
     nu[14] = 0.0;
+    // joint C_cylindrical row 3: b_i · (P_j − P_i) = 0
     nu[15] = 0.0;
+    // joint C_cylindrical row 4: c_i · (P_j − P_i) = 0
     nu[16] = 0.0;
+    // joint D row 1: b_i · a_j = 0
     nu[17] = 0.0;
+    // joint D row 2: c_i · a_j = 0
     nu[18] = 0.0;
+    // joint D row 3: b_i · (P_j − P_i) = 0
     nu[19] = 0.0;
+    // joint D row 4: c_i · (P_j − P_i) = 0
     nu[20] = 0.0;
+    // joint D row 5: r_i · r_j = 0
     nu[21] = 0.0;
+    // constraint same_x: x_i − x_j − 0.0 = 0
     nu[22] = 0.0;
+    // driver motor: e1 cos(s/2) − e0 sin(s/2) = 0, s = 1.52 − 6.2831852 t
     nu[23] = -(-(q4 * (-f64::from_bits(4614256656431372362) * t1))
         - q3 * (-f64::from_bits(4614256656431372362) * t2));
+    // body crank normalisation: e0² + e1² + e2² + e3² − 1 = 0
     nu[24] = 0.0;
+    // body rod normalisation: e0² + e1² + e2² + e3² − 1 = 0
     nu[25] = 0.0;
+    // body cylinder normalisation: e0² + e1² + e2² + e3² − 1 = 0
     nu[26] = 0.0;
+    // body slider normalisation: e0² + e1² + e2² + e3² − 1 = 0
     nu[27] = 0.0;
 }
 
@@ -3104,7 +3302,7 @@ pub fn acceleration_rhs(q: &[f64; N], qd: &[f64; N], t: f64, gamma: &mut [f64; N
     let t35 = 0.8 * t30 + q22 - (q15 + 0.4 * (t12 + t13));
     let t36 = 0.8 * t32 + q23 - (q16 + 0.4 * (t16 - t17));
     let t37 = 0.2 - q21;
-    let t38 = 0.5 * (1.52 + -6.2831852 * t);
+    let t38 = 0.5 * (LAW_MOTOR_START + LAW_MOTOR_VELOCITY * t);
     let (t39, t40) = runtime::math::sin_cos(t38);
     let t41 = q10 * qd10;
     let t42 = t41 + t41;
@@ -3292,53 +3490,81 @@ pub fn acceleration_rhs(q: &[f64; N], qd: &[f64; N], t: f64, gamma: &mut [f64; N
     let t224 = qd22 * (2.0 * (t212 - t213));
     let t225 = qd4 * (-f64::from_bits(4614256656431372362) * t39);
     let t226 = qd3 * (-f64::from_bits(4614256656431372362) * t40);
+    // joint B row 1: (P_j − P_i)_x = 0
     gamma[0] = -(-0.15 * t58 - 0.16 * t61);
+    // joint B row 2: (P_j − P_i)_y = 0
     gamma[1] = -(-0.3 * t64 - 0.08 * (t66 + t68 - (t70 + t72)));
+    // joint B row 3: (P_j − P_i)_z = 0
     gamma[2] = -(-0.3 * t79 - 0.16 * (t80 + t80 + (t81 + t81)));
+    // joint A row 1: (P_j − P_i)_x = 0
     gamma[3] = 0.0;
+    // joint A row 2: (P_j − P_i)_y = 0
     gamma[4] = 0.0;
+    // joint A row 3: (P_j − P_i)_z = 0
     gamma[5] = 0.0;
+    // joint A row 4: b_i · a_j = 0
     gamma[6] = -(2.0 * t61);
+    // joint A row 5: c_i · a_j = 0
     gamma[7] = -(2.0 * (t82 + t82 + (t83 + t83)));
+    // joint C_revolute row 1: (P_j − P_i)_x = 0
     gamma[8] = 0.15 * t58;
+    // joint C_revolute row 2: (P_j − P_i)_y = 0
     gamma[9] = 0.3 * t64;
+    // joint C_revolute row 3: (P_j − P_i)_z = 0
     gamma[10] = 0.3 * t79;
+    // joint C_revolute row 4: b_i · a_j = 0
     gamma[11] = -(t107 + t28 * (2.0 * t79) + (t107 + 2.0 * (t4 - t5) * t122)
         + (t123 + t26 * t58 + (t123 + (t0 + t1 - (t2 + t3)) * t134)
             + (t135 + t27 * (2.0 * t64)
                 + (t135 + 2.0 * (q11 * q12 + q10 * q13) * t138))));
+    // joint C_revolute row 5: c_i · a_j = 0
     gamma[12] = -(-(t140 + t26 * (2.0 * (t76 + t78)) + (t140 + 2.0 * (t4 + t5) * t134))
         - (t143 + t27 * (2.0 * (t141 + t141 - (t142 + t142)))
             + (t143 + 2.0 * (q12 * q13 - q10 * q11) * t138))
         - (t139 + t28 * (t50 + t57 - (t52 + t55))
             + (t139 + (t0 + t3 - (t1 + t2)) * t122)));
+    // joint C_cylindrical row 1: b_i · a_j = 0
     gamma[13] = -(t164 + t33 * t163 + (t164 + t25 * t170)
         + (t172 + t29 * t171 + (t172 + t15 * t182)
             + (t183 + t31 * t136 + (t183 + t10 * t189))));
+    // joint C_cylindrical row 2: c_i · a_j = 0
     gamma[14] = -(t192 + t33 * t121 + (t192 + t11 * t170)
         + (t194 + t29 * t193 + (t194 + t19 * t182)
             + (t196 + t31 * t195 + (t196 + t23 * t189))));
+    // joint C_cylindrical row 3: b_i · (P_j − P_i) = 0
     gamma[15] = -(t200 + t36 * t163 + (t200 + t25 * t201)
         + (t202 + t34 * t171 + (t202 + t15 * t204)
             + (t205 + t35 * t136 + (t205 + t10 * t206))));
+    // joint C_cylindrical row 4: c_i · (P_j − P_i) = 0
     gamma[16] = -(t207 + t36 * t121 + (t207 + t11 * t201)
         + (t208 + t34 * t193 + (t208 + t19 * t204)
             + (t209 + t35 * t195 + (t209 + t23 * t206))));
+    // joint D row 1: b_i · a_j = 0
     gamma[17] = -t210;
+    // joint D row 2: c_i · a_j = 0
     gamma[18] = -t211;
+    // joint D row 3: b_i · (P_j − P_i) = 0
     gamma[19] = -(t220 + (t220 + t37 * t210)
         - (t221 + (t221 + q22 * (t174 + t179 - (t176 + t181))))
         - (t219 + (t219 + q23 * t218)));
+    // joint D row 4: c_i · (P_j − P_i) = 0
     gamma[20] = -(t223 + (t223 + t37 * t211)
         - (t224 + (t224 + q22 * (2.0 * (t215 - t217))))
         - (t222 + (t222 + q23 * (t174 + t181 - (t176 + t179)))));
+    // joint D row 5: r_i · r_j = 0
     gamma[21] = -t218;
+    // constraint same_x: x_i − x_j − 0.0 = 0
     gamma[22] = 0.0;
+    // driver motor: e1 cos(s/2) − e0 sin(s/2) = 0, s = 1.52 − 6.2831852 t
     gamma[23] = -(-(t225 + q4 * (9.86960406437476 * t40)) - t225
         - (t226 + (t226 - q3 * (9.86960406437476 * t39))));
+    // body crank normalisation: e0² + e1² + e2² + e3² − 1 = 0
     gamma[24] = -(t72 + (t68 + (t66 + t70)));
+    // body rod normalisation: e0² + e1² + e2² + e3² − 1 = 0
     gamma[25] = -(t57 + (t53 + t55));
+    // body cylinder normalisation: e0² + e1² + e2² + e3² − 1 = 0
     gamma[26] = -(t116 + (t120 + t203));
+    // body slider normalisation: e0² + e1² + e2² + e3² − 1 = 0
     gamma[27] = -(t181 + (t177 + t179));
 }
 
@@ -3346,7 +3572,7 @@ pub fn acceleration_rhs(q: &[f64; N], qd: &[f64; N], t: f64, gamma: &mut [f64; N
 /// ones keep their values).
 pub fn normalize(q: &mut [f64; N]) {
     {
-        let free = 0.0 + q[3] * q[3] + q[4] * q[4] + q[5] * q[5] + q[6] * q[6];
+        let free = q[3] * q[3] + q[4] * q[4] + q[5] * q[5] + q[6] * q[6];
         if free > 0.0 {
             let scale = runtime::math::sqrt(1.0 / free);
             q[3] *= scale;
@@ -3356,7 +3582,7 @@ pub fn normalize(q: &mut [f64; N]) {
         }
     }
     {
-        let free = 0.0 + q[10] * q[10] + q[11] * q[11] + q[12] * q[12] + q[13] * q[13];
+        let free = q[10] * q[10] + q[11] * q[11] + q[12] * q[12] + q[13] * q[13];
         if free > 0.0 {
             let scale = runtime::math::sqrt(1.0 / free);
             q[10] *= scale;
@@ -3366,7 +3592,7 @@ pub fn normalize(q: &mut [f64; N]) {
         }
     }
     {
-        let free = 0.0 + q[17] * q[17] + q[18] * q[18] + q[19] * q[19] + q[20] * q[20];
+        let free = q[17] * q[17] + q[18] * q[18] + q[19] * q[19] + q[20] * q[20];
         if free > 0.0 {
             let scale = runtime::math::sqrt(1.0 / free);
             q[17] *= scale;
@@ -3376,7 +3602,7 @@ pub fn normalize(q: &mut [f64; N]) {
         }
     }
     {
-        let free = 0.0 + q[24] * q[24] + q[25] * q[25] + q[26] * q[26] + q[27] * q[27];
+        let free = q[24] * q[24] + q[25] * q[25] + q[26] * q[26] + q[27] * q[27];
         if free > 0.0 {
             let scale = runtime::math::sqrt(1.0 / free);
             q[24] *= scale;

@@ -75,10 +75,15 @@ pub fn residual(q: &[f64; N], t: f64, phi: &mut [f64; N]) {
     let t1 = q4 * q4;
     let t2 = f64::from_bits(4602890488355133325) * t;
     let (t3, t4) = runtime::math::sin_cos(t2);
+    // joint ball row 1: (P_j − P_i)_x = 0
     phi[0] = q0 - (t0 - t1);
+    // joint ball row 2: (P_j − P_i)_y = 0
     phi[1] = q1;
+    // joint ball row 3: (P_j − P_i)_z = 0
     phi[2] = 2.0 * (q3 * q4) + q2;
+    // driver drive_ry: e2 cos(s/2) − e0 sin(s/2) = 0, s = 1.047 t
     phi[3] = q4 * t4 - q3 * t3;
+    // body bar normalisation: e0² + e1² + e2² + e3² − 1 = 0
     phi[4] = t0 + t1 - 1.0;
 }
 
@@ -92,15 +97,20 @@ pub fn jacobian(q: &[f64; N], t: f64, jac: &mut [[f64; N]; N]) {
     let (t1, t2) = runtime::math::sin_cos(t0);
     let t3 = q3 + q3;
     let t4 = q4 + q4;
+    // joint ball row 1: (P_j − P_i)_x = 0
     jac[0][0] = 1.0;
     jac[0][3] = -t3;
     jac[0][4] = t4;
+    // joint ball row 2: (P_j − P_i)_y = 0
     jac[1][1] = 1.0;
+    // joint ball row 3: (P_j − P_i)_z = 0
     jac[2][2] = 1.0;
     jac[2][3] = 2.0 * q4;
     jac[2][4] = 2.0 * q3;
+    // driver drive_ry: e2 cos(s/2) − e0 sin(s/2) = 0, s = 1.047 t
     jac[3][3] = -t1;
     jac[3][4] = t2;
+    // body bar normalisation: e0² + e1² + e2² + e3² − 1 = 0
     jac[4][3] = t3;
     jac[4][4] = t4;
 }
@@ -122,20 +132,30 @@ pub fn residual_jacobian(
     let (t3, t4) = runtime::math::sin_cos(t2);
     let t5 = q3 + q3;
     let t6 = q4 + q4;
+    // joint ball row 1: (P_j − P_i)_x = 0
     phi[0] = q0 - (t0 - t1);
+    // joint ball row 2: (P_j − P_i)_y = 0
     phi[1] = q1;
+    // joint ball row 3: (P_j − P_i)_z = 0
     phi[2] = 2.0 * (q3 * q4) + q2;
+    // driver drive_ry: e2 cos(s/2) − e0 sin(s/2) = 0, s = 1.047 t
     phi[3] = q4 * t4 - q3 * t3;
+    // body bar normalisation: e0² + e1² + e2² + e3² − 1 = 0
     phi[4] = t0 + t1 - 1.0;
+    // joint ball row 1: (P_j − P_i)_x = 0
     jac[0][0] = 1.0;
     jac[0][3] = -t5;
     jac[0][4] = t6;
+    // joint ball row 2: (P_j − P_i)_y = 0
     jac[1][1] = 1.0;
+    // joint ball row 3: (P_j − P_i)_z = 0
     jac[2][2] = 1.0;
     jac[2][3] = 2.0 * q4;
     jac[2][4] = 2.0 * q3;
+    // driver drive_ry: e2 cos(s/2) − e0 sin(s/2) = 0, s = 1.047 t
     jac[3][3] = -t3;
     jac[3][4] = t4;
+    // body bar normalisation: e0² + e1² + e2² + e3² − 1 = 0
     jac[4][3] = t5;
     jac[4][4] = t6;
 }
@@ -143,7 +163,7 @@ pub fn residual_jacobian(
 /// Φ and the 8 entries of Φ_q that depend on q or t, the others of `jac` left as they were: what the `factor_k` functions read (3 of the 11 structurally non-zero entries are constants, which they know).
 ///
 /// 24 operations, 7 shared subexpressions.
-pub fn residual_jacobian_structural(
+fn residual_jacobian_structural(
     q: &[f64; N],
     t: f64,
     phi: &mut [f64; N],
@@ -156,17 +176,26 @@ pub fn residual_jacobian_structural(
     let (t3, t4) = runtime::math::sin_cos(t2);
     let t5 = q3 + q3;
     let t6 = q4 + q4;
+    // joint ball row 1: (P_j − P_i)_x = 0
     phi[0] = q0 - (t0 - t1);
+    // joint ball row 2: (P_j − P_i)_y = 0
     phi[1] = q1;
+    // joint ball row 3: (P_j − P_i)_z = 0
     phi[2] = 2.0 * (q3 * q4) + q2;
+    // driver drive_ry: e2 cos(s/2) − e0 sin(s/2) = 0, s = 1.047 t
     phi[3] = q4 * t4 - q3 * t3;
+    // body bar normalisation: e0² + e1² + e2² + e3² − 1 = 0
     phi[4] = t0 + t1 - 1.0;
+    // joint ball row 1: (P_j − P_i)_x = 0
     jac[0][3] = -t5;
     jac[0][4] = t6;
+    // joint ball row 3: (P_j − P_i)_z = 0
     jac[2][3] = 2.0 * q4;
     jac[2][4] = 2.0 * q3;
+    // driver drive_ry: e2 cos(s/2) − e0 sin(s/2) = 0, s = 1.047 t
     jac[3][3] = -t3;
     jac[3][4] = t4;
+    // body bar normalisation: e0² + e1² + e2² + e3² − 1 = 0
     jac[4][3] = t5;
     jac[4][4] = t6;
 }
@@ -177,7 +206,7 @@ pub fn residual_jacobian_structural(
 ///
 /// Returns the smallest and largest |pivot|, or `None` when a pivot is not finite or a multiplier exceeds [`runtime::lu::MAX_MULTIPLIER`] in magnitude; `jac` is then partly factored and must be evaluated again.
 #[must_use]
-pub fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
+fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     let p3 = jac[4][3];
     let d3 = 1.0 / p3;
     jac[4][3] = d3;
@@ -205,7 +234,7 @@ pub fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
 /// Solves Φ_q x = b in place with the factors [`factor_0`] left in `lu`.
 ///
 /// 14 operations.
-pub fn solve_0(lu: &[[f64; N]; N], b: &mut [f64; N]) {
+fn solve_0(lu: &[[f64; N]; N], b: &mut [f64; N]) {
     let y0 = b[0];
     let y1 = b[1];
     let y2 = b[2];
@@ -229,7 +258,7 @@ pub fn solve_0(lu: &[[f64; N]; N], b: &mut [f64; N]) {
 ///
 /// Returns the smallest and largest |pivot|, or `None` when a pivot is not finite or a multiplier exceeds [`runtime::lu::MAX_MULTIPLIER`] in magnitude; `jac` is then partly factored and must be evaluated again.
 #[must_use]
-pub fn factor_1(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
+fn factor_1(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     let p3 = jac[3][3];
     let d3 = 1.0 / p3;
     jac[3][3] = d3;
@@ -257,7 +286,7 @@ pub fn factor_1(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
 /// Solves Φ_q x = b in place with the factors [`factor_1`] left in `lu`.
 ///
 /// 14 operations.
-pub fn solve_1(lu: &[[f64; N]; N], b: &mut [f64; N]) {
+fn solve_1(lu: &[[f64; N]; N], b: &mut [f64; N]) {
     let y0 = b[0];
     let y1 = b[1];
     let y2 = b[2];
@@ -282,11 +311,16 @@ pub fn velocity_rhs(q: &[f64; N], t: f64, nu: &mut [f64; N]) {
     let [_q0, _q1, _q2, q3, q4] = *q;
     let t0 = f64::from_bits(4602890488355133325) * t;
     let (t1, t2) = runtime::math::sin_cos(t0);
+    // joint ball row 1: (P_j − P_i)_x = 0
     nu[0] = 0.0;
+    // joint ball row 2: (P_j − P_i)_y = 0
     nu[1] = 0.0;
+    // joint ball row 3: (P_j − P_i)_z = 0
     nu[2] = 0.0;
+    // driver drive_ry: e2 cos(s/2) − e0 sin(s/2) = 0, s = 1.047 t
     nu[3] = -(-(q4 * (f64::from_bits(4602890488355133325) * t1))
         - q3 * (f64::from_bits(4602890488355133325) * t2));
+    // body bar normalisation: e0² + e1² + e2² + e3² − 1 = 0
     nu[4] = 0.0;
 }
 
@@ -305,11 +339,16 @@ pub fn acceleration_rhs(q: &[f64; N], qd: &[f64; N], t: f64, gamma: &mut [f64; N
     let t7 = qd3 * qd4;
     let t8 = qd4 * (f64::from_bits(4602890488355133325) * t1);
     let t9 = qd3 * (f64::from_bits(4602890488355133325) * t2);
+    // joint ball row 1: (P_j − P_i)_x = 0
     gamma[0] = t4 - t6;
+    // joint ball row 2: (P_j − P_i)_y = 0
     gamma[1] = 0.0;
+    // joint ball row 3: (P_j − P_i)_z = 0
     gamma[2] = -(2.0 * (t7 + t7));
+    // driver drive_ry: e2 cos(s/2) − e0 sin(s/2) = 0, s = 1.047 t
     gamma[3] = -(-(t8 + q4 * (0.27405224999999994 * t2)) - t8
         - (t9 + (t9 - q3 * (0.27405224999999994 * t1))));
+    // body bar normalisation: e0² + e1² + e2² + e3² − 1 = 0
     gamma[4] = -(t4 + t6);
 }
 
@@ -317,7 +356,7 @@ pub fn acceleration_rhs(q: &[f64; N], qd: &[f64; N], t: f64, gamma: &mut [f64; N
 /// ones keep their values).
 pub fn normalize(q: &mut [f64; N]) {
     {
-        let free = 0.0 + q[3] * q[3] + q[4] * q[4];
+        let free = q[3] * q[3] + q[4] * q[4];
         if free > 0.0 {
             let scale = runtime::math::sqrt(1.0 / free);
             q[3] *= scale;

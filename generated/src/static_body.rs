@@ -65,6 +65,7 @@ pub const Q0: [f64; N] = [1.0];
 /// 2 operations, 0 shared subexpressions.
 pub fn residual(q: &[f64; N], _t: f64, phi: &mut [f64; N]) {
     let [q0] = *q;
+    // body block normalisation: e0² + e1² + e2² + e3² − 1 = 0
     phi[0] = q0 * q0 - 1.0;
 }
 
@@ -74,6 +75,7 @@ pub fn residual(q: &[f64; N], _t: f64, phi: &mut [f64; N]) {
 pub fn jacobian(q: &[f64; N], _t: f64, jac: &mut [[f64; N]; N]) {
     *jac = [[0.0; N]; N];
     let [q0] = *q;
+    // body block normalisation: e0² + e1² + e2² + e3² − 1 = 0
     jac[0][0] = q0 + q0;
 }
 
@@ -88,6 +90,7 @@ pub fn residual_jacobian(
 ) {
     *jac = [[0.0; N]; N];
     let [q0] = *q;
+    // body block normalisation: e0² + e1² + e2² + e3² − 1 = 0
     phi[0] = q0 * q0 - 1.0;
     jac[0][0] = q0 + q0;
 }
@@ -95,13 +98,14 @@ pub fn residual_jacobian(
 /// Φ and the 1 entries of Φ_q that depend on q or t, the others of `jac` left as they were: what the `factor_k` functions read (0 of the 1 structurally non-zero entries are constants, which they know).
 ///
 /// 3 operations, 0 shared subexpressions.
-pub fn residual_jacobian_structural(
+fn residual_jacobian_structural(
     q: &[f64; N],
     _t: f64,
     phi: &mut [f64; N],
     jac: &mut [[f64; N]; N],
 ) {
     let [q0] = *q;
+    // body block normalisation: e0² + e1² + e2² + e3² − 1 = 0
     phi[0] = q0 * q0 - 1.0;
     jac[0][0] = q0 + q0;
 }
@@ -112,7 +116,7 @@ pub fn residual_jacobian_structural(
 ///
 /// Returns the smallest and largest |pivot|, or `None` when a pivot is not finite or a multiplier exceeds [`runtime::lu::MAX_MULTIPLIER`] in magnitude; `jac` is then partly factored and must be evaluated again.
 #[must_use]
-pub fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
+fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     let p0 = jac[0][0];
     let d0 = 1.0 / p0;
     jac[0][0] = d0;
@@ -130,7 +134,7 @@ pub fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
 /// Solves Φ_q x = b in place with the factors [`factor_0`] left in `lu`.
 ///
 /// 1 operations.
-pub fn solve_0(lu: &[[f64; N]; N], b: &mut [f64; N]) {
+fn solve_0(lu: &[[f64; N]; N], b: &mut [f64; N]) {
     let y0 = b[0];
     let x0 = y0 * lu[0][0];
     b[0] = x0;
@@ -140,6 +144,7 @@ pub fn solve_0(lu: &[[f64; N]; N], b: &mut [f64; N]) {
 ///
 /// 0 operations, 0 shared subexpressions.
 pub fn velocity_rhs(_q: &[f64; N], _t: f64, nu: &mut [f64; N]) {
+    // body block normalisation: e0² + e1² + e2² + e3² − 1 = 0
     nu[0] = 0.0;
 }
 
@@ -149,6 +154,7 @@ pub fn velocity_rhs(_q: &[f64; N], _t: f64, nu: &mut [f64; N]) {
 pub fn acceleration_rhs(_q: &[f64; N], qd: &[f64; N], _t: f64, gamma: &mut [f64; N]) {
     let [qd0] = *qd;
     let t0 = qd0 * qd0;
+    // body block normalisation: e0² + e1² + e2² + e3² − 1 = 0
     gamma[0] = -(t0 + t0);
 }
 
@@ -156,7 +162,7 @@ pub fn acceleration_rhs(_q: &[f64; N], qd: &[f64; N], _t: f64, gamma: &mut [f64;
 /// ones keep their values).
 pub fn normalize(q: &mut [f64; N]) {
     {
-        let free = 0.0 + q[0] * q[0];
+        let free = q[0] * q[0];
         if free > 0.0 {
             let scale = runtime::math::sqrt(1.0 / free);
             q[0] *= scale;

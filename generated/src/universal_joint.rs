@@ -84,11 +84,17 @@ pub fn residual(q: &[f64; N], t: f64, phi: &mut [f64; N]) {
     let t2 = q5 * q5;
     let t3 = f64::from_bits(4602890488355133325) * t;
     let (t4, t5) = runtime::math::sin_cos(t3);
+    // joint cross row 1: (P_j − P_i)_x = 0
     phi[0] = q0 - 2.0 * (q4 * q5);
+    // joint cross row 2: (P_j − P_i)_y = 0
     phi[1] = q1 - (t0 + t2 - t1);
+    // joint cross row 3: (P_j − P_i)_z = 0
     phi[2] = q2 - 2.0 * (q3 * q4);
+    // joint cross row 4: a_i · a_j = 0
     phi[3] = 2.0 * (q3 * q5);
+    // driver drive_rx: e1 cos(s/2) − e0 sin(s/2) = 0, s = 1.047 t
     phi[4] = q4 * t5 - q3 * t4;
+    // body bar normalisation: e0² + e1² + e2² + e3² − 1 = 0
     phi[5] = t2 + (t0 + t1) - 1.0;
 }
 
@@ -106,20 +112,26 @@ pub fn jacobian(q: &[f64; N], t: f64, jac: &mut [[f64; N]; N]) {
     let t6 = q4 + q4;
     let t7 = q5 + q5;
     let t8 = 2.0 * q3;
+    // joint cross row 1: (P_j − P_i)_x = 0
     jac[0][0] = 1.0;
     jac[0][4] = -t3;
     jac[0][5] = t4;
+    // joint cross row 2: (P_j − P_i)_y = 0
     jac[1][1] = 1.0;
     jac[1][3] = -t5;
     jac[1][4] = t6;
     jac[1][5] = -t7;
+    // joint cross row 3: (P_j − P_i)_z = 0
     jac[2][2] = 1.0;
     jac[2][3] = t4;
     jac[2][4] = -t8;
+    // joint cross row 4: a_i · a_j = 0
     jac[3][3] = t3;
     jac[3][5] = t8;
+    // driver drive_rx: e1 cos(s/2) − e0 sin(s/2) = 0, s = 1.047 t
     jac[4][3] = -t1;
     jac[4][4] = t2;
+    // body bar normalisation: e0² + e1² + e2² + e3² − 1 = 0
     jac[5][3] = t5;
     jac[5][4] = t6;
     jac[5][5] = t7;
@@ -147,26 +159,38 @@ pub fn residual_jacobian(
     let t9 = q4 + q4;
     let t10 = q5 + q5;
     let t11 = 2.0 * q3;
+    // joint cross row 1: (P_j − P_i)_x = 0
     phi[0] = q0 - 2.0 * (q4 * q5);
+    // joint cross row 2: (P_j − P_i)_y = 0
     phi[1] = q1 - (t0 + t2 - t1);
+    // joint cross row 3: (P_j − P_i)_z = 0
     phi[2] = q2 - 2.0 * (q3 * q4);
+    // joint cross row 4: a_i · a_j = 0
     phi[3] = 2.0 * (q3 * q5);
+    // driver drive_rx: e1 cos(s/2) − e0 sin(s/2) = 0, s = 1.047 t
     phi[4] = q4 * t5 - q3 * t4;
+    // body bar normalisation: e0² + e1² + e2² + e3² − 1 = 0
     phi[5] = t2 + (t0 + t1) - 1.0;
+    // joint cross row 1: (P_j − P_i)_x = 0
     jac[0][0] = 1.0;
     jac[0][4] = -t6;
     jac[0][5] = t7;
+    // joint cross row 2: (P_j − P_i)_y = 0
     jac[1][1] = 1.0;
     jac[1][3] = -t8;
     jac[1][4] = t9;
     jac[1][5] = -t10;
+    // joint cross row 3: (P_j − P_i)_z = 0
     jac[2][2] = 1.0;
     jac[2][3] = t7;
     jac[2][4] = -t11;
+    // joint cross row 4: a_i · a_j = 0
     jac[3][3] = t6;
     jac[3][5] = t11;
+    // driver drive_rx: e1 cos(s/2) − e0 sin(s/2) = 0, s = 1.047 t
     jac[4][3] = -t4;
     jac[4][4] = t5;
+    // body bar normalisation: e0² + e1² + e2² + e3² − 1 = 0
     jac[5][3] = t8;
     jac[5][4] = t9;
     jac[5][5] = t10;
@@ -175,7 +199,7 @@ pub fn residual_jacobian(
 /// Φ and the 14 entries of Φ_q that depend on q or t, the others of `jac` left as they were: what the `factor_k` functions read (3 of the 17 structurally non-zero entries are constants, which they know).
 ///
 /// 40 operations, 12 shared subexpressions.
-pub fn residual_jacobian_structural(
+fn residual_jacobian_structural(
     q: &[f64; N],
     t: f64,
     phi: &mut [f64; N],
@@ -193,23 +217,35 @@ pub fn residual_jacobian_structural(
     let t9 = q4 + q4;
     let t10 = q5 + q5;
     let t11 = 2.0 * q3;
+    // joint cross row 1: (P_j − P_i)_x = 0
     phi[0] = q0 - 2.0 * (q4 * q5);
+    // joint cross row 2: (P_j − P_i)_y = 0
     phi[1] = q1 - (t0 + t2 - t1);
+    // joint cross row 3: (P_j − P_i)_z = 0
     phi[2] = q2 - 2.0 * (q3 * q4);
+    // joint cross row 4: a_i · a_j = 0
     phi[3] = 2.0 * (q3 * q5);
+    // driver drive_rx: e1 cos(s/2) − e0 sin(s/2) = 0, s = 1.047 t
     phi[4] = q4 * t5 - q3 * t4;
+    // body bar normalisation: e0² + e1² + e2² + e3² − 1 = 0
     phi[5] = t2 + (t0 + t1) - 1.0;
+    // joint cross row 1: (P_j − P_i)_x = 0
     jac[0][4] = -t6;
     jac[0][5] = t7;
+    // joint cross row 2: (P_j − P_i)_y = 0
     jac[1][3] = -t8;
     jac[1][4] = t9;
     jac[1][5] = -t10;
+    // joint cross row 3: (P_j − P_i)_z = 0
     jac[2][3] = t7;
     jac[2][4] = -t11;
+    // joint cross row 4: a_i · a_j = 0
     jac[3][3] = t6;
     jac[3][5] = t11;
+    // driver drive_rx: e1 cos(s/2) − e0 sin(s/2) = 0, s = 1.047 t
     jac[4][3] = -t4;
     jac[4][4] = t5;
+    // body bar normalisation: e0² + e1² + e2² + e3² − 1 = 0
     jac[5][3] = t8;
     jac[5][4] = t9;
     jac[5][5] = t10;
@@ -221,7 +257,7 @@ pub fn residual_jacobian_structural(
 ///
 /// Returns the smallest and largest |pivot|, or `None` when a pivot is not finite or a multiplier exceeds [`runtime::lu::MAX_MULTIPLIER`] in magnitude; `jac` is then partly factored and must be evaluated again.
 #[must_use]
-pub fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
+fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     let p3 = jac[4][4];
     let d3 = 1.0 / p3;
     jac[4][4] = d3;
@@ -259,7 +295,7 @@ pub fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
 /// Solves Φ_q x = b in place with the factors [`factor_0`] left in `lu`.
 ///
 /// 25 operations.
-pub fn solve_0(lu: &[[f64; N]; N], b: &mut [f64; N]) {
+fn solve_0(lu: &[[f64; N]; N], b: &mut [f64; N]) {
     let y0 = b[0];
     let y1 = b[1];
     let y2 = b[2];
@@ -286,7 +322,7 @@ pub fn solve_0(lu: &[[f64; N]; N], b: &mut [f64; N]) {
 ///
 /// Returns the smallest and largest |pivot|, or `None` when a pivot is not finite or a multiplier exceeds [`runtime::lu::MAX_MULTIPLIER`] in magnitude; `jac` is then partly factored and must be evaluated again.
 #[must_use]
-pub fn factor_1(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
+fn factor_1(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     let p3 = jac[3][5];
     let d3 = 1.0 / p3;
     jac[3][5] = d3;
@@ -324,7 +360,7 @@ pub fn factor_1(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
 /// Solves Φ_q x = b in place with the factors [`factor_1`] left in `lu`.
 ///
 /// 25 operations.
-pub fn solve_1(lu: &[[f64; N]; N], b: &mut [f64; N]) {
+fn solve_1(lu: &[[f64; N]; N], b: &mut [f64; N]) {
     let y0 = b[0];
     let y1 = b[1];
     let y2 = b[2];
@@ -352,12 +388,18 @@ pub fn velocity_rhs(q: &[f64; N], t: f64, nu: &mut [f64; N]) {
     let [_q0, _q1, _q2, q3, q4, _q5] = *q;
     let t0 = f64::from_bits(4602890488355133325) * t;
     let (t1, t2) = runtime::math::sin_cos(t0);
+    // joint cross row 1: (P_j − P_i)_x = 0
     nu[0] = 0.0;
+    // joint cross row 2: (P_j − P_i)_y = 0
     nu[1] = 0.0;
+    // joint cross row 3: (P_j − P_i)_z = 0
     nu[2] = 0.0;
+    // joint cross row 4: a_i · a_j = 0
     nu[3] = 0.0;
+    // driver drive_rx: e1 cos(s/2) − e0 sin(s/2) = 0, s = 1.047 t
     nu[4] = -(-(q4 * (f64::from_bits(4602890488355133325) * t1))
         - q3 * (f64::from_bits(4602890488355133325) * t2));
+    // body bar normalisation: e0² + e1² + e2² + e3² − 1 = 0
     nu[5] = 0.0;
 }
 
@@ -380,12 +422,18 @@ pub fn acceleration_rhs(q: &[f64; N], qd: &[f64; N], t: f64, gamma: &mut [f64; N
     let t11 = qd5 * qd3;
     let t12 = qd4 * (f64::from_bits(4602890488355133325) * t1);
     let t13 = qd3 * (f64::from_bits(4602890488355133325) * t2);
+    // joint cross row 1: (P_j − P_i)_x = 0
     gamma[0] = 2.0 * (t3 + t3);
+    // joint cross row 2: (P_j − P_i)_y = 0
     gamma[1] = t5 + t7 - t9;
+    // joint cross row 3: (P_j − P_i)_z = 0
     gamma[2] = 2.0 * (t10 + t10);
+    // joint cross row 4: a_i · a_j = 0
     gamma[3] = -(2.0 * (t11 + t11));
+    // driver drive_rx: e1 cos(s/2) − e0 sin(s/2) = 0, s = 1.047 t
     gamma[4] = -(-(t12 + q4 * (0.27405224999999994 * t2)) - t12
         - (t13 + (t13 - q3 * (0.27405224999999994 * t1))));
+    // body bar normalisation: e0² + e1² + e2² + e3² − 1 = 0
     gamma[5] = -(t7 + (t5 + t9));
 }
 
@@ -393,7 +441,7 @@ pub fn acceleration_rhs(q: &[f64; N], qd: &[f64; N], t: f64, gamma: &mut [f64; N
 /// ones keep their values).
 pub fn normalize(q: &mut [f64; N]) {
     {
-        let free = 0.0 + q[3] * q[3] + q[4] * q[4] + q[5] * q[5];
+        let free = q[3] * q[3] + q[4] * q[4] + q[5] * q[5];
         if free > 0.0 {
             let scale = runtime::math::sqrt(1.0 / free);
             q[3] *= scale;

@@ -1,4 +1,4 @@
-//! The generated structured LU (static pivot orders, see `codegen::emit::lu`) against dense LU
+//! The generated structured LU (static pivot orders, see `codegen::pivot`) against dense LU
 //! with partial pivoting: on every committed generated module at random configurations near
 //! its initial estimates, and over a full revolution of the R-S-S-R, where a single static
 //! order meets small pivots and the dense fallback takes over.

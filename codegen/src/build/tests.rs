@@ -51,6 +51,9 @@ fn an_invalid_description_fails_with_the_excerpt() {
     let file = dir.join("typo.toml");
     std::fs::write(&file, text.replacen("axis_i", "axsi_i", 1)).unwrap();
     let e = Builder::new().file(&file).out_dir(dir.join("out")).quiet().compile().unwrap_err();
+    let super::Error::Invalid { file: named, diagnostics, .. } = &e else { panic!("{e:?}") };
+    assert_eq!(named, &file);
+    assert_eq!(diagnostics.len(), 1, "{diagnostics:?}");
     let message = e.to_string();
     assert!(message.contains("unknown field `axsi_i`: did you mean `axis_i`?"), "{message}");
     assert!(message.contains("| ^^^^^^"), "{message}");
@@ -66,6 +69,7 @@ fn two_descriptions_with_one_name_are_refused() {
         .quiet()
         .compile()
         .unwrap_err();
+    assert!(matches!(&e, super::Error::DuplicateName { module, .. } if module == "rssr"), "{e:?}");
     assert!(e.to_string().contains("a second description named \"rssr\""), "{e}");
 }
 

@@ -5,7 +5,8 @@ use std::path::Path;
 
 use clap::ValueEnum;
 
-use super::{EXIT_INVALID, EXIT_OK, EXIT_STOPPED, load, report_invalid, term, undriven};
+use super::common::{EXIT_INVALID, EXIT_OK, EXIT_STOPPED, load, report_invalid, undriven};
+use super::term;
 use crate::diag::Diagnostic;
 use crate::generic::{Analysis, Equations};
 use crate::plot::{Quantity, Target, Trace};

@@ -1,468 +1,18 @@
-//! The structured LU of Φ_q: static pivot orders chosen at generation time, emitted as
-//! straight-line `factor` and `solve` functions that touch only the entries of L and U.
-//!
-//! An order is a sequence of pivots (row, column) of Φ_q. It is chosen by Markowitz's rule
-//! with threshold pivoting (as in Harwell's MA28 and MA48) on the numeric Jacobian at one
-//! configuration: at every step of the elimination the pivot is, among the entries whose
-//! magnitude is at least [`CHOICE_THRESHOLD`] of the largest in their column of the active
-//! submatrix, one with the smallest (r − 1)(c − 1), r and c being the structurally non-zero
-//! entries in its row and column, which bounds the fill-in the step creates. The fill-in
-//! is tracked structurally, so the emitted code is valid for every value of q.
-//!
-//! A static order is only safe where its pivots stay large, and over a motion an entry that is
-//! a fine pivot at one crank angle passes through zero at another. The generator therefore
-//! walks the description's motion over its time grid (at most [`MAX_SAMPLES`] configurations
-//! of it, evenly spaced, so that memory and planning time do not grow with the grid), and
-//! whenever no order chosen so far passes the run-time guard with a margin there
-//! ([`COVER_THRESHOLD`]), it chooses a new one at that configuration, up to [`MAX_ORDERS`].
-//! At run time the guard decides (see `runtime::lu::MAX_MULTIPLIER`), and a factorisation
-//! that no order passes falls back to dense LU with partial pivoting.
+//! The structured LU of Φ_q printed as code: for each static pivot order that
+//! [`crate::pivot`] plans, straight-line `factor_k` and `solve_k` functions that touch only the
+//! entries of L and U, with the entries known at generation time folded in.
 
 use syn::{Expr, Ident, parse_quote};
 
-use super::{Prec, binary, ident, literal_signed, neg, paren};
-use crate::model::Mechanism;
-use crate::symbolic::Symbolic;
-
-/// A candidate pivot qualifies when its magnitude is at least this fraction of the largest in
-/// its column of the active submatrix at the configuration the order is chosen at.
-///
-/// The run-time guard accepts multipliers up to 10 (a fraction of 0.1); choosing with 0.5
-/// leaves a factor of 5 for the entries to change along the motion before the guard refuses
-/// the order, while still leaving Markowitz's rule several candidates to pick the sparsest.
-pub const CHOICE_THRESHOLD: f64 = 0.5;
-
-/// A configuration is covered by an order whose multipliers there are at most 1 / this
-/// fraction (|l| ≤ 4): a margin of 2.5 below the run-time bound of 10, so that the Newton
-/// iterates near a sampled configuration pass the guard too.
-pub const COVER_THRESHOLD: f64 = 0.25;
-
-/// At most this many orders are emitted. Each costs one factor and one solve function; a
-/// configuration none of them covers is factored by the dense fallback.
-pub const MAX_ORDERS: usize = 4;
-
-/// The bound on |l| that the run-time guard applies (`runtime::lu::MAX_MULTIPLIER`), used here
-/// to count the configurations the emitted orders leave to the fallback.
-pub const RUNTIME_MAX_MULTIPLIER: f64 = 10.0;
-
-/// A static pivot order for Φ_q and the structure of its L and U factors.
-///
-/// Step coordinates: step k pivots on row `rows[k]` and column `cols[k]` of Φ_q, so the
-/// permuted matrix B = P Φ_q Q has `B[k][l] = Φ_q[rows[k]][cols[l]]`, and B = L U.
-#[derive(Clone, Debug, PartialEq, Eq)]
-pub struct Order {
-    /// The row of Φ_q pivoted at each step.
-    pub rows: Vec<usize>,
-    /// The column of Φ_q pivoted at each step.
-    pub cols: Vec<usize>,
-    /// For each step k, the steps l (ascending) where `B[k][l]` is a structural non-zero of L
-    /// (l < k) or of U (l ≥ k).
-    pub pattern: Vec<Vec<usize>>,
-}
-
-impl Order {
-    /// The number of entries of L and U (the unit diagonal of L not counted).
-    #[must_use]
-    pub fn entries(&self) -> usize {
-        self.pattern.iter().map(Vec::len).sum()
-    }
-}
-
-/// The structure of Φ_q: `structure[i][j]` when entry (i, j) is not identically zero.
-#[must_use]
-pub fn structure(sys: &Symbolic) -> Vec<Vec<bool>> {
-    let n = sys.unknowns.len();
-    let mut s = vec![vec![false; n]; n];
-    for (i, row) in sys.jac.iter().enumerate() {
-        for &(j, _) in row {
-            s[i][j] = true;
-        }
-    }
-    s
-}
-
-/// The entries of Φ_q that depend on neither q nor t, with their values.
-#[must_use]
-pub fn constants(sys: &Symbolic) -> Vec<Vec<Option<f64>>> {
-    let n = sys.unknowns.len();
-    let mut c = vec![vec![None; n]; n];
-    for (i, row) in sys.jac.iter().enumerate() {
-        for &(j, e) in row {
-            c[i][j] = sys.pool.as_const(e);
-        }
-    }
-    c
-}
-
-/// Φ_q at (q, t) as a dense matrix.
-#[must_use]
-pub fn numeric(sys: &Symbolic, q: &[f64], t: f64) -> Vec<Vec<f64>> {
-    let n = sys.unknowns.len();
-    let roots: Vec<_> = sys.jac.iter().flatten().map(|&(_, e)| e).collect();
-    let mut vals = sys.pool.eval(&roots, q, &[], t).into_iter();
-    let mut m = vec![vec![0.0; n]; n];
-    for (i, row) in sys.jac.iter().enumerate() {
-        for &(j, _) in row {
-            m[i][j] = vals.next().expect("one value per entry");
-        }
-    }
-    m
-}
-
-/// The order Markowitz's rule with threshold pivoting picks for `a` (structure `s`), or `None`
-/// when some step finds no non-zero candidate (`a` is singular).
-///
-/// The active submatrix is kept as row and column lists of its structural non-zeros, so a
-/// step costs in proportion to them and not to n²: generation stays fast for hundreds of
-/// unknowns. The values are those dense elimination would compute, in the same operations.
-#[must_use]
-pub fn choose(s: &[Vec<bool>], a: &[Vec<f64>]) -> Option<Order> {
-    use std::collections::BTreeSet;
-    let n = a.len();
-    let mut s = s.to_vec();
-    let mut v = a.to_vec();
-    // The structural non-zeros of the active submatrix, by row and by column.
-    let mut row_cols: Vec<BTreeSet<usize>> =
-        (0..n).map(|i| (0..n).filter(|&j| s[i][j]).collect()).collect();
-    let mut col_rows: Vec<BTreeSet<usize>> =
-        (0..n).map(|j| (0..n).filter(|&i| s[i][j]).collect()).collect();
-    let mut col_done = vec![false; n];
-    let (mut rows, mut cols) = (Vec::with_capacity(n), Vec::with_capacity(n));
-    for _ in 0..n {
-        let mut best: Option<(usize, f64, usize, usize)> = None;
-        for j in (0..n).filter(|&j| !col_done[j]) {
-            let in_col = &col_rows[j];
-            let big = in_col.iter().map(|&i| v[i][j].abs()).fold(0.0, f64::max);
-            if big == 0.0 || !big.is_finite() {
-                continue;
-            }
-            for &i in in_col {
-                let m = v[i][j].abs();
-                if m < CHOICE_THRESHOLD * big {
-                    continue;
-                }
-                let cost = (row_cols[i].len() - 1) * (in_col.len() - 1);
-                let ratio = m / big;
-                // Fewest fill-in first, then the largest entry relative to its column (the most
-                // margin along the motion), then the lowest column and row.
-                let better = best.is_none_or(|(bc, br, bj, bi)| {
-                    cost.cmp(&bc).then(br.total_cmp(&ratio)).then(j.cmp(&bj)).then(i.cmp(&bi))
-                        == std::cmp::Ordering::Less
-                });
-                if better {
-                    best = Some((cost, ratio, j, i));
-                }
-            }
-        }
-        let (_, _, pc, pr) = best?;
-        let pivot_row: Vec<usize> = row_cols[pr].iter().copied().filter(|&j| j != pc).collect();
-        let below: Vec<usize> = col_rows[pc].iter().copied().filter(|&i| i != pr).collect();
-        for &i in &below {
-            let l = v[i][pc] / v[pr][pc];
-            for &j in &pivot_row {
-                if !s[i][j] {
-                    s[i][j] = true;
-                    row_cols[i].insert(j);
-                    col_rows[j].insert(i);
-                }
-                v[i][j] -= l * v[pr][j];
-            }
-            v[i][pc] = l;
-        }
-        for &j in &row_cols[pr] {
-            col_rows[j].remove(&pr);
-        }
-        for &i in &col_rows[pc] {
-            row_cols[i].remove(&pc);
-        }
-        col_done[pc] = true;
-        rows.push(pr);
-        cols.push(pc);
-    }
-    let mut step_of_col = vec![0; n];
-    for (l, &c) in cols.iter().enumerate() {
-        step_of_col[c] = l;
-    }
-    let pattern = rows
-        .iter()
-        .map(|&r| {
-            let mut p: Vec<usize> = (0..n).filter(|&c| s[r][c]).map(|c| step_of_col[c]).collect();
-            p.sort_unstable();
-            p
-        })
-        .collect();
-    Some(Order { rows, cols, pattern })
-}
-
-/// `a` factored with `order` in step coordinates (B = P a Q = L U, L below the diagonal with
-/// a unit diagonal, U on and above it), each row of B aligned with its pattern, and the largest
-/// |multiplier|; `None` when a pivot is zero or not finite.
-fn factor_in_order(order: &Order, a: &[Vec<f64>]) -> Option<(Vec<Vec<f64>>, f64)> {
-    let n = a.len();
-    let pattern = &order.pattern;
-    let mut b: Vec<Vec<f64>> = (0..n)
-        .map(|k| pattern[k].iter().map(|&l| a[order.rows[k]][order.cols[l]]).collect())
-        .collect();
-    let at = |k: usize, l: usize| pattern[k].binary_search(&l).expect("in the pattern");
-    // The steps i > k whose row has an entry in column k.
-    let mut below: Vec<Vec<usize>> = vec![Vec::new(); n];
-    for (i, p) in pattern.iter().enumerate() {
-        for &k in p.iter().filter(|&&k| k < i) {
-            below[k].push(i);
-        }
-    }
-    let mut worst = 0.0_f64;
-    for k in 0..n {
-        let dk = at(k, k);
-        let p = b[k][dk];
-        if p == 0.0 || !p.is_finite() {
-            return None;
-        }
-        for &i in &below[k] {
-            let ik = at(i, k);
-            let l = b[i][ik] / p;
-            worst = worst.max(l.abs());
-            for (pos, &j) in pattern[k].iter().enumerate().skip(dk + 1) {
-                let ij = at(i, j);
-                b[i][ij] -= l * b[k][pos];
-            }
-            b[i][ik] = l;
-        }
-    }
-    worst.is_finite().then_some((b, worst))
-}
-
-/// The largest |multiplier| when `a` is factored with `order`, or `None` when a pivot is zero
-/// or not finite.
-#[must_use]
-pub fn largest_multiplier(order: &Order, a: &[Vec<f64>]) -> Option<f64> {
-    factor_in_order(order, a).map(|(_, worst)| worst)
-}
-
-/// Solves a x = b with the factors of `a` by `order` (see [`factor_in_order`]).
-fn solve_in_order(order: &Order, lu: &[Vec<f64>], b: &[f64]) -> Vec<f64> {
-    let n = b.len();
-    let mut y = vec![0.0; n];
-    for k in 0..n {
-        let mut v = b[order.rows[k]];
-        for (pos, &l) in order.pattern[k].iter().enumerate().take_while(|&(_, &l)| l < k) {
-            v -= lu[k][pos] * y[l];
-        }
-        y[k] = v;
-    }
-    let mut x = vec![0.0; n];
-    for k in (0..n).rev() {
-        let mut v = y[k];
-        let mut diagonal = 0.0;
-        for (pos, &l) in order.pattern[k].iter().enumerate().filter(|&(_, &l)| l >= k) {
-            if l == k {
-                diagonal = lu[k][pos];
-            } else {
-                v -= lu[k][pos] * y[l];
-            }
-        }
-        y[k] = v / diagonal;
-        x[order.cols[k]] = y[k];
-    }
-    x
-}
-
-/// Solves a x = b (structure `s`) with the order [`choose`] picks, or `None` when `a` is
-/// singular.
-#[must_use]
-pub fn solve(s: &[Vec<bool>], a: &[Vec<f64>], b: &[f64]) -> Option<Vec<f64>> {
-    let order = choose(s, a)?;
-    let (lu, _) = factor_in_order(&order, a)?;
-    Some(solve_in_order(&order, &lu, b))
-}
-
-/// Φ_q of the reduced system factored at one configuration, by the last order that passes
-/// the run-time guard there, or a new one chosen there.
-struct Sampler<'s> {
-    sys: &'s Symbolic,
-    structure: Vec<Vec<bool>>,
-    /// The orders chosen so far, the one last used first.
-    orders: Vec<Order>,
-}
-
-/// The generation-time solves accept a known order whose multipliers stay below this bound
-/// before choosing a new one (which costs far more): a growth of 1e4 costs at most four of the
-/// sixteen digits of a Newton correction, and Newton's next iteration corrects them.
-const SAMPLER_MAX_MULTIPLIER: f64 = 1e4;
-
-impl Sampler<'_> {
-    /// The factors of Φ_q(q, t), or `None` when it is singular.
-    fn factor(&mut self, q: &[f64], t: f64) -> Option<Vec<Vec<f64>>> {
-        let a = numeric(self.sys, q, t);
-        for k in 0..self.orders.len() {
-            if let Some((lu, worst)) = factor_in_order(&self.orders[k], &a)
-                && worst <= SAMPLER_MAX_MULTIPLIER
-            {
-                let o = self.orders.remove(k);
-                self.orders.insert(0, o);
-                return Some(lu);
-            }
-        }
-        let o = choose(&self.structure, &a)?;
-        let (lu, _) = factor_in_order(&o, &a)?;
-        self.orders.insert(0, o);
-        Some(lu)
-    }
-
-    fn solve(&self, lu: &[Vec<f64>], b: &[f64]) -> Vec<f64> {
-        solve_in_order(&self.orders[0], lu, b)
-    }
-
-    /// Newton–Raphson on the reduced system from `q` at `t`, then q̇ and q̈; `None` when it
-    /// does not converge.
-    fn step(
-        &mut self,
-        mut q: Vec<f64>,
-        t: f64,
-        tolerance: f64,
-        max_iterations: u32,
-    ) -> Option<[Vec<f64>; 3]> {
-        let pool = &self.sys.pool;
-        let mut normalised = false;
-        let mut iterations = 0;
-        loop {
-            let phi = pool.eval(&self.sys.phi, &q, &[], t);
-            let res = phi.iter().fold(0.0_f64, |m, x| m.max(x.abs()));
-            if !res.is_finite() {
-                return None;
-            }
-            if res <= tolerance {
-                if normalised {
-                    break;
-                }
-                self.sys.normalise(&mut q);
-                normalised = true;
-                continue;
-            }
-            if iterations >= max_iterations {
-                return None;
-            }
-            let lu = self.factor(&q, t)?;
-            let dq = self.solve(&lu, &phi);
-            for (x, d) in q.iter_mut().zip(&dq) {
-                *x -= d;
-            }
-            normalised = false;
-            iterations += 1;
-        }
-        let lu = self.factor(&q, t)?;
-        let qd = self.solve(&lu, &pool.eval(&self.sys.nu, &q, &[], t));
-        let qdd = self.solve(&lu, &pool.eval(&self.sys.gamma, &q, &qd, t));
-        [&q, &qd, &qdd].iter().all(|v| v.iter().all(|x| x.is_finite())).then_some([q, qd, qdd])
-    }
-}
-
-/// The most configurations of the motion that pivot planning looks at: evenly spaced grid
-/// points, the first and the last always among them (see [`TimeGrid::sampled`]). Every shipped
-/// example and benchmark has fewer points, so all of theirs are looked at; a grid of 10⁷ points
-/// is planned from one point in about 2,400, which is still about a thousand samples per
-/// revolution of a crank turning a few times, and keeps planning's memory and time independent
-/// of the grid's length.
-///
-/// [`TimeGrid::sampled`]: crate::model::TimeGrid::sampled
-pub const MAX_SAMPLES: usize = 4096;
-
-/// Walks the description's motion, solved on the reduced system at every point of the time
-/// grid (Newton–Raphson from a Taylor predictor, sparse LU with the static orders' own rules,
-/// so that it stays on the assembly branch the grid's spacing resolves), and calls
-/// `visit(t, q)` with the reduced q at the grid points [`MAX_SAMPLES`] selects, up to the first
-/// point where Newton fails; then with the last configuration solved if it was not visited, or
-/// with the initial estimates when Newton fails at once. Stops early when `visit` returns false.
-///
-/// Only the last configuration is kept, so memory does not grow with the grid.
-pub fn motion(mech: &Mechanism, sys: &Symbolic, mut visit: impl FnMut(f64, &[f64]) -> bool) {
-    let q0 = sys.initial_estimate(mech);
-    let mut sampler = Sampler { sys, structure: structure(sys), orders: Vec::new() };
-    // The last configuration solved, and whether it has been visited.
-    let mut prev: Option<(f64, [Vec<f64>; 3], bool)> = None;
-    let (tolerance, max_iterations) = (mech.solver.tolerance, mech.solver.max_iterations);
-    for k in 0..mech.time.count {
-        let t = mech.time.at(k);
-        let guess = match &prev {
-            // Taylor predictor q + h q̇ + h²/2 q̈ from the previous time point.
-            Some((t0, [q, qd, qdd], _)) => {
-                let h = t - t0;
-                (0..q.len()).map(|i| q[i] + qd[i] * h + qdd[i] * (0.5 * h * h)).collect()
-            }
-            None => q0.clone(),
-        };
-        let Some(state) = sampler.step(guess, t, tolerance, max_iterations) else { break };
-        let sampled = mech.time.sampled(k, MAX_SAMPLES);
-        if sampled && !visit(t, &state[0]) {
-            return;
-        }
-        prev = Some((t, state, sampled));
-    }
-    match prev {
-        Some((t, [q, ..], false)) => {
-            visit(t, &q);
-        }
-        Some(_) => {}
-        None => {
-            visit(mech.time.start, &q0);
-        }
-    }
-}
-
-/// Static orders chosen along a sequence of configurations: the first at the first one, each
-/// further one at the first configuration the orders so far do not cover.
-struct Planner<'s> {
-    sys: &'s Symbolic,
-    structure: Vec<Vec<bool>>,
-    orders: Vec<Order>,
-}
-
-impl<'s> Planner<'s> {
-    fn new(sys: &'s Symbolic) -> Self {
-        Planner { sys, structure: structure(sys), orders: Vec::new() }
-    }
-
-    /// Looks at configuration (t, q); false once [`MAX_ORDERS`] orders are chosen.
-    fn visit(&mut self, t: f64, q: &[f64]) -> bool {
-        if self.orders.len() == MAX_ORDERS {
-            return false;
-        }
-        let a = numeric(self.sys, q, t);
-        let covered = self
-            .orders
-            .iter()
-            .any(|o| largest_multiplier(o, &a).is_some_and(|m| m <= 1.0 / COVER_THRESHOLD));
-        if !covered && let Some(o) = choose(&self.structure, &a) {
-            self.orders.push(o);
-        }
-        self.orders.len() < MAX_ORDERS
-    }
-}
-
-/// The static orders for the configurations `samples` (see [`Planner`]).
-#[must_use]
-pub fn plan(sys: &Symbolic, samples: &[(f64, Vec<f64>)]) -> Vec<Order> {
-    let mut planner = Planner::new(sys);
-    for (t, q) in samples {
-        if !planner.visit(*t, q) {
-            break;
-        }
-    }
-    planner.orders
-}
-
-/// The static orders for the description's motion: [`plan`] over the configurations
-/// [`motion`] visits, without keeping them.
-#[must_use]
-pub fn plan_motion(mech: &Mechanism, sys: &Symbolic) -> Vec<Order> {
-    let mut planner = Planner::new(sys);
-    motion(mech, sys, |t, q| planner.visit(t, q));
-    planner.orders
-}
+use super::CHUNK_OPS;
+use super::syntax::{
+    Prec, assign, binary, element, ident, item_fn, let_stmt, literal_signed, neg, paren, path,
+};
+use crate::pivot::{Order, RUNTIME_MAX_MULTIPLIER};
 
 /// `jac[r][c]` (or `lu[r][c]`).
 fn entry(array: &str, r: usize, c: usize) -> Expr {
-    super::element(array, &[r, c])
+    element(array, &[r, c])
 }
 
 /// The local holding entry (k, l) of L or U in step coordinates (the reciprocal of the pivot on
@@ -652,14 +202,14 @@ impl Part {
 
 /// Emits `factor_{which}` and `solve_{which}` for `order` (of at least one step) of the
 /// Jacobian with structure `s`, where `constant[i][j]` is the value of entry (i, j) when it does
-/// not depend on q or t. A factor or solve longer than [`super::CHUNK_OPS`] operations is split
+/// not depend on q or t. A factor or solve longer than [`CHUNK_OPS`] operations is split
 /// at step boundaries into `#[inline(never)]` helpers `factor_{which}_{part}` and
 /// `solve_{which}_{part}`, the values crossing a boundary read back from where they are stored.
 ///
 /// # Panics
 ///
 /// When a constant pivot is zero or a constant multiplier exceeds the run-time bound: an order
-/// chosen by [`choose`] at any configuration never has one.
+/// chosen by [`crate::pivot::choose`] at any configuration never has one.
 #[must_use]
 pub fn emit(
     order: &Order,
@@ -709,8 +259,8 @@ pub fn emit(
             Val::Const(_) => v,
             Val::Run(..) => {
                 let e = v.expr(Prec::Sum);
-                stmts.push(super::let_stmt(name.clone(), e));
-                Val::Run(super::path(name), Prec::Atom)
+                stmts.push(let_stmt(name.clone(), e));
+                Val::Run(path(name), Prec::Atom)
             }
         }
     };
@@ -721,7 +271,7 @@ pub fn emit(
     let mut store = |stmts: &mut Vec<syn::Stmt>, k: usize, l: usize, v: &Val| {
         if let Val::Run(e, _) = v {
             let target = entry("jac", order.rows[k], order.cols[l]);
-            stmts.push(super::assign(target, e.clone()));
+            stmts.push(assign(target, e.clone()));
             stored += 1;
         }
     };
@@ -822,7 +372,7 @@ pub fn emit(
         let ops = operations(&part.stmts[first..]);
         part_ops += ops;
         total_ops += ops;
-        if part_ops > super::CHUNK_OPS && k + 1 < n {
+        if part_ops > CHUNK_OPS && k + 1 < n {
             // A new part reads the values of this one where they are stored.
             parts.push(std::mem::take(&mut part).finish());
             part_ops = 0;
@@ -850,14 +400,14 @@ pub fn emit(
         let item: syn::ItemFn = parse_quote! {
             #[doc = #doc]
             #[must_use]
-            pub fn #name(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {}
+            fn #name(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {}
         };
-        items.push(super::item_fn(item, parts.pop().expect("one part")));
+        items.push(item_fn(item, parts.pop().expect("one part")));
     } else {
         doc.push_str(&format!(
             "\n\n Split into {} functions of at most about {} operations each.",
             parts.len(),
-            super::CHUNK_OPS
+            CHUNK_OPS
         ));
         let mut calls: Vec<syn::Stmt> = Vec::new();
         let names: Vec<Ident> = (0..parts.len()).map(|c| ident(&format!("p{c}"))).collect();
@@ -869,7 +419,7 @@ pub fn emit(
                 #[inline(never)]
                 fn #helper(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {}
             };
-            items.push(super::item_fn(item, stmts));
+            items.push(item_fn(item, stmts));
             let p = &names[c];
             calls.push(parse_quote!(let #p = #helper(jac)?;));
         }
@@ -887,9 +437,9 @@ pub fn emit(
         let item: syn::ItemFn = parse_quote! {
             #[doc = #doc]
             #[must_use]
-            pub fn #name(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {}
+            fn #name(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {}
         };
-        items.insert(0, super::item_fn(item, calls));
+        items.insert(0, item_fn(item, calls));
     }
     items.extend(emit_solve(&f, which));
     items
@@ -911,9 +461,9 @@ fn emit_solve(f: &Factored<'_>, which: usize) -> Vec<syn::Item> {
     let steps = |split: bool| -> Vec<(Vec<syn::Stmt>, bool)> {
         let named = |prefix: &str, k: usize| -> Val {
             if split {
-                Val::Run(super::element("y", &[k]), Prec::Atom)
+                Val::Run(element("y", &[k]), Prec::Atom)
             } else {
-                Val::Run(super::path(ident(&format!("{prefix}{k}"))), Prec::Atom)
+                Val::Run(path(ident(&format!("{prefix}{k}"))), Prec::Atom)
             }
         };
         // In the split form, x_k = y_k (a unit diagonal without off-diagonal terms) leaves
@@ -921,18 +471,18 @@ fn emit_solve(f: &Factored<'_>, which: usize) -> Vec<syn::Item> {
         let define = |prefix: &str, k: usize, e: Expr| -> Vec<syn::Stmt> {
             if split {
                 use quote::ToTokens;
-                let target = super::element("y", &[k]);
+                let target = element("y", &[k]);
                 if e.to_token_stream().to_string() == target.to_token_stream().to_string() {
                     return Vec::new();
                 }
-                vec![super::assign(target, e)]
+                vec![assign(target, e)]
             } else {
-                vec![super::let_stmt(ident(&format!("{prefix}{k}")), e)]
+                vec![let_stmt(ident(&format!("{prefix}{k}")), e)]
             }
         };
         let mut out = Vec::with_capacity(2 * n + 1);
         for k in 0..n {
-            let mut v = Val::Run(super::element("b", &[order.rows[k]]), Prec::Atom);
+            let mut v = Val::Run(element("b", &[order.rows[k]]), Prec::Atom);
             for &l in order.pattern[k].iter().filter(|&&l| l < k) {
                 v = v.minus(&stored_val(k, l).mul(&named("y", l)));
             }
@@ -950,7 +500,7 @@ fn emit_solve(f: &Factored<'_>, which: usize) -> Vec<syn::Item> {
             (0..n)
                 .map(|k| {
                     let x = named("x", k).expr(Prec::Atom);
-                    super::assign(super::element("b", &[order.cols[k]]), x)
+                    assign(element("b", &[order.cols[k]]), x)
                 })
                 .collect(),
             true,
@@ -965,18 +515,18 @@ fn emit_solve(f: &Factored<'_>, which: usize) -> Vec<syn::Item> {
     let doc = format!(
         " Solves Φ_q x = b in place with the factors [`factor_{which}`] left in `lu`.\n\n {ops} operations."
     );
-    if ops <= super::CHUNK_OPS {
+    if ops <= CHUNK_OPS {
         let item: syn::ItemFn = parse_quote! {
             #[doc = #doc]
-            pub fn #name(lu: &[[f64; N]; N], b: &mut [f64; N]) {}
+            fn #name(lu: &[[f64; N]; N], b: &mut [f64; N]) {}
         };
         let unsplit = steps(false).into_iter().flat_map(|(s, _)| s).collect();
-        return vec![super::item_fn(item, unsplit)];
+        return vec![item_fn(item, unsplit)];
     }
     let mut parts: Vec<(Vec<syn::Stmt>, bool)> = vec![(Vec::new(), false)];
     let mut part_ops = 0;
     for ((step, uses_b), ops) in split.into_iter().zip(counts) {
-        if part_ops + ops > super::CHUNK_OPS && !parts.last().expect("one").0.is_empty() {
+        if part_ops + ops > CHUNK_OPS && !parts.last().expect("one").0.is_empty() {
             parts.push((Vec::new(), false));
             part_ops = 0;
         }
@@ -1005,18 +555,18 @@ fn emit_solve(f: &Factored<'_>, which: usize) -> Vec<syn::Item> {
             #[inline(never)]
             fn #helper(#lu: &[[f64; N]; N], #b: &mut [f64; N], y: &mut [f64; N]) {}
         };
-        items.push(super::item_fn(item, stmts));
+        items.push(item_fn(item, stmts));
         calls.push(parse_quote!(#helper(lu, b, &mut y);));
     }
     let doc = format!(
         "{doc}\n\n Split into {count} functions of at most about {} operations each.",
-        super::CHUNK_OPS
+        CHUNK_OPS
     );
     let item: syn::ItemFn = parse_quote! {
         #[doc = #doc]
-        pub fn #name(lu: &[[f64; N]; N], b: &mut [f64; N]) {}
+        fn #name(lu: &[[f64; N]; N], b: &mut [f64; N]) {}
     };
-    items.insert(0, super::item_fn(item, calls));
+    items.insert(0, item_fn(item, calls));
     items
 }
 
@@ -1024,12 +574,12 @@ fn emit_solve(f: &Factored<'_>, which: usize) -> Vec<syn::Item> {
 fn assigned_operations(s: &syn::Stmt) -> usize {
     match s {
         syn::Stmt::Expr(Expr::Assign(a), _) => {
-            let l = super::let_stmt(ident("v"), (*a.right).clone());
+            let l = let_stmt(ident("v"), (*a.right).clone());
             operations(std::slice::from_ref(&l))
         }
         // A compound assignment `t op= e`: its operation and those of e.
         syn::Stmt::Expr(e @ Expr::Binary(_), _) => {
-            operations(std::slice::from_ref(&super::let_stmt(ident("v"), e.clone())))
+            operations(std::slice::from_ref(&let_stmt(ident("v"), e.clone())))
         }
         _ => operations(std::slice::from_ref(s)),
     }

@@ -12,7 +12,7 @@ use proc_macro2::{Literal, Span};
 use syn::visit_mut::{self, VisitMut};
 use syn::{Expr, parse_quote};
 
-use super::KNOWN;
+use super::syntax::{KNOWN, looks_like};
 
 /// The floating-point type a module is emitted in.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
@@ -78,9 +78,7 @@ fn literal(v: f32) -> Expr {
             let name = syn::Ident::new(name, Span::call_site());
             return parse_quote!(core::f32::consts::#name);
         }
-        if super::looks_like(&text, c, min_digits)
-            || super::looks_like(&text, f64::from(c32), min_digits)
-        {
+        if looks_like(&text, c, min_digits) || looks_like(&text, f64::from(c32), min_digits) {
             let bits = Literal::u32_unsuffixed(v.to_bits());
             return parse_quote!(f32::from_bits(#bits));
         }

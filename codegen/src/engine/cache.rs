@@ -21,7 +21,7 @@ use std::process::{Command, Stdio};
 use std::sync::OnceLock;
 use std::sync::atomic::{AtomicUsize, Ordering};
 
-use super::{BuildFailure, EngineError, SolverProcess};
+use super::{BuildFailure, ConfigError, EngineError, SolverProcess};
 
 mod embedded {
     include!(concat!(env!("OUT_DIR"), "/embedded.rs"));
@@ -74,15 +74,10 @@ pub(super) fn choose_cache_dir(
 ) -> Result<PathBuf, EngineError> {
     if let Some(dir) = var("MECHGEN_CACHE") {
         if dir.is_empty() {
-            return Err(EngineError::Config(
-                "MECHGEN_CACHE is set but empty: set it to the directory where mechgen should \
-                 keep built solvers, or unset it to use the default"
-                    .to_owned(),
-            ));
+            return Err(ConfigError::EmptyCache.into());
         }
-        return std::path::absolute(&dir).map_err(|e| {
-            EngineError::Config(format!("MECHGEN_CACHE={}: {e}", Path::new(&dir).display()))
-        });
+        return std::path::absolute(&dir)
+            .map_err(|source| ConfigError::BadCache { dir: dir.into(), source }.into());
     }
     // The checkout is recognised by its own files, so that a moved or deleted one is never
     // recreated by the cache's `create_dir_all`.
@@ -97,14 +92,28 @@ pub(super) fn choose_cache_dir(
     } else {
         absolute("XDG_CACHE_HOME").or_else(|| absolute("HOME").map(|h| h.join(".cache")))
     };
-    user.map(|dir| dir.join("mechgen")).ok_or_else(|| {
-        EngineError::Config(format!(
-            "no directory for built solvers: the checkout mechgen was built from ({}) is gone \
-             and the environment names no cache directory (XDG_CACHE_HOME, HOME); set \
-             MECHGEN_CACHE to a writable directory",
-            root.display()
-        ))
-    })
+    user.map(|dir| dir.join("mechgen"))
+        .ok_or_else(|| ConfigError::NoCacheDir { checkout: root.to_path_buf() }.into())
+}
+
+/// The driver program of every generated solver (`src/driver.rs`; see its module docs).
+const DRIVER: &str = include_str!("driver.rs");
+
+/// The generated crate's `main.rs`: the driver and the modules it reads.
+const MAIN: &str = "//! A generated solver (written by mechgen; do not edit): see `driver.rs`.\n\n\
+                    mod config;\nmod driver;\nmod key;\nmod mechanism;\n\n\
+                    fn main() {\n    driver::main();\n}\n";
+
+/// The generated crate's `config.rs`: what the driver reads about the module, the
+/// mechanism's type `type_name` and the floating-point type `real`.
+fn config(type_name: &str, real: &str) -> String {
+    format!(
+        "//! What the driver reads about the generated module (written by mechgen).\n\n\
+         /// The floating-point type the module was generated in.\n\
+         pub type Real = {real};\n\n\
+         /// The generated mechanism.\n\
+         pub use crate::mechanism::{type_name} as Generated;\n"
+    )
 }
 
 /// How to build one generated crate, and where its entry lies.
@@ -122,9 +131,10 @@ impl std::fmt::Debug for Recipe {
 }
 
 impl Recipe {
-    /// The recipe of the crate made of `module` and `driver` (in floating-point type
-    /// `real`), in the cache `cache`.
-    pub(super) fn new(cache: PathBuf, module: &str, driver: &str, real: &str) -> Recipe {
+    /// The recipe of the crate made of `module` (whose mechanism is the type `type_name`, in
+    /// floating-point type `real`) and the driver, in the cache `cache`.
+    pub(super) fn new(cache: PathBuf, module: &str, type_name: &str, real: &str) -> Recipe {
+        let config = config(type_name, real);
         let manifest = |package: &str| {
             format!(
                 "[package]\nname = \"{package}\"\nversion = \"0.0.0\"\nedition = \"2024\"\n\
@@ -138,14 +148,18 @@ impl Recipe {
             env!("CARGO_PKG_VERSION").as_bytes(),
             real.as_bytes(),
             module.as_bytes(),
-            driver.as_bytes(),
+            DRIVER.as_bytes(),
+            MAIN.as_bytes(),
+            config.as_bytes(),
             manifest("").as_bytes(),
             embedded::WORKSPACE_LOCK.as_bytes(),
             runtime_hash().as_bytes(),
         ]);
         let files = vec![
             ("Cargo.toml", manifest(&format!("mechgen-gen-{key}"))),
-            ("src/main.rs", driver.to_owned()),
+            ("src/main.rs", MAIN.to_owned()),
+            ("src/driver.rs", DRIVER.to_owned()),
+            ("src/config.rs", config),
             ("src/mechanism.rs", module.to_owned()),
             (
                 "src/key.rs",
@@ -257,11 +271,21 @@ impl Recipe {
 
     fn verify_or_build(&self, notes: &mut Vec<String>) -> Result<(), EngineError> {
         match self.defect() {
-            None => return Ok(()),
-            Some(why) if why.is_empty() => {}
-            Some(why) => notes.push(format!("{why}; rebuilding it")),
+            None => {
+                log::info!("cache hit: {} (verified)", self.dir().display());
+                return Ok(());
+            }
+            Some(why) if why.is_empty() => {
+                log::info!("cache miss: building {}", self.dir().display());
+            }
+            Some(why) => {
+                log::warn!("cache entry {} unusable: {why}; rebuilding it", self.key);
+                notes.push(format!("{why}; rebuilding it"));
+            }
         }
+        let start = std::time::Instant::now();
         self.build(notes)?;
+        log::info!("built {} in {:.1} s", self.package(), start.elapsed().as_secs_f64());
         match self.defect() {
             None => Ok(()),
             Some(why) => Err(EngineError::Build(BuildFailure {
@@ -353,6 +377,7 @@ impl Recipe {
         let build = ["build", "--release", "--offline", "--quiet"];
         let Err(mut failure) = self.cargo(&build)? else { return Ok(()) };
         if needs_download(&failure) {
+            log::warn!("offline build failed for want of crates; fetching them");
             notes.push(format!(
                 "fetching the crates the generated solver needs ({}) into cargo's cache, at \
                  the versions mechgen's lock file pins",
@@ -369,6 +394,7 @@ impl Recipe {
                 Err(f) => f,
             };
         }
+        log::warn!("the build failed; cleaning the cache's build of the runtime and retrying");
         notes.push(format!(
             "the build failed ({}); cleaning the cache's build of the runtime and building again",
             failure.lines().find(|l| l.starts_with("error")).unwrap_or("cargo failed").trim()
@@ -400,6 +426,7 @@ impl Recipe {
     /// when cargo fails.
     fn cargo(&self, args: &[&str]) -> Result<Result<(), String>, EngineError> {
         let cargo = std::env::var_os("CARGO").unwrap_or_else(|| "cargo".into());
+        log::debug!("running {} {}", Path::new(&cargo).display(), args.join(" "));
         let output = Command::new(&cargo)
             .args(args)
             .arg("--manifest-path")
@@ -495,8 +522,8 @@ mod tests {
     fn an_empty_mechgen_cache_is_an_error_naming_it() {
         let root = crate::sync::workspace_root();
         match choose_cache_dir(&root, env(&[("MECHGEN_CACHE", "")])) {
-            Err(EngineError::Config(m)) => {
-                assert!(m.contains("MECHGEN_CACHE is set but empty"), "{m}")
+            Err(e @ EngineError::Config(ConfigError::EmptyCache)) => {
+                assert!(e.to_string().contains("MECHGEN_CACHE is set but empty"), "{e}")
             }
             other => panic!("{other:?}"),
         }
@@ -523,7 +550,8 @@ mod tests {
             assert_eq!(choose_cache_dir(&gone, xdg).unwrap(), Path::new("/var/cache/u/mechgen"));
         }
         match choose_cache_dir(&gone, env(&[])) {
-            Err(EngineError::Config(m)) => {
+            Err(e @ EngineError::Config(ConfigError::NoCacheDir { .. })) => {
+                let m = e.to_string();
                 assert!(m.contains("set MECHGEN_CACHE"), "{m}");
                 assert!(m.contains(&gone.display().to_string()), "{m}");
             }

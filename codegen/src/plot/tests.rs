@@ -48,5 +48,6 @@ fn a_short_run_keeps_every_point() {
 fn a_missing_target_is_an_error() {
     let mut trace = Trace::new(1);
     let e = trace.push(&step(0.0), &Target::Body("crank".into()), Quantity::R).unwrap_err();
-    assert!(e.contains("crank"), "{e}");
+    assert_eq!(e, super::TraceError::NoBody("crank".into()));
+    assert!(e.to_string().contains("crank"), "{e}");
 }

@@ -125,7 +125,7 @@ fn an_output_file_not_committed_leaves_the_previous_file_and_no_temporary_file()
     let path = dir.join("results.json");
     std::fs::write(&path, "previous").expect("writable");
     {
-        let mut file = report::OutputFile::create(&path).expect("created");
+        let mut file = crate::output::OutputFile::create(&path).expect("created");
         file.write_all(&vec![b'x'; 1 << 20]).expect("written");
         // Dropped without commit: a run that failed half-way.
     }
@@ -135,7 +135,7 @@ fn an_output_file_not_committed_leaves_the_previous_file_and_no_temporary_file()
     {
         use std::os::unix::fs::PermissionsExt;
         std::fs::set_permissions(&path, std::fs::Permissions::from_mode(0o640)).expect("chmod");
-        report::write_file(&path, b"new").expect("written");
+        crate::output::write_file(&path, b"new").expect("written");
         let mode = std::fs::metadata(&path).expect("exists").permissions().mode();
         assert_eq!(mode & 0o777, 0o640, "the file keeps its permissions");
         assert_eq!(std::fs::read_to_string(&path).expect("readable"), "new");
@@ -210,10 +210,10 @@ fn a_generated_solver_that_breaks_off_still_ends_the_json_with_its_error() {
     built.binary = script;
     let mut out = Vec::new();
     let mut err = Vec::new();
-    let sink = super::super::Sink::Out(io::BufWriter::new(&mut out));
+    let sink = super::super::common::Sink::Out(io::BufWriter::new(&mut out));
     let writer = Writer::begin(sink, Format::Json, mech, "generated", &[]).expect("begun");
     let analysis = crate::generic::Analysis::new(&eq, &prep);
-    let code = super::super::stream(mech, &analysis, Some(&built), writer, &mut err)
+    let code = super::super::solve::stream(mech, &analysis, Some(&built), writer, &mut err)
         .expect("no I/O error");
     assert_eq!(code, EXIT_STOPPED);
     let v: serde_json::Value = serde_json::from_slice(&out).expect("one valid JSON document");

@@ -1,0 +1,160 @@
+//! `mechgen bench`: ns per time step and Newton iterations per step of either engine or both.
+
+use std::io::{self, Write};
+use std::path::Path;
+
+use super::args::{BenchEngine, CheckFormat};
+use super::common::{
+    EXIT_OK, EXIT_STOPPED, build_generated, engine_unavailable, load, report_invalid, time_generic,
+    undriven,
+};
+use super::term;
+use crate::diag::printable;
+use crate::generic::Equations;
+use crate::model::Mechanism;
+
+/// The timing options of `bench`.
+pub(super) struct BenchHow {
+    pub(super) tolerance: Option<f64>,
+    pub(super) repeats: usize,
+    pub(super) float: crate::emit::Scalar,
+    pub(super) settings: crate::engine::Settings,
+}
+
+/// One engine's timing: its name, (min ns per step, median ns per step, Newton iterations
+/// per step).
+type Timing = (&'static str, (f64, f64, f64));
+
+pub(super) fn bench(
+    file: &Path,
+    engine: BenchEngine,
+    how: &BenchHow,
+    format: CheckFormat,
+    out: &mut dyn Write,
+    err: &mut dyn Write,
+) -> io::Result<i32> {
+    let json = format == CheckFormat::Json;
+    let loaded = match load(file, json, out, err) {
+        Ok(l) => l,
+        Err(code) => return Ok(code),
+    };
+    let mech = &loaded.mechanism;
+    let tolerance = how.tolerance.unwrap_or(mech.solver.tolerance);
+    let eq = Equations::new(mech);
+    let prep = eq.prepare();
+    if let Some(d) = undriven(&eq, &prep) {
+        return Ok(report_invalid(&[d], json, out, err));
+    }
+    let mut results = Vec::new();
+    if engine != BenchEngine::Generated {
+        let spinner = term::spinner(&format!("timing the generic engine ({} passes)", how.repeats));
+        let timed = time_generic(&eq, &prep, tolerance, how.repeats, how.settings.predictor);
+        spinner.finish_and_clear();
+        match timed {
+            Some(r) => results.push(("generic", r)),
+            None => {
+                writeln!(err, "error: the generic analysis failed")?;
+                return Ok(EXIT_STOPPED);
+            }
+        }
+    }
+    if engine != BenchEngine::Generic {
+        let built = match build_generated(mech, how.float, err)? {
+            Ok(b) => b,
+            Err(e) => return engine_unavailable(&e, mech, json, out, err),
+        };
+        let spinner =
+            term::spinner(&format!("timing the generated engine ({} passes)", how.repeats));
+        let timed = crate::engine::bench_with(&built, tolerance, how.repeats, how.settings);
+        spinner.finish_and_clear();
+        match timed {
+            Ok(r) => results.push(("generated", r)),
+            Err(e) => {
+                writeln!(err, "error: {e}")?;
+                return Ok(EXIT_STOPPED);
+            }
+        }
+    }
+    if json {
+        write_json(mech, how, tolerance, &results, out)?;
+    } else {
+        write_text(mech, how, tolerance, &results, out)?;
+    }
+    Ok(EXIT_OK)
+}
+
+/// The generic median over the generated median, when both engines were timed.
+fn speedup(results: &[Timing]) -> Option<f64> {
+    (results.len() == 2).then(|| results[0].1.1 / results[1].1.1)
+}
+
+/// The timings as the contract's JSON: one object, or both with the speedup.
+fn write_json(
+    mech: &Mechanism,
+    how: &BenchHow,
+    tolerance: f64,
+    results: &[Timing],
+    out: &mut dyn Write,
+) -> io::Result<()> {
+    let objects: Vec<serde_json::Value> = results
+        .iter()
+        .map(|(name, (min, median, iters))| {
+            let generated = *name == "generated";
+            serde_json::json!({
+                "mechanism": mech.name,
+                "engine": name,
+                "tolerance": tolerance,
+                "steps": mech.time.count,
+                "repeats": how.repeats.max(1),
+                "ns_per_step": { "min": min, "median": median },
+                "iterations_per_step": iters,
+                "float": if generated { how.float.name() } else { "f64" },
+                "predictor": how.settings.predictor,
+                "lu": if generated && !how.settings.dense_lu { "structured" } else { "dense" },
+            })
+        })
+        .collect();
+    let v = match speedup(results) {
+        Some(s) => serde_json::json!({ "results": objects, "speedup": s }),
+        None => objects.into_iter().next().unwrap_or_default(),
+    };
+    writeln!(out, "{}", serde_json::to_string_pretty(&v)?)
+}
+
+/// The timings as text: a heading with the settings, one line per engine, the speedup.
+fn write_text(
+    mech: &Mechanism,
+    how: &BenchHow,
+    tolerance: f64,
+    results: &[Timing],
+    out: &mut dyn Write,
+) -> io::Result<()> {
+    let mut notes = Vec::new();
+    if how.float != crate::emit::Scalar::F64 {
+        notes.push(format!(", generated in {}", how.float.name()));
+    }
+    if !how.settings.predictor {
+        notes.push(", no predictor".to_owned());
+    }
+    if how.settings.dense_lu {
+        notes.push(", dense LU".to_owned());
+    }
+    writeln!(
+        out,
+        "{} ({} time points, tolerance {tolerance:e}, {} repeats{})",
+        printable(&mech.name),
+        mech.time.count,
+        how.repeats.max(1),
+        notes.concat()
+    )?;
+    for (name, (min, median, iters)) in results {
+        writeln!(
+            out,
+            "{name:>10}: {min:>10.0} ns/step min, {median:>10.0} ns/step median, {iters:.2} Newton iterations/step"
+        )?;
+    }
+    if let Some(s) = speedup(results) {
+        writeln!(out, "   speedup: {s:.1}x (generic median / generated median)")?;
+    }
+    Ok(())
+}

@@ -1,0 +1,103 @@
+//! `mechgen check`: size, rank, mobility and redundant equations of a description.
+
+use std::io::{self, Write};
+use std::path::Path;
+
+use super::args::CheckFormat;
+use super::common::{EXIT_OK, load, report_invalid, undriven};
+use crate::diag::printable;
+use crate::generic::Equations;
+use crate::model::{ConstraintKind, DriverCoordinate, DriverTarget, Mechanism};
+
+/// The number of unknowns left once ground bodies, `fix` constraints, coordinate
+/// differences against ground and absolute coordinate drivers are eliminated (each removes
+/// one unknown and its equation).
+fn reduced_unknowns(mech: &Mechanism) -> usize {
+    let fixed = mech
+        .constraints
+        .iter()
+        .filter(|c| match c.kind {
+            ConstraintKind::Fix { .. } => true,
+            ConstraintKind::CoordinateDifference { body_i, body_j, .. } => {
+                mech.bodies[body_i.0].ground || mech.bodies[body_j.0].ground
+            }
+        })
+        .count();
+    let driven = mech
+        .drivers
+        .iter()
+        .filter(|d| {
+            matches!(
+                d.target,
+                DriverTarget::Absolute {
+                    coordinate: DriverCoordinate::X | DriverCoordinate::Y | DriverCoordinate::Z,
+                    ..
+                }
+            )
+        })
+        .count();
+    mech.unknowns().saturating_sub(fixed + driven)
+}
+
+pub(super) fn check(
+    file: &Path,
+    format: CheckFormat,
+    out: &mut dyn Write,
+    err: &mut dyn Write,
+) -> io::Result<i32> {
+    let json = format == CheckFormat::Json;
+    let loaded = match load(file, json, out, err) {
+        Ok(l) => l,
+        Err(code) => return Ok(code),
+    };
+    let mech = &loaded.mechanism;
+    let eq = Equations::new(mech);
+    let prep = eq.prepare();
+    if let Some(d) = undriven(&eq, &prep) {
+        return Ok(report_invalid(&[d], json, out, err));
+    }
+    let redundant: Vec<String> =
+        prep.redundant.iter().map(|&k| eq.labels()[k].equation()).collect();
+    // The generated system's true size; the count of eliminated coordinates when it cannot
+    // be built (its diagnostics belong to `generate`).
+    let reduced = crate::symbolic::Symbolic::build(mech)
+        .map_or_else(|_| reduced_unknowns(mech), |s| s.unknowns.len());
+    let bodies = mech.bodies.len();
+    let grounds = mech.bodies.iter().filter(|b| b.ground).count();
+    if json {
+        let v = serde_json::json!({
+            "bodies": bodies,
+            "unknowns": eq.unknowns(),
+            "equations": eq.equations(),
+            "reduced_unknowns": reduced,
+            "rank": prep.rank,
+            "mobility": prep.mobility,
+            "drivers": mech.drivers.len(),
+            "redundant": redundant,
+        });
+        writeln!(out, "{}", serde_json::to_string_pretty(&v)?)?;
+    } else {
+        writeln!(out, "mechanism {}: {bodies} bodies ({grounds} ground)", printable(&mech.name))?;
+        writeln!(out, "unknowns:          {}", eq.unknowns())?;
+        writeln!(out, "equations:         {}", eq.equations())?;
+        writeln!(out, "reduced unknowns:  {reduced} (generated system)")?;
+        let at = if prep.assembled {
+            "assembled at t = start"
+        } else {
+            "initial estimates, not assembled"
+        };
+        writeln!(out, "rank of Φ_q:       {} ({at})", prep.rank)?;
+        writeln!(
+            out,
+            "mobility:          {} (degrees of freedom before the drivers)",
+            prep.mobility
+        )?;
+        writeln!(out, "drivers:           {}", mech.drivers.len())?;
+        if redundant.is_empty() {
+            writeln!(out, "redundant:         none")?;
+        } else {
+            writeln!(out, "redundant:         {}", printable(&redundant.join(", ")))?;
+        }
+    }
+    Ok(EXIT_OK)
+}

@@ -1,0 +1,135 @@
+//! `mechgen solve`: the analysis over the time grid, on either engine, streamed to the output.
+
+use std::io::{self, BufWriter, Write};
+use std::path::Path;
+
+use super::args::{Engine, SolveFormat};
+use super::common::{
+    EXIT_OK, EXIT_STOPPED, Sink, build_generated, engine_unavailable, load, report_invalid,
+    undriven,
+};
+use super::term;
+use crate::diag::{Diagnostic, printable};
+use crate::generic::{Analysis, Equations};
+use crate::model::Mechanism;
+use crate::report::{self, Writer};
+
+pub(super) fn solve(
+    file: &Path,
+    engine: Option<Engine>,
+    format: SolveFormat,
+    output: Option<&Path>,
+    out: &mut dyn Write,
+    err: &mut dyn Write,
+) -> io::Result<i32> {
+    let json = format == SolveFormat::Json;
+    let loaded = match load(file, json, out, err) {
+        Ok(l) => l,
+        Err(code) => return Ok(code),
+    };
+    let mech = &loaded.mechanism;
+    let eq = Equations::new(mech);
+    let prep = eq.prepare();
+    if let Some(d) = undriven(&eq, &prep) {
+        return Ok(report_invalid(&[d], json, out, err));
+    }
+    // The default engine is the generated one when it can be built, else the generic one.
+    let built = match engine {
+        Some(Engine::Generic) => None,
+        Some(Engine::Generated) => match build_generated(mech, crate::emit::Scalar::F64, err)? {
+            Ok(b) => Some(b),
+            Err(e) => return engine_unavailable(&e, mech, json, out, err),
+        },
+        None => match build_generated(mech, crate::emit::Scalar::F64, err)? {
+            Ok(b) => Some(b),
+            Err(e @ crate::engine::EngineError::Config(_)) => {
+                return engine_unavailable(&e, mech, json, out, err);
+            }
+            Err(e) => {
+                log::info!("falling back to the generic engine: {e}");
+                writeln!(err, "warning: using the generic engine: {e}")?;
+                None
+            }
+        },
+    };
+    let fmt = match format {
+        SolveFormat::Table => report::Format::Table,
+        SolveFormat::Csv => report::Format::Csv,
+        SolveFormat::Json => report::Format::Json,
+    };
+    let sink = match output {
+        Some(path) => match crate::output::OutputFile::create(path) {
+            Ok(file) => Sink::File(file),
+            Err(e) => {
+                let d = Diagnostic::error(e.to_string()).entity("command line").field("--output");
+                return Ok(report_invalid(&[d], json, out, err));
+            }
+        },
+        None => Sink::Out(BufWriter::new(out)),
+    };
+    let name = if built.is_some() { "generated" } else { "generic" };
+    // The redundant equations each engine leaves out, said in the output itself and on
+    // standard error.
+    let removed: Vec<String> = match &built {
+        Some(b) => b.removed.clone(),
+        None => prep.redundant.iter().map(|&k| eq.labels()[k].equation()).collect(),
+    };
+    for r in &removed {
+        writeln!(
+            err,
+            "warning: equation {} depends on the others at the initial configuration and is \
+             left out of the analysis",
+            printable(r)
+        )?;
+    }
+    let writer = Writer::begin(sink, fmt, mech, name, &removed)?;
+    stream(mech, &Analysis::new(&eq, &prep), built.as_ref(), writer, err)
+}
+
+/// Runs the analysis on the generated solver `built`, or on the generic engine, writing each
+/// time point as it comes, and ends the output with the error if the run stopped; returns
+/// the exit status.
+pub(super) fn stream(
+    mech: &Mechanism,
+    analysis: &Analysis<'_, '_>,
+    built: Option<&crate::engine::Built>,
+    mut writer: Writer<Sink<'_>>,
+    err: &mut dyn Write,
+) -> io::Result<i32> {
+    let layout = report::layout(mech);
+    let bar = term::bar(mech.time.count as u64, "analysis");
+    // The writer's own error, kept whatever the engine makes of it: a closed pipe ends the
+    // command quietly on either engine.
+    let mut sink_error: Option<io::Error> = None;
+    let mut sink = |frame: &crate::generic::Frame| {
+        bar.inc(1);
+        writer.step(&report::step_result(mech, &layout, frame)).inspect_err(|e| {
+            sink_error = Some(io::Error::new(e.kind(), e.to_string()));
+        })
+    };
+    let failure = match built {
+        None => analysis.run(&mut sink)?.failure,
+        Some(b) => match crate::engine::run(b, analysis, None, &mut sink) {
+            Ok(r) => r.failure,
+            Err(e) => {
+                bar.finish_and_clear();
+                if let Some(e) = sink_error {
+                    return Err(e);
+                }
+                // The solver broke off without a verdict: the output still ends as a whole
+                // document, with the error.
+                let message = e.to_string();
+                writer.finish_broken("solver_failed", &message)?.close()?;
+                writeln!(err, "error: {}", printable(&message))?;
+                return Ok(EXIT_STOPPED);
+            }
+        },
+    };
+    bar.finish_and_clear();
+    writer.finish(failure.as_ref())?.close()?;
+    if let Some(f) = &failure {
+        writeln!(err, "error: {}", report::failure_text(f))?;
+        return Ok(EXIT_STOPPED);
+    }
+    Ok(EXIT_OK)
+}

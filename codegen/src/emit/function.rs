@@ -1,0 +1,415 @@
+//! One emitted function from its outputs: the shared subexpressions as `let` temporaries,
+//! then one assignment per output, split into `#[inline(never)]` helpers when it would exceed
+//! [`CHUNK_OPS`] operations.
+//!
+//! Each function evaluates its outputs in one forward pass over the expression arena: nodes
+//! used more than once become `let tK` temporaries (numbered in topological order), all others
+//! are inlined. Operator trees are built with parentheses exactly where Rust's precedence and
+//! left associativity would otherwise change the tree, so the emitted code performs the same
+//! floating-point operations as `ExprPool::eval`.
+
+use syn::{Expr, Ident, parse_quote};
+
+use super::syntax::{
+    Prec, assign, binary, call, element, ident, item_fn, let_stmt, literal, neg, param, paren, path,
+};
+use crate::expr::{ExprId, ExprPool, Node, Var};
+
+/// One function body under construction: the `let` temporaries and the variables used.
+struct Body<'p> {
+    pool: &'p ExprPool,
+    /// Temporary name of each shared node (indexed by node).
+    temp: Vec<Option<Ident>>,
+    stmts: Vec<syn::Stmt>,
+    ops: usize,
+}
+
+impl<'p> Body<'p> {
+    /// Plans the temporaries for `roots`: every operation node reachable more than once.
+    fn new(pool: &'p ExprPool, roots: &[ExprId]) -> Self {
+        let last = roots.iter().map(|r| r.index() + 1).max().unwrap_or(0);
+        let mut uses = vec![0usize; last];
+        let mut live = vec![false; last];
+        let mut stack: Vec<ExprId> = roots.to_vec();
+        for r in roots {
+            uses[r.index()] += 1;
+        }
+        while let Some(x) = stack.pop() {
+            if std::mem::replace(&mut live[x.index()], true) {
+                continue;
+            }
+            for c in pool[x].children() {
+                uses[c.index()] += 1;
+                stack.push(c);
+            }
+        }
+        // sin a and cos a both needed: one `runtime::math::sin_cos(a)` gives both, with one
+        // argument reduction (and the same bits as `sin` and `cos`).
+        let mut trig: std::collections::BTreeMap<ExprId, [Option<usize>; 2]> =
+            std::collections::BTreeMap::new();
+        for k in (0..last).filter(|&k| live[k]) {
+            match pool.nodes()[k] {
+                Node::Sin(a) => trig.entry(a).or_default()[0] = Some(k),
+                Node::Cos(a) => trig.entry(a).or_default()[1] = Some(k),
+                _ => {}
+            }
+        }
+        let mut pair: Vec<Option<(ExprId, usize, usize)>> = vec![None; last];
+        for (&a, &[s, c]) in &trig {
+            if let (Some(s), Some(c)) = (s, c) {
+                pair[s] = Some((a, s, c));
+                pair[c] = Some((a, s, c));
+            }
+        }
+        let mut body = Self { pool, temp: vec![None; last], stmts: Vec::new(), ops: 0 };
+        let mut count = 0;
+        for k in 0..last {
+            if !live[k] {
+                continue;
+            }
+            let leaf = matches!(pool.nodes()[k], Node::Const(_) | Node::Var(_));
+            if !leaf {
+                body.ops += 1;
+            }
+            if let Some((a, s, c)) = pair[k] {
+                if body.temp[k].is_none() {
+                    let (arg, _) = body.render(a);
+                    let (sin, cos) =
+                        (ident(&format!("t{count}")), ident(&format!("t{}", count + 1)));
+                    count += 2;
+                    body.stmts.push(parse_quote!(let (#sin, #cos) = runtime::math::sin_cos(#arg);));
+                    body.temp[s] = Some(sin);
+                    body.temp[c] = Some(cos);
+                }
+            } else if !leaf && uses[k] >= 2 {
+                let (e, _) = body.render(ExprId::from_index(k));
+                let name = ident(&format!("t{count}"));
+                count += 1;
+                body.stmts.push(let_stmt(name.clone(), e));
+                body.temp[k] = Some(name);
+            }
+        }
+        body
+    }
+
+    /// The number of shared temporaries.
+    fn shared(&self) -> usize {
+        self.temp.iter().flatten().count()
+    }
+
+    /// An expression for `id` with its binding strength.
+    fn render(&self, id: ExprId) -> (Expr, Prec) {
+        if let Some(name) = &self.temp[id.index()] {
+            return (path(name.clone()), Prec::Atom);
+        }
+        let at_least = |e: (Expr, Prec), p: Prec| if e.1 >= p { e.0 } else { paren(e.0) };
+        match self.pool[id] {
+            Node::Const(bits) => {
+                let v = f64::from_bits(bits);
+                if v < 0.0 { (neg(literal(-v)), Prec::Unary) } else { (literal(v), Prec::Atom) }
+            }
+            Node::Var(Var::Q(k)) => (path(ident(&format!("q{k}"))), Prec::Atom),
+            Node::Var(Var::Qd(k)) => (path(ident(&format!("qd{k}"))), Prec::Atom),
+            Node::Var(Var::T) => (path(ident("t")), Prec::Atom),
+            Node::Neg(a) => (neg(at_least(self.render(a), Prec::Unary)), Prec::Unary),
+            Node::Add(a, b) => {
+                // x + (−y) and (−y) + x are written x − y: the same IEEE operation, since
+                // addition commutes exactly and negation is exact.
+                let negated = |e: ExprId| -> Option<Expr> {
+                    if self.temp[e.index()].is_some() {
+                        return None;
+                    }
+                    match (self.pool[e], self.pool.as_const(e)) {
+                        (_, Some(c)) if c < 0.0 => Some(literal(-c)),
+                        (Node::Neg(x), _) => Some(at_least(self.render(x), Prec::Product)),
+                        _ => None,
+                    }
+                };
+                let sub = syn::BinOp::Sub(Default::default());
+                if let Some(r) = negated(b) {
+                    (binary(at_least(self.render(a), Prec::Sum), sub, r), Prec::Sum)
+                } else if let Some(r) = negated(a) {
+                    (binary(at_least(self.render(b), Prec::Sum), sub, r), Prec::Sum)
+                } else {
+                    let left = at_least(self.render(a), Prec::Sum);
+                    let right = at_least(self.render(b), Prec::Product);
+                    (binary(left, syn::BinOp::Add(Default::default()), right), Prec::Sum)
+                }
+            }
+            Node::Mul(a, b) => {
+                let left = at_least(self.render(a), Prec::Product);
+                let right = at_least(self.render(b), Prec::Unary);
+                (binary(left, syn::BinOp::Mul(Default::default()), right), Prec::Product)
+            }
+            Node::Sin(a) => (call("sin", self.render(a).0), Prec::Atom),
+            Node::Cos(a) => (call("cos", self.render(a).0), Prec::Atom),
+        }
+    }
+}
+
+/// `let [q0, _q1, …] = *q;` naming the unused entries with a leading underscore.
+fn destructure(prefix: &str, n: usize, used: &[bool]) -> syn::Stmt {
+    let names = (0..n).map(|k| {
+        let name = if used[k] { format!("{prefix}{k}") } else { format!("_{prefix}{k}") };
+        ident(&name)
+    });
+    let src = ident(prefix);
+    parse_quote!(let [#(#names),*] = *#src;)
+}
+
+/// Which symbols the expressions reachable from `roots` use: (q, q̇, t).
+fn symbols(pool: &ExprPool, roots: &[ExprId], n: usize) -> (Vec<bool>, Vec<bool>, bool) {
+    let (mut q, mut qd, mut t) = (vec![false; n], vec![false; n], false);
+    let mut seen = std::collections::BTreeSet::new();
+    let mut stack = roots.to_vec();
+    while let Some(x) = stack.pop() {
+        if !seen.insert(x) {
+            continue;
+        }
+        match pool[x] {
+            Node::Var(Var::Q(k)) => q[k as usize] = true,
+            Node::Var(Var::Qd(k)) => qd[k as usize] = true,
+            Node::Var(Var::T) => t = true,
+            node => stack.extend(node.children()),
+        }
+    }
+    (q, qd, t)
+}
+
+/// A function body: destructuring, temporaries, then `target = value;` per output.
+pub(super) struct Function {
+    pub(super) stmts: Vec<syn::Stmt>,
+    pub(super) uses_t: bool,
+    pub(super) uses_q: bool,
+    pub(super) uses_qd: bool,
+    pub(super) ops: usize,
+    pub(super) shared: usize,
+}
+
+/// [`function`]'s outputs: where each value goes, and the row of the system it belongs to,
+/// whose note precedes the first of consecutive outputs of the same row.
+pub(super) type Targets = [(Expr, ExprId, Option<usize>)];
+
+pub(super) fn function(pool: &ExprPool, n: usize, outputs: &Targets) -> Function {
+    function_with(pool, n, outputs, false)
+}
+
+/// [`function`], reading the used entries of q and q̇ one by one (`let q5 = q[5];`) when
+/// `part`: a part of a split function uses few of them.
+fn function_with(pool: &ExprPool, n: usize, outputs: &Targets, part: bool) -> Function {
+    let roots: Vec<ExprId> = outputs.iter().map(|(_, e, _)| *e).collect();
+    let (q, qd, t) = symbols(pool, &roots, n);
+    let body = Body::new(pool, &roots);
+    let mut stmts = Vec::new();
+    let (uses_q, uses_qd) = (q.iter().any(|&u| u), qd.iter().any(|&u| u));
+    for (prefix, used) in [("q", &q), ("qd", &qd)] {
+        if !used.iter().any(|&u| u) {
+            continue;
+        }
+        if part {
+            for k in (0..n).filter(|&k| used[k]) {
+                stmts.push(let_stmt(ident(&format!("{prefix}{k}")), element(prefix, &[k])));
+            }
+        } else {
+            stmts.push(destructure(prefix, n, used));
+        }
+    }
+    stmts.extend(body.stmts.iter().cloned());
+    let mut last_row = None;
+    for (target, e, row) in outputs {
+        if let Some(r) = *row
+            && last_row != Some(r)
+        {
+            stmts.push(super::notes::marker(r));
+        }
+        last_row = *row;
+        let (value, _) = body.render(*e);
+        stmts.push(assign(target.clone(), value));
+    }
+    Function { stmts, uses_t: t, uses_q, uses_qd, ops: body.ops, shared: body.shared() }
+}
+
+/// Functions whose outputs take more operations than this are split into helpers of about
+/// this many operations each, so that rustc and LLVM never see one giant function (their time
+/// grows faster than linearly with a function's size). The largest function of the examples
+/// has under 800 operations and is not split.
+pub const CHUNK_OPS: usize = 1500;
+
+/// One value a function writes: `target = value`, to the array `targets[array]`; `key` orders
+/// the outputs when the function is split (outputs with near keys share subexpressions).
+pub(super) struct Output {
+    pub(super) target: Expr,
+    pub(super) array: usize,
+    pub(super) value: ExprId,
+    pub(super) key: usize,
+    /// The row of the system it belongs to, if any (for its note).
+    pub(super) row: Option<usize>,
+}
+
+/// Marks the nodes reachable from `root` with `stamp` and returns how many of them are
+/// operations not marked before.
+fn new_operations(pool: &ExprPool, root: ExprId, marks: &mut [u32], stamp: u32) -> usize {
+    let mut stack = vec![root];
+    let mut count = 0;
+    while let Some(x) = stack.pop() {
+        if std::mem::replace(&mut marks[x.index()], stamp) == stamp {
+            continue;
+        }
+        if !matches!(pool[x], Node::Const(_) | Node::Var(_)) {
+            count += 1;
+        }
+        stack.extend(pool[x].children());
+    }
+    count
+}
+
+/// The outputs in groups of at most about [`CHUNK_OPS`] operations: one group in the given
+/// order when they fit, else ordered by key and cut greedily.
+fn chunks(pool: &ExprPool, outputs: &[Output]) -> Vec<Vec<usize>> {
+    let mut marks = vec![0u32; pool.len()];
+    let total: usize = outputs.iter().map(|o| new_operations(pool, o.value, &mut marks, 1)).sum();
+    if total <= CHUNK_OPS {
+        return vec![(0..outputs.len()).collect()];
+    }
+    let mut order: Vec<usize> = (0..outputs.len()).collect();
+    order.sort_by_key(|&k| outputs[k].key);
+    let (mut groups, mut current, mut ops, mut stamp) = (Vec::new(), Vec::new(), 0, 2);
+    for k in order {
+        let mut more = new_operations(pool, outputs[k].value, &mut marks, stamp);
+        if !current.is_empty() && ops + more > CHUNK_OPS {
+            groups.push(std::mem::take(&mut current));
+            stamp += 1;
+            ops = 0;
+            more = new_operations(pool, outputs[k].value, &mut marks, stamp);
+        }
+        current.push(k);
+        ops += more;
+    }
+    groups.push(current);
+    groups
+}
+
+/// What an emitted function reads and writes.
+pub(super) struct Signature<'a> {
+    pub(super) name: &'a str,
+    /// Whether q̇ is a parameter (after q).
+    pub(super) qd: bool,
+    /// Whether the function is part of the module's public surface (else only the
+    /// `runtime::Mechanism` impl calls it).
+    pub(super) public: bool,
+    /// The arrays written, with their types, after `t`.
+    pub(super) targets: &'a [(&'a str, proc_macro2::TokenStream)],
+}
+
+impl Signature<'_> {
+    /// `fn name(q: &[f64; N], [qd: &[f64; N],] t: f64, targets…)`, each parameter named with a
+    /// leading underscore when it is not used.
+    pub(super) fn item(
+        &self,
+        name: &Ident,
+        doc: &str,
+        used: (bool, bool, bool, &[bool]),
+        helper: bool,
+    ) -> syn::ItemFn {
+        let (q, qd, t, arrays) = used;
+        let mut params: Vec<syn::FnArg> = vec![{
+            let q = param("q", q);
+            parse_quote!(#q: &[f64; N])
+        }];
+        if self.qd {
+            let qd = param("qd", qd);
+            params.push(parse_quote!(#qd: &[f64; N]));
+        }
+        let t = param("t", t);
+        params.push(parse_quote!(#t: f64));
+        for ((a, ty), &u) in self.targets.iter().zip(arrays) {
+            let a = param(a, u);
+            params.push(parse_quote!(#a: #ty));
+        }
+        if helper {
+            parse_quote! {
+                #[doc = #doc]
+                #[inline(never)]
+                fn #name(#(#params),*) {}
+            }
+        } else if self.public {
+            parse_quote! {
+                #[doc = #doc]
+                pub fn #name(#(#params),*) {}
+            }
+        } else {
+            parse_quote! {
+                #[doc = #doc]
+                fn #name(#(#params),*) {}
+            }
+        }
+    }
+}
+
+/// The function `sig.name` writing `outputs` after `prefix`, split into `#[inline(never)]`
+/// helpers `name_0`, `name_1`, … when it would exceed [`CHUNK_OPS`] operations. `doc` gets
+/// the operations and shared subexpressions in total.
+pub(super) fn emit_function(
+    pool: &ExprPool,
+    n: usize,
+    sig: &Signature<'_>,
+    doc: &dyn Fn(usize, usize) -> String,
+    prefix: Vec<syn::Stmt>,
+    outputs: &[Output],
+) -> Vec<syn::Item> {
+    let groups = chunks(pool, outputs);
+    let body = |group: &[usize]| -> (Function, Vec<bool>) {
+        let out: Vec<(Expr, ExprId, Option<usize>)> = group
+            .iter()
+            .map(|&k| (outputs[k].target.clone(), outputs[k].value, outputs[k].row))
+            .collect();
+        let mut written = vec![false; sig.targets.len()];
+        for &k in group {
+            written[outputs[k].array] = true;
+        }
+        (function_with(pool, n, &out, groups.len() > 1), written)
+    };
+    let name = ident(sig.name);
+    if groups.len() == 1 {
+        let (f, _) = body(&groups[0]);
+        let written = vec![true; sig.targets.len()];
+        let mut stmts = prefix;
+        stmts.extend(f.stmts);
+        let item = sig.item(
+            &name,
+            &doc(f.ops, f.shared),
+            (f.uses_q, f.uses_qd, f.uses_t, &written),
+            false,
+        );
+        return vec![item_fn(item, stmts)];
+    }
+    let mut items = Vec::new();
+    let mut calls = prefix;
+    let (mut ops, mut shared) = (0, 0);
+    let args: Vec<Ident> = ["q"]
+        .into_iter()
+        .chain(sig.qd.then_some("qd"))
+        .chain(["t"])
+        .chain(sig.targets.iter().map(|(a, _)| *a))
+        .map(ident)
+        .collect();
+    for (c, group) in groups.iter().enumerate() {
+        let (f, written) = body(group);
+        ops += f.ops;
+        shared += f.shared;
+        let helper = ident(&format!("{}_{c}", sig.name));
+        let doc = format!(" Part {c} of [`{}`]: {} operations.", sig.name, f.ops);
+        let item = sig.item(&helper, &doc, (f.uses_q, f.uses_qd, f.uses_t, &written), true);
+        items.push(item_fn(item, f.stmts));
+        calls.push(parse_quote!(#helper(#(#args),*);));
+    }
+    let doc = format!(
+        "{}\n\n Split into {} functions of at most about {CHUNK_OPS} operations each.",
+        doc(ops, shared),
+        groups.len()
+    );
+    let all = vec![true; sig.targets.len()];
+    let main = sig.item(&name, &doc, (true, true, true, &all), false);
+    items.insert(0, item_fn(main, calls));
+    items
+}

@@ -1,0 +1,286 @@
+//! Runs one generated mechanism over its time grid: the driver of every generated solver
+//! mechgen builds (`codegen::engine`).
+//!
+//! Usage: `run|bench [tolerance] [repeats] [no-predictor] [dense]`, or `key` to print the
+//! key of the cache entry it was built for.
+//!
+//! It is the same text for every mechanism. What varies is read from its sibling modules,
+//! which the generated crate's `main.rs` declares: `mechanism` (the generated module, its
+//! constants and `expand` under fixed names), `config` (`Real`, the module's floating-point
+//! type, and `Generated`, its mechanism) and `key` (the cache entry's `KEY`). The workspace
+//! compiles it against the committed `generated::rssr` (`generated/examples/driver.rs`), so
+//! that rustc, clippy and rustfmt check it.
+
+use std::io::Write;
+
+use runtime::step::{self, Coordinates, Groups, Rejection, Sample, Stepper, Trouble};
+use runtime::{AttemptError, Mechanism, NewtonError, NewtonOptions, Solver};
+
+use super::config::{self, Real};
+use super::{key, mechanism};
+
+const N: usize = mechanism::N;
+
+/// Runs the mode the first argument names.
+pub(crate) fn main() {
+    let args: Vec<String> = std::env::args().collect();
+    let mode = args.get(1).map_or("run", String::as_str);
+    if mode == "key" {
+        println!("key {}", key::KEY);
+        return;
+    }
+    let tolerance = args.get(2).and_then(|s| s.parse().ok()).unwrap_or(mechanism::TOLERANCE);
+    let repeats: usize = args.get(3).and_then(|s| s.parse().ok()).unwrap_or(1);
+    let flag = |name: &str| args.iter().skip(2).any(|a| a == name);
+    let predictor = !flag("no-predictor");
+    if flag("dense") {
+        // Static pivot orders hidden: every factorisation is dense LU with partial pivoting.
+        drive(runtime::factors::DenseOnly(config::Generated), mode, tolerance, repeats, predictor);
+    } else {
+        drive(config::Generated, mode, tolerance, repeats, predictor);
+    }
+}
+
+/// The solver of `m` with the module's settings, in `mode` (`bench` or `run`).
+fn drive<M: Mechanism<N, Real>>(
+    m: M,
+    mode: &str,
+    tolerance: Real,
+    repeats: usize,
+    predictor: bool,
+) {
+    let options = NewtonOptions {
+        tolerance,
+        max_iterations: mechanism::MAX_ITERATIONS,
+        ..NewtonOptions::DEFAULT
+    };
+    let mut solver = Solver::with_storage(m, mechanism::Q0, jacobian());
+    solver.set_options(options);
+    solver.set_predictor(predictor);
+    let stdout = std::io::stdout();
+    let mut out = std::io::BufWriter::new(stdout.lock());
+    if mode == "bench" {
+        bench(solver, repeats, &mut out);
+    } else {
+        run(solver, &mut out);
+    }
+}
+
+/// The grid's time point `k`.
+fn time(k: usize) -> Real {
+    mechanism::T_START + k as Real * mechanism::T_STEP
+}
+
+/// Times `repeats` whole passes of plain stepping (no step control) and prints
+/// `bench min_ns median_ns iterations_per_step`.
+fn bench<M: Mechanism<N, Real>>(
+    mut solver: Solver<M, N, Real, Jacobian>,
+    repeats: usize,
+    out: &mut impl Write,
+) {
+    let mut times = Vec::with_capacity(repeats);
+    let mut iterations = 0u64;
+    for _ in 0..repeats.max(1) {
+        solver.set_q(mechanism::Q0);
+        iterations = 0;
+        let start = std::time::Instant::now();
+        for k in 0..mechanism::T_COUNT {
+            match solver.position(time(k)) {
+                Ok(r) => iterations += u64::from(r.iterations),
+                Err(e) => {
+                    check(writeln!(out, "error bench {:?} {e}", wide(time(k))));
+                    std::process::exit(2);
+                }
+            }
+            let _ = solver.velocity();
+            let _ = solver.acceleration();
+        }
+        times.push(start.elapsed().as_nanos() as f64 / mechanism::T_COUNT as f64);
+        std::hint::black_box(solver.qdd());
+    }
+    times.sort_by(f64::total_cmp);
+    check(writeln!(
+        out,
+        "bench {:?} {:?} {:?}",
+        times[0],
+        times[times.len() / 2],
+        iterations as f64 / mechanism::T_COUNT as f64
+    ));
+}
+
+/// Steps over the grid under the step control, printing a `step` line per time point, or
+/// `near` and `error` lines and exit status 2 when the analysis stops.
+fn run<M: Mechanism<N, Real>>(solver: Solver<M, N, Real, Jacobian>, out: &mut impl Write) {
+    let mut engine = Engine {
+        solver,
+        dense: jacobian(),
+        perm: [0; N],
+        expanded: Box::new([[[0.0; 7]; 3]; mechanism::BODIES]),
+        accepted: None,
+        full: Full::default(),
+        candidate: Full::default(),
+    };
+    let mut last: Option<Sample<f64>> = None;
+    for k in 0..mechanism::T_COUNT {
+        let t = wide(time(k));
+        let outcome = match last {
+            None => step::first(&mut engine, t).map(|p| (p, p.iterations)),
+            Some(a) => step::advance(&mut engine, a, t),
+        };
+        match outcome {
+            Ok((p, iterations)) => {
+                check(write!(out, "step {t:?} {iterations} {:?}", p.residual));
+                for v in [&engine.full.q, &engine.full.qd, &engine.full.qdd] {
+                    numbers(out, v);
+                }
+                check(writeln!(out));
+                last = Some(p);
+            }
+            Err(stop) => {
+                if let Some(near) = &stop.near {
+                    check(write!(out, "near {:?}", near.sample.t));
+                    numbers(out, if near.rejected { &engine.candidate.q } else { &engine.full.q });
+                    check(writeln!(out));
+                }
+                let body = stop.body.map_or_else(|| "-".to_owned(), |b| b.to_string());
+                let message = stop.to_string().replace('\n', " ");
+                let kind = stop.trouble.as_str();
+                check(writeln!(out, "error {kind} {:?} {body} {message}", stop.t));
+                check(out.flush());
+                std::process::exit(2);
+            }
+        }
+    }
+}
+
+/// Writes each of `values` after a space, in shortest round-trip form.
+fn numbers(out: &mut impl Write, values: &[f64]) {
+    for x in values {
+        check(write!(out, " {x:?}"));
+    }
+}
+
+/// A value of the module's floating-point type in double precision, as the step control and
+/// the output take it.
+// `Real` is `f64` or `f32` as the module was generated: the conversion is needed for `f32`
+// and useless only in the `f64` instance.
+#[allow(clippy::useless_conversion)]
+fn wide(x: Real) -> f64 {
+    f64::from(x)
+}
+
+/// Ends the process when standard output cannot be written: nobody reads the results any
+/// more (mechgen stopped or its own output was closed), so computing on would be wasted.
+fn check(written: std::io::Result<()>) {
+    if written.is_err() {
+        std::process::exit(3);
+    }
+}
+
+/// The Jacobian of `N` rows, on the heap: large mechanisms would overflow the stack.
+type Jacobian = Box<[[Real; N]; N]>;
+
+fn jacobian() -> Jacobian {
+    match vec![[0.0; N]; N].into_boxed_slice().try_into() {
+        Ok(b) => b,
+        Err(_) => unreachable!("the vector has N rows"),
+    }
+}
+
+/// q, q̇ and q̈ of every moving body (7 each, body by body), as the step control reads them.
+#[derive(Clone, Default)]
+struct Full {
+    q: Vec<f64>,
+    qd: Vec<f64>,
+    qdd: Vec<f64>,
+}
+
+/// The generated solver under the step control of `runtime::step`, which checks continuity
+/// on the full coordinates of every body (position and Euler parameters).
+struct Engine<M> {
+    solver: Solver<M, N, Real, Jacobian>,
+    /// Φ_q at the last result, factored for its pivot ratio.
+    dense: Jacobian,
+    perm: [usize; N],
+    expanded: Box<[[[Real; 7]; 3]; mechanism::BODIES]>,
+    /// The last accepted (t, reduced q).
+    accepted: Option<(Real, [Real; N])>,
+    /// The last accepted point and the last attempt, in full coordinates.
+    full: Full,
+    candidate: Full,
+}
+
+impl<M: Mechanism<N, Real>> Stepper<f64> for Engine<M> {
+    type Cause = AttemptError<Real>;
+
+    fn attempt(&mut self, t: f64) -> Result<Sample<f64>, Rejection<f64, AttemptError<Real>>> {
+        let t = t as Real;
+        let report = self.solver.position(t).map_err(|e| {
+            let trouble = match e {
+                NewtonError::Singular { .. } => Trouble::Singular,
+                _ => Trouble::NoConvergence,
+            };
+            Rejection::engine(trouble, AttemptError::Newton(e))
+        })?;
+        if let Err(e) = self.solver.velocity().and_then(|()| self.solver.acceleration()) {
+            return Err(Rejection::engine(Trouble::Singular, AttemptError::Solve(e)));
+        }
+        self.solver.mechanism().jacobian(self.solver.q(), t, &mut self.dense);
+        let pivot_ratio = match runtime::lu::factor_with_ratio(&mut self.dense, &mut self.perm, 0.0)
+        {
+            Ok(p) => wide(p.smallest) / wide(p.largest),
+            Err(runtime::lu::Singular::SmallPivot { pivot, largest, .. }) => {
+                wide(pivot) / wide(largest)
+            }
+            Err(_) => f64::NAN,
+        };
+        mechanism::expand(
+            self.solver.q(),
+            self.solver.qd(),
+            self.solver.qdd(),
+            t,
+            &mut self.expanded,
+        );
+        let c = &mut self.candidate;
+        for (d, v) in [&mut c.q, &mut c.qd, &mut c.qdd].into_iter().enumerate() {
+            v.clear();
+            v.extend(self.expanded.iter().flat_map(|b| b[d]).map(wide));
+        }
+        Ok(Sample {
+            t: wide(t),
+            iterations: report.iterations,
+            residual: wide(report.residual),
+            pivot_ratio,
+        })
+    }
+
+    fn accepted(&self) -> Coordinates<'_, f64> {
+        Coordinates { q: &self.full.q, qd: &self.full.qd, qdd: &self.full.qdd }
+    }
+
+    fn candidate(&self) -> Coordinates<'_, f64> {
+        Coordinates { q: &self.candidate.q, qd: &self.candidate.qd, qdd: &self.candidate.qdd }
+    }
+
+    fn groups(&self) -> Groups<'_> {
+        Groups::Bodies
+    }
+
+    fn accept(&mut self) {
+        self.accepted = Some((self.solver.t(), *self.solver.q()));
+        self.full.clone_from(&self.candidate);
+    }
+
+    fn reject(&mut self) {
+        if let Some((t, q)) = self.accepted {
+            // Back to the accepted point: Newton converges at once from it.
+            self.solver.set_q(q);
+            let _ = self.solver.position(t);
+            let _ = self.solver.velocity().and_then(|()| self.solver.acceleration());
+        }
+    }
+
+    fn epsilon(&self) -> f64 {
+        wide(Real::EPSILON)
+    }
+}
