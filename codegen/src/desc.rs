@@ -91,23 +91,23 @@ pub struct BodyDesc {
     pub p: Option<[f64; 4]>,
 }
 
-/// The joint types of the contract's table.
+/// The joint types of the contract's table (fields and rows: `model::JOINT_TYPES`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum JointType {
-    /// 3 equations: points coincide.
+    /// Points coincide.
     Spherical,
-    /// 4 equations: points coincide, axis_i ⟂ axis_j.
+    /// Points coincide, axis_i ⟂ axis_j.
     Universal,
-    /// 5 equations: points coincide, axes parallel.
+    /// Points coincide, axes parallel.
     Revolute,
-    /// 4 equations: axes parallel, P_j − P_i parallel to the axis.
+    /// Axes parallel, P_j − P_i parallel to the axis.
     Cylindrical,
-    /// 5 equations: cylindrical plus ref_i ⟂ ref_j.
+    /// Cylindrical plus ref_i ⟂ ref_j.
     Prismatic,
-    /// 5 equations: cylindrical plus the helix d − d0 = lead·(θ − θ0)/(2π).
+    /// Cylindrical plus the helix d − d0 = lead·(θ − θ0)/(2π).
     Screw,
-    /// 1 equation: |P_j − P_i| = distance.
+    /// |P_j − P_i| = distance.
     Distance,
 }
 

@@ -29,16 +29,7 @@ use docs::{doc_attributes, fenced, markdown_escaped, one_line_docs};
 use function::{Output, Signature, emit_function, function};
 use syntax::{binary, element, ident, index, literal_signed, param};
 
-/// `rssr` → `Rssr`, `four_bar` → `FourBar`, `ex_2_6_1` → `Ex261`.
-#[must_use]
-pub fn type_name(name: &str) -> String {
-    name.split('_')
-        .map(|w| {
-            let mut c = w.chars();
-            c.next().map_or_else(String::new, |f| f.to_ascii_uppercase().to_string() + c.as_str())
-        })
-        .collect()
-}
+pub use crate::model::type_name;
 
 /// The generated module for one mechanism, as text.
 #[must_use]
@@ -118,7 +109,7 @@ fn constants(mech: &Mechanism, sys: &Symbolic, bodies: usize) -> Vec<syn::Item> 
     let body_names = mech.bodies.iter().filter(|b| !b.ground).map(|b| b.name.as_str());
     let unknowns =
         sys.unknowns.iter().map(|&(b, c)| format!("{}.{}", mech.bodies[b.0].name, COORDINATE[c]));
-    let rows = sys.rows.iter().map(crate::generic::RowLabel::equation);
+    let rows = sys.rows.iter().map(crate::model::RowLabel::equation);
     let grid = &mech.time;
     let max_it = Literal::u32_unsuffixed(mech.solver.max_iterations);
     let q0 = sys.unknowns.iter().map(|&(b, c)| {
@@ -485,7 +476,7 @@ fn structured_items(orders: usize) -> Vec<syn::ImplItem> {
 fn module_docs(mech: &Mechanism, sys: &Symbolic, source: &str, scalar: Scalar) -> Vec<String> {
     let n = sys.unknowns.len();
     let float = if scalar == Scalar::F32 { "f32" } else { "f64" };
-    let labels = |rows: &[crate::generic::RowLabel]| {
+    let labels = |rows: &[crate::model::RowLabel]| {
         rows.iter().map(|r| markdown_escaped(&r.equation())).collect::<Vec<_>>().join(", ")
     };
     let mut docs = vec![format!(

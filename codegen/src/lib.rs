@@ -25,6 +25,8 @@ pub mod engine;
 pub mod expr;
 pub mod generic;
 pub mod inputs;
+#[cfg(test)]
+mod layers;
 pub mod model;
 #[cfg(feature = "cli")]
 pub mod output;
@@ -36,5 +38,7 @@ pub mod scale;
 pub mod stepping;
 pub mod symbolic;
 pub mod sync;
+#[cfg(any(test, feature = "test-support"))]
+pub mod testing;
 pub mod validate;
 pub mod young;

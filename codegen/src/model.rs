@@ -7,7 +7,26 @@
 
 use nalgebra::{Vector3, Vector4};
 
+pub mod frame;
+mod joints;
+mod rows;
+
 pub use crate::desc::{CoordinateName, DriverCoordinate, JointType, Motion};
+pub use joints::{DeckRecord, JOINT_TYPES, JointSpec, Need, docs_row};
+pub use rows::RowLabel;
+
+/// The type a generated module declares for the mechanism `name`: `rssr` → `Rssr`,
+/// `four_bar` → `FourBar`, `ex_2_6_1` → `Ex261`. Validation checks that it is a usable Rust
+/// type name, the emitter and the engine's driver use it.
+#[must_use]
+pub fn type_name(name: &str) -> String {
+    name.split('_')
+        .map(|w| {
+            let mut c = w.chars();
+            c.next().map_or_else(String::new, |f| f.to_ascii_uppercase().to_string() + c.as_str())
+        })
+        .collect()
+}
 
 /// Index of a body in [`Mechanism::bodies`].
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
@@ -173,20 +192,21 @@ impl Joint {
     }
 }
 
-/// Joint types with the data only they carry.
+/// Joint types with the data only they carry; their fields and rows are described by
+/// [`JOINT_TYPES`].
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum JointKind {
-    /// Points coincide (3 equations).
+    /// Points coincide.
     Spherical,
-    /// Points coincide, axis_i ⟂ axis_j (4 equations).
+    /// Points coincide, axis_i ⟂ axis_j.
     Universal,
-    /// Points coincide, axes parallel (5 equations).
+    /// Points coincide, axes parallel.
     Revolute,
-    /// Axes parallel, P_j − P_i parallel to the axis (4 equations).
+    /// Axes parallel, P_j − P_i parallel to the axis.
     Cylindrical,
-    /// Cylindrical plus ref_i ⟂ ref_j (5 equations).
+    /// Cylindrical plus ref_i ⟂ ref_j.
     Prismatic,
-    /// Cylindrical plus d − d0 = lead·(θ − θ0)/(2π) (5 equations).
+    /// Cylindrical plus d − d0 = lead·(θ − θ0)/(2π).
     Screw {
         /// Axial advance per full turn (non-zero).
         lead: f64,
@@ -195,7 +215,7 @@ pub enum JointKind {
         /// θ, the angle from ref_i to ref_j about axis_i, at the initial estimates, in (−π, π].
         theta0: f64,
     },
-    /// |P_j − P_i| = length (1 equation).
+    /// |P_j − P_i| = length.
     Distance {
         /// The rod length (> 0).
         length: f64,
@@ -206,26 +226,13 @@ impl JointKind {
     /// The spelling used in description files.
     #[must_use]
     pub fn type_name(&self) -> &'static str {
-        match self {
-            Self::Spherical => "spherical",
-            Self::Universal => "universal",
-            Self::Revolute => "revolute",
-            Self::Cylindrical => "cylindrical",
-            Self::Prismatic => "prismatic",
-            Self::Screw { .. } => "screw",
-            Self::Distance { .. } => "distance",
-        }
+        self.joint_type().as_str()
     }
 
-    /// Number of constraint equations the joint contributes.
+    /// Number of constraint equations the joint contributes ([`JointSpec::rows`]).
     #[must_use]
     pub fn equations(&self) -> usize {
-        match self {
-            Self::Spherical => 3,
-            Self::Universal | Self::Cylindrical => 4,
-            Self::Revolute | Self::Prismatic | Self::Screw { .. } => 5,
-            Self::Distance { .. } => 1,
-        }
+        self.spec().rows.len()
     }
 }
 

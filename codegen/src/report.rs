@@ -8,9 +8,9 @@ use std::io::{self, Write};
 use nalgebra::{DVector, Vector3, Vector4};
 
 use crate::diag::printable;
-use crate::generic::kin::{g_matrix, rotation};
 use crate::generic::{Failure, Frame};
 use crate::model::Mechanism;
+use crate::model::frame::{g_matrix, rotation};
 
 /// One body's results at one time point (global components throughout).
 #[derive(Clone, Debug, PartialEq)]

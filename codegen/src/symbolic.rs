@@ -18,10 +18,10 @@ use std::collections::BTreeSet;
 use nalgebra::{DVector, Vector3};
 
 use crate::expr::{ExprId, ExprPool, Node, Var};
-use crate::generic::{Equations, RowLabel};
+use crate::generic::Equations;
 use crate::model::{
-    BodyId, ConstraintKind, DriverCoordinate, DriverTarget, Joint, JointKind, Law, Mechanism,
-    Motion,
+    BodyId, Constraint, ConstraintKind, Driver, DriverCoordinate, DriverTarget, Joint, JointKind,
+    Law, Mechanism, Motion, RowLabel,
 };
 
 /// Where a body coordinate comes from in the reduced system.
@@ -218,58 +218,309 @@ impl Builder {
         self.sub(&pj, &pi)
     }
 
-    /// The rows of one joint (same forms and order as `generic`).
-    fn joint_rows(&mut self, j: &Joint) -> Vec<ExprId> {
-        let d = self.separation(j);
-        let mut rows = Vec::new();
-        if matches!(j.kind, JointKind::Spherical | JointKind::Universal | JointKind::Revolute) {
-            rows.extend(d);
+    /// The coordinates ground bodies, `fix` constraints, coordinate differences against
+    /// ground and absolute x/y/z drivers hold (the others left [`PLACEHOLDER`]), and the rows
+    /// (indices into the row labels) eliminated with them.
+    fn eliminate(&mut self, mech: &Mechanism) -> (Vec<[Source; 7]>, BTreeSet<usize>) {
+        let mut coords: Vec<[Source; 7]> = mech
+            .bodies
+            .iter()
+            .map(|b| {
+                if b.ground {
+                    let q = [b.r.x, b.r.y, b.r.z, b.p[0], b.p[1], b.p[2], b.p[3]];
+                    q.map(Source::Fixed)
+                } else {
+                    [PLACEHOLDER; 7]
+                }
+            })
+            .collect();
+        // Row indices (into `labels`) of the eliminated equations.
+        let mut eliminated = BTreeSet::new();
+        let (first_constraint, first_driver) =
+            (mech.first_constraint_row(), mech.first_driver_row());
+        for (k, c) in mech.constraints.iter().enumerate() {
+            let target = match c.kind {
+                ConstraintKind::Fix { body, coordinate, value } => {
+                    Some((body, coordinate.index(), value))
+                }
+                ConstraintKind::CoordinateDifference { body_i, body_j, coordinate, value } => {
+                    let c = coordinate.index();
+                    match (&coords[body_i.0][c], &coords[body_j.0][c]) {
+                        (Source::Fixed(g), _) if mech.bodies[body_i.0].ground => {
+                            Some((body_j, c, g - value))
+                        }
+                        (_, Source::Fixed(g)) if mech.bodies[body_j.0].ground => {
+                            Some((body_i, c, g + value))
+                        }
+                        _ => None,
+                    }
+                }
+            };
+            if let Some((body, idx, value)) = target
+                && coords[body.0][idx] == PLACEHOLDER
+            {
+                coords[body.0][idx] = Source::Fixed(value);
+                eliminated.insert(first_constraint + k);
+            }
         }
+        for (k, d) in mech.drivers.iter().enumerate() {
+            if let DriverTarget::Absolute { body, coordinate } = d.target {
+                let idx = match coordinate {
+                    DriverCoordinate::X => 0,
+                    DriverCoordinate::Y => 1,
+                    DriverCoordinate::Z => 2,
+                    _ => continue,
+                };
+                if coords[body.0][idx] == PLACEHOLDER {
+                    let s = self.law(&d.law);
+                    let t = Var::T;
+                    let sd = self.pool.diff(s, t);
+                    let sdd = self.pool.diff(sd, t);
+                    coords[body.0][idx] = Source::Driven(self.laws.len());
+                    self.laws.push([s, sd, sdd]);
+                    eliminated.insert(first_driver + k);
+                }
+            }
+        }
+        (coords, eliminated)
+    }
+
+    /// Φ of every row in the generic engine's order: joints, constraints, drivers,
+    /// normalisations.
+    fn phi(&mut self, mech: &Mechanism) -> Vec<ExprId> {
+        let mut phi_all = Vec::with_capacity(mech.equations());
+        for j in &mech.joints {
+            phi_all.extend(self.joint_rows(j));
+        }
+        for c in &mech.constraints {
+            let e = self.constraint_row(c);
+            phi_all.push(e);
+        }
+        for d in &mech.drivers {
+            let e = self.driver_row(d, mech);
+            phi_all.push(e);
+        }
+        for b in mech.moving_bodies() {
+            let terms: Vec<ExprId> = (3..7)
+                .map(|c| {
+                    let e = self.coordinate(b, c);
+                    self.pool.mul(e, e)
+                })
+                .collect();
+            let s = self.pool.sum(terms);
+            let one = self.pool.constant(1.0);
+            phi_all.push(self.pool.sub(s, one));
+        }
+        phi_all
+    }
+
+    /// A constraint's row: `q_b[c] − value` or `q_i[c] − q_j[c] − value`.
+    fn constraint_row(&mut self, c: &Constraint) -> ExprId {
+        match c.kind {
+            ConstraintKind::Fix { body, coordinate, value } => {
+                let q = self.coordinate(body, coordinate.index());
+                let v = self.pool.constant(value);
+                self.pool.sub(q, v)
+            }
+            ConstraintKind::CoordinateDifference { body_i, body_j, coordinate, value } => {
+                let qi = self.coordinate(body_i, coordinate.index());
+                let qj = self.coordinate(body_j, coordinate.index());
+                let v = self.pool.constant(value);
+                let d = self.pool.sub(qi, qj);
+                self.pool.sub(d, v)
+            }
+        }
+    }
+
+    /// A driver's row: the joint angle's x sin s − y cos s, the axial position − s, or an
+    /// absolute coordinate's row.
+    fn driver_row(&mut self, d: &Driver, mech: &Mechanism) -> ExprId {
+        let s = self.law(&d.law);
+        match d.target {
+            DriverTarget::Point { point, axis } => {
+                let pt = &mech.points[point.0];
+                let r = self.point(pt.body, &pt.local);
+                self.pool.sub(r[axis], s)
+            }
+            DriverTarget::Joint { joint, motion } => {
+                let j = &mech.joints[joint.0];
+                match motion {
+                    Motion::Rotation => {
+                        let (x, y) = self.joint_angle(j);
+                        self.angle_residual(x, y, s)
+                    }
+                    Motion::Translation => {
+                        let ax = self.axial_position(j);
+                        self.pool.sub(ax, s)
+                    }
+                }
+            }
+            DriverTarget::Absolute { body, coordinate } => {
+                let k = crate::generic::absolute_index(coordinate);
+                let q = self.coordinate(body, k);
+                let rotation = matches!(
+                    coordinate,
+                    DriverCoordinate::Rx | DriverCoordinate::Ry | DriverCoordinate::Rz
+                );
+                if !rotation {
+                    // x, y, z, e1, e2, e3: q_b[c] − s.
+                    self.pool.sub(q, s)
+                } else {
+                    // e_k cos(s/2) − e0 sin(s/2) (thesis eq. 4.62, one-equation form).
+                    let half = self.pool.constant(0.5);
+                    let hs = self.pool.mul(half, s);
+                    let (sin, cos) = (self.pool.sin(hs), self.pool.cos(hs));
+                    let e0 = self.coordinate(body, 3);
+                    let a = self.pool.mul(q, cos);
+                    let b = self.pool.mul(e0, sin);
+                    self.pool.sub(a, b)
+                }
+            }
+        }
+    }
+
+    /// The rows of one joint, in the order of [`crate::model::JointSpec::rows`]; one
+    /// method per type below, as in `generic`.
+    fn joint_rows(&mut self, j: &Joint) -> Vec<ExprId> {
+        let v = self.joint_vectors(j);
+        let rows = match j.kind {
+            JointKind::Spherical => self.spherical(&v),
+            JointKind::Universal => self.universal(&v),
+            JointKind::Revolute => self.revolute(&v),
+            JointKind::Cylindrical => self.cylindrical(&v),
+            JointKind::Prismatic => self.prismatic(&v, j),
+            JointKind::Screw { lead, d0, theta0 } => self.screw(&v, j, lead, d0, theta0),
+            JointKind::Distance { length } => self.distance(&v, length),
+        };
+        debug_assert_eq!(rows.len(), j.kind.equations());
+        rows
+    }
+
+    /// d, the axes and the normals of a joint, written into the pool in that order.
+    fn joint_vectors(&mut self, j: &Joint) -> JointVectors {
+        let d = self.separation(j);
         let axes = j.axis.map(|(ai, aj)| (self.vector(j.body_i, &ai), self.vector(j.body_j, &aj)));
         let normals =
             j.normals().map(|(b, c)| (self.vector(j.body_i, &b), self.vector(j.body_i, &c)));
-        if let (Some((_, aj)), Some((b, c))) = (&axes, &normals)
-            && !matches!(j.kind, JointKind::Universal)
-        {
-            rows.push(self.dot(b, aj));
-            rows.push(self.dot(c, aj));
-            if !matches!(j.kind, JointKind::Revolute) {
-                rows.push(self.dot(b, &d));
-                rows.push(self.dot(c, &d));
-            }
-        }
-        match j.kind {
-            JointKind::Universal => {
-                let (ai, aj) = axes.expect("validated: universal has axes");
-                rows.push(self.dot(&ai, &aj));
-            }
-            JointKind::Prismatic => {
-                let (ri, rj) = j.reference.expect("validated: prismatic has references");
-                let (ri, rj) = (self.vector(j.body_i, &ri), self.vector(j.body_j, &rj));
-                rows.push(self.dot(&ri, &rj));
-            }
-            JointKind::Screw { lead, d0, theta0 } => {
-                let (x, y) = self.joint_angle(j);
-                let ax = self.axial_position(j);
-                let d0 = self.pool.constant(d0);
-                let k = self.pool.constant(2.0 * std::f64::consts::PI / lead);
-                let th0 = self.pool.constant(theta0);
-                let dd = self.pool.sub(ax, d0);
-                let kd = self.pool.mul(k, dd);
-                let phi = self.pool.add(kd, th0);
-                rows.push(self.angle_residual(x, y, phi));
-            }
-            JointKind::Distance { length } => {
-                let dd = self.dot(&d, &d);
-                let l2 = self.pool.constant(length * length);
-                let diff = self.pool.sub(dd, l2);
-                let half = self.pool.constant(0.5 / length);
-                rows.push(self.pool.mul(half, diff));
-            }
-            _ => {}
-        }
-        debug_assert_eq!(rows.len(), j.kind.equations());
+        JointVectors { d, axes, normals }
+    }
+
+    /// d = 0: the joint points coincide.
+    fn coincident(v: &JointVectors) -> Vec<ExprId> {
+        v.d.to_vec()
+    }
+
+    /// b_i·a_j = 0, c_i·a_j = 0: the axes are parallel.
+    fn parallel(&mut self, v: &JointVectors) -> Vec<ExprId> {
+        let (_, aj) = v.axes();
+        let (b, c) = v.normals();
+        vec![self.dot(b, aj), self.dot(c, aj)]
+    }
+
+    /// Spherical: d = 0.
+    fn spherical(&mut self, v: &JointVectors) -> Vec<ExprId> {
+        Self::coincident(v)
+    }
+
+    /// Universal: d = 0; a_i·a_j = 0.
+    fn universal(&mut self, v: &JointVectors) -> Vec<ExprId> {
+        let (ai, aj) = v.axes();
+        let mut rows = Self::coincident(v);
+        rows.push(self.dot(ai, aj));
         rows
+    }
+
+    /// Revolute: d = 0; axes parallel.
+    fn revolute(&mut self, v: &JointVectors) -> Vec<ExprId> {
+        let mut rows = Self::coincident(v);
+        rows.extend(self.parallel(v));
+        rows
+    }
+
+    /// Cylindrical: axes parallel; b_i·d = 0, c_i·d = 0.
+    fn cylindrical(&mut self, v: &JointVectors) -> Vec<ExprId> {
+        let (b, c) = v.normals();
+        let mut rows = self.parallel(v);
+        rows.push(self.dot(b, &v.d));
+        rows.push(self.dot(c, &v.d));
+        rows
+    }
+
+    /// Prismatic: cylindrical; ref_i·ref_j = 0.
+    fn prismatic(&mut self, v: &JointVectors, j: &Joint) -> Vec<ExprId> {
+        let mut rows = self.cylindrical(v);
+        let (ri, rj) = j.reference.expect("validated: prismatic has references");
+        let (ri, rj) = (self.vector(j.body_i, &ri), self.vector(j.body_j, &rj));
+        rows.push(self.dot(&ri, &rj));
+        rows
+    }
+
+    /// Screw: cylindrical; x sin φ − y cos φ = 0 with φ = θ0 + 2π (d·a_i − d0)/lead.
+    fn screw(
+        &mut self,
+        v: &JointVectors,
+        j: &Joint,
+        lead: f64,
+        d0: f64,
+        theta0: f64,
+    ) -> Vec<ExprId> {
+        let mut rows = self.cylindrical(v);
+        let (x, y) = self.joint_angle(j);
+        let ax = self.axial_position(j);
+        let d0 = self.pool.constant(d0);
+        let k = self.pool.constant(2.0 * std::f64::consts::PI / lead);
+        let th0 = self.pool.constant(theta0);
+        let dd = self.pool.sub(ax, d0);
+        let kd = self.pool.mul(k, dd);
+        let phi = self.pool.add(kd, th0);
+        rows.push(self.angle_residual(x, y, phi));
+        rows
+    }
+
+    /// Distance: (d·d − L²)/(2L) = 0.
+    fn distance(&mut self, v: &JointVectors, length: f64) -> Vec<ExprId> {
+        let dd = self.dot(&v.d, &v.d);
+        let l2 = self.pool.constant(length * length);
+        let diff = self.pool.sub(dd, l2);
+        let half = self.pool.constant(0.5 / length);
+        vec![self.pool.mul(half, diff)]
+    }
+}
+
+/// A coordinate not yet assigned a source while the system is laid out.
+const PLACEHOLDER: Source = Source::Unknown(usize::MAX);
+
+/// Numbers the coordinates still [`PLACEHOLDER`] as the reduced unknowns, body by body.
+fn number_unknowns(coords: &mut [[Source; 7]]) -> Vec<(BodyId, usize)> {
+    let mut unknowns = Vec::new();
+    for (b, c) in coords.iter_mut().enumerate() {
+        for (i, s) in c.iter_mut().enumerate() {
+            if *s == PLACEHOLDER {
+                *s = Source::Unknown(unknowns.len());
+                unknowns.push((BodyId(b), i));
+            }
+        }
+    }
+    unknowns
+}
+
+/// The global vectors of one joint that its rows combine, as expressions.
+struct JointVectors {
+    /// d = P_j − P_i.
+    d: V3,
+    /// (a_i, a_j), the axes, for the types that have them.
+    axes: Option<(V3, V3)>,
+    /// (b_i, c_i), the body-i unit vectors ⟂ axis_i.
+    normals: Option<(V3, V3)>,
+}
+
+impl JointVectors {
+    fn axes(&self) -> &(V3, V3) {
+        self.axes.as_ref().expect("validated: joint has axes")
+    }
+
+    fn normals(&self) -> &(V3, V3) {
+        self.normals.as_ref().expect("validated: joint has axes")
     }
 }
 
@@ -306,158 +557,13 @@ impl Symbolic {
                 message: format!("{INPUTS_NOT_SUPPORTED} (driver {})", inputs.join(", driver ")),
             });
         }
-        let eq = Equations::new(mech);
-        let labels = eq.labels().to_vec();
-        let placeholder = Source::Unknown(usize::MAX);
-        let mut coords: Vec<[Source; 7]> = mech
-            .bodies
-            .iter()
-            .map(|b| {
-                if b.ground {
-                    let q = [b.r.x, b.r.y, b.r.z, b.p[0], b.p[1], b.p[2], b.p[3]];
-                    q.map(Source::Fixed)
-                } else {
-                    [placeholder; 7]
-                }
-            })
-            .collect();
+        let labels = mech.row_labels();
         let mut builder = Builder { pool: ExprPool::new(), coords: Vec::new(), laws: Vec::new() };
-        // Row indices (into `labels`) of the eliminated equations.
-        let mut eliminated = BTreeSet::new();
-        let first_constraint = mech.joints.iter().map(|j| j.kind.equations()).sum::<usize>();
-        let first_driver = first_constraint + mech.constraints.len();
-        for (k, c) in mech.constraints.iter().enumerate() {
-            let target = match c.kind {
-                ConstraintKind::Fix { body, coordinate, value } => {
-                    Some((body, coordinate.index(), value))
-                }
-                ConstraintKind::CoordinateDifference { body_i, body_j, coordinate, value } => {
-                    let c = coordinate.index();
-                    match (&coords[body_i.0][c], &coords[body_j.0][c]) {
-                        (Source::Fixed(g), _) if mech.bodies[body_i.0].ground => {
-                            Some((body_j, c, g - value))
-                        }
-                        (_, Source::Fixed(g)) if mech.bodies[body_j.0].ground => {
-                            Some((body_i, c, g + value))
-                        }
-                        _ => None,
-                    }
-                }
-            };
-            if let Some((body, idx, value)) = target
-                && coords[body.0][idx] == placeholder
-            {
-                coords[body.0][idx] = Source::Fixed(value);
-                eliminated.insert(first_constraint + k);
-            }
-        }
-        for (k, d) in mech.drivers.iter().enumerate() {
-            if let DriverTarget::Absolute { body, coordinate } = d.target {
-                let idx = match coordinate {
-                    DriverCoordinate::X => 0,
-                    DriverCoordinate::Y => 1,
-                    DriverCoordinate::Z => 2,
-                    _ => continue,
-                };
-                if coords[body.0][idx] == placeholder {
-                    let s = builder.law(&d.law);
-                    let t = Var::T;
-                    let sd = builder.pool.diff(s, t);
-                    let sdd = builder.pool.diff(sd, t);
-                    coords[body.0][idx] = Source::Driven(builder.laws.len());
-                    builder.laws.push([s, sd, sdd]);
-                    eliminated.insert(first_driver + k);
-                }
-            }
-        }
-        let mut unknowns = Vec::new();
-        for (b, c) in coords.iter_mut().enumerate() {
-            for (i, s) in c.iter_mut().enumerate() {
-                if *s == placeholder {
-                    *s = Source::Unknown(unknowns.len());
-                    unknowns.push((BodyId(b), i));
-                }
-            }
-        }
+        let (mut coords, eliminated) = builder.eliminate(mech);
+        let unknowns = number_unknowns(&mut coords);
         builder.coords = coords;
-        // Φ for every row that is not eliminated, in the generic engine's order.
-        let mut phi_all = Vec::with_capacity(labels.len());
-        for j in &mech.joints {
-            phi_all.extend(builder.joint_rows(j));
-        }
-        for c in &mech.constraints {
-            let e = match c.kind {
-                ConstraintKind::Fix { body, coordinate, value } => {
-                    let q = builder.coordinate(body, coordinate.index());
-                    let v = builder.pool.constant(value);
-                    builder.pool.sub(q, v)
-                }
-                ConstraintKind::CoordinateDifference { body_i, body_j, coordinate, value } => {
-                    let qi = builder.coordinate(body_i, coordinate.index());
-                    let qj = builder.coordinate(body_j, coordinate.index());
-                    let v = builder.pool.constant(value);
-                    let d = builder.pool.sub(qi, qj);
-                    builder.pool.sub(d, v)
-                }
-            };
-            phi_all.push(e);
-        }
-        for d in &mech.drivers {
-            let s = builder.law(&d.law);
-            let e = match d.target {
-                DriverTarget::Joint { joint, motion } => {
-                    let j = &mech.joints[joint.0];
-                    match motion {
-                        Motion::Rotation => {
-                            let (x, y) = builder.joint_angle(j);
-                            builder.angle_residual(x, y, s)
-                        }
-                        Motion::Translation => {
-                            let ax = builder.axial_position(j);
-                            builder.pool.sub(ax, s)
-                        }
-                    }
-                }
-                DriverTarget::Point { point, axis } => {
-                    let pt = &mech.points[point.0];
-                    let r = builder.point(pt.body, &pt.local);
-                    builder.pool.sub(r[axis], s)
-                }
-                DriverTarget::Absolute { body, coordinate } => {
-                    let k = crate::generic::absolute_index(coordinate);
-                    let q = builder.coordinate(body, k);
-                    let rotation = matches!(
-                        coordinate,
-                        DriverCoordinate::Rx | DriverCoordinate::Ry | DriverCoordinate::Rz
-                    );
-                    if !rotation {
-                        // x, y, z, e1, e2, e3: q_b[c] − s.
-                        builder.pool.sub(q, s)
-                    } else {
-                        // e_k cos(s/2) − e0 sin(s/2) (thesis eq. 4.62, one-equation form).
-                        let half = builder.pool.constant(0.5);
-                        let hs = builder.pool.mul(half, s);
-                        let (sin, cos) = (builder.pool.sin(hs), builder.pool.cos(hs));
-                        let e0 = builder.coordinate(body, 3);
-                        let a = builder.pool.mul(q, cos);
-                        let b = builder.pool.mul(e0, sin);
-                        builder.pool.sub(a, b)
-                    }
-                }
-            };
-            phi_all.push(e);
-        }
-        for b in mech.moving_bodies() {
-            let terms: Vec<ExprId> = (3..7)
-                .map(|c| {
-                    let e = builder.coordinate(b, c);
-                    builder.pool.mul(e, e)
-                })
-                .collect();
-            let s = builder.pool.sum(terms);
-            let one = builder.pool.constant(1.0);
-            phi_all.push(builder.pool.sub(s, one));
-        }
+        // Φ for every row, eliminated ones included, in the generic engine's order.
+        let phi_all = builder.phi(mech);
         debug_assert_eq!(phi_all.len(), labels.len());
         let kept: Vec<usize> = (0..labels.len()).filter(|k| !eliminated.contains(k)).collect();
         let mut sys = Self {
@@ -473,23 +579,7 @@ impl Symbolic {
             gamma: Vec::new(),
             laws: builder.laws,
         };
-        // Jacobian rows of every kept equation, then the redundancy analysis on them.
-        let mut jac_rows = Vec::with_capacity(kept.len());
-        for &k in &kept {
-            jac_rows.push(sys.jacobian_row(phi_all[k]));
-        }
-        let kept_phi: Vec<ExprId> = kept.iter().map(|&k| phi_all[k]).collect();
-        let normalisation: Vec<bool> = kept.iter().map(|&k| labels[k].kind == "body").collect();
-        let independent = sys.independent_rows(&eq, &kept_phi, &jac_rows, &normalisation);
-        for (pos, &k) in kept.iter().enumerate() {
-            if independent.contains(&pos) {
-                sys.rows.push(labels[k].clone());
-                sys.phi.push(phi_all[k]);
-                sys.jac.push(std::mem::take(&mut jac_rows[pos]));
-            } else {
-                sys.redundant.push(labels[k].clone());
-            }
-        }
+        sys.keep_independent(mech, &labels, &kept, &phi_all);
         let n = sys.unknowns.len();
         if sys.rows.len() != n {
             return Err(GenerateError {
@@ -503,6 +593,33 @@ impl Symbolic {
         }
         sys.derive_rates();
         Ok(sys)
+    }
+
+    /// Keeps the rows `kept` (indices into `labels` and `phi_all`) that do not depend on the
+    /// others, with their Jacobian rows; the others become `redundant`.
+    fn keep_independent(
+        &mut self,
+        mech: &Mechanism,
+        labels: &[RowLabel],
+        kept: &[usize],
+        phi_all: &[ExprId],
+    ) {
+        let mut jac_rows = Vec::with_capacity(kept.len());
+        for &k in kept {
+            jac_rows.push(self.jacobian_row(phi_all[k]));
+        }
+        let kept_phi: Vec<ExprId> = kept.iter().map(|&k| phi_all[k]).collect();
+        let normalisation: Vec<bool> = kept.iter().map(|&k| labels[k].is_normalisation()).collect();
+        let independent = self.independent_rows(mech, &kept_phi, &jac_rows, &normalisation);
+        for (pos, &k) in kept.iter().enumerate() {
+            if independent.contains(&pos) {
+                self.rows.push(labels[k].clone());
+                self.phi.push(phi_all[k]);
+                self.jac.push(std::mem::take(&mut jac_rows[pos]));
+            } else {
+                self.redundant.push(labels[k].clone());
+            }
+        }
     }
 
     /// The structurally non-zero entries of ∂e/∂q.
@@ -526,12 +643,11 @@ impl Symbolic {
     /// Gauss–Newton assembly (`Equations::prepare`, dense, with the SVD) decides instead.
     fn independent_rows(
         &self,
-        eq: &Equations<'_>,
+        mech: &Mechanism,
         phi: &[ExprId],
         jac_rows: &[Vec<(usize, ExprId)>],
         normalisation: &[bool],
     ) -> BTreeSet<usize> {
-        let mech = eq.mechanism();
         let t = mech.time.start;
         let at = |q: &[f64]| -> SparseRows {
             let roots: Vec<ExprId> = jac_rows.iter().flatten().map(|&(_, e)| e).collect();
@@ -542,8 +658,10 @@ impl Symbolic {
                 .collect()
         };
         let q = self.assemble(mech, phi, jac_rows, &at).unwrap_or_else(|| {
+            // The one use of the generic engine in building: its dense assembly as a fall-back.
+            let eq = Equations::new(mech);
             let prep = eq.prepare();
-            self.reduce(eq, &prep.q).as_slice().to_vec()
+            self.reduce(&eq, &prep.q).as_slice().to_vec()
         });
         independent(&self.balanced(at(&q), mech), self.unknowns.len(), normalisation)
     }

@@ -1,8 +1,7 @@
 //! The committed generated solvers against the generic engine, and against the generator
 //! itself (freshness).
 
-use codegen::generic::{Analysis, Equations};
-use codegen::validate::load_file;
+use codegen::testing::{load_example, run_generic};
 use nalgebra::DVector;
 use runtime::{Mechanism, NewtonOptions, Solver};
 
@@ -89,21 +88,13 @@ fn all_generated() -> Vec<(&'static str, Vec<Step>)> {
 
 #[test]
 fn generated_and_generic_agree_on_every_shipped_example() {
-    let root = codegen::sync::workspace_root();
     let runs = all_generated();
     assert_eq!(runs.len(), 18);
     for (name, steps) in runs {
-        let mech = load_file(&root.join(format!("examples/{name}.toml"))).unwrap().mechanism;
-        let eq = Equations::new(&mech);
-        let prep = eq.prepare();
-        let mut frames = Vec::new();
-        let report = Analysis::new(&eq, &prep)
-            .run(|f| {
-                frames.push(f.clone());
-                Ok::<(), ()>(())
-            })
-            .unwrap();
-        assert!(report.failure.is_none(), "{name}");
+        let mech = load_example(&format!("{name}.toml"));
+        let run = run_generic(&mech);
+        assert!(run.failure.is_none(), "{name}");
+        let frames = run.frames;
         assert_eq!(frames.len(), steps.len(), "{name}: same grid");
         // Scale of each quantity over the run, for the relative comparison.
         let scale = |f: fn(&codegen::generic::Frame) -> &DVector<f64>| {

@@ -14,6 +14,7 @@ use codegen::generic::{Analysis, Equations, Frame};
 use codegen::model::Mechanism;
 use codegen::stepping::{self, Point, Rejection, Trouble};
 use codegen::symbolic::Symbolic;
+use codegen::testing::{build_generated, relative_differences, run_generated};
 use codegen::validate::{Format, load_str};
 use nalgebra::{DMatrix, DVector};
 use rand::rngs::StdRng;
@@ -286,36 +287,6 @@ fn interpreted(mech: &Mechanism, sys: &Symbolic) -> Result<Vec<Frame>, String> {
     Ok(frames)
 }
 
-/// The largest differences of q, q̇ and q̈ between two runs, each relative to that
-/// quantity's scale over the reference run (max |·|, at least 1), with where the largest
-/// occurred.
-fn relative_differences(reference: &[Frame], other: &[Frame]) -> [(f64, String); 3] {
-    let quantities: [(&str, Quantity); 3] =
-        [("q", |f| &f.q), ("qd", |f| &f.qd), ("qdd", |f| &f.qdd)];
-    quantities.map(|(label, get)| {
-        let scale = reference.iter().map(|f| get(f).amax()).fold(1.0, f64::max);
-        let mut worst = (0.0, String::new());
-        for (a, b) in reference.iter().zip(other) {
-            assert_eq!(a.t, b.t, "same time points");
-            let diff = get(a) - get(b);
-            let k = diff.iamax();
-            let rel = diff[k].abs() / scale;
-            if rel > worst.0 || worst.1.is_empty() {
-                worst = (
-                    rel,
-                    format!(
-                        "{label}[{k}] at t = {}: {:e} against {:e} (scale {scale:e})",
-                        a.t,
-                        get(a)[k],
-                        get(b)[k]
-                    ),
-                );
-            }
-        }
-        worst
-    })
-}
-
 /// Every frame's residual is within the tolerance and every body's p has unit norm.
 fn assert_consistent(case: &Case, engine: &str, frames: &[Frame], tolerance: f64) {
     for f in frames {
@@ -516,25 +487,16 @@ fn compiled_generated_solvers_agree_with_the_generic_engine_on_random_mechanisms
     assert_eq!(chosen.len(), 6, "rejected: {:?}", tally.rejects);
     let mut worst = [0.0_f64; 3];
     for (case, run) in &chosen {
-        let built = codegen::engine::build(&run.mech).unwrap_or_else(|e| {
-            panic!("seed {}: the generated solver does not build: {e}\n{}", case.seed, case.toml)
-        });
-        let mut frames = Vec::new();
-        let eq = Equations::new(&run.mech);
-        let prep = eq.prepare();
-        let namer = Analysis::new(&eq, &prep);
-        let report = codegen::engine::run(&built, &namer, None, |f| {
-            frames.push(f.clone());
-            Ok(())
-        })
-        .unwrap_or_else(|e| panic!("seed {}: {e}\n{}", case.seed, case.toml));
+        // The mechanism is named `random_{seed}`, so the helpers' panics name the seed.
+        let generated = run_generated(&run.mech, &build_generated(&run.mech));
         assert!(
-            report.failure.is_none(),
+            generated.failure.is_none(),
             "seed {}: the generated solver stops: {:?}\n{}",
             case.seed,
-            report.failure,
+            generated.failure,
             case.toml
         );
+        let frames = generated.frames;
         assert_consistent(case, "generated", &frames, run.mech.solver.tolerance);
         let diffs = assert_agree(case, "the generated solver", &run.frames, &frames);
         for (w, d) in worst.iter_mut().zip(diffs) {

@@ -103,7 +103,7 @@ fn mechgen(args: &[&str]) -> (i32, String, String) {
 
 /// `example` scaled by `s`, written to the target directory.
 fn write_scaled(example: &str, s: f64) -> PathBuf {
-    let text = std::fs::read_to_string(root().join("examples").join(example)).unwrap();
+    let text = std::fs::read_to_string(codegen::testing::example(example)).unwrap();
     let dir = root().join("target").join("scale-test");
     std::fs::create_dir_all(&dir).unwrap();
     let path = dir.join(format!("{s:e}_{example}"));

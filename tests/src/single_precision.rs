@@ -4,7 +4,7 @@
 use codegen::emit::Scalar;
 use codegen::engine::{Settings, build_in, run_with};
 use codegen::generic::{Analysis, Equations, Frame};
-use codegen::validate::load_file;
+use codegen::testing::load;
 
 /// Largest |a − b| over all frames for one quantity, relative to the largest |a|.
 fn relative(reference: &[Frame], run: &[Frame], get: fn(&Frame) -> &nalgebra::DVector<f64>) -> f64 {
@@ -16,7 +16,7 @@ fn relative(reference: &[Frame], run: &[Frame], get: fn(&Frame) -> &nalgebra::DV
 #[test]
 fn single_precision_rssr_follows_the_double_precision_generic_engine() {
     let root = codegen::sync::workspace_root();
-    let loaded = load_file(&root.join("benches/rssr_revolution.toml")).expect("valid description");
+    let loaded = load(&root.join("benches/rssr_revolution.toml"));
     let mech = &loaded.mechanism;
     let eq = Equations::new(mech);
     let prep = eq.prepare();

@@ -5,7 +5,7 @@ use std::process::Command;
 
 use codegen::emit::{Scalar, module_in};
 use codegen::symbolic::Symbolic;
-use codegen::validate::{Format, load_str};
+use codegen::testing::load_toml;
 
 #[test]
 fn split_modules_pass_clippy_with_warnings_denied_in_f64_and_f32() {
@@ -21,7 +21,7 @@ fn split_modules_pass_clippy_with_warnings_denied_in_f64_and_f32() {
     let mut lib = String::from("#![no_std]\n//! Split generated modules, checked by clippy.\n");
     let mut helpers = 0;
     for (name, text) in &cases {
-        let mech = load_str(text, Format::Toml, None).expect("valid").mechanism;
+        let mech = load_toml(text);
         let sys = Symbolic::build(&mech).expect("generates");
         for scalar in [Scalar::F64, Scalar::F32] {
             let module = module_in(&mech, &sys, name, scalar);

@@ -20,7 +20,7 @@
 use codegen::generic::{Analysis, Equations, Failure, FailureKind, Frame};
 use codegen::model::Mechanism;
 use codegen::report::{self, StepResult};
-use codegen::validate::load_file;
+use codegen::testing::{self, build_generated};
 use nalgebra::DVector;
 
 /// The descriptions of the suite.
@@ -41,11 +41,7 @@ struct Outcome {
 }
 
 fn load(name: &str) -> Mechanism {
-    let path = format!("{DIR}/{name}.toml");
-    match load_file(std::path::Path::new(&path)) {
-        Ok(l) => l.mechanism,
-        Err(d) => panic!("{path}: {d:?}"),
-    }
+    testing::load(std::path::Path::new(&format!("{DIR}/{name}.toml"))).mechanism
 }
 
 /// Runs both engines on `mech`.
@@ -69,8 +65,7 @@ fn both(mech: &Mechanism) -> [Outcome; 2] {
         })
         .expect("the sink does not fail");
     generic.failure = r.failure;
-    let built = codegen::engine::build(mech)
-        .unwrap_or_else(|e| panic!("{}: the generated solver does not build: {e}", mech.name));
+    let built = build_generated(mech);
     let mut generated = Outcome {
         engine: "generated",
         frames: Vec::new(),

@@ -3,10 +3,7 @@
 use std::path::PathBuf;
 
 use super::Builder;
-
-fn example(name: &str) -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../examples").join(name)
-}
+use crate::testing::example;
 
 fn temp_dir(name: &str) -> PathBuf {
     let dir = std::env::temp_dir().join(format!("mechgen-build-{}-{name}", std::process::id()));

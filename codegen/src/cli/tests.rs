@@ -4,10 +4,7 @@ use std::path::PathBuf;
 
 use super::{EXIT_INVALID, EXIT_OK, EXIT_STOPPED, run};
 
-/// The shipped examples.
-fn example(name: &str) -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../examples").join(name)
-}
+use crate::testing::example;
 
 /// Writes `text` to a fresh file in the temporary directory.
 fn temp_file(name: &str, text: &str) -> PathBuf {

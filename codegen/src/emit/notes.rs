@@ -14,7 +14,7 @@ use syn::parse_quote;
 
 use super::docs::doc_safe;
 use crate::desc::{DriverCoordinate, Motion};
-use crate::generic::RowLabel;
+use crate::model::RowLabel;
 use crate::model::{ConstraintKind, DriverTarget, JointKind, Law, Mechanism};
 
 /// The name of the marker macro; nothing else in an emitted module is called this.

@@ -16,23 +16,12 @@
 
 use nalgebra::{Matrix3, SMatrix, Vector3, Vector4};
 
+use crate::model::frame::{rotation, skew};
+
 /// A 3×7 Jacobian block: rows x, y, z; columns r then p of one body.
 pub(crate) type Block3 = SMatrix<f64, 3, 7>;
 /// A 1×7 Jacobian block.
 pub(crate) type Block1 = SMatrix<f64, 1, 7>;
-
-/// The skew matrix ã with ã b = a × b.
-pub(crate) fn skew(a: &Vector3<f64>) -> Matrix3<f64> {
-    Matrix3::new(0.0, -a.z, a.y, a.z, 0.0, -a.x, -a.y, a.x, 0.0)
-}
-
-/// The quadratic form A(p) = (e0² − eᵀe) I + 2 e eᵀ + 2 e0 ẽ (thesis eq. 3.18 written as
-/// G Lᵀ, eq. 3.31). It is the rotation matrix when |p| = 1 and is evaluated at ṗ for κ.
-pub(crate) fn rotation(p: &Vector4<f64>) -> Matrix3<f64> {
-    let e0 = p[0];
-    let e = Vector3::new(p[1], p[2], p[3]);
-    Matrix3::identity() * (e0 * e0 - e.dot(&e)) + e * e.transpose() * 2.0 + skew(&e) * (2.0 * e0)
-}
 
 /// B(p, a') = ∂(A(p) a')/∂p, 3×4: `[2(e0 a' + e × a'), 2((e·a') I + e a'ᵀ − a' eᵀ − e0 ã')]`,
 /// equal to 2 G(p) ā' (thesis eq. 3.37 and Table 4.1).
@@ -47,15 +36,6 @@ pub(crate) fn b_matrix(p: &Vector4<f64>, a: &Vector3<f64>) -> SMatrix<f64, 3, 4>
     b.set_column(0, &col0);
     b.fixed_view_mut::<3, 3>(0, 1).copy_from(&rest);
     b
-}
-
-/// G(p) = [−e, e0 I + ẽ], 3×4 (thesis eq. 3.26); ω = 2 G ṗ in global components.
-pub(crate) fn g_matrix(p: &Vector4<f64>) -> SMatrix<f64, 3, 4> {
-    let e = Vector3::new(p[1], p[2], p[3]);
-    let mut g = SMatrix::<f64, 3, 4>::zeros();
-    g.set_column(0, &(-e));
-    g.fixed_view_mut::<3, 3>(0, 1).copy_from(&(Matrix3::identity() * p[0] + skew(&e)));
-    g
 }
 
 /// The state of one body at one evaluation: coordinates, rates and the matrices every

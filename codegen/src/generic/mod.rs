@@ -35,42 +35,15 @@ mod tests;
 use nalgebra::{DMatrix, DVector, Vector3};
 
 use crate::model::{
-    BodyId, ConstraintKind, DriverCoordinate, DriverTarget, Joint, JointKind, Mechanism, Motion,
+    BodyId, Constraint, ConstraintKind, Driver, DriverCoordinate, DriverTarget, Joint, JointKind,
+    Mechanism, Motion,
 };
 use kin::{BodyState, Sk, Vk};
 
 pub use solve::{Analysis, Failure, FailureKind, Frame, Preparation, StepReport};
 
-/// The entity an equation belongs to, for labels and error reports.
-#[derive(Clone, Debug, PartialEq, Eq)]
-pub struct RowLabel {
-    /// `joint "O4"`-style entity kind: `joint`, `constraint`, `driver` or `body`.
-    pub kind: &'static str,
-    /// The entity's name.
-    pub name: String,
-    /// 1-based row within the entity (joints have several).
-    pub row: usize,
-    /// Number of rows of the entity.
-    pub rows: usize,
-}
-
-impl RowLabel {
-    /// `joint O4 row 2`, `driver motor`, `body crank normalisation`.
-    #[must_use]
-    pub fn equation(&self) -> String {
-        match self.kind {
-            "body" => format!("body {} normalisation", self.name),
-            _ if self.rows > 1 => format!("{} {} row {}", self.kind, self.name, self.row),
-            _ => format!("{} {}", self.kind, self.name),
-        }
-    }
-
-    /// `joint O4`: the entity without the row.
-    #[must_use]
-    pub fn entity(&self) -> String {
-        format!("{} {}", self.kind, self.name)
-    }
-}
+/// Re-exported from the model, where the row layout lives, for the tool's existing paths.
+pub use crate::model::RowLabel;
 
 /// The assembled system at one evaluation.
 #[derive(Clone, Debug)]
@@ -116,26 +89,7 @@ impl<'m> Equations<'m> {
                 unknowns += 7;
             }
         }
-        let mut labels = Vec::new();
-        let mut push = |kind: &'static str, name: &str, rows: usize| {
-            for row in 1..=rows {
-                labels.push(RowLabel { kind, name: name.to_owned(), row, rows });
-            }
-        };
-        for joint in &mech.joints {
-            push("joint", &joint.name, joint.kind.equations());
-        }
-        for c in &mech.constraints {
-            push("constraint", &c.name, 1);
-        }
-        for d in &mech.drivers {
-            push("driver", &d.name, 1);
-        }
-        for b in &mech.bodies {
-            if !b.ground {
-                push("body", &b.name, 1);
-            }
-        }
+        let labels = mech.row_labels();
         let normals = mech.joints.iter().map(Joint::normals).collect();
         let mut row_bodies = Vec::with_capacity(labels.len());
         for joint in &mech.joints {
@@ -307,61 +261,12 @@ impl<'m> Equations<'m> {
             }
         }
         for c in &self.mech.constraints {
-            match c.kind {
-                ConstraintKind::Fix { body, coordinate, value } => {
-                    let sk = Sk::coordinate(0, &states[body.0], coordinate.index())
-                        .sub(&Sk::constant(value));
-                    emit([self.offset[body.0], None], sk, &mut sys);
-                }
-                ConstraintKind::CoordinateDifference { body_i, body_j, coordinate, value } => {
-                    let idx = coordinate.index();
-                    let sk = Sk::coordinate(0, &states[body_i.0], idx)
-                        .sub(&Sk::coordinate(1, &states[body_j.0], idx))
-                        .sub(&Sk::constant(value));
-                    emit([self.offset[body_i.0], self.offset[body_j.0]], sk, &mut sys);
-                }
-            }
+            let (bodies, sk) = self.constraint_row(c, &states);
+            emit(bodies, sk, &mut sys);
         }
         for (k, d) in self.mech.drivers.iter().enumerate() {
-            let s = Sk::time(self.driver_value(k, t));
-            match d.target {
-                DriverTarget::Joint { joint, motion } => {
-                    let jt = &self.mech.joints[joint.0];
-                    let (bi, bj) = (&states[jt.body_i.0], &states[jt.body_j.0]);
-                    let sk = match motion {
-                        Motion::Rotation => {
-                            let (x, y) = joint_angle(jt, bi, bj);
-                            angle_residual(&x, &y, &s)
-                        }
-                        Motion::Translation => axial_position(jt, bi, bj).sub(&s),
-                    };
-                    emit([self.offset[jt.body_i.0], self.offset[jt.body_j.0]], sk, &mut sys);
-                }
-                DriverTarget::Absolute { body, coordinate } => {
-                    let b = &states[body.0];
-                    let index = absolute_index(coordinate);
-                    let sk = match coordinate {
-                        DriverCoordinate::Rx | DriverCoordinate::Ry | DriverCoordinate::Rz => {
-                            // Thesis eq. 4.62 in the one-equation form of the contract:
-                            // e_k cos(s/2) − e0 sin(s/2) = 0.
-                            let (sin, cos) = s.scale(0.5).sin_cos();
-                            Sk::coordinate(0, b, index)
-                                .mul(&cos)
-                                .sub(&Sk::coordinate(0, b, 3).mul(&sin))
-                        }
-                        // x, y, z, e1, e2, e3: q_b[c] − s = 0.
-                        _ => Sk::coordinate(0, b, index).sub(&s),
-                    };
-                    emit([self.offset[body.0], None], sk, &mut sys);
-                }
-                DriverTarget::Point { point, axis } => {
-                    // The point's global coordinate r + A s' minus s: its Jacobian, ṙ + B ṗ
-                    // and the κ term 2 A(ṗ) s' come from the point primitive.
-                    let pt = &self.mech.points[point.0];
-                    let sk = Vk::point(0, &states[pt.body.0], &pt.local).component(axis).sub(&s);
-                    emit([self.offset[pt.body.0], None], sk, &mut sys);
-                }
-            }
+            let (bodies, sk) = self.driver_row(k, d, &states, t);
+            emit(bodies, sk, &mut sys);
         }
         for (b, off) in states.iter().zip(&self.offset) {
             if off.is_some() {
@@ -375,60 +280,201 @@ impl<'m> Equations<'m> {
         sys
     }
 
-    /// The rows of joint `k`.
+    /// A constraint's row and the column offsets of its bodies.
+    fn constraint_row(&self, c: &Constraint, states: &[BodyState]) -> ([Option<usize>; 2], Sk) {
+        match c.kind {
+            ConstraintKind::Fix { body, coordinate, value } => {
+                let sk = Sk::coordinate(0, &states[body.0], coordinate.index())
+                    .sub(&Sk::constant(value));
+                ([self.offset[body.0], None], sk)
+            }
+            ConstraintKind::CoordinateDifference { body_i, body_j, coordinate, value } => {
+                let idx = coordinate.index();
+                let sk = Sk::coordinate(0, &states[body_i.0], idx)
+                    .sub(&Sk::coordinate(1, &states[body_j.0], idx))
+                    .sub(&Sk::constant(value));
+                ([self.offset[body_i.0], self.offset[body_j.0]], sk)
+            }
+        }
+    }
+
+    /// A driver's row at time `t` and the column offsets of its bodies.
+    fn driver_row(
+        &self,
+        k: usize,
+        d: &Driver,
+        states: &[BodyState],
+        t: f64,
+    ) -> ([Option<usize>; 2], Sk) {
+        let s = Sk::time(self.driver_value(k, t));
+        match d.target {
+            DriverTarget::Joint { joint, motion } => {
+                let jt = &self.mech.joints[joint.0];
+                let (bi, bj) = (&states[jt.body_i.0], &states[jt.body_j.0]);
+                let sk = match motion {
+                    Motion::Rotation => {
+                        let (x, y) = joint_angle(jt, bi, bj);
+                        angle_residual(&x, &y, &s)
+                    }
+                    Motion::Translation => axial_position(jt, bi, bj).sub(&s),
+                };
+                ([self.offset[jt.body_i.0], self.offset[jt.body_j.0]], sk)
+            }
+            DriverTarget::Absolute { body, coordinate } => {
+                ([self.offset[body.0], None], absolute_row(&states[body.0], coordinate, &s))
+            }
+            DriverTarget::Point { point, axis } => {
+                // The point's global coordinate r + A s' minus s: its Jacobian, ṙ + B ṗ and
+                // the κ term 2 A(ṗ) s' come from the point primitive.
+                let pt = &self.mech.points[point.0];
+                let sk = Vk::point(0, &states[pt.body.0], &pt.local).component(axis).sub(&s);
+                ([self.offset[pt.body.0], None], sk)
+            }
+        }
+    }
+
+    /// The rows of joint `k`, in the order of [`crate::model::JointSpec::rows`]; one
+    /// function per type below, as in `symbolic`.
     fn joint_rows(&self, k: usize, joint: &Joint, bi: &BodyState, bj: &BodyState) -> Vec<Sk> {
-        let pi = Vk::point(0, bi, &joint.point_i);
-        let pj = Vk::point(1, bj, &joint.point_j);
-        let d = pj.sub(&pi);
-        let spherical = || (0..3).map(|c| d.component(c)).collect::<Vec<_>>();
-        let axes = joint.axis.map(|(ai, aj)| (Vk::vector(0, bi, &ai), Vk::vector(1, bj, &aj)));
-        let normals = self.normals[k].map(|(b, c)| (Vk::vector(0, bi, &b), Vk::vector(0, bi, &c)));
-        let parallel = || {
-            let (_, aj) = axes.as_ref().expect("validated: joint has axes");
-            let (b, c) = normals.as_ref().expect("validated: joint has axes");
-            vec![b.dot(aj), c.dot(aj)]
-        };
-        let cylindrical = || {
-            let (b, c) = normals.as_ref().expect("validated: joint has axes");
-            let mut rows = parallel();
-            rows.push(b.dot(&d));
-            rows.push(c.dot(&d));
-            rows
-        };
+        let v = JointVectors::new(joint, self.normals[k], bi, bj);
         match joint.kind {
-            JointKind::Spherical => spherical(),
-            JointKind::Universal => {
-                let (ai, aj) = axes.as_ref().expect("validated: universal has axes");
-                let mut rows = spherical();
-                rows.push(ai.dot(aj));
-                rows
-            }
-            JointKind::Revolute => {
-                let mut rows = spherical();
-                rows.extend(parallel());
-                rows
-            }
-            JointKind::Cylindrical => cylindrical(),
-            JointKind::Prismatic => {
-                let (ri, rj) = references(joint, bi, bj);
-                let mut rows = cylindrical();
-                rows.push(ri.dot(&rj));
-                rows
-            }
-            JointKind::Screw { lead, d0, theta0 } => {
-                let (x, y) = joint_angle(joint, bi, bj);
-                let k = 2.0 * std::f64::consts::PI / lead;
-                let phi = axial_position(joint, bi, bj)
-                    .sub(&Sk::constant(d0))
-                    .scale(k)
-                    .add(&Sk::constant(theta0));
-                let mut rows = cylindrical();
-                rows.push(angle_residual(&x, &y, &phi));
-                rows
-            }
-            JointKind::Distance { length } => {
-                vec![d.dot(&d).sub(&Sk::constant(length * length)).scale(0.5 / length)]
-            }
+            JointKind::Spherical => spherical(&v),
+            JointKind::Universal => universal(&v),
+            JointKind::Revolute => revolute(&v),
+            JointKind::Cylindrical => cylindrical(&v),
+            JointKind::Prismatic => prismatic(&v, joint, bi, bj),
+            JointKind::Screw { lead, d0, theta0 } => screw(&v, joint, bi, bj, lead, d0, theta0),
+            JointKind::Distance { length } => distance(&v, length),
+        }
+    }
+}
+
+/// The global vectors of one joint that its rows combine.
+struct JointVectors {
+    /// d = P_j − P_i.
+    d: Vk,
+    /// (a_i, a_j), the axes, for the types that have them.
+    axes: Option<(Vk, Vk)>,
+    /// (b_i, c_i), the body-i unit vectors ⟂ axis_i.
+    normals: Option<(Vk, Vk)>,
+}
+
+impl JointVectors {
+    fn new(
+        joint: &Joint,
+        normals: Option<(Vector3<f64>, Vector3<f64>)>,
+        bi: &BodyState,
+        bj: &BodyState,
+    ) -> Self {
+        let d = Vk::point(1, bj, &joint.point_j).sub(&Vk::point(0, bi, &joint.point_i));
+        let axes = joint.axis.map(|(ai, aj)| (Vk::vector(0, bi, &ai), Vk::vector(1, bj, &aj)));
+        let normals = normals.map(|(b, c)| (Vk::vector(0, bi, &b), Vk::vector(0, bi, &c)));
+        Self { d, axes, normals }
+    }
+
+    fn axes(&self) -> &(Vk, Vk) {
+        self.axes.as_ref().expect("validated: joint has axes")
+    }
+
+    fn normals(&self) -> &(Vk, Vk) {
+        self.normals.as_ref().expect("validated: joint has axes")
+    }
+}
+
+/// d = 0: the joint points coincide.
+fn coincident(v: &JointVectors) -> Vec<Sk> {
+    (0..3).map(|c| v.d.component(c)).collect()
+}
+
+/// b_i·a_j = 0, c_i·a_j = 0: the axes are parallel.
+fn parallel(v: &JointVectors) -> Vec<Sk> {
+    let (_, aj) = v.axes();
+    let (b, c) = v.normals();
+    vec![b.dot(aj), c.dot(aj)]
+}
+
+/// Spherical: d = 0.
+fn spherical(v: &JointVectors) -> Vec<Sk> {
+    coincident(v)
+}
+
+/// Universal: d = 0; a_i·a_j = 0.
+fn universal(v: &JointVectors) -> Vec<Sk> {
+    let (ai, aj) = v.axes();
+    let mut rows = coincident(v);
+    rows.push(ai.dot(aj));
+    rows
+}
+
+/// Revolute: d = 0; axes parallel.
+fn revolute(v: &JointVectors) -> Vec<Sk> {
+    let mut rows = coincident(v);
+    rows.extend(parallel(v));
+    rows
+}
+
+/// Cylindrical: axes parallel; b_i·d = 0, c_i·d = 0.
+fn cylindrical(v: &JointVectors) -> Vec<Sk> {
+    let (b, c) = v.normals();
+    let mut rows = parallel(v);
+    rows.push(b.dot(&v.d));
+    rows.push(c.dot(&v.d));
+    rows
+}
+
+/// Prismatic: cylindrical; ref_i·ref_j = 0.
+fn prismatic(v: &JointVectors, joint: &Joint, bi: &BodyState, bj: &BodyState) -> Vec<Sk> {
+    let (ri, rj) = references(joint, bi, bj);
+    let mut rows = cylindrical(v);
+    rows.push(ri.dot(&rj));
+    rows
+}
+
+/// Screw: cylindrical; x sin φ − y cos φ = 0 with φ = θ0 + 2π (d·a_i − d0)/lead.
+fn screw(
+    v: &JointVectors,
+    joint: &Joint,
+    bi: &BodyState,
+    bj: &BodyState,
+    lead: f64,
+    d0: f64,
+    theta0: f64,
+) -> Vec<Sk> {
+    let (x, y) = joint_angle(joint, bi, bj);
+    let k = 2.0 * std::f64::consts::PI / lead;
+    let phi =
+        axial_position(joint, bi, bj).sub(&Sk::constant(d0)).scale(k).add(&Sk::constant(theta0));
+    let mut rows = cylindrical(v);
+    rows.push(angle_residual(&x, &y, &phi));
+    rows
+}
+
+/// Distance: (d·d − L²)/(2L) = 0.
+fn distance(v: &JointVectors, length: f64) -> Vec<Sk> {
+    vec![v.d.dot(&v.d).sub(&Sk::constant(length * length)).scale(0.5 / length)]
+}
+
+/// An absolute driver's row: `q_b[c] − s(t)`, or for a rotation about a global axis
+/// e_k cos(s/2) − e0 sin(s/2).
+fn absolute_row(b: &BodyState, coordinate: DriverCoordinate, s: &Sk) -> Sk {
+    match coordinate {
+        DriverCoordinate::X => Sk::coordinate(0, b, 0).sub(s),
+        DriverCoordinate::Y => Sk::coordinate(0, b, 1).sub(s),
+        DriverCoordinate::Z => Sk::coordinate(0, b, 2).sub(s),
+        // q_b[e_k] − s = 0.
+        DriverCoordinate::E1 => Sk::coordinate(0, b, 4).sub(s),
+        DriverCoordinate::E2 => Sk::coordinate(0, b, 5).sub(s),
+        DriverCoordinate::E3 => Sk::coordinate(0, b, 6).sub(s),
+        DriverCoordinate::Rx | DriverCoordinate::Ry | DriverCoordinate::Rz => {
+            let k = match coordinate {
+                DriverCoordinate::Rx => 4,
+                DriverCoordinate::Ry => 5,
+                _ => 6,
+            };
+            // Thesis eq. 4.62 in the one-equation form of the contract:
+            // e_k cos(s/2) − e0 sin(s/2) = 0.
+            let (sin, cos) = s.scale(0.5).sin_cos();
+            Sk::coordinate(0, b, k).mul(&cos).sub(&Sk::coordinate(0, b, 3).mul(&sin))
         }
     }
 }

@@ -6,7 +6,7 @@ use nalgebra::{DMatrix, DVector, SVD, Vector4};
 
 use super::scaling::balanced;
 use super::{Equations, angle_alignment};
-use crate::model::{DriverTarget, JointKind, Motion};
+use crate::model::{DriverTarget, JointKind, Motion, RowLabel};
 use crate::stepping::{self, Engine, Point, Rejection, Stop, Trouble};
 
 /// A pivot smaller than this fraction of the largest pivot of the LU factorisation marks
@@ -173,12 +173,13 @@ impl Equations<'_> {
             .labels()
             .iter()
             .enumerate()
-            .filter(|(_, l)| l.kind == "driver")
+            .filter(|(_, l)| l.kind == RowLabel::DRIVER)
             .map(|(k, _)| k)
             .collect();
         let kept: Vec<usize> = (0..self.equations()).filter(|k| !driver_rows.contains(k)).collect();
         let rank_nd = numeric_rank(&jac.select_rows(kept.iter()));
-        let normalisation: Vec<bool> = self.labels().iter().map(|l| l.kind == "body").collect();
+        let normalisation: Vec<bool> =
+            self.labels().iter().map(RowLabel::is_normalisation).collect();
         let (active, redundant) = independent_rows(&jac, &normalisation);
         Preparation {
             assembled,

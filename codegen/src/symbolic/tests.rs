@@ -5,8 +5,8 @@
 use nalgebra::{DMatrix, DVector};
 
 use super::Symbolic;
-use crate::generic::{Analysis, Equations};
-use crate::validate::load_file;
+use crate::generic::Equations;
+use crate::testing::{examples, load, load_example, run_generic};
 
 /// Reduced Φ_q as a dense matrix.
 fn jacobian(sys: &Symbolic, q: &[f64], t: f64) -> DMatrix<f64> {
@@ -25,28 +25,16 @@ fn jacobian(sys: &Symbolic, q: &[f64], t: f64) -> DMatrix<f64> {
 
 #[test]
 fn interpreted_symbolic_system_matches_the_generic_engine_on_every_example() {
-    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples");
-    let mut files: Vec<_> = std::fs::read_dir(&dir)
-        .unwrap()
-        .map(|e| e.unwrap().path())
-        .filter(|p| p.extension().is_some_and(|x| x == "toml") && !p.ends_with("Cargo.toml"))
-        .collect();
-    files.sort();
+    let files = examples();
     assert!(files.len() >= 18);
     for file in files {
-        let loaded = load_file(&file).unwrap();
+        let loaded = load(&file);
         let mech = &loaded.mechanism;
         let sys = Symbolic::build(mech).unwrap();
         let eq = Equations::new(mech);
-        let prep = eq.prepare();
-        let mut frames = Vec::new();
-        let report = Analysis::new(&eq, &prep)
-            .run(|f| {
-                frames.push(f.clone());
-                Ok::<(), ()>(())
-            })
-            .unwrap();
-        assert!(report.failure.is_none());
+        let run = run_generic(mech);
+        assert!(run.failure.is_none());
+        let frames = run.frames;
         let mut q = sys.reduce(&eq, &eq.initial_estimate()).as_slice().to_vec();
         let n = q.len();
         for f in &frames {
@@ -87,17 +75,14 @@ fn interpreted_symbolic_system_matches_the_generic_engine_on_every_example() {
 
 #[test]
 fn ground_fix_and_coordinate_drivers_are_eliminated() {
-    let file = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples/rssr.toml");
-    let mech = load_file(&file).unwrap().mechanism;
+    let mech = load_example("rssr.toml");
     let sys = Symbolic::build(&mech).unwrap();
     // 3 moving bodies × 7 − the coupler's fixed e2.
     assert_eq!(sys.unknowns.len(), 20);
     assert_eq!(sys.rows.len(), 20);
     assert_eq!(sys.eliminated.len(), 1);
     assert_eq!(sys.eliminated[0].equation(), "constraint no_spin");
-    let translation =
-        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples/translation_xyz.toml");
-    let mech = load_file(&translation).unwrap().mechanism;
+    let mech = load_example("translation_xyz.toml");
     let sys = Symbolic::build(&mech).unwrap();
     // Three coordinate drivers and three fixed rotations leave e0 alone.
     assert_eq!(sys.unknowns.len(), 1);

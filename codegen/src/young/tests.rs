@@ -226,7 +226,7 @@ fn screw_vectors_are_used_as_given_and_the_lead_is_two_pi_alpha() {
 
 #[test]
 fn differences_of_deck_decimals_are_rounded_once() {
-    use super::decimal_difference;
+    use super::lex::decimal_difference;
     assert_eq!(decimal_difference("-0.05", "-0.0475"), Some(-0.0025));
     assert_eq!(decimal_difference("1.4", "0.4"), Some(1.0));
     assert_eq!(decimal_difference("2.5E-3", ".5e-3"), Some(0.002));

@@ -5,10 +5,7 @@ use std::path::PathBuf;
 use crate::cli::tests::mechgen;
 use crate::cli::{EXIT_INVALID, EXIT_OK};
 
-fn example(name: &str) -> String {
-    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../examples").join(name);
-    path.to_str().expect("UTF-8 path").to_owned()
-}
+use crate::testing::example_arg as example;
 
 /// A fresh output path in the temporary directory.
 fn output(name: &str) -> PathBuf {
