@@ -19,6 +19,7 @@ mod function;
 pub mod lu;
 mod names;
 mod notes;
+mod outputs;
 pub mod scalar;
 mod syntax;
 
@@ -49,10 +50,15 @@ pub fn module(mech: &Mechanism, sys: &Symbolic, source: &str) -> String {
 /// [`module`] in the floating-point type `scalar` (see [`scalar`]).
 #[must_use]
 pub fn module_in(mech: &Mechanism, sys: &Symbolic, source: &str, scalar: Scalar) -> String {
+    // The outputs' expressions join Φ's arena (after its nodes, so Φ's code is unchanged).
+    let mut sys = sys.clone();
+    let named = sys.outputs(mech);
+    let sys = &sys;
     let n = sys.unknowns.len();
     let moving: Vec<usize> =
         mech.bodies.iter().enumerate().filter(|(_, b)| !b.ground).map(|(k, _)| k).collect();
     let mut items = constants(mech, sys, moving.len());
+    items.extend(outputs::names(mech, sys, &named));
     let after_constants = items.len();
     let rows = Rows::new(sys);
     items.extend(residual_and_jacobian(&rows));
@@ -66,6 +72,7 @@ pub fn module_in(mech: &Mechanism, sys: &Symbolic, source: &str, scalar: Scalar)
     items.extend(right_hand_sides(&rows));
     items.push(normalize(sys));
     items.push(expand(sys, &moving));
+    items.extend(outputs::accessors(&rows, &named));
     items.extend(mechanism_type(mech, orders.len()));
     // The law coefficients the functions read, named after the other constants.
     let mut laws = names::LawNames::new(mech);
@@ -110,14 +117,21 @@ fn constant(doc: &str, name: &str, ty: syn::Type, value: &Expr) -> syn::Item {
     }
 }
 
+/// `body.coordinate` for every unknown.
+fn unknown_names(mech: &Mechanism, sys: &Symbolic) -> Vec<String> {
+    const COORDINATE: [&str; 7] = ["x", "y", "z", "e0", "e1", "e2", "e3"];
+    sys.unknowns
+        .iter()
+        .map(|&(b, c)| format!("{}.{}", mech.bodies[b.0].name, COORDINATE[c]))
+        .collect()
+}
+
 /// The module's constants: sizes, names, the time grid, the solver options and Q0.
 fn constants(mech: &Mechanism, sys: &Symbolic, bodies: usize) -> Vec<syn::Item> {
-    const COORDINATE: [&str; 7] = ["x", "y", "z", "e0", "e1", "e2", "e3"];
     let n = index(sys.unknowns.len());
     let nb = index(bodies);
     let body_names = mech.bodies.iter().filter(|b| !b.ground).map(|b| b.name.as_str());
-    let unknowns =
-        sys.unknowns.iter().map(|&(b, c)| format!("{}.{}", mech.bodies[b.0].name, COORDINATE[c]));
+    let unknowns = unknown_names(mech, sys);
     let rows = sys.rows.iter().map(crate::generic::RowLabel::equation);
     let grid = mech.time;
     let max_it = Literal::u32_unsuffixed(mech.solver.max_iterations);
@@ -245,13 +259,15 @@ fn residual_and_jacobian(rows: &Rows<'_>) -> Vec<syn::Item> {
     let zero_jac: syn::Stmt = parse_quote!(*jac = [[0.0; N]; N];);
     let mut items = Vec::new();
     let targets = [("phi", vec_ty.clone())];
-    let sig = Signature { name: "residual", qd: false, public: true, targets: &targets };
+    let sig =
+        Signature { name: "residual", qd: false, qdd: false, public: true, targets: &targets };
     let what = format!("Constraint residuals Φ(q, t), {n} rows.");
     items.extend(rows.emit(&sig, &what, Vec::new(), &rows.vector(0, "phi", &sys.phi)));
 
     let nnz = sys.jac.iter().map(Vec::len).sum::<usize>();
     let targets = [("jac", mat_ty.clone())];
-    let sig = Signature { name: "jacobian", qd: false, public: true, targets: &targets };
+    let sig =
+        Signature { name: "jacobian", qd: false, qdd: false, public: true, targets: &targets };
     let what = format!(
         "Jacobian Φ_q, row-major: `jac[i][j] = ∂Φ_i/∂q_j`; the {nnz} structurally non-zero entries are written, the others set to 0."
     );
@@ -261,7 +277,13 @@ fn residual_and_jacobian(rows: &Rows<'_>) -> Vec<syn::Item> {
     let targets = [("phi", vec_ty), ("jac", mat_ty)];
     let mut both = rows.vector(0, "phi", &sys.phi);
     both.extend(rows.jacobian(1, false));
-    let sig = Signature { name: "residual_jacobian", qd: false, public: true, targets: &targets };
+    let sig = Signature {
+        name: "residual_jacobian",
+        qd: false,
+        qdd: false,
+        public: true,
+        targets: &targets,
+    };
     let what = "Φ and Φ_q at once (see [`residual`] and [`jacobian`]).";
     items.extend(rows.emit(&sig, what, vec![zero_jac], &both));
 
@@ -276,6 +298,7 @@ fn residual_and_jacobian(rows: &Rows<'_>) -> Vec<syn::Item> {
     let sig = Signature {
         name: "residual_jacobian_structural",
         qd: false,
+        qdd: false,
         public: false,
         targets: &targets,
     };
@@ -288,7 +311,8 @@ fn right_hand_sides(rows: &Rows<'_>) -> Vec<syn::Item> {
     let sys = rows.sys;
     let vec_ty = quote::quote!(&mut [f64; N]);
     let targets = [("nu", vec_ty.clone())];
-    let sig = Signature { name: "velocity_rhs", qd: false, public: true, targets: &targets };
+    let sig =
+        Signature { name: "velocity_rhs", qd: false, qdd: false, public: true, targets: &targets };
     let mut items = rows.emit(
         &sig,
         "Velocity right-hand side ν = −Φ_t.",
@@ -296,7 +320,13 @@ fn right_hand_sides(rows: &Rows<'_>) -> Vec<syn::Item> {
         &rows.vector(0, "nu", &sys.nu),
     );
     let targets = [("gamma", vec_ty)];
-    let sig = Signature { name: "acceleration_rhs", qd: true, public: true, targets: &targets };
+    let sig = Signature {
+        name: "acceleration_rhs",
+        qd: true,
+        qdd: false,
+        public: true,
+        targets: &targets,
+    };
     items.extend(rows.emit(
         &sig,
         "Acceleration right-hand side γ = −(Φ_q q̇)_q q̇ − 2Φ_qt q̇ − Φ_tt.",
