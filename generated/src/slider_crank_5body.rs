@@ -26,6 +26,28 @@
 //!     let (q, qd, qdd) = (solver.q(), solver.qd(), solver.qdd());
 //! }
 //! ```
+//!
+//! # Named outputs
+//!
+//! Names are strings in tables (`BODY_NAMES`, `POINT_NAMES`, `JOINT_NAMES`,
+//! `JOINT_COORDINATE_NAMES`, `UNKNOWNS`) with `const fn` lookups (`body`, `point`, `joint`,
+//! `joint_coordinate`, `unknown`): in a `const`, a misspelt name does not compile. Names that
+//! are plain identifiers also have index constants in the submodules of the same names
+//! (`body::CRANK`), which hold nothing else. The accessors read the solver's state:
+//! `point_positions`, `point_velocities`, `point_accelerations` (global r, v, a),
+//! `poses` (r and p), `angular_velocities`, `angular_accelerations` (ω = 2 G ṗ, α = 2 G p̈,
+//! global) and `joint_coordinates` (angle in (−π, π] or translation, with rate and
+//! acceleration); none allocates or panics.
+//!
+//! ```text
+//! let mut points = [[0.0; 3]; slider_crank_5body::POINTS];
+//! slider_crank_5body::point_positions(solver.q(), t, &mut points);
+//! let mut joints = [[0.0; 3]; slider_crank_5body::JOINT_COORDINATES];
+//! slider_crank_5body::joint_coordinates(solver.q(), solver.qd(), solver.qdd(), t, &mut joints);
+//! // A continuous angle across turns, from the previous period's value:
+//! // angle = runtime::outputs::unwrap_angle(angle, joints[k][0]);
+//! let status = runtime::Status::of(&solver.position(t)); // iterations, residual, outcome
+//! ```
 
 /// Number of unknowns (and of equations) of the reduced system.
 pub const N: usize = 28;

@@ -158,7 +158,8 @@ mod tests {
 
     #[test]
     fn status_of_failure_keeps_its_iterations() {
-        let s: Status = Status::of(&Err(NewtonError::NotConverged { iterations: 7, residual: 0.5 }));
+        let s: Status =
+            Status::of(&Err(NewtonError::NotConverged { iterations: 7, residual: 0.5 }));
         assert_eq!((s.iterations, s.outcome, s.is_ok()), (7, Outcome::NotConverged, false));
         let s: Status = Status::of(&Ok(NewtonReport { iterations: 2, residual: 1e-13 }));
         assert!(s.is_ok());
