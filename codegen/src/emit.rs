@@ -19,6 +19,7 @@ mod function;
 pub mod lu;
 mod names;
 mod notes;
+mod outputs;
 pub mod scalar;
 mod syntax;
 
@@ -40,10 +41,15 @@ pub fn module(mech: &Mechanism, sys: &Symbolic, source: &str) -> String {
 /// [`module`] in the floating-point type `scalar` (see [`scalar`]).
 #[must_use]
 pub fn module_in(mech: &Mechanism, sys: &Symbolic, source: &str, scalar: Scalar) -> String {
+    // The outputs' expressions join Φ's arena (after its nodes, so Φ's code is unchanged).
+    let mut sys = sys.clone();
+    let named = sys.outputs(mech);
+    let sys = &sys;
     let n = sys.unknowns.len();
     let moving: Vec<usize> =
         mech.bodies.iter().enumerate().filter(|(_, b)| !b.ground).map(|(k, _)| k).collect();
     let mut items = constants(mech, sys, moving.len());
+    items.extend(outputs::names(mech, sys, &named));
     let after_constants = items.len();
     let rows = Rows::new(sys);
     items.extend(residual_and_jacobian(&rows));
@@ -57,6 +63,7 @@ pub fn module_in(mech: &Mechanism, sys: &Symbolic, source: &str, scalar: Scalar)
     items.extend(right_hand_sides(&rows));
     items.push(normalize(sys));
     items.push(expand(sys, &moving));
+    items.extend(outputs::accessors(&rows, &named));
     items.extend(mechanism_type(mech, orders.len()));
     // The law coefficients the functions read, named after the other constants.
     let mut laws = names::LawNames::new(mech);
@@ -101,14 +108,21 @@ fn constant(doc: &str, name: &str, ty: syn::Type, value: &Expr) -> syn::Item {
     }
 }
 
+/// `body.coordinate` for every unknown.
+fn unknown_names(mech: &Mechanism, sys: &Symbolic) -> Vec<String> {
+    const COORDINATE: [&str; 7] = ["x", "y", "z", "e0", "e1", "e2", "e3"];
+    sys.unknowns
+        .iter()
+        .map(|&(b, c)| format!("{}.{}", mech.bodies[b.0].name, COORDINATE[c]))
+        .collect()
+}
+
 /// The module's constants: sizes, names, the time grid, the solver options and Q0.
 fn constants(mech: &Mechanism, sys: &Symbolic, bodies: usize) -> Vec<syn::Item> {
-    const COORDINATE: [&str; 7] = ["x", "y", "z", "e0", "e1", "e2", "e3"];
     let n = index(sys.unknowns.len());
     let nb = index(bodies);
     let body_names = mech.bodies.iter().filter(|b| !b.ground).map(|b| b.name.as_str());
-    let unknowns =
-        sys.unknowns.iter().map(|&(b, c)| format!("{}.{}", mech.bodies[b.0].name, COORDINATE[c]));
+    let unknowns = unknown_names(mech, sys);
     let rows = sys.rows.iter().map(crate::model::RowLabel::equation);
     let grid = &mech.time;
     let max_it = Literal::u32_unsuffixed(mech.solver.max_iterations);
@@ -236,13 +250,15 @@ fn residual_and_jacobian(rows: &Rows<'_>) -> Vec<syn::Item> {
     let zero_jac: syn::Stmt = parse_quote!(*jac = [[0.0; N]; N];);
     let mut items = Vec::new();
     let targets = [("phi", vec_ty.clone())];
-    let sig = Signature { name: "residual", qd: false, public: true, targets: &targets };
+    let sig =
+        Signature { name: "residual", qd: false, qdd: false, public: true, targets: &targets };
     let what = format!("Constraint residuals Φ(q, t), {n} rows.");
     items.extend(rows.emit(&sig, &what, Vec::new(), &rows.vector(0, "phi", &sys.phi)));
 
     let nnz = sys.jac.iter().map(Vec::len).sum::<usize>();
     let targets = [("jac", mat_ty.clone())];
-    let sig = Signature { name: "jacobian", qd: false, public: true, targets: &targets };
+    let sig =
+        Signature { name: "jacobian", qd: false, qdd: false, public: true, targets: &targets };
     let what = format!(
         "Jacobian Φ_q, row-major: `jac[i][j] = ∂Φ_i/∂q_j`; the {nnz} structurally non-zero entries are written, the others set to 0."
     );
@@ -252,7 +268,13 @@ fn residual_and_jacobian(rows: &Rows<'_>) -> Vec<syn::Item> {
     let targets = [("phi", vec_ty), ("jac", mat_ty)];
     let mut both = rows.vector(0, "phi", &sys.phi);
     both.extend(rows.jacobian(1, false));
-    let sig = Signature { name: "residual_jacobian", qd: false, public: true, targets: &targets };
+    let sig = Signature {
+        name: "residual_jacobian",
+        qd: false,
+        qdd: false,
+        public: true,
+        targets: &targets,
+    };
     let what = "Φ and Φ_q at once (see [`residual`] and [`jacobian`]).";
     items.extend(rows.emit(&sig, what, vec![zero_jac], &both));
 
@@ -267,6 +289,7 @@ fn residual_and_jacobian(rows: &Rows<'_>) -> Vec<syn::Item> {
     let sig = Signature {
         name: "residual_jacobian_structural",
         qd: false,
+        qdd: false,
         public: false,
         targets: &targets,
     };
@@ -279,7 +302,8 @@ fn right_hand_sides(rows: &Rows<'_>) -> Vec<syn::Item> {
     let sys = rows.sys;
     let vec_ty = quote::quote!(&mut [f64; N]);
     let targets = [("nu", vec_ty.clone())];
-    let sig = Signature { name: "velocity_rhs", qd: false, public: true, targets: &targets };
+    let sig =
+        Signature { name: "velocity_rhs", qd: false, qdd: false, public: true, targets: &targets };
     let mut items = rows.emit(
         &sig,
         "Velocity right-hand side ν = −Φ_t.",
@@ -287,7 +311,13 @@ fn right_hand_sides(rows: &Rows<'_>) -> Vec<syn::Item> {
         &rows.vector(0, "nu", &sys.nu),
     );
     let targets = [("gamma", vec_ty)];
-    let sig = Signature { name: "acceleration_rhs", qd: true, public: true, targets: &targets };
+    let sig = Signature {
+        name: "acceleration_rhs",
+        qd: true,
+        qdd: false,
+        public: true,
+        targets: &targets,
+    };
     items.extend(rows.emit(
         &sig,
         "Acceleration right-hand side γ = −(Φ_q q̇)_q q̇ − 2Φ_qt q̇ − Φ_tt.",
@@ -512,6 +542,28 @@ fn module_docs(mech: &Mechanism, sys: &Symbolic, source: &str, scalar: Scalar) -
      solver.acceleration()?; // Φ_q q̈ = γ
      let (q, qd, qdd) = (solver.q(), solver.qd(), solver.qdd());
  }}
+ ```
+
+ # Named outputs
+
+ Names are strings in tables (`BODY_NAMES`, `POINT_NAMES`, `JOINT_NAMES`,
+ `JOINT_COORDINATE_NAMES`, `UNKNOWNS`) with `const fn` lookups (`body`, `point`, `joint`,
+ `joint_coordinate`, `unknown`): in a `const`, a misspelt name does not compile. Names that
+ are plain identifiers also have index constants in the submodules of the same names
+ (`body::CRANK`), which hold nothing else. The accessors read the solver's state:
+ `point_positions`, `point_velocities`, `point_accelerations` (global r, v, a),
+ `poses` (r and p), `angular_velocities`, `angular_accelerations` (ω = 2 G ṗ, α = 2 G p̈,
+ global) and `joint_coordinates` (angle in (−π, π] or translation, with rate and
+ acceleration); none allocates or panics.
+
+ ```text
+ let mut points = [[0.0; 3]; {m}::POINTS];
+ {m}::point_positions(solver.q(), t, &mut points);
+ let mut joints = [[0.0; 3]; {m}::JOINT_COORDINATES];
+ {m}::joint_coordinates(solver.q(), solver.qd(), solver.qdd(), t, &mut joints);
+ // A continuous angle across turns, from the previous period's value:
+ // angle = runtime::outputs::unwrap_angle(angle, joints[k][0]);
+ let status = runtime::Status::of(&solver.position(t)); // iterations, residual, outcome
  ```",
             m = mech.name,
             ty = type_name(&mech.name),

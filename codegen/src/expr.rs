@@ -36,8 +36,10 @@ impl ExprId {
 pub enum Var {
     /// Unknown q_k.
     Q(u32),
-    /// Rate q̇_k (appears only in γ).
+    /// Rate q̇_k (appears only in γ and in outputs).
     Qd(u32),
+    /// Acceleration q̈_k (outputs only: Φ, ν and γ never contain it).
+    Qdd(u32),
     /// Time t.
     T,
 }
@@ -295,7 +297,7 @@ impl ExprPool {
             return d;
         }
         let d = match self[e] {
-            Node::Const(_) | Node::Var(Var::Qd(_)) => self.constant(0.0),
+            Node::Const(_) | Node::Var(Var::Qd(_) | Var::Qdd(_)) => self.constant(0.0),
             Node::Var(Var::Q(k)) => self.var(Var::Qd(k)),
             Node::Var(Var::T) => self.constant(1.0),
             Node::Neg(a) => {
@@ -347,6 +349,13 @@ impl ExprPool {
     /// Evaluates `roots` numerically (tests and the generator's own checks).
     #[must_use]
     pub fn eval(&self, roots: &[ExprId], q: &[f64], qd: &[f64], t: f64) -> Vec<f64> {
+        self.eval_with(roots, [q, qd, &[]], t)
+    }
+
+    /// [`ExprPool::eval`] with q̈ too: `state` is `[q, q̇, q̈]`.
+    #[must_use]
+    pub fn eval_with(&self, roots: &[ExprId], state: [&[f64]; 3], t: f64) -> Vec<f64> {
+        let [q, qd, qdd] = state;
         let last = roots.iter().map(|r| r.index()).max().map_or(0, |m| m + 1);
         // Only nodes reachable from the roots are evaluated: others may name symbols (q̇)
         // the caller does not provide.
@@ -366,6 +375,7 @@ impl ExprPool {
                 Node::Const(bits) => f64::from_bits(bits),
                 Node::Var(Var::Q(i)) => q[i as usize],
                 Node::Var(Var::Qd(i)) => qd[i as usize],
+                Node::Var(Var::Qdd(i)) => qdd[i as usize],
                 Node::Var(Var::T) => t,
                 Node::Neg(a) => -val[a.index()],
                 Node::Add(a, b) => val[a.index()] + val[b.index()],
@@ -398,6 +408,7 @@ impl fmt::Display for Display<'_> {
             Node::Const(bits) => write!(f, "{:?}", f64::from_bits(bits)),
             Node::Var(Var::Q(k)) => write!(f, "q{k}"),
             Node::Var(Var::Qd(k)) => write!(f, "qd{k}"),
+            Node::Var(Var::Qdd(k)) => write!(f, "qdd{k}"),
             Node::Var(Var::T) => write!(f, "t"),
             Node::Neg(a) => write!(f, "-({})", sub(a)),
             Node::Add(a, b) => write!(f, "({} + {})", sub(a), sub(b)),

@@ -897,5 +897,8 @@ fn q_vars(pool: &ExprPool, e: ExprId) -> BTreeSet<u32> {
     vars
 }
 
+mod outputs;
+pub use outputs::{JointCoordinate, Outputs, Rates};
+
 #[cfg(test)]
 mod tests;

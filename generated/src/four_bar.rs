@@ -26,6 +26,28 @@
 //!     let (q, qd, qdd) = (solver.q(), solver.qd(), solver.qdd());
 //! }
 //! ```
+//!
+//! # Named outputs
+//!
+//! Names are strings in tables (`BODY_NAMES`, `POINT_NAMES`, `JOINT_NAMES`,
+//! `JOINT_COORDINATE_NAMES`, `UNKNOWNS`) with `const fn` lookups (`body`, `point`, `joint`,
+//! `joint_coordinate`, `unknown`): in a `const`, a misspelt name does not compile. Names that
+//! are plain identifiers also have index constants in the submodules of the same names
+//! (`body::CRANK`), which hold nothing else. The accessors read the solver's state:
+//! `point_positions`, `point_velocities`, `point_accelerations` (global r, v, a),
+//! `poses` (r and p), `angular_velocities`, `angular_accelerations` (ω = 2 G ṗ, α = 2 G p̈,
+//! global) and `joint_coordinates` (angle in (−π, π] or translation, with rate and
+//! acceleration); none allocates or panics.
+//!
+//! ```text
+//! let mut points = [[0.0; 3]; four_bar::POINTS];
+//! four_bar::point_positions(solver.q(), t, &mut points);
+//! let mut joints = [[0.0; 3]; four_bar::JOINT_COORDINATES];
+//! four_bar::joint_coordinates(solver.q(), solver.qd(), solver.qdd(), t, &mut joints);
+//! // A continuous angle across turns, from the previous period's value:
+//! // angle = runtime::outputs::unwrap_angle(angle, joints[k][0]);
+//! let status = runtime::Status::of(&solver.position(t)); // iterations, residual, outcome
+//! ```
 
 /// Number of unknowns (and of equations) of the reduced system.
 pub const N: usize = 21;
@@ -125,6 +147,166 @@ pub const Q0: [f64; N] = [
     0.36259684298813805,
     -0.6070523579852725,
 ];
+
+/// The index of the moving body `name` in [`BODY_NAMES`], for const context: `const K: usize = body("…");` does not compile when no moving body has that name.
+///
+/// # Panics
+///
+/// When no moving body is named `name` (at compile time when used in a const).
+#[must_use]
+pub const fn body(name: &str) -> usize {
+    match runtime::outputs::find(&BODY_NAMES, name) {
+        Some(k) => k,
+        None => panic!("no moving body of that name"),
+    }
+}
+
+/// Index constants of the moving bodies whose names are plain identifiers (ASCII letters, digits and `_`, from a letter; uppercased, `.` read as `_`); every other name is reached through [`super::body`].
+pub mod body {
+    /// Index of the moving body `crank` in [`super::BODY_NAMES`].
+    pub const CRANK: usize = 0;
+    /// Index of the moving body `coupler` in [`super::BODY_NAMES`].
+    pub const COUPLER: usize = 1;
+    /// Index of the moving body `rocker` in [`super::BODY_NAMES`].
+    pub const ROCKER: usize = 2;
+}
+
+/// Number of points of interest.
+pub const POINTS: usize = 1;
+
+/// Name of each point of interest.
+pub const POINT_NAMES: [&str; POINTS] = ["B"];
+
+/// The index of the point of interest `name` in [`POINT_NAMES`], for const context: `const K: usize = point("…");` does not compile when no point of interest has that name.
+///
+/// # Panics
+///
+/// When no point of interest is named `name` (at compile time when used in a const).
+#[must_use]
+pub const fn point(name: &str) -> usize {
+    match runtime::outputs::find(&POINT_NAMES, name) {
+        Some(k) => k,
+        None => panic!("no point of interest of that name"),
+    }
+}
+
+/// Index constants of the points of interest whose names are plain identifiers (ASCII letters, digits and `_`, from a letter; uppercased, `.` read as `_`); every other name is reached through [`super::point`].
+pub mod point {
+    /// Index of the point of interest `B` in [`super::POINT_NAMES`].
+    pub const B: usize = 0;
+}
+
+/// Number of joints.
+pub const JOINTS: usize = 4;
+
+/// Name of each joint.
+pub const JOINT_NAMES: [&str; JOINTS] = ["C", "B", "A", "D"];
+
+/// The index of the joint `name` in [`JOINT_NAMES`], for const context: `const K: usize = joint("…");` does not compile when no joint has that name.
+///
+/// # Panics
+///
+/// When no joint is named `name` (at compile time when used in a const).
+#[must_use]
+pub const fn joint(name: &str) -> usize {
+    match runtime::outputs::find(&JOINT_NAMES, name) {
+        Some(k) => k,
+        None => panic!("no joint of that name"),
+    }
+}
+
+/// Index constants of the joints whose names are plain identifiers (ASCII letters, digits and `_`, from a letter; uppercased, `.` read as `_`); every other name is reached through [`super::joint`].
+pub mod joint {
+    /// Index of the joint `C` in [`super::JOINT_NAMES`].
+    pub const C: usize = 0;
+    /// Index of the joint `B` in [`super::JOINT_NAMES`].
+    pub const B: usize = 1;
+    /// Index of the joint `A` in [`super::JOINT_NAMES`].
+    pub const A: usize = 2;
+    /// Index of the joint `D` in [`super::JOINT_NAMES`].
+    pub const D: usize = 3;
+}
+
+/// Number of joint coordinates.
+pub const JOINT_COORDINATES: usize = 0;
+
+/// Name of each joint coordinate.
+pub const JOINT_COORDINATE_NAMES: [&str; JOINT_COORDINATES] = [];
+
+/// The index of the joint coordinate `name` in [`JOINT_COORDINATE_NAMES`], for const context: `const K: usize = joint_coordinate("…");` does not compile when no joint coordinate has that name.
+///
+/// # Panics
+///
+/// When no joint coordinate is named `name` (at compile time when used in a const).
+#[must_use]
+pub const fn joint_coordinate(name: &str) -> usize {
+    match runtime::outputs::find(&JOINT_COORDINATE_NAMES, name) {
+        Some(k) => k,
+        None => panic!("no joint coordinate of that name"),
+    }
+}
+
+/// Index constants of the joint coordinates whose names are plain identifiers (ASCII letters, digits and `_`, from a letter; uppercased, `.` read as `_`); every other name is reached through [`super::joint_coordinate`].
+pub mod joint_coordinate {}
+
+/// The index of the unknown `name` in [`UNKNOWNS`], for const context: `const K: usize = unknown("…");` does not compile when no unknown has that name.
+///
+/// # Panics
+///
+/// When no unknown is named `name` (at compile time when used in a const).
+#[must_use]
+pub const fn unknown(name: &str) -> usize {
+    match runtime::outputs::find(&UNKNOWNS, name) {
+        Some(k) => k,
+        None => panic!("no unknown of that name"),
+    }
+}
+
+/// Index constants of the unknowns whose names are plain identifiers (ASCII letters, digits and `_`, from a letter; uppercased, `.` read as `_`); every other name is reached through [`super::unknown`].
+pub mod unknown {
+    /// Index of the unknown `crank.x` in [`super::UNKNOWNS`].
+    pub const CRANK_X: usize = 0;
+    /// Index of the unknown `crank.y` in [`super::UNKNOWNS`].
+    pub const CRANK_Y: usize = 1;
+    /// Index of the unknown `crank.z` in [`super::UNKNOWNS`].
+    pub const CRANK_Z: usize = 2;
+    /// Index of the unknown `crank.e0` in [`super::UNKNOWNS`].
+    pub const CRANK_E0: usize = 3;
+    /// Index of the unknown `crank.e1` in [`super::UNKNOWNS`].
+    pub const CRANK_E1: usize = 4;
+    /// Index of the unknown `crank.e2` in [`super::UNKNOWNS`].
+    pub const CRANK_E2: usize = 5;
+    /// Index of the unknown `crank.e3` in [`super::UNKNOWNS`].
+    pub const CRANK_E3: usize = 6;
+    /// Index of the unknown `coupler.x` in [`super::UNKNOWNS`].
+    pub const COUPLER_X: usize = 7;
+    /// Index of the unknown `coupler.y` in [`super::UNKNOWNS`].
+    pub const COUPLER_Y: usize = 8;
+    /// Index of the unknown `coupler.z` in [`super::UNKNOWNS`].
+    pub const COUPLER_Z: usize = 9;
+    /// Index of the unknown `coupler.e0` in [`super::UNKNOWNS`].
+    pub const COUPLER_E0: usize = 10;
+    /// Index of the unknown `coupler.e1` in [`super::UNKNOWNS`].
+    pub const COUPLER_E1: usize = 11;
+    /// Index of the unknown `coupler.e2` in [`super::UNKNOWNS`].
+    pub const COUPLER_E2: usize = 12;
+    /// Index of the unknown `coupler.e3` in [`super::UNKNOWNS`].
+    pub const COUPLER_E3: usize = 13;
+    /// Index of the unknown `rocker.x` in [`super::UNKNOWNS`].
+    pub const ROCKER_X: usize = 14;
+    /// Index of the unknown `rocker.y` in [`super::UNKNOWNS`].
+    pub const ROCKER_Y: usize = 15;
+    /// Index of the unknown `rocker.z` in [`super::UNKNOWNS`].
+    pub const ROCKER_Z: usize = 16;
+    /// Index of the unknown `rocker.e0` in [`super::UNKNOWNS`].
+    pub const ROCKER_E0: usize = 17;
+    /// Index of the unknown `rocker.e1` in [`super::UNKNOWNS`].
+    pub const ROCKER_E1: usize = 18;
+    /// Index of the unknown `rocker.e2` in [`super::UNKNOWNS`].
+    pub const ROCKER_E2: usize = 19;
+    /// Index of the unknown `rocker.e3` in [`super::UNKNOWNS`].
+    pub const ROCKER_E3: usize = 20;
+}
 
 /// Constraint residuals Φ(q, t), 21 rows.
 ///
@@ -2964,6 +3146,181 @@ pub fn expand(
     out[2][0][6] = q[20];
     out[2][1][6] = qd[20];
     out[2][2][6] = qdd[20];
+}
+
+/// Position r of every point of interest (global), in [`POINT_NAMES`] order.
+///
+/// 21 operations, 0 shared subexpressions.
+pub fn point_positions(q: &[f64; N], _t: f64, out: &mut [[f64; 3]; POINTS]) {
+    let [q0, q1, q2, q3, q4, q5, q6, _q7, _q8, _q9, _q10, _q11, _q12, _q13, _q14, _q15,
+    _q16, _q17, _q18, _q19, _q20] = *q;
+    out[0][0] = 4.0 * (q4 * q6 + q3 * q5) + q0;
+    out[0][1] = 4.0 * (q5 * q6 - q3 * q4) + q1;
+    out[0][2] = 2.0 * (q3 * q3 + q6 * q6 - (q4 * q4 + q5 * q5)) + q2;
+}
+
+/// Velocity v = ṙ of every point of interest (global).
+///
+/// 33 operations, 4 shared subexpressions.
+pub fn point_velocities(
+    q: &[f64; N],
+    qd: &[f64; N],
+    _t: f64,
+    out: &mut [[f64; 3]; POINTS],
+) {
+    let [_q0, _q1, _q2, q3, q4, q5, q6, _q7, _q8, _q9, _q10, _q11, _q12, _q13, _q14,
+    _q15, _q16, _q17, _q18, _q19, _q20] = *q;
+    let [qd0, qd1, qd2, qd3, qd4, qd5, qd6, _qd7, _qd8, _qd9, _qd10, _qd11, _qd12, _qd13,
+    _qd14, _qd15, _qd16, _qd17, _qd18, _qd19, _qd20] = *qd;
+    let t0 = q3 * qd3;
+    let t1 = q6 * qd6;
+    let t2 = q4 * qd4;
+    let t3 = q5 * qd5;
+    out[0][0] = 4.0 * (q6 * qd4 + q4 * qd6 + (q5 * qd3 + q3 * qd5)) + qd0;
+    out[0][1] = 4.0 * (q6 * qd5 + q5 * qd6 - (q4 * qd3 + q3 * qd4)) + qd1;
+    out[0][2] = 2.0 * (t0 + t0 + (t1 + t1) - (t2 + t2 + (t3 + t3))) + qd2;
+}
+
+/// Acceleration a = r̈ of every point of interest (global).
+///
+/// 69 operations, 12 shared subexpressions.
+pub fn point_accelerations(
+    q: &[f64; N],
+    qd: &[f64; N],
+    qdd: &[f64; N],
+    _t: f64,
+    out: &mut [[f64; 3]; POINTS],
+) {
+    let [_q0, _q1, _q2, q3, q4, q5, q6, _q7, _q8, _q9, _q10, _q11, _q12, _q13, _q14,
+    _q15, _q16, _q17, _q18, _q19, _q20] = *q;
+    let [_qd0, _qd1, _qd2, qd3, qd4, qd5, qd6, _qd7, _qd8, _qd9, _qd10, _qd11, _qd12,
+    _qd13, _qd14, _qd15, _qd16, _qd17, _qd18, _qd19, _qd20] = *qd;
+    let [qdd0, qdd1, qdd2, qdd3, qdd4, qdd5, qdd6, _qdd7, _qdd8, _qdd9, _qdd10, _qdd11,
+    _qdd12, _qdd13, _qdd14, _qdd15, _qdd16, _qdd17, _qdd18, _qdd19, _qdd20] = *qdd;
+    let t0 = 4.0 * q5;
+    let t1 = 4.0 * q6;
+    let t2 = 4.0 * q3;
+    let t3 = 4.0 * q4;
+    let t4 = qd4 * qd6;
+    let t5 = qd3 * qd5;
+    let t6 = qd6 * qd5;
+    let t7 = qd4 * qd3;
+    let t8 = qd3 * qd3;
+    let t9 = qd6 * qd6;
+    let t10 = qd4 * qd4;
+    let t11 = qd5 * qd5;
+    out[0][0] = 4.0 * (t4 + t4 + (t5 + t5)) + qdd0 + t0 * qdd3 + t1 * qdd4 + t2 * qdd5
+        + t3 * qdd6;
+    out[0][1] = 4.0 * (t6 + t6 - (t7 + t7)) + qdd1 - t3 * qdd3 - t2 * qdd4 + t1 * qdd5
+        + t0 * qdd6;
+    out[0][2] = 2.0 * (t8 + t8 + (t9 + t9) - (t10 + t10 + (t11 + t11))) + qdd2
+        + 2.0 * (q3 + q3) * qdd3 - 2.0 * (q4 + q4) * qdd4 - 2.0 * (q5 + q5) * qdd5
+        + 2.0 * (q6 + q6) * qdd6;
+}
+
+/// Angular velocity ω = 2 G(p) ṗ of every moving body (global components), in [`BODY_NAMES`] order.
+///
+/// 90 operations, 0 shared subexpressions.
+pub fn angular_velocities(
+    q: &[f64; N],
+    qd: &[f64; N],
+    _t: f64,
+    out: &mut [[f64; 3]; BODIES],
+) {
+    let [_q0, _q1, _q2, q3, q4, q5, q6, _q7, _q8, _q9, q10, q11, q12, q13, _q14, _q15,
+    _q16, q17, q18, q19, q20] = *q;
+    let [_qd0, _qd1, _qd2, qd3, qd4, qd5, qd6, _qd7, _qd8, _qd9, qd10, qd11, qd12, qd13,
+    _qd14, _qd15, _qd16, qd17, qd18, qd19, qd20] = *qd;
+    out[0][0] = 2.0 * (q5 * qd6 - q6 * qd5 + (q3 * qd4 - q4 * qd3));
+    out[0][1] = 2.0 * (q6 * qd4 - q4 * qd6 + (q3 * qd5 - q5 * qd3));
+    out[0][2] = 2.0 * (q4 * qd5 - q5 * qd4 + (q3 * qd6 - q6 * qd3));
+    out[1][0] = 2.0 * (q12 * qd13 - q13 * qd12 + (q10 * qd11 - q11 * qd10));
+    out[1][1] = 2.0 * (q13 * qd11 - q11 * qd13 + (q10 * qd12 - q12 * qd10));
+    out[1][2] = 2.0 * (q11 * qd12 - q12 * qd11 + (q10 * qd13 - q13 * qd10));
+    out[2][0] = 2.0 * (q19 * qd20 - q20 * qd19 + (q17 * qd18 - q18 * qd17));
+    out[2][1] = 2.0 * (q20 * qd18 - q18 * qd20 + (q17 * qd19 - q19 * qd17));
+    out[2][2] = 2.0 * (q18 * qd19 - q19 * qd18 + (q17 * qd20 - q20 * qd17));
+}
+
+/// Angular acceleration α = 2 G(p) p̈ of every moving body (global components).
+///
+/// 90 operations, 0 shared subexpressions.
+pub fn angular_accelerations(
+    q: &[f64; N],
+    _qd: &[f64; N],
+    qdd: &[f64; N],
+    _t: f64,
+    out: &mut [[f64; 3]; BODIES],
+) {
+    let [_q0, _q1, _q2, q3, q4, q5, q6, _q7, _q8, _q9, q10, q11, q12, q13, _q14, _q15,
+    _q16, q17, q18, q19, q20] = *q;
+    let [_qdd0, _qdd1, _qdd2, qdd3, qdd4, qdd5, qdd6, _qdd7, _qdd8, _qdd9, qdd10, qdd11,
+    qdd12, qdd13, _qdd14, _qdd15, _qdd16, qdd17, qdd18, qdd19, qdd20] = *qdd;
+    out[0][0] = 2.0 * (q5 * qdd6 - q6 * qdd5 + (q3 * qdd4 - q4 * qdd3));
+    out[0][1] = 2.0 * (q6 * qdd4 - q4 * qdd6 + (q3 * qdd5 - q5 * qdd3));
+    out[0][2] = 2.0 * (q4 * qdd5 - q5 * qdd4 + (q3 * qdd6 - q6 * qdd3));
+    out[1][0] = 2.0 * (q12 * qdd13 - q13 * qdd12 + (q10 * qdd11 - q11 * qdd10));
+    out[1][1] = 2.0 * (q13 * qdd11 - q11 * qdd13 + (q10 * qdd12 - q12 * qdd10));
+    out[1][2] = 2.0 * (q11 * qdd12 - q12 * qdd11 + (q10 * qdd13 - q13 * qdd10));
+    out[2][0] = 2.0 * (q19 * qdd20 - q20 * qdd19 + (q17 * qdd18 - q18 * qdd17));
+    out[2][1] = 2.0 * (q20 * qdd18 - q18 * qdd20 + (q17 * qdd19 - q19 * qdd17));
+    out[2][2] = 2.0 * (q18 * qdd19 - q19 * qdd18 + (q17 * qdd20 - q20 * qdd17));
+}
+
+/// Coordinates `[x, y, z, e0, e1, e2, e3]` (r and p) of every moving body, fixed and driven ones included.
+///
+/// 0 operations, 0 shared subexpressions.
+pub fn poses(q: &[f64; N], _t: f64, out: &mut [[f64; 7]; BODIES]) {
+    let [q0, q1, q2, q3, q4, q5, q6, q7, q8, q9, q10, q11, q12, q13, q14, q15, q16, q17,
+    q18, q19, q20] = *q;
+    out[0][0] = q0;
+    out[0][1] = q1;
+    out[0][2] = q2;
+    out[0][3] = q3;
+    out[0][4] = q4;
+    out[0][5] = q5;
+    out[0][6] = q6;
+    out[1][0] = q7;
+    out[1][1] = q8;
+    out[1][2] = q9;
+    out[1][3] = q10;
+    out[1][4] = q11;
+    out[1][5] = q12;
+    out[1][6] = q13;
+    out[2][0] = q14;
+    out[2][1] = q15;
+    out[2][2] = q16;
+    out[2][3] = q17;
+    out[2][4] = q18;
+    out[2][5] = q19;
+    out[2][6] = q20;
+}
+
+/// The translations of [`joint_coordinates`] and, for each angle, x = ref_i·ref_j and y = (ref_i × ref_j)·axis_i with their rates: `[x, ẋ, ẍ, y, ẏ, ÿ]`.
+///
+/// 0 operations, 0 shared subexpressions.
+fn joint_terms(
+    _q: &[f64; N],
+    _qd: &[f64; N],
+    _qdd: &[f64; N],
+    _t: f64,
+    _out: &mut [[f64; 3]; JOINT_COORDINATES],
+    _terms: &mut [[f64; 6]; 0],
+) {}
+
+/// Every joint coordinate (in [`JOINT_COORDINATE_NAMES`] order) with its rate and
+/// acceleration: `out[k] = [value, rate, acceleration]`. An angle θ is measured from
+/// ref_i to ref_j, right-handed about axis_i, in (−π, π] (follow it across turns with
+/// `runtime::outputs::unwrap_angle`); a translation is d = (P_j − P_i)·axis_i.
+pub fn joint_coordinates(
+    q: &[f64; N],
+    qd: &[f64; N],
+    qdd: &[f64; N],
+    t: f64,
+    out: &mut [[f64; 3]; JOINT_COORDINATES],
+) {
+    let mut terms = [[0.0; 6]; 0];
+    joint_terms(q, qd, qdd, t, out, &mut terms);
 }
 
 /// The mechanism `four_bar` as a [`runtime::Mechanism`].

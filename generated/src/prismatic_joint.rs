@@ -26,6 +26,28 @@
 //!     let (q, qd, qdd) = (solver.q(), solver.qd(), solver.qdd());
 //! }
 //! ```
+//!
+//! # Named outputs
+//!
+//! Names are strings in tables (`BODY_NAMES`, `POINT_NAMES`, `JOINT_NAMES`,
+//! `JOINT_COORDINATE_NAMES`, `UNKNOWNS`) with `const fn` lookups (`body`, `point`, `joint`,
+//! `joint_coordinate`, `unknown`): in a `const`, a misspelt name does not compile. Names that
+//! are plain identifiers also have index constants in the submodules of the same names
+//! (`body::CRANK`), which hold nothing else. The accessors read the solver's state:
+//! `point_positions`, `point_velocities`, `point_accelerations` (global r, v, a),
+//! `poses` (r and p), `angular_velocities`, `angular_accelerations` (ω = 2 G ṗ, α = 2 G p̈,
+//! global) and `joint_coordinates` (angle in (−π, π] or translation, with rate and
+//! acceleration); none allocates or panics.
+//!
+//! ```text
+//! let mut points = [[0.0; 3]; prismatic_joint::POINTS];
+//! prismatic_joint::point_positions(solver.q(), t, &mut points);
+//! let mut joints = [[0.0; 3]; prismatic_joint::JOINT_COORDINATES];
+//! prismatic_joint::joint_coordinates(solver.q(), solver.qd(), solver.qdd(), t, &mut joints);
+//! // A continuous angle across turns, from the previous period's value:
+//! // angle = runtime::outputs::unwrap_angle(angle, joints[k][0]);
+//! let status = runtime::Status::of(&solver.position(t)); // iterations, residual, outcome
+//! ```
 
 /// Number of unknowns (and of equations) of the reduced system.
 pub const N: usize = 6;
@@ -73,6 +95,126 @@ pub const MAX_ITERATIONS: u32 = 25;
 
 /// Initial estimates of the unknowns.
 pub const Q0: [f64; N] = [0.0, 0.0, 1.0, 0.0, 0.0, 0.0];
+
+/// The index of the moving body `name` in [`BODY_NAMES`], for const context: `const K: usize = body("…");` does not compile when no moving body has that name.
+///
+/// # Panics
+///
+/// When no moving body is named `name` (at compile time when used in a const).
+#[must_use]
+pub const fn body(name: &str) -> usize {
+    match runtime::outputs::find(&BODY_NAMES, name) {
+        Some(k) => k,
+        None => panic!("no moving body of that name"),
+    }
+}
+
+/// Index constants of the moving bodies whose names are plain identifiers (ASCII letters, digits and `_`, from a letter; uppercased, `.` read as `_`); every other name is reached through [`super::body`].
+pub mod body {
+    /// Index of the moving body `slider` in [`super::BODY_NAMES`].
+    pub const SLIDER: usize = 0;
+}
+
+/// Number of points of interest.
+pub const POINTS: usize = 0;
+
+/// Name of each point of interest.
+pub const POINT_NAMES: [&str; POINTS] = [];
+
+/// The index of the point of interest `name` in [`POINT_NAMES`], for const context: `const K: usize = point("…");` does not compile when no point of interest has that name.
+///
+/// # Panics
+///
+/// When no point of interest is named `name` (at compile time when used in a const).
+#[must_use]
+pub const fn point(name: &str) -> usize {
+    match runtime::outputs::find(&POINT_NAMES, name) {
+        Some(k) => k,
+        None => panic!("no point of interest of that name"),
+    }
+}
+
+/// Index constants of the points of interest whose names are plain identifiers (ASCII letters, digits and `_`, from a letter; uppercased, `.` read as `_`); every other name is reached through [`super::point`].
+pub mod point {}
+
+/// Number of joints.
+pub const JOINTS: usize = 1;
+
+/// Name of each joint.
+pub const JOINT_NAMES: [&str; JOINTS] = ["slide"];
+
+/// The index of the joint `name` in [`JOINT_NAMES`], for const context: `const K: usize = joint("…");` does not compile when no joint has that name.
+///
+/// # Panics
+///
+/// When no joint is named `name` (at compile time when used in a const).
+#[must_use]
+pub const fn joint(name: &str) -> usize {
+    match runtime::outputs::find(&JOINT_NAMES, name) {
+        Some(k) => k,
+        None => panic!("no joint of that name"),
+    }
+}
+
+/// Index constants of the joints whose names are plain identifiers (ASCII letters, digits and `_`, from a letter; uppercased, `.` read as `_`); every other name is reached through [`super::joint`].
+pub mod joint {
+    /// Index of the joint `slide` in [`super::JOINT_NAMES`].
+    pub const SLIDE: usize = 0;
+}
+
+/// Number of joint coordinates.
+pub const JOINT_COORDINATES: usize = 1;
+
+/// Name of each joint coordinate.
+pub const JOINT_COORDINATE_NAMES: [&str; JOINT_COORDINATES] = ["slide.translation"];
+
+/// The index of the joint coordinate `name` in [`JOINT_COORDINATE_NAMES`], for const context: `const K: usize = joint_coordinate("…");` does not compile when no joint coordinate has that name.
+///
+/// # Panics
+///
+/// When no joint coordinate is named `name` (at compile time when used in a const).
+#[must_use]
+pub const fn joint_coordinate(name: &str) -> usize {
+    match runtime::outputs::find(&JOINT_COORDINATE_NAMES, name) {
+        Some(k) => k,
+        None => panic!("no joint coordinate of that name"),
+    }
+}
+
+/// Index constants of the joint coordinates whose names are plain identifiers (ASCII letters, digits and `_`, from a letter; uppercased, `.` read as `_`); every other name is reached through [`super::joint_coordinate`].
+pub mod joint_coordinate {
+    /// Index of the joint coordinate `slide.translation` in [`super::JOINT_COORDINATE_NAMES`].
+    pub const SLIDE_TRANSLATION: usize = 0;
+}
+
+/// The index of the unknown `name` in [`UNKNOWNS`], for const context: `const K: usize = unknown("…");` does not compile when no unknown has that name.
+///
+/// # Panics
+///
+/// When no unknown is named `name` (at compile time when used in a const).
+#[must_use]
+pub const fn unknown(name: &str) -> usize {
+    match runtime::outputs::find(&UNKNOWNS, name) {
+        Some(k) => k,
+        None => panic!("no unknown of that name"),
+    }
+}
+
+/// Index constants of the unknowns whose names are plain identifiers (ASCII letters, digits and `_`, from a letter; uppercased, `.` read as `_`); every other name is reached through [`super::unknown`].
+pub mod unknown {
+    /// Index of the unknown `slider.x` in [`super::UNKNOWNS`].
+    pub const SLIDER_X: usize = 0;
+    /// Index of the unknown `slider.z` in [`super::UNKNOWNS`].
+    pub const SLIDER_Z: usize = 1;
+    /// Index of the unknown `slider.e0` in [`super::UNKNOWNS`].
+    pub const SLIDER_E0: usize = 2;
+    /// Index of the unknown `slider.e1` in [`super::UNKNOWNS`].
+    pub const SLIDER_E1: usize = 3;
+    /// Index of the unknown `slider.e2` in [`super::UNKNOWNS`].
+    pub const SLIDER_E2: usize = 4;
+    /// Index of the unknown `slider.e3` in [`super::UNKNOWNS`].
+    pub const SLIDER_E3: usize = 5;
+}
 
 /// Constraint residuals Φ(q, t), 6 rows.
 ///
@@ -421,6 +563,110 @@ pub fn expand(
     out[0][0][1] = t + 2.0;
     out[0][1][1] = 1.0;
     out[0][2][1] = 0.0;
+}
+
+/// Position r of every point of interest (global), in [`POINT_NAMES`] order.
+///
+/// 0 operations, 0 shared subexpressions.
+pub fn point_positions(_q: &[f64; N], _t: f64, _out: &mut [[f64; 3]; POINTS]) {}
+
+/// Velocity v = ṙ of every point of interest (global).
+///
+/// 0 operations, 0 shared subexpressions.
+pub fn point_velocities(
+    _q: &[f64; N],
+    _qd: &[f64; N],
+    _t: f64,
+    _out: &mut [[f64; 3]; POINTS],
+) {}
+
+/// Acceleration a = r̈ of every point of interest (global).
+///
+/// 0 operations, 0 shared subexpressions.
+pub fn point_accelerations(
+    _q: &[f64; N],
+    _qd: &[f64; N],
+    _qdd: &[f64; N],
+    _t: f64,
+    _out: &mut [[f64; 3]; POINTS],
+) {}
+
+/// Angular velocity ω = 2 G(p) ṗ of every moving body (global components), in [`BODY_NAMES`] order.
+///
+/// 30 operations, 0 shared subexpressions.
+pub fn angular_velocities(
+    q: &[f64; N],
+    qd: &[f64; N],
+    _t: f64,
+    out: &mut [[f64; 3]; BODIES],
+) {
+    let [_q0, _q1, q2, q3, q4, q5] = *q;
+    let [_qd0, _qd1, qd2, qd3, qd4, qd5] = *qd;
+    out[0][0] = 2.0 * (q4 * qd5 - q5 * qd4 + (q2 * qd3 - q3 * qd2));
+    out[0][1] = 2.0 * (q5 * qd3 - q3 * qd5 + (q2 * qd4 - q4 * qd2));
+    out[0][2] = 2.0 * (q3 * qd4 - q4 * qd3 + (q2 * qd5 - q5 * qd2));
+}
+
+/// Angular acceleration α = 2 G(p) p̈ of every moving body (global components).
+///
+/// 30 operations, 0 shared subexpressions.
+pub fn angular_accelerations(
+    q: &[f64; N],
+    _qd: &[f64; N],
+    qdd: &[f64; N],
+    _t: f64,
+    out: &mut [[f64; 3]; BODIES],
+) {
+    let [_q0, _q1, q2, q3, q4, q5] = *q;
+    let [_qdd0, _qdd1, qdd2, qdd3, qdd4, qdd5] = *qdd;
+    out[0][0] = 2.0 * (q4 * qdd5 - q5 * qdd4 + (q2 * qdd3 - q3 * qdd2));
+    out[0][1] = 2.0 * (q5 * qdd3 - q3 * qdd5 + (q2 * qdd4 - q4 * qdd2));
+    out[0][2] = 2.0 * (q3 * qdd4 - q4 * qdd3 + (q2 * qdd5 - q5 * qdd2));
+}
+
+/// Coordinates `[x, y, z, e0, e1, e2, e3]` (r and p) of every moving body, fixed and driven ones included.
+///
+/// 1 operations, 0 shared subexpressions.
+pub fn poses(q: &[f64; N], t: f64, out: &mut [[f64; 7]; BODIES]) {
+    let [q0, q1, q2, q3, q4, q5] = *q;
+    out[0][0] = q0;
+    out[0][1] = t + 2.0;
+    out[0][2] = q1;
+    out[0][3] = q2;
+    out[0][4] = q3;
+    out[0][5] = q4;
+    out[0][6] = q5;
+}
+
+/// The translations of [`joint_coordinates`] and, for each angle, x = ref_i·ref_j and y = (ref_i × ref_j)·axis_i with their rates: `[x, ẋ, ẍ, y, ẏ, ÿ]`.
+///
+/// 1 operations, 0 shared subexpressions.
+fn joint_terms(
+    _q: &[f64; N],
+    _qd: &[f64; N],
+    _qdd: &[f64; N],
+    t: f64,
+    out: &mut [[f64; 3]; JOINT_COORDINATES],
+    _terms: &mut [[f64; 6]; 0],
+) {
+    out[0][0] = t + 2.0;
+    out[0][1] = 1.0;
+    out[0][2] = 0.0;
+}
+
+/// Every joint coordinate (in [`JOINT_COORDINATE_NAMES`] order) with its rate and
+/// acceleration: `out[k] = [value, rate, acceleration]`. An angle θ is measured from
+/// ref_i to ref_j, right-handed about axis_i, in (−π, π] (follow it across turns with
+/// `runtime::outputs::unwrap_angle`); a translation is d = (P_j − P_i)·axis_i.
+pub fn joint_coordinates(
+    q: &[f64; N],
+    qd: &[f64; N],
+    qdd: &[f64; N],
+    t: f64,
+    out: &mut [[f64; 3]; JOINT_COORDINATES],
+) {
+    let mut terms = [[0.0; 6]; 0];
+    joint_terms(q, qd, qdd, t, out, &mut terms);
 }
 
 /// The mechanism `prismatic_joint` as a [`runtime::Mechanism`].

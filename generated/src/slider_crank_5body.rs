@@ -26,6 +26,28 @@
 //!     let (q, qd, qdd) = (solver.q(), solver.qd(), solver.qdd());
 //! }
 //! ```
+//!
+//! # Named outputs
+//!
+//! Names are strings in tables (`BODY_NAMES`, `POINT_NAMES`, `JOINT_NAMES`,
+//! `JOINT_COORDINATE_NAMES`, `UNKNOWNS`) with `const fn` lookups (`body`, `point`, `joint`,
+//! `joint_coordinate`, `unknown`): in a `const`, a misspelt name does not compile. Names that
+//! are plain identifiers also have index constants in the submodules of the same names
+//! (`body::CRANK`), which hold nothing else. The accessors read the solver's state:
+//! `point_positions`, `point_velocities`, `point_accelerations` (global r, v, a),
+//! `poses` (r and p), `angular_velocities`, `angular_accelerations` (ω = 2 G ṗ, α = 2 G p̈,
+//! global) and `joint_coordinates` (angle in (−π, π] or translation, with rate and
+//! acceleration); none allocates or panics.
+//!
+//! ```text
+//! let mut points = [[0.0; 3]; slider_crank_5body::POINTS];
+//! slider_crank_5body::point_positions(solver.q(), t, &mut points);
+//! let mut joints = [[0.0; 3]; slider_crank_5body::JOINT_COORDINATES];
+//! slider_crank_5body::joint_coordinates(solver.q(), solver.qd(), solver.qdd(), t, &mut joints);
+//! // A continuous angle across turns, from the previous period's value:
+//! // angle = runtime::outputs::unwrap_angle(angle, joints[k][0]);
+//! let status = runtime::Status::of(&solver.position(t)); // iterations, residual, outcome
+//! ```
 
 /// Number of unknowns (and of equations) of the reduced system.
 pub const N: usize = 28;
@@ -146,6 +168,192 @@ pub const Q0: [f64; N] = [
     -0.00011999999538600026,
     -0.0002499999903875005,
 ];
+
+/// The index of the moving body `name` in [`BODY_NAMES`], for const context: `const K: usize = body("…");` does not compile when no moving body has that name.
+///
+/// # Panics
+///
+/// When no moving body is named `name` (at compile time when used in a const).
+#[must_use]
+pub const fn body(name: &str) -> usize {
+    match runtime::outputs::find(&BODY_NAMES, name) {
+        Some(k) => k,
+        None => panic!("no moving body of that name"),
+    }
+}
+
+/// Index constants of the moving bodies whose names are plain identifiers (ASCII letters, digits and `_`, from a letter; uppercased, `.` read as `_`); every other name is reached through [`super::body`].
+pub mod body {
+    /// Index of the moving body `crank` in [`super::BODY_NAMES`].
+    pub const CRANK: usize = 0;
+    /// Index of the moving body `rod` in [`super::BODY_NAMES`].
+    pub const ROD: usize = 1;
+    /// Index of the moving body `cylinder` in [`super::BODY_NAMES`].
+    pub const CYLINDER: usize = 2;
+    /// Index of the moving body `slider` in [`super::BODY_NAMES`].
+    pub const SLIDER: usize = 3;
+}
+
+/// Number of points of interest.
+pub const POINTS: usize = 1;
+
+/// Name of each point of interest.
+pub const POINT_NAMES: [&str; POINTS] = ["C"];
+
+/// The index of the point of interest `name` in [`POINT_NAMES`], for const context: `const K: usize = point("…");` does not compile when no point of interest has that name.
+///
+/// # Panics
+///
+/// When no point of interest is named `name` (at compile time when used in a const).
+#[must_use]
+pub const fn point(name: &str) -> usize {
+    match runtime::outputs::find(&POINT_NAMES, name) {
+        Some(k) => k,
+        None => panic!("no point of interest of that name"),
+    }
+}
+
+/// Index constants of the points of interest whose names are plain identifiers (ASCII letters, digits and `_`, from a letter; uppercased, `.` read as `_`); every other name is reached through [`super::point`].
+pub mod point {
+    /// Index of the point of interest `C` in [`super::POINT_NAMES`].
+    pub const C: usize = 0;
+}
+
+/// Number of joints.
+pub const JOINTS: usize = 5;
+
+/// Name of each joint.
+pub const JOINT_NAMES: [&str; JOINTS] = ["B", "A", "C_revolute", "C_cylindrical", "D"];
+
+/// The index of the joint `name` in [`JOINT_NAMES`], for const context: `const K: usize = joint("…");` does not compile when no joint has that name.
+///
+/// # Panics
+///
+/// When no joint is named `name` (at compile time when used in a const).
+#[must_use]
+pub const fn joint(name: &str) -> usize {
+    match runtime::outputs::find(&JOINT_NAMES, name) {
+        Some(k) => k,
+        None => panic!("no joint of that name"),
+    }
+}
+
+/// Index constants of the joints whose names are plain identifiers (ASCII letters, digits and `_`, from a letter; uppercased, `.` read as `_`); every other name is reached through [`super::joint`].
+pub mod joint {
+    /// Index of the joint `B` in [`super::JOINT_NAMES`].
+    pub const B: usize = 0;
+    /// Index of the joint `A` in [`super::JOINT_NAMES`].
+    pub const A: usize = 1;
+    /// Index of the joint `C_revolute` in [`super::JOINT_NAMES`].
+    pub const C_REVOLUTE: usize = 2;
+    /// Index of the joint `C_cylindrical` in [`super::JOINT_NAMES`].
+    pub const C_CYLINDRICAL: usize = 3;
+    /// Index of the joint `D` in [`super::JOINT_NAMES`].
+    pub const D: usize = 4;
+}
+
+/// Number of joint coordinates.
+pub const JOINT_COORDINATES: usize = 2;
+
+/// Name of each joint coordinate.
+pub const JOINT_COORDINATE_NAMES: [&str; JOINT_COORDINATES] = [
+    "C_cylindrical.translation",
+    "D.translation",
+];
+
+/// The index of the joint coordinate `name` in [`JOINT_COORDINATE_NAMES`], for const context: `const K: usize = joint_coordinate("…");` does not compile when no joint coordinate has that name.
+///
+/// # Panics
+///
+/// When no joint coordinate is named `name` (at compile time when used in a const).
+#[must_use]
+pub const fn joint_coordinate(name: &str) -> usize {
+    match runtime::outputs::find(&JOINT_COORDINATE_NAMES, name) {
+        Some(k) => k,
+        None => panic!("no joint coordinate of that name"),
+    }
+}
+
+/// Index constants of the joint coordinates whose names are plain identifiers (ASCII letters, digits and `_`, from a letter; uppercased, `.` read as `_`); every other name is reached through [`super::joint_coordinate`].
+pub mod joint_coordinate {
+    /// Index of the joint coordinate `C_cylindrical.translation` in [`super::JOINT_COORDINATE_NAMES`].
+    pub const C_CYLINDRICAL_TRANSLATION: usize = 0;
+    /// Index of the joint coordinate `D.translation` in [`super::JOINT_COORDINATE_NAMES`].
+    pub const D_TRANSLATION: usize = 1;
+}
+
+/// The index of the unknown `name` in [`UNKNOWNS`], for const context: `const K: usize = unknown("…");` does not compile when no unknown has that name.
+///
+/// # Panics
+///
+/// When no unknown is named `name` (at compile time when used in a const).
+#[must_use]
+pub const fn unknown(name: &str) -> usize {
+    match runtime::outputs::find(&UNKNOWNS, name) {
+        Some(k) => k,
+        None => panic!("no unknown of that name"),
+    }
+}
+
+/// Index constants of the unknowns whose names are plain identifiers (ASCII letters, digits and `_`, from a letter; uppercased, `.` read as `_`); every other name is reached through [`super::unknown`].
+pub mod unknown {
+    /// Index of the unknown `crank.x` in [`super::UNKNOWNS`].
+    pub const CRANK_X: usize = 0;
+    /// Index of the unknown `crank.y` in [`super::UNKNOWNS`].
+    pub const CRANK_Y: usize = 1;
+    /// Index of the unknown `crank.z` in [`super::UNKNOWNS`].
+    pub const CRANK_Z: usize = 2;
+    /// Index of the unknown `crank.e0` in [`super::UNKNOWNS`].
+    pub const CRANK_E0: usize = 3;
+    /// Index of the unknown `crank.e1` in [`super::UNKNOWNS`].
+    pub const CRANK_E1: usize = 4;
+    /// Index of the unknown `crank.e2` in [`super::UNKNOWNS`].
+    pub const CRANK_E2: usize = 5;
+    /// Index of the unknown `crank.e3` in [`super::UNKNOWNS`].
+    pub const CRANK_E3: usize = 6;
+    /// Index of the unknown `rod.x` in [`super::UNKNOWNS`].
+    pub const ROD_X: usize = 7;
+    /// Index of the unknown `rod.y` in [`super::UNKNOWNS`].
+    pub const ROD_Y: usize = 8;
+    /// Index of the unknown `rod.z` in [`super::UNKNOWNS`].
+    pub const ROD_Z: usize = 9;
+    /// Index of the unknown `rod.e0` in [`super::UNKNOWNS`].
+    pub const ROD_E0: usize = 10;
+    /// Index of the unknown `rod.e1` in [`super::UNKNOWNS`].
+    pub const ROD_E1: usize = 11;
+    /// Index of the unknown `rod.e2` in [`super::UNKNOWNS`].
+    pub const ROD_E2: usize = 12;
+    /// Index of the unknown `rod.e3` in [`super::UNKNOWNS`].
+    pub const ROD_E3: usize = 13;
+    /// Index of the unknown `cylinder.x` in [`super::UNKNOWNS`].
+    pub const CYLINDER_X: usize = 14;
+    /// Index of the unknown `cylinder.y` in [`super::UNKNOWNS`].
+    pub const CYLINDER_Y: usize = 15;
+    /// Index of the unknown `cylinder.z` in [`super::UNKNOWNS`].
+    pub const CYLINDER_Z: usize = 16;
+    /// Index of the unknown `cylinder.e0` in [`super::UNKNOWNS`].
+    pub const CYLINDER_E0: usize = 17;
+    /// Index of the unknown `cylinder.e1` in [`super::UNKNOWNS`].
+    pub const CYLINDER_E1: usize = 18;
+    /// Index of the unknown `cylinder.e2` in [`super::UNKNOWNS`].
+    pub const CYLINDER_E2: usize = 19;
+    /// Index of the unknown `cylinder.e3` in [`super::UNKNOWNS`].
+    pub const CYLINDER_E3: usize = 20;
+    /// Index of the unknown `slider.x` in [`super::UNKNOWNS`].
+    pub const SLIDER_X: usize = 21;
+    /// Index of the unknown `slider.y` in [`super::UNKNOWNS`].
+    pub const SLIDER_Y: usize = 22;
+    /// Index of the unknown `slider.z` in [`super::UNKNOWNS`].
+    pub const SLIDER_Z: usize = 23;
+    /// Index of the unknown `slider.e0` in [`super::UNKNOWNS`].
+    pub const SLIDER_E0: usize = 24;
+    /// Index of the unknown `slider.e1` in [`super::UNKNOWNS`].
+    pub const SLIDER_E1: usize = 25;
+    /// Index of the unknown `slider.e2` in [`super::UNKNOWNS`].
+    pub const SLIDER_E2: usize = 26;
+    /// Index of the unknown `slider.e3` in [`super::UNKNOWNS`].
+    pub const SLIDER_E3: usize = 27;
+}
 
 /// The `start` of the law of driver "motor".
 pub const LAW_MOTOR_START: f64 = 1.52;
@@ -3707,6 +3915,299 @@ pub fn expand(
     out[3][0][6] = q[27];
     out[3][1][6] = qd[27];
     out[3][2][6] = qdd[27];
+}
+
+/// Position r of every point of interest (global), in [`POINT_NAMES`] order.
+///
+/// 0 operations, 0 shared subexpressions.
+pub fn point_positions(q: &[f64; N], _t: f64, out: &mut [[f64; 3]; POINTS]) {
+    let [_q0, _q1, _q2, _q3, _q4, _q5, _q6, _q7, _q8, _q9, _q10, _q11, _q12, _q13, _q14,
+    _q15, _q16, _q17, _q18, _q19, _q20, q21, q22, q23, _q24, _q25, _q26, _q27] = *q;
+    out[0][0] = q21;
+    out[0][1] = q22;
+    out[0][2] = q23;
+}
+
+/// Velocity v = ṙ of every point of interest (global).
+///
+/// 0 operations, 0 shared subexpressions.
+pub fn point_velocities(
+    _q: &[f64; N],
+    qd: &[f64; N],
+    _t: f64,
+    out: &mut [[f64; 3]; POINTS],
+) {
+    let [_qd0, _qd1, _qd2, _qd3, _qd4, _qd5, _qd6, _qd7, _qd8, _qd9, _qd10, _qd11, _qd12,
+    _qd13, _qd14, _qd15, _qd16, _qd17, _qd18, _qd19, _qd20, qd21, qd22, qd23, _qd24,
+    _qd25, _qd26, _qd27] = *qd;
+    out[0][0] = qd21;
+    out[0][1] = qd22;
+    out[0][2] = qd23;
+}
+
+/// Acceleration a = r̈ of every point of interest (global).
+///
+/// 0 operations, 0 shared subexpressions.
+pub fn point_accelerations(
+    _q: &[f64; N],
+    _qd: &[f64; N],
+    qdd: &[f64; N],
+    _t: f64,
+    out: &mut [[f64; 3]; POINTS],
+) {
+    let [_qdd0, _qdd1, _qdd2, _qdd3, _qdd4, _qdd5, _qdd6, _qdd7, _qdd8, _qdd9, _qdd10,
+    _qdd11, _qdd12, _qdd13, _qdd14, _qdd15, _qdd16, _qdd17, _qdd18, _qdd19, _qdd20,
+    qdd21, qdd22, qdd23, _qdd24, _qdd25, _qdd26, _qdd27] = *qdd;
+    out[0][0] = qdd21;
+    out[0][1] = qdd22;
+    out[0][2] = qdd23;
+}
+
+/// Angular velocity ω = 2 G(p) ṗ of every moving body (global components), in [`BODY_NAMES`] order.
+///
+/// 120 operations, 0 shared subexpressions.
+pub fn angular_velocities(
+    q: &[f64; N],
+    qd: &[f64; N],
+    _t: f64,
+    out: &mut [[f64; 3]; BODIES],
+) {
+    let [_q0, _q1, _q2, q3, q4, q5, q6, _q7, _q8, _q9, q10, q11, q12, q13, _q14, _q15,
+    _q16, q17, q18, q19, q20, _q21, _q22, _q23, q24, q25, q26, q27] = *q;
+    let [_qd0, _qd1, _qd2, qd3, qd4, qd5, qd6, _qd7, _qd8, _qd9, qd10, qd11, qd12, qd13,
+    _qd14, _qd15, _qd16, qd17, qd18, qd19, qd20, _qd21, _qd22, _qd23, qd24, qd25, qd26,
+    qd27] = *qd;
+    out[0][0] = 2.0 * (q5 * qd6 - q6 * qd5 + (q3 * qd4 - q4 * qd3));
+    out[0][1] = 2.0 * (q6 * qd4 - q4 * qd6 + (q3 * qd5 - q5 * qd3));
+    out[0][2] = 2.0 * (q4 * qd5 - q5 * qd4 + (q3 * qd6 - q6 * qd3));
+    out[1][0] = 2.0 * (q12 * qd13 - q13 * qd12 + (q10 * qd11 - q11 * qd10));
+    out[1][1] = 2.0 * (q13 * qd11 - q11 * qd13 + (q10 * qd12 - q12 * qd10));
+    out[1][2] = 2.0 * (q11 * qd12 - q12 * qd11 + (q10 * qd13 - q13 * qd10));
+    out[2][0] = 2.0 * (q19 * qd20 - q20 * qd19 + (q17 * qd18 - q18 * qd17));
+    out[2][1] = 2.0 * (q20 * qd18 - q18 * qd20 + (q17 * qd19 - q19 * qd17));
+    out[2][2] = 2.0 * (q18 * qd19 - q19 * qd18 + (q17 * qd20 - q20 * qd17));
+    out[3][0] = 2.0 * (q26 * qd27 - q27 * qd26 + (q24 * qd25 - q25 * qd24));
+    out[3][1] = 2.0 * (q27 * qd25 - q25 * qd27 + (q24 * qd26 - q26 * qd24));
+    out[3][2] = 2.0 * (q25 * qd26 - q26 * qd25 + (q24 * qd27 - q27 * qd24));
+}
+
+/// Angular acceleration α = 2 G(p) p̈ of every moving body (global components).
+///
+/// 120 operations, 0 shared subexpressions.
+pub fn angular_accelerations(
+    q: &[f64; N],
+    _qd: &[f64; N],
+    qdd: &[f64; N],
+    _t: f64,
+    out: &mut [[f64; 3]; BODIES],
+) {
+    let [_q0, _q1, _q2, q3, q4, q5, q6, _q7, _q8, _q9, q10, q11, q12, q13, _q14, _q15,
+    _q16, q17, q18, q19, q20, _q21, _q22, _q23, q24, q25, q26, q27] = *q;
+    let [_qdd0, _qdd1, _qdd2, qdd3, qdd4, qdd5, qdd6, _qdd7, _qdd8, _qdd9, qdd10, qdd11,
+    qdd12, qdd13, _qdd14, _qdd15, _qdd16, qdd17, qdd18, qdd19, qdd20, _qdd21, _qdd22,
+    _qdd23, qdd24, qdd25, qdd26, qdd27] = *qdd;
+    out[0][0] = 2.0 * (q5 * qdd6 - q6 * qdd5 + (q3 * qdd4 - q4 * qdd3));
+    out[0][1] = 2.0 * (q6 * qdd4 - q4 * qdd6 + (q3 * qdd5 - q5 * qdd3));
+    out[0][2] = 2.0 * (q4 * qdd5 - q5 * qdd4 + (q3 * qdd6 - q6 * qdd3));
+    out[1][0] = 2.0 * (q12 * qdd13 - q13 * qdd12 + (q10 * qdd11 - q11 * qdd10));
+    out[1][1] = 2.0 * (q13 * qdd11 - q11 * qdd13 + (q10 * qdd12 - q12 * qdd10));
+    out[1][2] = 2.0 * (q11 * qdd12 - q12 * qdd11 + (q10 * qdd13 - q13 * qdd10));
+    out[2][0] = 2.0 * (q19 * qdd20 - q20 * qdd19 + (q17 * qdd18 - q18 * qdd17));
+    out[2][1] = 2.0 * (q20 * qdd18 - q18 * qdd20 + (q17 * qdd19 - q19 * qdd17));
+    out[2][2] = 2.0 * (q18 * qdd19 - q19 * qdd18 + (q17 * qdd20 - q20 * qdd17));
+    out[3][0] = 2.0 * (q26 * qdd27 - q27 * qdd26 + (q24 * qdd25 - q25 * qdd24));
+    out[3][1] = 2.0 * (q27 * qdd25 - q25 * qdd27 + (q24 * qdd26 - q26 * qdd24));
+    out[3][2] = 2.0 * (q25 * qdd26 - q26 * qdd25 + (q24 * qdd27 - q27 * qdd24));
+}
+
+/// Coordinates `[x, y, z, e0, e1, e2, e3]` (r and p) of every moving body, fixed and driven ones included.
+///
+/// 0 operations, 0 shared subexpressions.
+pub fn poses(q: &[f64; N], _t: f64, out: &mut [[f64; 7]; BODIES]) {
+    let [q0, q1, q2, q3, q4, q5, q6, q7, q8, q9, q10, q11, q12, q13, q14, q15, q16, q17,
+    q18, q19, q20, q21, q22, q23, q24, q25, q26, q27] = *q;
+    out[0][0] = q0;
+    out[0][1] = q1;
+    out[0][2] = q2;
+    out[0][3] = q3;
+    out[0][4] = q4;
+    out[0][5] = q5;
+    out[0][6] = q6;
+    out[1][0] = q7;
+    out[1][1] = q8;
+    out[1][2] = q9;
+    out[1][3] = q10;
+    out[1][4] = q11;
+    out[1][5] = q12;
+    out[1][6] = q13;
+    out[2][0] = q14;
+    out[2][1] = q15;
+    out[2][2] = q16;
+    out[2][3] = q17;
+    out[2][4] = q18;
+    out[2][5] = q19;
+    out[2][6] = q20;
+    out[3][0] = q21;
+    out[3][1] = q22;
+    out[3][2] = q23;
+    out[3][3] = q24;
+    out[3][4] = q25;
+    out[3][5] = q26;
+    out[3][6] = q27;
+}
+
+/// The translations of [`joint_coordinates`] and, for each angle, x = ref_i·ref_j and y = (ref_i × ref_j)·axis_i with their rates: `[x, ẋ, ẍ, y, ẏ, ÿ]`.
+///
+/// 454 operations, 87 shared subexpressions.
+fn joint_terms(
+    q: &[f64; N],
+    qd: &[f64; N],
+    qdd: &[f64; N],
+    _t: f64,
+    out: &mut [[f64; 3]; JOINT_COORDINATES],
+    _terms: &mut [[f64; 6]; 0],
+) {
+    let [_q0, _q1, _q2, _q3, _q4, _q5, _q6, _q7, _q8, _q9, _q10, _q11, _q12, _q13, q14,
+    q15, q16, q17, q18, q19, q20, q21, q22, q23, q24, q25, q26, q27] = *q;
+    let [_qd0, _qd1, _qd2, _qd3, _qd4, _qd5, _qd6, _qd7, _qd8, _qd9, _qd10, _qd11, _qd12,
+    _qd13, qd14, qd15, qd16, qd17, qd18, qd19, qd20, qd21, qd22, qd23, qd24, qd25, qd26,
+    qd27] = *qd;
+    let [_qdd0, _qdd1, _qdd2, _qdd3, _qdd4, _qdd5, _qdd6, _qdd7, _qdd8, _qdd9, _qdd10,
+    _qdd11, _qdd12, _qdd13, qdd14, qdd15, qdd16, qdd17, qdd18, qdd19, qdd20, qdd21,
+    qdd22, qdd23, qdd24, qdd25, qdd26, qdd27] = *qdd;
+    let t0 = q17 * q17 + q18 * q18 - (q19 * q19 + q20 * q20);
+    let t1 = q18 * q19 + q17 * q20;
+    let t2 = 2.0 * t1;
+    let t3 = q18 * q20 - q17 * q19;
+    let t4 = 2.0 * t3;
+    let t5 = q24 * q24 + q25 * q25 - (q26 * q26 + q27 * q27);
+    let t6 = q25 * q26 + q24 * q27;
+    let t7 = 2.0 * t6;
+    let t8 = q25 * q27 - q24 * q26;
+    let t9 = 2.0 * t8;
+    let t10 = 0.4 * t5 + q21 - (q14 + 0.2 * t0);
+    let t11 = 0.8 * t6 + q22 - (q15 + 0.4 * t1);
+    let t12 = 0.8 * t8 + q23 - (q16 + 0.4 * t3);
+    let t13 = 0.2 - q21;
+    let t14 = q17 + q17;
+    let t15 = q18 + q18;
+    let t16 = q19 + q19;
+    let t17 = q20 + q20;
+    let t18 = 2.0 * q18;
+    let t19 = 2.0 * q20;
+    let t20 = 2.0 * q17;
+    let t21 = 2.0 * q19;
+    let t22 = 2.0 * q26;
+    let t23 = q24 + q24;
+    let t24 = 2.0 * q27;
+    let t25 = q25 + q25;
+    let t26 = 2.0 * q24;
+    let t27 = q26 + q26;
+    let t28 = 2.0 * q25;
+    let t29 = q27 + q27;
+    let t30 = 0.4 * q19;
+    let t31 = 0.4 * q20;
+    let t32 = 0.4 * q17;
+    let t33 = 0.4 * q18;
+    let t34 = 0.8 * q26;
+    let t35 = 0.8 * q27;
+    let t36 = 0.8 * q24;
+    let t37 = 0.8 * q25;
+    let t38 = q17 * qd17;
+    let t39 = q20 * qd20;
+    let t40 = q18 * qd18;
+    let t41 = q19 * qd19;
+    let t42 = qd17 * qd17;
+    let t43 = qd20 * qd20;
+    let t44 = qd18 * qd18;
+    let t45 = qd19 * qd19;
+    let t46 = qd19 * qd18;
+    let t47 = qd20 * qd17;
+    let t48 = qd20 * qd18;
+    let t49 = qd19 * qd17;
+    let t50 = q27 * qd25 + q25 * qd27 - (q26 * qd24 + q24 * qd26);
+    let t51 = 2.0 * t50;
+    let t52 = q24 * qd24;
+    let t53 = q25 * qd25;
+    let t54 = q26 * qd26;
+    let t55 = q27 * qd27;
+    let t56 = t52 + t52 + (t53 + t53) - (t54 + t54 + (t55 + t55));
+    let t57 = q26 * qd25 + q25 * qd26 + (q27 * qd24 + q24 * qd27);
+    let t58 = 2.0 * t57;
+    let t59 = qd25 * qd27;
+    let t60 = qd24 * qd26;
+    let t61 = t59 + t59 - (t60 + t60);
+    let t62 = qd24 * qd24;
+    let t63 = qd25 * qd25;
+    let t64 = qd26 * qd26;
+    let t65 = qd27 * qd27;
+    let t66 = t62 + t62 + (t63 + t63) - (t64 + t64 + (t65 + t65));
+    let t67 = qd25 * qd26;
+    let t68 = qd27 * qd24;
+    let t69 = t67 + t67 + (t68 + t68);
+    let t70 = q20 * qd18 + q18 * qd20 - (q19 * qd17 + q17 * qd19);
+    let t71 = 0.8 * t50 + qd23 - (qd16 + 0.4 * t70);
+    let t72 = t38 + t38 + (t40 + t40) - (t39 + t39 + (t41 + t41));
+    let t73 = 0.4 * t56 + qd21 - (qd14 + 0.2 * t72);
+    let t74 = q19 * qd18 + q18 * qd19 + (q20 * qd17 + q17 * qd20);
+    let t75 = 0.8 * t57 + qd22 - (qd15 + 0.4 * t74);
+    let t76 = t48 + t48 - (t49 + t49);
+    let t77 = t42 + t42 + (t44 + t44) - (t43 + t43 + (t45 + t45));
+    let t78 = t46 + t46 + (t47 + t47);
+    let t79 = 2.0 * t70;
+    let t80 = 2.0 * t74;
+    let t81 = t71 * t79;
+    let t82 = t72 * t73;
+    let t83 = t75 * t80;
+    let t84 = t51 * qd23;
+    let t85 = -(t56 * qd21);
+    let t86 = t58 * qd22;
+    out[0][0] = t4 * t12 + (t0 * t10 + t2 * t11);
+    out[0][1] = t12 * t79 + t4 * t71 + (t10 * t72 + t0 * t73 + (t11 * t80 + t2 * t75));
+    out[0][2] = t81 + t12 * (2.0 * t76) + (t81 + t4 * (0.8 * t61 - 0.4 * t76))
+        + (t82 + t10 * t77 + (t82 + t0 * (0.4 * t66 - 0.2 * t77))
+            + (t83 + t11 * (2.0 * t78) + (t83 + t2 * (0.8 * t69 - 0.4 * t78))))
+        - t0 * qdd14 - t2 * qdd15 - t4 * qdd16
+        + qdd17
+            * (t4 * t30 - t12 * t21
+                + (t10 * t14 - t0 * (0.2 * t14) + (t11 * t19 - t2 * t31)))
+        + qdd18
+            * (t12 * t19 - t4 * t31
+                + (t10 * t15 - t0 * (0.2 * t15) + (t11 * t21 - t2 * t30)))
+        + qdd19
+            * (t4 * t32 - t12 * t20
+                + (t0 * (0.2 * t16) - t10 * t16 + (t11 * t18 - t2 * t33)))
+        + qdd20
+            * (t12 * t18 - t4 * t33
+                + (t0 * (0.2 * t17) - t10 * t17 + (t11 * t20 - t2 * t32))) + t0 * qdd21
+        + t2 * qdd22 + t4 * qdd23 + qdd24 * (t0 * (0.4 * t23) + t2 * t35 - t4 * t34)
+        + qdd25 * (t4 * t35 + (t0 * (0.4 * t25) + t2 * t34))
+        + qdd26 * (t2 * t37 - t0 * (0.4 * t27) - t4 * t36)
+        + qdd27 * (t4 * t37 + (t2 * t36 - t0 * (0.4 * t29)));
+    out[1][0] = t5 * t13 - t7 * q22 - t9 * q23;
+    out[1][1] = t13 * t56 - t5 * qd21 - (q22 * t58 + t7 * qd22)
+        - (q23 * t51 + t9 * qd23);
+    out[1][2] = t85 + (t85 + t13 * t66) - (t86 + (t86 + q22 * (2.0 * t69)))
+        - (t84 + (t84 + q23 * (2.0 * t61))) - t5 * qdd21 - t7 * qdd22 - t9 * qdd23
+        + qdd24 * (q23 * t22 + (t13 * t23 - q22 * t24))
+        + qdd25 * (t13 * t25 - q22 * t22 - q23 * t24)
+        + qdd26 * (q23 * t26 + (-(q22 * t28) - t13 * t27))
+        + qdd27 * (-(q22 * t26) - t13 * t29 - q23 * t28);
+}
+
+/// Every joint coordinate (in [`JOINT_COORDINATE_NAMES`] order) with its rate and
+/// acceleration: `out[k] = [value, rate, acceleration]`. An angle θ is measured from
+/// ref_i to ref_j, right-handed about axis_i, in (−π, π] (follow it across turns with
+/// `runtime::outputs::unwrap_angle`); a translation is d = (P_j − P_i)·axis_i.
+pub fn joint_coordinates(
+    q: &[f64; N],
+    qd: &[f64; N],
+    qdd: &[f64; N],
+    t: f64,
+    out: &mut [[f64; 3]; JOINT_COORDINATES],
+) {
+    let mut terms = [[0.0; 6]; 0];
+    joint_terms(q, qd, qdd, t, out, &mut terms);
 }
 
 /// The mechanism `slider_crank_5body` as a [`runtime::Mechanism`].

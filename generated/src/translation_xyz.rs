@@ -26,6 +26,28 @@
 //!     let (q, qd, qdd) = (solver.q(), solver.qd(), solver.qdd());
 //! }
 //! ```
+//!
+//! # Named outputs
+//!
+//! Names are strings in tables (`BODY_NAMES`, `POINT_NAMES`, `JOINT_NAMES`,
+//! `JOINT_COORDINATE_NAMES`, `UNKNOWNS`) with `const fn` lookups (`body`, `point`, `joint`,
+//! `joint_coordinate`, `unknown`): in a `const`, a misspelt name does not compile. Names that
+//! are plain identifiers also have index constants in the submodules of the same names
+//! (`body::CRANK`), which hold nothing else. The accessors read the solver's state:
+//! `point_positions`, `point_velocities`, `point_accelerations` (global r, v, a),
+//! `poses` (r and p), `angular_velocities`, `angular_accelerations` (ω = 2 G ṗ, α = 2 G p̈,
+//! global) and `joint_coordinates` (angle in (−π, π] or translation, with rate and
+//! acceleration); none allocates or panics.
+//!
+//! ```text
+//! let mut points = [[0.0; 3]; translation_xyz::POINTS];
+//! translation_xyz::point_positions(solver.q(), t, &mut points);
+//! let mut joints = [[0.0; 3]; translation_xyz::JOINT_COORDINATES];
+//! translation_xyz::joint_coordinates(solver.q(), solver.qd(), solver.qdd(), t, &mut joints);
+//! // A continuous angle across turns, from the previous period's value:
+//! // angle = runtime::outputs::unwrap_angle(angle, joints[k][0]);
+//! let status = runtime::Status::of(&solver.position(t)); // iterations, residual, outcome
+//! ```
 
 /// Number of unknowns (and of equations) of the reduced system.
 pub const N: usize = 1;
@@ -59,6 +81,113 @@ pub const MAX_ITERATIONS: u32 = 25;
 
 /// Initial estimates of the unknowns.
 pub const Q0: [f64; N] = [1.0];
+
+/// The index of the moving body `name` in [`BODY_NAMES`], for const context: `const K: usize = body("…");` does not compile when no moving body has that name.
+///
+/// # Panics
+///
+/// When no moving body is named `name` (at compile time when used in a const).
+#[must_use]
+pub const fn body(name: &str) -> usize {
+    match runtime::outputs::find(&BODY_NAMES, name) {
+        Some(k) => k,
+        None => panic!("no moving body of that name"),
+    }
+}
+
+/// Index constants of the moving bodies whose names are plain identifiers (ASCII letters, digits and `_`, from a letter; uppercased, `.` read as `_`); every other name is reached through [`super::body`].
+pub mod body {
+    /// Index of the moving body `block` in [`super::BODY_NAMES`].
+    pub const BLOCK: usize = 0;
+}
+
+/// Number of points of interest.
+pub const POINTS: usize = 1;
+
+/// Name of each point of interest.
+pub const POINT_NAMES: [&str; POINTS] = ["P"];
+
+/// The index of the point of interest `name` in [`POINT_NAMES`], for const context: `const K: usize = point("…");` does not compile when no point of interest has that name.
+///
+/// # Panics
+///
+/// When no point of interest is named `name` (at compile time when used in a const).
+#[must_use]
+pub const fn point(name: &str) -> usize {
+    match runtime::outputs::find(&POINT_NAMES, name) {
+        Some(k) => k,
+        None => panic!("no point of interest of that name"),
+    }
+}
+
+/// Index constants of the points of interest whose names are plain identifiers (ASCII letters, digits and `_`, from a letter; uppercased, `.` read as `_`); every other name is reached through [`super::point`].
+pub mod point {
+    /// Index of the point of interest `P` in [`super::POINT_NAMES`].
+    pub const P: usize = 0;
+}
+
+/// Number of joints.
+pub const JOINTS: usize = 0;
+
+/// Name of each joint.
+pub const JOINT_NAMES: [&str; JOINTS] = [];
+
+/// The index of the joint `name` in [`JOINT_NAMES`], for const context: `const K: usize = joint("…");` does not compile when no joint has that name.
+///
+/// # Panics
+///
+/// When no joint is named `name` (at compile time when used in a const).
+#[must_use]
+pub const fn joint(name: &str) -> usize {
+    match runtime::outputs::find(&JOINT_NAMES, name) {
+        Some(k) => k,
+        None => panic!("no joint of that name"),
+    }
+}
+
+/// Index constants of the joints whose names are plain identifiers (ASCII letters, digits and `_`, from a letter; uppercased, `.` read as `_`); every other name is reached through [`super::joint`].
+pub mod joint {}
+
+/// Number of joint coordinates.
+pub const JOINT_COORDINATES: usize = 0;
+
+/// Name of each joint coordinate.
+pub const JOINT_COORDINATE_NAMES: [&str; JOINT_COORDINATES] = [];
+
+/// The index of the joint coordinate `name` in [`JOINT_COORDINATE_NAMES`], for const context: `const K: usize = joint_coordinate("…");` does not compile when no joint coordinate has that name.
+///
+/// # Panics
+///
+/// When no joint coordinate is named `name` (at compile time when used in a const).
+#[must_use]
+pub const fn joint_coordinate(name: &str) -> usize {
+    match runtime::outputs::find(&JOINT_COORDINATE_NAMES, name) {
+        Some(k) => k,
+        None => panic!("no joint coordinate of that name"),
+    }
+}
+
+/// Index constants of the joint coordinates whose names are plain identifiers (ASCII letters, digits and `_`, from a letter; uppercased, `.` read as `_`); every other name is reached through [`super::joint_coordinate`].
+pub mod joint_coordinate {}
+
+/// The index of the unknown `name` in [`UNKNOWNS`], for const context: `const K: usize = unknown("…");` does not compile when no unknown has that name.
+///
+/// # Panics
+///
+/// When no unknown is named `name` (at compile time when used in a const).
+#[must_use]
+pub const fn unknown(name: &str) -> usize {
+    match runtime::outputs::find(&UNKNOWNS, name) {
+        Some(k) => k,
+        None => panic!("no unknown of that name"),
+    }
+}
+
+/// Index constants of the unknowns whose names are plain identifiers (ASCII letters, digits and `_`, from a letter; uppercased, `.` read as `_`); every other name is reached through [`super::unknown`].
+pub mod unknown {
+    /// Index of the unknown `block.e0` in [`super::UNKNOWNS`].
+    pub const BLOCK_E0: usize = 0;
+}
 
 /// Constraint residuals Φ(q, t), 1 rows.
 ///
@@ -202,6 +331,126 @@ pub fn expand(
     out[0][0][2] = t0;
     out[0][1][2] = 1.0;
     out[0][2][2] = 0.0;
+}
+
+/// Position r of every point of interest (global), in [`POINT_NAMES`] order.
+///
+/// 4 operations, 1 shared subexpressions.
+pub fn point_positions(q: &[f64; N], t: f64, out: &mut [[f64; 3]; POINTS]) {
+    let [q0] = *q;
+    let t0 = t + 1.0 + 2.0 * (q0 * q0);
+    out[0][0] = t0;
+    out[0][1] = t0;
+    out[0][2] = t0;
+}
+
+/// Velocity v = ṙ of every point of interest (global).
+///
+/// 4 operations, 2 shared subexpressions.
+pub fn point_velocities(
+    q: &[f64; N],
+    qd: &[f64; N],
+    _t: f64,
+    out: &mut [[f64; 3]; POINTS],
+) {
+    let [q0] = *q;
+    let [qd0] = *qd;
+    let t0 = q0 * qd0;
+    let t1 = 1.0 + 2.0 * (t0 + t0);
+    out[0][0] = t1;
+    out[0][1] = t1;
+    out[0][2] = t1;
+}
+
+/// Acceleration a = r̈ of every point of interest (global).
+///
+/// 7 operations, 2 shared subexpressions.
+pub fn point_accelerations(
+    q: &[f64; N],
+    qd: &[f64; N],
+    qdd: &[f64; N],
+    _t: f64,
+    out: &mut [[f64; 3]; POINTS],
+) {
+    let [q0] = *q;
+    let [qd0] = *qd;
+    let [qdd0] = *qdd;
+    let t0 = qd0 * qd0;
+    let t1 = 2.0 * (t0 + t0) + 2.0 * (q0 + q0) * qdd0;
+    out[0][0] = t1;
+    out[0][1] = t1;
+    out[0][2] = t1;
+}
+
+/// Angular velocity ω = 2 G(p) ṗ of every moving body (global components), in [`BODY_NAMES`] order.
+///
+/// 0 operations, 0 shared subexpressions.
+pub fn angular_velocities(
+    _q: &[f64; N],
+    _qd: &[f64; N],
+    _t: f64,
+    out: &mut [[f64; 3]; BODIES],
+) {
+    out[0][0] = 0.0;
+    out[0][1] = 0.0;
+    out[0][2] = 0.0;
+}
+
+/// Angular acceleration α = 2 G(p) p̈ of every moving body (global components).
+///
+/// 0 operations, 0 shared subexpressions.
+pub fn angular_accelerations(
+    _q: &[f64; N],
+    _qd: &[f64; N],
+    _qdd: &[f64; N],
+    _t: f64,
+    out: &mut [[f64; 3]; BODIES],
+) {
+    out[0][0] = 0.0;
+    out[0][1] = 0.0;
+    out[0][2] = 0.0;
+}
+
+/// Coordinates `[x, y, z, e0, e1, e2, e3]` (r and p) of every moving body, fixed and driven ones included.
+///
+/// 1 operations, 1 shared subexpressions.
+pub fn poses(q: &[f64; N], t: f64, out: &mut [[f64; 7]; BODIES]) {
+    let [q0] = *q;
+    let t0 = t + 1.0;
+    out[0][0] = t0;
+    out[0][1] = t0;
+    out[0][2] = t0;
+    out[0][3] = q0;
+    out[0][4] = 0.0;
+    out[0][5] = 0.0;
+    out[0][6] = 0.0;
+}
+
+/// The translations of [`joint_coordinates`] and, for each angle, x = ref_i·ref_j and y = (ref_i × ref_j)·axis_i with their rates: `[x, ẋ, ẍ, y, ẏ, ÿ]`.
+///
+/// 0 operations, 0 shared subexpressions.
+fn joint_terms(
+    _q: &[f64; N],
+    _qd: &[f64; N],
+    _qdd: &[f64; N],
+    _t: f64,
+    _out: &mut [[f64; 3]; JOINT_COORDINATES],
+    _terms: &mut [[f64; 6]; 0],
+) {}
+
+/// Every joint coordinate (in [`JOINT_COORDINATE_NAMES`] order) with its rate and
+/// acceleration: `out[k] = [value, rate, acceleration]`. An angle θ is measured from
+/// ref_i to ref_j, right-handed about axis_i, in (−π, π] (follow it across turns with
+/// `runtime::outputs::unwrap_angle`); a translation is d = (P_j − P_i)·axis_i.
+pub fn joint_coordinates(
+    q: &[f64; N],
+    qd: &[f64; N],
+    qdd: &[f64; N],
+    t: f64,
+    out: &mut [[f64; 3]; JOINT_COORDINATES],
+) {
+    let mut terms = [[0.0; 6]; 0];
+    joint_terms(q, qd, qdd, t, out, &mut terms);
 }
 
 /// The mechanism `translation_xyz` as a [`runtime::Mechanism`].

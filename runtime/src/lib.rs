@@ -130,6 +130,7 @@ pub mod lu;
 pub mod math;
 mod mechanism;
 pub mod newton;
+pub mod outputs;
 mod real;
 mod solver;
 pub mod step;
@@ -139,5 +140,6 @@ mod fixtures;
 
 pub use mechanism::Mechanism;
 pub use newton::{NewtonError, NewtonOptions, NewtonReport};
+pub use outputs::{Outcome, Status};
 pub use real::Real;
 pub use solver::{AttemptError, SolveError, Solver, StepReport};

@@ -78,6 +78,9 @@ pub trait Real:
     /// [`Real::cos`].
     #[must_use]
     fn sin_cos(self) -> (Self, Self);
+    /// The angle of the point (x, y) = (`x`, `self`) in (−π, π] (libm's atan2).
+    #[must_use]
+    fn atan2(self, x: Self) -> Self;
     /// The larger of x and y (the other one when one is NaN).
     #[must_use]
     fn max(self, y: Self) -> Self;
@@ -91,7 +94,7 @@ pub trait Real:
 
 /// Implements [`Real`] for a primitive float type with its libm functions and defaults.
 macro_rules! real {
-    ($t:ident, $sqrt:path, $sin:path, $cos:path, $sin_cos:path, $ratio:expr, $tolerance:expr) => {
+    ($t:ident, $sqrt:path, $sin:path, $cos:path, $sin_cos:path, $atan2:path, $ratio:expr, $tolerance:expr) => {
         impl Real for $t {
             const ZERO: Self = 0.0;
             const ONE: Self = 1.0;
@@ -130,6 +133,10 @@ macro_rules! real {
                 $sin_cos(self)
             }
             #[inline]
+            fn atan2(self, x: Self) -> Self {
+                $atan2(self, x)
+            }
+            #[inline]
             fn max(self, y: Self) -> Self {
                 $t::max(self, y)
             }
@@ -146,5 +153,5 @@ macro_rules! real {
     };
 }
 
-real!(f64, libm::sqrt, libm::sin, libm::cos, libm::sincos, 1e-12, 1e-10);
-real!(f32, libm::sqrtf, libm::sinf, libm::cosf, libm::sincosf, 1e-5, 1e-4);
+real!(f64, libm::sqrt, libm::sin, libm::cos, libm::sincos, libm::atan2, 1e-12, 1e-10);
+real!(f32, libm::sqrtf, libm::sinf, libm::cosf, libm::sincosf, libm::atan2f, 1e-5, 1e-4);

@@ -14,6 +14,8 @@ mod hostile;
 #[cfg(test)]
 mod hostile_codegen;
 #[cfg(test)]
+mod named_outputs;
+#[cfg(test)]
 mod random_mechanisms;
 #[cfg(test)]
 mod rssr_reference;

@@ -110,6 +110,7 @@ impl<'p> Body<'p> {
             }
             Node::Var(Var::Q(k)) => (path(ident(&format!("q{k}"))), Prec::Atom),
             Node::Var(Var::Qd(k)) => (path(ident(&format!("qd{k}"))), Prec::Atom),
+            Node::Var(Var::Qdd(k)) => (path(ident(&format!("qdd{k}"))), Prec::Atom),
             Node::Var(Var::T) => (path(ident("t")), Prec::Atom),
             Node::Neg(a) => (neg(at_least(self.render(a), Prec::Unary)), Prec::Unary),
             Node::Add(a, b) => {
@@ -157,9 +158,9 @@ fn destructure(prefix: &str, n: usize, used: &[bool]) -> syn::Stmt {
     parse_quote!(let [#(#names),*] = *#src;)
 }
 
-/// Which symbols the expressions reachable from `roots` use: (q, q̇, t).
-fn symbols(pool: &ExprPool, roots: &[ExprId], n: usize) -> (Vec<bool>, Vec<bool>, bool) {
-    let (mut q, mut qd, mut t) = (vec![false; n], vec![false; n], false);
+/// Which symbols the expressions reachable from `roots` use: (q, q̇, q̈, t).
+fn symbols(pool: &ExprPool, roots: &[ExprId], n: usize) -> ([Vec<bool>; 3], bool) {
+    let (mut q, mut qd, mut qdd, mut t) = (vec![false; n], vec![false; n], vec![false; n], false);
     let mut seen = std::collections::BTreeSet::new();
     let mut stack = roots.to_vec();
     while let Some(x) = stack.pop() {
@@ -169,11 +170,12 @@ fn symbols(pool: &ExprPool, roots: &[ExprId], n: usize) -> (Vec<bool>, Vec<bool>
         match pool[x] {
             Node::Var(Var::Q(k)) => q[k as usize] = true,
             Node::Var(Var::Qd(k)) => qd[k as usize] = true,
+            Node::Var(Var::Qdd(k)) => qdd[k as usize] = true,
             Node::Var(Var::T) => t = true,
             node => stack.extend(node.children()),
         }
     }
-    (q, qd, t)
+    ([q, qd, qdd], t)
 }
 
 /// A function body: destructuring, temporaries, then `target = value;` per output.
@@ -182,6 +184,7 @@ pub(super) struct Function {
     pub(super) uses_t: bool,
     pub(super) uses_q: bool,
     pub(super) uses_qd: bool,
+    pub(super) uses_qdd: bool,
     pub(super) ops: usize,
     pub(super) shared: usize,
 }
@@ -198,11 +201,12 @@ pub(super) fn function(pool: &ExprPool, n: usize, outputs: &Targets) -> Function
 /// `part`: a part of a split function uses few of them.
 fn function_with(pool: &ExprPool, n: usize, outputs: &Targets, part: bool) -> Function {
     let roots: Vec<ExprId> = outputs.iter().map(|(_, e, _)| *e).collect();
-    let (q, qd, t) = symbols(pool, &roots, n);
+    let ([q, qd, qdd], t) = symbols(pool, &roots, n);
     let body = Body::new(pool, &roots);
     let mut stmts = Vec::new();
-    let (uses_q, uses_qd) = (q.iter().any(|&u| u), qd.iter().any(|&u| u));
-    for (prefix, used) in [("q", &q), ("qd", &qd)] {
+    let any = |v: &[bool]| v.iter().any(|&u| u);
+    let (uses_q, uses_qd, uses_qdd) = (any(&q), any(&qd), any(&qdd));
+    for (prefix, used) in [("q", &q), ("qd", &qd), ("qdd", &qdd)] {
         if !used.iter().any(|&u| u) {
             continue;
         }
@@ -226,7 +230,7 @@ fn function_with(pool: &ExprPool, n: usize, outputs: &Targets, part: bool) -> Fu
         let (value, _) = body.render(*e);
         stmts.push(assign(target.clone(), value));
     }
-    Function { stmts, uses_t: t, uses_q, uses_qd, ops: body.ops, shared: body.shared() }
+    Function { stmts, uses_t: t, uses_q, uses_qd, uses_qdd, ops: body.ops, shared: body.shared() }
 }
 
 /// Functions whose outputs take more operations than this are split into helpers of about
@@ -294,6 +298,8 @@ pub(super) struct Signature<'a> {
     pub(super) name: &'a str,
     /// Whether q̇ is a parameter (after q).
     pub(super) qd: bool,
+    /// Whether q̈ is a parameter (after q̇, which it implies).
+    pub(super) qdd: bool,
     /// Whether the function is part of the module's public surface (else only the
     /// `runtime::Mechanism` impl calls it).
     pub(super) public: bool,
@@ -301,17 +307,33 @@ pub(super) struct Signature<'a> {
     pub(super) targets: &'a [(&'a str, proc_macro2::TokenStream)],
 }
 
+/// Which parameters of a [`Signature`] a function body reads or writes.
+pub(super) struct Used<'a> {
+    pub(super) q: bool,
+    pub(super) qd: bool,
+    pub(super) qdd: bool,
+    pub(super) t: bool,
+    /// Per target array.
+    pub(super) arrays: &'a [bool],
+}
+
+impl Used<'_> {
+    fn of<'a>(f: &Function, arrays: &'a [bool]) -> Used<'a> {
+        Used { q: f.uses_q, qd: f.uses_qd, qdd: f.uses_qdd, t: f.uses_t, arrays }
+    }
+}
+
 impl Signature<'_> {
-    /// `fn name(q: &[f64; N], [qd: &[f64; N],] t: f64, targets…)`, each parameter named with a
-    /// leading underscore when it is not used.
+    /// `fn name(q: &[f64; N], [qd: &[f64; N], [qdd: &[f64; N],]] t: f64, targets…)`, each
+    /// parameter named with a leading underscore when it is not used.
     pub(super) fn item(
         &self,
         name: &Ident,
         doc: &str,
-        used: (bool, bool, bool, &[bool]),
+        used: &Used<'_>,
         helper: bool,
     ) -> syn::ItemFn {
-        let (q, qd, t, arrays) = used;
+        let Used { q, qd, qdd, t, arrays } = *used;
         let mut params: Vec<syn::FnArg> = vec![{
             let q = param("q", q);
             parse_quote!(#q: &[f64; N])
@@ -319,6 +341,10 @@ impl Signature<'_> {
         if self.qd {
             let qd = param("qd", qd);
             params.push(parse_quote!(#qd: &[f64; N]));
+        }
+        if self.qdd {
+            let qdd = param("qdd", qdd);
+            params.push(parse_quote!(#qdd: &[f64; N]));
         }
         let t = param("t", t);
         params.push(parse_quote!(#t: f64));
@@ -371,16 +397,14 @@ pub(super) fn emit_function(
     };
     let name = ident(sig.name);
     if groups.len() == 1 {
-        let (f, _) = body(&groups[0]);
-        let written = vec![true; sig.targets.len()];
+        let (f, mut written) = body(&groups[0]);
+        // The prefix (zeroing an array) writes every target it names; assume all.
+        if !prefix.is_empty() {
+            written.fill(true);
+        }
+        let item = sig.item(&name, &doc(f.ops, f.shared), &Used::of(&f, &written), false);
         let mut stmts = prefix;
         stmts.extend(f.stmts);
-        let item = sig.item(
-            &name,
-            &doc(f.ops, f.shared),
-            (f.uses_q, f.uses_qd, f.uses_t, &written),
-            false,
-        );
         return vec![item_fn(item, stmts)];
     }
     let mut items = Vec::new();
@@ -389,6 +413,7 @@ pub(super) fn emit_function(
     let args: Vec<Ident> = ["q"]
         .into_iter()
         .chain(sig.qd.then_some("qd"))
+        .chain(sig.qdd.then_some("qdd"))
         .chain(["t"])
         .chain(sig.targets.iter().map(|(a, _)| *a))
         .map(ident)
@@ -399,7 +424,7 @@ pub(super) fn emit_function(
         shared += f.shared;
         let helper = ident(&format!("{}_{c}", sig.name));
         let doc = format!(" Part {c} of [`{}`]: {} operations.", sig.name, f.ops);
-        let item = sig.item(&helper, &doc, (f.uses_q, f.uses_qd, f.uses_t, &written), true);
+        let item = sig.item(&helper, &doc, &Used::of(&f, &written), true);
         items.push(item_fn(item, f.stmts));
         calls.push(parse_quote!(#helper(#(#args),*);));
     }
@@ -409,7 +434,8 @@ pub(super) fn emit_function(
         groups.len()
     );
     let all = vec![true; sig.targets.len()];
-    let main = sig.item(&name, &doc, (true, true, true, &all), false);
+    let used = Used { q: true, qd: true, qdd: true, t: true, arrays: &all };
+    let main = sig.item(&name, &doc, &used, false);
     items.insert(0, item_fn(main, calls));
     items
 }

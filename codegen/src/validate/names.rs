@@ -36,9 +36,11 @@ const CRATES: [&str; 4] = ["alloc", "core", "runtime", "std"];
 /// Type names the generated module defines (its constants share the value namespace with the
 /// unit struct), and prelude names it uses; `emit` has a test that every constant it emits
 /// is here.
-pub const RESERVED_TYPE_NAMES: [&str; 31] = [
+pub const RESERVED_TYPE_NAMES: [&str; 33] = [
     "N",
     "BODIES",
+    "POINTS",
+    "JOINTS",
     "UNKNOWNS",
     "EQUATIONS",
     "TOLERANCE",

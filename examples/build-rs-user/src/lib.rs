@@ -41,16 +41,19 @@ pub struct Sample {
     pub iterations: u32,
 }
 
-/// The rocker's angle ψ about z and its rate ψ̇ from the unknowns: a rotation about z by ψ
-/// has p = [cos ψ/2, 0, 0, sin ψ/2], so ψ = 2 atan2(e3, e0) and ψ̇ = 2 (e0 ė3 − e3 ė0) for a
-/// unit p.
-fn rocker(q: &[f64; planar_four_bar::N], qd: &[f64; planar_four_bar::N]) -> (f64, f64) {
-    let index = |name: &str| planar_four_bar::UNKNOWNS.iter().position(|u| *u == name);
-    let (Some(e0), Some(e3)) = (index("rocker.e0"), index("rocker.e3")) else {
-        unreachable!("the description has a moving body named rocker")
-    };
-    let angle = 2.0 * q[e3].atan2(q[e0]);
-    (angle, 2.0 * (q[e0] * qd[e3] - q[e3] * qd[e0]))
+/// The rocker's angle ψ from global x (continuous across turns, from `previous`) and its
+/// rate: the angle of joint D, whose references are global x and the rocker's x, read through
+/// the generated accessor by its index constant.
+fn rocker(
+    solver: &Solver<planar_four_bar::PlanarFourBar, { planar_four_bar::N }>,
+    t: f64,
+    previous: Option<f64>,
+) -> (f64, f64) {
+    const D: usize = planar_four_bar::joint_coordinate("D.angle");
+    let mut joints = [[0.0; 3]; planar_four_bar::JOINT_COORDINATES];
+    planar_four_bar::joint_coordinates(solver.q(), solver.qd(), solver.qdd(), t, &mut joints);
+    let [angle, rate, _] = joints[D];
+    (previous.map_or(angle, |p| runtime::outputs::unwrap_angle(p, angle)), rate)
 }
 
 /// A control loop: every `dt` seconds the crank angle advances, the solver returns the
@@ -70,11 +73,13 @@ fn rocker(q: &[f64; planar_four_bar::N], qd: &[f64; planar_four_bar::N]) -> (f64
 pub fn control_loop(periods: usize, dt: f64, mut each: impl FnMut(Sample)) -> Result<(), Stopped> {
     let mut solver = Solver::new(planar_four_bar::PlanarFourBar, planar_four_bar::Q0);
     solver.set_options(NewtonOptions { tolerance: 1e-12, ..NewtonOptions::DEFAULT });
+    let mut previous = None;
     for k in 0..periods {
         let t = k as f64 * dt;
         let report = solver.position(t).map_err(Stopped::Position)?;
         solver.velocity().map_err(Stopped::Velocity)?;
-        let (rocker_angle, rocker_rate) = rocker(solver.q(), solver.qd());
+        let (rocker_angle, rocker_rate) = rocker(&solver, t, previous);
+        previous = Some(rocker_angle);
         each(Sample { t, rocker_angle, rocker_rate, iterations: report.iterations });
     }
     Ok(())
