@@ -218,13 +218,6 @@ pub fn emit(
     which: usize,
 ) -> Vec<syn::Item> {
     let n = order.rows.len();
-    let original = |k: usize, l: usize| -> Option<Val> {
-        let (r, c) = (order.rows[k], order.cols[l]);
-        s[r][c].then(|| match constant[r][c] {
-            Some(v) => Val::Const(v),
-            None => Val::Run(entry("jac", r, c), Prec::Atom),
-        })
-    };
     // The steps i > k whose row has an entry in column k.
     let mut below: Vec<Vec<usize>> = vec![Vec::new(); n];
     for (i, p) in order.pattern.iter().enumerate() {
@@ -232,18 +225,78 @@ pub fn emit(
             below[k].push(i);
         }
     }
-    let mut f =
-        Factored { order, vals: order.pattern.iter().map(|p| vec![None; p.len()]).collect() };
-    let mut fill = 0usize;
-    // a_kl − Σ_m l_km u_ml over the m < min(k, l) where both are non-zero, in ascending m (the
-    // order in which right-looking elimination applies the updates), and whether the value is
-    // that of Φ_q at the same place (`jac` holds it already).
-    let mut eliminated = |f: &Factored<'_>, k: usize, l: usize| -> (Val, bool) {
-        let mut acc = original(k, l);
-        fill += usize::from(acc.is_none());
+    let mut z = Factorizer {
+        order,
+        s,
+        constant,
+        which,
+        f: Factored { order, vals: order.pattern.iter().map(|p| vec![None; p.len()]).collect() },
+        fill: 0,
+        stored: 0,
+        parts: Vec::new(),
+        part: Part::default(),
+        part_ops: 0,
+        total_ops: 0,
+        run_entries: Vec::new(),
+    };
+    for (k, below_k) in below.iter().enumerate() {
+        let first = z.part.stmts.len();
+        z.row_of_u(k);
+        let (p, d) = z.pivot(k);
+        let mut checks = Vec::new();
+        if matches!(p, Val::Run(..)) {
+            let pn = ident(&format!("p{k}"));
+            checks.push(parse_quote!(#pn.is_finite()));
+        }
+        z.column_of_l(k, below_k, &d, &mut checks);
+        z.guard(checks);
+        z.track_pivot(k, &p);
+        z.close_step(k, n, first);
+    }
+    let mut items = z.functions();
+    items.extend(emit_solve(&z.f, which));
+    items
+}
+
+/// The state of one order's factorisation while its statements are written: the values of L
+/// and U so far, the parts (functions) written and the counts their docs report.
+struct Factorizer<'a> {
+    order: &'a Order,
+    s: &'a [Vec<bool>],
+    constant: &'a [Vec<Option<f64>>],
+    which: usize,
+    f: Factored<'a>,
+    /// Fill-in entries met.
+    fill: usize,
+    /// Values stored into `jac`.
+    stored: usize,
+    parts: Vec<Vec<syn::Stmt>>,
+    part: Part,
+    part_ops: usize,
+    total_ops: usize,
+    /// The entries computed at run time so far, read back from `jac` after a boundary.
+    run_entries: Vec<(usize, usize)>,
+}
+
+impl Factorizer<'_> {
+    /// Entry (k, l) of the permuted Φ_q: a constant, a read of `jac`, or absent.
+    fn original(&self, k: usize, l: usize) -> Option<Val> {
+        let (r, c) = (self.order.rows[k], self.order.cols[l]);
+        self.s[r][c].then(|| match self.constant[r][c] {
+            Some(v) => Val::Const(v),
+            None => Val::Run(entry("jac", r, c), Prec::Atom),
+        })
+    }
+
+    /// a_kl − Σ_m l_km u_ml over the m < min(k, l) where both are non-zero, in ascending m (the
+    /// order in which right-looking elimination applies the updates), and whether the value is
+    /// that of Φ_q at the same place (`jac` holds it already).
+    fn eliminated(&mut self, k: usize, l: usize) -> (Val, bool) {
+        let mut acc = self.original(k, l);
+        self.fill += usize::from(acc.is_none());
         let mut kept = true;
-        for &m in order.pattern[k].iter().take_while(|&&m| m < k.min(l)) {
-            let (Some(lkm), Some(uml)) = (f.get(k, m), f.get(m, l)) else { continue };
+        for &m in self.order.pattern[k].iter().take_while(|&&m| m < k.min(l)) {
+            let (Some(lkm), Some(uml)) = (self.f.get(k, m), self.f.get(m, l)) else { continue };
             let term = lkm.mul(uml);
             kept = false;
             acc = Some(match acc {
@@ -253,106 +306,123 @@ pub fn emit(
             });
         }
         (acc.expect("an entry of the pattern is original or filled"), kept)
-    };
-    let bind = |stmts: &mut Vec<syn::Stmt>, name: Ident, v: Val| -> Val {
+    }
+
+    /// `v` bound to `name` when it is computed at run time.
+    fn bind(&mut self, name: Ident, v: Val) -> Val {
         match v {
             Val::Const(_) => v,
             Val::Run(..) => {
                 let e = v.expr(Prec::Sum);
-                stmts.push(let_stmt(name.clone(), e));
+                self.part.stmts.push(let_stmt(name.clone(), e));
                 Val::Run(path(name), Prec::Atom)
             }
         }
-    };
-    // Each value computed at run time is stored as soon as it is known, so that it need not
-    // stay in a register (or be spilled) until the end; no entry is read after its own place
-    // has been written.
-    let mut stored = 0usize;
-    let mut store = |stmts: &mut Vec<syn::Stmt>, k: usize, l: usize, v: &Val| {
+    }
+
+    /// Stores a run-time value into its place (k, l) of `jac` as soon as it is known, so that
+    /// it need not stay in a register (or be spilled) until the end; no entry is read after
+    /// its own place has been written.
+    fn store(&mut self, k: usize, l: usize, v: &Val) {
         if let Val::Run(e, _) = v {
-            let target = entry("jac", order.rows[k], order.cols[l]);
-            stmts.push(assign(target, e.clone()));
-            stored += 1;
+            let target = entry("jac", self.order.rows[k], self.order.cols[l]);
+            self.part.stmts.push(assign(target, e.clone()));
+            self.stored += 1;
         }
-    };
-    let mut parts: Vec<Vec<syn::Stmt>> = Vec::new();
-    let mut part = Part::default();
-    let mut part_ops = 0usize;
-    let mut total_ops = 0usize;
-    // The entries computed at run time so far, read back from `jac` after a boundary.
-    let mut run_entries: Vec<(usize, usize)> = Vec::new();
-    for (k, below_k) in below.iter().enumerate() {
-        let first = part.stmts.len();
-        // Row k of U (right of the pivot), then the pivot, then column k of L: every entry
-        // read has been computed at an earlier step.
-        for &l in order.pattern[k].iter().filter(|&&l| l > k) {
-            let (v, kept) = eliminated(&f, k, l);
-            // An entry read unchanged is read where it is used (and not stored).
-            let v = if kept {
-                v
-            } else {
-                let v = bind(&mut part.stmts, local(k, l), v);
-                store(&mut part.stmts, k, l, &v);
-                v
-            };
-            if matches!(v, Val::Run(..)) {
-                run_entries.push((k, l));
-            }
-            f.set(k, l, v);
+    }
+
+    /// `v` bound and stored at (k, l) unless `kept` (an entry read unchanged is read where it
+    /// is used and not stored); a run-time result is remembered for part boundaries.
+    fn settle(&mut self, k: usize, l: usize, v: Val, kept: bool) -> Val {
+        let v = if kept {
+            v
+        } else {
+            let v = self.bind(local(k, l), v);
+            self.store(k, l, &v);
+            v
+        };
+        if matches!(v, Val::Run(..)) {
+            self.run_entries.push((k, l));
         }
-        let (p, _) = eliminated(&f, k, k);
-        let mut checks: Vec<Expr> = Vec::new();
+        v
+    }
+
+    /// Row k of U, right of the pivot: every entry read has been computed at an earlier step.
+    fn row_of_u(&mut self, k: usize) {
+        for &l in self.order.pattern[k].iter().filter(|&&l| l > k) {
+            let (v, kept) = self.eliminated(k, l);
+            let v = self.settle(k, l, v, kept);
+            self.f.set(k, l, v);
+        }
+    }
+
+    /// The pivot p of step k and the reciprocal d = 1/p the diagonal holds.
+    fn pivot(&mut self, k: usize) -> (Val, Val) {
+        let (p, _) = self.eliminated(k, k);
         let d = match &p {
             Val::Const(c) => {
-                assert!(c.is_finite() && *c != 0.0, "constant pivot {c} in order {which}");
+                assert!(c.is_finite() && *c != 0.0, "constant pivot {c} in order {}", self.which);
                 Val::Const(1.0 / c)
             }
             Val::Run(..) => {
-                let pn = ident(&format!("p{k}"));
-                let pivot = bind(&mut part.stmts, pn.clone(), p.clone());
-                checks.push(parse_quote!(#pn.is_finite()));
-                // The diagonal holds the reciprocal of the pivot.
-                let d = bind(&mut part.stmts, local(k, k), Val::Const(1.0).div(&pivot));
-                store(&mut part.stmts, k, k, &d);
-                run_entries.push((k, k));
+                let pivot = self.bind(ident(&format!("p{k}")), p.clone());
+                let d = self.bind(local(k, k), Val::Const(1.0).div(&pivot));
+                self.store(k, k, &d);
+                self.run_entries.push((k, k));
                 d
             }
         };
-        f.set(k, k, d.clone());
+        self.f.set(k, k, d.clone());
+        (p, d)
+    }
+
+    /// Column k of L below the pivot (times the reciprocal `d`), with the multiplier guards
+    /// of the run-time entries added to `checks`.
+    fn column_of_l(&mut self, k: usize, below_k: &[usize], d: &Val, checks: &mut Vec<Expr>) {
         for &i in below_k {
-            let (v, kept) = eliminated(&f, i, k);
-            let kept = kept && matches!(d, Val::Const(c) if c == 1.0);
-            let v = v.mul(&d);
+            let (v, kept) = self.eliminated(i, k);
+            let kept = kept && matches!(d, Val::Const(c) if *c == 1.0);
+            let v = v.mul(d);
             let v = if kept {
                 v
             } else {
-                let v = bind(&mut part.stmts, local(i, k), v);
-                store(&mut part.stmts, i, k, &v);
+                let v = self.bind(local(i, k), v);
+                self.store(i, k, &v);
                 v
             };
             match &v {
                 Val::Const(c) => assert!(
                     c.abs() <= RUNTIME_MAX_MULTIPLIER,
-                    "constant multiplier {c} in order {which}"
+                    "constant multiplier {c} in order {}",
+                    self.which
                 ),
                 Val::Run(e, _) => {
                     checks.push(parse_quote!(#e.abs() <= runtime::lu::MAX_MULTIPLIER));
-                    run_entries.push((i, k));
+                    self.run_entries.push((i, k));
                 }
             }
-            f.set(i, k, v);
+            self.f.set(i, k, v);
         }
+    }
+
+    /// `if !(checks…) { return None; }` when there is anything to check.
+    fn guard(&mut self, checks: Vec<Expr>) {
         if let Some(ok) =
             checks.into_iter().reduce(|a, b| binary(a, syn::BinOp::And(Default::default()), b))
         {
             let ok = if matches!(ok, Expr::Binary(_)) { paren(ok) } else { ok };
-            part.stmts.push(parse_quote! {
+            self.part.stmts.push(parse_quote! {
                 if !#ok {
                     return None;
                 }
             });
         }
-        match &p {
+    }
+
+    /// Folds pivot p of step k into the part's extremes (known ones now, run-time ones in code).
+    fn track_pivot(&mut self, k: usize, p: &Val) {
+        let part = &mut self.part;
+        match p {
             Val::Const(c) => {
                 let c = c.abs();
                 part.known_pivots =
@@ -369,46 +439,58 @@ pub fn emit(
                 }
             }
         }
-        let ops = operations(&part.stmts[first..]);
-        part_ops += ops;
-        total_ops += ops;
-        if part_ops > CHUNK_OPS && k + 1 < n {
-            // A new part reads the values of this one where they are stored.
-            parts.push(std::mem::take(&mut part).finish());
-            part_ops = 0;
-            for &(a, b) in &run_entries {
-                let p = f.slot(a, b);
-                f.vals[a][p] =
-                    Some(Val::Run(entry("jac", order.rows[a], order.cols[b]), Prec::Atom));
+    }
+
+    /// Counts step k's operations (from statement `first` of the part) and starts a new part
+    /// when this one is long: the new part reads the values of this one where they are stored.
+    fn close_step(&mut self, k: usize, n: usize, first: usize) {
+        let ops = operations(&self.part.stmts[first..]);
+        self.part_ops += ops;
+        self.total_ops += ops;
+        if self.part_ops > CHUNK_OPS && k + 1 < n {
+            self.parts.push(std::mem::take(&mut self.part).finish());
+            self.part_ops = 0;
+            for &(a, b) in &self.run_entries {
+                let p = self.f.slot(a, b);
+                self.f.vals[a][p] = Some(Val::Run(
+                    entry("jac", self.order.rows[a], self.order.cols[b]),
+                    Prec::Atom,
+                ));
             }
         }
     }
-    parts.push(part.finish());
-    let name = ident(&format!("factor_{which}"));
-    let nnz = order.entries();
-    let run_time = f.vals.iter().flatten().filter(|v| matches!(v, Some(Val::Run(..)))).count();
-    let stored = stored;
-    let known = nnz - run_time;
-    let rows = list(&order.rows);
-    let cols = list(&order.cols);
-    let mut doc = format!(
-        " Factors Φ_q in place with static pivot order {which}: step k pivots on row `[{rows}][k]` and column `[{cols}][k]`.\n\n L and U have {nnz} entries ({fill} of them fill-in, {known} known when generated); {total_ops} operations. The others are in `jac`: {stored} stored there, with the reciprocals of the pivots on the diagonal, and {} left as Φ_q had them.\n\n Returns the smallest and largest |pivot|, or `None` when a pivot is not finite or a multiplier exceeds [`runtime::lu::MAX_MULTIPLIER`] in magnitude; `jac` is then partly factored and must be evaluated again.",
-        run_time - stored
-    );
-    let mut items = Vec::new();
-    if parts.len() == 1 {
-        let item: syn::ItemFn = parse_quote! {
-            #[doc = #doc]
-            #[must_use]
-            fn #name(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {}
-        };
-        items.push(item_fn(item, parts.pop().expect("one part")));
-    } else {
+
+    /// `factor_{which}` (and its helpers when split), with its doc.
+    fn functions(&mut self) -> Vec<syn::Item> {
+        self.parts.push(std::mem::take(&mut self.part).finish());
+        let which = self.which;
+        let name = ident(&format!("factor_{which}"));
+        let nnz = self.order.entries();
+        let run_time =
+            self.f.vals.iter().flatten().filter(|v| matches!(v, Some(Val::Run(..)))).count();
+        let (fill, stored, total_ops) = (self.fill, self.stored, self.total_ops);
+        let known = nnz - run_time;
+        let rows = list(&self.order.rows);
+        let cols = list(&self.order.cols);
+        let mut doc = format!(
+            " Factors Φ_q in place with static pivot order {which}: step k pivots on row `[{rows}][k]` and column `[{cols}][k]`.\n\n L and U have {nnz} entries ({fill} of them fill-in, {known} known when generated); {total_ops} operations. The others are in `jac`: {stored} stored there, with the reciprocals of the pivots on the diagonal, and {} left as Φ_q had them.\n\n Returns the smallest and largest |pivot|, or `None` when a pivot is not finite or a multiplier exceeds [`runtime::lu::MAX_MULTIPLIER`] in magnitude; `jac` is then partly factored and must be evaluated again.",
+            run_time - stored
+        );
+        let mut parts = std::mem::take(&mut self.parts);
+        if parts.len() == 1 {
+            let item: syn::ItemFn = parse_quote! {
+                #[doc = #doc]
+                #[must_use]
+                fn #name(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {}
+            };
+            return vec![item_fn(item, parts.pop().expect("one part"))];
+        }
         doc.push_str(&format!(
             "\n\n Split into {} functions of at most about {} operations each.",
             parts.len(),
             CHUNK_OPS
         ));
+        let mut items = Vec::new();
         let mut calls: Vec<syn::Stmt> = Vec::new();
         let names: Vec<Ident> = (0..parts.len()).map(|c| ident(&format!("p{c}"))).collect();
         for (c, stmts) in parts.into_iter().enumerate() {
@@ -423,92 +505,32 @@ pub fn emit(
             let p = &names[c];
             calls.push(parse_quote!(let #p = #helper(jac)?;));
         }
-        let (first, rest) = names.split_first().expect("several parts");
-        let smallest = rest
-            .iter()
-            .fold(quote::quote!(#first.smallest), |a, p| quote::quote!(#a.min(#p.smallest)));
-        let largest = rest
-            .iter()
-            .fold(quote::quote!(#first.largest), |a, p| quote::quote!(#a.max(#p.largest)));
-        calls.push(syn::Stmt::Expr(
-            parse_quote!(Some(runtime::lu::PivotInfo { smallest: #smallest, largest: #largest })),
-            None,
-        ));
+        calls.push(syn::Stmt::Expr(extremes(&names), None));
         let item: syn::ItemFn = parse_quote! {
             #[doc = #doc]
             #[must_use]
             fn #name(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {}
         };
         items.insert(0, item_fn(item, calls));
+        items
     }
-    items.extend(emit_solve(&f, which));
-    items
+}
+
+/// `Some(PivotInfo { smallest, largest })` over the parts' results `names`.
+fn extremes(names: &[Ident]) -> Expr {
+    let (first, rest) = names.split_first().expect("several parts");
+    let smallest =
+        rest.iter().fold(quote::quote!(#first.smallest), |a, p| quote::quote!(#a.min(#p.smallest)));
+    let largest =
+        rest.iter().fold(quote::quote!(#first.largest), |a, p| quote::quote!(#a.max(#p.largest)));
+    parse_quote!(Some(runtime::lu::PivotInfo { smallest: #smallest, largest: #largest }))
 }
 
 /// `solve_{which}` for the factors `f`: y = L⁻¹ P b, then x = Q U⁻¹ y, with the factors known
 /// when generated as literals; split into helpers sharing a scratch array when long.
 fn emit_solve(f: &Factored<'_>, which: usize) -> Vec<syn::Item> {
-    let order = f.order;
-    let n = order.rows.len();
-    let stored_val = |k: usize, l: usize| -> Val {
-        match f.get(k, l).expect("in the pattern") {
-            Val::Const(c) => Val::Const(*c),
-            Val::Run(..) => Val::Run(entry("lu", order.rows[k], order.cols[l]), Prec::Atom),
-        }
-    };
-    // The statements of each step (forward, backward, then the writes) and whether they use
-    // `b`, with y_k and x_k in locals, or in `y[k]` when `split`.
-    let steps = |split: bool| -> Vec<(Vec<syn::Stmt>, bool)> {
-        let named = |prefix: &str, k: usize| -> Val {
-            if split {
-                Val::Run(element("y", &[k]), Prec::Atom)
-            } else {
-                Val::Run(path(ident(&format!("{prefix}{k}"))), Prec::Atom)
-            }
-        };
-        // In the split form, x_k = y_k (a unit diagonal without off-diagonal terms) leaves
-        // `y[k]` as it is: no statement.
-        let define = |prefix: &str, k: usize, e: Expr| -> Vec<syn::Stmt> {
-            if split {
-                use quote::ToTokens;
-                let target = element("y", &[k]);
-                if e.to_token_stream().to_string() == target.to_token_stream().to_string() {
-                    return Vec::new();
-                }
-                vec![assign(target, e)]
-            } else {
-                vec![let_stmt(ident(&format!("{prefix}{k}")), e)]
-            }
-        };
-        let mut out = Vec::with_capacity(2 * n + 1);
-        for k in 0..n {
-            let mut v = Val::Run(element("b", &[order.rows[k]]), Prec::Atom);
-            for &l in order.pattern[k].iter().filter(|&&l| l < k) {
-                v = v.minus(&stored_val(k, l).mul(&named("y", l)));
-            }
-            out.push((define("y", k, v.into_expr(Prec::Sum)), true));
-        }
-        for k in (0..n).rev() {
-            let mut v = named("y", k);
-            for &l in order.pattern[k].iter().filter(|&&l| l > k) {
-                v = v.minus(&stored_val(k, l).mul(&named("x", l)));
-            }
-            let v = v.mul(&stored_val(k, k));
-            out.push((define("x", k, v.into_expr(Prec::Sum)), false));
-        }
-        out.push((
-            (0..n)
-                .map(|k| {
-                    let x = named("x", k).expr(Prec::Atom);
-                    assign(element("b", &[order.cols[k]]), x)
-                })
-                .collect(),
-            true,
-        ));
-        out
-    };
     let name = ident(&format!("solve_{which}"));
-    let split = steps(true);
+    let split = solve_steps(f, true);
     let counts: Vec<usize> =
         split.iter().map(|(s, _)| s.iter().map(assigned_operations).sum()).collect();
     let ops: usize = counts.iter().sum();
@@ -520,7 +542,7 @@ fn emit_solve(f: &Factored<'_>, which: usize) -> Vec<syn::Item> {
             #[doc = #doc]
             fn #name(lu: &[[f64; N]; N], b: &mut [f64; N]) {}
         };
-        let unsplit = steps(false).into_iter().flat_map(|(s, _)| s).collect();
+        let unsplit = solve_steps(f, false).into_iter().flat_map(|(s, _)| s).collect();
         return vec![item_fn(item, unsplit)];
     }
     let mut parts: Vec<(Vec<syn::Stmt>, bool)> = vec![(Vec::new(), false)];
@@ -535,6 +557,72 @@ fn emit_solve(f: &Factored<'_>, which: usize) -> Vec<syn::Item> {
         last.0.extend(step);
         last.1 |= uses_b;
     }
+    split_solve(&name, &doc, which, parts)
+}
+
+/// The statements of each step of the solve with the factors `f` (forward, backward, then
+/// the writes) and whether they use `b`, with y_k and x_k in locals, or in `y[k]` when `split`.
+fn solve_steps(f: &Factored<'_>, split: bool) -> Vec<(Vec<syn::Stmt>, bool)> {
+    let order = f.order;
+    let n = order.rows.len();
+    let stored_val = |k: usize, l: usize| -> Val {
+        match f.get(k, l).expect("in the pattern") {
+            Val::Const(c) => Val::Const(*c),
+            Val::Run(..) => Val::Run(entry("lu", order.rows[k], order.cols[l]), Prec::Atom),
+        }
+    };
+    let named = |prefix: &str, k: usize| -> Val {
+        if split {
+            Val::Run(element("y", &[k]), Prec::Atom)
+        } else {
+            Val::Run(path(ident(&format!("{prefix}{k}"))), Prec::Atom)
+        }
+    };
+    // In the split form, x_k = y_k (a unit diagonal without off-diagonal terms) leaves `y[k]`
+    // as it is: no statement.
+    let define = |prefix: &str, k: usize, e: Expr| -> Vec<syn::Stmt> {
+        if split {
+            use quote::ToTokens;
+            let target = element("y", &[k]);
+            if e.to_token_stream().to_string() == target.to_token_stream().to_string() {
+                return Vec::new();
+            }
+            vec![assign(target, e)]
+        } else {
+            vec![let_stmt(ident(&format!("{prefix}{k}")), e)]
+        }
+    };
+    let mut out = Vec::with_capacity(2 * n + 1);
+    for k in 0..n {
+        let mut v = Val::Run(element("b", &[order.rows[k]]), Prec::Atom);
+        for &l in order.pattern[k].iter().filter(|&&l| l < k) {
+            v = v.minus(&stored_val(k, l).mul(&named("y", l)));
+        }
+        out.push((define("y", k, v.into_expr(Prec::Sum)), true));
+    }
+    for k in (0..n).rev() {
+        let mut v = named("y", k);
+        for &l in order.pattern[k].iter().filter(|&&l| l > k) {
+            v = v.minus(&stored_val(k, l).mul(&named("x", l)));
+        }
+        let v = v.mul(&stored_val(k, k));
+        out.push((define("x", k, v.into_expr(Prec::Sum)), false));
+    }
+    let writes = (0..n)
+        .map(|k| assign(element("b", &[order.cols[k]]), named("x", k).expr(Prec::Atom)))
+        .collect();
+    out.push((writes, true));
+    out
+}
+
+/// `solve_{which}` (`name`, with `doc`) calling one helper per part of `parts` (statements,
+/// and whether they use `b`), which share a scratch array `y`.
+fn split_solve(
+    name: &Ident,
+    doc: &str,
+    which: usize,
+    parts: Vec<(Vec<syn::Stmt>, bool)>,
+) -> Vec<syn::Item> {
     let mut items = Vec::new();
     let mut calls: Vec<syn::Stmt> = vec![parse_quote!(let mut y = [0.0; N];)];
     let count = parts.len();

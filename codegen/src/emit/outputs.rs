@@ -169,6 +169,51 @@ fn submodule(t: &Table) -> syn::Item {
     }
 }
 
+/// The accessors of points and bodies: (function, count, derivative order, needs q̇, needs q̈,
+/// doc).
+const KINDS: [(&str, &str, usize, bool, bool, &str); 5] = [
+    (
+        "point_positions",
+        "POINTS",
+        0,
+        false,
+        false,
+        "Position r of every point of interest (global), in [`POINT_NAMES`] order.",
+    ),
+    (
+        "point_velocities",
+        "POINTS",
+        1,
+        true,
+        false,
+        "Velocity v = ṙ of every point of interest (global).",
+    ),
+    (
+        "point_accelerations",
+        "POINTS",
+        2,
+        true,
+        true,
+        "Acceleration a = r̈ of every point of interest (global).",
+    ),
+    (
+        "angular_velocities",
+        "BODIES",
+        0,
+        true,
+        false,
+        "Angular velocity ω = 2 G(p) ṗ of every moving body (global components), in [`BODY_NAMES`] order.",
+    ),
+    (
+        "angular_accelerations",
+        "BODIES",
+        1,
+        true,
+        true,
+        "Angular acceleration α = 2 G(p) p̈ of every moving body (global components).",
+    ),
+];
+
 /// The accessor functions.
 pub(super) fn accessors(rows: &Rows<'_>, outputs: &Outputs) -> Vec<syn::Item> {
     let v3 = |count: &str| {
@@ -190,49 +235,7 @@ pub(super) fn accessors(rows: &Rows<'_>, outputs: &Outputs) -> Vec<syn::Item> {
             .collect::<Vec<_>>()
     };
     let mut items = Vec::new();
-    let kinds: [(&str, &str, usize, bool, bool, &str); 5] = [
-        (
-            "point_positions",
-            "POINTS",
-            0,
-            false,
-            false,
-            "Position r of every point of interest (global), in [`POINT_NAMES`] order.",
-        ),
-        (
-            "point_velocities",
-            "POINTS",
-            1,
-            true,
-            false,
-            "Velocity v = ṙ of every point of interest (global).",
-        ),
-        (
-            "point_accelerations",
-            "POINTS",
-            2,
-            true,
-            true,
-            "Acceleration a = r̈ of every point of interest (global).",
-        ),
-        (
-            "angular_velocities",
-            "BODIES",
-            0,
-            true,
-            false,
-            "Angular velocity ω = 2 G(p) ṗ of every moving body (global components), in [`BODY_NAMES`] order.",
-        ),
-        (
-            "angular_accelerations",
-            "BODIES",
-            1,
-            true,
-            true,
-            "Angular acceleration α = 2 G(p) p̈ of every moving body (global components).",
-        ),
-    ];
-    for (name, count, order, qd, qdd, what) in kinds {
+    for (name, count, order, qd, qdd, what) in KINDS {
         let targets = [("out", v3(count))];
         let sig = Signature { name, qd, qdd, public: true, targets: &targets };
         let values: Vec<_> = if count == "POINTS" {
@@ -242,6 +245,13 @@ pub(super) fn accessors(rows: &Rows<'_>, outputs: &Outputs) -> Vec<syn::Item> {
         };
         items.extend(rows.emit(&sig, what, Vec::new(), &values));
     }
+    items.extend(poses(rows, outputs));
+    items.extend(joint_coordinates(rows, outputs));
+    items
+}
+
+/// `poses`: r and p of every moving body, fixed and driven ones included.
+fn poses(rows: &Rows<'_>, outputs: &Outputs) -> Vec<syn::Item> {
     let poses: Vec<Output> = outputs
         .poses
         .iter()
@@ -259,9 +269,7 @@ pub(super) fn accessors(rows: &Rows<'_>, outputs: &Outputs) -> Vec<syn::Item> {
     let targets = [("out", quote::quote!(&mut [[f64; 7]; BODIES]))];
     let sig = Signature { name: "poses", qd: false, qdd: false, public: true, targets: &targets };
     let what = "Coordinates `[x, y, z, e0, e1, e2, e3]` (r and p) of every moving body, fixed and driven ones included.";
-    items.extend(rows.emit(&sig, what, Vec::new(), &poses));
-    items.extend(joint_coordinates(rows, outputs));
-    items
+    rows.emit(&sig, what, Vec::new(), &poses)
 }
 
 /// `joint_coordinates` (public) over `joint_terms` (the polynomial parts).
