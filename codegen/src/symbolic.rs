@@ -880,6 +880,14 @@ fn independent(rows: &[Vec<(usize, f64)>], n: usize, first: &[bool]) -> BTreeSet
 
 /// The unknowns q_k an expression depends on, in increasing k.
 fn q_vars(pool: &ExprPool, e: ExprId) -> BTreeSet<u32> {
+    vars_of(pool, e, |v| match v {
+        Var::Q(k) => Some(k),
+        _ => None,
+    })
+}
+
+/// The indices `pick` returns for the variables an expression depends on, in increasing order.
+fn vars_of(pool: &ExprPool, e: ExprId, pick: impl Fn(Var) -> Option<u32>) -> BTreeSet<u32> {
     let mut seen = vec![false; e.index() + 1];
     let mut stack = vec![e];
     let mut vars = BTreeSet::new();
@@ -888,9 +896,7 @@ fn q_vars(pool: &ExprPool, e: ExprId) -> BTreeSet<u32> {
             continue;
         }
         match pool[x] {
-            Node::Var(Var::Q(k)) => {
-                vars.insert(k);
-            }
+            Node::Var(v) => vars.extend(pick(v)),
             node => stack.extend(node.children()),
         }
     }

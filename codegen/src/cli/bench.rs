@@ -5,7 +5,7 @@ use std::path::Path;
 
 use super::args::{BenchEngine, CheckFormat};
 use super::common::{
-    EXIT_OK, EXIT_STOPPED, build_generated, engine_unavailable, load, report_invalid, time_generic,
+    EXIT_OK, EXIT_STOPPED, build_generated, engine_unavailable, report_invalid, time_generic,
     undriven,
 };
 use super::term;
@@ -35,13 +35,10 @@ pub(super) fn bench(
     err: &mut dyn Write,
 ) -> io::Result<i32> {
     let json = format == CheckFormat::Json;
-    let mut loaded = match load(file, json, out, err) {
+    let loaded = match super::common::load_replayed(file, inputs, json, out, err)? {
         Ok(l) => l,
         Err(code) => return Ok(code),
     };
-    if let Err(code) = super::common::replay(&mut loaded.mechanism, inputs, json, out, err)? {
-        return Ok(code);
-    }
     let mech = &loaded.mechanism;
     let tolerance = how.tolerance.unwrap_or(mech.solver.tolerance);
     let eq = Equations::new(mech);

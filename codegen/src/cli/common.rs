@@ -166,6 +166,21 @@ pub(super) fn load(
     }
 }
 
+/// [`load`], then [`replay`] with `inputs`: the mechanism an analysis runs, or the exit status.
+pub(super) fn load_replayed(
+    file: &Path,
+    inputs: Option<&Path>,
+    json: bool,
+    out: &mut dyn Write,
+    err: &mut dyn Write,
+) -> io::Result<Result<Loaded, i32>> {
+    let mut loaded = match load(file, json, out, err) {
+        Ok(l) => l,
+        Err(code) => return Ok(Err(code)),
+    };
+    Ok(replay(&mut loaded.mechanism, inputs, json, out, err)?.map(|()| loaded))
+}
+
 /// Applies `--inputs`: reads the recorded series (printing its warnings) and makes its rows
 /// the time points of `mech`; without `--inputs`, a description with input drivers is
 /// invalid input naming them. `Err` carries the exit status.

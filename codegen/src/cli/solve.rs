@@ -5,8 +5,7 @@ use std::path::Path;
 
 use super::args::{Engine, SolveFormat};
 use super::common::{
-    EXIT_OK, EXIT_STOPPED, Sink, build_generated, engine_unavailable, load, report_invalid,
-    undriven,
+    EXIT_OK, EXIT_STOPPED, Sink, build_generated, engine_unavailable, report_invalid, undriven,
 };
 use super::term;
 use crate::diag::{Diagnostic, printable};
@@ -24,13 +23,10 @@ pub(super) fn solve(
     err: &mut dyn Write,
 ) -> io::Result<i32> {
     let json = format == SolveFormat::Json;
-    let mut loaded = match load(file, json, out, err) {
+    let loaded = match super::common::load_replayed(file, inputs, json, out, err)? {
         Ok(l) => l,
         Err(code) => return Ok(code),
     };
-    if let Err(code) = super::common::replay(&mut loaded.mechanism, inputs, json, out, err)? {
-        return Ok(code);
-    }
     let mech = &loaded.mechanism;
     let eq = Equations::new(mech);
     let prep = eq.prepare();

@@ -9,7 +9,7 @@
 use std::collections::BTreeSet;
 
 use super::{Builder, Symbolic, V3};
-use crate::expr::{ExprId, ExprPool, Node, Var};
+use crate::expr::{ExprId, ExprPool, Var};
 use crate::model::{BodyId, JointKind, Mechanism};
 
 /// Value, rate and acceleration of one scalar output.
@@ -141,19 +141,8 @@ fn acceleration(pool: &mut ExprPool, v: ExprId) -> ExprId {
 
 /// The rates q̇_k an expression depends on, in increasing k.
 fn qd_vars(pool: &ExprPool, e: ExprId) -> BTreeSet<u32> {
-    let mut seen = vec![false; e.index() + 1];
-    let mut stack = vec![e];
-    let mut vars = BTreeSet::new();
-    while let Some(x) = stack.pop() {
-        if std::mem::replace(&mut seen[x.index()], true) {
-            continue;
-        }
-        match pool[x] {
-            Node::Var(Var::Qd(k)) => {
-                vars.insert(k);
-            }
-            node => stack.extend(node.children()),
-        }
-    }
-    vars
+    super::vars_of(pool, e, |v| match v {
+        Var::Qd(k) => Some(k),
+        _ => None,
+    })
 }
