@@ -1153,11 +1153,17 @@ mod tests {
     fn writer_throughput() {
         let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
             .join("../benches/rssr_revolution.toml");
-        let mech = crate::testing::load(&path).mechanism;
-        let run = crate::testing::run_generic(&mech);
+        let mech = crate::validate::load_file(&path).ok().expect("the benchmark loads").mechanism;
         let layout = layout(&mech);
-        let steps: Vec<StepResult> =
-            run.frames.iter().map(|f| step_result(&mech, &layout, f)).collect();
+        let eq = crate::generic::Equations::new(&mech);
+        let prep = eq.prepare();
+        let mut steps = Vec::new();
+        crate::generic::Analysis::new(&eq, &prep)
+            .run(|f| {
+                steps.push(step_result(&mech, &layout, f));
+                Ok::<(), ()>(())
+            })
+            .expect("the run completes");
         for format in [Format::Csv, Format::Json] {
             let mut best = f64::INFINITY;
             let mut bytes = 0;
