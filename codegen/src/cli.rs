@@ -90,8 +90,10 @@ fn argument_error(e: &clap::Error, json: bool, out: &mut dyn Write, err: &mut dy
 fn execute(command: Command, out: &mut dyn Write, err: &mut dyn Write) -> std::io::Result<i32> {
     match command {
         Command::Check { file, format } => check::check(&file, format, out, err),
-        Command::Solve { file, engine, format, output, inputs } => {
-            solve::solve(&file, engine, format, output.as_deref(), inputs.as_deref(), out, err)
+        Command::Solve { file, engine, format, output, inputs, select } => {
+            let files =
+                solve::Files { file: &file, output: output.as_deref(), inputs: inputs.as_deref() };
+            solve::solve(files, engine, format, select.as_deref(), out, err)
         }
         Command::ImportYoung { deck, output } => {
             import::import_young(&deck, output.as_deref(), out, err)

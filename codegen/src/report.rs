@@ -318,6 +318,12 @@ pub struct Writer<W: Write> {
     removed: Vec<String>,
     /// Continuity of the joint angles across steps.
     unwrap: Unwrap,
+    /// The bodies, points and joints written.
+    select: Selection,
+    /// One step's text, reused from step to step.
+    buf: Vec<u8>,
+    /// The JSON keys of the bodies, points and joints in the order JSON writes them.
+    keys: Option<JsonKeys>,
 }
 
 impl<W: Write> Writer<W> {
@@ -332,11 +338,26 @@ impl<W: Write> Writer<W> {
     /// # Errors
     /// Returns I/O errors of `out`.
     pub fn begin(
+        out: W,
+        format: Format,
+        mech: &Mechanism,
+        engine: &str,
+        removed: &[String],
+    ) -> io::Result<Self> {
+        Self::begin_selected(out, format, mech, engine, removed, Selection::all(mech))
+    }
+
+    /// [`Writer::begin`] for the bodies, points and joints of `select` only.
+    ///
+    /// # Errors
+    /// Returns I/O errors of `out`.
+    pub fn begin_selected(
         mut out: W,
         format: Format,
         mech: &Mechanism,
         engine: &str,
         removed: &[String],
+        select: Selection,
     ) -> io::Result<Self> {
         match format {
             Format::Json => {
@@ -350,7 +371,7 @@ impl<W: Write> Writer<W> {
             }
             Format::Csv => {
                 let header: Vec<Cow<'_, str>> =
-                    csv_header(mech).into_iter().map(|h| csv_field(h.into())).collect();
+                    header(mech, &select).into_iter().map(|h| csv_field(h.into())).collect();
                 writeln!(out, "{}", header.join(","))?;
             }
             Format::Table => {
@@ -370,7 +391,16 @@ impl<W: Write> Writer<W> {
                 }
             }
         }
-        Ok(Self { out, format, steps: 0, removed: removed.to_vec(), unwrap: Unwrap::default() })
+        Ok(Self {
+            out,
+            format,
+            steps: 0,
+            removed: removed.to_vec(),
+            unwrap: Unwrap::default(),
+            select,
+            buf: Vec::new(),
+            keys: None,
+        })
     }
 
     /// Writes one time point.
@@ -378,6 +408,13 @@ impl<W: Write> Writer<W> {
     /// # Errors
     /// Returns I/O errors of `out`.
     pub fn step(&mut self, s: &StepResult) -> io::Result<()> {
+        let selected;
+        let s = if self.select.all {
+            s
+        } else {
+            selected = self.select.apply(s);
+            &selected
+        };
         let mut unwrapped;
         let s = if s.joints.iter().any(|j| j.angle.is_some()) {
             unwrapped = s.clone();
@@ -386,12 +423,22 @@ impl<W: Write> Writer<W> {
         } else {
             s
         };
+        self.buf.clear();
         match self.format {
             Format::Json => {
-                let sep = if self.steps == 0 { "\n    " } else { ",\n    " };
-                write!(self.out, "{sep}{}", serde_json::to_string(&step_json(s))?)?;
+                let sep: &[u8] = if self.steps == 0 { b"\n    " } else { b",\n    " };
+                self.buf.extend_from_slice(sep);
+                if !self.keys.as_ref().is_some_and(|k| k.fits(s)) {
+                    self.keys = Some(JsonKeys::new(s));
+                }
+                let keys = self.keys.as_ref().expect("the keys were just made");
+                write_step_json(&mut self.buf, s, keys);
+                self.out.write_all(&self.buf)?;
             }
-            Format::Csv => writeln!(self.out, "{}", csv_row(s).join(","))?,
+            Format::Csv => {
+                write_csv_row(&mut self.buf, s);
+                self.out.write_all(&self.buf)?;
+            }
             Format::Table => write_table_step(&mut self.out, s)?,
         }
         self.steps += 1;
@@ -523,8 +570,14 @@ const E: [&str; 4] = ["e0", "e1", "e2", "e3"];
 /// CSV column names: `t`, `iterations`, `residual`, then `crank.r.x` … `B.a.z`.
 #[must_use]
 pub fn csv_header(mech: &Mechanism) -> Vec<String> {
+    header(mech, &Selection::all(mech))
+}
+
+/// The CSV column names of the bodies, points and joints of `select`.
+fn header(mech: &Mechanism, select: &Selection) -> Vec<String> {
     let mut h = vec!["t".to_owned(), "iterations".to_owned(), "residual".to_owned()];
-    for b in mech.bodies.iter().filter(|b| !b.ground) {
+    let moving = mech.bodies.iter().filter(|b| !b.ground);
+    for (b, _) in moving.zip(&select.bodies).filter(|(_, on)| **on) {
         for (q, comps) in [
             ("r", &XYZ[..]),
             ("p", &E[..]),
@@ -538,12 +591,13 @@ pub fn csv_header(mech: &Mechanism) -> Vec<String> {
             h.extend(comps.iter().map(|c| format!("{}.{q}.{c}", b.name)));
         }
     }
-    for p in &mech.points {
+    for (p, _) in mech.points.iter().zip(&select.points).filter(|(_, on)| **on) {
         for q in ["r", "v", "a"] {
             h.extend(XYZ.iter().map(|c| format!("{}.{q}.{c}", p.name)));
         }
     }
-    for (k, angle, translation) in reported_joints(mech) {
+    let reported = reported_joints(mech).into_iter().zip(&select.joints);
+    for ((k, angle, translation), _) in reported.filter(|(_, on)| **on) {
         let name = &mech.joints[k].name;
         for (q, on) in [("angle", angle), ("translation", translation)] {
             if on {
@@ -572,29 +626,243 @@ pub fn csv_field(field: Cow<'_, str>) -> Cow<'_, str> {
     }
 }
 
-/// Shortest round-trip text of a number.
-fn num(x: f64) -> String {
-    format!("{x:?}")
+/// Appends the text `{x:?}` writes (the shortest that reads back to `x`, the closest to `x`
+/// of those). The standard library's, written in place: zmij's shortest digits differ from it
+/// in the last digit for some 16-digit numbers (it does not always pick the closest).
+fn push_debug(buf: &mut Vec<u8>, x: f64) {
+    // Writing to a Vec cannot fail.
+    let _ = write!(buf, "{x:?}");
 }
 
-fn csv_row(s: &StepResult) -> Vec<String> {
-    let mut row = vec![num(s.t), s.iterations.to_string(), num(s.residual)];
+/// Appends the JSON text of `x` as serde_json writes it (zmij's shortest round trip; `null`
+/// when not finite).
+fn push_json(buf: &mut Vec<u8>, x: f64) {
+    if x.is_finite() {
+        buf.extend_from_slice(zmij::Buffer::new().format_finite(x).as_bytes());
+    } else {
+        buf.extend_from_slice(b"null");
+    }
+}
+
+/// Appends `xs` separated by commas, each led by a comma.
+fn push_csv(buf: &mut Vec<u8>, xs: &[f64]) {
+    for &x in xs {
+        buf.push(b',');
+        push_debug(buf, x);
+    }
+}
+
+/// Appends one CSV row with its line end.
+fn write_csv_row(buf: &mut Vec<u8>, s: &StepResult) {
+    push_debug(buf, s.t);
+    buf.push(b',');
+    let _ = write!(buf, "{}", s.iterations);
+    buf.push(b',');
+    push_debug(buf, s.residual);
     for b in &s.bodies {
         for v in [&b.r[..], &b.p, &b.r_dot, &b.p_dot, &b.omega, &b.r_ddot, &b.p_ddot, &b.alpha] {
-            row.extend(v.iter().map(|&x| num(x)));
+            push_csv(buf, v);
         }
     }
     for p in &s.points {
         for v in [&p.r, &p.v, &p.a] {
-            row.extend(v.iter().map(|&x| num(x)));
+            push_csv(buf, v);
         }
     }
     for j in &s.joints {
         for v in [&j.angle, &j.translation].into_iter().flatten() {
-            row.extend(v.iter().map(|&x| num(x)));
+            push_csv(buf, v);
         }
     }
-    row
+    buf.push(b'\n');
+}
+
+/// The order in which JSON writes the bodies, points and joints of a step (serde_json's map:
+/// by name, the last of equal names winning) and their keys as JSON text (`"crank":`).
+struct JsonKeys {
+    names: [Vec<String>; 3],
+    order: [Vec<(usize, String)>; 3],
+}
+
+impl JsonKeys {
+    fn new(s: &StepResult) -> Self {
+        let names = [
+            s.bodies.iter().map(|b| b.name.clone()).collect::<Vec<_>>(),
+            s.points.iter().map(|p| p.name.clone()).collect(),
+            s.joints.iter().map(|j| j.name.clone()).collect(),
+        ];
+        let order = names.each_ref().map(|names| {
+            let mut idx: Vec<usize> = (0..names.len()).collect();
+            idx.sort_by(|&a, &b| names[a].cmp(&names[b]));
+            let mut kept: Vec<usize> = Vec::with_capacity(idx.len());
+            for k in idx {
+                match kept.last_mut() {
+                    Some(last) if names[*last] == names[k] => *last = k,
+                    _ => kept.push(k),
+                }
+            }
+            kept.into_iter()
+                .map(|k| {
+                    let key = serde_json::to_string(&names[k]).expect("a string serialises");
+                    (k, format!("{key}:"))
+                })
+                .collect()
+        });
+        Self { names, order }
+    }
+
+    /// Whether the step has the names these keys were made from.
+    fn fits(&self, s: &StepResult) -> bool {
+        self.names[0].iter().eq(s.bodies.iter().map(|b| &b.name))
+            && self.names[1].iter().eq(s.points.iter().map(|p| &p.name))
+            && self.names[2].iter().eq(s.joints.iter().map(|j| &j.name))
+    }
+}
+
+/// Appends `"key":[x,y,…]`.
+fn push_json_array(buf: &mut Vec<u8>, key: &str, xs: &[f64]) {
+    buf.extend_from_slice(key.as_bytes());
+    buf.push(b'[');
+    for (k, &x) in xs.iter().enumerate() {
+        if k > 0 {
+            buf.push(b',');
+        }
+        push_json(buf, x);
+    }
+    buf.push(b']');
+}
+
+/// Appends the JSON object of one step, byte for byte what `serde_json::to_string` makes of
+/// [`step_json`].
+fn write_step_json(buf: &mut Vec<u8>, s: &StepResult, keys: &JsonKeys) {
+    buf.extend_from_slice(b"{\"bodies\":{");
+    for (n, (k, key)) in keys.order[0].iter().enumerate() {
+        let b = &s.bodies[*k];
+        buf.extend_from_slice(if n > 0 { b",".as_slice() } else { b"" });
+        buf.extend_from_slice(key.as_bytes());
+        push_json_array(buf, "{\"alpha\":", &b.alpha);
+        push_json_array(buf, ",\"omega\":", &b.omega);
+        push_json_array(buf, ",\"p\":", &b.p);
+        push_json_array(buf, ",\"p_ddot\":", &b.p_ddot);
+        push_json_array(buf, ",\"p_dot\":", &b.p_dot);
+        push_json_array(buf, ",\"r\":", &b.r);
+        push_json_array(buf, ",\"r_ddot\":", &b.r_ddot);
+        push_json_array(buf, ",\"r_dot\":", &b.r_dot);
+        buf.push(b'}');
+    }
+    buf.extend_from_slice(b"},\"iterations\":");
+    let _ = write!(buf, "{}", s.iterations);
+    buf.extend_from_slice(b",\"joints\":{");
+    for (n, (k, key)) in keys.order[2].iter().enumerate() {
+        let j = &s.joints[*k];
+        buf.extend_from_slice(if n > 0 { b",".as_slice() } else { b"" });
+        buf.extend_from_slice(key.as_bytes());
+        buf.push(b'{');
+        let mut first = true;
+        for (q, v) in [("angle", j.angle), ("translation", j.translation)] {
+            if let Some([x, xd, xdd]) = v {
+                // Keys in serde_json's order: q, q_ddot, q_dot.
+                for (suffix, value) in [("", x), ("_ddot", xdd), ("_dot", xd)] {
+                    if !first {
+                        buf.push(b',');
+                    }
+                    first = false;
+                    let _ = write!(buf, "\"{q}{suffix}\":");
+                    push_json(buf, value);
+                }
+            }
+        }
+        buf.push(b'}');
+    }
+    buf.extend_from_slice(b"},\"points\":{");
+    for (n, (k, key)) in keys.order[1].iter().enumerate() {
+        let p = &s.points[*k];
+        buf.extend_from_slice(if n > 0 { b",".as_slice() } else { b"" });
+        buf.extend_from_slice(key.as_bytes());
+        push_json_array(buf, "{\"a\":", &p.a);
+        push_json_array(buf, ",\"r\":", &p.r);
+        push_json_array(buf, ",\"v\":", &p.v);
+        buf.push(b'}');
+    }
+    buf.extend_from_slice(b"},\"residual\":");
+    push_json(buf, s.residual);
+    buf.extend_from_slice(b",\"t\":");
+    push_json(buf, s.t);
+    buf.push(b'}');
+}
+
+/// The bodies, points and joints `solve` writes (`--select`): a flag per moving body, per
+/// point and per reported joint ([`reported_joints`]), in file order.
+#[derive(Clone, Debug)]
+pub struct Selection {
+    all: bool,
+    bodies: Vec<bool>,
+    points: Vec<bool>,
+    joints: Vec<bool>,
+}
+
+impl Selection {
+    /// Every body, point and joint.
+    #[must_use]
+    pub fn all(mech: &Mechanism) -> Self {
+        let moving = mech.bodies.iter().filter(|b| !b.ground).count();
+        Self {
+            all: true,
+            bodies: vec![true; moving],
+            points: vec![true; mech.points.len()],
+            joints: vec![true; reported_joints(mech).len()],
+        }
+    }
+
+    /// The moving bodies, points and joints named in `names` (a name selects every one of
+    /// them it names: a point and a joint may share a name).
+    ///
+    /// # Errors
+    /// The first name that is no moving body, point or joint of `mech`, with the nearest
+    /// such name when one is close.
+    pub fn named(mech: &Mechanism, names: &[String]) -> Result<Self, String> {
+        let moving: Vec<&str> =
+            mech.bodies.iter().filter(|b| !b.ground).map(|b| b.name.as_str()).collect();
+        let points: Vec<&str> = mech.points.iter().map(|p| p.name.as_str()).collect();
+        let joints: Vec<&str> = mech.joints.iter().map(|j| j.name.as_str()).collect();
+        for name in names {
+            if ![&moving, &points, &joints].iter().any(|list| list.contains(&name.as_str())) {
+                let all = moving.iter().chain(&points).chain(&joints).copied();
+                let hint = crate::validate::closest(name, all)
+                    .map(|c| format!(" (did you mean `{}`?)", printable(c)))
+                    .unwrap_or_default();
+                return Err(format!(
+                    "`{}` is no moving body, point or joint of the mechanism{hint}",
+                    printable(name)
+                ));
+            }
+        }
+        let on = |n: &str| names.iter().any(|s| s == n);
+        Ok(Self {
+            all: false,
+            bodies: moving.iter().map(|n| on(n)).collect(),
+            points: points.iter().map(|n| on(n)).collect(),
+            joints: reported_joints(mech)
+                .into_iter()
+                .map(|(k, _, _)| on(&mech.joints[k].name))
+                .collect(),
+        })
+    }
+
+    /// The selected part of `s`.
+    fn apply(&self, s: &StepResult) -> StepResult {
+        fn keep<T: Clone>(items: &[T], flags: &[bool]) -> Vec<T> {
+            items.iter().zip(flags).filter(|(_, on)| **on).map(|(x, _)| x.clone()).collect()
+        }
+        StepResult {
+            t: s.t,
+            iterations: s.iterations,
+            residual: s.residual,
+            bodies: keep(&s.bodies, &self.bodies),
+            points: keep(&s.points, &self.points),
+            joints: keep(&s.joints, &self.joints),
+        }
+    }
 }
 
 fn write_table_step(out: &mut impl Write, s: &StepResult) -> io::Result<()> {
@@ -744,4 +1012,180 @@ pub fn differences(a: &[StepResult], b: &[StepResult]) -> Vec<(&'static str, f64
         d.add(x, y);
     }
     d.finish()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand::{RngExt, SeedableRng};
+
+    /// Numbers at the edges of the layouts (zero, the notation changes, subnormals,
+    /// extremes) and random bit patterns.
+    fn samples() -> Vec<f64> {
+        let mut xs = vec![
+            0.0,
+            -0.0,
+            1.0,
+            0.1,
+            1e-4,
+            9.999999999999999e-5,
+            1e-5,
+            1.5e-5,
+            9.99999e-6,
+            1e16,
+            9999999999999998.0,
+            1.5e16,
+            1e300,
+            5e-324,
+            f64::MIN_POSITIVE,
+            f64::MAX,
+            f64::MIN,
+            f64::NAN,
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+            123_456_789.0,
+            -5372.889999999999,
+        ];
+        let mut rng = rand::rngs::StdRng::seed_from_u64(16);
+        xs.extend((0..200_000).map(|_| f64::from_bits(rng.random::<u64>())));
+        xs.extend(
+            (0..200_000)
+                .map(|_| rng.random_range(-1e3..1e3) * 10f64.powi(rng.random_range(-20..20))),
+        );
+        xs
+    }
+
+    #[test]
+    fn csv_numbers_are_what_debug_formatting_writes() {
+        let mut buf = Vec::new();
+        for x in samples() {
+            buf.clear();
+            push_debug(&mut buf, x);
+            assert_eq!(std::str::from_utf8(&buf).unwrap(), format!("{x:?}"), "{:#x}", x.to_bits());
+        }
+    }
+
+    #[test]
+    fn json_numbers_are_what_serde_json_writes() {
+        let mut buf = Vec::new();
+        for x in samples() {
+            buf.clear();
+            push_json(&mut buf, x);
+            let expected = serde_json::to_string(&x).unwrap();
+            assert_eq!(std::str::from_utf8(&buf).unwrap(), expected, "{:#x}", x.to_bits());
+        }
+    }
+
+    /// A step with every kind of entry, names out of order and repeated, and unusual numbers.
+    fn awkward_step() -> StepResult {
+        let body = |name: &str, x: f64| BodyResult {
+            name: name.to_owned(),
+            r: [x, -0.0, 1e-7],
+            p: [1.0, 0.0, 2e-5, f64::NAN],
+            r_dot: [3.0; 3],
+            p_dot: [4.5; 4],
+            omega: [1e20, -1e-300, 0.1],
+            r_ddot: [6.0; 3],
+            p_ddot: [7.0; 4],
+            alpha: [8.0; 3],
+        };
+        let point = |name: &str, x: f64| PointResult {
+            name: name.to_owned(),
+            r: [x, 2.0, 3.0],
+            v: [4.0; 3],
+            a: [f64::INFINITY, 5.0, 6.0],
+        };
+        StepResult {
+            t: 0.25,
+            iterations: 3,
+            residual: 1.2e-13,
+            bodies: vec![body("z\"q", 1.0), body("crank", 2.0), body("crank", 3.0), body("é", 4.0)],
+            points: vec![point("B", 1.0), point("A", 2.0)],
+            joints: vec![
+                JointResult { name: "O4".into(), angle: Some([1.0, 2.0, 3.0]), translation: None },
+                JointResult {
+                    name: "C".into(),
+                    angle: Some([0.5, 0.25, 0.125]),
+                    translation: Some([4.0, 5.0, 6.0]),
+                },
+                JointResult { name: "P".into(), angle: None, translation: Some([7.0, 8.0, 9.0]) },
+            ],
+        }
+    }
+
+    #[test]
+    fn a_json_step_is_what_serde_json_makes_of_step_json() {
+        let s = awkward_step();
+        let mut buf = Vec::new();
+        write_step_json(&mut buf, &s, &JsonKeys::new(&s));
+        let expected = serde_json::to_string(&step_json(&s)).unwrap();
+        assert_eq!(String::from_utf8(buf).unwrap(), expected);
+    }
+
+    #[test]
+    fn a_csv_row_is_the_debug_text_of_every_number() {
+        let s = awkward_step();
+        let mut buf = Vec::new();
+        write_csv_row(&mut buf, &s);
+        let mut expected =
+            vec![format!("{:?}", s.t), s.iterations.to_string(), format!("{:?}", s.residual)];
+        for b in &s.bodies {
+            for v in [&b.r[..], &b.p, &b.r_dot, &b.p_dot, &b.omega, &b.r_ddot, &b.p_ddot, &b.alpha]
+            {
+                expected.extend(v.iter().map(|x| format!("{x:?}")));
+            }
+        }
+        for p in &s.points {
+            expected.extend([p.r, p.v, p.a].iter().flatten().map(|x| format!("{x:?}")));
+        }
+        for j in &s.joints {
+            expected.extend(
+                [j.angle, j.translation].iter().flatten().flatten().map(|x| format!("{x:?}")),
+            );
+        }
+        assert_eq!(String::from_utf8(buf).unwrap(), expected.join(",") + "\n");
+    }
+
+    /// Writer throughput on the R-S-S-R's frames (`cargo test -p codegen --release --lib
+    /// writer_throughput -- --ignored --nocapture`); a measurement, not a check.
+    #[test]
+    #[ignore = "a benchmark: run it on purpose, in release"]
+    fn writer_throughput() {
+        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../benches/rssr_revolution.toml");
+        let mech = crate::validate::load_file(&path).ok().expect("the benchmark loads").mechanism;
+        let layout = layout(&mech);
+        let eq = crate::generic::Equations::new(&mech);
+        let prep = eq.prepare();
+        let mut steps = Vec::new();
+        crate::generic::Analysis::new(&eq, &prep)
+            .run(|f| {
+                steps.push(step_result(&mech, &layout, f));
+                Ok::<(), ()>(())
+            })
+            .expect("the run completes");
+        for format in [Format::Csv, Format::Json] {
+            let mut best = f64::INFINITY;
+            let mut bytes = 0;
+            for _ in 0..5 {
+                let start = std::time::Instant::now();
+                let mut w =
+                    Writer::begin(Vec::with_capacity(1 << 26), format, &mech, "generic", &[])
+                        .unwrap();
+                for _ in 0..20 {
+                    for s in &steps {
+                        w.step(s).unwrap();
+                    }
+                }
+                let out = w.finish(None).unwrap();
+                best = best.min(start.elapsed().as_secs_f64());
+                bytes = out.len();
+            }
+            println!(
+                "{format:?}: {:.0} MB/s ({bytes} bytes in {best:.3} s)",
+                bytes as f64 / best / 1e6
+            );
+        }
+        assert!(!steps.is_empty());
+    }
 }

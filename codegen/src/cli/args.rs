@@ -42,6 +42,9 @@ pub(super) enum Command {
         /// time points come from the file.
         #[arg(long)]
         inputs: Option<PathBuf>,
+        /// Write only these moving bodies, points and joints (names separated by commas).
+        #[arg(long, value_delimiter = ',')]
+        select: Option<Vec<String>>,
     },
     /// Run both engines; report the largest difference of every output quantity and the
     /// time per step of each.

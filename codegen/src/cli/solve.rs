@@ -13,21 +13,38 @@ use crate::generic::{Analysis, Equations};
 use crate::model::Mechanism;
 use crate::report::{self, Writer};
 
+/// The files of `solve`: the description, `-o` and `--inputs`.
+pub(super) struct Files<'a> {
+    pub(super) file: &'a Path,
+    pub(super) output: Option<&'a Path>,
+    pub(super) inputs: Option<&'a Path>,
+}
+
 pub(super) fn solve(
-    file: &Path,
+    files: Files<'_>,
     engine: Option<Engine>,
     format: SolveFormat,
-    output: Option<&Path>,
-    inputs: Option<&Path>,
+    select: Option<&[String]>,
     out: &mut dyn Write,
     err: &mut dyn Write,
 ) -> io::Result<i32> {
+    let Files { file, output, inputs } = files;
     let json = format == SolveFormat::Json;
     let loaded = match super::common::load_replayed(file, inputs, json, out, err)? {
         Ok(l) => l,
         Err(code) => return Ok(code),
     };
     let mech = &loaded.mechanism;
+    let selection = match select {
+        None => report::Selection::all(mech),
+        Some(names) => match report::Selection::named(mech, names) {
+            Ok(s) => s,
+            Err(message) => {
+                let d = Diagnostic::error(message).entity("command line").field("--select");
+                return Ok(report_invalid(&[d], json, out, err));
+            }
+        },
+    };
     let eq = Equations::new(mech);
     let prep = eq.prepare();
     if let Some(d) = undriven(&eq, &prep) {
@@ -82,7 +99,7 @@ pub(super) fn solve(
             printable(r)
         )?;
     }
-    let writer = Writer::begin(sink, fmt, mech, name, &removed)?;
+    let writer = Writer::begin_selected(sink, fmt, mech, name, &removed, selection)?;
     stream(mech, &Analysis::new(&eq, &prep), built.as_ref(), writer, err)
 }
 
