@@ -1153,7 +1153,9 @@ mod tests {
     fn writer_throughput() {
         let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
             .join("../benches/rssr_revolution.toml");
-        let mech = crate::validate::load_file(&path).ok().expect("the benchmark loads").mechanism;
+        let mech = crate::validate::load_file(&path)
+            .unwrap_or_else(|_| panic!("the benchmark loads"))
+            .mechanism;
         let layout = layout(&mech);
         let eq = crate::generic::Equations::new(&mech);
         let prep = eq.prepare();

@@ -294,3 +294,46 @@ fn the_json_error_object_stays_as_the_contract_says_when_the_text_has_an_excerpt
 mod far_time;
 mod inputs;
 mod output;
+
+#[test]
+fn select_writes_only_the_named_points_bodies_and_joints() {
+    let file = example("rssr.toml");
+    let file = file.to_str().unwrap();
+    let args = ["solve", file, "--engine", "generic", "--format", "csv", "--select", "B,crank"];
+    let (code, out, err) = mechgen(&args);
+    assert_eq!(code, EXIT_OK, "{err}");
+    let header: Vec<&str> = out.lines().next().expect("a header").split(',').collect();
+    // Every column after t, iterations and residual belongs to the crank or to point B.
+    assert!(header.len() > 3, "{header:?}");
+    for column in &header[3..] {
+        assert!(column.starts_with("crank.") || column.starts_with("B."), "{column}");
+    }
+    assert!(header.iter().any(|c| c.starts_with("B.")), "{header:?}");
+    // The rocker and point A were left out, in JSON too.
+    let json_args = ["solve", file, "--engine", "generic", "--format", "json", "--select", "B"];
+    let (code, out, err) = mechgen(&json_args);
+    assert_eq!(code, EXIT_OK, "{err}");
+    let v: serde_json::Value = serde_json::from_str(&out).expect("JSON");
+    let step = &v["steps"][0];
+    assert!(step["points"]["B"].is_object() && step["points"]["A"].is_null(), "{step}");
+    assert!(step["bodies"]["rocker"].is_null(), "{step}");
+}
+
+#[test]
+fn select_refuses_an_unknown_name_with_the_likely_one() {
+    let file = example("rssr.toml");
+    let args = [
+        "solve",
+        file.to_str().unwrap(),
+        "--engine",
+        "generic",
+        "--format",
+        "csv",
+        "--select",
+        "cronk",
+    ];
+    let (code, out, err) = mechgen(&args);
+    assert_eq!(code, EXIT_INVALID, "{out}");
+    assert!(err.contains("`cronk`") && err.contains("did you mean `crank`"), "{err}");
+    assert!(out.is_empty(), "nothing is analysed: {out}");
+}
