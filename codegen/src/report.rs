@@ -801,6 +801,20 @@ pub struct Selection {
     joints: Vec<bool>,
 }
 
+/// A name of `--select` that is no moving body, point or joint of the mechanism.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+#[error(
+    "`{}` is no moving body, point or joint of the mechanism{}",
+    printable(name),
+    suggestion.as_deref().map(|c| format!(" (did you mean `{}`?)", printable(c))).unwrap_or_default()
+)]
+pub struct UnknownName {
+    /// The name as given.
+    pub name: String,
+    /// The nearest name of the mechanism, when one is close.
+    pub suggestion: Option<String>,
+}
+
 impl Selection {
     /// Every body, point and joint.
     #[must_use]
@@ -820,7 +834,7 @@ impl Selection {
     /// # Errors
     /// The first name that is no moving body, point or joint of `mech`, with the nearest
     /// such name when one is close.
-    pub fn named(mech: &Mechanism, names: &[String]) -> Result<Self, String> {
+    pub fn named(mech: &Mechanism, names: &[String]) -> Result<Self, UnknownName> {
         let moving: Vec<&str> =
             mech.bodies.iter().filter(|b| !b.ground).map(|b| b.name.as_str()).collect();
         let points: Vec<&str> = mech.points.iter().map(|p| p.name.as_str()).collect();
@@ -828,13 +842,8 @@ impl Selection {
         for name in names {
             if ![&moving, &points, &joints].iter().any(|list| list.contains(&name.as_str())) {
                 let all = moving.iter().chain(&points).chain(&joints).copied();
-                let hint = crate::validate::closest(name, all)
-                    .map(|c| format!(" (did you mean `{}`?)", printable(c)))
-                    .unwrap_or_default();
-                return Err(format!(
-                    "`{}` is no moving body, point or joint of the mechanism{hint}",
-                    printable(name)
-                ));
+                let suggestion = crate::validate::closest(name, all).map(str::to_owned);
+                return Err(UnknownName { name: name.clone(), suggestion });
             }
         }
         let on = |n: &str| names.iter().any(|s| s == n);

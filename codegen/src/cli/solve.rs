@@ -39,8 +39,9 @@ pub(super) fn solve(
         None => report::Selection::all(mech),
         Some(names) => match report::Selection::named(mech, names) {
             Ok(s) => s,
-            Err(message) => {
-                let d = Diagnostic::error(message).entity("command line").field("--select");
+            Err(unknown) => {
+                let d =
+                    Diagnostic::error(unknown.to_string()).entity("command line").field("--select");
                 return Ok(report_invalid(&[d], json, out, err));
             }
         },
