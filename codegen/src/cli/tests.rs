@@ -337,3 +337,17 @@ fn select_refuses_an_unknown_name_with_the_likely_one() {
     assert!(err.contains("`cronk`") && err.contains("did you mean `crank`"), "{err}");
     assert!(out.is_empty(), "nothing is analysed: {out}");
 }
+
+#[test]
+fn compare_reports_a_finite_speedup_and_no_disagreement_on_the_rssr() {
+    let file = example("rssr.toml");
+    let (code, out, err) = mechgen(&["compare", file.to_str().unwrap(), "--format", "json"]);
+    assert_eq!(code, EXIT_OK, "{err}");
+    let v: serde_json::Value = serde_json::from_str(&out).expect("JSON");
+    // Both engines were timed, so the speedup is a positive number (never NaN or null here).
+    let speedup = v["speedup"].as_f64().expect("a speedup");
+    assert!(speedup.is_finite() && speedup > 0.0, "{v}");
+    // The engines agree to round-off on the R-S-S-R (about 1e-15), far below the 1e-6 flag.
+    assert_eq!(v["disagree"], serde_json::json!([]), "{v}");
+    assert!(!err.contains("differ by more than"), "{err}");
+}
