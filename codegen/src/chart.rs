@@ -212,7 +212,7 @@ pub fn measure_with(
         for &tolerance in &TOLERANCES {
             let analysis =
                 Analysis::new(&eq, &prep).with_tolerance(tolerance).with_predictor(predictor);
-            match (generic_error(&analysis, &reference, count), analysis.time(repeats)) {
+            match (generic_error(&analysis, &reference, count), analysis.time(repeats).ok()) {
                 (Some(error), Some((_, median, iterations))) => marks.push(Mark {
                     series: series.clone(),
                     tolerance,

@@ -96,8 +96,20 @@ pub enum RunError {
     #[error("unexpected output: {0}")]
     Unexpected(String),
     /// `bench` printed something else than its one line.
-    #[error("unexpected benchmark output: {0}")]
+    #[error("unexpected benchmark output: {}", if .0.trim().is_empty() { "nothing (the solver stopped without a word)" } else { .0.trim() })]
     Benchmark(String),
+    /// A timed pass stopped: Newton failed at `t` (the timed passes run plain stepping, without
+    /// the step control `solve` uses).
+    #[error(
+        "the timed pass stopped at t = {t}: {message} (bench times plain steps without the step \
+         control of solve; `mechgen solve` shows where and why the analysis itself stops)"
+    )]
+    BenchmarkStopped {
+        /// The grid time of the failed step.
+        t: f64,
+        /// The runtime's reason.
+        message: String,
+    },
     /// The solver exited with a failure status without reporting a failure.
     #[error("the solver exited with {0}")]
     Exit(std::process::ExitStatus),
@@ -424,6 +436,11 @@ pub fn bench_with(
         ["bench", min, median, iters] => {
             let p = |s: &str| s.parse::<f64>().map_err(|_| RunError::Benchmark(text.to_string()));
             Ok((p(min)?, p(median)?, p(iters)?))
+        }
+        ["error", "bench", t, ..] => {
+            let message = text.splitn(4, ' ').nth(3).unwrap_or_default().trim().to_owned();
+            let t = t.parse::<f64>().map_err(|_| RunError::Benchmark(text.to_string()))?;
+            Err(RunError::BenchmarkStopped { t, message }.into())
         }
         _ => Err(RunError::Benchmark(text.to_string()).into()),
     }

@@ -52,9 +52,15 @@ pub(super) fn bench(
         let timed = time_generic(&eq, &prep, tolerance, how.repeats, how.settings.predictor);
         spinner.finish_and_clear();
         match timed {
-            Some(r) => results.push(("generic", r)),
-            None => {
-                writeln!(err, "error: the generic analysis failed")?;
+            Ok(r) => results.push(("generic", r)),
+            Err((t, message)) => {
+                writeln!(
+                    err,
+                    "error: generic engine: the timed pass stopped at t = {t}: {} (bench times \
+                     plain steps without the step control of solve; `mechgen solve` shows where \
+                     and why the analysis itself stops)",
+                    printable(&message)
+                )?;
                 return Ok(EXIT_STOPPED);
             }
         }

@@ -284,6 +284,6 @@ pub(super) fn time_generic(
     tolerance: f64,
     repeats: usize,
     predictor: bool,
-) -> Option<(f64, f64, f64)> {
+) -> Result<(f64, f64, f64), (f64, String)> {
     Analysis::new(eq, prep).with_tolerance(tolerance).with_predictor(predictor).time(repeats)
 }

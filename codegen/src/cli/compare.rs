@@ -50,12 +50,17 @@ pub(super) fn compare(
     };
     let repeats = 10;
     let spinner = term::spinner("timing both engines");
-    let tg = time_generic(&eq, &prep, mech.solver.tolerance, repeats, true).map(|r| r.1);
+    let tg = time_generic(&eq, &prep, mech.solver.tolerance, repeats, true);
     let td = crate::engine::bench(&built, mech.solver.tolerance, repeats);
     spinner.finish_and_clear();
-    if tg.is_none() {
-        writeln!(err, "warning: generic engine: the timed passes stopped; no time per step")?;
-    }
+    let tg = match tg {
+        Ok(r) => Some(r.1),
+        Err((t, message)) => {
+            let message = printable(&message);
+            writeln!(err, "warning: generic engine: the timed pass stopped at t = {t}: {message}")?;
+            None
+        }
+    };
     let td = match td {
         Ok(r) => Some(r.1),
         Err(e) => {

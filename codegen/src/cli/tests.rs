@@ -351,3 +351,17 @@ fn compare_reports_a_finite_speedup_and_no_disagreement_on_the_rssr() {
     assert_eq!(v["disagree"], serde_json::json!([]), "{v}");
     assert!(!err.contains("differ by more than"), "{err}");
 }
+
+#[test]
+fn bench_names_the_time_and_reason_of_a_timed_pass_that_stops() {
+    // A crank-rocker driven into its toggle: plain stepping fails at t = 1.35 on both engines.
+    let file = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("../tests/stability/crank_rocker_toggle.toml");
+    for engine in ["generic", "generated"] {
+        let args = ["bench", file.to_str().unwrap(), "--engine", engine, "--repeats", "1"];
+        let (code, _, err) = mechgen(&args);
+        assert_eq!(code, EXIT_STOPPED, "{engine}: {err}");
+        assert!(err.contains("the timed pass stopped at t = 1.35"), "{engine}: {err}");
+        assert!(err.contains("Newton did not converge"), "{engine}: {err}");
+    }
+}

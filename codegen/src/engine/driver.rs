@@ -89,6 +89,8 @@ fn bench<M: Mechanism<N, Real>>(
                 Ok(r) => iterations += u64::from(r.iterations),
                 Err(e) => {
                     check(writeln!(out, "error bench {:?} {e}", wide(time(k))));
+                    // `exit` runs no destructor: the buffered line must leave now.
+                    check(out.flush());
                     std::process::exit(2);
                 }
             }

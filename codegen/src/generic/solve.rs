@@ -300,13 +300,15 @@ impl<'e, 'm> Analysis<'e, 'm> {
     }
 
     /// Times `repeats` whole passes over the grid: (min, median) ns per time point and
-    /// Newton iterations per time point; `None` when the analysis fails.
+    /// Newton iterations per time point.
     ///
     /// The passes step straight from one grid time to the next with the predictor, as the
     /// generated solver's benchmark does: the step control of [`Analysis::run`] (continuity
     /// check, subdivision) is not timed.
-    #[must_use]
-    pub fn time(&self, repeats: usize) -> Option<(f64, f64, f64)> {
+    ///
+    /// # Errors
+    /// The grid time of the first step that fails, with the reason.
+    pub fn time(&self, repeats: usize) -> Result<(f64, f64, f64), (f64, String)> {
         let grid = &self.eq.mechanism().time;
         let mut times = Vec::with_capacity(repeats.max(1));
         let mut iterations = 0.0;
@@ -316,7 +318,7 @@ impl<'e, 'm> Analysis<'e, 'm> {
             let mut total = 0_u64;
             for k in 0..grid.count {
                 let t = grid.at(k);
-                let p = self.step(t, self.guess(prev.as_ref(), t)).ok()?;
+                let p = self.step(t, self.guess(prev.as_ref(), t)).map_err(|r| (t, r.message))?;
                 total += u64::from(p.iterations);
                 std::hint::black_box(&p.qdd);
                 prev = Some(p);
@@ -325,7 +327,7 @@ impl<'e, 'm> Analysis<'e, 'm> {
             iterations = total as f64 / grid.count as f64;
         }
         times.sort_by(f64::total_cmp);
-        Some((times[0], times[times.len() / 2], iterations))
+        Ok((times[0], times[times.len() / 2], iterations))
     }
 
     /// Overrides the Newton tolerance (benchmarks and accuracy charts).
