@@ -4,13 +4,9 @@ use std::io::{self, Write};
 use std::path::Path;
 
 use super::args::{BenchEngine, CheckFormat};
-use super::common::{
-    EXIT_OK, EXIT_STOPPED, build_generated, engine_unavailable, report_invalid, time_generic,
-    undriven,
-};
+use super::common::{EXIT_OK, EXIT_STOPPED, build_generated, engine_unavailable, time_generic};
 use super::term;
 use crate::diag::printable;
-use crate::generic::Equations;
 use crate::model::Mechanism;
 
 /// The timing options of `bench`.
@@ -41,11 +37,10 @@ pub(super) fn bench(
     };
     let mech = &loaded.mechanism;
     let tolerance = how.tolerance.unwrap_or(mech.solver.tolerance);
-    let eq = Equations::new(mech);
-    let prep = eq.prepare();
-    if let Some(d) = undriven(&eq, &prep) {
-        return Ok(report_invalid(&[d], json, out, err));
-    }
+    let (eq, prep) = match super::common::prepared(mech, json, out, err) {
+        Ok(p) => p,
+        Err(code) => return Ok(code),
+    };
     let mut results = Vec::new();
     if engine != BenchEngine::Generated {
         let spinner = term::spinner(&format!("timing the generic engine ({} passes)", how.repeats));

@@ -3,7 +3,7 @@
 use std::io::{self, Write};
 use std::path::Path;
 
-use super::common::{EXIT_INVALID, EXIT_OK, EXIT_STOPPED, load};
+use super::common::{EXIT_INVALID, EXIT_OK, EXIT_STOPPED};
 use super::term;
 use crate::diag::printable;
 
@@ -14,14 +14,11 @@ pub(super) fn chart(
     out: &mut dyn Write,
     err: &mut dyn Write,
 ) -> io::Result<i32> {
-    let mut loaded = match load(file, false, out, err) {
+    // Input drivers need a recorded series, which only solve, compare and bench take.
+    let loaded = match super::common::load_replayed(file, None, false, out, err)? {
         Ok(l) => l,
         Err(code) => return Ok(code),
     };
-    // Input drivers need a recorded series, which only solve, compare and bench take.
-    if let Err(code) = super::common::replay(&mut loaded.mechanism, None, false, out, err)? {
-        return Ok(code);
-    }
     let mech = &loaded.mechanism;
     let bar = term::bar(crate::chart::mark_count() as u64, "marks");
     let measured = crate::chart::measure_with(mech, repeats, &mut |series, tolerance| {

@@ -4,9 +4,8 @@ use std::io::{self, Write};
 use std::path::Path;
 
 use super::args::CheckFormat;
-use super::common::{EXIT_OK, load, report_invalid, undriven};
+use super::common::{EXIT_OK, load};
 use crate::diag::printable;
-use crate::generic::Equations;
 use crate::model::{ConstraintKind, DriverCoordinate, DriverTarget, Mechanism};
 
 /// The number of unknowns left once ground bodies, `fix` constraints, coordinate
@@ -51,11 +50,10 @@ pub(super) fn check(
         Err(code) => return Ok(code),
     };
     let mech = &loaded.mechanism;
-    let eq = Equations::new(mech);
-    let prep = eq.prepare();
-    if let Some(d) = undriven(&eq, &prep) {
-        return Ok(report_invalid(&[d], json, out, err));
-    }
+    let (eq, prep) = match super::common::prepared(mech, json, out, err) {
+        Ok(p) => p,
+        Err(code) => return Ok(code),
+    };
     let redundant: Vec<String> =
         prep.redundant.iter().map(|&k| eq.labels()[k].equation()).collect();
     // The generated system's true size; the count of eliminated coordinates when it cannot

@@ -217,9 +217,25 @@ pub(super) fn replay(
     }
 }
 
+/// The equations of `mech` assembled at the initial configuration, or the exit status after
+/// reporting an undriven degree of freedom (invalid input).
+pub(super) fn prepared<'m>(
+    mech: &'m Mechanism,
+    json: bool,
+    out: &mut dyn Write,
+    err: &mut dyn Write,
+) -> Result<(Equations<'m>, Preparation), i32> {
+    let eq = Equations::new(mech);
+    let prep = eq.prepare();
+    match undriven(&eq, &prep) {
+        Some(d) => Err(report_invalid(&[d], json, out, err)),
+        None => Ok((eq, prep)),
+    }
+}
+
 /// The invalid-input diagnostic for an undriven degree of freedom, if Φ_q has lower column
 /// rank than the unknowns.
-pub(super) fn undriven(eq: &Equations<'_>, prep: &Preparation) -> Option<Diagnostic> {
+fn undriven(eq: &Equations<'_>, prep: &Preparation) -> Option<Diagnostic> {
     (prep.rank < eq.unknowns()).then(|| {
         Diagnostic::error(format!(
             "the Jacobian has rank {} for {} unknowns: {} degree(s) of freedom are not driven; \

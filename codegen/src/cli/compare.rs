@@ -4,10 +4,7 @@ use std::io::{self, Write};
 use std::path::Path;
 
 use super::args::CheckFormat;
-use super::common::{
-    EXIT_OK, EXIT_STOPPED, build_generated, engine_unavailable, report_invalid, time_generic,
-    undriven,
-};
+use super::common::{EXIT_OK, EXIT_STOPPED, build_generated, engine_unavailable, time_generic};
 use super::term;
 use crate::diag::printable;
 use indicatif::ProgressBar;
@@ -30,11 +27,10 @@ pub(super) fn compare(
         Err(code) => return Ok(code),
     };
     let mech = &loaded.mechanism;
-    let eq = Equations::new(mech);
-    let prep = eq.prepare();
-    if let Some(d) = undriven(&eq, &prep) {
-        return Ok(report_invalid(&[d], json, out, err));
-    }
+    let (eq, prep) = match super::common::prepared(mech, json, out, err) {
+        Ok(p) => p,
+        Err(code) => return Ok(code),
+    };
     let built = match build_generated(mech, crate::emit::Scalar::F64, err)? {
         Ok(b) => b,
         Err(e) => return engine_unavailable(&e, mech, json, out, err),

@@ -5,10 +5,10 @@ use std::path::Path;
 
 use clap::ValueEnum;
 
-use super::common::{EXIT_INVALID, EXIT_OK, EXIT_STOPPED, load, report_invalid, undriven};
+use super::common::{EXIT_INVALID, EXIT_OK, EXIT_STOPPED, report_invalid};
 use super::term;
 use crate::diag::Diagnostic;
-use crate::generic::{Analysis, Equations};
+use crate::generic::Analysis;
 use crate::plot::{Quantity, Target, Trace};
 use crate::report;
 
@@ -80,14 +80,11 @@ pub(super) fn plot(
     out: &mut dyn Write,
     err: &mut dyn Write,
 ) -> io::Result<i32> {
-    let mut loaded = match load(file, false, out, err) {
+    // Input drivers need a recorded series, which only solve, compare and bench take.
+    let loaded = match super::common::load_replayed(file, None, false, out, err)? {
         Ok(l) => l,
         Err(code) => return Ok(code),
     };
-    // Input drivers need a recorded series, which only solve, compare and bench take.
-    if let Err(code) = super::common::replay(&mut loaded.mechanism, None, false, out, err)? {
-        return Ok(code);
-    }
     let mech = &loaded.mechanism;
     if let Some(d) = unknown_target(mech, target) {
         return Ok(report_invalid(&[d], false, out, err));
@@ -101,11 +98,10 @@ pub(super) fn plot(
             .field("--quantity");
         return Ok(report_invalid(&[d], false, out, err));
     }
-    let eq = Equations::new(mech);
-    let prep = eq.prepare();
-    if let Some(d) = undriven(&eq, &prep) {
-        return Ok(report_invalid(&[d], false, out, err));
-    }
+    let (eq, prep) = match super::common::prepared(mech, false, out, err) {
+        Ok(p) => p,
+        Err(code) => return Ok(code),
+    };
     let layout = report::layout(mech);
     let mut trace = Trace::new(mech.time.count);
     let bar = term::bar(mech.time.count as u64, "analysis");

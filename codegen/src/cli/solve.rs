@@ -5,11 +5,11 @@ use std::path::Path;
 
 use super::args::{Engine, SolveFormat};
 use super::common::{
-    EXIT_OK, EXIT_STOPPED, Sink, build_generated, engine_unavailable, report_invalid, undriven,
+    EXIT_OK, EXIT_STOPPED, Sink, build_generated, engine_unavailable, report_invalid,
 };
 use super::term;
 use crate::diag::{Diagnostic, printable};
-use crate::generic::{Analysis, Equations};
+use crate::generic::Analysis;
 use crate::model::Mechanism;
 use crate::report::{self, Writer};
 
@@ -46,11 +46,10 @@ pub(super) fn solve(
             }
         },
     };
-    let eq = Equations::new(mech);
-    let prep = eq.prepare();
-    if let Some(d) = undriven(&eq, &prep) {
-        return Ok(report_invalid(&[d], json, out, err));
-    }
+    let (eq, prep) = match super::common::prepared(mech, json, out, err) {
+        Ok(p) => p,
+        Err(code) => return Ok(code),
+    };
     // The default engine is the generated one when it can be built, else the generic one.
     let built = match engine {
         Some(Engine::Generic) => None,
