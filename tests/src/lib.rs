@@ -6,6 +6,8 @@
 //! the tests say, at each comparison, which reference value is trusted and how far.
 
 #[cfg(test)]
+mod arm_ik;
+#[cfg(test)]
 mod generated_engine;
 #[cfg(test)]
 mod harness;
