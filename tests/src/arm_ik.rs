@@ -270,7 +270,32 @@ fn check_against_the_trajectory(v: &serde_json::Value, engine: &str) -> [f64; 4]
 }
 
 #[test]
-fn the_generic_engine_recovers_the_joint_trajectory_from_the_tool_path() {
-    let worst = check_against_the_trajectory(&solve("generic"), "generic");
-    eprintln!("generic: largest errors (angle, rate, acceleration, tool) {worst:?}");
+fn both_engines_recover_the_joint_trajectory_from_the_tool_path() {
+    for engine in ["generic", "generated"] {
+        let v = solve(engine);
+        assert_eq!(v["engine"], engine);
+        let worst = check_against_the_trajectory(&v, engine);
+        eprintln!("{engine}: largest errors (angle, rate, acceleration, tool) {worst:?}");
+    }
+}
+
+#[test]
+fn compare_replays_the_tool_path_on_both_engines_and_they_agree() {
+    let (arm, path) = (example("arm3r_ik.toml"), example("arm3r_tool_path.csv"));
+    let (arm, path) = (arm.display().to_string(), path.display().to_string());
+    let (code, out, err) = mechgen(&["compare", &arm, "--inputs", &path, "--format", "json"]);
+    assert_eq!(code, 0, "{err}");
+    let v: serde_json::Value = serde_json::from_str(&out).unwrap_or_else(|e| panic!("{e}: {out}"));
+    assert_eq!(v["steps"].as_u64(), Some(ROWS as u64), "one step per row of the path");
+    assert_eq!(v["disagree"], serde_json::json!([]), "{v}");
+    let diffs = v["max_abs_diff"].as_object().expect("max_abs_diff");
+    assert!(diffs.len() >= 11, "every quantity compared: {diffs:?}");
+    for (quantity, d) in diffs {
+        let d = d.as_f64().expect("a number");
+        // Each engine is within the bound of the trajectory test above of the true solution
+        // (a few 1e-12 on positions and Euler parameters of unit-sized bodies, the same
+        // relative to rates and accelerations of order 1), so they differ by at most twice
+        // that; 1e-10 leaves a margin of ten and flags any real disagreement.
+        assert!(d < 1e-10, "{quantity}: {d:e}");
+    }
 }
