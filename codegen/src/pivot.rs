@@ -91,12 +91,13 @@ pub fn constants(sys: &Symbolic) -> Vec<Vec<Option<f64>>> {
     c
 }
 
-/// Φ_q at (q, t) as a dense matrix.
+/// Φ_q at (q, t) as a dense matrix, with the input drivers at `inputs` (`[s, ṡ, s̈]` each;
+/// empty without input drivers).
 #[must_use]
-pub fn numeric(sys: &Symbolic, q: &[f64], t: f64) -> Vec<Vec<f64>> {
+pub fn numeric(sys: &Symbolic, q: &[f64], t: f64, inputs: &[[f64; 3]]) -> Vec<Vec<f64>> {
     let n = sys.unknowns.len();
     let roots: Vec<_> = sys.jac.iter().flatten().map(|&(_, e)| e).collect();
-    let mut vals = sys.pool.eval(&roots, q, &[], t).into_iter();
+    let mut vals = sys.pool.eval_inputs(&roots, [q, &[], &[]], t, inputs).into_iter();
     let mut m = vec![vec![0.0; n]; n];
     for (i, row) in sys.jac.iter().enumerate() {
         for &(j, _) in row {
@@ -277,6 +278,9 @@ pub fn solve(s: &[Vec<bool>], a: &[Vec<f64>], b: &[f64]) -> Option<Vec<f64>> {
 /// the run-time guard there, or a new one chosen there.
 struct Sampler<'s> {
     sys: &'s Symbolic,
+    /// The description, for the inputs of its input drivers along the walk
+    /// ([`Symbolic::planning_inputs`]).
+    mech: &'s Mechanism,
     structure: Vec<Vec<bool>>,
     /// The orders chosen so far, the one last used first.
     orders: Vec<Order>,
@@ -290,7 +294,7 @@ const SAMPLER_MAX_MULTIPLIER: f64 = 1e4;
 impl Sampler<'_> {
     /// The factors of Φ_q(q, t), or `None` when it is singular.
     fn factor(&mut self, q: &[f64], t: f64) -> Option<Vec<Vec<f64>>> {
-        let a = numeric(self.sys, q, t);
+        let a = numeric(self.sys, q, t, &self.sys.planning_inputs(t, self.mech));
         for k in 0..self.orders.len() {
             if let Some((lu, worst)) = factor_in_order(&self.orders[k], &a)
                 && worst <= SAMPLER_MAX_MULTIPLIER
@@ -320,10 +324,11 @@ impl Sampler<'_> {
         max_iterations: u32,
     ) -> Option<[Vec<f64>; 3]> {
         let pool = &self.sys.pool;
+        let u = self.sys.planning_inputs(t, self.mech);
         let mut normalised = false;
         let mut iterations = 0;
         loop {
-            let phi = pool.eval(&self.sys.phi, &q, &[], t);
+            let phi = pool.eval_inputs(&self.sys.phi, [&q, &[], &[]], t, &u);
             let res = phi.iter().fold(0.0_f64, |m, x| m.max(x.abs()));
             if !res.is_finite() {
                 return None;
@@ -348,8 +353,8 @@ impl Sampler<'_> {
             iterations += 1;
         }
         let lu = self.factor(&q, t)?;
-        let qd = self.solve(&lu, &pool.eval(&self.sys.nu, &q, &[], t));
-        let qdd = self.solve(&lu, &pool.eval(&self.sys.gamma, &q, &qd, t));
+        let qd = self.solve(&lu, &pool.eval_inputs(&self.sys.nu, [&q, &[], &[]], t, &u));
+        let qdd = self.solve(&lu, &pool.eval_inputs(&self.sys.gamma, [&q, &qd, &[]], t, &u));
         [&q, &qd, &qdd].iter().all(|v| v.iter().all(|x| x.is_finite())).then_some([q, qd, qdd])
     }
 }
@@ -374,7 +379,7 @@ pub const MAX_SAMPLES: usize = 4096;
 /// Only the last configuration is kept, so memory does not grow with the grid.
 pub fn motion(mech: &Mechanism, sys: &Symbolic, mut visit: impl FnMut(f64, &[f64]) -> bool) {
     let q0 = sys.initial_estimate(mech);
-    let mut sampler = Sampler { sys, structure: structure(sys), orders: Vec::new() };
+    let mut sampler = Sampler { sys, mech, structure: structure(sys), orders: Vec::new() };
     // The last configuration solved, and whether it has been visited.
     let mut prev: Option<(f64, [Vec<f64>; 3], bool)> = None;
     let (tolerance, max_iterations) = (mech.solver.tolerance, mech.solver.max_iterations);
@@ -410,13 +415,15 @@ pub fn motion(mech: &Mechanism, sys: &Symbolic, mut visit: impl FnMut(f64, &[f64
 /// further one at the first configuration the orders so far do not cover.
 struct Planner<'s> {
     sys: &'s Symbolic,
+    /// The description, for the inputs of its input drivers ([`Symbolic::planning_inputs`]).
+    mech: &'s Mechanism,
     structure: Vec<Vec<bool>>,
     orders: Vec<Order>,
 }
 
 impl<'s> Planner<'s> {
-    fn new(sys: &'s Symbolic) -> Self {
-        Planner { sys, structure: structure(sys), orders: Vec::new() }
+    fn new(mech: &'s Mechanism, sys: &'s Symbolic) -> Self {
+        Planner { sys, mech, structure: structure(sys), orders: Vec::new() }
     }
 
     /// Looks at configuration (t, q); false once [`MAX_ORDERS`] orders are chosen.
@@ -424,7 +431,7 @@ impl<'s> Planner<'s> {
         if self.orders.len() == MAX_ORDERS {
             return false;
         }
-        let a = numeric(self.sys, q, t);
+        let a = numeric(self.sys, q, t, &self.sys.planning_inputs(t, self.mech));
         let covered = self
             .orders
             .iter()
@@ -438,8 +445,8 @@ impl<'s> Planner<'s> {
 
 /// The static orders for the configurations `samples` (see [`Planner`]).
 #[must_use]
-pub fn plan(sys: &Symbolic, samples: &[(f64, Vec<f64>)]) -> Vec<Order> {
-    let mut planner = Planner::new(sys);
+pub fn plan(mech: &Mechanism, sys: &Symbolic, samples: &[(f64, Vec<f64>)]) -> Vec<Order> {
+    let mut planner = Planner::new(mech, sys);
     for (t, q) in samples {
         if !planner.visit(*t, q) {
             break;
@@ -452,7 +459,7 @@ pub fn plan(sys: &Symbolic, samples: &[(f64, Vec<f64>)]) -> Vec<Order> {
 /// [`motion`] visits, without keeping them.
 #[must_use]
 pub fn plan_motion(mech: &Mechanism, sys: &Symbolic) -> Vec<Order> {
-    let mut planner = Planner::new(sys);
+    let mut planner = Planner::new(mech, sys);
     motion(mech, sys, |t, q| planner.visit(t, q));
     planner.orders
 }

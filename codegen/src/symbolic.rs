@@ -74,8 +74,9 @@ pub struct InputDriver {
     /// without a replayed series), the input the generated module starts from.
     pub initial: f64,
     /// The rate at which the generator's own walks (assembly, pivot planning) move it over
-    /// the description's `[time]` grid: one turn over the grid for a joint rotation, none
-    /// otherwise (a translation's or a target's range is not known at generation time).
+    /// the description's `[time]` grid: one turn over the grid for a rotation (a joint's, or a
+    /// body's about a global axis), none otherwise (a translation's or a target's range is not
+    /// known at generation time).
     pub sweep: f64,
 }
 
@@ -886,7 +887,16 @@ fn input_drivers(mech: &Mechanism) -> Vec<InputDriver> {
         .enumerate()
         .filter(|(_, d)| d.law == Law::Input)
         .map(|(k, d)| {
-            let rotation = matches!(d.target, DriverTarget::Joint { motion: Motion::Rotation, .. });
+            let rotation = matches!(
+                d.target,
+                DriverTarget::Joint { motion: Motion::Rotation, .. }
+                    | DriverTarget::Absolute {
+                        coordinate: DriverCoordinate::Rx
+                            | DriverCoordinate::Ry
+                            | DriverCoordinate::Rz,
+                        ..
+                    }
+            );
             let sweep = if rotation && span > 0.0 { std::f64::consts::TAU / span } else { 0.0 };
             InputDriver { driver: k, initial: eq.held(k), sweep }
         })
