@@ -91,13 +91,13 @@ pub fn constants(sys: &Symbolic) -> Vec<Vec<Option<f64>>> {
     c
 }
 
-/// Φ_q at (q, t) as a dense matrix, with the input drivers at `inputs` (`[s, ṡ, s̈]` each;
-/// empty without input drivers).
+/// Φ_q at (q, t) as a dense matrix.
 #[must_use]
-pub fn numeric(sys: &Symbolic, q: &[f64], t: f64, inputs: &[[f64; 3]]) -> Vec<Vec<f64>> {
+pub fn numeric(sys: &Symbolic, q: &[f64], t: f64) -> Vec<Vec<f64>> {
     let n = sys.unknowns.len();
     let roots: Vec<_> = sys.jac.iter().flatten().map(|&(_, e)| e).collect();
-    let mut vals = sys.pool.eval_inputs(&roots, [q, &[], &[]], t, inputs).into_iter();
+    let mut vals =
+        sys.pool.eval_inputs(&roots, [q, &[], &[]], t, &sys.planning_inputs(t)).into_iter();
     let mut m = vec![vec![0.0; n]; n];
     for (i, row) in sys.jac.iter().enumerate() {
         for &(j, _) in row {
@@ -278,9 +278,6 @@ pub fn solve(s: &[Vec<bool>], a: &[Vec<f64>], b: &[f64]) -> Option<Vec<f64>> {
 /// the run-time guard there, or a new one chosen there.
 struct Sampler<'s> {
     sys: &'s Symbolic,
-    /// The description, for the inputs of its input drivers along the walk
-    /// ([`Symbolic::planning_inputs`]).
-    mech: &'s Mechanism,
     structure: Vec<Vec<bool>>,
     /// The orders chosen so far, the one last used first.
     orders: Vec<Order>,
@@ -294,7 +291,7 @@ const SAMPLER_MAX_MULTIPLIER: f64 = 1e4;
 impl Sampler<'_> {
     /// The factors of Φ_q(q, t), or `None` when it is singular.
     fn factor(&mut self, q: &[f64], t: f64) -> Option<Vec<Vec<f64>>> {
-        let a = numeric(self.sys, q, t, &self.sys.planning_inputs(t, self.mech));
+        let a = numeric(self.sys, q, t);
         for k in 0..self.orders.len() {
             if let Some((lu, worst)) = factor_in_order(&self.orders[k], &a)
                 && worst <= SAMPLER_MAX_MULTIPLIER
@@ -324,7 +321,7 @@ impl Sampler<'_> {
         max_iterations: u32,
     ) -> Option<[Vec<f64>; 3]> {
         let pool = &self.sys.pool;
-        let u = self.sys.planning_inputs(t, self.mech);
+        let u = self.sys.planning_inputs(t);
         let mut normalised = false;
         let mut iterations = 0;
         loop {
@@ -379,7 +376,7 @@ pub const MAX_SAMPLES: usize = 4096;
 /// Only the last configuration is kept, so memory does not grow with the grid.
 pub fn motion(mech: &Mechanism, sys: &Symbolic, mut visit: impl FnMut(f64, &[f64]) -> bool) {
     let q0 = sys.initial_estimate(mech);
-    let mut sampler = Sampler { sys, mech, structure: structure(sys), orders: Vec::new() };
+    let mut sampler = Sampler { sys, structure: structure(sys), orders: Vec::new() };
     // The last configuration solved, and whether it has been visited.
     let mut prev: Option<(f64, [Vec<f64>; 3], bool)> = None;
     let (tolerance, max_iterations) = (mech.solver.tolerance, mech.solver.max_iterations);
@@ -415,15 +412,13 @@ pub fn motion(mech: &Mechanism, sys: &Symbolic, mut visit: impl FnMut(f64, &[f64
 /// further one at the first configuration the orders so far do not cover.
 struct Planner<'s> {
     sys: &'s Symbolic,
-    /// The description, for the inputs of its input drivers ([`Symbolic::planning_inputs`]).
-    mech: &'s Mechanism,
     structure: Vec<Vec<bool>>,
     orders: Vec<Order>,
 }
 
 impl<'s> Planner<'s> {
-    fn new(mech: &'s Mechanism, sys: &'s Symbolic) -> Self {
-        Planner { sys, mech, structure: structure(sys), orders: Vec::new() }
+    fn new(sys: &'s Symbolic) -> Self {
+        Planner { sys, structure: structure(sys), orders: Vec::new() }
     }
 
     /// Looks at configuration (t, q); false once [`MAX_ORDERS`] orders are chosen.
@@ -431,7 +426,7 @@ impl<'s> Planner<'s> {
         if self.orders.len() == MAX_ORDERS {
             return false;
         }
-        let a = numeric(self.sys, q, t, &self.sys.planning_inputs(t, self.mech));
+        let a = numeric(self.sys, q, t);
         let covered = self
             .orders
             .iter()
@@ -445,8 +440,8 @@ impl<'s> Planner<'s> {
 
 /// The static orders for the configurations `samples` (see [`Planner`]).
 #[must_use]
-pub fn plan(mech: &Mechanism, sys: &Symbolic, samples: &[(f64, Vec<f64>)]) -> Vec<Order> {
-    let mut planner = Planner::new(mech, sys);
+pub fn plan(sys: &Symbolic, samples: &[(f64, Vec<f64>)]) -> Vec<Order> {
+    let mut planner = Planner::new(sys);
     for (t, q) in samples {
         if !planner.visit(*t, q) {
             break;
@@ -459,7 +454,7 @@ pub fn plan(mech: &Mechanism, sys: &Symbolic, samples: &[(f64, Vec<f64>)]) -> Ve
 /// [`motion`] visits, without keeping them.
 #[must_use]
 pub fn plan_motion(mech: &Mechanism, sys: &Symbolic) -> Vec<Order> {
-    let mut planner = Planner::new(mech, sys);
+    let mut planner = Planner::new(sys);
     motion(mech, sys, |t, q| planner.visit(t, q));
     planner.orders
 }

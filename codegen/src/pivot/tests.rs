@@ -80,12 +80,12 @@ fn two_orders_cover_a_full_rssr_revolution() {
     assert_eq!(samples.len(), 1001);
     let s = structure(&sys);
     assert_eq!((s.len(), s.iter().flatten().filter(|&&b| b).count()), (20, 78));
-    let orders = plan(&mech, &sys, &samples);
+    let orders = plan(&sys, &samples);
     assert_eq!(orders.len(), 2);
     assert!(orders.iter().all(|o| o.entries() == 92), "14 fill-ins each");
     let mut first = [0; 2];
     for (t, q) in &samples {
-        let a = numeric(&sys, q, *t, &[]);
+        let a = numeric(&sys, q, *t);
         let m: Vec<Option<f64>> = orders.iter().map(|o| largest_multiplier(o, &a)).collect();
         let k = m
             .iter()
