@@ -8,6 +8,7 @@
 
 #![no_std]
 
+pub mod arm3r_ik;
 pub mod cylindrical_joint;
 pub mod four_bar;
 pub mod four_bar_input;

@@ -3,7 +3,8 @@
 //! `examples/inputs/arm3r_tool_path.csv` is the tool path of a known joint trajectory, made by
 //! the closed-form forward kinematics below. `solve --inputs` must report that trajectory as
 //! the joints' angles, rates and accelerations, and the forward kinematics of what it reports
-//! must give the tool path back.
+//! must give the tool path back; so must the committed generated module `generated::arm3r_ik`
+//! driven row by row through `runtime::Solver::advance_with`, as a control loop would.
 //!
 //! `UPDATE_EXPECT=1 cargo test -p tests arm_ik` rewrites the CSV from the closed form.
 
@@ -298,4 +299,45 @@ fn compare_replays_the_tool_path_on_both_engines_and_they_agree() {
         // that; 1e-10 leaves a margin of ten and flags any real disagreement.
         assert!(d < 1e-10, "{quantity}: {d:e}");
     }
+}
+
+#[test]
+fn the_generated_module_follows_the_tool_path_through_advance_with() {
+    use generated::arm3r_ik::joint_coordinate::{J1_ANGLE, J2_ANGLE, J3_ANGLE};
+    use generated::arm3r_ik::{self as arm, Arm3rIk, Inputs};
+    use runtime::input::Input;
+    use runtime::{NewtonOptions, Solver};
+
+    let mut solver = Solver::new(Arm3rIk::new(0.0, &arm::INITIAL_INPUTS), arm::Q0);
+    solver.set_options(NewtonOptions { tolerance: arm::TOLERANCE, ..NewtonOptions::DEFAULT });
+    let mut worst = 0.0f64;
+    for row in tool_path_rows() {
+        let t = row[0];
+        let input = |c: usize| Input {
+            value: row[1 + 3 * c],
+            rate: row[2 + 3 * c],
+            acceleration: row[3 + 3 * c],
+        };
+        let inputs = Inputs { tool_x: input(0), tool_y: input(1), tool_z: input(2) };
+        solver.advance_with(t, &inputs.to_array()).unwrap_or_else(|e| panic!("t {t}: {e}"));
+        let mut coordinates = [[0.0; 3]; arm::JOINT_COORDINATES];
+        arm::joint_coordinates(solver.q(), solver.qd(), solver.qdd(), t, &inputs, &mut coordinates);
+        let want = joints(t);
+        let angles = [J1_ANGLE, J2_ANGLE, J3_ANGLE];
+        for (k, name) in angles.into_iter().enumerate() {
+            for d in 0..3 {
+                let err = (coordinates[name][d] - want[k][d]).abs();
+                worst = worst.max(err);
+                // The bound of the command-line runs above: the same tolerance and path.
+                assert!(
+                    err < 5e-11,
+                    "t {t}: J{} [{d}] {} vs {}",
+                    k + 1,
+                    coordinates[name][d],
+                    want[k][d]
+                );
+            }
+        }
+    }
+    eprintln!("advance_with: largest joint error {worst:e}");
 }
