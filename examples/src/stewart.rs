@@ -146,11 +146,8 @@ impl Trajectory {
         let angular_velocity = ux * roll[1] + uy * pitch[1] + uz * yaw[1];
         let uy_dot = (uz * yaw[1]).cross(&uy);
         let ux_dot = (uz * yaw[1] + uy * pitch[1]).cross(&ux);
-        let angular_acceleration = uz * yaw[2]
-            + uy * pitch[2]
-            + uy_dot * pitch[1]
-            + ux * roll[2]
-            + ux_dot * roll[1];
+        let angular_acceleration =
+            uz * yaw[2] + uy * pitch[2] + uy_dot * pitch[1] + ux * roll[2] + ux_dot * roll[1];
         Motion {
             position: Vector3::new(x[0], y[0], z[0]),
             rotation,

@@ -32,4 +32,6 @@ mod split_modules;
 #[cfg(test)]
 mod stability;
 #[cfg(test)]
+mod stewart;
+#[cfg(test)]
 mod structured_lu;
