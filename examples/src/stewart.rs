@@ -38,7 +38,7 @@ const HALF_SPREAD_DEGREES: f64 = 15.0;
 #[must_use]
 pub fn base_point(k: usize) -> Vector3<f64> {
     let centre = 120.0 * (k / 2) as f64;
-    let side = if k % 2 == 0 { -HALF_SPREAD_DEGREES } else { HALF_SPREAD_DEGREES };
+    let side = if k.is_multiple_of(2) { -HALF_SPREAD_DEGREES } else { HALF_SPREAD_DEGREES };
     on_circle(BASE_RADIUS, centre + side)
 }
 
@@ -47,7 +47,8 @@ pub fn base_point(k: usize) -> Vector3<f64> {
 #[must_use]
 pub fn platform_point(k: usize) -> Vector3<f64> {
     let centre = 120.0 * (k / 2) as f64;
-    let side = if k % 2 == 0 { -60.0 + HALF_SPREAD_DEGREES } else { 60.0 - HALF_SPREAD_DEGREES };
+    let side =
+        if k.is_multiple_of(2) { -60.0 + HALF_SPREAD_DEGREES } else { 60.0 - HALF_SPREAD_DEGREES };
     on_circle(PLATFORM_RADIUS, centre + side)
 }
 
