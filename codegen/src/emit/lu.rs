@@ -313,7 +313,12 @@ impl Factorizer<'_> {
         match v {
             Val::Const(_) => v,
             Val::Run(..) => {
-                let e = v.expr(Prec::Sum);
+                let e = match v.expr(Prec::Sum) {
+                    // The negation of a negated product keeps the parentheses the product had
+                    // as the operand of `-`; a binding needs none (rustc's `unused_parens`).
+                    Expr::Paren(p) => *p.expr,
+                    e => e,
+                };
                 self.part.stmts.push(let_stmt(name.clone(), e));
                 Val::Run(path(name), Prec::Atom)
             }
