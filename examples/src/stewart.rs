@@ -16,6 +16,7 @@
 //! the platform's twist (v, ω).
 
 pub mod baseline;
+pub mod control;
 #[cfg(test)]
 mod tests;
 
