@@ -5,8 +5,8 @@
 
 use generated::stewart::{self as gs, Inputs, Stewart};
 use nalgebra::{Matrix3, Vector3};
-use runtime::input::Input;
-use runtime::{InputsError, NewtonOptions, Solver};
+use runtime::input::{Driven, Input};
+use runtime::{AttemptError, InputsError, NewtonOptions, Solver};
 
 use super::{LEGS, Motion, Trajectory, leg_lengths};
 
@@ -30,6 +30,27 @@ pub fn solver(trajectory: &Trajectory, t: f64) -> PlatformSolver {
     solver.set_options(NewtonOptions { tolerance: gs::TOLERANCE, ..NewtonOptions::DEFAULT });
     solver.set_predictor(true);
     solver
+}
+
+/// One step without the step control: the inputs `u` at `t` go to the mechanism, then plain
+/// [`Solver::position`], [`Solver::velocity`] and [`Solver::acceleration`] calls, which trust
+/// the caller's step (a step that is large for the motion may converge on another assembly
+/// branch and still succeed). The benchmarks' lower bound on a period's cost.
+///
+/// # Errors
+/// The Newton or solve failure; the solver then stands where it was.
+pub fn plain_step(
+    solver: &mut PlatformSolver,
+    t: f64,
+    u: &[[f64; 3]; LEGS],
+) -> Result<(), AttemptError> {
+    solver.mechanism_mut().segment_mut().aim(t, *u);
+    let result = solver.position(t).map_err(AttemptError::Newton).and_then(|_| {
+        solver.velocity().and_then(|()| solver.acceleration()).map_err(AttemptError::Solve)
+    });
+    let reached = solver.t();
+    solver.mechanism_mut().segment_mut().settle(reached);
+    result
 }
 
 /// The rotation matrix A(p) of Euler parameters p = [e0, e1, e2, e3] (thesis eq. 3.17):
