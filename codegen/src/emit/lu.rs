@@ -131,6 +131,16 @@ impl Val {
         }
     }
 
+    /// The expression a `let` binds: [`Val::expr`] without enclosing parentheses. The negation
+    /// of a negated product keeps the parentheses the product had as the operand of `-`, which
+    /// a binding does not need (rustc's `unused_parens`).
+    fn binding(&self) -> Expr {
+        match self.expr(Prec::Sum) {
+            Expr::Paren(p) => *p.expr,
+            e => e,
+        }
+    }
+
     /// [`Val::expr`], taking `self`.
     fn into_expr(self, at_least: Prec) -> Expr {
         match self {
@@ -313,13 +323,7 @@ impl Factorizer<'_> {
         match v {
             Val::Const(_) => v,
             Val::Run(..) => {
-                let e = match v.expr(Prec::Sum) {
-                    // The negation of a negated product keeps the parentheses the product had
-                    // as the operand of `-`; a binding needs none (rustc's `unused_parens`).
-                    Expr::Paren(p) => *p.expr,
-                    e => e,
-                };
-                self.part.stmts.push(let_stmt(name.clone(), e));
+                self.part.stmts.push(let_stmt(name.clone(), v.binding()));
                 Val::Run(path(name), Prec::Atom)
             }
         }
