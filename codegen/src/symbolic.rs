@@ -77,6 +77,8 @@ pub struct InputDriver {
     /// the description's `[time]` grid: one turn over the grid for a joint rotation, none
     /// otherwise (a translation's or a target's range is not known at generation time).
     pub sweep: f64,
+    /// The first time point of that grid, where the sweep starts from `initial`.
+    pub start: f64,
 }
 
 /// A sparse matrix by rows: `(column, value)`.
@@ -671,7 +673,7 @@ impl Symbolic {
         normalisation: &[bool],
     ) -> BTreeSet<usize> {
         let t = mech.time.start;
-        let u = self.planning_inputs(t, mech);
+        let u = self.planning_inputs(t);
         let at = |q: &[f64]| -> SparseRows {
             let roots: Vec<ExprId> = jac_rows.iter().flatten().map(|&(_, e)| e).collect();
             let mut it = self.pool.eval_inputs(&roots, [q, &[], &[]], t, &u).into_iter();
@@ -717,7 +719,7 @@ impl Symbolic {
         let n = self.unknowns.len();
         let t = mech.time.start;
         let mut q = self.initial_estimate(mech);
-        let u = self.planning_inputs(t, mech);
+        let u = self.planning_inputs(t);
         for _ in 0..mech.solver.max_iterations.max(50) {
             let res = self.pool.eval_inputs(phi, [&q, &[], &[]], t, &u);
             if !res.iter().all(|x| x.is_finite()) {
@@ -843,9 +845,8 @@ impl Symbolic {
     /// The inputs `[s, ṡ, s̈]` at `t` of the generator's own walks over the `[time]` grid
     /// (see [`InputDriver::sweep`]).
     #[must_use]
-    pub fn planning_inputs(&self, t: f64, mech: &Mechanism) -> Vec<[f64; 3]> {
-        let t0 = mech.time.declared().start;
-        self.inputs.iter().map(|d| [d.initial + d.sweep * (t - t0), d.sweep, 0.0]).collect()
+    pub fn planning_inputs(&self, t: f64) -> Vec<[f64; 3]> {
+        self.inputs.iter().map(|d| [d.initial + d.sweep * (t - d.start), d.sweep, 0.0]).collect()
     }
 
     /// ν and γ from Φ.
@@ -888,7 +889,7 @@ fn input_drivers(mech: &Mechanism) -> Vec<InputDriver> {
         .map(|(k, d)| {
             let rotation = matches!(d.target, DriverTarget::Joint { motion: Motion::Rotation, .. });
             let sweep = if rotation && span > 0.0 { std::f64::consts::TAU / span } else { 0.0 };
-            InputDriver { driver: k, initial: eq.held(k), sweep }
+            InputDriver { driver: k, initial: eq.held(k), sweep, start: grid.start }
         })
         .collect()
 }

@@ -1290,6 +1290,756 @@ fn residual_jacobian_structural(
     jac[20][20] = t81;
 }
 
+/// Factors Φ_q in place with static pivot order 0: step k pivots on row `[0, 1, 2, 12, 13, 14, 5, 6, 7, 15, 18, 4, 3, 17, 10, 20, 11, 16, 8, 9, 19][k]` and column `[0, 1, 2, 14, 15, 16, 7, 8, 9, 19, 3, 4, 5, 6, 10, 17, 11, 18, 12, 13, 20][k]`.
+///
+/// L and U have 136 entries (18 of them fill-in, 18 known when generated); 295 operations. The others are in `jac`: 76 stored there, with the reciprocals of the pivots on the diagonal, and 42 left as Φ_q had them.
+///
+/// Returns the smallest and largest |pivot|, or `None` when a pivot is not finite or a multiplier exceeds [`runtime::lu::MAX_MULTIPLIER`] in magnitude; `jac` is then partly factored and must be evaluated again.
+#[must_use]
+fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
+    let p9 = jac[15][19];
+    let d9 = 1.0 / p9;
+    jac[15][19] = d9;
+    let l14_9 = (jac[10][19] - jac[13][19]) * d9;
+    jac[10][19] = l14_9;
+    let l15_9 = jac[20][19] * d9;
+    jac[20][19] = l15_9;
+    let l16_9 = (jac[11][19] - jac[14][19]) * d9;
+    jac[11][19] = l16_9;
+    let l17_9 = jac[16][19] * d9;
+    jac[16][19] = l17_9;
+    let l19_9 = (jac[9][19] - jac[12][19]) * d9;
+    jac[9][19] = l19_9;
+    if !(p9.is_finite() && l14_9.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l15_9.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l16_9.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l17_9.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l19_9.abs() <= runtime::lu::MAX_MULTIPLIER)
+    {
+        return None;
+    }
+    let mut smallest = p9.abs().min(1.0);
+    let mut largest = p9.abs().max(1.0);
+    let p10 = jac[18][3];
+    let d10 = 1.0 / p10;
+    jac[18][3] = d10;
+    let l11_10 = jac[4][3] * d10;
+    jac[4][3] = l11_10;
+    let l12_10 = jac[3][3] * d10;
+    jac[3][3] = l12_10;
+    let l13_10 = jac[17][3] * d10;
+    jac[17][3] = l13_10;
+    let l14_10 = jac[6][3] * d10;
+    jac[10][3] = l14_10;
+    let l16_10 = jac[7][3] * d10;
+    jac[11][3] = l16_10;
+    let l18_10 = jac[8][3] * d10;
+    jac[8][3] = l18_10;
+    let l19_10 = jac[5][3] * d10;
+    jac[9][3] = l19_10;
+    if !(p10.is_finite() && l11_10.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l12_10.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l13_10.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l14_10.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l16_10.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l18_10.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l19_10.abs() <= runtime::lu::MAX_MULTIPLIER)
+    {
+        return None;
+    }
+    smallest = smallest.min(p10.abs());
+    largest = largest.max(p10.abs());
+    let u11_12 = jac[4][5] - l11_10 * jac[18][5];
+    jac[4][5] = u11_12;
+    let u11_13 = jac[4][6] - l11_10 * jac[18][6];
+    jac[4][6] = u11_13;
+    let p11 = jac[4][4] - l11_10 * jac[18][4];
+    let d11 = 1.0 / p11;
+    jac[4][4] = d11;
+    let l12_11 = (jac[3][4] - l12_10 * jac[18][4]) * d11;
+    jac[3][4] = l12_11;
+    let l13_11 = (jac[17][4] - l13_10 * jac[18][4]) * d11;
+    jac[17][4] = l13_11;
+    let l14_11 = (jac[6][4] - l14_10 * jac[18][4]) * d11;
+    jac[10][4] = l14_11;
+    let l16_11 = (jac[7][4] - l16_10 * jac[18][4]) * d11;
+    jac[11][4] = l16_11;
+    let l18_11 = (jac[8][4] - l18_10 * jac[18][4]) * d11;
+    jac[8][4] = l18_11;
+    let l19_11 = (jac[5][4] - l19_10 * jac[18][4]) * d11;
+    jac[9][4] = l19_11;
+    if !(p11.is_finite() && l12_11.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l13_11.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l14_11.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l16_11.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l18_11.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l19_11.abs() <= runtime::lu::MAX_MULTIPLIER)
+    {
+        return None;
+    }
+    smallest = smallest.min(p11.abs());
+    largest = largest.max(p11.abs());
+    let u12_13 = jac[3][6] - l12_10 * jac[18][6] - l12_11 * u11_13;
+    jac[3][6] = u12_13;
+    let p12 = jac[3][5] - l12_10 * jac[18][5] - l12_11 * u11_12;
+    let d12 = 1.0 / p12;
+    jac[3][5] = d12;
+    let l13_12 = (jac[17][5] - l13_10 * jac[18][5] - l13_11 * u11_12) * d12;
+    jac[17][5] = l13_12;
+    let l14_12 = (jac[6][5] - l14_10 * jac[18][5] - l14_11 * u11_12) * d12;
+    jac[10][5] = l14_12;
+    let l16_12 = (jac[7][5] - l16_10 * jac[18][5] - l16_11 * u11_12) * d12;
+    jac[11][5] = l16_12;
+    let l18_12 = (jac[8][5] - l18_10 * jac[18][5] - l18_11 * u11_12) * d12;
+    jac[8][5] = l18_12;
+    let l19_12 = (jac[5][5] - l19_10 * jac[18][5] - l19_11 * u11_12) * d12;
+    jac[9][5] = l19_12;
+    if !(p12.is_finite() && l13_12.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l14_12.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l16_12.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l18_12.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l19_12.abs() <= runtime::lu::MAX_MULTIPLIER)
+    {
+        return None;
+    }
+    smallest = smallest.min(p12.abs());
+    largest = largest.max(p12.abs());
+    let p13 = jac[17][6] - l13_10 * jac[18][6] - l13_11 * u11_13 - l13_12 * u12_13;
+    let d13 = 1.0 / p13;
+    jac[17][6] = d13;
+    let l14_13 = (jac[6][6] - l14_10 * jac[18][6] - l14_11 * u11_13 - l14_12 * u12_13)
+        * d13;
+    jac[10][6] = l14_13;
+    let l16_13 = (jac[7][6] - l16_10 * jac[18][6] - l16_11 * u11_13 - l16_12 * u12_13)
+        * d13;
+    jac[11][6] = l16_13;
+    let l18_13 = (jac[8][6] - l18_10 * jac[18][6] - l18_11 * u11_13 - l18_12 * u12_13)
+        * d13;
+    jac[8][6] = l18_13;
+    let l19_13 = (jac[5][6] - l19_10 * jac[18][6] - l19_11 * u11_13 - l19_12 * u12_13)
+        * d13;
+    jac[9][6] = l19_13;
+    if !(p13.is_finite() && l14_13.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l16_13.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l18_13.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l19_13.abs() <= runtime::lu::MAX_MULTIPLIER)
+    {
+        return None;
+    }
+    smallest = smallest.min(p13.abs());
+    largest = largest.max(p13.abs());
+    let u14_15 = jac[10][17] - jac[13][17] - l14_9 * jac[15][17];
+    jac[10][17] = u14_15;
+    let u14_16 = jac[10][11] + jac[6][11];
+    jac[10][11] = u14_16;
+    let u14_17 = jac[10][18] - jac[13][18] - l14_9 * jac[15][18];
+    jac[10][18] = u14_17;
+    let u14_18 = jac[10][12] + jac[6][12];
+    jac[10][12] = u14_18;
+    let u14_19 = jac[10][13] + jac[6][13];
+    jac[10][13] = u14_19;
+    let u14_20 = jac[10][20] - jac[13][20] - l14_9 * jac[15][20];
+    jac[10][20] = u14_20;
+    let p14 = jac[10][10] + jac[6][10];
+    let d14 = 1.0 / p14;
+    jac[10][10] = d14;
+    let l16_14 = (jac[11][10] + jac[7][10]) * d14;
+    jac[11][10] = l16_14;
+    let l18_14 = jac[8][10] * d14;
+    jac[8][10] = l18_14;
+    let l19_14 = (jac[9][10] + jac[5][10]) * d14;
+    jac[9][10] = l19_14;
+    let l20_14 = jac[19][10] * d14;
+    jac[19][10] = l20_14;
+    if !(p14.is_finite() && l16_14.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l18_14.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l19_14.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l20_14.abs() <= runtime::lu::MAX_MULTIPLIER)
+    {
+        return None;
+    }
+    smallest = smallest.min(p14.abs());
+    largest = largest.max(p14.abs());
+    let u15_17 = jac[20][18] - l15_9 * jac[15][18];
+    jac[20][18] = u15_17;
+    let u15_20 = jac[20][20] - l15_9 * jac[15][20];
+    jac[20][20] = u15_20;
+    let p15 = jac[20][17] - l15_9 * jac[15][17];
+    let d15 = 1.0 / p15;
+    jac[20][17] = d15;
+    let l16_15 = (jac[11][17] - jac[14][17] - l16_9 * jac[15][17] - l16_14 * u14_15)
+        * d15;
+    jac[11][17] = l16_15;
+    let l17_15 = (jac[16][17] - l17_9 * jac[15][17]) * d15;
+    jac[16][17] = l17_15;
+    let l18_15 = -(l18_14 * u14_15) * d15;
+    jac[8][17] = l18_15;
+    let l19_15 = (jac[9][17] - jac[12][17] - l19_9 * jac[15][17] - l19_14 * u14_15)
+        * d15;
+    jac[9][17] = l19_15;
+    let l20_15 = -(l20_14 * u14_15) * d15;
+    jac[19][17] = l20_15;
+    if !(p15.is_finite() && l16_15.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l17_15.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l18_15.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l19_15.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l20_15.abs() <= runtime::lu::MAX_MULTIPLIER)
+    {
+        return None;
+    }
+    smallest = smallest.min(p15.abs());
+    largest = largest.max(p15.abs());
+    let u16_17 = jac[11][18] - jac[14][18] - l16_9 * jac[15][18] - l16_14 * u14_17
+        - l16_15 * u15_17;
+    jac[11][18] = u16_17;
+    let u16_18 = jac[11][12] + jac[7][12] - l16_14 * u14_18;
+    jac[11][12] = u16_18;
+    let u16_19 = jac[11][13] + jac[7][13] - l16_14 * u14_19;
+    jac[11][13] = u16_19;
+    let u16_20 = jac[11][20] - jac[14][20] - l16_9 * jac[15][20] - l16_14 * u14_20
+        - l16_15 * u15_20;
+    jac[11][20] = u16_20;
+    let p16 = jac[11][11] + jac[7][11] - l16_14 * u14_16;
+    let d16 = 1.0 / p16;
+    jac[11][11] = d16;
+    let l18_16 = (jac[8][11] - l18_14 * u14_16) * d16;
+    jac[8][11] = l18_16;
+    let l19_16 = (jac[9][11] + jac[5][11] - l19_14 * u14_16) * d16;
+    jac[9][11] = l19_16;
+    let l20_16 = (jac[19][11] - l20_14 * u14_16) * d16;
+    jac[19][11] = l20_16;
+    if !(p16.is_finite() && l18_16.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l19_16.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l20_16.abs() <= runtime::lu::MAX_MULTIPLIER)
+    {
+        return None;
+    }
+    smallest = smallest.min(p16.abs());
+    largest = largest.max(p16.abs());
+    let u17_20 = jac[16][20] - l17_9 * jac[15][20] - l17_15 * u15_20;
+    jac[16][20] = u17_20;
+    let p17 = jac[16][18] - l17_9 * jac[15][18] - l17_15 * u15_17;
+    let d17 = 1.0 / p17;
+    jac[16][18] = d17;
+    let l18_17 = (-(l18_14 * u14_17) - l18_15 * u15_17 - l18_16 * u16_17) * d17;
+    jac[8][18] = l18_17;
+    let l19_17 = (jac[9][18] - jac[12][18] - l19_9 * jac[15][18] - l19_14 * u14_17
+        - l19_15 * u15_17 - l19_16 * u16_17) * d17;
+    jac[9][18] = l19_17;
+    let l20_17 = (-(l20_14 * u14_17) - l20_15 * u15_17 - l20_16 * u16_17) * d17;
+    jac[19][18] = l20_17;
+    if !(p17.is_finite() && l18_17.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l19_17.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l20_17.abs() <= runtime::lu::MAX_MULTIPLIER)
+    {
+        return None;
+    }
+    smallest = smallest.min(p17.abs());
+    largest = largest.max(p17.abs());
+    let u18_19 = jac[8][13] - l18_14 * u14_19 - l18_16 * u16_19;
+    jac[8][13] = u18_19;
+    let u18_20 = -(l18_14 * u14_20) - l18_15 * u15_20 - l18_16 * u16_20
+        - l18_17 * u17_20;
+    jac[8][20] = u18_20;
+    let p18 = jac[8][12] - l18_14 * u14_18 - l18_16 * u16_18;
+    let d18 = 1.0 / p18;
+    jac[8][12] = d18;
+    let l19_18 = (jac[9][12] + jac[5][12] - l19_14 * u14_18 - l19_16 * u16_18) * d18;
+    jac[9][12] = l19_18;
+    let l20_18 = (jac[19][12] - l20_14 * u14_18 - l20_16 * u16_18) * d18;
+    jac[19][12] = l20_18;
+    if !(p18.is_finite() && l19_18.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l20_18.abs() <= runtime::lu::MAX_MULTIPLIER)
+    {
+        return None;
+    }
+    smallest = smallest.min(p18.abs());
+    largest = largest.max(p18.abs());
+    let u19_20 = jac[9][20] - jac[12][20] - l19_9 * jac[15][20] - l19_14 * u14_20
+        - l19_15 * u15_20 - l19_16 * u16_20 - l19_17 * u17_20 - l19_18 * u18_20;
+    jac[9][20] = u19_20;
+    let p19 = jac[9][13] + jac[5][13] - l19_14 * u14_19 - l19_16 * u16_19
+        - l19_18 * u18_19;
+    let d19 = 1.0 / p19;
+    jac[9][13] = d19;
+    let l20_19 = (jac[19][13] - l20_14 * u14_19 - l20_16 * u16_19 - l20_18 * u18_19)
+        * d19;
+    jac[19][13] = l20_19;
+    if !(p19.is_finite() && l20_19.abs() <= runtime::lu::MAX_MULTIPLIER) {
+        return None;
+    }
+    smallest = smallest.min(p19.abs());
+    largest = largest.max(p19.abs());
+    let p20 = -(l20_14 * u14_20) - l20_15 * u15_20 - l20_16 * u16_20 - l20_17 * u17_20
+        - l20_18 * u18_20 - l20_19 * u19_20;
+    let d20 = 1.0 / p20;
+    jac[19][20] = d20;
+    if !p20.is_finite() {
+        return None;
+    }
+    smallest = smallest.min(p20.abs());
+    largest = largest.max(p20.abs());
+    Some(runtime::lu::PivotInfo {
+        smallest,
+        largest,
+    })
+}
+
+/// Solves Φ_q x = b in place with the factors [`factor_0`] left in `lu`.
+///
+/// 233 operations.
+fn solve_0(lu: &[[f64; N]; N], b: &mut [f64; N]) {
+    let y0 = b[0];
+    let y1 = b[1];
+    let y2 = b[2];
+    let y3 = b[12];
+    let y4 = b[13];
+    let y5 = b[14];
+    let y6 = b[5] + y0;
+    let y7 = b[6] + y1;
+    let y8 = b[7] + y2;
+    let y9 = b[15];
+    let y10 = b[18];
+    let y11 = b[4] - lu[4][3] * y10;
+    let y12 = b[3] - lu[3][3] * y10 - lu[3][4] * y11;
+    let y13 = b[17] - lu[17][3] * y10 - lu[17][4] * y11 - lu[17][5] * y12;
+    let y14 = b[10] - y4 + y7 - lu[10][19] * y9 - lu[10][3] * y10 - lu[10][4] * y11
+        - lu[10][5] * y12 - lu[10][6] * y13;
+    let y15 = b[20] - lu[20][19] * y9;
+    let y16 = b[11] - y5 + y8 - lu[11][19] * y9 - lu[11][3] * y10 - lu[11][4] * y11
+        - lu[11][5] * y12 - lu[11][6] * y13 - lu[11][10] * y14 - lu[11][17] * y15;
+    let y17 = b[16] - lu[16][19] * y9 - lu[16][17] * y15;
+    let y18 = b[8] - lu[8][3] * y10 - lu[8][4] * y11 - lu[8][5] * y12 - lu[8][6] * y13
+        - lu[8][10] * y14 - lu[8][17] * y15 - lu[8][11] * y16 - lu[8][18] * y17;
+    let y19 = b[9] - y3 + y6 - lu[9][19] * y9 - lu[9][3] * y10 - lu[9][4] * y11
+        - lu[9][5] * y12 - lu[9][6] * y13 - lu[9][10] * y14 - lu[9][17] * y15
+        - lu[9][11] * y16 - lu[9][18] * y17 - lu[9][12] * y18;
+    let y20 = b[19] - lu[19][10] * y14 - lu[19][17] * y15 - lu[19][11] * y16
+        - lu[19][18] * y17 - lu[19][12] * y18 - lu[19][13] * y19;
+    let x20 = y20 * lu[19][20];
+    let x19 = (y19 - lu[9][20] * x20) * lu[9][13];
+    let x18 = (y18 - lu[8][13] * x19 - lu[8][20] * x20) * lu[8][12];
+    let x17 = (y17 - lu[16][20] * x20) * lu[16][18];
+    let x16 = (y16 - lu[11][18] * x17 - lu[11][12] * x18 - lu[11][13] * x19
+        - lu[11][20] * x20) * lu[11][11];
+    let x15 = (y15 - lu[20][18] * x17 - lu[20][20] * x20) * lu[20][17];
+    let x14 = (y14 - lu[10][17] * x15 - lu[10][11] * x16 - lu[10][18] * x17
+        - lu[10][12] * x18 - lu[10][13] * x19 - lu[10][20] * x20) * lu[10][10];
+    let x13 = y13 * lu[17][6];
+    let x12 = (y12 - lu[3][6] * x13) * lu[3][5];
+    let x11 = (y11 - lu[4][5] * x12 - lu[4][6] * x13) * lu[4][4];
+    let x10 = (y10 - lu[18][4] * x11 - lu[18][5] * x12 - lu[18][6] * x13) * lu[18][3];
+    let x9 = (y9 - lu[15][17] * x15 - lu[15][18] * x17 - lu[15][20] * x20) * lu[15][19];
+    let x8 = y8 - lu[7][3] * x10 - lu[7][4] * x11 - lu[7][5] * x12 - lu[7][6] * x13
+        - lu[7][10] * x14 - lu[7][11] * x16 - lu[7][12] * x18 - lu[7][13] * x19;
+    let x7 = y7 - lu[6][3] * x10 - lu[6][4] * x11 - lu[6][5] * x12 - lu[6][6] * x13
+        - lu[6][10] * x14 - lu[6][11] * x16 - lu[6][12] * x18 - lu[6][13] * x19;
+    let x6 = y6 - lu[5][3] * x10 - lu[5][4] * x11 - lu[5][5] * x12 - lu[5][6] * x13
+        - lu[5][10] * x14 - lu[5][11] * x16 - lu[5][12] * x18 - lu[5][13] * x19;
+    let x5 = y5 - lu[14][19] * x9 - lu[14][17] * x15 - lu[14][18] * x17
+        - lu[14][20] * x20;
+    let x4 = y4 - lu[13][19] * x9 - lu[13][17] * x15 - lu[13][18] * x17
+        - lu[13][20] * x20;
+    let x3 = y3 - lu[12][19] * x9 - lu[12][17] * x15 - lu[12][18] * x17
+        - lu[12][20] * x20;
+    let x2 = y2;
+    let x1 = y1;
+    let x0 = y0;
+    b[0] = x0;
+    b[1] = x1;
+    b[2] = x2;
+    b[14] = x3;
+    b[15] = x4;
+    b[16] = x5;
+    b[7] = x6;
+    b[8] = x7;
+    b[9] = x8;
+    b[19] = x9;
+    b[3] = x10;
+    b[4] = x11;
+    b[5] = x12;
+    b[6] = x13;
+    b[10] = x14;
+    b[17] = x15;
+    b[11] = x16;
+    b[18] = x17;
+    b[12] = x18;
+    b[13] = x19;
+    b[20] = x20;
+}
+
+/// Factors Φ_q in place with static pivot order 1: step k pivots on row `[0, 1, 2, 12, 13, 14, 5, 6, 7, 15, 3, 4, 18, 17, 9, 11, 8, 10, 20, 16, 19][k]` and column `[0, 1, 2, 14, 15, 16, 7, 8, 9, 19, 4, 5, 6, 3, 10, 11, 12, 13, 17, 18, 20][k]`.
+///
+/// L and U have 136 entries (18 of them fill-in, 18 known when generated); 292 operations. The others are in `jac`: 76 stored there, with the reciprocals of the pivots on the diagonal, and 42 left as Φ_q had them.
+///
+/// Returns the smallest and largest |pivot|, or `None` when a pivot is not finite or a multiplier exceeds [`runtime::lu::MAX_MULTIPLIER`] in magnitude; `jac` is then partly factored and must be evaluated again.
+#[must_use]
+fn factor_1(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
+    let p9 = jac[15][19];
+    let d9 = 1.0 / p9;
+    jac[15][19] = d9;
+    let l14_9 = (jac[9][19] - jac[12][19]) * d9;
+    jac[9][19] = l14_9;
+    let l15_9 = (jac[11][19] - jac[14][19]) * d9;
+    jac[11][19] = l15_9;
+    let l17_9 = (jac[10][19] - jac[13][19]) * d9;
+    jac[10][19] = l17_9;
+    let l18_9 = jac[20][19] * d9;
+    jac[20][19] = l18_9;
+    let l19_9 = jac[16][19] * d9;
+    jac[16][19] = l19_9;
+    if !(p9.is_finite() && l14_9.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l15_9.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l17_9.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l18_9.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l19_9.abs() <= runtime::lu::MAX_MULTIPLIER)
+    {
+        return None;
+    }
+    let mut smallest = p9.abs().min(1.0);
+    let mut largest = p9.abs().max(1.0);
+    let p10 = jac[3][4];
+    let d10 = 1.0 / p10;
+    jac[3][4] = d10;
+    let l11_10 = jac[4][4] * d10;
+    jac[4][4] = l11_10;
+    let l12_10 = jac[18][4] * d10;
+    jac[18][4] = l12_10;
+    let l13_10 = jac[17][4] * d10;
+    jac[17][4] = l13_10;
+    let l14_10 = jac[5][4] * d10;
+    jac[9][4] = l14_10;
+    let l15_10 = jac[7][4] * d10;
+    jac[11][4] = l15_10;
+    let l16_10 = jac[8][4] * d10;
+    jac[8][4] = l16_10;
+    let l17_10 = jac[6][4] * d10;
+    jac[10][4] = l17_10;
+    if !(p10.is_finite() && l11_10.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l12_10.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l13_10.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l14_10.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l15_10.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l16_10.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l17_10.abs() <= runtime::lu::MAX_MULTIPLIER)
+    {
+        return None;
+    }
+    smallest = smallest.min(p10.abs());
+    largest = largest.max(p10.abs());
+    let u11_12 = jac[4][6] - l11_10 * jac[3][6];
+    jac[4][6] = u11_12;
+    let u11_13 = jac[4][3] - l11_10 * jac[3][3];
+    jac[4][3] = u11_13;
+    let p11 = jac[4][5] - l11_10 * jac[3][5];
+    let d11 = 1.0 / p11;
+    jac[4][5] = d11;
+    let l12_11 = (jac[18][5] - l12_10 * jac[3][5]) * d11;
+    jac[18][5] = l12_11;
+    let l13_11 = (jac[17][5] - l13_10 * jac[3][5]) * d11;
+    jac[17][5] = l13_11;
+    let l14_11 = (jac[5][5] - l14_10 * jac[3][5]) * d11;
+    jac[9][5] = l14_11;
+    let l15_11 = (jac[7][5] - l15_10 * jac[3][5]) * d11;
+    jac[11][5] = l15_11;
+    let l16_11 = (jac[8][5] - l16_10 * jac[3][5]) * d11;
+    jac[8][5] = l16_11;
+    let l17_11 = (jac[6][5] - l17_10 * jac[3][5]) * d11;
+    jac[10][5] = l17_11;
+    if !(p11.is_finite() && l12_11.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l13_11.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l14_11.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l15_11.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l16_11.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l17_11.abs() <= runtime::lu::MAX_MULTIPLIER)
+    {
+        return None;
+    }
+    smallest = smallest.min(p11.abs());
+    largest = largest.max(p11.abs());
+    let u12_13 = jac[18][3] - l12_10 * jac[3][3] - l12_11 * u11_13;
+    jac[18][3] = u12_13;
+    let p12 = jac[18][6] - l12_10 * jac[3][6] - l12_11 * u11_12;
+    let d12 = 1.0 / p12;
+    jac[18][6] = d12;
+    let l13_12 = (jac[17][6] - l13_10 * jac[3][6] - l13_11 * u11_12) * d12;
+    jac[17][6] = l13_12;
+    let l14_12 = (jac[5][6] - l14_10 * jac[3][6] - l14_11 * u11_12) * d12;
+    jac[9][6] = l14_12;
+    let l15_12 = (jac[7][6] - l15_10 * jac[3][6] - l15_11 * u11_12) * d12;
+    jac[11][6] = l15_12;
+    let l16_12 = (jac[8][6] - l16_10 * jac[3][6] - l16_11 * u11_12) * d12;
+    jac[8][6] = l16_12;
+    let l17_12 = (jac[6][6] - l17_10 * jac[3][6] - l17_11 * u11_12) * d12;
+    jac[10][6] = l17_12;
+    if !(p12.is_finite() && l13_12.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l14_12.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l15_12.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l16_12.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l17_12.abs() <= runtime::lu::MAX_MULTIPLIER)
+    {
+        return None;
+    }
+    smallest = smallest.min(p12.abs());
+    largest = largest.max(p12.abs());
+    let p13 = jac[17][3] - l13_10 * jac[3][3] - l13_11 * u11_13 - l13_12 * u12_13;
+    let d13 = 1.0 / p13;
+    jac[17][3] = d13;
+    let l14_13 = (jac[5][3] - l14_10 * jac[3][3] - l14_11 * u11_13 - l14_12 * u12_13)
+        * d13;
+    jac[9][3] = l14_13;
+    let l15_13 = (jac[7][3] - l15_10 * jac[3][3] - l15_11 * u11_13 - l15_12 * u12_13)
+        * d13;
+    jac[11][3] = l15_13;
+    let l16_13 = (jac[8][3] - l16_10 * jac[3][3] - l16_11 * u11_13 - l16_12 * u12_13)
+        * d13;
+    jac[8][3] = l16_13;
+    let l17_13 = (jac[6][3] - l17_10 * jac[3][3] - l17_11 * u11_13 - l17_12 * u12_13)
+        * d13;
+    jac[10][3] = l17_13;
+    if !(p13.is_finite() && l14_13.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l15_13.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l16_13.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l17_13.abs() <= runtime::lu::MAX_MULTIPLIER)
+    {
+        return None;
+    }
+    smallest = smallest.min(p13.abs());
+    largest = largest.max(p13.abs());
+    let u14_15 = jac[9][11] + jac[5][11];
+    jac[9][11] = u14_15;
+    let u14_16 = jac[9][12] + jac[5][12];
+    jac[9][12] = u14_16;
+    let u14_17 = jac[9][13] + jac[5][13];
+    jac[9][13] = u14_17;
+    let u14_18 = jac[9][17] - jac[12][17] - l14_9 * jac[15][17];
+    jac[9][17] = u14_18;
+    let u14_19 = jac[9][18] - jac[12][18] - l14_9 * jac[15][18];
+    jac[9][18] = u14_19;
+    let u14_20 = jac[9][20] - jac[12][20] - l14_9 * jac[15][20];
+    jac[9][20] = u14_20;
+    let p14 = jac[9][10] + jac[5][10];
+    let d14 = 1.0 / p14;
+    jac[9][10] = d14;
+    let l15_14 = (jac[11][10] + jac[7][10]) * d14;
+    jac[11][10] = l15_14;
+    let l16_14 = jac[8][10] * d14;
+    jac[8][10] = l16_14;
+    let l17_14 = (jac[10][10] + jac[6][10]) * d14;
+    jac[10][10] = l17_14;
+    let l20_14 = jac[19][10] * d14;
+    jac[19][10] = l20_14;
+    if !(p14.is_finite() && l15_14.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l16_14.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l17_14.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l20_14.abs() <= runtime::lu::MAX_MULTIPLIER)
+    {
+        return None;
+    }
+    smallest = smallest.min(p14.abs());
+    largest = largest.max(p14.abs());
+    let u15_16 = jac[11][12] + jac[7][12] - l15_14 * u14_16;
+    jac[11][12] = u15_16;
+    let u15_17 = jac[11][13] + jac[7][13] - l15_14 * u14_17;
+    jac[11][13] = u15_17;
+    let u15_18 = jac[11][17] - jac[14][17] - l15_9 * jac[15][17] - l15_14 * u14_18;
+    jac[11][17] = u15_18;
+    let u15_19 = jac[11][18] - jac[14][18] - l15_9 * jac[15][18] - l15_14 * u14_19;
+    jac[11][18] = u15_19;
+    let u15_20 = jac[11][20] - jac[14][20] - l15_9 * jac[15][20] - l15_14 * u14_20;
+    jac[11][20] = u15_20;
+    let p15 = jac[11][11] + jac[7][11] - l15_14 * u14_15;
+    let d15 = 1.0 / p15;
+    jac[11][11] = d15;
+    let l16_15 = (jac[8][11] - l16_14 * u14_15) * d15;
+    jac[8][11] = l16_15;
+    let l17_15 = (jac[10][11] + jac[6][11] - l17_14 * u14_15) * d15;
+    jac[10][11] = l17_15;
+    let l20_15 = (jac[19][11] - l20_14 * u14_15) * d15;
+    jac[19][11] = l20_15;
+    if !(p15.is_finite() && l16_15.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l17_15.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l20_15.abs() <= runtime::lu::MAX_MULTIPLIER)
+    {
+        return None;
+    }
+    smallest = smallest.min(p15.abs());
+    largest = largest.max(p15.abs());
+    let u16_17 = jac[8][13] - l16_14 * u14_17 - l16_15 * u15_17;
+    jac[8][13] = u16_17;
+    let u16_18 = -(l16_14 * u14_18) - l16_15 * u15_18;
+    jac[8][17] = u16_18;
+    let u16_19 = -(l16_14 * u14_19) - l16_15 * u15_19;
+    jac[8][18] = u16_19;
+    let u16_20 = -(l16_14 * u14_20) - l16_15 * u15_20;
+    jac[8][20] = u16_20;
+    let p16 = jac[8][12] - l16_14 * u14_16 - l16_15 * u15_16;
+    let d16 = 1.0 / p16;
+    jac[8][12] = d16;
+    let l17_16 = (jac[10][12] + jac[6][12] - l17_14 * u14_16 - l17_15 * u15_16) * d16;
+    jac[10][12] = l17_16;
+    let l20_16 = (jac[19][12] - l20_14 * u14_16 - l20_15 * u15_16) * d16;
+    jac[19][12] = l20_16;
+    if !(p16.is_finite() && l17_16.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l20_16.abs() <= runtime::lu::MAX_MULTIPLIER)
+    {
+        return None;
+    }
+    smallest = smallest.min(p16.abs());
+    largest = largest.max(p16.abs());
+    let u17_18 = jac[10][17] - jac[13][17] - l17_9 * jac[15][17] - l17_14 * u14_18
+        - l17_15 * u15_18 - l17_16 * u16_18;
+    jac[10][17] = u17_18;
+    let u17_19 = jac[10][18] - jac[13][18] - l17_9 * jac[15][18] - l17_14 * u14_19
+        - l17_15 * u15_19 - l17_16 * u16_19;
+    jac[10][18] = u17_19;
+    let u17_20 = jac[10][20] - jac[13][20] - l17_9 * jac[15][20] - l17_14 * u14_20
+        - l17_15 * u15_20 - l17_16 * u16_20;
+    jac[10][20] = u17_20;
+    let p17 = jac[10][13] + jac[6][13] - l17_14 * u14_17 - l17_15 * u15_17
+        - l17_16 * u16_17;
+    let d17 = 1.0 / p17;
+    jac[10][13] = d17;
+    let l20_17 = (jac[19][13] - l20_14 * u14_17 - l20_15 * u15_17 - l20_16 * u16_17)
+        * d17;
+    jac[19][13] = l20_17;
+    if !(p17.is_finite() && l20_17.abs() <= runtime::lu::MAX_MULTIPLIER) {
+        return None;
+    }
+    smallest = smallest.min(p17.abs());
+    largest = largest.max(p17.abs());
+    let u18_19 = jac[20][18] - l18_9 * jac[15][18];
+    jac[20][18] = u18_19;
+    let u18_20 = jac[20][20] - l18_9 * jac[15][20];
+    jac[20][20] = u18_20;
+    let p18 = jac[20][17] - l18_9 * jac[15][17];
+    let d18 = 1.0 / p18;
+    jac[20][17] = d18;
+    let l19_18 = (jac[16][17] - l19_9 * jac[15][17]) * d18;
+    jac[16][17] = l19_18;
+    let l20_18 = (-(l20_14 * u14_18) - l20_15 * u15_18 - l20_16 * u16_18
+        - l20_17 * u17_18) * d18;
+    jac[19][17] = l20_18;
+    if !(p18.is_finite() && l19_18.abs() <= runtime::lu::MAX_MULTIPLIER
+        && l20_18.abs() <= runtime::lu::MAX_MULTIPLIER)
+    {
+        return None;
+    }
+    smallest = smallest.min(p18.abs());
+    largest = largest.max(p18.abs());
+    let u19_20 = jac[16][20] - l19_9 * jac[15][20] - l19_18 * u18_20;
+    jac[16][20] = u19_20;
+    let p19 = jac[16][18] - l19_9 * jac[15][18] - l19_18 * u18_19;
+    let d19 = 1.0 / p19;
+    jac[16][18] = d19;
+    let l20_19 = (-(l20_14 * u14_19) - l20_15 * u15_19 - l20_16 * u16_19
+        - l20_17 * u17_19 - l20_18 * u18_19) * d19;
+    jac[19][18] = l20_19;
+    if !(p19.is_finite() && l20_19.abs() <= runtime::lu::MAX_MULTIPLIER) {
+        return None;
+    }
+    smallest = smallest.min(p19.abs());
+    largest = largest.max(p19.abs());
+    let p20 = -(l20_14 * u14_20) - l20_15 * u15_20 - l20_16 * u16_20 - l20_17 * u17_20
+        - l20_18 * u18_20 - l20_19 * u19_20;
+    let d20 = 1.0 / p20;
+    jac[19][20] = d20;
+    if !p20.is_finite() {
+        return None;
+    }
+    smallest = smallest.min(p20.abs());
+    largest = largest.max(p20.abs());
+    Some(runtime::lu::PivotInfo {
+        smallest,
+        largest,
+    })
+}
+
+/// Solves Φ_q x = b in place with the factors [`factor_1`] left in `lu`.
+///
+/// 233 operations.
+fn solve_1(lu: &[[f64; N]; N], b: &mut [f64; N]) {
+    let y0 = b[0];
+    let y1 = b[1];
+    let y2 = b[2];
+    let y3 = b[12];
+    let y4 = b[13];
+    let y5 = b[14];
+    let y6 = b[5] + y0;
+    let y7 = b[6] + y1;
+    let y8 = b[7] + y2;
+    let y9 = b[15];
+    let y10 = b[3];
+    let y11 = b[4] - lu[4][4] * y10;
+    let y12 = b[18] - lu[18][4] * y10 - lu[18][5] * y11;
+    let y13 = b[17] - lu[17][4] * y10 - lu[17][5] * y11 - lu[17][6] * y12;
+    let y14 = b[9] - y3 + y6 - lu[9][19] * y9 - lu[9][4] * y10 - lu[9][5] * y11
+        - lu[9][6] * y12 - lu[9][3] * y13;
+    let y15 = b[11] - y5 + y8 - lu[11][19] * y9 - lu[11][4] * y10 - lu[11][5] * y11
+        - lu[11][6] * y12 - lu[11][3] * y13 - lu[11][10] * y14;
+    let y16 = b[8] - lu[8][4] * y10 - lu[8][5] * y11 - lu[8][6] * y12 - lu[8][3] * y13
+        - lu[8][10] * y14 - lu[8][11] * y15;
+    let y17 = b[10] - y4 + y7 - lu[10][19] * y9 - lu[10][4] * y10 - lu[10][5] * y11
+        - lu[10][6] * y12 - lu[10][3] * y13 - lu[10][10] * y14 - lu[10][11] * y15
+        - lu[10][12] * y16;
+    let y18 = b[20] - lu[20][19] * y9;
+    let y19 = b[16] - lu[16][19] * y9 - lu[16][17] * y18;
+    let y20 = b[19] - lu[19][10] * y14 - lu[19][11] * y15 - lu[19][12] * y16
+        - lu[19][13] * y17 - lu[19][17] * y18 - lu[19][18] * y19;
+    let x20 = y20 * lu[19][20];
+    let x19 = (y19 - lu[16][20] * x20) * lu[16][18];
+    let x18 = (y18 - lu[20][18] * x19 - lu[20][20] * x20) * lu[20][17];
+    let x17 = (y17 - lu[10][17] * x18 - lu[10][18] * x19 - lu[10][20] * x20)
+        * lu[10][13];
+    let x16 = (y16 - lu[8][13] * x17 - lu[8][17] * x18 - lu[8][18] * x19
+        - lu[8][20] * x20) * lu[8][12];
+    let x15 = (y15 - lu[11][12] * x16 - lu[11][13] * x17 - lu[11][17] * x18
+        - lu[11][18] * x19 - lu[11][20] * x20) * lu[11][11];
+    let x14 = (y14 - lu[9][11] * x15 - lu[9][12] * x16 - lu[9][13] * x17
+        - lu[9][17] * x18 - lu[9][18] * x19 - lu[9][20] * x20) * lu[9][10];
+    let x13 = y13 * lu[17][3];
+    let x12 = (y12 - lu[18][3] * x13) * lu[18][6];
+    let x11 = (y11 - lu[4][6] * x12 - lu[4][3] * x13) * lu[4][5];
+    let x10 = (y10 - lu[3][5] * x11 - lu[3][6] * x12 - lu[3][3] * x13) * lu[3][4];
+    let x9 = (y9 - lu[15][17] * x18 - lu[15][18] * x19 - lu[15][20] * x20) * lu[15][19];
+    let x8 = y8 - lu[7][4] * x10 - lu[7][5] * x11 - lu[7][6] * x12 - lu[7][3] * x13
+        - lu[7][10] * x14 - lu[7][11] * x15 - lu[7][12] * x16 - lu[7][13] * x17;
+    let x7 = y7 - lu[6][4] * x10 - lu[6][5] * x11 - lu[6][6] * x12 - lu[6][3] * x13
+        - lu[6][10] * x14 - lu[6][11] * x15 - lu[6][12] * x16 - lu[6][13] * x17;
+    let x6 = y6 - lu[5][4] * x10 - lu[5][5] * x11 - lu[5][6] * x12 - lu[5][3] * x13
+        - lu[5][10] * x14 - lu[5][11] * x15 - lu[5][12] * x16 - lu[5][13] * x17;
+    let x5 = y5 - lu[14][19] * x9 - lu[14][17] * x18 - lu[14][18] * x19
+        - lu[14][20] * x20;
+    let x4 = y4 - lu[13][19] * x9 - lu[13][17] * x18 - lu[13][18] * x19
+        - lu[13][20] * x20;
+    let x3 = y3 - lu[12][19] * x9 - lu[12][17] * x18 - lu[12][18] * x19
+        - lu[12][20] * x20;
+    let x2 = y2;
+    let x1 = y1;
+    let x0 = y0;
+    b[0] = x0;
+    b[1] = x1;
+    b[2] = x2;
+    b[14] = x3;
+    b[15] = x4;
+    b[16] = x5;
+    b[7] = x6;
+    b[8] = x7;
+    b[9] = x8;
+    b[19] = x9;
+    b[4] = x10;
+    b[5] = x11;
+    b[6] = x12;
+    b[3] = x13;
+    b[10] = x14;
+    b[11] = x15;
+    b[12] = x16;
+    b[13] = x17;
+    b[17] = x18;
+    b[18] = x19;
+    b[20] = x20;
+}
+
 /// Velocity right-hand side ν = −Φ_t.
 ///
 /// 19 operations, 2 shared subexpressions.
@@ -2021,5 +2771,33 @@ impl runtime::Mechanism<N> for FourBarInput {
     }
     fn normalize(&self, q: &mut [f64; N]) {
         normalize(q);
+    }
+    const PIVOT_ORDERS: usize = 2;
+    fn residual_jacobian_structural(
+        &self,
+        q: &[f64; N],
+        t: f64,
+        phi: &mut [f64; N],
+        jac: &mut [[f64; N]; N],
+    ) {
+        residual_jacobian_structural(q, t, &self.inputs(t), phi, jac);
+    }
+    fn factor_structured(
+        &self,
+        order: usize,
+        jac: &mut [[f64; N]; N],
+    ) -> Option<runtime::lu::PivotInfo> {
+        match order {
+            0 => factor_0(jac),
+            1 => factor_1(jac),
+            _ => None,
+        }
+    }
+    fn solve_structured(&self, order: usize, lu: &[[f64; N]; N], b: &mut [f64; N]) {
+        match order {
+            0 => solve_0(lu, b),
+            1 => solve_1(lu, b),
+            _ => {}
+        }
     }
 }
