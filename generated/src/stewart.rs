@@ -8385,12 +8385,12 @@ fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     largest = largest.max(p31.abs());
     let l85_32 = l85_31 * u31_32;
     jac[11][14] = l85_32;
-    if !(l85_32.abs() <= runtime::lu::MAX_MULTIPLIER) {
+    if l85_32.abs() > runtime::lu::MAX_MULTIPLIER || l85_32.abs().is_nan() {
         return None;
     }
     let l85_33 = l85_31 * u31_33;
     jac[11][15] = l85_33;
-    if !(l85_33.abs() <= runtime::lu::MAX_MULTIPLIER) {
+    if l85_33.abs() > runtime::lu::MAX_MULTIPLIER || l85_33.abs().is_nan() {
         return None;
     }
     let u34_35 = jac[16][33] - l34_19 * jac[82][33];
@@ -8537,12 +8537,12 @@ fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     largest = largest.max(p41.abs());
     let l88_42 = l88_41 * u41_42;
     jac[23][28] = l88_42;
-    if !(l88_42.abs() <= runtime::lu::MAX_MULTIPLIER) {
+    if l88_42.abs() > runtime::lu::MAX_MULTIPLIER || l88_42.abs().is_nan() {
         return None;
     }
     let l88_43 = l88_41 * u41_43;
     jac[23][29] = l88_43;
-    if !(l88_43.abs() <= runtime::lu::MAX_MULTIPLIER) {
+    if l88_43.abs() > runtime::lu::MAX_MULTIPLIER || l88_43.abs().is_nan() {
         return None;
     }
     let u44_45 = jac[29][47] - l44_20 * jac[84][47];
@@ -8689,12 +8689,12 @@ fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     largest = largest.max(p51.abs());
     let l89_52 = l89_51 * u51_52;
     jac[35][42] = l89_52;
-    if !(l89_52.abs() <= runtime::lu::MAX_MULTIPLIER) {
+    if l89_52.abs() > runtime::lu::MAX_MULTIPLIER || l89_52.abs().is_nan() {
         return None;
     }
     let l89_53 = l89_51 * u51_53;
     jac[35][43] = l89_53;
-    if !(l89_53.abs() <= runtime::lu::MAX_MULTIPLIER) {
+    if l89_53.abs() > runtime::lu::MAX_MULTIPLIER || l89_53.abs().is_nan() {
         return None;
     }
     let u54_55 = jac[41][61] - l54_21 * jac[86][61];
@@ -8841,12 +8841,12 @@ fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     largest = largest.max(p61.abs());
     let l86_62 = l86_61 * u61_62;
     jac[47][56] = l86_62;
-    if !(l86_62.abs() <= runtime::lu::MAX_MULTIPLIER) {
+    if l86_62.abs() > runtime::lu::MAX_MULTIPLIER || l86_62.abs().is_nan() {
         return None;
     }
     let l86_63 = l86_61 * u61_63;
     jac[47][57] = l86_63;
-    if !(l86_63.abs() <= runtime::lu::MAX_MULTIPLIER) {
+    if l86_63.abs() > runtime::lu::MAX_MULTIPLIER || l86_63.abs().is_nan() {
         return None;
     }
     let u64_65 = jac[53][75] - l64_22 * jac[88][75];
@@ -8993,12 +8993,12 @@ fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     largest = largest.max(p71.abs());
     let l87_72 = l87_71 * u71_72;
     jac[59][70] = l87_72;
-    if !(l87_72.abs() <= runtime::lu::MAX_MULTIPLIER) {
+    if l87_72.abs() > runtime::lu::MAX_MULTIPLIER || l87_72.abs().is_nan() {
         return None;
     }
     let l87_73 = l87_71 * u71_73;
     jac[59][71] = l87_73;
-    if !(l87_73.abs() <= runtime::lu::MAX_MULTIPLIER) {
+    if l87_73.abs() > runtime::lu::MAX_MULTIPLIER || l87_73.abs().is_nan() {
         return None;
     }
     let u74_75 = jac[65][89] - l74_23 * jac[90][89];
@@ -9145,12 +9145,12 @@ fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     largest = largest.max(p81.abs());
     let l90_82 = l90_81 * u81_82;
     jac[71][84] = l90_82;
-    if !(l90_82.abs() <= runtime::lu::MAX_MULTIPLIER) {
+    if l90_82.abs() > runtime::lu::MAX_MULTIPLIER || l90_82.abs().is_nan() {
         return None;
     }
     let l90_83 = l90_81 * u81_83;
     jac[71][85] = l90_83;
-    if !(l90_83.abs() <= runtime::lu::MAX_MULTIPLIER) {
+    if l90_83.abs() > runtime::lu::MAX_MULTIPLIER || l90_83.abs().is_nan() {
         return None;
     }
     let p84 = jac[78][3];
