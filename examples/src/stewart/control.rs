@@ -138,19 +138,20 @@ impl Tracking {
 ///
 /// # Errors
 /// The solver's error, as the machine's controller would get it: a non-finite leg input or a
-/// stop of the step control (`branch_jump`, `singular`, `no_convergence`).
+/// stop of the step control (`branch_jump`, `singular`, `no_convergence`); boxed, as it is
+/// large (about 250 bytes) and returned once, when the loop ends.
 pub fn control_loop(
     solver: &mut PlatformSolver,
     trajectory: &Trajectory,
     periods: usize,
     dt: f64,
-) -> Result<Tracking, InputsError> {
+) -> Result<Tracking, Box<InputsError>> {
     let mut tracking = Tracking::default();
     for k in 0..periods {
         let t = k as f64 * dt;
         let want = trajectory.at(t);
         let u = inputs(&leg_lengths(&want));
-        let report = solver.advance_with(t, &u.to_array())?;
+        let report = solver.advance_with(t, &u.to_array()).map_err(Box::new)?;
         tracking.add(&platform(solver, t, &u), &want);
         tracking.iterations += u64::from(report.iterations);
         tracking.periods += 1;
