@@ -154,7 +154,8 @@ fn recovers_the_platform_trajectory(engine: &str) {
     }
     // Newton stops at max |Φ_i| ≤ 1e-12 (the description's tolerance), and the Jacobian of the
     // leg lengths has a condition number below 4.3 along this trajectory, so the pose is within
-    // about 1e-11 (measured on both engines: 8e-13 m, 1.2e-12): 1e-10 is the bound, with margin.
+    // about 1e-11 (measured on both engines: 8e-13 m, 1.2e-12): the 1e-10 holds with
+    // margin.
     assert!(worst[0] < 1e-10 && worst[1] < 1e-10, "{engine}: pose errors {worst:?}");
     // Velocities and accelerations come from Φ_q q̇ = ν and Φ_q q̈ = γ at that pose with the
     // exact l̇ and l̈ of the file: they err by the pose error times the rates over the lever
