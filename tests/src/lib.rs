@@ -36,4 +36,6 @@ mod split_modules;
 #[cfg(test)]
 mod stability;
 #[cfg(test)]
+mod stewart;
+#[cfg(test)]
 mod structured_lu;
