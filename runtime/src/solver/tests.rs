@@ -321,7 +321,8 @@ fn a_700_unknown_chain_solves_with_heap_storage() {
 #[test]
 fn a_mechanism_without_unknowns_is_trivially_solved() {
     let mut solver = Solver::new(Empty, []);
-    assert_eq!(solver.position(1.0), Ok(NewtonReport { iterations: 0, residual: 0.0 }));
+    let report = solver.position(1.0).unwrap();
+    assert_eq!((report.iterations, report.residual), (0, 0.0));
     solver.velocity().unwrap();
     solver.acceleration().unwrap();
 }
