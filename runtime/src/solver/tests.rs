@@ -418,7 +418,7 @@ fn the_step_control_reads_the_pivots_of_the_factors_it_kept() {
 fn near_the_singularity_bound_dense_lu_decides() {
     // ρ = 1e-7 is above the bound 1.5e-8 but within STRUCTURED_MARGIN (100) of it: every
     // accepted point is factored densely once more, and its ratio, d, is reported.
-    assert!(1e-7 <= step::STRUCTURED_MARGIN * step::SINGULAR_RATIO);
+    const { assert!(1e-7 <= step::STRUCTURED_MARGIN * step::SINGULAR_RATIO) };
     let (report, counts) = diagonal_steps(1e-7);
     assert_eq!(report.pivot_ratio, 1e-7);
     assert!(counts.dense >= 5, "{counts:?}");
