@@ -113,6 +113,13 @@ impl<const N: usize> Factors<N> {
         !matches!(self.held, Held::Nothing)
     }
 
+    /// Whether the storage holds the factors of one of the mechanism's static pivot orders
+    /// (threshold pivoting), rather than dense LU's (partial pivoting) or nothing.
+    #[must_use]
+    pub const fn holds_structured(&self) -> bool {
+        matches!(self.held, Held::Structured(_))
+    }
+
     /// Forgets the factors (the storage is about to be overwritten).
     pub const fn forget(&mut self) {
         self.held = Held::Nothing;

@@ -34,7 +34,7 @@ use core::borrow::BorrowMut;
 use core::fmt;
 
 use crate::factors::{FactorCounts, Factors};
-use crate::lu::Singular;
+use crate::lu::{PivotInfo, Singular};
 use crate::newton::{self, NewtonError, NewtonOptions, NewtonReport};
 use crate::step::{self, Coordinates, Groups, Rejection, Sample, Stepper, Stop, Trouble};
 use crate::{Mechanism, Real};
@@ -106,6 +106,8 @@ pub struct Solver<M, const N: usize, R = f64, J = [[R; N]; N]> {
     factors: Factors<N>,
     /// `jac` and `factors` hold the factors of Φ_q at (`q`, `t`).
     factored: bool,
+    /// The smallest and largest |pivot| of those factors, when `factored`.
+    pivots: PivotInfo<R>,
     /// Which time derivatives were solved at (`q`, `t`).
     known: Known,
     /// (t, q̈) at the two converged positions before the current one, the later first, where q̈
@@ -129,6 +131,9 @@ struct Accepted<R, const N: usize> {
     known: Known,
     /// `sample` belongs to (`q`, `sample.t`).
     valid: bool,
+    /// The solver's state is this point: nothing changed q, q̇, q̈ or the history since it was
+    /// accepted or returned to.
+    current: bool,
 }
 
 /// The (t, q̈) of the two converged positions before the current one, kept as a ring so
@@ -223,6 +228,7 @@ impl<M, const N: usize, R: Real, J> Solver<M, N, R, J> {
             jac,
             factors: Factors::new(),
             factored: false,
+            pivots: PivotInfo { smallest: R::ZERO, largest: R::ZERO },
             known: Known::Nothing,
             history: History::EMPTY,
             accepted: Accepted {
@@ -238,6 +244,7 @@ impl<M, const N: usize, R: Real, J> Solver<M, N, R, J> {
                 history: History::EMPTY,
                 known: Known::Nothing,
                 valid: false,
+                current: false,
             },
             groups: Groups::Each,
         }
@@ -296,6 +303,15 @@ impl<M, const N: usize, R: Real, J> Solver<M, N, R, J> {
         &self.qdd
     }
 
+    /// The smallest and largest |pivot| of the factors of Φ_q the solver holds at the last
+    /// converged position (a static pivot order's, or dense LU's), or `None` when it holds none
+    /// (before the first position, after [`Solver::set_q`] or a failed [`Solver::position`]).
+    ///
+    /// They cost nothing: [`Solver::position`] factors Φ_q at the converged q anyway.
+    pub const fn pivots(&self) -> Option<PivotInfo<R>> {
+        if self.factored { Some(self.pivots) } else { None }
+    }
+
     /// How many factorisations of Φ_q used a static pivot order of the mechanism, how many fell
     /// back to dense LU, and how many static orders were refused on the way.
     pub const fn factor_counts(&self) -> FactorCounts {
@@ -311,6 +327,7 @@ impl<M, const N: usize, R: Real, J> Solver<M, N, R, J> {
         self.factored = false;
         self.known = Known::Nothing;
         self.history = History::EMPTY;
+        self.accepted.current = false;
     }
 }
 
@@ -329,6 +346,16 @@ impl<M: Mechanism<N, R>, const N: usize, R: Real, J: BorrowMut<[[R; N]; N]>> Sol
     /// [`Solver::set_q`]; velocity and acceleration fail until a position converges.
     pub fn position(&mut self, t: R) -> Result<NewtonReport<R>, NewtonError<R>> {
         let start = self.q;
+        let result = self.solve_position(t);
+        if result.is_err() {
+            self.q = start;
+        }
+        result
+    }
+
+    /// [`Solver::position`], except that a failed solve leaves q at Newton's last iterate.
+    fn solve_position(&mut self, t: R) -> Result<NewtonReport<R>, NewtonError<R>> {
+        self.accepted.current = false;
         if self.predictor && self.known >= Known::Velocity {
             let h = t - self.t;
             let half = R::from_f64(0.5);
@@ -356,18 +383,16 @@ impl<M: Mechanism<N, R>, const N: usize, R: Real, J: BorrowMut<[[R; N]; N]>> Sol
             self.jac.borrow_mut(),
             &mut self.factors,
         );
-        match result {
-            Ok(_) => {
-                if self.known == Known::Acceleration {
-                    self.history.push(self.t, &self.qdd);
-                } else {
-                    self.history.len = 0;
-                }
-                self.t = t;
-                self.factored = true;
-                self.known = Known::Nothing;
+        if let Ok(report) = result {
+            self.pivots = report.pivots;
+            if self.known == Known::Acceleration {
+                self.history.push(self.t, &self.qdd);
+            } else {
+                self.history.len = 0;
             }
-            Err(_) => self.q = start,
+            self.t = t;
+            self.factored = true;
+            self.known = Known::Nothing;
         }
         result
     }
@@ -417,6 +442,7 @@ impl<M: Mechanism<N, R>, const N: usize, R: Real, J: BorrowMut<[[R; N]; N]>> Sol
         if !self.factored {
             return Err(SolveError::NoPosition);
         }
+        self.accepted.current = false;
         self.mechanism.velocity_rhs(&self.q, self.t, &mut self.scratch);
         self.solve_scratch()?;
         self.qd = self.scratch;
@@ -441,9 +467,30 @@ impl<M: Mechanism<N, R>, const N: usize, R: Real, J: BorrowMut<[[R; N]; N]>> Sol
         if self.known < Known::Velocity {
             return Err(SolveError::NoVelocity);
         }
+        self.accepted.current = false;
         self.mechanism.acceleration_rhs(&self.q, &self.qd, self.t, &mut self.scratch);
         self.solve_scratch()?;
         self.qdd = self.scratch;
+        self.known = Known::Acceleration;
+        Ok(())
+    }
+
+    /// [`Solver::velocity`] and [`Solver::acceleration`] right after a successful
+    /// [`Solver::position`], solving in place: q̇ and q̈ hold no usable values after a failure,
+    /// which the step control then undoes ([`Stepper::reject`]). This saves the copies that
+    /// keep the previous values for a plain caller.
+    fn solve_derivatives(&mut self) -> Result<(), SolveError> {
+        self.mechanism.velocity_rhs(&self.q, self.t, &mut self.qd);
+        self.factors.solve(&self.mechanism, self.jac.borrow(), &mut self.qd);
+        if self.qd.iter().any(|v| !v.is_finite()) {
+            return Err(SolveError::NonFinite);
+        }
+        self.known = Known::Velocity;
+        self.mechanism.acceleration_rhs(&self.q, &self.qd, self.t, &mut self.qdd);
+        self.factors.solve(&self.mechanism, self.jac.borrow(), &mut self.qdd);
+        if self.qdd.iter().any(|v| !v.is_finite()) {
+            return Err(SolveError::NonFinite);
+        }
         self.known = Known::Acceleration;
         Ok(())
     }
@@ -468,8 +515,8 @@ pub struct StepReport<R = f64> {
     pub iterations: u32,
     /// max |Φ_i| at the final q.
     pub residual: R,
-    /// ρ = min |u_kk| / max |u_kk| of the dense LU with partial pivoting of Φ_q at the final q,
-    /// a cheap estimate of 1/κ(Φ_q).
+    /// ρ = min |u_kk| / max |u_kk| of the LU of Φ_q at the final q ([`Solver::pivot_ratio`]), a
+    /// cheap estimate of 1/κ(Φ_q).
     pub pivot_ratio: R,
 }
 
@@ -506,10 +553,11 @@ impl<M: Mechanism<N, R>, const N: usize, R: Real, J: BorrowMut<[[R; N]; N]>> Sol
     /// such point (a new solver, or after [`Solver::set_q`]) the call solves `t` directly from
     /// the estimate, refusing only a singular result.
     ///
-    /// Each attempt costs one evaluation and dense factorisation of Φ_q more than
-    /// [`Solver::position`], [`Solver::velocity`] and [`Solver::acceleration`] do (for the pivot
-    /// ratio); afterwards the solver holds those dense factors, so [`Solver::velocity`] still
-    /// works.
+    /// An attempt costs what [`Solver::position`], [`Solver::velocity`] and
+    /// [`Solver::acceleration`] cost, plus copies of the state and the continuity check: the
+    /// pivot ratio is that of the factorisation [`Solver::position`] kept
+    /// ([`Solver::pivot_ratio`]), refactored densely only within
+    /// [`step::STRUCTURED_MARGIN`] of the singularity bound.
     ///
     /// # Errors
     ///
@@ -562,8 +610,12 @@ impl<M: Mechanism<N, R>, const N: usize, R: Real, J: BorrowMut<[[R; N]; N]>> Sol
     /// ```
     pub fn advance_to(&mut self, t: R) -> Result<StepReport<R>, Stop<R, AttemptError<R>>> {
         let start = self.start_sample();
+        let current = self.accepted.current;
         let mut control = Controlled { solver: self, candidate: start };
-        control.accept();
+        // The copy of the start point is already there when the last call ended on it.
+        if !current {
+            control.accept();
+        }
         let report = |s: Sample<R>, iterations| StepReport {
             iterations,
             residual: s.residual,
@@ -582,13 +634,35 @@ impl<M: Mechanism<N, R>, const N: usize, R: Real, J: BorrowMut<[[R; N]; N]>> Sol
             return None;
         }
         let a = &self.accepted;
-        if a.valid && a.sample.t == self.t && a.q == self.q {
+        if a.valid && a.current {
             return Some(a.sample);
         }
         self.mechanism.residual(&self.q, self.t, &mut self.scratch);
         let residual = newton::max_abs(&self.scratch);
-        let pivot_ratio = self.dense_pivot_ratio();
+        let pivot_ratio = self.pivot_ratio();
         Some(Sample { t: self.t, iterations: 0, residual, pivot_ratio })
+    }
+
+    /// ρ = min |u_kk| / max |u_kk| of Φ_q at the current (q, t), as the step control reads it
+    /// ([`crate::step`]): that of the factors [`Solver::position`] kept, unless they come from a
+    /// static pivot order and ρ is at most [`step::STRUCTURED_MARGIN`] times the singularity
+    /// bound ([`step::singular_ratio`]), or no factors are held: then Φ_q is evaluated in full
+    /// and factored by dense LU with partial pivoting, whose ratio is returned and whose
+    /// factors the solver keeps (so [`Solver::velocity`] still works). NaN when that
+    /// factorisation meets a non-finite entry.
+    ///
+    /// Away from singular configurations this costs nothing: the ratio of a static order lies
+    /// within a small factor of dense LU's (see [`step::STRUCTURED_MARGIN`]), and both estimate
+    /// 1/κ(Φ_q).
+    pub fn pivot_ratio(&mut self) -> R {
+        if self.factored {
+            let ratio = self.pivots.smallest / self.pivots.largest;
+            let confirm = R::from_f64(step::STRUCTURED_MARGIN) * step::singular_ratio(R::EPSILON);
+            if !self.factors.holds_structured() || ratio > confirm {
+                return ratio;
+            }
+        }
+        self.dense_pivot_ratio()
     }
 
     /// ρ of the dense LU with partial pivoting of Φ_q at the current (q, t), whose factors the
@@ -603,7 +677,10 @@ impl<M: Mechanism<N, R>, const N: usize, R: Real, J: BorrowMut<[[R; N]; N]>> Sol
         );
         self.factored = result.is_ok();
         match result {
-            Ok(p) => p.smallest / p.largest,
+            Ok(p) => {
+                self.pivots = p;
+                p.smallest / p.largest
+            }
             Err(Singular::SmallPivot { pivot, largest, .. }) => pivot / largest,
             Err(_) => R::NAN,
         }
@@ -626,17 +703,18 @@ impl<M: Mechanism<N, R>, const N: usize, R: Real, J: BorrowMut<[[R; N]; N]>> Ste
     fn attempt(&mut self, t: R) -> Result<Sample<R>, Rejection<R, AttemptError<R>>> {
         self.candidate = None;
         let s = &mut *self.solver;
-        let report = s.position(t).map_err(|e| {
+        // A failure here is undone by `reject`, which restores the accepted point: no copies.
+        let report = s.solve_position(t).map_err(|e| {
             let trouble = match e {
                 NewtonError::Singular { .. } => Trouble::Singular,
                 _ => Trouble::NoConvergence,
             };
             Rejection::engine(trouble, AttemptError::Newton(e))
         })?;
-        if let Err(e) = s.velocity().and_then(|()| s.acceleration()) {
+        if let Err(e) = s.solve_derivatives() {
             return Err(Rejection::engine(Trouble::Singular, AttemptError::Solve(e)));
         }
-        let pivot_ratio = s.dense_pivot_ratio();
+        let pivot_ratio = s.pivot_ratio();
         let sample =
             Sample { t, iterations: report.iterations, residual: report.residual, pivot_ratio };
         self.candidate = Some(sample);
@@ -667,6 +745,7 @@ impl<M: Mechanism<N, R>, const N: usize, R: Real, J: BorrowMut<[[R; N]; N]>> Ste
         a.known = s.known;
         a.valid = self.candidate.is_some();
         a.sample = self.candidate.unwrap_or(Sample { t: s.t, ..a.sample });
+        a.current = true;
     }
 
     fn reject(&mut self) {
@@ -680,5 +759,6 @@ impl<M: Mechanism<N, R>, const N: usize, R: Real, J: BorrowMut<[[R; N]; N]>> Ste
         s.t = a.sample.t;
         s.factored = false;
         s.factors.forget();
+        s.accepted.current = true;
     }
 }
