@@ -379,8 +379,8 @@ pub const MAX_WALK: usize = 4 * MAX_SAMPLES;
 /// Walks the description's motion, solved on the reduced system at the grid points
 /// [`MAX_WALK`] selects (Newton–Raphson from a Taylor predictor, sparse LU with the static
 /// orders' own rules, so that it stays on the assembly branch the spacing resolves), and calls
-/// `visit(t, q)` with the reduced q at every fourth of them (every point of a grid of at most
-/// [`MAX_SAMPLES`]), up to the first point where Newton fails; then with the last configuration
+/// `visit(t, q)` with the reduced q at [`MAX_SAMPLES`] of them evenly spaced (every point of a
+/// grid of at most [`MAX_SAMPLES`]), up to the first point where Newton fails; then with the last configuration
 /// solved if it was not visited, or with the initial estimates when Newton fails at once. Stops
 /// early when `visit` returns false.
 ///
@@ -391,10 +391,10 @@ pub fn motion(mech: &Mechanism, sys: &Symbolic, mut visit: impl FnMut(f64, &[f64
     // The last configuration solved, and whether it has been visited.
     let mut prev: Option<(f64, [Vec<f64>; 3], bool)> = None;
     let (tolerance, max_iterations) = (mech.solver.tolerance, mech.solver.max_iterations);
-    // Every point is looked at when the grid has at most MAX_SAMPLES; else every fourth walked.
-    let every = if mech.time.count <= MAX_SAMPLES { 1 } else { MAX_WALK / MAX_SAMPLES };
-    let mut walked = 0usize;
-    for k in (0..mech.time.count).filter(|&k| mech.time.sampled(k, MAX_WALK)) {
+    // The points walked, numbered 0, 1, …: MAX_SAMPLES of them evenly spaced are looked at.
+    let walked_grid = crate::model::TimeGrid::uniform(0.0, 1.0, mech.time.count.min(MAX_WALK));
+    let walk = (0..mech.time.count).filter(|&k| mech.time.sampled(k, MAX_WALK));
+    for (walked, k) in walk.enumerate() {
         let t = mech.time.at(k);
         let guess = match &prev {
             // Taylor predictor q + h q̇ + h²/2 q̈ from the previous time point.
@@ -405,8 +405,7 @@ pub fn motion(mech: &Mechanism, sys: &Symbolic, mut visit: impl FnMut(f64, &[f64
             None => q0.clone(),
         };
         let Some(state) = sampler.step(guess, t, tolerance, max_iterations) else { break };
-        let sampled = walked.is_multiple_of(every);
-        walked += 1;
+        let sampled = walked_grid.sampled(walked, MAX_SAMPLES);
         if sampled && !visit(t, &state[0]) {
             return;
         }
