@@ -323,7 +323,7 @@ pub struct Writer<W: Write> {
     out: W,
     format: Format,
     steps: usize,
-    /// Equations left out of the analysis as redundant (written by `finish` in CSV).
+    /// Equations named redundant at the initial configuration (written by `finish` in CSV).
     removed: Vec<String>,
     /// Where the redundant equations changed and what they became (written by `finish` in
     /// CSV).
@@ -396,7 +396,7 @@ impl<W: Write> Writer<W> {
                 if !removed.is_empty() {
                     writeln!(
                         out,
-                        "redundant equations removed (dependent on the others at the initial \
+                        "redundant equations (dependent on the ones before them at the initial \
                          configuration): {}",
                         printable(&removed.join(", "))
                     )?;

@@ -383,6 +383,15 @@ impl<'e, 'm> Analysis<'e, 'm> {
         Ok(report)
     }
 
+    /// The failure of the first time point alone, if the analysis stops there: what `check`
+    /// reports when the equations contradict each other at the initial configuration.
+    #[must_use]
+    pub fn first_failure(&self) -> Option<Failure> {
+        let t = self.eq.mechanism().time.start;
+        let mut engine = GenericEngine { analysis: self, prev: None };
+        stepping::first(&mut engine, t).err().map(|stop| self.failure_of(&stop))
+    }
+
     /// The contract's failure for a step control [`Stop`], naming the equations involved
     /// (see [`Analysis::involved`]).
     #[must_use]
@@ -592,10 +601,6 @@ impl<'e, 'm> Analysis<'e, 'm> {
             let levels = [("velocity", &qd, &sys.nu), ("acceleration", &qdd, &gamma)];
             for (what, x, b) in levels {
                 let (ratio, row) = inconsistency(&sys, &lu.rows, x, b);
-                if std::env::var_os("DBG_RATIO").is_some() {
-                    let (mn, mx) = lu.pivot_extremes();
-                    eprintln!("DBG {what} t={t} ratio={ratio:e} rho={:e}", mn / mx);
-                }
                 if !(ratio <= CONSISTENCY) {
                     return Err(Rejection {
                         trouble: Trouble::Inconsistent,
