@@ -627,8 +627,11 @@ impl Symbolic {
         let n = q.len();
         let zero = vec![0.0; n];
         let [full, _, _] = self.expand(&eq, &q, &zero, &zero, mech.time.start);
-        self.redundant =
-            eq.redundant_rows(&full, mech.time.start).into_iter().map(|k| labels[k].clone()).collect();
+        self.redundant = eq
+            .redundant_rows(&full, mech.time.start)
+            .into_iter()
+            .map(|k| labels[k].clone())
+            .collect();
     }
 
     /// The structurally non-zero entries of ∂e/∂q.

@@ -9,6 +9,8 @@
 //! | `parallelogram_landing`, `parallelogram_over` | a named `singular` at the grid time on the flat configuration; stepping over it, every step on the parallelogram branch | the flat configuration is a bifurcation: the whole Φ_q loses rank there, and a step must never switch branches |
 //! | `four_bar_conflict` | `inconsistent` at t = 0 naming both drivers, from `solve` and from `check` (exit status 2) | the drivers agree on the angle at t = 0 but not on its rate |
 //! | `four_bar_conflict_later` | `check` consistent, naming `driver push`; `solve` stops with `inconsistent` at the first grid time, naming both drivers | the drivers agree to second order at t = 0 and part at once in acceleration |
+//! | `four_bar_fix_conflict` | `inconsistent` at t = 0 naming joint O and the constraint, from `solve` and `check` | the `fix` holds the crank 0.05 above the joint that holds it at 0 |
+//! | `bennett_a_90` with b rounded to 0.683 | `inconsistent` at t = 0 | a / sin α1 ≠ b / sin α2 (by 1.9e-5 relative): the loop is a rigid structure that the driver cannot turn |
 //! | `four_bar_flat` | `check`, the generic engine and the symbolic layer (generated engine) all name `constraint flat`; both engines run the whole grid with every row holding | one naming rule (`codegen::generic::redundancy`) |
 
 use std::f64::consts::PI;
@@ -149,7 +151,7 @@ fn the_redundant_rows_named_change_exactly_where_theta1_is_zero_or_pi() {
     let general = ["joint J4 row 3", "joint J4 row 4", "joint J4 row 5"].map(String::from);
     let special = ["joint J4 row 1", "joint J4 row 4", "joint J4 row 5"].map(String::from);
     for name in ["bennett_a_m149", "bennett_b_90", "bennett_a_0"] {
-        let mech = load(&name);
+        let mech = load(name);
         let r = run(&mech, true);
         let on_special = |s: &StepResult| {
             let theta1 = s.joints[0].angle.expect("J1 has references")[0];
@@ -236,11 +238,10 @@ fn mechgen(args: &[&str]) -> (i32, String) {
     (code, String::from_utf8(out).expect("UTF-8"))
 }
 
-#[test]
-fn two_drivers_that_disagree_stop_the_analysis_as_inconsistent() {
-    let drivers = ["driver motor", "driver push"];
-    // Rates 1 and 1.1 rad/s: the velocity equations conflict at t = 0 already.
-    let file = path("four_bar_conflict");
+/// `check` and `solve` on `name` both exit with status 2 and the `inconsistent` error at
+/// t = 0 naming `involved`.
+fn assert_inconsistent_at_start(name: &str, involved: &[&str]) {
+    let file = path(name);
     for command in ["check", "solve"] {
         let args: Vec<&str> = match command {
             "check" => vec!["check", &file, "--format", "json"],
@@ -251,11 +252,20 @@ fn two_drivers_that_disagree_stop_the_analysis_as_inconsistent() {
         let v: serde_json::Value = serde_json::from_str(&out).expect("JSON");
         assert_eq!(v["error"]["kind"], "inconsistent", "{command}: {out}");
         assert_eq!(v["error"]["t"], 0.0, "{command}");
-        assert_eq!(v["error"]["constraints"], serde_json::json!(drivers), "{command}");
+        assert_eq!(v["error"]["constraints"], serde_json::json!(involved), "{command}");
         if command == "solve" {
             assert_eq!(v["steps"].as_array().map(Vec::len), Some(0));
         }
     }
+}
+
+#[test]
+fn equations_that_contradict_each_other_stop_the_analysis_as_inconsistent() {
+    let drivers = ["driver motor", "driver push"];
+    // Rates 1 and 1.1 rad/s: the velocity equations conflict at t = 0 already.
+    assert_inconsistent_at_start("four_bar_conflict", &drivers);
+    // A `fix` 0.05 away from where a joint holds the coordinate.
+    assert_inconsistent_at_start("four_bar_fix_conflict", &["joint O", "constraint flat"]);
     // s = t against s = sin t: consistent at t = 0 to second order, so `check` names the
     // later driver redundant and exits 0; the accelerations part at once (−sin t against 0),
     // so the analysis stops at the first grid time after t = 0.
@@ -274,6 +284,16 @@ fn two_drivers_that_disagree_stop_the_analysis_as_inconsistent() {
         assert_eq!(f.constraints, drivers, "{f:?}");
         assert_eq!(r.frames.len(), 1, "only t = 0 holds");
     }
+    // The b = 0.683 is 0.5 sin 75° / sin 45° = 0.68301270… rounded: no longer a
+    // Bennett linkage, the loop of four revolutes has no motion, and its rows cannot all hold
+    // at the driven angle.
+    let text = std::fs::read_to_string(path("bennett_a_90")).expect("description");
+    let rounded = text.replace("0.6830127018922194", "0.683");
+    assert!(rounded.matches("0.683,").count() >= 2, "b was rounded in J3 and J4");
+    let mech = testing::load_toml(&rounded);
+    let eq = Equations::new(&mech);
+    let f = Analysis::new(&eq, &eq.prepare()).first_failure().expect("inconsistent");
+    assert_eq!((f.kind, f.t), (FailureKind::Inconsistent, 0.0), "{f:?}");
 }
 
 #[test]

@@ -559,7 +559,9 @@ impl<'e, 'm> Analysis<'e, 'm> {
                 ));
             }
             let lu = self.factor(sys.jac.clone())?;
-            if lu.used().is_some_and(|used| used.iter().all(|&k| sys.phi[k].abs() <= self.tolerance))
+            if lu
+                .used()
+                .is_some_and(|used| used.iter().all(|&k| sys.phi[k].abs() <= self.tolerance))
             {
                 stalled += 1;
                 if stalled > STALLED_ITERATIONS {
@@ -572,7 +574,7 @@ impl<'e, 'm> Analysis<'e, 'm> {
                         self.eq.labels()[worst].equation(),
                         self.tolerance
                     );
-                    let point = self.point(t, &q, &zero, &zero, iterations, res, &lu);
+                    let point = Self::point(t, [&q, &zero, &zero], iterations, res, &lu);
                     return Err(Rejection {
                         trouble: Trouble::Inconsistent,
                         message,
@@ -596,12 +598,13 @@ impl<'e, 'm> Analysis<'e, 'm> {
                 "velocities or accelerations are not finite".to_owned(),
             ));
         }
-        let point = self.point(t, &q, &qd, &qdd, iterations, residual, &lu);
+        let point = Self::point(t, [&q, &qd, &qdd], iterations, residual, &lu);
         if lu.used().is_some() {
             let levels = [("velocity", &qd, &sys.nu), ("acceleration", &qdd, &gamma)];
             for (what, x, b) in levels {
                 let (ratio, row) = inconsistency(&sys, &lu.rows, x, b);
-                if !(ratio <= CONSISTENCY) {
+                // NaN misses too.
+                if ratio.is_nan() || ratio > CONSISTENCY {
                     return Err(Rejection {
                         trouble: Trouble::Inconsistent,
                         message: format!(
@@ -622,19 +625,11 @@ impl<'e, 'm> Analysis<'e, 'm> {
         Ok(point)
     }
 
-    /// The point of a solved attempt, with the pivot ratio of `lu`.
-    #[allow(clippy::too_many_arguments)]
-    fn point(
-        &self,
-        t: f64,
-        q: &DVector<f64>,
-        qd: &DVector<f64>,
-        qdd: &DVector<f64>,
-        iterations: u32,
-        residual: f64,
-        lu: &Factors,
-    ) -> Point {
+    /// The point of a solved attempt at `t`, with positions, rates and accelerations `q`,
+    /// its Newton `iterations` and `residual`, and the pivot ratio of `lu`.
+    fn point(t: f64, q: [&DVector<f64>; 3], iterations: u32, residual: f64, lu: &Factors) -> Point {
         let (min, max) = lu.pivot_extremes();
+        let [q, qd, qdd] = q;
         Point {
             t,
             q: q.as_slice().to_vec(),
@@ -687,7 +682,7 @@ impl<'e, 'm> Analysis<'e, 'm> {
         };
         let r = &worst.0;
         let big = r.amax();
-        if !(big > 0.0) {
+        if big.is_nan() || big <= 0.0 {
             return Vec::new();
         }
         let named: Vec<String> =
@@ -777,8 +772,10 @@ fn inconsistency(
     b: &DVector<f64>,
 ) -> (f64, usize) {
     let (r, scale) = residual_and_scale(&sys.jac, rows, x, b);
-    let (row, big) =
-        r.iter().enumerate().fold((0, 0.0_f64), |m, (k, v)| if v.abs() > m.1 { (k, v.abs()) } else { m });
+    let (row, big) = r
+        .iter()
+        .enumerate()
+        .fold((0, 0.0_f64), |m, (k, v)| if v.abs() > m.1 { (k, v.abs()) } else { m });
     if scale > 0.0 { (big / scale, row) } else { (big, row) }
 }
 
