@@ -59,9 +59,11 @@ pub(super) fn check(
     let redundant: Vec<String> =
         prep.redundant.iter().map(|&k| eq.labels()[k].equation()).collect();
     // The first time point as `solve` takes it: only a contradiction is `check`'s to report
-    // (the others are the analysis' own failures).
-    let conflict = crate::generic::Analysis::new(&eq, &prep)
-        .first_failure()
+    // (the others are the analysis' own failures), and only equations beyond a full rank
+    // (redundant ones) can contradict the others.
+    let conflict = (!prep.redundant.is_empty())
+        .then(|| crate::generic::Analysis::new(&eq, &prep).first_failure())
+        .flatten()
         .filter(|f| f.kind == crate::generic::FailureKind::Inconsistent);
     // The generated system's true size; the count of eliminated coordinates when it cannot
     // be built (its diagnostics belong to `generate`).

@@ -42,8 +42,8 @@ const RANK_TOLERANCE: f64 = 1e-10;
 /// scale (1 rad/s against 1.1 rad/s: 5e-2), far above it.
 const CONSISTENCY: f64 = 1e-6;
 
-/// Newton iterations allowed after the rows the factorisation uses meet the tolerance while
-/// others do not: in a consistent system the others follow within one iteration (they depend
+/// Newton iterations allowed in a row while the rows the factorisation uses meet the tolerance
+/// and others do not: in a consistent system the others follow within one iteration (they depend
 /// on the used rows, to first order); an inconsistent one stays where it is.
 const STALLED_ITERATIONS: u32 = 2;
 
@@ -559,29 +559,27 @@ impl<'e, 'm> Analysis<'e, 'm> {
                 ));
             }
             let lu = self.factor(sys.jac.clone())?;
-            if lu
+            let used_met = lu
                 .used()
-                .is_some_and(|used| used.iter().all(|&k| sys.phi[k].abs() <= self.tolerance))
-            {
-                stalled += 1;
-                if stalled > STALLED_ITERATIONS {
-                    let worst = (0..sys.phi.len())
-                        .max_by(|&a, &b| sys.phi[a].abs().total_cmp(&sys.phi[b].abs()))
-                        .unwrap_or(0);
-                    let message = format!(
-                        "equation {} cannot hold with the others: |Φ| = {res:e} where every \
-                         other equation meets the tolerance {:e}",
-                        self.eq.labels()[worst].equation(),
-                        self.tolerance
-                    );
-                    let point = Self::point(t, [&q, &zero, &zero], iterations, res, &lu);
-                    return Err(Rejection {
-                        trouble: Trouble::Inconsistent,
-                        message,
-                        point: Some(Box::new(point)),
-                        body: None,
-                    });
-                }
+                .is_some_and(|used| used.iter().all(|&k| sys.phi[k].abs() <= self.tolerance));
+            stalled = if used_met { stalled + 1 } else { 0 };
+            if stalled > STALLED_ITERATIONS {
+                let worst = (0..sys.phi.len())
+                    .max_by(|&a, &b| sys.phi[a].abs().total_cmp(&sys.phi[b].abs()))
+                    .unwrap_or(0);
+                let message = format!(
+                    "equation {} cannot hold with the others: |Φ| = {res:e} where the \
+                     equations the solve uses meet the tolerance {:e}",
+                    self.eq.labels()[worst].equation(),
+                    self.tolerance
+                );
+                let point = Self::point(t, [&q, &zero, &zero], iterations, res, &lu);
+                return Err(Rejection {
+                    trouble: Trouble::Inconsistent,
+                    message,
+                    point: Some(Box::new(point)),
+                    body: None,
+                });
             }
             let dq = lu.solve(&(-&sys.phi));
             q += dq;
