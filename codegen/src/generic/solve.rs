@@ -785,10 +785,18 @@ fn residual_and_scale(
     x: &DVector<f64>,
     b: &DVector<f64>,
 ) -> (DVector<f64>, f64) {
-    let r = (jac * x - b).component_mul(rows);
-    let terms = jac.abs() * x.abs() + b.abs();
+    // One pass over the (column-major) matrix for both sums.
+    let mut r = -b;
+    let mut terms = b.abs();
+    for (j, column) in jac.column_iter().enumerate() {
+        for (i, a) in column.iter().enumerate() {
+            let v = a * x[j];
+            r[i] += v;
+            terms[i] += v.abs();
+        }
+    }
     let scale = terms.component_mul(rows).iter().fold(0.0_f64, |m, v| m.max(*v));
-    (r, scale)
+    (r.component_mul(rows), scale)
 }
 
 /// The LU factors of R Φ_q C (Φ_q in balanced units) with the scales, to solve Φ_q x = b.
@@ -803,10 +811,11 @@ enum Lu {
     /// P A = L U.
     Square(nalgebra::LU<f64, nalgebra::Dyn, nalgebra::Dyn>),
     /// P A = [L1; L2] U for A with m > n rows: the solves use the n rows that row pivoting
-    /// brought to the top, `used`, and L1 (unit lower triangular) and U, both n × n.
+    /// brought to the top, `used`, and L1 (unit lower triangular, the top of `l`) and U, both
+    /// n × n.
     Tall {
         p: nalgebra::PermutationSequence<nalgebra::Dyn>,
-        l1: DMatrix<f64>,
+        l: DMatrix<f64>,
         u: DMatrix<f64>,
         used: Vec<usize>,
     },
@@ -822,10 +831,11 @@ impl Factors {
                 assert!(lu.solve_mut(&mut y), "checked non-singular");
                 y
             }
-            Lu::Tall { p, l1, u, .. } => {
+            Lu::Tall { p, l, u, .. } => {
                 p.permute_rows(&mut y);
-                let mut z = y.rows(0, u.nrows()).into_owned();
-                l1.solve_lower_triangular_with_diag_mut(&mut z, 1.0);
+                let n = u.nrows();
+                let mut z = y.rows(0, n).into_owned();
+                l.view((0, 0), (n, n)).solve_lower_triangular_with_diag_mut(&mut z, 1.0);
                 assert!(u.solve_upper_triangular_mut(&mut z), "checked non-singular");
                 z
             }
@@ -867,7 +877,7 @@ impl Analysis<'_, '_> {
             let mut order = DVector::from_iterator(m, 0..m);
             p.permute_rows(&mut order);
             let used = order.iter().take(n).copied().collect();
-            Lu::Tall { p, l1: l.rows(0, n).into_owned(), u, used }
+            Lu::Tall { p, l, u, used }
         };
         let factors = Factors { lu, rows, columns: self.columns.clone() };
         let (min, max) = factors.pivot_extremes();
