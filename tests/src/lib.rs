@@ -22,6 +22,8 @@ mod named_outputs;
 #[cfg(test)]
 mod random_mechanisms;
 #[cfg(test)]
+mod redundancy;
+#[cfg(test)]
 mod rssr_reference;
 #[cfg(test)]
 mod runtime_step;
