@@ -21,6 +21,7 @@ pub mod lu;
 mod names;
 mod notes;
 mod outputs;
+mod redundant;
 pub mod scalar;
 mod syntax;
 
@@ -66,6 +67,7 @@ pub fn module_in(mech: &Mechanism, sys: &Symbolic, source: &str, scalar: Scalar)
     items.push(normalize(sys));
     items.push(expand(sys, &moving));
     items.extend(outputs::accessors(&rows, &named));
+    items.extend(redundant::items(sys, &rows));
     if sys.inputs.is_empty() {
         items.extend(mechanism_type(mech, orders.len()));
     } else {

@@ -5,8 +5,8 @@
 //!
 //! The built program prints one line per time point: `step t iterations residual` followed
 //! by q, q̇ and q̈ of every moving body (7 each, body by body) in shortest round-trip form,
-//! or, when the analysis stops, `near t q…` (the configuration closest to the failure, if
-//! any) and `error kind t body message`. Run mode takes each step under the step control of
+//! or, when the analysis stops, `near t q… q̇… q̈…` (the configuration closest to the failure,
+//! if any) and `error kind t body message`. Run mode takes each step under the step control of
 //! [`runtime::step`], which the program links with the solver. In `bench` mode it times whole passes
 //! over the grid and prints `bench min_ns median_ns iterations_per_step`.
 
@@ -180,7 +180,7 @@ pub fn build_in(mech: &Mechanism, scalar: Scalar) -> Result<Built, EngineError> 
         module.lines().count(),
         start.elapsed().as_secs_f64()
     );
-    let mut built = build_module(mech, &module, sys.unknowns.len(), scalar)?;
+    let mut built = build_module(mech, &module, &sys, scalar)?;
     built.inputs = sys.inputs.iter().map(|d| d.driver).collect();
     built.series = replayed.map(|r| std::sync::Arc::new(series_text(&r, &built.inputs)));
     built.removed = sys.redundant.iter().map(crate::generic::RowLabel::equation).collect();
@@ -234,16 +234,17 @@ fn spawn(mut cmd: Command, built: &Built) -> Result<SolverProcess, EngineError> 
 pub fn build_module(
     mech: &Mechanism,
     module: &str,
-    unknowns: usize,
+    sys: &Symbolic,
     scalar: Scalar,
 ) -> Result<Built, EngineError> {
+    let unknowns = sys.unknowns.len();
     let inputs = mech.drivers.iter().any(|d| d.law == crate::model::Law::Input);
     let recipe = cache::Recipe::new(
         cache_dir()?,
         module,
         &emit::type_name(&mech.name),
         scalar.name(),
-        inputs,
+        cache::Shape { inputs, dropped: !sys.dropped.is_empty() },
     );
     let mut notes = Vec::new();
     recipe.ensure(&mut notes)?;
@@ -361,7 +362,7 @@ pub fn run_with(
                     return Ok(report);
                 }
             },
-            Some("near") => near = Some(near_line(&line)?),
+            Some("near") => near = Some(near_line(&line, analysis.unknowns())?),
             Some("error") => {
                 let stop = error_line(&line, near.take());
                 report.failure = Some(analysis.failure_of(&stop));
@@ -409,20 +410,26 @@ fn step_line(line: &str, index: usize) -> Result<Result<Frame, Failure>, RunErro
     }))
 }
 
-/// The configuration of a `near t q…` line: the one closest to the failure that follows.
-fn near_line(line: &str) -> Result<Point, RunError> {
+/// The configuration of a `near t q… q̇… q̈…` line (`n` values each; the rates may be
+/// missing): the one closest to the failure that follows.
+fn near_line(line: &str, n: usize) -> Result<Point, RunError> {
     let bad = || RunError::Malformed(line.to_owned());
     let nums: Vec<f64> = line
         .split(' ')
         .skip(1)
         .map(|s| s.parse::<f64>().map_err(|_| bad()))
         .collect::<Result<_, _>>()?;
-    let (&t, q) = nums.split_first().ok_or_else(bad)?;
+    let (&t, values) = nums.split_first().ok_or_else(bad)?;
+    let (q, qd, qdd) = if n > 0 && values.len() == 3 * n {
+        (&values[..n], &values[n..2 * n], &values[2 * n..])
+    } else {
+        (values, &[][..], &[][..])
+    };
     Ok(Point {
         t,
         q: q.to_vec(),
-        qd: Vec::new(),
-        qdd: Vec::new(),
+        qd: qd.to_vec(),
+        qdd: qdd.to_vec(),
         iterations: 0,
         residual: f64::NAN,
         pivot_ratio: f64::NAN,

@@ -54,6 +54,14 @@ pub struct Symbolic {
     /// The reduced system leaves them out, except one whose coordinate was eliminated (a
     /// redundant `fix`): it leaves out the row that this one makes dependent instead.
     pub redundant: Vec<RowLabel>,
+    /// The rows of the reduced system left out as dependent on the kept ones (the eliminated
+    /// rows hold exactly and are not among them), checked at run time: a step on which one of
+    /// them does not hold is refused.
+    pub dropped: Vec<Dropped>,
+    /// For every kept row, the factor that puts it in balanced units at the assembled initial
+    /// configuration (the reciprocal of the power of two nearest its largest entry with the
+    /// translational columns times the characteristic length, `generic::scaling::balanced`).
+    pub row_factors: Vec<f64>,
     /// Φ, one expression per kept row.
     pub phi: Vec<ExprId>,
     /// Φ_q by rows: the structurally non-zero entries `(column, expression)`.
@@ -67,6 +75,18 @@ pub struct Symbolic {
     /// The input drivers (`law = "input"`), in file order: input k is the symbol
     /// `Var::S(k)` with its rates `Var::Sd(k)` and `Var::Sdd(k)`.
     pub inputs: Vec<InputDriver>,
+}
+
+/// A row of the reduced system left out as dependent on the kept ones.
+#[derive(Clone, Debug)]
+pub struct Dropped {
+    /// Its equation.
+    pub label: RowLabel,
+    /// Φ_i, its rate Φ̇_i = Φ_q,i q̇ − ν_i and its acceleration Φ̈_i = Φ_q,i q̈ − γ_i, in q, q̇,
+    /// q̈ and t: the residuals of its position, velocity and acceleration equations.
+    pub residuals: [ExprId; 3],
+    /// The factor that puts it in balanced units, as [`Symbolic::row_factors`].
+    pub factor: f64,
 }
 
 /// One input driver of the reduced system.
@@ -601,6 +621,8 @@ impl Symbolic {
             rows: Vec::new(),
             eliminated: eliminated.iter().map(|&k| labels[k].clone()).collect(),
             redundant: Vec::new(),
+            dropped: Vec::new(),
+            row_factors: Vec::new(),
             phi: Vec::new(),
             jac: Vec::new(),
             nu: Vec::new(),
@@ -640,11 +662,19 @@ impl Symbolic {
         let kept_phi: Vec<ExprId> = kept.iter().map(|&k| phi_all[k]).collect();
         let normalisation: Vec<bool> = kept.iter().map(|&k| labels[k].is_normalisation()).collect();
         let (independent, q) = self.independent_rows(mech, &kept_phi, &jac_rows, &normalisation);
+        let factors = self.row_factors_at(mech, &jac_rows, &q);
         for (pos, &k) in kept.iter().enumerate() {
             if independent.contains(&pos) {
                 self.rows.push(labels[k].clone());
                 self.phi.push(phi_all[k]);
                 self.jac.push(std::mem::take(&mut jac_rows[pos]));
+                self.row_factors.push(factors[pos]);
+            } else {
+                let phi = phi_all[k];
+                let rate = self.pool.rate(phi);
+                let acceleration = outputs::acceleration(&mut self.pool, rate);
+                let residuals = [phi, rate, acceleration];
+                self.dropped.push(Dropped { label: labels[k].clone(), residuals, factor: factors[pos] });
             }
         }
         // The names: the shared rule on the whole Φ_q at the same configuration.
@@ -657,6 +687,35 @@ impl Symbolic {
             .into_iter()
             .map(|k| labels[k].clone())
             .collect();
+    }
+
+    /// The balanced-unit factor of every row of `jac_rows` at the reduced configuration `q`
+    /// (see [`Symbolic::row_factors`]).
+    fn row_factors_at(
+        &self,
+        mech: &Mechanism,
+        jac_rows: &[Vec<(usize, ExprId)>],
+        q: &[f64],
+    ) -> Vec<f64> {
+        let t = mech.time.start;
+        let u = self.planning_inputs(t);
+        let roots: Vec<ExprId> = jac_rows.iter().flatten().map(|&(_, e)| e).collect();
+        let mut it = self.pool.eval_inputs(&roots, [q, &[], &[]], t, &u).into_iter();
+        let rows: SparseRows = jac_rows
+            .iter()
+            .map(|row| row.iter().map(|&(c, _)| (c, it.next().expect("one value"))).collect())
+            .collect();
+        self.balanced(rows, mech)
+            .iter()
+            .map(|row| {
+                let big = row.iter().fold(0.0_f64, |m, &(_, x)| m.max(x.abs()));
+                if big > 0.0 && big.is_finite() {
+                    1.0 / crate::generic::scaling::power_of_two(big)
+                } else {
+                    1.0
+                }
+            })
+            .collect()
     }
 
     /// The structurally non-zero entries of ∂e/∂q.

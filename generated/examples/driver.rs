@@ -47,6 +47,29 @@ mod config {
     ) {
         crate::mechanism::expand(q, qd, qdd, t, out);
     }
+
+    /// The number of rows the module left out as redundant: none.
+    pub(crate) const DROPPED: usize = 0;
+
+    /// Their equations: none.
+    pub(crate) const DROPPED_EQUATIONS: [&str; DROPPED] = [];
+
+    /// The balanced-unit factors of the kept rows (unused without rows left out).
+    pub(crate) const ROW_FACTORS: [Real; N] = [1.0; N];
+
+    /// The balanced-unit factors of the rows left out: none.
+    pub(crate) const DROPPED_ROW_FACTORS: [Real; DROPPED] = [];
+
+    /// The residuals of the rows left out: there are none.
+    pub(crate) fn dropped(
+        _m: &Generated,
+        _q: &[Real; N],
+        _qd: &[Real; N],
+        _qdd: &[Real; N],
+        _t: Real,
+        _out: &mut [[Real; 3]; DROPPED],
+    ) {
+    }
 }
 
 /// The key of the cache entry: none here.

@@ -46,7 +46,7 @@ pub(super) fn scaling(
             let built = match crate::engine::build_module(
                 mech,
                 &module,
-                sys.unknowns.len(),
+                &sys,
                 crate::emit::Scalar::F64,
             ) {
                 Ok(b) => b,

@@ -104,10 +104,19 @@ const MAIN: &str = "//! A generated solver (written by mechgen; do not edit): se
                     mod config;\nmod driver;\nmod key;\nmod mechanism;\n\n\
                     fn main() {\n    driver::main();\n}\n";
 
+/// What the driver needs to know of a module beyond its type names.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct Shape {
+    /// Whether it has input drivers.
+    pub(super) inputs: bool,
+    /// Whether it left rows out as redundant (`dropped_residuals`).
+    pub(super) dropped: bool,
+}
+
 /// The generated crate's `config.rs`: what the driver reads about the module, the
-/// mechanism's type `type_name`, the floating-point type `real`, and whether the module has
-/// input drivers (`inputs`).
-fn config(type_name: &str, real: &str, inputs: bool) -> String {
+/// mechanism's type `type_name`, the floating-point type `real`, and its [`Shape`].
+fn config(type_name: &str, real: &str, shape: Shape) -> String {
+    let inputs = shape.inputs;
     let head = format!(
         "//! What the driver reads about the generated module (written by mechgen).\n\n\
          /// The floating-point type the module was generated in.\n\
@@ -144,7 +153,46 @@ fn config(type_name: &str, real: &str, inputs: bool) -> String {
          out: &mut [[[Real; 7]; 3]; BODIES]) {\n    \
              crate::mechanism::expand(q, qd, qdd, t, out);\n}\n"
     };
-    head + body
+    head + body + &dropped(shape)
+}
+
+/// The part of `config.rs` about the rows the module left out as redundant: their number, the
+/// balanced-unit factors of the rows and `dropped`, their residuals.
+fn dropped(shape: Shape) -> String {
+    let call = if shape.inputs {
+        "crate::mechanism::dropped_residuals(q, qd, qdd, t, &m.inputs(t), out);"
+    } else {
+        "crate::mechanism::dropped_residuals(q, qd, qdd, t, out);"
+    };
+    let m = if shape.inputs { "m" } else { "_m" };
+    if shape.dropped {
+        format!(
+            "\n/// The number of rows the module left out as redundant.\n\
+             pub const DROPPED: usize = crate::mechanism::DROPPED;\n\n\
+             /// Their equations.\n\
+             pub const DROPPED_EQUATIONS: [&str; DROPPED] = crate::mechanism::DROPPED_EQUATIONS;\n\n\
+             /// The balanced-unit factors of the kept rows.\n\
+             pub const ROW_FACTORS: [Real; N] = crate::mechanism::ROW_FACTORS;\n\n\
+             /// The balanced-unit factors of the rows left out.\n\
+             pub const DROPPED_ROW_FACTORS: [Real; DROPPED] = crate::mechanism::DROPPED_ROW_FACTORS;\n\n\
+             /// The residuals `[Φ_i, Φ̇_i, Φ̈_i]` of the rows left out.\n\
+             pub fn dropped({m}: &Generated, q: &[Real; N], qd: &[Real; N], qdd: &[Real; N], t: Real, \
+             out: &mut [[Real; 3]; DROPPED]) {{\n    {call}\n}}\n"
+        )
+    } else {
+        "\n/// The number of rows the module left out as redundant: none.\n\
+         pub const DROPPED: usize = 0;\n\n\
+         /// Their equations: none.\n\
+         pub const DROPPED_EQUATIONS: [&str; DROPPED] = [];\n\n\
+         /// The balanced-unit factors of the kept rows (unused without rows left out).\n\
+         pub const ROW_FACTORS: [Real; N] = [1.0; N];\n\n\
+         /// The balanced-unit factors of the rows left out: none.\n\
+         pub const DROPPED_ROW_FACTORS: [Real; DROPPED] = [];\n\n\
+         /// The residuals of the rows left out: there are none.\n\
+         pub fn dropped(_m: &Generated, _q: &[Real; N], _qd: &[Real; N], _qdd: &[Real; N], _t: Real, \
+         _out: &mut [[Real; 3]; DROPPED]) {}\n"
+            .to_owned()
+    }
 }
 
 /// How to build one generated crate, and where its entry lies.
@@ -169,9 +217,9 @@ impl Recipe {
         module: &str,
         type_name: &str,
         real: &str,
-        inputs: bool,
+        shape: Shape,
     ) -> Recipe {
-        let config = config(type_name, real, inputs);
+        let config = config(type_name, real, shape);
         let manifest = |package: &str| {
             format!(
                 "[package]\nname = \"{package}\"\nversion = \"0.0.0\"\nedition = \"2024\"\n\

@@ -18,7 +18,7 @@
 use std::io::Write;
 
 use runtime::factors::DenseOnly;
-use runtime::step::{self, Coordinates, Groups, Rejection, Sample, Stepper, Trouble};
+use runtime::step::{self, Coordinates, Groups, Reason, Rejection, Sample, Stepper, Trouble};
 use runtime::{AttemptError, Mechanism, NewtonError, NewtonOptions, Solver};
 
 use super::config::{self, Real};
@@ -131,6 +131,15 @@ trait Generated: Mechanism<N, Real> {
         t: Real,
         out: &mut [[[Real; 7]; 3]; mechanism::BODIES],
     );
+    /// The module's `dropped_residuals` at its inputs at `t` (nothing without rows left out).
+    fn dropped(
+        &self,
+        q: &[Real; N],
+        qd: &[Real; N],
+        qdd: &[Real; N],
+        t: Real,
+        out: &mut [[Real; 3]; config::DROPPED],
+    );
 }
 
 impl Generated for config::Generated {
@@ -147,6 +156,16 @@ impl Generated for config::Generated {
     ) {
         config::expand(self, q, qd, qdd, t, out);
     }
+    fn dropped(
+        &self,
+        q: &[Real; N],
+        qd: &[Real; N],
+        qdd: &[Real; N],
+        t: Real,
+        out: &mut [[Real; 3]; config::DROPPED],
+    ) {
+        config::dropped(self, q, qd, qdd, t, out);
+    }
 }
 
 impl Generated for DenseOnly<config::Generated> {
@@ -162,6 +181,16 @@ impl Generated for DenseOnly<config::Generated> {
         out: &mut [[[Real; 7]; 3]; mechanism::BODIES],
     ) {
         self.0.expand(q, qd, qdd, t, out);
+    }
+    fn dropped(
+        &self,
+        q: &[Real; N],
+        qd: &[Real; N],
+        qdd: &[Real; N],
+        t: Real,
+        out: &mut [[Real; 3]; config::DROPPED],
+    ) {
+        self.0.dropped(q, qd, qdd, t, out);
     }
 }
 
@@ -264,7 +293,10 @@ fn run<M: Generated>(solver: Solver<M, N, Real, Jacobian>, series: &Series, out:
             Err(stop) => {
                 if let Some(near) = &stop.near {
                     check(write!(out, "near {:?}", near.sample.t));
-                    numbers(out, if near.rejected { &engine.candidate.q } else { &engine.full.q });
+                    let at = if near.rejected { &engine.candidate } else { &engine.full };
+                    for v in [&at.q, &at.qd, &at.qdd] {
+                        numbers(out, v);
+                    }
                     check(writeln!(out));
                 }
                 let body = stop.body.map_or_else(|| "-".to_owned(), |b| b.to_string());
@@ -333,19 +365,19 @@ struct Engine<M> {
 }
 
 impl<M: Generated> Stepper<f64> for Engine<M> {
-    type Cause = AttemptError<Real>;
+    type Cause = Cause;
 
-    fn attempt(&mut self, t: f64) -> Result<Sample<f64>, Rejection<f64, AttemptError<Real>>> {
+    fn attempt(&mut self, t: f64) -> Result<Sample<f64>, Rejection<f64, Cause>> {
         let t = t as Real;
         let report = self.solver.position(t).map_err(|e| {
             let trouble = match e {
                 NewtonError::Singular { .. } => Trouble::Singular,
                 _ => Trouble::NoConvergence,
             };
-            Rejection::engine(trouble, AttemptError::Newton(e))
+            Rejection::engine(trouble, Cause::Attempt(AttemptError::Newton(e)))
         })?;
         if let Err(e) = self.solver.velocity().and_then(|()| self.solver.acceleration()) {
-            return Err(Rejection::engine(Trouble::Singular, AttemptError::Solve(e)));
+            return Err(Rejection::engine(Trouble::Singular, Cause::Attempt(AttemptError::Solve(e))));
         }
         // The pivots of the factorisation the solve kept, dense only near the singularity bound.
         let pivot_ratio = wide(self.solver.pivot_ratio());
@@ -361,12 +393,21 @@ impl<M: Generated> Stepper<f64> for Engine<M> {
             v.clear();
             v.extend(self.expanded.iter().flat_map(|b| b[d]).map(wide));
         }
-        Ok(Sample {
+        let sample = Sample {
             t: wide(t),
             iterations: report.iterations,
             residual: wide(report.residual),
             pivot_ratio,
-        })
+        };
+        if let Some(message) = inconsistency(&self.solver, t) {
+            return Err(Rejection {
+                trouble: Trouble::Inconsistent,
+                reason: Reason::Engine(Cause::Inconsistent(message)),
+                converged: Some(sample),
+                body: None,
+            });
+        }
+        Ok(sample)
     }
 
     fn accepted(&self) -> Coordinates<'_, f64> {
@@ -398,4 +439,77 @@ impl<M: Generated> Stepper<f64> for Engine<M> {
     fn epsilon(&self) -> f64 {
         wide(Real::EPSILON)
     }
+}
+
+/// Why an attempt was rejected: the solver's own failure, or a row the module left out as
+/// redundant that does not hold ([`inconsistency`]).
+#[derive(Debug)]
+enum Cause {
+    Attempt(AttemptError<Real>),
+    Inconsistent(String),
+}
+
+impl std::fmt::Display for Cause {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Cause::Attempt(e) => e.fmt(f),
+            Cause::Inconsistent(message) => f.write_str(message),
+        }
+    }
+}
+
+/// The velocity and acceleration equations of every row must hold to this fraction of the
+/// step's scale, as in the generic engine (`codegen::generic::solve`'s `CONSISTENCY`, whose
+/// docs give the reasoning): |Φ_q,i x − b_i| ≤ CONSISTENCY · max_k (Σ_j |Φ_q,kj x_j| + |b_k|),
+/// rows in balanced units, for x = q̇, b = ν and x = q̈, b = γ.
+const CONSISTENCY: f64 = 1e-6;
+
+/// Why the solved point of `solver` at `t` is refused, when a row the module left out as
+/// redundant does not hold with the kept ones: |Φ_i| above the Newton tolerance (as the generic
+/// engine requires of every row), or its velocity or acceleration equation missing by more than
+/// [`CONSISTENCY`] of the scale, which is taken over the kept rows (the left-out ones are
+/// combinations of them). `None` when every row holds, or the module left none out.
+fn inconsistency<M: Generated>(solver: &Solver<M, N, Real, Jacobian>, t: Real) -> Option<String> {
+    if config::DROPPED == 0 {
+        return None;
+    }
+    let m = solver.mechanism();
+    let (q, qd, qdd) = (solver.q(), solver.qd(), solver.qdd());
+    let mut residuals = [[0.0; 3]; config::DROPPED];
+    m.dropped(q, qd, qdd, t, &mut residuals);
+    let tolerance = wide(solver.options().tolerance);
+    for (k, r) in residuals.iter().enumerate() {
+        let phi = wide(r[0]).abs();
+        // NaN misses too.
+        if phi.is_nan() || phi > tolerance {
+            return Some(format!(
+                "equation {} cannot hold with the others: |Φ| = {phi:e} where the equations the \
+                 solve uses meet the tolerance {tolerance:e}",
+                config::DROPPED_EQUATIONS[k]
+            ));
+        }
+    }
+    let mut jac = jacobian();
+    m.jacobian(q, t, &mut jac);
+    let (mut nu, mut gamma) = ([0.0; N], [0.0; N]);
+    m.velocity_rhs(q, t, &mut nu);
+    m.acceleration_rhs(q, qd, t, &mut gamma);
+    for (level, (what, x, b)) in [("velocity", qd, &nu), ("acceleration", qdd, &gamma)].into_iter().enumerate() {
+        let scale = (0..N).fold(0.0_f64, |s, i| {
+            let terms = (0..N).fold(wide(b[i]).abs(), |a, j| a + wide(jac[i][j] * x[j]).abs());
+            s.max(wide(config::ROW_FACTORS[i]) * terms)
+        });
+        for (k, r) in residuals.iter().enumerate() {
+            let miss = wide(config::DROPPED_ROW_FACTORS[k]) * wide(r[level + 1]).abs();
+            let ratio = if scale > 0.0 { miss / scale } else { miss };
+            if ratio.is_nan() || ratio > CONSISTENCY {
+                return Some(format!(
+                    "the {what} equation of {} cannot hold with the others: it misses by \
+                     {ratio:.3e} of the {what} terms' scale (at most {CONSISTENCY:e})",
+                    config::DROPPED_EQUATIONS[k]
+                ));
+            }
+        }
+    }
+    None
 }

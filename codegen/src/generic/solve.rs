@@ -392,6 +392,12 @@ impl<'e, 'm> Analysis<'e, 'm> {
         stepping::first(&mut engine, t).err().map(|stop| self.failure_of(&stop))
     }
 
+    /// The number of unknowns (7 per moving body).
+    #[must_use]
+    pub fn unknowns(&self) -> usize {
+        self.eq.unknowns()
+    }
+
     /// The contract's failure for a step control [`Stop`], naming the equations involved
     /// (see [`Analysis::involved`]).
     #[must_use]

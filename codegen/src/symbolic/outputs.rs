@@ -130,7 +130,7 @@ impl Builder {
 
 /// The time derivative of a rate expression `v` (in q, q̇ and t): its rate at q̈ = 0 plus
 /// Σ_k ∂v/∂q̇_k q̈_k.
-fn acceleration(pool: &mut ExprPool, v: ExprId) -> ExprId {
+pub(super) fn acceleration(pool: &mut ExprPool, v: ExprId) -> ExprId {
     let mut a = pool.rate(v);
     for k in qd_vars(pool, v) {
         let d = pool.diff(v, Var::Qd(k));
