@@ -674,7 +674,11 @@ impl Symbolic {
                 let rate = self.pool.rate(phi);
                 let acceleration = outputs::acceleration(&mut self.pool, rate);
                 let residuals = [phi, rate, acceleration];
-                self.dropped.push(Dropped { label: labels[k].clone(), residuals, factor: factors[pos] });
+                self.dropped.push(Dropped {
+                    label: labels[k].clone(),
+                    residuals,
+                    factor: factors[pos],
+                });
             }
         }
         // The names: the shared rule on the whole Φ_q at the same configuration.

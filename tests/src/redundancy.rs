@@ -12,11 +12,14 @@
 //! | `four_bar_fix_conflict` | `inconsistent` at t = 0 naming joint O and the constraint, from `solve` and `check` | the `fix` holds the crank 0.05 above the joint that holds it at 0 |
 //! | `bennett_a_90` with b rounded to 0.683 | `inconsistent` at t = 0 | a / sin α1 ≠ b / sin α2 (by 1.9e-5 relative): the loop is a rigid structure that the driver cannot turn |
 //! | `four_bar_flat` | `check`, the generic engine and the symbolic layer (generated engine) all name `constraint flat`; both engines run the whole grid with every row holding | one naming rule (`codegen::generic::redundancy`) |
+//! | `four_bar_conflict`, `four_bar_conflict_later`, `four_bar_fix_conflict` on the generated engine | the generic engine's `inconsistent`, at the same time, naming the same equations | the generated solver checks the rows its reduced system leaves out after every attempt (`dropped_residuals`) and refuses a step where one does not hold |
+//! | `bennett_*` on the generated engine, predictor on and off | every written step on the closed form with every row holding; a run that cannot pass where its kept rows degenerate stops there with `singular` | the generated engine keeps the rows chosen at the start (no re-selection yet), which degenerate at θ1 = 0 or π; it must stop rather than write steps that violate the rows it left out |
 
 use std::f64::consts::PI;
 use std::path::Path;
 
-use codegen::generic::{Analysis, Equations, FailureKind, Frame};
+use codegen::engine::{self, Settings};
+use codegen::generic::{Analysis, Equations, Failure, FailureKind, Frame};
 use codegen::model::Mechanism;
 use codegen::report::{self, StepResult};
 use codegen::testing;
@@ -39,6 +42,25 @@ struct Run {
     failure: Option<codegen::generic::Failure>,
     /// The equations named redundant at the initial configuration.
     named: Vec<String>,
+}
+
+/// What the generated engine reported, as [`run`] for the generic one (`named`: the equations
+/// the generator left out).
+fn run_generated(mech: &Mechanism, predictor: bool) -> Run {
+    let built = engine::build(mech).expect("the generated solver builds");
+    let eq = Equations::new(mech);
+    let prep = eq.prepare();
+    let analysis = Analysis::new(&eq, &prep);
+    let layout = report::layout(mech);
+    let (mut frames, mut steps) = (Vec::new(), Vec::new());
+    let settings = Settings { predictor, ..Settings::DEFAULT };
+    let report = engine::run_with(&built, &analysis, None, settings, |f| {
+        steps.push(report::step_result(mech, &layout, f));
+        frames.push(f.clone());
+        Ok(())
+    })
+    .expect("the generated solver runs");
+    Run { frames, steps, failure: report.failure, named: built.removed.clone() }
 }
 
 fn run(mech: &Mechanism, predictor: bool) -> Run {
@@ -321,4 +343,72 @@ fn a_consistent_redundant_fix_is_named_alike_by_check_and_both_engines() {
     let v: serde_json::Value = serde_json::from_str(&out).expect("JSON");
     assert_eq!(v["removed"], expected, "generated");
     assert_eq!(v["steps"].as_array().map(Vec::len), Some(mech.time.count));
+    // Every row holds at every step of the generated engine too, joint O's z row (left out
+    // of its reduced system and checked at run time) included.
+    for predictor in [true, false] {
+        let r = run_generated(&mech, predictor);
+        assert!(r.failure.is_none(), "{:?}", r.failure);
+        assert_eq!(r.frames.len(), mech.time.count);
+        let worst = worst_row(&mech, &r.frames);
+        assert!(worst <= TOLERANCE, "generated: max |Φ| = {worst:e}");
+    }
+}
+
+#[test]
+fn the_generated_engine_stops_on_contradicting_equations_as_the_generic_one_does() {
+    // The generated solver leaves one of the conflicting rows out of its reduced system; it
+    // checks that row after every attempt, so it stops where the generic engine stops.
+    for name in ["four_bar_conflict", "four_bar_conflict_later", "four_bar_fix_conflict"] {
+        let mech = load(name);
+        let generic = run(&mech, true);
+        let expected: &Failure = generic.failure.as_ref().expect("the generic engine stops");
+        assert_eq!(expected.kind, FailureKind::Inconsistent, "{name}: {expected:?}");
+        for predictor in [true, false] {
+            let r = run_generated(&mech, predictor);
+            let f = r.failure.as_ref().expect("the generated engine stops");
+            assert_eq!(f.kind, FailureKind::Inconsistent, "{name}: {f:?}");
+            assert_eq!(f.t, expected.t, "{name}: {f:?}");
+            assert_eq!(f.constraints, expected.constraints, "{name}: {f:?}");
+            assert_eq!(r.frames.len(), generic.frames.len(), "{name}: steps written");
+        }
+        // The command line: status 2 and the same error object.
+        let file = path(name);
+        let (code, out) = mechgen(&["solve", &file, "--engine", "generated", "--format", "json"]);
+        assert_eq!(code, 2, "{name}: {out}");
+        let v: serde_json::Value = serde_json::from_str(&out).expect("JSON");
+        assert_eq!(v["error"]["kind"], "inconsistent", "{name}: {out}");
+        assert_eq!(v["error"]["constraints"], serde_json::json!(expected.constraints), "{name}");
+    }
+}
+
+#[test]
+fn the_generated_engine_never_writes_a_bennett_step_that_violates_a_row() {
+    // The generated engine keeps the rows chosen at the initial configuration; they become
+    // singular where the whole Φ_q does not (θ1 = 0 and π for the general starts), where it
+    // may stop,
+    // but every step it writes must meet every row of the description, the left-out ones
+    // included, and lie on the closed form.
+    let mut stops = Vec::new();
+    for geometry in ["a", "b"] {
+        for start in ["m149", "0", "90", "1rad", "180"] {
+            let name = format!("bennett_{geometry}_{start}");
+            let mech = load(&name);
+            for predictor in [true, false] {
+                let r = run_generated(&mech, predictor);
+                let worst = worst_row(&mech, &r.frames);
+                assert!(worst <= TOLERANCE, "{name} (predictor {predictor}): max |Φ| = {worst:e}");
+                assert_on_the_closed_form(&name, &mech, &r.steps);
+                if let Some(f) = &r.failure {
+                    // A stop is named `singular`: the rows kept from the start degenerate
+                    // (at θ1 = 0 and π for the general starts, elsewhere for others: 225° for
+                    // geometry b from 180°), never a step past them on rows that do not hold.
+                    assert_eq!(f.kind, FailureKind::Singular, "{name}: {f:?}");
+                    stops.push(format!("{name} predictor {predictor}: t = {}", f.t));
+                } else {
+                    assert_eq!(r.frames.len(), mech.time.count, "{name}");
+                }
+            }
+        }
+    }
+    eprintln!("generated Bennett stops: {stops:#?}");
 }

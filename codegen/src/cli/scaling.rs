@@ -43,18 +43,14 @@ pub(super) fn scaling(
             let generate = start.elapsed().as_secs_f64();
             let lines = module.lines().count();
             let start = std::time::Instant::now();
-            let built = match crate::engine::build_module(
-                mech,
-                &module,
-                &sys,
-                crate::emit::Scalar::F64,
-            ) {
-                Ok(b) => b,
-                Err(e) => {
-                    writeln!(err, "{}: {e}", mech.name)?;
-                    continue;
-                }
-            };
+            let built =
+                match crate::engine::build_module(mech, &module, &sys, crate::emit::Scalar::F64) {
+                    Ok(b) => b,
+                    Err(e) => {
+                        writeln!(err, "{}: {e}", mech.name)?;
+                        continue;
+                    }
+                };
             let build = start.elapsed().as_secs_f64();
             let eq = Equations::new(mech);
             let prep = eq.prepare();

@@ -377,7 +377,10 @@ impl<M: Generated> Stepper<f64> for Engine<M> {
             Rejection::engine(trouble, Cause::Attempt(AttemptError::Newton(e)))
         })?;
         if let Err(e) = self.solver.velocity().and_then(|()| self.solver.acceleration()) {
-            return Err(Rejection::engine(Trouble::Singular, Cause::Attempt(AttemptError::Solve(e))));
+            return Err(Rejection::engine(
+                Trouble::Singular,
+                Cause::Attempt(AttemptError::Solve(e)),
+            ));
         }
         // The pivots of the factorisation the solve kept, dense only near the singularity bound.
         let pivot_ratio = wide(self.solver.pivot_ratio());
@@ -494,7 +497,9 @@ fn inconsistency<M: Generated>(solver: &Solver<M, N, Real, Jacobian>, t: Real) -
     let (mut nu, mut gamma) = ([0.0; N], [0.0; N]);
     m.velocity_rhs(q, t, &mut nu);
     m.acceleration_rhs(q, qd, t, &mut gamma);
-    for (level, (what, x, b)) in [("velocity", qd, &nu), ("acceleration", qdd, &gamma)].into_iter().enumerate() {
+    for (level, (what, x, b)) in
+        [("velocity", qd, &nu), ("acceleration", qdd, &gamma)].into_iter().enumerate()
+    {
         let scale = (0..N).fold(0.0_f64, |s, i| {
             let terms = (0..N).fold(wide(b[i]).abs(), |a, j| a + wide(jac[i][j] * x[j]).abs());
             s.max(wide(config::ROW_FACTORS[i]) * terms)
