@@ -18,6 +18,7 @@
 use std::f64::consts::PI;
 use std::path::Path;
 
+use codegen::emit::Scalar;
 use codegen::engine::{self, Settings};
 use codegen::generic::{Analysis, Equations, Failure, FailureKind, Frame};
 use codegen::model::Mechanism;
@@ -47,14 +48,25 @@ struct Run {
 /// What the generated engine reported, as [`run`] for the generic one (`named`: the equations
 /// the generator left out).
 fn run_generated(mech: &Mechanism, predictor: bool) -> Run {
-    let built = engine::build(mech).expect("the generated solver builds");
+    run_generated_in(mech, predictor, Scalar::F64, None)
+}
+
+/// [`run_generated`] in the floating-point type `scalar`, at the Newton tolerance `tolerance`
+/// (the description's when `None`).
+fn run_generated_in(
+    mech: &Mechanism,
+    predictor: bool,
+    scalar: Scalar,
+    tolerance: Option<f64>,
+) -> Run {
+    let built = engine::build_in(mech, scalar).expect("the generated solver builds");
     let eq = Equations::new(mech);
     let prep = eq.prepare();
     let analysis = Analysis::new(&eq, &prep);
     let layout = report::layout(mech);
     let (mut frames, mut steps) = (Vec::new(), Vec::new());
     let settings = Settings { predictor, ..Settings::DEFAULT };
-    let report = engine::run_with(&built, &analysis, None, settings, |f| {
+    let report = engine::run_with(&built, &analysis, tolerance, settings, |f| {
         steps.push(report::step_result(mech, &layout, f));
         frames.push(f.clone());
         Ok(())
@@ -411,4 +423,26 @@ fn the_generated_engine_never_writes_a_bennett_step_that_violates_a_row() {
         }
     }
     eprintln!("generated Bennett stops: {stops:#?}");
+}
+
+#[test]
+fn the_generated_engine_checks_the_rows_it_leaves_out_in_single_precision_too() {
+    // The single-precision tolerance of the runtime (`runtime::Real::DEFAULT_TOLERANCE` for
+    // f32).
+    let tolerance = 1e-4;
+    let mech = load("four_bar_flat");
+    let r = run_generated_in(&mech, true, Scalar::F32, Some(tolerance));
+    assert!(r.failure.is_none(), "{:?}", r.failure);
+    assert_eq!(r.frames.len(), mech.time.count);
+    // Every row meets the tolerance in f32; evaluated again in f64 from the coordinates
+    // rounded to f32 (relative 6e-8 on unit links), it moves by far less than the margin of 2.
+    let worst = worst_row(&mech, &r.frames);
+    assert!(worst <= 2.0 * tolerance, "max |Φ| = {worst:e}");
+    // Rates of 1 and 1.1 rad/s differ by 5 % of the velocity terms, far above the f32
+    // allowance (1e4 ε = 1.2e-3).
+    let mech = load("four_bar_conflict");
+    let r = run_generated_in(&mech, true, Scalar::F32, Some(tolerance));
+    let f = r.failure.as_ref().expect("the drivers conflict");
+    assert_eq!((f.kind, f.t), (FailureKind::Inconsistent, 0.0), "{f:?}");
+    assert_eq!(f.constraints, ["driver motor", "driver push"], "{f:?}");
 }
