@@ -12,6 +12,8 @@ use crate::generic::{Failure, Frame};
 use crate::model::Mechanism;
 use crate::model::frame::{g_matrix, rotation};
 
+pub use runtime::step::Suspect;
+
 /// One body's results at one time point (global components throughout).
 #[derive(Clone, Debug, PartialEq)]
 pub struct BodyResult {
@@ -70,6 +72,11 @@ pub struct StepResult {
     pub iterations: u32,
     /// max |Φ_i| at the reported configuration.
     pub residual: f64,
+    /// κ̂, the estimate of the condition number of Φ_q there ([`Frame::condition`]).
+    pub condition: f64,
+    /// The derivatives κ̂ cannot vouch for to six significant digits
+    /// ([`runtime::step::suspect`]).
+    pub suspect: Suspect,
     /// Every non-ground body, in file order.
     pub bodies: Vec<BodyResult>,
     /// Every point of interest, in file order.
@@ -197,10 +204,12 @@ fn arr4(v: &Vector4<f64>) -> [f64; 4] {
     [v[0], v[1], v[2], v[3]]
 }
 
-/// Body and point results from the coordinates of one frame.
+/// Body and point results from the coordinates of one frame, with its condition estimate
+/// and the derivatives that estimate cannot vouch for (in double precision, the arithmetic of
+/// both engines under `solve`).
 #[must_use]
 pub fn step_result(mech: &Mechanism, layout: &[Option<usize>], frame: &Frame) -> StepResult {
-    from_coordinates(
+    let mut s = from_coordinates(
         mech,
         layout,
         frame.t,
@@ -209,10 +218,14 @@ pub fn step_result(mech: &Mechanism, layout: &[Option<usize>], frame: &Frame) ->
         &frame.q,
         &frame.qd,
         &frame.qdd,
-    )
+    );
+    s.condition = frame.condition;
+    s.suspect = runtime::step::suspect(frame.condition, f64::EPSILON);
+    s
 }
 
-/// Body and point results from q, q̇ and q̈ (any engine).
+/// Body and point results from q, q̇ and q̈ (any engine), without a condition estimate (NaN)
+/// or suspects.
 #[allow(clippy::too_many_arguments)] // The seven inputs are the frame's parts; a struct would only rename them.
 #[must_use]
 pub fn from_coordinates(
@@ -295,7 +308,16 @@ pub fn from_coordinates(
         })
         .collect();
     let joints = joint_results(mech, layout, q, qd, qdd);
-    StepResult { t, iterations, residual, bodies, points, joints }
+    StepResult {
+        t,
+        iterations,
+        residual,
+        condition: f64::NAN,
+        suspect: Suspect::default(),
+        bodies,
+        points,
+        joints,
+    }
 }
 
 /// The output formats of `solve`.
@@ -554,10 +576,13 @@ pub fn step_json(s: &StepResult) -> serde_json::Value {
             (j.name.clone(), serde_json::Value::Object(o))
         })
         .collect();
+    let suspect: Vec<&str> = s.suspect.names().collect();
     serde_json::json!({
         "t": s.t,
         "iterations": s.iterations,
         "residual": s.residual,
+        "condition": s.condition,
+        "suspect": suspect,
         "bodies": bodies,
         "points": points,
         "joints": joints,
@@ -567,7 +592,8 @@ pub fn step_json(s: &StepResult) -> serde_json::Value {
 const XYZ: [&str; 3] = ["x", "y", "z"];
 const E: [&str; 4] = ["e0", "e1", "e2", "e3"];
 
-/// CSV column names: `t`, `iterations`, `residual`, then `crank.r.x` … `B.a.z`.
+/// CSV column names: `t`, `iterations`, `residual`, `condition`, `suspect` (the suspect
+/// derivatives separated by spaces, empty when none), then `crank.r.x` … `B.a.z`.
 #[must_use]
 pub fn csv_header(mech: &Mechanism) -> Vec<String> {
     header(mech, &Selection::all(mech))
@@ -575,7 +601,7 @@ pub fn csv_header(mech: &Mechanism) -> Vec<String> {
 
 /// The CSV column names of the bodies, points and joints of `select`.
 fn header(mech: &Mechanism, select: &Selection) -> Vec<String> {
-    let mut h = vec!["t".to_owned(), "iterations".to_owned(), "residual".to_owned()];
+    let mut h = ["t", "iterations", "residual", "condition", "suspect"].map(str::to_owned).to_vec();
     let moving = mech.bodies.iter().filter(|b| !b.ground);
     for (b, _) in moving.zip(&select.bodies).filter(|(_, on)| **on) {
         for (q, comps) in [
@@ -659,6 +685,15 @@ fn write_csv_row(buf: &mut Vec<u8>, s: &StepResult) {
     let _ = write!(buf, "{}", s.iterations);
     buf.push(b',');
     push_debug(buf, s.residual);
+    buf.push(b',');
+    push_debug(buf, s.condition);
+    buf.push(b',');
+    for (k, name) in s.suspect.names().enumerate() {
+        if k > 0 {
+            buf.push(b' ');
+        }
+        buf.extend_from_slice(name.as_bytes());
+    }
     for b in &s.bodies {
         for v in [&b.r[..], &b.p, &b.r_dot, &b.p_dot, &b.omega, &b.r_ddot, &b.p_ddot, &b.alpha] {
             push_csv(buf, v);
@@ -750,7 +785,9 @@ fn write_step_json(buf: &mut Vec<u8>, s: &StepResult, keys: &JsonKeys) {
         push_json_array(buf, ",\"r_dot\":", &b.r_dot);
         buf.push(b'}');
     }
-    buf.extend_from_slice(b"},\"iterations\":");
+    buf.extend_from_slice(b"},\"condition\":");
+    push_json(buf, s.condition);
+    buf.extend_from_slice(b",\"iterations\":");
     let _ = write!(buf, "{}", s.iterations);
     buf.extend_from_slice(b",\"joints\":{");
     for (n, (k, key)) in keys.order[2].iter().enumerate() {
@@ -786,7 +823,14 @@ fn write_step_json(buf: &mut Vec<u8>, s: &StepResult, keys: &JsonKeys) {
     }
     buf.extend_from_slice(b"},\"residual\":");
     push_json(buf, s.residual);
-    buf.extend_from_slice(b",\"t\":");
+    buf.extend_from_slice(b",\"suspect\":[");
+    for (k, name) in s.suspect.names().enumerate() {
+        if k > 0 {
+            buf.push(b',');
+        }
+        let _ = write!(buf, "\"{name}\"");
+    }
+    buf.extend_from_slice(b"],\"t\":");
     push_json(buf, s.t);
     buf.push(b'}');
 }
@@ -867,6 +911,8 @@ impl Selection {
             t: s.t,
             iterations: s.iterations,
             residual: s.residual,
+            condition: s.condition,
+            suspect: s.suspect,
             bodies: keep(&s.bodies, &self.bodies),
             points: keep(&s.points, &self.points),
             joints: keep(&s.joints, &self.joints),
@@ -887,9 +933,16 @@ fn write_table_step(out: &mut impl Write, s: &StepResult) -> io::Result<()> {
     writeln!(out)?;
     writeln!(
         out,
-        "-----  TIME = {}  (Newton iterations {}, max |Φ| {:.1e})  -----",
-        s.t, s.iterations, s.residual
+        "-----  TIME = {}  (Newton iterations {}, max |Φ| {:.1e}, condition {:.1e})  -----",
+        s.t, s.iterations, s.residual, s.condition
     )?;
+    if s.suspect.any() {
+        writeln!(
+            out,
+            "SUSPECT: {} (fewer than 6 significant digits by the condition estimate)",
+            s.suspect.names().collect::<Vec<_>>().join(", ")
+        )?;
+    }
     writeln!(out, "POSITION")?;
     writeln!(out, "{:<w$}{}", "BODY", head(&["X", "Y", "Z", "e0", "e1", "e2", "e3"]))?;
     for (b, name) in s.bodies.iter().zip(&bodies) {
@@ -1108,6 +1161,8 @@ mod tests {
             t: 0.25,
             iterations: 3,
             residual: 1.2e-13,
+            condition: 2.5e3,
+            suspect: Suspect { velocity: true, acceleration: true },
             bodies: vec![body("z\"q", 1.0), body("crank", 2.0), body("crank", 3.0), body("é", 4.0)],
             points: vec![point("B", 1.0), point("A", 2.0)],
             joints: vec![
@@ -1136,8 +1191,13 @@ mod tests {
         let s = awkward_step();
         let mut buf = Vec::new();
         write_csv_row(&mut buf, &s);
-        let mut expected =
-            vec![format!("{:?}", s.t), s.iterations.to_string(), format!("{:?}", s.residual)];
+        let mut expected = vec![
+            format!("{:?}", s.t),
+            s.iterations.to_string(),
+            format!("{:?}", s.residual),
+            format!("{:?}", s.condition),
+            "velocity acceleration".to_owned(),
+        ];
         for b in &s.bodies {
             for v in [&b.r[..], &b.p, &b.r_dot, &b.p_dot, &b.omega, &b.r_ddot, &b.p_ddot, &b.alpha]
             {
