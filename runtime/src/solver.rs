@@ -36,7 +36,7 @@ use core::fmt;
 use crate::factors::{FactorCounts, Factors};
 use crate::lu::{PivotInfo, Singular};
 use crate::newton::{self, NewtonError, NewtonOptions, NewtonReport};
-use crate::step::{self, Coordinates, Groups, Rejection, Sample, Stepper, Stop, Trouble};
+use crate::step::{self, Coordinates, Groups, Rejection, Sample, Stepper, Stop, Suspect, Trouble};
 use crate::{Mechanism, Real};
 
 pub use inputs::InputsError;
@@ -518,6 +518,11 @@ pub struct StepReport<R = f64> {
     /// ρ = min |u_kk| / max |u_kk| of the LU of Φ_q at the final q ([`Solver::pivot_ratio`]), a
     /// cheap estimate of 1/κ(Φ_q).
     pub pivot_ratio: R,
+    /// κ̂, the estimate of the condition number of Φ_q at the final q that the digits rule
+    /// reads ([`Solver::condition`]).
+    pub condition: R,
+    /// The derivatives κ̂ cannot vouch for to six significant digits ([`step::suspect`]).
+    pub suspect: Suspect,
 }
 
 /// Why one attempt of [`Solver::advance_to`] failed before the step control's own checks: the
@@ -611,6 +616,19 @@ impl<M: Mechanism<N, R>, const N: usize, R: Real, J: BorrowMut<[[R; N]; N]>> Sol
     pub fn advance_to(&mut self, t: R) -> Result<StepReport<R>, Stop<R, AttemptError<R>>> {
         let start = self.start_sample();
         let current = self.accepted.current;
+        let reached = self.advance_from(start, current, t)?;
+        let condition = self.condition();
+        Ok(StepReport { condition, suspect: step::suspect(condition, R::EPSILON), ..reached })
+    }
+
+    /// [`Solver::advance_to`] without the condition estimate, from the sample `start` of the
+    /// current point (`current`: the copy of it is already kept).
+    fn advance_from(
+        &mut self,
+        start: Option<Sample<R>>,
+        current: bool,
+        t: R,
+    ) -> Result<StepReport<R>, Stop<R, AttemptError<R>>> {
         let mut control = Controlled { solver: self, candidate: start };
         // The copy of the start point is already there when the last call ended on it.
         if !current {
@@ -620,6 +638,8 @@ impl<M: Mechanism<N, R>, const N: usize, R: Real, J: BorrowMut<[[R; N]; N]>> Sol
             iterations,
             residual: s.residual,
             pivot_ratio: s.pivot_ratio,
+            condition: R::NAN,
+            suspect: Suspect::default(),
         };
         match start {
             None => step::first(&mut control, t).map(|s| report(s, s.iterations)),
@@ -663,6 +683,48 @@ impl<M: Mechanism<N, R>, const N: usize, R: Real, J: BorrowMut<[[R; N]; N]>> Sol
             }
         }
         self.dense_pivot_ratio()
+    }
+
+    /// κ̂, the estimate of the condition number κ(Φ_q) at the current (q, t) that the digits
+    /// rule reads ([`step::suspect`]): max |u_kk| / min |u_kk| of the factors
+    /// [`Solver::position`] kept while that is below [`step::suspect_condition`] /
+    /// [`step::CONDITION_MARGIN`] (103 in f64), and
+    /// from there on (or when no factors are held) that of the dense LU of Φ_q equilibrated by
+    /// powers of two ([`Factors::factor_dense_equilibrated`], whose factors the solver then
+    /// keeps). Infinite when Φ_q has an exactly zero pivot, NaN when it holds a NaN.
+    ///
+    /// The factors a static pivot order or plain dense LU leaves are those of Φ_q in the
+    /// description's units, whose pivots spread with the length of the links (by about L for
+    /// links of length L); the equilibrated ones do not, so a step is flagged for what Φ_q is,
+    /// not for the unit it is written in. Below the margin the cheap estimate cannot hide a
+    /// flag (see [`step::CONDITION_MARGIN`]), and a regular step pays nothing for it.
+    pub fn condition(&mut self) -> R {
+        if N == 0 {
+            // No unknowns: Φ_q is empty, as well conditioned as the identity.
+            return R::ONE;
+        }
+        let confirm = step::suspect_condition(R::EPSILON) / R::from_f64(step::CONDITION_MARGIN);
+        if self.factored {
+            let cheap = self.pivots.largest / self.pivots.smallest;
+            if cheap < confirm {
+                return cheap;
+            }
+        }
+        let result = self.factors.factor_dense_equilibrated(
+            &self.mechanism,
+            &self.q,
+            self.t,
+            self.jac.borrow_mut(),
+        );
+        self.factored = result.is_ok();
+        match result {
+            Ok([plain, equilibrated]) => {
+                self.pivots = plain;
+                equilibrated.largest / equilibrated.smallest
+            }
+            Err(Singular::SmallPivot { .. }) => R::INFINITY,
+            Err(_) => R::NAN,
+        }
     }
 
     /// ρ of the dense LU with partial pivoting of Φ_q at the current (q, t), whose factors the

@@ -108,6 +108,75 @@ pub fn floor<R: Real>(eps: R) -> R {
     R::from_f64(FLOOR / libm::sqrt(f64::EPSILON) * libm::sqrt(eps.to_f64()))
 }
 
+/// The relative error a reported velocity or acceleration may have and still count as trusted:
+/// six significant digits.
+pub const DIGITS: f64 = 1e-6;
+
+/// Which of a step's derivatives the condition estimate κ̂ of Φ_q cannot vouch for to
+/// [`DIGITS`] (see [`suspect`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Suspect {
+    /// q̇: κ̂² ε > [`DIGITS`].
+    pub velocity: bool,
+    /// q̈: κ̂³ ε > [`DIGITS`].
+    pub acceleration: bool,
+}
+
+impl Suspect {
+    /// Whether any derivative is suspect.
+    #[must_use]
+    pub const fn any(self) -> bool {
+        self.velocity || self.acceleration
+    }
+
+    /// The names of the suspect quantities, in the order of the contract's `"suspect"` list.
+    pub fn names(self) -> impl Iterator<Item = &'static str> {
+        [("velocity", self.velocity), ("acceleration", self.acceleration)]
+            .into_iter()
+            .filter_map(|(name, on)| on.then_some(name))
+    }
+}
+
+/// The digits rule: which derivatives of a step whose Φ_q has the condition estimate
+/// `condition` (κ̂ = 1/ρ, the reciprocal of a pivot ratio) may have lost more than all but six
+/// significant digits in an arithmetic of machine epsilon `eps`.
+///
+/// Newton leaves the residual at the rounding error of evaluating Φ, about ε in relative terms,
+/// so the position is known to about κ ε. Velocities solve Φ_q(q) q̇ = ν(q): the solve adds
+/// κ ε, and the position's error moves Φ_q and ν by that much, which Φ_q⁻¹ amplifies again, so
+/// q̇ is known to about κ² ε. Accelerations solve Φ_q q̈ = γ(q, q̇), and γ carries q̇'s error,
+/// amplified once more: κ³ ε. These are the first-order worst cases; they are met near a
+/// bifurcation, where the error of each stage lies along the direction the next one amplifies
+/// (README, "Where the methods fail", has the measurements). NaN counts as suspect.
+#[must_use]
+pub fn suspect<R: Real>(condition: R, eps: R) -> Suspect {
+    let (k, e) = (condition.to_f64(), eps.to_f64());
+    let over = |x: f64| {
+        !matches!(
+            x.partial_cmp(&DIGITS),
+            Some(core::cmp::Ordering::Less | core::cmp::Ordering::Equal)
+        )
+    };
+    Suspect { velocity: over(k * k * e), acceleration: over(k * k * k * e) }
+}
+
+/// A cheap condition estimate (that of the factors the solve kept) at least
+/// [`suspect_condition`] / `CONDITION_MARGIN` is replaced by that of a dense LU of Φ_q
+/// equilibrated by powers of two ([`crate::Solver::condition`]).
+///
+/// The cheap one is of Φ_q in the description's units and, for static pivot orders, by
+/// threshold pivoting; it was up to 8 times below the equilibrated one (the parallelogram
+/// four-bar 1e-3 rad past its flat configuration: 500 against 4,000), so below 1/16 of the
+/// bound it cannot hide a flag.
+pub const CONDITION_MARGIN: f64 = 16.0;
+
+/// The smallest condition estimate at which [`suspect`] flags an acceleration:
+/// (DIGITS / ε)^⅓, 1651 in f64.
+#[must_use]
+pub fn suspect_condition<R: Real>(eps: R) -> R {
+    R::from_f64(libm::cbrt(DIGITS / eps.to_f64()))
+}
+
 /// Why an attempt was rejected or a step stopped.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Trouble {

@@ -283,7 +283,9 @@ fn run<M: Generated>(solver: Solver<M, N, Real, Jacobian>, series: &Series, out:
         };
         match outcome {
             Ok((p, iterations)) => {
-                check(write!(out, "step {t:?} {iterations} {:?}", p.residual));
+                // κ̂ of Φ_q at the step, for the digits rule (runtime::step::suspect).
+                let condition = wide(engine.solver.condition());
+                check(write!(out, "step {t:?} {iterations} {:?} {condition:?}", p.residual));
                 for v in [&engine.full.q, &engine.full.qd, &engine.full.qdd] {
                     numbers(out, v);
                 }

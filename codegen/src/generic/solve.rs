@@ -58,6 +58,10 @@ pub struct Frame {
     pub iterations: u32,
     /// max |Φ_i| at the reported q.
     pub residual: f64,
+    /// κ̂, the estimate of the condition number of Φ_q at q that the digits rule reads
+    /// ([`runtime::step::suspect`]): 1/ρ of the engine's LU in balanced units (generic), or
+    /// `runtime::Solver::condition` (generated).
+    pub condition: f64,
     /// Positions.
     pub q: DVector<f64>,
     /// Velocities.
@@ -366,6 +370,7 @@ impl<'e, 'm> Analysis<'e, 'm> {
                         t,
                         iterations,
                         residual: point.residual,
+                        condition: 1.0 / point.pivot_ratio,
                         q,
                         qd: DVector::from_column_slice(&point.qd),
                         qdd: DVector::from_column_slice(&point.qdd),

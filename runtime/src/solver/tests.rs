@@ -423,3 +423,21 @@ fn near_the_singularity_bound_dense_lu_decides() {
     assert_eq!(report.pivot_ratio, 1e-7);
     assert!(counts.dense >= 5, "{counts:?}");
 }
+
+#[test]
+fn the_condition_estimate_does_not_depend_on_units() {
+    // diag(1, 1e-7) is diag(1, 1) in other units of q1: the pivots of Φ_q differ by 1e7, but
+    // scaling its columns by powers of two makes both pivots equal within a factor of √2 each
+    // (the nearest power of two), so κ̂ ≤ 2 and nothing is suspect. The step control's pivot
+    // ratio stays that of Φ_q as written.
+    let mut solver = Solver::new(Diagonal { d: 1e-7 }, [0.0; 2]);
+    solver.advance_to(0.0).unwrap();
+    let report = solver.advance_to(0.1).unwrap();
+    assert_eq!(report.pivot_ratio, 1e-7);
+    assert!((1.0..=2.0).contains(&report.condition), "{report:?}");
+    assert_eq!(report.suspect, step::Suspect::default());
+    // Where the cheap estimate is small, it is reported as it is: diag(1, 0.5) has κ = 2.
+    let mut solver = Solver::new(Diagonal { d: 0.5 }, [0.0; 2]);
+    let report = solver.advance_to(0.0).unwrap();
+    assert_eq!(report.condition, 2.0);
+}
