@@ -16,6 +16,7 @@ use crate::symbolic::{Source, Symbolic};
 
 mod docs;
 mod function;
+mod inputs;
 pub mod lu;
 mod names;
 mod notes;
@@ -50,6 +51,7 @@ pub fn module_in(mech: &Mechanism, sys: &Symbolic, source: &str, scalar: Scalar)
         mech.bodies.iter().enumerate().filter(|(_, b)| !b.ground).map(|(k, _)| k).collect();
     let mut items = constants(mech, sys, moving.len());
     items.extend(outputs::names(mech, sys, &named));
+    items.extend(inputs::items(mech, sys));
     let after_constants = items.len();
     let rows = Rows::new(sys);
     items.extend(residual_and_jacobian(&rows));
@@ -64,7 +66,11 @@ pub fn module_in(mech: &Mechanism, sys: &Symbolic, source: &str, scalar: Scalar)
     items.push(normalize(sys));
     items.push(expand(sys, &moving));
     items.extend(outputs::accessors(&rows, &named));
-    items.extend(mechanism_type(mech, orders.len()));
+    if sys.inputs.is_empty() {
+        items.extend(mechanism_type(mech, orders.len()));
+    } else {
+        items.extend(inputs::mechanism_type(mech, orders.len()));
+    }
     // The law coefficients the functions read, named after the other constants.
     let mut laws = names::LawNames::new(mech);
     for item in &mut items {
@@ -196,6 +202,11 @@ impl<'s> Rows<'s> {
         Rows { sys, key }
     }
 
+    /// Whether the module has input drivers (its functions then take the inputs).
+    fn inputs(&self) -> bool {
+        !self.sys.inputs.is_empty()
+    }
+
     /// `name[i] = values[i]` for every row i, written to the function's array `array`.
     fn vector(&self, array: usize, name: &str, values: &[ExprId]) -> Vec<Output> {
         values
@@ -250,15 +261,27 @@ fn residual_and_jacobian(rows: &Rows<'_>) -> Vec<syn::Item> {
     let zero_jac: syn::Stmt = parse_quote!(*jac = [[0.0; N]; N];);
     let mut items = Vec::new();
     let targets = [("phi", vec_ty.clone())];
-    let sig =
-        Signature { name: "residual", qd: false, qdd: false, public: true, targets: &targets };
+    let sig = Signature {
+        name: "residual",
+        qd: false,
+        qdd: false,
+        public: true,
+        targets: &targets,
+        inputs: rows.inputs(),
+    };
     let what = format!("Constraint residuals Φ(q, t), {n} rows.");
     items.extend(rows.emit(&sig, &what, Vec::new(), &rows.vector(0, "phi", &sys.phi)));
 
     let nnz = sys.jac.iter().map(Vec::len).sum::<usize>();
     let targets = [("jac", mat_ty.clone())];
-    let sig =
-        Signature { name: "jacobian", qd: false, qdd: false, public: true, targets: &targets };
+    let sig = Signature {
+        name: "jacobian",
+        qd: false,
+        qdd: false,
+        public: true,
+        targets: &targets,
+        inputs: rows.inputs(),
+    };
     let what = format!(
         "Jacobian Φ_q, row-major: `jac[i][j] = ∂Φ_i/∂q_j`; the {nnz} structurally non-zero entries are written, the others set to 0."
     );
@@ -274,6 +297,7 @@ fn residual_and_jacobian(rows: &Rows<'_>) -> Vec<syn::Item> {
         qdd: false,
         public: true,
         targets: &targets,
+        inputs: rows.inputs(),
     };
     let what = "Φ and Φ_q at once (see [`residual`] and [`jacobian`]).";
     items.extend(rows.emit(&sig, what, vec![zero_jac], &both));
@@ -292,6 +316,7 @@ fn residual_and_jacobian(rows: &Rows<'_>) -> Vec<syn::Item> {
         qdd: false,
         public: false,
         targets: &targets,
+        inputs: rows.inputs(),
     };
     items.extend(rows.emit(&sig, &what, Vec::new(), &varying));
     items
@@ -302,8 +327,14 @@ fn right_hand_sides(rows: &Rows<'_>) -> Vec<syn::Item> {
     let sys = rows.sys;
     let vec_ty = quote::quote!(&mut [f64; N]);
     let targets = [("nu", vec_ty.clone())];
-    let sig =
-        Signature { name: "velocity_rhs", qd: false, qdd: false, public: true, targets: &targets };
+    let sig = Signature {
+        name: "velocity_rhs",
+        qd: false,
+        qdd: false,
+        public: true,
+        targets: &targets,
+        inputs: rows.inputs(),
+    };
     let mut items = rows.emit(
         &sig,
         "Velocity right-hand side ν = −Φ_t.",
@@ -317,6 +348,7 @@ fn right_hand_sides(rows: &Rows<'_>) -> Vec<syn::Item> {
         qdd: false,
         public: true,
         targets: &targets,
+        inputs: rows.inputs(),
     };
     items.extend(rows.emit(
         &sig,
@@ -402,6 +434,20 @@ fn expand(sys: &Symbolic, moving: &[usize]) -> syn::Item {
     let (qn, qdn, qddn) = (param("q", any), param("qd", any), param("qdd", any));
     let tn = param("t", f.uses_t);
     let stmts = &f.stmts;
+    if !sys.inputs.is_empty() {
+        let un = param("inputs", f.uses_u);
+        let read: Option<syn::Stmt> = f.uses_u.then(|| parse_quote!(let u = inputs.to_array();));
+        return parse_quote! {
+            /// Full coordinates of every moving body (in [`BODY_NAMES`] order) at the inputs
+            /// `inputs`: `out[b][0]` is `[x, y, z, e0, e1, e2, e3]`, `out[b][1]` its rates and
+            /// `out[b][2]` its accelerations, with fixed and driven coordinates filled in.
+            pub fn expand(#qn: &[f64; N], #qdn: &[f64; N], #qddn: &[f64; N], #tn: f64, #un: &Inputs, out: &mut [[[f64; 7]; 3]; BODIES]) {
+                #(#direct)*
+                #read
+                #(#stmts)*
+            }
+        };
+    }
     parse_quote! {
         /// Full coordinates of every moving body (in [`BODY_NAMES`] order): `out[b][0]` is
         /// `[x, y, z, e0, e1, e2, e3]`, `out[b][1]` its rates and `out[b][2]` its
@@ -417,7 +463,7 @@ fn expand(sys: &Symbolic, moving: &[usize]) -> syn::Item {
 fn mechanism_type(mech: &Mechanism, orders: usize) -> Vec<syn::Item> {
     let ty = ident(&type_name(&mech.name));
     let doc = format!(" The mechanism `{}` as a [`runtime::Mechanism`].", mech.name);
-    let structured = structured_items(orders);
+    let structured = structured_items(orders, false);
     vec![
         parse_quote! {
             #[doc = #doc]
@@ -450,8 +496,9 @@ fn mechanism_type(mech: &Mechanism, orders: usize) -> Vec<syn::Item> {
     ]
 }
 
-/// The impl items of the structured LU for `orders` static orders (none without orders).
-fn structured_items(orders: usize) -> Vec<syn::ImplItem> {
+/// The impl items of the structured LU for `orders` static orders (none without orders), for
+/// a mechanism whose functions take its inputs at t when `inputs`.
+fn structured_items(orders: usize, inputs: bool) -> Vec<syn::ImplItem> {
     if orders == 0 {
         return Vec::new();
     }
@@ -484,9 +531,17 @@ fn structured_items(orders: usize) -> Vec<syn::ImplItem> {
     };
     vec![
         parse_quote!(const PIVOT_ORDERS: usize = #count;),
-        parse_quote! {
-            fn residual_jacobian_structural(&self, q: &[f64; N], t: f64, phi: &mut [f64; N], jac: &mut [[f64; N]; N]) {
-                residual_jacobian_structural(q, t, phi, jac);
+        if inputs {
+            parse_quote! {
+                fn residual_jacobian_structural(&self, q: &[f64; N], t: f64, phi: &mut [f64; N], jac: &mut [[f64; N]; N]) {
+                    residual_jacobian_structural(q, t, &self.inputs(t), phi, jac);
+                }
+            }
+        } else {
+            parse_quote! {
+                fn residual_jacobian_structural(&self, q: &[f64; N], t: f64, phi: &mut [f64; N], jac: &mut [[f64; N]; N]) {
+                    residual_jacobian_structural(q, t, phi, jac);
+                }
             }
         },
         parse_quote! {

@@ -10,7 +10,7 @@
 //! [`runtime::step`], which the program links with the solver. In `bench` mode it times whole passes
 //! over the grid and prints `bench min_ns median_ns iterations_per_step`.
 
-use std::io::{BufRead, BufReader, Read};
+use std::io::{BufRead, BufReader, Read, Write};
 use std::path::PathBuf;
 use std::process::{Child, Command, Stdio};
 
@@ -133,6 +133,12 @@ pub struct Built {
     pub unknowns: usize,
     /// The equations the generator left out as redundant (`joint O4 row 2`).
     pub removed: Vec<String>,
+    /// The driver indices of the module's input drivers, in its input order.
+    pub inputs: Vec<usize>,
+    /// The replayed series (`--inputs`) the runs feed the solver on its standard input, one
+    /// line per time point, `t` and `[s, ṡ, s̈]` of every input driver; `None` runs the
+    /// module's own grid.
+    pub series: Option<std::sync::Arc<String>>,
     /// What was found wrong in the cache and repaired on the way (a corrupt lock file, a
     /// binary that did not match its record), one sentence each.
     pub notes: Vec<String>,
@@ -154,23 +160,16 @@ pub fn build(mech: &Mechanism) -> Result<Built, EngineError> {
 /// [`EngineError::Generate`], [`EngineError::Config`] or [`EngineError::Build`].
 pub fn build_in(mech: &Mechanism, scalar: Scalar) -> Result<Built, EngineError> {
     let start = std::time::Instant::now();
-    // Until the generated module takes its inputs at run time, it runs its own [time] grid
-    // with laws only: input drivers and replayed time points are the generic engine's.
-    let inputs = mech.input_drivers();
-    if !inputs.is_empty() || mech.time.replay.is_some() {
-        let reason = if inputs.is_empty() {
-            "replayed time points (--inputs) are not supported by the generated engine yet"
-                .to_owned()
-        } else {
-            format!(
-                "{} (driver {})",
-                crate::symbolic::INPUTS_NOT_SUPPORTED,
-                inputs.join(", driver ")
-            )
-        };
-        let fix = "use --engine generic (the default engine falls back to it)".to_owned();
-        return Err(EngineError::Build(BuildFailure { reason, fix }));
-    }
+    // The solver is built for the description's own grid, whatever series a run replays
+    // (which it reads at run time): one cache entry serves every series.
+    let replayed = mech.time.replay.clone();
+    let declared;
+    let mech = if mech.time.replay.is_some() {
+        declared = Mechanism { time: mech.time.declared(), ..mech.clone() };
+        &declared
+    } else {
+        mech
+    };
     let sys = Symbolic::build(mech)?;
     let module = emit::module_in(mech, &sys, &format!("the description \"{}\"", mech.name), scalar);
     log::debug!(
@@ -182,8 +181,48 @@ pub fn build_in(mech: &Mechanism, scalar: Scalar) -> Result<Built, EngineError> 
         start.elapsed().as_secs_f64()
     );
     let mut built = build_module(mech, &module, sys.unknowns.len(), scalar)?;
+    built.inputs = sys.inputs.iter().map(|d| d.driver).collect();
+    built.series = replayed.map(|r| std::sync::Arc::new(series_text(&r, &built.inputs)));
     built.removed = sys.redundant.iter().map(crate::generic::RowLabel::equation).collect();
     Ok(built)
+}
+
+/// The text a solver reads with `series`: per time point of `replay`, `t` and the `[s, ṡ, s̈]`
+/// of every driver of `inputs`, in shortest round-trip form.
+fn series_text(replay: &crate::inputs::Replay, inputs: &[usize]) -> String {
+    use std::fmt::Write as _;
+    let mut text = String::with_capacity(replay.t.len() * (1 + 3 * inputs.len()) * 20);
+    for (k, t) in replay.t.iter().enumerate() {
+        let _ = write!(text, "{t:?}");
+        for &d in inputs {
+            let u = replay.series(d).map_or([f64::NAN; 3], |s| s[k]);
+            let _ = write!(text, " {:?} {:?} {:?}", u[0], u[1], u[2]);
+        }
+        text.push('\n');
+    }
+    text
+}
+
+/// Starts `cmd` with its standard output piped and, when `series` is given, the `series`
+/// flag and the series written to its standard input (which the solver reads whole before it
+/// writes anything, so writing it all first cannot deadlock).
+fn spawn(mut cmd: Command, built: &Built) -> Result<SolverProcess, EngineError> {
+    if built.series.is_some() {
+        cmd.arg("series");
+    }
+    let stdin = if built.series.is_some() { Stdio::piped() } else { Stdio::null() };
+    let child = cmd
+        .stdout(Stdio::piped())
+        .stdin(stdin)
+        .spawn()
+        .map_err(|source| RunError::Start { binary: built.binary.clone(), source })?;
+    let mut child = SolverProcess(child);
+    if let (Some(series), Some(mut input)) = (&built.series, child.0.stdin.take()) {
+        // A solver that stops reading early (it exits on a bad line) shows in its output and
+        // exit status, which the caller reads: a failed write is not an error by itself.
+        let _ = input.write_all(series.as_bytes());
+    }
+    Ok(child)
 }
 
 /// Writes and builds a module generated for `mech` (with `unknowns` unknowns) in the
@@ -198,11 +237,24 @@ pub fn build_module(
     unknowns: usize,
     scalar: Scalar,
 ) -> Result<Built, EngineError> {
-    let recipe =
-        cache::Recipe::new(cache_dir()?, module, &emit::type_name(&mech.name), scalar.name());
+    let inputs = mech.drivers.iter().any(|d| d.law == crate::model::Law::Input);
+    let recipe = cache::Recipe::new(
+        cache_dir()?,
+        module,
+        &emit::type_name(&mech.name),
+        scalar.name(),
+        inputs,
+    );
     let mut notes = Vec::new();
     recipe.ensure(&mut notes)?;
-    Ok(Built { binary: recipe.binary(), unknowns, removed: Vec::new(), notes })
+    Ok(Built {
+        binary: recipe.binary(),
+        unknowns,
+        removed: Vec::new(),
+        inputs: Vec::new(),
+        series: None,
+        notes,
+    })
 }
 
 /// A running solver, killed and reaped when dropped: no solver outlives the reading side,
@@ -290,13 +342,8 @@ pub fn run_with(
     }
     cmd.args(settings.flags());
     log::debug!("running {} {:?}", built.binary.display(), settings);
-    let child = cmd
-        .stdout(Stdio::piped())
-        .stdin(Stdio::null())
-        .spawn()
-        .map_err(|source| RunError::Start { binary: built.binary.clone(), source })?;
     // Every return below, early or not, ends the solver.
-    let mut child = SolverProcess(child);
+    let mut child = spawn(cmd, built)?;
     let stdout = child.0.stdout.take().expect("piped");
     let mut report = RunReport { steps: 0, failure: None };
     let mut near: Option<Point> = None;
@@ -419,14 +466,9 @@ pub fn bench_with(
     repeats: usize,
     settings: Settings,
 ) -> Result<(f64, f64, f64), EngineError> {
-    let child = Command::new(&built.binary)
-        .args(["bench", &format!("{tolerance:?}"), &repeats.to_string()])
-        .args(settings.flags())
-        .stdin(Stdio::null())
-        .stdout(Stdio::piped())
-        .spawn()
-        .map_err(|source| RunError::Start { binary: built.binary.clone(), source })?;
-    let mut child = SolverProcess(child);
+    let mut cmd = Command::new(&built.binary);
+    cmd.args(["bench", &format!("{tolerance:?}"), &repeats.to_string()]).args(settings.flags());
+    let mut child = spawn(cmd, built)?;
     let mut output = Vec::new();
     child.0.stdout.take().expect("piped").read_to_end(&mut output).map_err(RunError::Read)?;
     drop(child);
@@ -460,8 +502,14 @@ mod tests {
         let path = std::env::temp_dir().join(format!("mechgen-fake-solver-{}", std::process::id()));
         std::fs::write(&path, script).unwrap();
         std::fs::set_permissions(&path, std::fs::Permissions::from_mode(0o755)).unwrap();
-        let built =
-            Built { binary: path.clone(), unknowns: 7, removed: Vec::new(), notes: Vec::new() };
+        let built = Built {
+            binary: path.clone(),
+            unknowns: 7,
+            removed: Vec::new(),
+            inputs: Vec::new(),
+            series: None,
+            notes: Vec::new(),
+        };
         // The one-body revolute example names failures; the stand-in's output has its size.
         let loaded = crate::validate::load_file(
             &crate::sync::workspace_root().join("examples/revolute_joint.toml"),
@@ -500,7 +548,14 @@ mod tests {
         let path = dir.join("solver");
         std::fs::write(&path, script).unwrap();
         std::fs::set_permissions(&path, std::fs::Permissions::from_mode(0o755)).unwrap();
-        let built = Built { binary: path, unknowns: 7, removed: Vec::new(), notes: Vec::new() };
+        let built = Built {
+            binary: path,
+            unknowns: 7,
+            removed: Vec::new(),
+            inputs: Vec::new(),
+            series: None,
+            notes: Vec::new(),
+        };
         let loaded = crate::validate::load_file(
             &crate::sync::workspace_root().join("examples/revolute_joint.toml"),
         )

@@ -42,6 +42,12 @@ pub enum Var {
     Qdd(u32),
     /// Time t.
     T,
+    /// Input s_k of the k-th input driver (`law = "input"`), supplied at run time.
+    S(u32),
+    /// Its rate ṡ_k.
+    Sd(u32),
+    /// Its acceleration s̈_k.
+    Sdd(u32),
 }
 
 /// One node of the arena.
@@ -300,6 +306,11 @@ impl ExprPool {
             Node::Const(_) | Node::Var(Var::Qd(_) | Var::Qdd(_)) => self.constant(0.0),
             Node::Var(Var::Q(k)) => self.var(Var::Qd(k)),
             Node::Var(Var::T) => self.constant(1.0),
+            Node::Var(Var::S(k)) => self.var(Var::Sd(k)),
+            Node::Var(Var::Sd(k)) => self.var(Var::Sdd(k)),
+            // Φ holds s_k only (driver rows and driven coordinates), so Φ̇ holds ṡ_k and Φ̈*
+            // s̈_k: the third derivative of an input never enters ν or γ.
+            Node::Var(Var::Sdd(_)) => self.constant(0.0),
             Node::Neg(a) => {
                 let da = self.rate(a);
                 self.neg(da)
@@ -355,7 +366,21 @@ impl ExprPool {
     /// [`ExprPool::eval`] with q̈ too: `state` is `[q, q̇, q̈]`.
     #[must_use]
     pub fn eval_with(&self, roots: &[ExprId], state: [&[f64]; 3], t: f64) -> Vec<f64> {
+        self.eval_inputs(roots, state, t, &[])
+    }
+
+    /// [`ExprPool::eval_with`] with the inputs `[s, ṡ, s̈]` of the input drivers (an input
+    /// symbol beyond `inputs` evaluates to NaN).
+    #[must_use]
+    pub fn eval_inputs(
+        &self,
+        roots: &[ExprId],
+        state: [&[f64]; 3],
+        t: f64,
+        inputs: &[[f64; 3]],
+    ) -> Vec<f64> {
         let [q, qd, qdd] = state;
+        let input = |k: u32, d: usize| inputs.get(k as usize).map_or(f64::NAN, |u| u[d]);
         let last = roots.iter().map(|r| r.index()).max().map_or(0, |m| m + 1);
         // Only nodes reachable from the roots are evaluated: others may name symbols (q̇)
         // the caller does not provide.
@@ -377,6 +402,9 @@ impl ExprPool {
                 Node::Var(Var::Qd(i)) => qd[i as usize],
                 Node::Var(Var::Qdd(i)) => qdd[i as usize],
                 Node::Var(Var::T) => t,
+                Node::Var(Var::S(k)) => input(k, 0),
+                Node::Var(Var::Sd(k)) => input(k, 1),
+                Node::Var(Var::Sdd(k)) => input(k, 2),
                 Node::Neg(a) => -val[a.index()],
                 Node::Add(a, b) => val[a.index()] + val[b.index()],
                 Node::Mul(a, b) => val[a.index()] * val[b.index()],
@@ -410,6 +438,9 @@ impl fmt::Display for Display<'_> {
             Node::Var(Var::Qd(k)) => write!(f, "qd{k}"),
             Node::Var(Var::Qdd(k)) => write!(f, "qdd{k}"),
             Node::Var(Var::T) => write!(f, "t"),
+            Node::Var(Var::S(k)) => write!(f, "s{k}"),
+            Node::Var(Var::Sd(k)) => write!(f, "sd{k}"),
+            Node::Var(Var::Sdd(k)) => write!(f, "sdd{k}"),
             Node::Neg(a) => write!(f, "-({})", sub(a)),
             Node::Add(a, b) => write!(f, "({} + {})", sub(a), sub(b)),
             Node::Mul(a, b) => write!(f, "{} * {}", sub(a), sub(b)),

@@ -33,6 +33,10 @@ pub struct Replay {
     pub t: Vec<f64>,
     /// Per driver of the mechanism (file order): its samples when it is an input driver.
     pub series: Vec<Option<Vec<[f64; 3]>>>,
+    /// The description's own `[time]` grid, which the replay's rows replace for the analysis
+    /// but which a generated solver is still built for (its pivot planning walks it), so that
+    /// the solver does not depend on the series replayed.
+    pub declared: (f64, f64, usize),
 }
 
 impl Replay {
@@ -144,7 +148,18 @@ pub fn parse(text: &str, file: &str, mech: &Mechanism) -> Result<Read, Box<Diagn
     let series = (0..mech.drivers.len())
         .map(|d| inputs.iter().any(|&(k, _)| k == d).then(|| std::mem::take(&mut values[d])))
         .collect();
-    Ok(Read { replay: Replay { file: file.to_owned(), t: rows.t, series }, warnings })
+    Ok(Read {
+        replay: Replay {
+            file: file.to_owned(),
+            t: rows.t,
+            series,
+            declared: match &mech.time.replay {
+                Some(r) => r.declared,
+                None => (mech.time.start, mech.time.step, mech.time.count),
+            },
+        },
+        warnings,
+    })
 }
 
 /// An input file's error at `line` and `column`, under the column `header` if there is one.

@@ -93,6 +93,18 @@ impl TimeGrid {
         Self { start: first, step, count, replay: Some(replay) }
     }
 
+    /// The description's own `[time]` grid: this one, or the one a replay replaced.
+    #[must_use]
+    pub fn declared(&self) -> Self {
+        match &self.replay {
+            Some(r) => {
+                let (start, step, count) = r.declared;
+                Self::uniform(start, step, count)
+            }
+            None => self.clone(),
+        }
+    }
+
     /// The k-th time point, computed without accumulating sums.
     #[must_use]
     pub fn at(&self, k: usize) -> f64 {

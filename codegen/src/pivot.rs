@@ -96,7 +96,8 @@ pub fn constants(sys: &Symbolic) -> Vec<Vec<Option<f64>>> {
 pub fn numeric(sys: &Symbolic, q: &[f64], t: f64) -> Vec<Vec<f64>> {
     let n = sys.unknowns.len();
     let roots: Vec<_> = sys.jac.iter().flatten().map(|&(_, e)| e).collect();
-    let mut vals = sys.pool.eval(&roots, q, &[], t).into_iter();
+    let mut vals =
+        sys.pool.eval_inputs(&roots, [q, &[], &[]], t, &sys.planning_inputs(t)).into_iter();
     let mut m = vec![vec![0.0; n]; n];
     for (i, row) in sys.jac.iter().enumerate() {
         for &(j, _) in row {
@@ -320,10 +321,11 @@ impl Sampler<'_> {
         max_iterations: u32,
     ) -> Option<[Vec<f64>; 3]> {
         let pool = &self.sys.pool;
+        let u = self.sys.planning_inputs(t);
         let mut normalised = false;
         let mut iterations = 0;
         loop {
-            let phi = pool.eval(&self.sys.phi, &q, &[], t);
+            let phi = pool.eval_inputs(&self.sys.phi, [&q, &[], &[]], t, &u);
             let res = phi.iter().fold(0.0_f64, |m, x| m.max(x.abs()));
             if !res.is_finite() {
                 return None;
@@ -348,8 +350,8 @@ impl Sampler<'_> {
             iterations += 1;
         }
         let lu = self.factor(&q, t)?;
-        let qd = self.solve(&lu, &pool.eval(&self.sys.nu, &q, &[], t));
-        let qdd = self.solve(&lu, &pool.eval(&self.sys.gamma, &q, &qd, t));
+        let qd = self.solve(&lu, &pool.eval_inputs(&self.sys.nu, [&q, &[], &[]], t, &u));
+        let qdd = self.solve(&lu, &pool.eval_inputs(&self.sys.gamma, [&q, &qd, &[]], t, &u));
         [&q, &qd, &qdd].iter().all(|v| v.iter().all(|x| x.is_finite())).then_some([q, qd, qdd])
     }
 }

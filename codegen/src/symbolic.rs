@@ -58,8 +58,27 @@ pub struct Symbolic {
     pub nu: Vec<ExprId>,
     /// γ, in terms of q, q̇ and t.
     pub gamma: Vec<ExprId>,
-    /// For driven coordinates: (s, ṡ, s̈) as expressions in t.
+    /// For driven coordinates: (s, ṡ, s̈) as expressions in t (and in the inputs).
     pub laws: Vec<[ExprId; 3]>,
+    /// The input drivers (`law = "input"`), in file order: input k is the symbol
+    /// `Var::S(k)` with its rates `Var::Sd(k)` and `Var::Sdd(k)`.
+    pub inputs: Vec<InputDriver>,
+}
+
+/// One input driver of the reduced system.
+#[derive(Clone, Debug, PartialEq)]
+pub struct InputDriver {
+    /// Its index among the mechanism's drivers.
+    pub driver: usize,
+    /// The value it prescribes at the initial estimates (what the generic engine holds
+    /// without a replayed series), the input the generated module starts from.
+    pub initial: f64,
+    /// The rate at which the generator's own walks (assembly, pivot planning) move it over
+    /// the description's `[time]` grid: one turn over the grid for a joint rotation, none
+    /// otherwise (a translation's or a target's range is not known at generation time).
+    pub sweep: f64,
+    /// The first time point of that grid, where the sweep starts from `initial`.
+    pub start: f64,
 }
 
 /// A sparse matrix by rows: `(column, value)`.
@@ -73,6 +92,8 @@ struct Builder {
     pool: ExprPool,
     coords: Vec<[Source; 7]>,
     laws: Vec<[ExprId; 3]>,
+    /// For every driver, its input index when it is an input driver.
+    input_of: Vec<Option<u32>>,
 }
 
 impl Builder {
@@ -84,7 +105,11 @@ impl Builder {
         }
     }
 
-    fn law(&mut self, law: &Law) -> ExprId {
+    /// s of driver `k`: its law as an expression in t, or the symbol of its input.
+    fn law(&mut self, k: usize, law: &Law) -> ExprId {
+        if let Some(i) = self.input_of[k] {
+            return self.pool.var(Var::S(i));
+        }
         let t = self.pool.var(Var::T);
         let p = &mut self.pool;
         match *law {
@@ -97,9 +122,8 @@ impl Builder {
                 let s = p.add(s0, vt);
                 p.add(s, att)
             }
-            // Never reached: `Symbolic::build` refuses input drivers (see
-            // [`INPUTS_NOT_SUPPORTED`]) before any row is written.
-            Law::Input => p.constant(0.0),
+            // Input drivers returned their symbol above.
+            Law::Input => unreachable!("an input driver has an input index"),
             Law::Harmonic { offset, amplitude, frequency, phase } => {
                 let (c, amp, w, ph) = (
                     p.constant(offset),
@@ -272,10 +296,14 @@ impl Builder {
                     _ => continue,
                 };
                 if coords[body.0][idx] == PLACEHOLDER {
-                    let s = self.law(&d.law);
-                    let t = Var::T;
-                    let sd = self.pool.diff(s, t);
-                    let sdd = self.pool.diff(sd, t);
+                    let s = self.law(k, &d.law);
+                    let (sd, sdd) = match self.input_of[k] {
+                        Some(i) => (self.pool.var(Var::Sd(i)), self.pool.var(Var::Sdd(i))),
+                        None => {
+                            let sd = self.pool.diff(s, Var::T);
+                            (sd, self.pool.diff(sd, Var::T))
+                        }
+                    };
                     coords[body.0][idx] = Source::Driven(self.laws.len());
                     self.laws.push([s, sd, sdd]);
                     eliminated.insert(first_driver + k);
@@ -296,8 +324,8 @@ impl Builder {
             let e = self.constraint_row(c);
             phi_all.push(e);
         }
-        for d in &mech.drivers {
-            let e = self.driver_row(d, mech);
+        for (k, d) in mech.drivers.iter().enumerate() {
+            let e = self.driver_row(k, d, mech);
             phi_all.push(e);
         }
         for b in mech.moving_bodies() {
@@ -334,8 +362,8 @@ impl Builder {
 
     /// A driver's row: the joint angle's x sin s − y cos s, the axial position − s, or an
     /// absolute coordinate's row.
-    fn driver_row(&mut self, d: &Driver, mech: &Mechanism) -> ExprId {
-        let s = self.law(&d.law);
+    fn driver_row(&mut self, k: usize, d: &Driver, mech: &Mechanism) -> ExprId {
+        let s = self.law(k, &d.law);
         match d.target {
             DriverTarget::Point { point, axis } => {
                 let pt = &mech.points[point.0];
@@ -524,11 +552,6 @@ impl JointVectors {
     }
 }
 
-/// Why a description with input drivers has no generated solver yet: the reduced system is a
-/// function of t only (ν and γ come from ∂/∂t), and input drivers need their own symbols.
-pub const INPUTS_NOT_SUPPORTED: &str =
-    "input drivers are not supported by the generated engine yet";
-
 /// What the generator refuses.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct GenerateError {
@@ -551,14 +574,14 @@ impl Symbolic {
     /// When the reduced system is not square with full rank at the initial configuration
     /// (an undriven degree of freedom, or a coordinate fixed twice).
     pub fn build(mech: &Mechanism) -> Result<Self, GenerateError> {
-        let inputs = mech.input_drivers();
-        if !inputs.is_empty() {
-            return Err(GenerateError {
-                message: format!("{INPUTS_NOT_SUPPORTED} (driver {})", inputs.join(", driver ")),
-            });
-        }
         let labels = mech.row_labels();
-        let mut builder = Builder { pool: ExprPool::new(), coords: Vec::new(), laws: Vec::new() };
+        let inputs = input_drivers(mech);
+        let mut input_of = vec![None; mech.drivers.len()];
+        for (i, d) in inputs.iter().enumerate() {
+            input_of[d.driver] = Some(u32::try_from(i).expect("fewer than 2³² drivers"));
+        }
+        let mut builder =
+            Builder { pool: ExprPool::new(), coords: Vec::new(), laws: Vec::new(), input_of };
         let (mut coords, eliminated) = builder.eliminate(mech);
         let unknowns = number_unknowns(&mut coords);
         builder.coords = coords;
@@ -578,6 +601,7 @@ impl Symbolic {
             nu: Vec::new(),
             gamma: Vec::new(),
             laws: builder.laws,
+            inputs,
         };
         sys.keep_independent(mech, &labels, &kept, &phi_all);
         let n = sys.unknowns.len();
@@ -649,9 +673,10 @@ impl Symbolic {
         normalisation: &[bool],
     ) -> BTreeSet<usize> {
         let t = mech.time.start;
+        let u = self.planning_inputs(t);
         let at = |q: &[f64]| -> SparseRows {
             let roots: Vec<ExprId> = jac_rows.iter().flatten().map(|&(_, e)| e).collect();
-            let mut it = self.pool.eval(&roots, q, &[], t).into_iter();
+            let mut it = self.pool.eval_inputs(&roots, [q, &[], &[]], t, &u).into_iter();
             jac_rows
                 .iter()
                 .map(|row| row.iter().map(|&(c, _)| (c, it.next().expect("one value"))).collect())
@@ -694,8 +719,9 @@ impl Symbolic {
         let n = self.unknowns.len();
         let t = mech.time.start;
         let mut q = self.initial_estimate(mech);
+        let u = self.planning_inputs(t);
         for _ in 0..mech.solver.max_iterations.max(50) {
-            let res = self.pool.eval(phi, &q, &[], t);
+            let res = self.pool.eval_inputs(phi, [&q, &[], &[]], t, &u);
             if !res.iter().all(|x| x.is_finite()) {
                 return None;
             }
@@ -791,7 +817,15 @@ impl Symbolic {
         let n = eq.unknowns();
         let mut out = [DVector::zeros(n), DVector::zeros(n), DVector::zeros(n)];
         let roots: Vec<ExprId> = self.laws.iter().flatten().copied().collect();
-        let laws = self.pool.eval(&roots, &[], &[], t);
+        let inputs: Vec<[f64; 3]> = self
+            .inputs
+            .iter()
+            .map(|d| {
+                let (s, sd, sdd) = eq.driver_value(d.driver, t);
+                [s, sd, sdd]
+            })
+            .collect();
+        let laws = self.pool.eval_inputs(&roots, [&[], &[], &[]], t, &inputs);
         for (b, c) in self.coords.iter().enumerate() {
             let Some(o) = eq.offset(BodyId(b)) else { continue };
             for (i, s) in c.iter().enumerate() {
@@ -808,11 +842,28 @@ impl Symbolic {
         out
     }
 
+    /// The inputs `[s, ṡ, s̈]` at `t` of the generator's own walks over the `[time]` grid
+    /// (see [`InputDriver::sweep`]).
+    #[must_use]
+    pub fn planning_inputs(&self, t: f64) -> Vec<[f64; 3]> {
+        self.inputs.iter().map(|d| [d.initial + d.sweep * (t - d.start), d.sweep, 0.0]).collect()
+    }
+
     /// ν and γ from Φ.
     fn derive_rates(&mut self) {
         let t = Var::T;
+        let inputs = u32::try_from(self.inputs.len()).expect("fewer than 2³² inputs");
         for &phi in &self.phi {
-            let phi_t = self.pool.diff(phi, t);
+            // Φ_t = ∂Φ/∂t + Σ_k ∂Φ/∂s_k ṡ_k: the inputs move with time too.
+            let mut phi_t = self.pool.diff(phi, t);
+            for k in 0..inputs {
+                let d = self.pool.diff(phi, Var::S(k));
+                if self.pool.as_const(d) != Some(0.0) {
+                    let sd = self.pool.var(Var::Sd(k));
+                    let term = self.pool.mul(d, sd);
+                    phi_t = self.pool.add(phi_t, term);
+                }
+            }
             self.nu.push(self.pool.neg(phi_t));
             // Φ̇ = Φ_q q̇ + Φ_t and Φ̈* = (Φ_q q̇)_q q̇ + 2 Φ_qt q̇ + Φ_tt (q̈ = 0), both by
             // forward-mode differentiation along the motion; γ = −Φ̈*.
@@ -821,6 +872,26 @@ impl Symbolic {
             self.gamma.push(self.pool.neg(s));
         }
     }
+}
+
+/// The input drivers of `mech`, with the value each prescribes at the initial estimates.
+fn input_drivers(mech: &Mechanism) -> Vec<InputDriver> {
+    if mech.drivers.iter().all(|d| d.law != Law::Input) {
+        return Vec::new();
+    }
+    let eq = Equations::new(mech);
+    let grid = mech.time.declared();
+    let span = grid.step * grid.count.saturating_sub(1) as f64;
+    mech.drivers
+        .iter()
+        .enumerate()
+        .filter(|(_, d)| d.law == Law::Input)
+        .map(|(k, d)| {
+            let rotation = matches!(d.target, DriverTarget::Joint { motion: Motion::Rotation, .. });
+            let sweep = if rotation && span > 0.0 { std::f64::consts::TAU / span } else { 0.0 };
+            InputDriver { driver: k, initial: eq.held(k), sweep, start: grid.start }
+        })
+        .collect()
 }
 
 /// A row whose part outside the span of the rows kept before it is below this fraction of its

@@ -19,6 +19,34 @@ mod config {
 
     /// The generated mechanism.
     pub(crate) use crate::mechanism::Rssr as Generated;
+
+    use crate::mechanism::{BODIES, N};
+
+    /// The inputs of every input driver at one instant, `[s, ṡ, s̈]` each.
+    type Inputs = [[Real; 3]; INPUTS];
+
+    /// The number of input drivers: none.
+    pub(crate) const INPUTS: usize = 0;
+
+    /// The mechanism (it has no inputs).
+    pub(crate) fn generated(_t: Real, _u: &Inputs) -> Generated {
+        Generated
+    }
+
+    /// Sets the inputs: there are none.
+    pub(crate) fn aim(_m: &mut Generated, _t0: Real, _u0: &Inputs, _t1: Real, _u1: &Inputs) {}
+
+    /// The module's `expand`.
+    pub(crate) fn expand(
+        _m: &Generated,
+        q: &[Real; N],
+        qd: &[Real; N],
+        qdd: &[Real; N],
+        t: Real,
+        out: &mut [[[Real; 7]; 3]; BODIES],
+    ) {
+        crate::mechanism::expand(q, qd, qdd, t, out);
+    }
 }
 
 /// The key of the cache entry: none here.

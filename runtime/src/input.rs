@@ -73,6 +73,120 @@ pub fn sample<R: Real>(times: &[R], values: &[[R; 3]], t: R) -> [R; 3] {
     hermite(times[lo], values[lo], times[hi], values[hi], t)
 }
 
+/// One input driver's value s and its first and second time derivatives ṡ, s̈ at one instant,
+/// as a generated module's `Inputs` holds them, one field per input driver.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Input<R = f64> {
+    /// s.
+    pub value: R,
+    /// ṡ.
+    pub rate: R,
+    /// s̈.
+    pub acceleration: R,
+}
+
+impl<R: Copy> Input<R> {
+    /// `[s, ṡ, s̈]`.
+    #[must_use]
+    pub const fn to_array(self) -> [R; 3] {
+        [self.value, self.rate, self.acceleration]
+    }
+
+    /// The input of `[s, ṡ, s̈]`.
+    #[must_use]
+    pub const fn from_array(a: [R; 3]) -> Self {
+        Input { value: a[0], rate: a[1], acceleration: a[2] }
+    }
+}
+
+/// The values of `K` inputs between two instants: `(t0, u0)`, where the solver last stood, and
+/// `(t1, u1)`, where it is asked to go. [`Segment::at`] gives the inputs at any t between them
+/// by the quintic [`hermite`] interpolant of each input, exactly `u0` at t0 and `u1` at t1, so a
+/// step control that sub-steps between the two instants sees inputs that move smoothly, as
+/// they did between the caller's two samples.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Segment<R, const K: usize> {
+    t0: R,
+    u0: [[R; 3]; K],
+    t1: R,
+    u1: [[R; 3]; K],
+}
+
+impl<R: Real, const K: usize> Segment<R, K> {
+    /// A segment that stands at `(t, u)`: both ends equal.
+    #[must_use]
+    pub const fn new(t: R, u: [[R; 3]; K]) -> Self {
+        Segment { t0: t, u0: u, t1: t, u1: u }
+    }
+
+    /// The inputs `[s, ṡ, s̈]` of every input driver at `t`: the end's when t is t1 (the usual
+    /// call, one comparison), the start's when t is t0 or both ends are at one instant, and
+    /// the Hermite interpolant between them otherwise.
+    #[inline]
+    #[must_use]
+    pub fn at(&self, t: R) -> [[R; 3]; K] {
+        if t == self.t1 || self.t0 == self.t1 {
+            return self.u1;
+        }
+        if t == self.t0 {
+            return self.u0;
+        }
+        let mut u = self.u1;
+        for (k, x) in u.iter_mut().enumerate() {
+            *x = hermite(self.t0, self.u0[k], self.t1, self.u1[k], t);
+        }
+        u
+    }
+
+    /// The start `(t0, u0)`.
+    #[must_use]
+    pub const fn start(&self) -> (R, &[[R; 3]; K]) {
+        (self.t0, &self.u0)
+    }
+
+    /// The end `(t1, u1)`.
+    #[must_use]
+    pub const fn end(&self) -> (R, &[[R; 3]; K]) {
+        (self.t1, &self.u1)
+    }
+
+    /// Sets both ends: inputs `u0` at `t0` and `u1` at `t1` (t0 < t1, or t0 = t1 with the same
+    /// inputs).
+    pub const fn set(&mut self, t0: R, u0: [[R; 3]; K], t1: R, u1: [[R; 3]; K]) {
+        *self = Segment { t0, u0, t1, u1 };
+    }
+
+    /// Moves the end to `(t, u)`, keeping the start.
+    pub const fn aim(&mut self, t: R, u: [[R; 3]; K]) {
+        self.t1 = t;
+        self.u1 = u;
+    }
+
+    /// Moves the start to `t` with the inputs the segment gives there (the point a solver
+    /// reached), keeping the end.
+    pub fn settle(&mut self, t: R) {
+        let u = self.at(t);
+        self.t0 = t;
+        self.u0 = u;
+    }
+}
+
+/// A mechanism whose `K` input drivers take their values from a [`Segment`] it holds: what a
+/// generated module with input drivers implements, so that
+/// [`Solver::advance_with`](crate::Solver::advance_with) can move its inputs.
+pub trait Driven<const K: usize, R: Real = f64> {
+    /// The inputs' segment.
+    fn segment(&self) -> &Segment<R, K>;
+    /// The inputs' segment, to move.
+    fn segment_mut(&mut self) -> &mut Segment<R, K>;
+}
+
+/// The first entry of `u` that is not finite, as (input, derivative: 0 for s, 1 for ṡ, 2 for s̈).
+#[must_use]
+pub fn first_non_finite<R: Real, const K: usize>(u: &[[R; 3]; K]) -> Option<(usize, usize)> {
+    u.iter().enumerate().find_map(|(k, x)| x.iter().position(|v| !v.is_finite()).map(|d| (k, d)))
+}
+
 #[cfg(test)]
 mod tests {
     use super::{hermite, sample};

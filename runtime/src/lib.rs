@@ -142,4 +142,4 @@ pub use mechanism::Mechanism;
 pub use newton::{NewtonError, NewtonOptions, NewtonReport};
 pub use outputs::{Outcome, Status};
 pub use real::Real;
-pub use solver::{AttemptError, SolveError, Solver, StepReport};
+pub use solver::{AttemptError, InputsError, SolveError, Solver, StepReport};

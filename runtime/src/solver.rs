@@ -26,6 +26,7 @@
 //! the caller's step: a step that is large for the motion may converge on another assembly
 //! branch and still succeed.
 
+mod inputs;
 #[cfg(test)]
 mod tests;
 
@@ -37,6 +38,8 @@ use crate::lu::Singular;
 use crate::newton::{self, NewtonError, NewtonOptions, NewtonReport};
 use crate::step::{self, Coordinates, Groups, Rejection, Sample, Stepper, Stop, Trouble};
 use crate::{Mechanism, Real};
+
+pub use inputs::InputsError;
 
 /// Kinematic analysis of one mechanism, one time step at a time, without allocation.
 ///

@@ -112,6 +112,9 @@ impl<'p> Body<'p> {
             Node::Var(Var::Qd(k)) => (path(ident(&format!("qd{k}"))), Prec::Atom),
             Node::Var(Var::Qdd(k)) => (path(ident(&format!("qdd{k}"))), Prec::Atom),
             Node::Var(Var::T) => (path(ident("t")), Prec::Atom),
+            Node::Var(Var::S(k)) => (path(ident(&format!("s{k}"))), Prec::Atom),
+            Node::Var(Var::Sd(k)) => (path(ident(&format!("sd{k}"))), Prec::Atom),
+            Node::Var(Var::Sdd(k)) => (path(ident(&format!("sdd{k}"))), Prec::Atom),
             Node::Neg(a) => (neg(at_least(self.render(a), Prec::Unary)), Prec::Unary),
             Node::Add(a, b) => {
                 // x + (−y) and (−y) + x are written x − y: the same IEEE operation, since
@@ -158,9 +161,28 @@ fn destructure(prefix: &str, n: usize, used: &[bool]) -> syn::Stmt {
     parse_quote!(let [#(#names),*] = *#src;)
 }
 
-/// Which symbols the expressions reachable from `roots` use: (q, q̇, q̈, t).
-fn symbols(pool: &ExprPool, roots: &[ExprId], n: usize) -> ([Vec<bool>; 3], bool) {
+/// Which inputs an expression uses: for input k, whether it reads s_k, ṡ_k and s̈_k.
+type InputUse = std::collections::BTreeMap<u32, [bool; 3]>;
+
+/// `let [s0, sd0, _sdd0] = u[0];` for every input used, naming unused derivatives with a
+/// leading underscore.
+fn destructure_inputs(used: &InputUse) -> Vec<syn::Stmt> {
+    used.iter()
+        .map(|(&k, d)| {
+            let names = ["s", "sd", "sdd"]
+                .iter()
+                .zip(d)
+                .map(|(p, &u)| ident(&if u { format!("{p}{k}") } else { format!("_{p}{k}") }));
+            let k = super::syntax::index(k as usize);
+            parse_quote!(let [#(#names),*] = u[#k];)
+        })
+        .collect()
+}
+
+/// Which symbols the expressions reachable from `roots` use: (q, q̇, q̈, t, inputs).
+fn symbols(pool: &ExprPool, roots: &[ExprId], n: usize) -> ([Vec<bool>; 3], bool, InputUse) {
     let (mut q, mut qd, mut qdd, mut t) = (vec![false; n], vec![false; n], vec![false; n], false);
+    let mut inputs = InputUse::new();
     let mut seen = std::collections::BTreeSet::new();
     let mut stack = roots.to_vec();
     while let Some(x) = stack.pop() {
@@ -172,10 +194,13 @@ fn symbols(pool: &ExprPool, roots: &[ExprId], n: usize) -> ([Vec<bool>; 3], bool
             Node::Var(Var::Qd(k)) => qd[k as usize] = true,
             Node::Var(Var::Qdd(k)) => qdd[k as usize] = true,
             Node::Var(Var::T) => t = true,
+            Node::Var(Var::S(k)) => inputs.entry(k).or_default()[0] = true,
+            Node::Var(Var::Sd(k)) => inputs.entry(k).or_default()[1] = true,
+            Node::Var(Var::Sdd(k)) => inputs.entry(k).or_default()[2] = true,
             node => stack.extend(node.children()),
         }
     }
-    ([q, qd, qdd], t)
+    ([q, qd, qdd], t, inputs)
 }
 
 /// A function body: destructuring, temporaries, then `target = value;` per output.
@@ -185,6 +210,8 @@ pub(super) struct Function {
     pub(super) uses_q: bool,
     pub(super) uses_qd: bool,
     pub(super) uses_qdd: bool,
+    /// Whether it reads the inputs `u` (a local `[[s, ṡ, s̈]; INPUTS]`).
+    pub(super) uses_u: bool,
     pub(super) ops: usize,
     pub(super) shared: usize,
 }
@@ -201,7 +228,7 @@ pub(super) fn function(pool: &ExprPool, n: usize, outputs: &Targets) -> Function
 /// `part`: a part of a split function uses few of them.
 fn function_with(pool: &ExprPool, n: usize, outputs: &Targets, part: bool) -> Function {
     let roots: Vec<ExprId> = outputs.iter().map(|(_, e, _)| *e).collect();
-    let ([q, qd, qdd], t) = symbols(pool, &roots, n);
+    let ([q, qd, qdd], t, inputs) = symbols(pool, &roots, n);
     let body = Body::new(pool, &roots);
     let mut stmts = Vec::new();
     let any = |v: &[bool]| v.iter().any(|&u| u);
@@ -218,6 +245,7 @@ fn function_with(pool: &ExprPool, n: usize, outputs: &Targets, part: bool) -> Fu
             stmts.push(destructure(prefix, n, used));
         }
     }
+    stmts.extend(destructure_inputs(&inputs));
     stmts.extend(body.stmts.iter().cloned());
     let mut last_row = None;
     for (target, e, row) in outputs {
@@ -230,7 +258,16 @@ fn function_with(pool: &ExprPool, n: usize, outputs: &Targets, part: bool) -> Fu
         let (value, _) = body.render(*e);
         stmts.push(assign(target.clone(), value));
     }
-    Function { stmts, uses_t: t, uses_q, uses_qd, uses_qdd, ops: body.ops, shared: body.shared() }
+    Function {
+        stmts,
+        uses_t: t,
+        uses_q,
+        uses_qd,
+        uses_qdd,
+        uses_u: !inputs.is_empty(),
+        ops: body.ops,
+        shared: body.shared(),
+    }
 }
 
 /// Functions whose outputs take more operations than this are split into helpers of about
@@ -303,6 +340,9 @@ pub(super) struct Signature<'a> {
     /// Whether the function is part of the module's public surface (else only the
     /// `runtime::Mechanism` impl calls it).
     pub(super) public: bool,
+    /// Whether the module has input drivers: the function then takes `inputs: &Inputs`
+    /// after `t` (its split parts the array `u: &[[f64; 3]; INPUTS]`).
+    pub(super) inputs: bool,
     /// The arrays written, with their types, after `t`.
     pub(super) targets: &'a [(&'a str, proc_macro2::TokenStream)],
 }
@@ -313,13 +353,14 @@ pub(super) struct Used<'a> {
     pub(super) qd: bool,
     pub(super) qdd: bool,
     pub(super) t: bool,
+    pub(super) u: bool,
     /// Per target array.
     pub(super) arrays: &'a [bool],
 }
 
 impl Used<'_> {
     fn of<'a>(f: &Function, arrays: &'a [bool]) -> Used<'a> {
-        Used { q: f.uses_q, qd: f.uses_qd, qdd: f.uses_qdd, t: f.uses_t, arrays }
+        Used { q: f.uses_q, qd: f.uses_qd, qdd: f.uses_qdd, t: f.uses_t, u: f.uses_u, arrays }
     }
 }
 
@@ -333,7 +374,7 @@ impl Signature<'_> {
         used: &Used<'_>,
         helper: bool,
     ) -> syn::ItemFn {
-        let Used { q, qd, qdd, t, arrays } = *used;
+        let Used { q, qd, qdd, t, u, arrays } = *used;
         let mut params: Vec<syn::FnArg> = vec![{
             let q = param("q", q);
             parse_quote!(#q: &[f64; N])
@@ -348,8 +389,15 @@ impl Signature<'_> {
         }
         let t = param("t", t);
         params.push(parse_quote!(#t: f64));
-        for ((a, ty), &u) in self.targets.iter().zip(arrays) {
-            let a = param(a, u);
+        if self.inputs && helper {
+            let u = param("u", u);
+            params.push(parse_quote!(#u: &[[f64; 3]; INPUTS]));
+        } else if self.inputs {
+            let u = param("inputs", u);
+            params.push(parse_quote!(#u: &Inputs));
+        }
+        for ((a, ty), &w) in self.targets.iter().zip(arrays) {
+            let a = param(a, w);
             params.push(parse_quote!(#a: #ty));
         }
         if helper {
@@ -404,19 +452,26 @@ pub(super) fn emit_function(
         }
         let item = sig.item(&name, &doc(f.ops, f.shared), &Used::of(&f, &written), false);
         let mut stmts = prefix;
+        if f.uses_u {
+            stmts.insert(0, parse_quote!(let u = inputs.to_array();));
+        }
         stmts.extend(f.stmts);
         return vec![item_fn(item, stmts)];
     }
     let mut items = Vec::new();
     let mut calls = prefix;
+    if sig.inputs {
+        calls.insert(0, parse_quote!(let u = inputs.to_array();));
+    }
     let (mut ops, mut shared) = (0, 0);
-    let args: Vec<Ident> = ["q"]
+    let args: Vec<Expr> = ["q"]
         .into_iter()
         .chain(sig.qd.then_some("qd"))
         .chain(sig.qdd.then_some("qdd"))
         .chain(["t"])
-        .chain(sig.targets.iter().map(|(a, _)| *a))
-        .map(ident)
+        .map(|a| path(ident(a)))
+        .chain(sig.inputs.then(|| parse_quote!(&u)))
+        .chain(sig.targets.iter().map(|(a, _)| path(ident(a))))
         .collect();
     for (c, group) in groups.iter().enumerate() {
         let (f, written) = body(group);
@@ -434,7 +489,7 @@ pub(super) fn emit_function(
         groups.len()
     );
     let all = vec![true; sig.targets.len()];
-    let used = Used { q: true, qd: true, qdd: true, t: true, arrays: &all };
+    let used = Used { q: true, qd: true, qdd: true, t: true, u: true, arrays: &all };
     let main = sig.item(&name, &doc, &used, false);
     items.insert(0, item_fn(main, calls));
     items

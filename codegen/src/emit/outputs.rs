@@ -70,6 +70,14 @@ pub(super) fn names(mech: &Mechanism, sys: &Symbolic, outputs: &Outputs) -> Vec<
                 .collect(),
         },
         Table {
+            what: "input driver",
+            plural: "input drivers",
+            len: "INPUTS",
+            names: "INPUT_NAMES",
+            lookup: "input",
+            entries: sys.inputs.iter().map(|d| mech.drivers[d.driver].name.clone()).collect(),
+        },
+        Table {
             what: "unknown",
             plural: "unknowns",
             len: "N",
@@ -80,6 +88,10 @@ pub(super) fn names(mech: &Mechanism, sys: &Symbolic, outputs: &Outputs) -> Vec<
     ];
     let mut items = Vec::new();
     for t in &tables {
+        // A module without input drivers has no input table.
+        if t.lookup == "input" && t.entries.is_empty() {
+            continue;
+        }
         // BODY_NAMES, UNKNOWNS, BODIES and N are among the module's constants already.
         if !matches!(t.lookup, "body" | "unknown") {
             let (len, names, count) = (ident(t.len), ident(t.names), index(t.entries.len()));
@@ -237,7 +249,8 @@ pub(super) fn accessors(rows: &Rows<'_>, outputs: &Outputs) -> Vec<syn::Item> {
     let mut items = Vec::new();
     for (name, count, order, qd, qdd, what) in KINDS {
         let targets = [("out", v3(count))];
-        let sig = Signature { name, qd, qdd, public: true, targets: &targets };
+        let sig =
+            Signature { name, qd, qdd, public: true, targets: &targets, inputs: rows.inputs() };
         let values: Vec<_> = if count == "POINTS" {
             triple("out", &mut outputs.points.iter().map(|p| p[order]))
         } else {
@@ -267,7 +280,14 @@ fn poses(rows: &Rows<'_>, outputs: &Outputs) -> Vec<syn::Item> {
         })
         .collect();
     let targets = [("out", quote::quote!(&mut [[f64; 7]; BODIES]))];
-    let sig = Signature { name: "poses", qd: false, qdd: false, public: true, targets: &targets };
+    let sig = Signature {
+        name: "poses",
+        qd: false,
+        qdd: false,
+        public: true,
+        targets: &targets,
+        inputs: rows.inputs(),
+    };
     let what = "Coordinates `[x, y, z, e0, e1, e2, e3]` (r and p) of every moving body, fixed and driven ones included.";
     rows.emit(&sig, what, Vec::new(), &poses)
 }
@@ -300,8 +320,14 @@ fn joint_coordinates(rows: &Rows<'_>, outputs: &Outputs) -> Vec<syn::Item> {
         ("out", quote::quote!(&mut [[f64; 3]; JOINT_COORDINATES])),
         ("terms", quote::quote!(&mut [[f64; 6]; #count])),
     ];
-    let sig =
-        Signature { name: "joint_terms", qd: true, qdd: true, public: false, targets: &targets };
+    let sig = Signature {
+        name: "joint_terms",
+        qd: true,
+        qdd: true,
+        public: false,
+        targets: &targets,
+        inputs: rows.inputs(),
+    };
     let what = "The translations of [`joint_coordinates`] and, for each angle, x = ref_i·ref_j and y = (ref_i × ref_j)·axis_i with their rates: `[x, ẋ, ẍ, y, ẏ, ÿ]`.";
     let mut items = rows.emit(&sig, what, Vec::new(), &values);
     let finish = angles.iter().enumerate().map(|(a, &k)| -> syn::Stmt {
@@ -313,6 +339,21 @@ fn joint_coordinates(rows: &Rows<'_>, outputs: &Outputs) -> Vec<syn::Item> {
             );
         }
     });
+    if rows.inputs() {
+        items.push(parse_quote! {
+            /// Every joint coordinate (in [`JOINT_COORDINATE_NAMES`] order) with its rate and
+            /// acceleration at the inputs `inputs`: `out[k] = [value, rate, acceleration]`. An
+            /// angle θ is measured from ref_i to ref_j, right-handed about axis_i, in (−π, π]
+            /// (follow it across turns with `runtime::outputs::unwrap_angle`); a translation is
+            /// d = (P_j − P_i)·axis_i.
+            pub fn joint_coordinates(q: &[f64; N], qd: &[f64; N], qdd: &[f64; N], t: f64, inputs: &Inputs, out: &mut [[f64; 3]; JOINT_COORDINATES]) {
+                let mut terms = [[0.0; 6]; #count];
+                joint_terms(q, qd, qdd, t, inputs, out, &mut terms);
+                #(#finish)*
+            }
+        });
+        return items;
+    }
     items.push(parse_quote! {
         /// Every joint coordinate (in [`JOINT_COORDINATE_NAMES`] order) with its rate and
         /// acceleration: `out[k] = [value, rate, acceleration]`. An angle θ is measured from

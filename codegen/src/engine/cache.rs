@@ -105,15 +105,46 @@ const MAIN: &str = "//! A generated solver (written by mechgen; do not edit): se
                     fn main() {\n    driver::main();\n}\n";
 
 /// The generated crate's `config.rs`: what the driver reads about the module, the
-/// mechanism's type `type_name` and the floating-point type `real`.
-fn config(type_name: &str, real: &str) -> String {
-    format!(
+/// mechanism's type `type_name`, the floating-point type `real`, and whether the module has
+/// input drivers (`inputs`).
+fn config(type_name: &str, real: &str, inputs: bool) -> String {
+    let head = format!(
         "//! What the driver reads about the generated module (written by mechgen).\n\n\
          /// The floating-point type the module was generated in.\n\
          pub type Real = {real};\n\n\
          /// The generated mechanism.\n\
-         pub use crate::mechanism::{type_name} as Generated;\n"
-    )
+         pub use crate::mechanism::{type_name} as Generated;\n\n\
+         use crate::mechanism::{{BODIES, N}};\n\n\
+         /// The inputs of every input driver at one instant, `[s, ṡ, s̈]` each.\n\
+         type Inputs = [[Real; 3]; INPUTS];\n\n"
+    );
+    let body = if inputs {
+        "/// The number of input drivers.\n\
+         pub const INPUTS: usize = crate::mechanism::INPUTS;\n\n\
+         /// The mechanism standing at `t` with inputs `u`.\n\
+         pub fn generated(t: Real, u: &Inputs) -> Generated {\n    \
+             Generated::new(t, &crate::mechanism::Inputs::from_array(*u))\n}\n\n\
+         /// Sets the inputs to `u0` at `t0` and `u1` at `t1`.\n\
+         pub fn aim(m: &mut Generated, t0: Real, u0: &Inputs, t1: Real, u1: &Inputs) {\n    \
+             runtime::input::Driven::segment_mut(m).set(t0, *u0, t1, *u1);\n}\n\n\
+         /// The module's `expand` at the inputs of `m` at `t`.\n\
+         pub fn expand(m: &Generated, q: &[Real; N], qd: &[Real; N], qdd: &[Real; N], t: Real, \
+         out: &mut [[[Real; 7]; 3]; BODIES]) {\n    \
+             crate::mechanism::expand(q, qd, qdd, t, &m.inputs(t), out);\n}\n"
+    } else {
+        "/// The number of input drivers: none.\n\
+         pub const INPUTS: usize = 0;\n\n\
+         /// The mechanism (it has no inputs).\n\
+         pub fn generated(_t: Real, _u: &Inputs) -> Generated {\n    \
+             Generated\n}\n\n\
+         /// Sets the inputs: there are none.\n\
+         pub fn aim(_m: &mut Generated, _t0: Real, _u0: &Inputs, _t1: Real, _u1: &Inputs) {}\n\n\
+         /// The module's `expand`.\n\
+         pub fn expand(_m: &Generated, q: &[Real; N], qd: &[Real; N], qdd: &[Real; N], t: Real, \
+         out: &mut [[[Real; 7]; 3]; BODIES]) {\n    \
+             crate::mechanism::expand(q, qd, qdd, t, out);\n}\n"
+    };
+    head + body
 }
 
 /// How to build one generated crate, and where its entry lies.
@@ -133,8 +164,14 @@ impl std::fmt::Debug for Recipe {
 impl Recipe {
     /// The recipe of the crate made of `module` (whose mechanism is the type `type_name`, in
     /// floating-point type `real`) and the driver, in the cache `cache`.
-    pub(super) fn new(cache: PathBuf, module: &str, type_name: &str, real: &str) -> Recipe {
-        let config = config(type_name, real);
+    pub(super) fn new(
+        cache: PathBuf,
+        module: &str,
+        type_name: &str,
+        real: &str,
+        inputs: bool,
+    ) -> Recipe {
+        let config = config(type_name, real, inputs);
         let manifest = |package: &str| {
             format!(
                 "[package]\nname = \"{package}\"\nversion = \"0.0.0\"\nedition = \"2024\"\n\

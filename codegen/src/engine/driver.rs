@@ -1,18 +1,23 @@
 //! Runs one generated mechanism over its time grid: the driver of every generated solver
 //! mechgen builds (`codegen::engine`).
 //!
-//! Usage: `run|bench [tolerance] [repeats] [no-predictor] [dense]`, or `key` to print the
-//! key of the cache entry it was built for.
+//! Usage: `run|bench [tolerance] [repeats] [no-predictor] [dense] [series]`, or `key` to print
+//! the key of the cache entry it was built for. With `series`, the time points and the inputs
+//! come from standard input instead of the module's grid: one line per time point,
+//! `t s0 ṡ0 s̈0 s1 …` (the `[s, ṡ, s̈]` of every input driver, in the module's input order).
 //!
 //! It is the same text for every mechanism. What varies is read from its sibling modules,
 //! which the generated crate's `main.rs` declares: `mechanism` (the generated module, its
-//! constants and `expand` under fixed names), `config` (`Real`, the module's floating-point
-//! type, and `Generated`, its mechanism) and `key` (the cache entry's `KEY`). The workspace
+//! constants under fixed names), `config` (`Real`, the module's floating-point type,
+//! `Generated`, its mechanism, `INPUTS`, the number of its input drivers, and the functions
+//! that make the mechanism at given inputs, aim its inputs and expand its coordinates) and
+//! `key` (the cache entry's `KEY`). The workspace
 //! compiles it against the committed `generated::rssr` (`generated/examples/driver.rs`), so
 //! that rustc, clippy and rustfmt check it.
 
 use std::io::Write;
 
+use runtime::factors::DenseOnly;
 use runtime::step::{self, Coordinates, Groups, Rejection, Sample, Stepper, Trouble};
 use runtime::{AttemptError, Mechanism, NewtonError, NewtonOptions, Solver};
 
@@ -33,17 +38,137 @@ pub(crate) fn main() {
     let repeats: usize = args.get(3).and_then(|s| s.parse().ok()).unwrap_or(1);
     let flag = |name: &str| args.iter().skip(2).any(|a| a == name);
     let predictor = !flag("no-predictor");
+    let series = if flag("series") { read_series() } else { Series::grid() };
+    let (t0, u0) = series.sample(0);
+    let m = config::generated(t0, &u0);
     if flag("dense") {
         // Static pivot orders hidden: every factorisation is dense LU with partial pivoting.
-        drive(runtime::factors::DenseOnly(config::Generated), mode, tolerance, repeats, predictor);
+        drive(DenseOnly(m), &series, mode, tolerance, repeats, predictor);
     } else {
-        drive(config::Generated, mode, tolerance, repeats, predictor);
+        drive(m, &series, mode, tolerance, repeats, predictor);
     }
 }
 
-/// The solver of `m` with the module's settings, in `mode` (`bench` or `run`).
-fn drive<M: Mechanism<N, Real>>(
+/// The inputs of every input driver at one time point.
+type Inputs = [[Real; 3]; config::INPUTS];
+
+/// The time points of a run, and the inputs at each: the module's own grid (computed, so that
+/// a long grid costs no memory), or a recorded series.
+struct Series {
+    recorded: Option<(Vec<Real>, Vec<Inputs>)>,
+}
+
+impl Series {
+    /// The module's own grid.
+    const fn grid() -> Series {
+        Series { recorded: None }
+    }
+
+    fn len(&self) -> usize {
+        self.recorded.as_ref().map_or(mechanism::T_COUNT, |(t, _)| t.len())
+    }
+
+    /// Time point `k`.
+    fn time(&self, k: usize) -> Real {
+        match &self.recorded {
+            Some((t, _)) => t[k],
+            None => mechanism::T_START + k as Real * mechanism::T_STEP,
+        }
+    }
+
+    /// Time point `k` and the inputs there.
+    fn sample(&self, k: usize) -> (Real, Inputs) {
+        match &self.recorded {
+            Some((t, u)) => (t[k], u[k]),
+            None => (self.time(k), [[0.0; 3]; config::INPUTS]),
+        }
+    }
+
+    /// Aims `m`'s inputs from time point `k − 1` (or `k` itself for the first) to `k`.
+    fn aim<M: Generated>(&self, m: &mut M, k: usize) {
+        let (t1, u1) = self.sample(k);
+        let (t0, u0) = self.sample(k.saturating_sub(1));
+        m.aim(t0, &u0, t1, &u1);
+    }
+}
+
+/// Reads the time points and inputs from standard input (see the module docs); a line that
+/// does not hold 1 + 3 · INPUTS numbers ends the process with status 3, as mechgen wrote it.
+fn read_series() -> Series {
+    use std::io::BufRead;
+    let (mut times, mut inputs) = (Vec::new(), Vec::new());
+    for line in std::io::stdin().lock().lines() {
+        let Ok(line) = line else { std::process::exit(3) };
+        let values: Vec<Real> = line.split(' ').filter_map(|w| w.parse().ok()).collect();
+        if values.len() != 1 + 3 * config::INPUTS {
+            eprintln!("a line of the series has {} numbers", values.len());
+            std::process::exit(3);
+        }
+        let mut u = [[0.0; 3]; config::INPUTS];
+        for (k, x) in u.iter_mut().enumerate() {
+            x.copy_from_slice(&values[1 + 3 * k..4 + 3 * k]);
+        }
+        times.push(values[0]);
+        inputs.push(u);
+    }
+    if times.is_empty() {
+        std::process::exit(3);
+    }
+    Series { recorded: Some((times, inputs)) }
+}
+
+/// The generated mechanism, plain or behind [`DenseOnly`]: what the driver does with its
+/// inputs and coordinates beyond `runtime::Mechanism`.
+trait Generated: Mechanism<N, Real> {
+    /// Sets its inputs to `u0` at `t0` and `u1` at `t1`.
+    fn aim(&mut self, t0: Real, u0: &Inputs, t1: Real, u1: &Inputs);
+    /// The module's `expand` at its inputs at `t`.
+    fn expand(
+        &self,
+        q: &[Real; N],
+        qd: &[Real; N],
+        qdd: &[Real; N],
+        t: Real,
+        out: &mut [[[Real; 7]; 3]; mechanism::BODIES],
+    );
+}
+
+impl Generated for config::Generated {
+    fn aim(&mut self, t0: Real, u0: &Inputs, t1: Real, u1: &Inputs) {
+        config::aim(self, t0, u0, t1, u1);
+    }
+    fn expand(
+        &self,
+        q: &[Real; N],
+        qd: &[Real; N],
+        qdd: &[Real; N],
+        t: Real,
+        out: &mut [[[Real; 7]; 3]; mechanism::BODIES],
+    ) {
+        config::expand(self, q, qd, qdd, t, out);
+    }
+}
+
+impl Generated for DenseOnly<config::Generated> {
+    fn aim(&mut self, t0: Real, u0: &Inputs, t1: Real, u1: &Inputs) {
+        self.0.aim(t0, u0, t1, u1);
+    }
+    fn expand(
+        &self,
+        q: &[Real; N],
+        qd: &[Real; N],
+        qdd: &[Real; N],
+        t: Real,
+        out: &mut [[[Real; 7]; 3]; mechanism::BODIES],
+    ) {
+        self.0.expand(q, qd, qdd, t, out);
+    }
+}
+
+/// The solver of `m` with the module's settings, in `mode` (`bench` or `run`) over `series`.
+fn drive<M: Generated>(
     m: M,
+    series: &Series,
     mode: &str,
     tolerance: Real,
     repeats: usize,
@@ -60,35 +185,34 @@ fn drive<M: Mechanism<N, Real>>(
     let stdout = std::io::stdout();
     let mut out = std::io::BufWriter::new(stdout.lock());
     if mode == "bench" {
-        bench(solver, repeats, &mut out);
+        bench(solver, series, repeats, &mut out);
     } else {
-        run(solver, &mut out);
+        run(solver, series, &mut out);
     }
-}
-
-/// The grid's time point `k`.
-fn time(k: usize) -> Real {
-    mechanism::T_START + k as Real * mechanism::T_STEP
 }
 
 /// Times `repeats` whole passes of plain stepping (no step control) and prints
 /// `bench min_ns median_ns iterations_per_step`.
-fn bench<M: Mechanism<N, Real>>(
+fn bench<M: Generated>(
     mut solver: Solver<M, N, Real, Jacobian>,
+    series: &Series,
     repeats: usize,
     out: &mut impl Write,
 ) {
     let mut times = Vec::with_capacity(repeats);
     let mut iterations = 0u64;
+    let count = series.len();
     for _ in 0..repeats.max(1) {
         solver.set_q(mechanism::Q0);
         iterations = 0;
         let start = std::time::Instant::now();
-        for k in 0..mechanism::T_COUNT {
-            match solver.position(time(k)) {
+        for k in 0..count {
+            series.aim(solver.mechanism_mut(), k);
+            let t = series.time(k);
+            match solver.position(t) {
                 Ok(r) => iterations += u64::from(r.iterations),
                 Err(e) => {
-                    check(writeln!(out, "error bench {:?} {e}", wide(time(k))));
+                    check(writeln!(out, "error bench {:?} {e}", wide(t)));
                     // `exit` runs no destructor: the buffered line must leave now.
                     check(out.flush());
                     std::process::exit(2);
@@ -97,7 +221,7 @@ fn bench<M: Mechanism<N, Real>>(
             let _ = solver.velocity();
             let _ = solver.acceleration();
         }
-        times.push(start.elapsed().as_nanos() as f64 / mechanism::T_COUNT as f64);
+        times.push(start.elapsed().as_nanos() as f64 / count as f64);
         std::hint::black_box(solver.qdd());
     }
     times.sort_by(f64::total_cmp);
@@ -106,13 +230,13 @@ fn bench<M: Mechanism<N, Real>>(
         "bench {:?} {:?} {:?}",
         times[0],
         times[times.len() / 2],
-        iterations as f64 / mechanism::T_COUNT as f64
+        iterations as f64 / count as f64
     ));
 }
 
 /// Steps over the grid under the step control, printing a `step` line per time point, or
 /// `near` and `error` lines and exit status 2 when the analysis stops.
-fn run<M: Mechanism<N, Real>>(solver: Solver<M, N, Real, Jacobian>, out: &mut impl Write) {
+fn run<M: Generated>(solver: Solver<M, N, Real, Jacobian>, series: &Series, out: &mut impl Write) {
     let mut engine = Engine {
         solver,
         dense: jacobian(),
@@ -123,8 +247,9 @@ fn run<M: Mechanism<N, Real>>(solver: Solver<M, N, Real, Jacobian>, out: &mut im
         candidate: Full::default(),
     };
     let mut last: Option<Sample<f64>> = None;
-    for k in 0..mechanism::T_COUNT {
-        let t = wide(time(k));
+    for k in 0..series.len() {
+        series.aim(engine.solver.mechanism_mut(), k);
+        let t = wide(series.time(k));
         let outcome = match last {
             None => step::first(&mut engine, t).map(|p| (p, p.iterations)),
             Some(a) => step::advance(&mut engine, a, t),
@@ -212,7 +337,7 @@ struct Engine<M> {
     candidate: Full,
 }
 
-impl<M: Mechanism<N, Real>> Stepper<f64> for Engine<M> {
+impl<M: Generated> Stepper<f64> for Engine<M> {
     type Cause = AttemptError<Real>;
 
     fn attempt(&mut self, t: f64) -> Result<Sample<f64>, Rejection<f64, AttemptError<Real>>> {
@@ -236,7 +361,7 @@ impl<M: Mechanism<N, Real>> Stepper<f64> for Engine<M> {
             }
             Err(_) => f64::NAN,
         };
-        mechanism::expand(
+        self.solver.mechanism().expand(
             self.solver.q(),
             self.solver.qd(),
             self.solver.qdd(),

@@ -121,6 +121,13 @@ impl<'m> Equations<'m> {
         eq
     }
 
+    /// The value driver `k` prescribes at the initial estimates: what an input driver holds
+    /// when no series is replayed.
+    #[must_use]
+    pub fn held(&self, k: usize) -> f64 {
+        self.held[k]
+    }
+
     /// `(s, ṡ, s̈)` of driver `k` at time `t` (see [`Mechanism::drive`]).
     #[must_use]
     pub fn driver_value(&self, k: usize, t: f64) -> (f64, f64, f64) {

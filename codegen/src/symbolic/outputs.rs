@@ -52,6 +52,8 @@ impl Symbolic {
             pool: std::mem::take(&mut self.pool),
             coords: self.coords.clone(),
             laws: self.laws.clone(),
+            // Outputs read coordinates only: no driver law is written here.
+            input_of: Vec::new(),
         };
         let points = mech
             .points

@@ -178,6 +178,30 @@ pub fn mechanism_name_problem(name: &str, type_name: &str) -> Option<String> {
     None
 }
 
+/// Why an input driver's name cannot name the field of the generated module's `Inputs` that
+/// holds it, if it cannot: it must be a lower-case identifier (`[a-z][a-z0-9_]*`) and no Rust
+/// keyword.
+pub fn input_name_problem(name: &str) -> Option<String> {
+    let mut chars = name.chars();
+    let identifier = chars.next().is_some_and(|c| c.is_ascii_lowercase())
+        && chars.all(|c| c.is_ascii_lowercase() || c.is_ascii_digit() || c == '_');
+    if !identifier {
+        return Some(
+            "an input driver's name names the field of the generated `Inputs` that holds its \
+             value: it must be a lower-case identifier ([a-z][a-z0-9_]*), e.g. \"crank_angle\""
+                .to_owned(),
+        );
+    }
+    if KEYWORDS.contains(&name) {
+        return Some(format!(
+            "\"{name}\" is a Rust keyword and cannot name the field of the generated `Inputs` \
+             that holds this input, e.g. \"{name}_input\""
+        ));
+    }
+    (name.len() > MAX_NAME_CHARS)
+        .then(|| format!("a name has at most {MAX_NAME_CHARS} characters, this one {}", name.len()))
+}
+
 /// Why `text` cannot be a description, if it cannot.
 pub fn description_problem(text: &str) -> Option<String> {
     let (k, c) = text.chars().enumerate().find(|&(_, c)| {

@@ -602,6 +602,11 @@ impl Rules<'_> {
             (None, None, Some(point)) => self.point_driver(&at, d, point),
         };
         let law = self.law(&at, &d.law);
+        if law == Some(Law::Input)
+            && let Some(problem) = super::names::input_name_problem(&d.name)
+        {
+            self.error(&at, "name", problem);
+        }
         Some(model::Driver { name: d.name.clone(), target: target?, law: law? })
     }
 

@@ -1,7 +1,7 @@
 //! `--inputs`, input drivers and point drivers on the command line.
 
 use super::{example, mechgen, rssr_with, temp_file};
-use crate::cli::{EXIT_BUILD, EXIT_INVALID, EXIT_OK};
+use crate::cli::{EXIT_INVALID, EXIT_OK};
 
 fn four_bar() -> String {
     example("inputs/four_bar_input.toml").display().to_string()
@@ -20,15 +20,86 @@ fn input_drivers_without_inputs_are_invalid_input_naming_them_and_the_option() {
         let v: serde_json::Value = serde_json::from_str(&out).expect("JSON error object");
         assert_eq!(v["error"]["kind"], "invalid_input", "{command}");
     }
-    // `check` and `generate` take the description; generate cannot emit inputs yet (status 3).
+    // `check` and `generate` take the description: the module has a field per input driver.
     assert_eq!(mechgen(&["check", &four_bar()]).0, EXIT_OK);
-    let (code, _, err) = mechgen(&["generate", &four_bar()]);
-    assert_eq!(code, EXIT_BUILD, "{err}");
-    assert!(err.contains("not supported by the generated engine yet"), "{err}");
+    let (code, out, err) = mechgen(&["generate", &four_bar()]);
+    assert_eq!(code, EXIT_OK, "{err}");
+    assert!(
+        out.contains("pub struct Inputs {")
+            && out.contains("pub crank: runtime::input::Input<f64>,")
+    );
+    assert!(out.contains("impl runtime::input::Driven<INPUTS> for FourBarInput"));
+}
+
+/// B of the four-bar at crank angle θ, closed form: A = (cos θ, sin θ) on the unit crank, B
+/// at 3 from A and 2.5 from O4 = (3, 0), on the side of AO4 the assembly starts on (left of
+/// the line from A to O4, y > 0 at θ = 0).
+fn four_bar_b(theta: f64) -> [f64; 2] {
+    let a = [theta.cos(), theta.sin()];
+    let (o4, l3, l4) = ([3.0, 0.0], 3.0, 2.5);
+    let d = [o4[0] - a[0], o4[1] - a[1]];
+    let dist = d[0].hypot(d[1]);
+    // Distance from A along AO4 to the foot of B, and B's height above the line.
+    let along = (l3 * l3 - l4 * l4 + dist * dist) / (2.0 * dist);
+    let height = (l3 * l3 - along * along).sqrt();
+    let (ux, uy) = (d[0] / dist, d[1] / dist);
+    [a[0] + along * ux - height * uy, a[1] + along * uy + height * ux]
 }
 
 #[test]
-fn the_recorded_encoder_replays_on_the_generic_engine_and_the_default_falls_back() {
+fn both_engines_replay_the_encoder_onto_the_closed_form_and_agree() {
+    let rows = std::fs::read_to_string(encoder()).expect("encoder");
+    let theta: Vec<(f64, f64)> = rows
+        .lines()
+        .filter(|l| !l.starts_with('#') && !l.starts_with('t'))
+        .map(|l| {
+            let mut c = l.split(',').map(|x| x.parse::<f64>().expect("number"));
+            (c.next().expect("t"), c.next().expect("crank"))
+        })
+        .collect();
+    let mut runs = Vec::new();
+    for engine in ["generic", "generated"] {
+        let args =
+            ["solve", &four_bar(), "--inputs", &encoder(), "--engine", engine, "--format", "json"];
+        let (code, out, err) = mechgen(&args);
+        assert_eq!(code, EXIT_OK, "{engine}: {err}");
+        let v: serde_json::Value = serde_json::from_str(&out).expect("JSON");
+        assert_eq!(v["engine"], engine);
+        let steps = v["steps"].as_array().expect("steps").clone();
+        assert_eq!(steps.len(), theta.len(), "{engine}: one step per recorded row");
+        for (step, &(t, th)) in steps.iter().zip(&theta) {
+            assert_eq!(step["t"].as_f64(), Some(t));
+            let r = &step["points"]["B"]["r"];
+            let b = four_bar_b(th);
+            for (i, want) in b.iter().enumerate() {
+                let got = r[i].as_f64().expect("r");
+                // Newton stops at max |Φ| ≤ 1e-10 on links of about 3: the position error is of
+                // that order times the conditioning (≈ 10 here), so 1e-8 is a safe bound.
+                assert!((got - want).abs() < 1e-8, "{engine} t {t}: B[{i}] {got} vs {want}");
+            }
+        }
+        runs.push(steps);
+    }
+    // Velocities and accelerations use the estimated rates in both engines alike: they agree
+    // to the Newton tolerance's effect (1e-10 relative on positions, amplified by the
+    // conditioning and the finite-difference rates' size, ≈ 30 rad/s²), so 1e-7.
+    for (a, b) in runs[0].iter().zip(&runs[1]) {
+        for key in ["v", "a"] {
+            for i in 0..3 {
+                let (x, y) = (a["points"]["B"][key][i].as_f64(), b["points"]["B"][key][i].as_f64());
+                let (x, y) = (x.expect("value"), y.expect("value"));
+                assert!(
+                    (x - y).abs() <= 1e-7 * (1.0 + x.abs()),
+                    "t {}: B.{key}[{i}] {x} vs {y}",
+                    a["t"]
+                );
+            }
+        }
+    }
+}
+
+#[test]
+fn the_recorded_encoder_replays_with_rates_estimated_and_joint_columns() {
     let (code, out, err) = mechgen(&[
         "solve",
         &four_bar(),
@@ -51,17 +122,11 @@ fn the_recorded_encoder_replays_on_the_generic_engine_and_the_default_falls_back
     assert_eq!(last["t"].as_f64(), Some(2.0));
     assert!(last["joints"]["O4"]["angle_ddot"].is_f64() && last["joints"]["O2"]["angle"].is_f64());
 
-    let (code, _, err) =
-        mechgen(&["solve", &four_bar(), "--inputs", &encoder(), "--engine", "generated"]);
-    assert_eq!(code, EXIT_BUILD, "{err}");
-    assert!(
-        err.contains("the generated solver could not be built: input drivers are not supported"),
-        "{err}"
-    );
+    // The default engine is the generated one, with inputs too: no fall-back warning.
     let (code, out, err) =
         mechgen(&["solve", &four_bar(), "--inputs", &encoder(), "--format", "csv"]);
     assert_eq!(code, EXIT_OK, "{err}");
-    assert!(err.contains("warning: using the generic engine"), "{err}");
+    assert!(!err.contains("using the generic engine"), "{err}");
     let header = out.lines().next().expect("header");
     assert!(
         header.ends_with("O2.angle,O2.angle_dot,O2.angle_ddot,O4.angle,O4.angle_dot,O4.angle_ddot")
