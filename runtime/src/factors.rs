@@ -15,6 +15,7 @@
 #[cfg(test)]
 mod tests;
 
+use crate::blocks;
 use crate::lu::{self, PivotInfo, Singular};
 use crate::{Mechanism, Real};
 
@@ -38,6 +39,8 @@ enum Held {
     Structured(usize),
     /// Dense LU factors with the row permutation in [`Factors::perm`].
     Dense,
+    /// Block factors ([`crate::blocks`]) with the rows of each position in [`Factors::perm`].
+    Blocks,
 }
 
 /// The pivoting side of a factorisation of Φ_q held in a separate `[[R; N]; N]`.
@@ -131,7 +134,9 @@ impl<const N: usize> Factors<N> {
         jac: &mut [[R; N]; N],
     ) {
         self.held = Held::Nothing;
-        if M::PIVOT_ORDERS > 0 {
+        if M::BLOCKS.is_some() {
+            mechanism.residual_jacobian_blocks(q, t, phi, jac);
+        } else if M::PIVOT_ORDERS > 0 {
             mechanism.residual_jacobian_structural(q, t, phi, jac);
         } else {
             mechanism.residual_jacobian(q, t, phi, jac);
@@ -141,7 +146,9 @@ impl<const N: usize> Factors<N> {
     /// Factors Φ_q(q, t), written into `jac` by [`Factors::evaluate`] at the same (q, t), in
     /// place.
     ///
-    /// Tries the mechanism's static orders, the last successful one first, evaluating Φ_q(q, t)
+    /// With a block layout ([`Mechanism::BLOCKS`]), factors block by block ([`blocks::factor`]),
+    /// and by dense LU when a pivot is zero or the pivot ratio at most `ratio`. Otherwise tries
+    /// the mechanism's static orders, the last successful one first, evaluating Φ_q(q, t)
     /// again after each refusal; when every one is refused, or the smallest |pivot| of the one
     /// that passed is at most `ratio` times the largest, evaluates Φ_q(q, t) in full into `jac`
     /// and factors it by [`lu::factor_with_ratio`].
@@ -157,6 +164,20 @@ impl<const N: usize> Factors<N> {
         jac: &mut [[R; N]; N],
         ratio: R,
     ) -> Result<PivotInfo<R>, Singular<R>> {
+        if let Some(layout) = M::BLOCKS {
+            match blocks::factor(layout, jac, &mut self.perm) {
+                Some(p) if p.smallest > ratio * p.largest => {
+                    self.held = Held::Blocks;
+                    self.counts.structured += 1;
+                    return Ok(p);
+                }
+                // A zero or small pivot: dense LU's own verdict decides.
+                _ => {
+                    self.counts.refused += 1;
+                    return self.factor_dense(mechanism, q, t, jac, ratio);
+                }
+            }
+        }
         let orders = M::PIVOT_ORDERS;
         for attempt in 0..orders {
             let order = (self.next + attempt) % orders;
@@ -232,6 +253,10 @@ impl<const N: usize> Factors<N> {
         match self.held {
             Held::Structured(order) => mechanism.solve_structured(order, lu, b),
             Held::Dense => lu::solve(lu, &self.perm, b),
+            Held::Blocks => match M::BLOCKS {
+                Some(layout) => blocks::solve(layout, lu, &self.perm, b),
+                None => *b = [R::NAN; N],
+            },
             Held::Nothing => *b = [R::NAN; N],
         }
     }

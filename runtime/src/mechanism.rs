@@ -41,6 +41,22 @@ pub trait Mechanism<const N: usize, R: Real = f64> {
     /// The default does nothing.
     fn normalize(&self, _q: &mut [R; N]) {}
 
+    /// The block-lower-triangular form of Φ_q, when the mechanism's solver factors it block by
+    /// block ([`blocks`](crate::blocks)); the default, `None`, means it does not.
+    ///
+    /// With a layout the solvers evaluate Φ_q with [`Mechanism::residual_jacobian_blocks`],
+    /// factor it by [`blocks::factor`](crate::blocks::factor) and fall back to dense LU only
+    /// when that meets a zero or small pivot; the static orders are then not used.
+    const BLOCKS: Option<&'static crate::blocks::Layout> = None;
+
+    /// Writes Φ(q, t) into `phi` and, into `jac`, every entry of Φ_q's diagonal blocks and its
+    /// structural non-zeros below them (what [`blocks::factor`](crate::blocks::factor) and
+    /// [`blocks::solve`](crate::blocks::solve) read), leaving the other entries as they were.
+    /// The default calls [`Mechanism::residual_jacobian`].
+    fn residual_jacobian_blocks(&self, q: &[R; N], t: R, phi: &mut [R; N], jac: &mut [[R; N]; N]) {
+        self.residual_jacobian(q, t, phi, jac);
+    }
+
     /// The number of static pivot orders [`Mechanism::factor_structured`] knows.
     ///
     /// The default, 0, means none: the solvers then evaluate Φ_q with
