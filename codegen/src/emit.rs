@@ -14,6 +14,7 @@ use crate::expr::ExprId;
 use crate::model::Mechanism;
 use crate::symbolic::{Source, Symbolic};
 
+mod blocks;
 mod docs;
 mod function;
 mod inputs;
@@ -55,8 +56,17 @@ pub fn module_in(mech: &Mechanism, sys: &Symbolic, source: &str, scalar: Scalar)
     let after_constants = items.len();
     let rows = Rows::new(sys);
     items.extend(residual_and_jacobian(&rows));
-    // The structured LU: static pivot orders over the description's motion.
-    let orders = if n == 0 { Vec::new() } else { crate::pivot::plan_motion(mech, sys) };
+    // The structured LU: block by block when Φ_q falls apart into blocks (`blocks`), else
+    // static pivot orders over the description's motion.
+    let layout = blocks::plan(sys);
+    if let Some(b) = &layout {
+        items.extend(blocks::items(&rows, b));
+    }
+    let orders = if n == 0 || layout.is_some() {
+        Vec::new()
+    } else {
+        crate::pivot::plan_motion(mech, sys)
+    };
     let structure = crate::pivot::structure(sys);
     let constant = crate::pivot::constants(sys);
     for (k, order) in orders.iter().enumerate() {
@@ -66,10 +76,15 @@ pub fn module_in(mech: &Mechanism, sys: &Symbolic, source: &str, scalar: Scalar)
     items.push(normalize(sys));
     items.push(expand(sys, &moving));
     items.extend(outputs::accessors(&rows, &named));
-    if sys.inputs.is_empty() {
-        items.extend(mechanism_type(mech, orders.len()));
+    let structured = if layout.is_some() {
+        blocks::impl_items(!sys.inputs.is_empty())
     } else {
-        items.extend(inputs::mechanism_type(mech, orders.len()));
+        structured_items(orders.len(), !sys.inputs.is_empty())
+    };
+    if sys.inputs.is_empty() {
+        items.extend(mechanism_type(mech, structured));
+    } else {
+        items.extend(inputs::mechanism_type(mech, structured));
     }
     // The law coefficients the functions read, named after the other constants.
     let mut laws = names::LawNames::new(mech);
@@ -459,11 +474,10 @@ fn expand(sys: &Symbolic, moving: &[usize]) -> syn::Item {
     }
 }
 
-/// The unit struct and its `runtime::Mechanism` impl, with the structured LU's `orders`.
-fn mechanism_type(mech: &Mechanism, orders: usize) -> Vec<syn::Item> {
+/// The unit struct and its `runtime::Mechanism` impl, with the structured LU's items.
+fn mechanism_type(mech: &Mechanism, structured: Vec<syn::ImplItem>) -> Vec<syn::Item> {
     let ty = ident(&type_name(&mech.name));
     let doc = format!(" The mechanism `{}` as a [`runtime::Mechanism`].", mech.name);
-    let structured = structured_items(orders, false);
     vec![
         parse_quote! {
             #[doc = #doc]
