@@ -62,11 +62,8 @@ pub fn module_in(mech: &Mechanism, sys: &Symbolic, source: &str, scalar: Scalar)
     if let Some(b) = &layout {
         items.extend(blocks::items(&rows, b));
     }
-    let orders = if n == 0 || layout.is_some() {
-        Vec::new()
-    } else {
-        crate::pivot::plan_motion(mech, sys)
-    };
+    let orders =
+        if n == 0 || layout.is_some() { Vec::new() } else { crate::pivot::plan_motion(mech, sys) };
     let structure = crate::pivot::structure(sys);
     let constant = crate::pivot::constants(sys);
     for (k, order) in orders.iter().enumerate() {

@@ -15,7 +15,6 @@
 #[cfg(test)]
 mod tests;
 
-use crate::blocks;
 use crate::lu::{self, PivotInfo, Singular};
 use crate::{Mechanism, Real};
 
@@ -39,7 +38,7 @@ enum Held {
     Structured(usize),
     /// Dense LU factors with the row permutation in [`Factors::perm`].
     Dense,
-    /// Block factors ([`crate::blocks`]) with the rows of each position in [`Factors::perm`].
+    /// Block factors ([`Mechanism::factor_blocks`]) with their pivoting in [`Factors::perm`].
     Blocks,
 }
 
@@ -146,7 +145,7 @@ impl<const N: usize> Factors<N> {
     /// Factors Φ_q(q, t), written into `jac` by [`Factors::evaluate`] at the same (q, t), in
     /// place.
     ///
-    /// With a block layout ([`Mechanism::BLOCKS`]), factors block by block ([`blocks::factor`]),
+    /// With a block layout ([`Mechanism::BLOCKS`]), factors block by block ([`Mechanism::factor_blocks`]),
     /// and by dense LU when a pivot is zero or the pivot ratio at most `ratio`. Otherwise tries
     /// the mechanism's static orders, the last successful one first, evaluating Φ_q(q, t)
     /// again after each refusal; when every one is refused, or the smallest |pivot| of the one
@@ -164,8 +163,8 @@ impl<const N: usize> Factors<N> {
         jac: &mut [[R; N]; N],
         ratio: R,
     ) -> Result<PivotInfo<R>, Singular<R>> {
-        if let Some(layout) = M::BLOCKS {
-            match blocks::factor(layout, jac, &mut self.perm) {
+        if M::BLOCKS.is_some() {
+            match mechanism.factor_blocks(jac, &mut self.perm) {
                 Some(p) if p.smallest > ratio * p.largest => {
                     self.held = Held::Blocks;
                     self.counts.structured += 1;
@@ -253,10 +252,7 @@ impl<const N: usize> Factors<N> {
         match self.held {
             Held::Structured(order) => mechanism.solve_structured(order, lu, b),
             Held::Dense => lu::solve(lu, &self.perm, b),
-            Held::Blocks => match M::BLOCKS {
-                Some(layout) => blocks::solve(layout, lu, &self.perm, b),
-                None => *b = [R::NAN; N],
-            },
+            Held::Blocks => mechanism.solve_blocks(lu, &self.perm, b),
             Held::Nothing => *b = [R::NAN; N],
         }
     }

@@ -6,6 +6,8 @@
 //! the tests say, at each comparison, which reference value is trusted and how far.
 
 #[cfg(test)]
+mod block_solver;
+#[cfg(test)]
 mod embedded_inputs;
 #[cfg(test)]
 mod generated_engine;

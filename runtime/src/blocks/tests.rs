@@ -74,7 +74,10 @@ fn block_solutions_match_nalgebra_on_shuffled_block_triangular_matrices() {
         // Both solve the same regular system with partial pivoting; random blocks of size up
         // to 14 have condition numbers up to about 1e4, so the answers agree to about 1e-11.
         for k in 0..N {
-            assert!((x[k] - reference[k]).abs() <= 1e-9 * (1.0 + reference[k].abs()), "seed {seed}");
+            assert!(
+                (x[k] - reference[k]).abs() <= 1e-9 * (1.0 + reference[k].abs()),
+                "seed {seed}"
+            );
         }
         assert!(pivots.smallest > 0.0 && pivots.smallest <= pivots.largest);
         // The entries below the diagonal blocks are read, not changed.
