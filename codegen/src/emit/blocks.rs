@@ -228,14 +228,15 @@ fn block_code(
         let solve = parse_quote!(x[#c] = (#(#z)*) / lu[#r][#c];);
         return (factor, solve);
     }
-    let gather = |array: &str| -> Vec<proc_macro2::TokenStream> {
+    // Φ_q's structural zeros in the block are literals; the factors fill the whole block.
+    let gather = |array: &str, zeros: bool| -> Vec<proc_macro2::TokenStream> {
         let array = ident(array);
         block
             .rows
             .iter()
             .map(|&r| {
                 let entries = block.unknowns.iter().map(|&c| {
-                    if sys.jac[r].iter().any(|&(j, _)| j == c) {
+                    if !zeros || sys.jac[r].iter().any(|&(j, _)| j == c) {
                         let (r, c) = (index(r), index(c));
                         quote::quote!(#array[#r][#c])
                     } else {
@@ -246,7 +247,7 @@ fn block_code(
             })
             .collect()
     };
-    let rows_in = gather("jac");
+    let rows_in = gather("jac", true);
     let mut scatter = Vec::new();
     for (i, &r) in block.rows.iter().enumerate() {
         for (j, &c) in block.unknowns.iter().enumerate() {
@@ -279,7 +280,7 @@ fn block_code(
             #(#keep)*
         }
     };
-    let rows_lu = gather("lu");
+    let rows_lu = gather("lu", false);
     let order = (0..block.rows.len()).map(|i| {
         let at = index(start + i);
         quote::quote!(perm[#at])
