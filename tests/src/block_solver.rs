@@ -45,3 +45,16 @@ fn independent_arms_solved_block_by_block_match_the_generic_engine() {
 fn independent_rssr_loops_solved_block_by_block_match_the_generic_engine() {
     check(&codegen::scale::rssr_loops(4, 20));
 }
+
+#[test]
+fn systems_below_64_unknowns_keep_the_static_orders() {
+    // One R-S-S-R has 20 unknowns and a chain of nine links 63, below
+    // `emit::blocks::MIN_UNKNOWNS`.
+    for text in [codegen::scale::rssr_loops(1, 20), codegen::scale::chain(9, 20)] {
+        let mech = load_toml(&text);
+        let sys = codegen::symbolic::Symbolic::build(&mech).expect("the system builds");
+        let module = codegen::emit::module(&mech, &sys, "block_solver");
+        assert!(!module.contains("static BLOCKS"), "{}: no blocks", mech.name);
+        assert!(module.contains("fn factor_0"), "{}: static orders", mech.name);
+    }
+}
