@@ -71,14 +71,13 @@ pub fn factor<R: Real, const N: usize>(
             largest = largest.max(pivot);
             let rk = perm[k];
             let inverse = R::ONE / jac[rk][ck];
-            for i in k + 1..end {
-                let ri = perm[i];
+            for &ri in &perm[k + 1..end] {
                 let l = jac[ri][ck] * inverse;
                 jac[ri][ck] = l;
                 if l != R::ZERO {
                     for &cj in &layout.columns[k + 1..end] {
                         let u = jac[rk][cj];
-                        jac[ri][cj] = jac[ri][cj] - l * u;
+                        jac[ri][cj] -= l * u;
                     }
                 }
             }
@@ -104,10 +103,10 @@ pub fn solve<R: Real, const N: usize>(
             let r = perm[start + i];
             let mut y = rhs[r];
             for &c in &layout.lower[layout.lower_starts[r]..layout.lower_starts[r + 1]] {
-                y = y - lu[r][c] * b[c];
+                y -= lu[r][c] * b[c];
             }
             for &cj in &columns[..i] {
-                y = y - lu[r][cj] * b[cj];
+                y -= lu[r][cj] * b[cj];
             }
             b[ci] = y;
         }
@@ -116,7 +115,7 @@ pub fn solve<R: Real, const N: usize>(
             let r = perm[start + i];
             let mut x = b[ci];
             for &cj in &columns[i + 1..] {
-                x = x - lu[r][cj] * b[cj];
+                x -= lu[r][cj] * b[cj];
             }
             b[ci] = x / lu[r][ci];
         }
