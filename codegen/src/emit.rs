@@ -43,6 +43,31 @@ pub fn module(mech: &Mechanism, sys: &Symbolic, source: &str) -> String {
 /// [`module`] in the floating-point type `scalar` (see [`scalar`]).
 #[must_use]
 pub fn module_in(mech: &Mechanism, sys: &Symbolic, source: &str, scalar: Scalar) -> String {
+    assemble(mech, sys, source, scalar, true)
+}
+
+/// [`module_in`] with the static pivot orders even where Φ_q would be factored block by block
+/// (a system of 64 unknowns or more with more than one block, none larger than 32): for tests
+/// and comparisons of the two factorisations.
+#[must_use]
+pub fn module_with_static_orders(
+    mech: &Mechanism,
+    sys: &Symbolic,
+    source: &str,
+    scalar: Scalar,
+) -> String {
+    assemble(mech, sys, source, scalar, false)
+}
+
+/// The module, factored block by block when `blocks` allows it and [`blocks::plan`] finds it
+/// worthwhile.
+fn assemble(
+    mech: &Mechanism,
+    sys: &Symbolic,
+    source: &str,
+    scalar: Scalar,
+    blocks: bool,
+) -> String {
     // The outputs' expressions join Φ's arena (after its nodes, so Φ's code is unchanged).
     let mut sys = sys.clone();
     let named = sys.outputs(mech);
@@ -55,10 +80,10 @@ pub fn module_in(mech: &Mechanism, sys: &Symbolic, source: &str, scalar: Scalar)
     items.extend(inputs::items(mech, sys));
     let after_constants = items.len();
     let rows = Rows::new(sys);
-    items.extend(residual_and_jacobian(&rows));
     // The structured LU: block by block when Φ_q falls apart into blocks (`blocks`), else
     // static pivot orders over the description's motion.
-    let layout = blocks::plan(sys);
+    let layout = if blocks { blocks::plan(sys) } else { None };
+    items.extend(residual_and_jacobian(&rows, layout.is_none()));
     if let Some(b) = &layout {
         items.extend(blocks::items(&rows, b));
     }
@@ -264,8 +289,9 @@ impl<'s> Rows<'s> {
     }
 }
 
-/// `residual`, `jacobian`, `residual_jacobian` and `residual_jacobian_structural`.
-fn residual_and_jacobian(rows: &Rows<'_>) -> Vec<syn::Item> {
+/// `residual`, `jacobian`, `residual_jacobian` and, for the static orders' factorisations
+/// (`structural`), `residual_jacobian_structural`.
+fn residual_and_jacobian(rows: &Rows<'_>, structural: bool) -> Vec<syn::Item> {
     let sys = rows.sys;
     let n = sys.unknowns.len();
     let vec_ty = quote::quote!(&mut [f64; N]);
@@ -313,6 +339,9 @@ fn residual_and_jacobian(rows: &Rows<'_>) -> Vec<syn::Item> {
     };
     let what = "Φ and Φ_q at once (see [`residual`] and [`jacobian`]).";
     items.extend(rows.emit(&sig, what, vec![zero_jac], &both));
+    if !structural {
+        return items;
+    }
 
     // Φ and the entries of Φ_q that vary: the constant ones are literals in `factor_k`.
     let mut varying = rows.vector(0, "phi", &sys.phi);
