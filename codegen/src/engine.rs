@@ -376,18 +376,18 @@ pub fn run_with(
     Ok(report)
 }
 
-/// The frame of a `step t iterations residual q… q̇… q̈…` line (the `index`-th), or the
-/// failure it is when it holds a non-finite value (never written: the analysis stops
-/// there, saying why).
+/// The frame of a `step t iterations residual condition q… q̇… q̈…` line (the `index`-th),
+/// or the failure it is when it holds a non-finite value other than the condition estimate
+/// (never written: the analysis stops there, saying why).
 fn step_line(line: &str, index: usize) -> Result<Result<Frame, Failure>, RunError> {
     let nums: Vec<&str> = line.split(' ').skip(1).collect();
     let bad = || RunError::Malformed(line.to_owned());
     let parse = |s: &str| s.parse::<f64>().map_err(|_| bad());
-    if nums.len() < 3 || !(nums.len() - 3).is_multiple_of(21) {
+    if nums.len() < 4 || !(nums.len() - 4).is_multiple_of(21) {
         return Err(bad());
     }
-    let m = (nums.len() - 3) / 3;
-    let values: Vec<f64> = nums[3..].iter().map(|s| parse(s)).collect::<Result<_, _>>()?;
+    let m = (nums.len() - 4) / 3;
+    let values: Vec<f64> = nums[4..].iter().map(|s| parse(s)).collect::<Result<_, _>>()?;
     if let Some(bad) = values.iter().chain(&[parse(nums[2])?]).find(|v| !v.is_finite()) {
         let message = format!(
             "the generated solver produced the non-finite value {bad} (the steps before this \
@@ -402,9 +402,11 @@ fn step_line(line: &str, index: usize) -> Result<Result<Frame, Failure>, RunErro
         t: parse(nums[0])?,
         iterations: nums[1].parse().map_err(|_| bad())?,
         residual: parse(nums[2])?,
+        condition: parse(nums[3])?,
         q: DVector::from_column_slice(&values[..m]),
         qd: DVector::from_column_slice(&values[m..2 * m]),
         qdd: DVector::from_column_slice(&values[2 * m..]),
+        redundant: None,
     }))
 }
 
@@ -496,8 +498,8 @@ mod tests {
     fn a_non_finite_value_from_a_solver_stops_the_run_instead_of_being_written() {
         use std::os::unix::fs::PermissionsExt;
         // A stand-in solver: one good step of one body, then a step whose q̇ holds NaN.
-        let good = format!("step 0.0 1 1e-12{}", " 0.5".repeat(21));
-        let bad = format!("step 0.1 1 1e-12{} NaN{}", " 0.5".repeat(8), " 0.5".repeat(12));
+        let good = format!("step 0.0 1 1e-12 2.0{}", " 0.5".repeat(21));
+        let bad = format!("step 0.1 1 1e-12 2.0{} NaN{}", " 0.5".repeat(8), " 0.5".repeat(12));
         let script = format!("#!/bin/sh\necho '{good}'\necho '{bad}'\necho '{good}'\n");
         let path = std::env::temp_dir().join(format!("mechgen-fake-solver-{}", std::process::id()));
         std::fs::write(&path, script).unwrap();
@@ -540,7 +542,7 @@ mod tests {
             std::env::temp_dir().join(format!("mechgen-endless-solver-{}", std::process::id()));
         std::fs::create_dir_all(&dir).unwrap();
         let pid_file = dir.join("pid");
-        let step = format!("step 0.0 1 1e-12{}", " 0.5".repeat(21));
+        let step = format!("step 0.0 1 1e-12 2.0{}", " 0.5".repeat(21));
         let script = format!(
             "#!/bin/sh\necho $$ > '{}'\nwhile :; do echo '{step}'; done\n",
             pid_file.display()

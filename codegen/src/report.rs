@@ -12,6 +12,8 @@ use crate::generic::{Failure, Frame};
 use crate::model::Mechanism;
 use crate::model::frame::{g_matrix, rotation};
 
+pub use runtime::step::Suspect;
+
 /// One body's results at one time point (global components throughout).
 #[derive(Clone, Debug, PartialEq)]
 pub struct BodyResult {
@@ -70,12 +72,21 @@ pub struct StepResult {
     pub iterations: u32,
     /// max |Φ_i| at the reported configuration.
     pub residual: f64,
+    /// κ̂, the estimate of the condition number of Φ_q there ([`Frame::condition`]).
+    pub condition: f64,
+    /// The derivatives κ̂ cannot vouch for to six significant digits
+    /// ([`runtime::step::suspect`]).
+    pub suspect: Suspect,
     /// Every non-ground body, in file order.
     pub bodies: Vec<BodyResult>,
     /// Every point of interest, in file order.
     pub points: Vec<PointResult>,
     /// Every joint with a reported coordinate ([`reported_joints`]), in file order.
     pub joints: Vec<JointResult>,
+    /// The equations named redundant from this step on (`joint J4 row 1`), when they differ
+    /// from the previous step's (the first step's from those named at the initial
+    /// configuration); `None` when they are the same ([`Frame::redundant`]).
+    pub redundant: Option<Vec<String>>,
 }
 
 /// The joints whose coordinates are reported, with (angle, translation): revolute,
@@ -197,10 +208,12 @@ fn arr4(v: &Vector4<f64>) -> [f64; 4] {
     [v[0], v[1], v[2], v[3]]
 }
 
-/// Body and point results from the coordinates of one frame.
+/// Body and point results from the coordinates of one frame, with its condition estimate
+/// and the derivatives that estimate cannot vouch for (in double precision, the arithmetic of
+/// both engines under `solve`).
 #[must_use]
 pub fn step_result(mech: &Mechanism, layout: &[Option<usize>], frame: &Frame) -> StepResult {
-    from_coordinates(
+    let mut s = from_coordinates(
         mech,
         layout,
         frame.t,
@@ -209,10 +222,18 @@ pub fn step_result(mech: &Mechanism, layout: &[Option<usize>], frame: &Frame) ->
         &frame.q,
         &frame.qd,
         &frame.qdd,
-    )
+    );
+    if let Some(rows) = &frame.redundant {
+        let labels = mech.row_labels();
+        s.redundant = Some(rows.iter().map(|&k| labels[k].equation()).collect());
+    }
+    s.condition = frame.condition;
+    s.suspect = runtime::step::suspect(frame.condition, f64::EPSILON);
+    s
 }
 
-/// Body and point results from q, q̇ and q̈ (any engine).
+/// Body and point results from q, q̇ and q̈ (any engine), without a condition estimate (NaN)
+/// or suspects.
 #[allow(clippy::too_many_arguments)] // The seven inputs are the frame's parts; a struct would only rename them.
 #[must_use]
 pub fn from_coordinates(
@@ -295,7 +316,17 @@ pub fn from_coordinates(
         })
         .collect();
     let joints = joint_results(mech, layout, q, qd, qdd);
-    StepResult { t, iterations, residual, bodies, points, joints }
+    StepResult {
+        t,
+        iterations,
+        residual,
+        condition: f64::NAN,
+        suspect: Suspect::default(),
+        bodies,
+        points,
+        joints,
+        redundant: None,
+    }
 }
 
 /// The output formats of `solve`.
@@ -314,8 +345,11 @@ pub struct Writer<W: Write> {
     out: W,
     format: Format,
     steps: usize,
-    /// Equations left out of the analysis as redundant (written by `finish` in CSV).
+    /// Equations named redundant at the initial configuration (written by `finish` in CSV).
     removed: Vec<String>,
+    /// Where the redundant equations changed and what they became (written by `finish` in
+    /// CSV).
+    changes: Vec<(f64, Vec<String>)>,
     /// Continuity of the joint angles across steps.
     unwrap: Unwrap,
     /// The bodies, points and joints written.
@@ -384,7 +418,7 @@ impl<W: Write> Writer<W> {
                 if !removed.is_empty() {
                     writeln!(
                         out,
-                        "redundant equations removed (dependent on the others at the initial \
+                        "redundant equations (dependent on the ones before them at the initial \
                          configuration): {}",
                         printable(&removed.join(", "))
                     )?;
@@ -396,6 +430,7 @@ impl<W: Write> Writer<W> {
             format,
             steps: 0,
             removed: removed.to_vec(),
+            changes: Vec::new(),
             unwrap: Unwrap::default(),
             select,
             buf: Vec::new(),
@@ -438,6 +473,9 @@ impl<W: Write> Writer<W> {
             Format::Csv => {
                 write_csv_row(&mut self.buf, s);
                 self.out.write_all(&self.buf)?;
+                if let Some(r) = &s.redundant {
+                    self.changes.push((s.t, r.clone()));
+                }
             }
             Format::Table => write_table_step(&mut self.out, s)?,
         }
@@ -485,6 +523,9 @@ impl<W: Write> Writer<W> {
                 if self.format == Format::Csv && !self.removed.is_empty() {
                     writeln!(self.out, "# removed: {}", printable(&self.removed.join(", ")))?;
                 }
+                for (t, r) in &self.changes {
+                    writeln!(self.out, "# redundant from t = {t}: {}", redundant_list(r))?;
+                }
                 if let Some((_, text)) = error {
                     // CSV readers skip comment lines; the table is for people.
                     let lead = if self.format == Format::Csv { "# " } else { "" };
@@ -495,6 +536,11 @@ impl<W: Write> Writer<W> {
         self.out.flush()?;
         Ok(self.out)
     }
+}
+
+/// A list of redundant equations for a line of text ("none" when empty).
+fn redundant_list(r: &[String]) -> Cow<'static, str> {
+    if r.is_empty() { "none".into() } else { printable(&r.join(", ")).into_owned().into() }
 }
 
 /// The contract's `error` object of a numerical failure.
@@ -554,20 +600,28 @@ pub fn step_json(s: &StepResult) -> serde_json::Value {
             (j.name.clone(), serde_json::Value::Object(o))
         })
         .collect();
-    serde_json::json!({
+    let suspect: Vec<&str> = s.suspect.names().collect();
+    let mut v = serde_json::json!({
         "t": s.t,
         "iterations": s.iterations,
         "residual": s.residual,
+        "condition": s.condition,
+        "suspect": suspect,
         "bodies": bodies,
         "points": points,
         "joints": joints,
-    })
+    });
+    if let (Some(r), Some(o)) = (&s.redundant, v.as_object_mut()) {
+        o.insert("redundant".to_owned(), serde_json::json!(r));
+    }
+    v
 }
 
 const XYZ: [&str; 3] = ["x", "y", "z"];
 const E: [&str; 4] = ["e0", "e1", "e2", "e3"];
 
-/// CSV column names: `t`, `iterations`, `residual`, then `crank.r.x` … `B.a.z`.
+/// CSV column names: `t`, `iterations`, `residual`, `condition`, `suspect` (the suspect
+/// derivatives separated by spaces, empty when none), then `crank.r.x` … `B.a.z`.
 #[must_use]
 pub fn csv_header(mech: &Mechanism) -> Vec<String> {
     header(mech, &Selection::all(mech))
@@ -575,7 +629,7 @@ pub fn csv_header(mech: &Mechanism) -> Vec<String> {
 
 /// The CSV column names of the bodies, points and joints of `select`.
 fn header(mech: &Mechanism, select: &Selection) -> Vec<String> {
-    let mut h = vec!["t".to_owned(), "iterations".to_owned(), "residual".to_owned()];
+    let mut h = ["t", "iterations", "residual", "condition", "suspect"].map(str::to_owned).to_vec();
     let moving = mech.bodies.iter().filter(|b| !b.ground);
     for (b, _) in moving.zip(&select.bodies).filter(|(_, on)| **on) {
         for (q, comps) in [
@@ -626,12 +680,23 @@ pub fn csv_field(field: Cow<'_, str>) -> Cow<'_, str> {
     }
 }
 
-/// Appends the text `{x:?}` writes (the shortest that reads back to `x`, the closest to `x`
-/// of those). The standard library's, written in place: zmij's shortest digits differ from it
-/// in the last digit for some 16-digit numbers (it does not always pick the closest).
-fn push_debug(buf: &mut Vec<u8>, x: f64) {
-    // Writing to a Vec cannot fail.
-    let _ = write!(buf, "{x:?}");
+/// Appends `x` in shortest round-trip form (zmij, as JSON writes it; `NaN`, `inf` and `-inf`
+/// as `{x:?}` writes them): the fewest significant digits that read back to `x` exactly.
+///
+/// Where two shortest forms both read back to `x`, zmij does not always pick the one closest
+/// to `x`, as `{x:?}` does: 659260010478097.2 for the double `{x:?}` writes 659260010478097.3
+/// (0.16 % of random doubles, always in the 16th digit). Both read back to the same double,
+/// which is all CSV needs, and zmij writes several times faster.
+fn push_number(buf: &mut Vec<u8>, x: f64) {
+    if x.is_finite() {
+        buf.extend_from_slice(zmij::Buffer::new().format_finite(x).as_bytes());
+    } else if x.is_nan() {
+        buf.extend_from_slice(b"NaN");
+    } else if x > 0.0 {
+        buf.extend_from_slice(b"inf");
+    } else {
+        buf.extend_from_slice(b"-inf");
+    }
 }
 
 /// Appends the JSON text of `x` as serde_json writes it (zmij's shortest round trip; `null`
@@ -648,17 +713,26 @@ fn push_json(buf: &mut Vec<u8>, x: f64) {
 fn push_csv(buf: &mut Vec<u8>, xs: &[f64]) {
     for &x in xs {
         buf.push(b',');
-        push_debug(buf, x);
+        push_number(buf, x);
     }
 }
 
 /// Appends one CSV row with its line end.
 fn write_csv_row(buf: &mut Vec<u8>, s: &StepResult) {
-    push_debug(buf, s.t);
+    push_number(buf, s.t);
     buf.push(b',');
     let _ = write!(buf, "{}", s.iterations);
     buf.push(b',');
-    push_debug(buf, s.residual);
+    push_number(buf, s.residual);
+    buf.push(b',');
+    push_number(buf, s.condition);
+    buf.push(b',');
+    for (k, name) in s.suspect.names().enumerate() {
+        if k > 0 {
+            buf.push(b' ');
+        }
+        buf.extend_from_slice(name.as_bytes());
+    }
     for b in &s.bodies {
         for v in [&b.r[..], &b.p, &b.r_dot, &b.p_dot, &b.omega, &b.r_ddot, &b.p_ddot, &b.alpha] {
             push_csv(buf, v);
@@ -750,7 +824,9 @@ fn write_step_json(buf: &mut Vec<u8>, s: &StepResult, keys: &JsonKeys) {
         push_json_array(buf, ",\"r_dot\":", &b.r_dot);
         buf.push(b'}');
     }
-    buf.extend_from_slice(b"},\"iterations\":");
+    buf.extend_from_slice(b"},\"condition\":");
+    push_json(buf, s.condition);
+    buf.extend_from_slice(b",\"iterations\":");
     let _ = write!(buf, "{}", s.iterations);
     buf.extend_from_slice(b",\"joints\":{");
     for (n, (k, key)) in keys.order[2].iter().enumerate() {
@@ -784,9 +860,21 @@ fn write_step_json(buf: &mut Vec<u8>, s: &StepResult, keys: &JsonKeys) {
         push_json_array(buf, ",\"v\":", &p.v);
         buf.push(b'}');
     }
-    buf.extend_from_slice(b"},\"residual\":");
+    buf.push(b'}');
+    if let Some(r) = &s.redundant {
+        buf.extend_from_slice(b",\"redundant\":");
+        let _ = serde_json::to_writer(&mut *buf, r);
+    }
+    buf.extend_from_slice(b",\"residual\":");
     push_json(buf, s.residual);
-    buf.extend_from_slice(b",\"t\":");
+    buf.extend_from_slice(b",\"suspect\":[");
+    for (k, name) in s.suspect.names().enumerate() {
+        if k > 0 {
+            buf.push(b',');
+        }
+        let _ = write!(buf, "\"{name}\"");
+    }
+    buf.extend_from_slice(b"],\"t\":");
     push_json(buf, s.t);
     buf.push(b'}');
 }
@@ -867,9 +955,12 @@ impl Selection {
             t: s.t,
             iterations: s.iterations,
             residual: s.residual,
+            condition: s.condition,
+            suspect: s.suspect,
             bodies: keep(&s.bodies, &self.bodies),
             points: keep(&s.points, &self.points),
             joints: keep(&s.joints, &self.joints),
+            redundant: s.redundant.clone(),
         }
     }
 }
@@ -887,9 +978,19 @@ fn write_table_step(out: &mut impl Write, s: &StepResult) -> io::Result<()> {
     writeln!(out)?;
     writeln!(
         out,
-        "-----  TIME = {}  (Newton iterations {}, max |Φ| {:.1e})  -----",
-        s.t, s.iterations, s.residual
+        "-----  TIME = {}  (Newton iterations {}, max |Φ| {:.1e}, condition {:.1e})  -----",
+        s.t, s.iterations, s.residual, s.condition
     )?;
+    if let Some(r) = &s.redundant {
+        writeln!(out, "redundant equations from here on: {}", redundant_list(r))?;
+    }
+    if s.suspect.any() {
+        writeln!(
+            out,
+            "SUSPECT: {} (fewer than 6 significant digits by the condition estimate)",
+            s.suspect.names().collect::<Vec<_>>().join(", ")
+        )?;
+    }
     writeln!(out, "POSITION")?;
     writeln!(out, "{:<w$}{}", "BODY", head(&["X", "Y", "Z", "e0", "e1", "e2", "e3"]))?;
     for (b, name) in s.bodies.iter().zip(&bodies) {
@@ -1064,13 +1165,37 @@ mod tests {
         xs
     }
 
+    /// The significant digits of a number's text (without sign, point, leading or trailing
+    /// zeros and exponent).
+    fn significant_digits(text: &str) -> usize {
+        let mantissa = text.split(['e', 'E']).next().unwrap_or("");
+        let digits: String = mantissa.chars().filter(char::is_ascii_digit).collect();
+        digits.trim_start_matches('0').trim_end_matches('0').len()
+    }
+
+    /// Whether `text` reads back (by the standard library's correctly rounded parser) to the
+    /// very double `x`: the same bits, or NaN for NaN.
+    fn reads_back(text: &str, x: f64) -> bool {
+        text.parse::<f64>().is_ok_and(|y| y.to_bits() == x.to_bits() || (x.is_nan() && y.is_nan()))
+    }
+
     #[test]
-    fn csv_numbers_are_what_debug_formatting_writes() {
+    fn csv_numbers_read_back_exactly_in_the_fewest_digits() {
         let mut buf = Vec::new();
         for x in samples() {
             buf.clear();
-            push_debug(&mut buf, x);
-            assert_eq!(std::str::from_utf8(&buf).unwrap(), format!("{x:?}"), "{:#x}", x.to_bits());
+            push_number(&mut buf, x);
+            let text = std::str::from_utf8(&buf).unwrap();
+            assert!(reads_back(text, x), "{text} for {:#x}", x.to_bits());
+            // The standard library's `{x:?}` is the shortest round trip: no digit more.
+            if x.is_finite() {
+                let shortest = format!("{x:?}");
+                assert_eq!(
+                    significant_digits(text),
+                    significant_digits(&shortest),
+                    "{text} {shortest}"
+                );
+            }
         }
     }
 
@@ -1108,6 +1233,8 @@ mod tests {
             t: 0.25,
             iterations: 3,
             residual: 1.2e-13,
+            condition: 2.5e3,
+            suspect: Suspect { velocity: true, acceleration: true },
             bodies: vec![body("z\"q", 1.0), body("crank", 2.0), body("crank", 3.0), body("é", 4.0)],
             points: vec![point("B", 1.0), point("A", 2.0)],
             joints: vec![
@@ -1119,6 +1246,7 @@ mod tests {
                 },
                 JointResult { name: "P".into(), angle: None, translation: Some([7.0, 8.0, 9.0]) },
             ],
+            redundant: Some(vec!["joint \"J4\" row 1".into(), "driver é".into()]),
         }
     }
 
@@ -1131,28 +1259,147 @@ mod tests {
         assert_eq!(String::from_utf8(buf).unwrap(), expected);
     }
 
-    #[test]
-    fn a_csv_row_is_the_debug_text_of_every_number() {
-        let s = awkward_step();
-        let mut buf = Vec::new();
-        write_csv_row(&mut buf, &s);
-        let mut expected =
-            vec![format!("{:?}", s.t), s.iterations.to_string(), format!("{:?}", s.residual)];
+    /// The numbers of a step in CSV column order, after t, iterations, residual, condition
+    /// and suspect.
+    fn csv_numbers(s: &StepResult) -> Vec<f64> {
+        let mut xs = Vec::new();
         for b in &s.bodies {
             for v in [&b.r[..], &b.p, &b.r_dot, &b.p_dot, &b.omega, &b.r_ddot, &b.p_ddot, &b.alpha]
             {
-                expected.extend(v.iter().map(|x| format!("{x:?}")));
+                xs.extend_from_slice(v);
             }
         }
         for p in &s.points {
-            expected.extend([p.r, p.v, p.a].iter().flatten().map(|x| format!("{x:?}")));
+            xs.extend([p.r, p.v, p.a].iter().flatten());
         }
         for j in &s.joints {
-            expected.extend(
-                [j.angle, j.translation].iter().flatten().flatten().map(|x| format!("{x:?}")),
-            );
+            xs.extend([j.angle, j.translation].iter().flatten().flatten());
         }
-        assert_eq!(String::from_utf8(buf).unwrap(), expected.join(",") + "\n");
+        xs
+    }
+
+    /// Steps whose every number is one of `samples()` (finite ones when `finite`), in turn.
+    fn sample_steps(finite: bool) -> Vec<StepResult> {
+        let mut xs = samples().into_iter().filter(|x| !finite || x.is_finite()).cycle();
+        let mut next = || xs.next().expect("an endless cycle");
+        let template = awkward_step();
+        (0..2_000)
+            .map(|k| {
+                let mut s = template.clone();
+                s.t = next();
+                s.residual = next();
+                s.condition = next();
+                s.suspect = Suspect { velocity: k % 2 == 0, acceleration: k % 3 == 0 };
+                // Plain names: the CSV test splits at commas.
+                for (n, b) in s.bodies.iter_mut().enumerate() {
+                    b.name = format!("body{n}");
+                    for v in [&mut b.r[..], &mut b.p, &mut b.r_dot, &mut b.p_dot, &mut b.omega] {
+                        v.iter_mut().for_each(|x| *x = next());
+                    }
+                    for v in [&mut b.r_ddot[..], &mut b.p_ddot, &mut b.alpha] {
+                        v.iter_mut().for_each(|x| *x = next());
+                    }
+                }
+                for (n, p) in s.points.iter_mut().enumerate() {
+                    p.name = format!("point{n}");
+                    for v in [&mut p.r, &mut p.v, &mut p.a] {
+                        v.iter_mut().for_each(|x| *x = next());
+                    }
+                }
+                for j in &mut s.joints {
+                    for v in [&mut j.angle, &mut j.translation].into_iter().flatten() {
+                        v.iter_mut().for_each(|x| *x = next());
+                    }
+                }
+                s
+            })
+            .collect()
+    }
+
+    #[test]
+    fn every_number_a_csv_row_holds_reads_back_to_the_same_double() {
+        for s in std::iter::once(awkward_step()).chain(sample_steps(false)) {
+            let mut buf = Vec::new();
+            write_csv_row(&mut buf, &s);
+            let text = String::from_utf8(buf).unwrap();
+            let row = text.strip_suffix('\n').expect("a line end");
+            let fields: Vec<&str> = row.split(',').collect();
+            let leading = [s.t, s.residual, s.condition];
+            for (field, x) in [fields[0], fields[2], fields[3]].into_iter().zip(leading) {
+                assert!(reads_back(field, x), "{field} for {:#x}", x.to_bits());
+            }
+            assert_eq!(fields[1], s.iterations.to_string());
+            assert_eq!(fields[4], s.suspect.names().collect::<Vec<_>>().join(" "));
+            let numbers = csv_numbers(&s);
+            assert_eq!(fields.len(), 5 + numbers.len());
+            for (field, &x) in fields[5..].iter().zip(&numbers) {
+                assert!(reads_back(field, x), "{field} for {:#x}", x.to_bits());
+            }
+        }
+    }
+
+    #[test]
+    fn every_number_the_json_writer_writes_reads_back_to_the_same_double() {
+        // JSON has no NaN or infinity (they are written as null): finite numbers only. The
+        // whole document goes through the writer and serde_json's correctly rounded parser
+        // (feature float_roundtrip).
+        let steps = sample_steps(true);
+        // The writer reads the mechanism's name only; the steps bring their own names.
+        let mech = crate::testing::load(&crate::testing::example("rssr.toml")).mechanism;
+        let mut w = Writer::begin(Vec::new(), Format::Json, &mech, "generic", &[]).unwrap();
+        for s in &steps {
+            w.step(s).unwrap();
+        }
+        let out = w.finish(None).unwrap();
+        let v: serde_json::Value = serde_json::from_slice(&out).expect("one JSON document");
+        let written = v["steps"].as_array().expect("steps");
+        assert_eq!(written.len(), steps.len());
+        let same = |value: &serde_json::Value, x: f64| {
+            value.as_f64().is_some_and(|y| y.to_bits() == x.to_bits())
+        };
+        for (json, s) in written.iter().zip(&steps) {
+            for (key, x) in [("t", s.t), ("residual", s.residual), ("condition", s.condition)] {
+                assert!(same(&json[key], x), "{key}: {} for {:#x}", json[key], x.to_bits());
+            }
+            // Repeated names keep the last body of that name, as serde_json's map does.
+            for b in &s.bodies {
+                let o = &json["bodies"][&b.name];
+                let fields = [
+                    ("r", &b.r[..]),
+                    ("p", &b.p),
+                    ("r_dot", &b.r_dot),
+                    ("p_dot", &b.p_dot),
+                    ("omega", &b.omega),
+                    ("r_ddot", &b.r_ddot),
+                    ("p_ddot", &b.p_ddot),
+                    ("alpha", &b.alpha),
+                ];
+                for (key, xs) in fields {
+                    for (k, &x) in xs.iter().enumerate() {
+                        assert!(same(&o[key][k], x), "{}.{key}[{k}]: {}", b.name, o[key][k]);
+                    }
+                }
+            }
+            for p in &s.points {
+                let o = &json["points"][&p.name];
+                for (key, xs) in [("r", p.r), ("v", p.v), ("a", p.a)] {
+                    for (k, &x) in xs.iter().enumerate() {
+                        assert!(same(&o[key][k], x), "{}.{key}[{k}]: {}", p.name, o[key][k]);
+                    }
+                }
+            }
+            for j in &s.joints {
+                let o = &json["joints"][&j.name];
+                // Angles are made continuous across steps by the writer (`Unwrap`), so only
+                // translations are written as they came.
+                if let Some([x, xd, xdd]) = j.translation {
+                    for (suffix, x) in [("", x), ("_dot", xd), ("_ddot", xdd)] {
+                        let key = format!("translation{suffix}");
+                        assert!(same(&o[&key], x), "{}.{key}: {}", j.name, o[&key]);
+                    }
+                }
+            }
+        }
     }
 
     /// Writer throughput on the R-S-S-R's frames (`cargo test -p codegen --release --lib

@@ -115,6 +115,13 @@ impl<const N: usize> Factors<N> {
         !matches!(self.held, Held::Nothing)
     }
 
+    /// Whether the storage holds the factors of one of the mechanism's static pivot orders
+    /// (threshold pivoting), rather than dense LU's (partial pivoting) or nothing.
+    #[must_use]
+    pub const fn holds_structured(&self) -> bool {
+        matches!(self.held, Held::Structured(_))
+    }
+
     /// Forgets the factors (the storage is about to be overwritten).
     pub const fn forget(&mut self) {
         self.held = Held::Nothing;
@@ -238,6 +245,47 @@ impl<const N: usize> Factors<N> {
         Ok(pivots)
     }
 
+    /// [`Factors::factor_dense`], returning the extremes of its pivots, then those of the same
+    /// factorisation as the LU of R Φ_q C has them, where R and C are diagonal scales, powers of two, that equilibrate Φ_q: C
+    /// brings the largest entry of each column near 1, then R that of each row. Scaling by
+    /// powers of two is exact, and a change of the unit of length scales columns and rows
+    /// that way, so the ratio of these extremes does not depend on the units of the
+    /// description (the pivots of Φ_q itself do: with links of length L the translational and
+    /// Euler-parameter columns differ by L). The factors kept are those of Φ_q, ready for
+    /// [`Factors::solve`]: partial pivoting chose its rows on Φ_q.
+    ///
+    /// # Errors
+    ///
+    /// As [`Factors::factor_dense`] with `ratio` 0: an exactly zero pivot or a non-finite entry.
+    pub fn factor_dense_equilibrated<R: Real, M: Mechanism<N, R>>(
+        &mut self,
+        mechanism: &M,
+        q: &[R; N],
+        t: R,
+        jac: &mut [[R; N]; N],
+    ) -> Result<[PivotInfo<R>; 2], Singular<R>> {
+        mechanism.jacobian(q, t, jac);
+        let (mut rows, mut cols) = ([R::ONE; N], [R::ONE; N]);
+        for (j, c) in cols.iter_mut().enumerate() {
+            *c = reciprocal_power_of_two(jac.iter().fold(R::ZERO, |m, row| m.max(row[j].abs())));
+        }
+        for (r, row) in rows.iter_mut().zip(jac.iter()) {
+            let big = row.iter().zip(&cols).fold(R::ZERO, |m, (&a, &c)| m.max((a * c).abs()));
+            *r = reciprocal_power_of_two(big);
+        }
+        self.held = Held::Nothing;
+        self.counts.dense += 1;
+        let plain = lu::factor_with_ratio(jac, &mut self.perm, R::ZERO)?;
+        self.held = Held::Dense;
+        let (mut smallest, mut largest) = (R::INFINITY, R::ZERO);
+        for (k, &p) in self.perm.iter().enumerate() {
+            let u = jac[k][k].abs() * rows.get(p).copied().unwrap_or(R::ONE) * cols[k];
+            smallest = if u < smallest { u } else { smallest };
+            largest = largest.max(u);
+        }
+        Ok([plain, PivotInfo { smallest, largest }])
+    }
+
     /// Solves Φ_q x = b in place with the factors in `lu` from the last successful
     /// [`Factors::factor`].
     ///
@@ -255,6 +303,16 @@ impl<const N: usize> Factors<N> {
             Held::Blocks => mechanism.solve_blocks(lu, &self.perm, b),
             Held::Nothing => *b = [R::NAN; N],
         }
+    }
+}
+
+/// 1 / the power of two nearest `x`, or 1 when `x` is 0 or not finite.
+fn reciprocal_power_of_two<R: Real>(x: R) -> R {
+    let x = x.to_f64();
+    if x > 0.0 && x.is_finite() {
+        R::from_f64(libm::exp2(-libm::round(libm::log2(x))))
+    } else {
+        R::ONE
     }
 }
 

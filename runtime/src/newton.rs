@@ -18,7 +18,7 @@ mod tests;
 use core::fmt;
 
 use crate::factors::Factors;
-use crate::lu::Singular;
+use crate::lu::{PivotInfo, Singular};
 use crate::{Mechanism, Real};
 
 /// Stopping rule and pivot test of a Newton solve.
@@ -63,6 +63,9 @@ pub struct NewtonReport<R = f64> {
     pub iterations: u32,
     /// max |Φ_i| at the final, normalised q.
     pub residual: R,
+    /// The smallest and largest |pivot| of the factors of Φ_q at the final q that the solve
+    /// leaves in the caller's storage (a static pivot order's, or dense LU's).
+    pub pivots: PivotInfo<R>,
 }
 
 /// Why a Newton solve failed.
@@ -309,8 +312,8 @@ fn iterate<R: Real, M: Mechanism<N, R>, const N: usize>(
                         continue;
                     }
                 }
-                factor(mechanism, q, t, jac, factors, options, iterations)?;
-                return Ok(NewtonReport { iterations, residual });
+                let pivots = factor(mechanism, q, t, jac, factors, options, iterations)?;
+                return Ok(NewtonReport { iterations, residual, pivots });
             }
             Status::Continue => {}
             Status::Exhausted => return Err(NewtonError::NotConverged { iterations, residual }),
@@ -368,9 +371,9 @@ fn factor<R: Real, M: Mechanism<N, R>, const N: usize>(
     factors: &mut Factors<N>,
     options: &NewtonOptions<R>,
     iteration: u32,
-) -> Result<(), NewtonError<R>> {
+) -> Result<PivotInfo<R>, NewtonError<R>> {
     match factors.factor(mechanism, q, t, jac, options.pivot_ratio) {
-        Ok(_) => Ok(()),
+        Ok(pivots) => Ok(pivots),
         Err(Singular::SmallPivot { column, pivot, largest }) => {
             Err(NewtonError::Singular { iteration, column, pivot, largest })
         }

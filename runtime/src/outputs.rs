@@ -161,7 +161,8 @@ mod tests {
         let s: Status =
             Status::of(&Err(NewtonError::NotConverged { iterations: 7, residual: 0.5 }));
         assert_eq!((s.iterations, s.outcome, s.is_ok()), (7, Outcome::NotConverged, false));
-        let s: Status = Status::of(&Ok(NewtonReport { iterations: 2, residual: 1e-13 }));
+        let pivots = crate::lu::PivotInfo { smallest: 0.5, largest: 2.0 };
+        let s: Status = Status::of(&Ok(NewtonReport { iterations: 2, residual: 1e-13, pivots }));
         assert!(s.is_ok());
     }
 }

@@ -34,9 +34,9 @@ use core::borrow::BorrowMut;
 use core::fmt;
 
 use crate::factors::{FactorCounts, Factors};
-use crate::lu::Singular;
+use crate::lu::{PivotInfo, Singular};
 use crate::newton::{self, NewtonError, NewtonOptions, NewtonReport};
-use crate::step::{self, Coordinates, Groups, Rejection, Sample, Stepper, Stop, Trouble};
+use crate::step::{self, Coordinates, Groups, Rejection, Sample, Stepper, Stop, Suspect, Trouble};
 use crate::{Mechanism, Real};
 
 pub use inputs::InputsError;
@@ -106,6 +106,8 @@ pub struct Solver<M, const N: usize, R = f64, J = [[R; N]; N]> {
     factors: Factors<N>,
     /// `jac` and `factors` hold the factors of Φ_q at (`q`, `t`).
     factored: bool,
+    /// The smallest and largest |pivot| of those factors, when `factored`.
+    pivots: PivotInfo<R>,
     /// Which time derivatives were solved at (`q`, `t`).
     known: Known,
     /// (t, q̈) at the two converged positions before the current one, the later first, where q̈
@@ -129,6 +131,9 @@ struct Accepted<R, const N: usize> {
     known: Known,
     /// `sample` belongs to (`q`, `sample.t`).
     valid: bool,
+    /// The solver's state is this point: nothing changed q, q̇, q̈ or the history since it was
+    /// accepted or returned to.
+    current: bool,
 }
 
 /// The (t, q̈) of the two converged positions before the current one, kept as a ring so
@@ -223,6 +228,7 @@ impl<M, const N: usize, R: Real, J> Solver<M, N, R, J> {
             jac,
             factors: Factors::new(),
             factored: false,
+            pivots: PivotInfo { smallest: R::ZERO, largest: R::ZERO },
             known: Known::Nothing,
             history: History::EMPTY,
             accepted: Accepted {
@@ -238,6 +244,7 @@ impl<M, const N: usize, R: Real, J> Solver<M, N, R, J> {
                 history: History::EMPTY,
                 known: Known::Nothing,
                 valid: false,
+                current: false,
             },
             groups: Groups::Each,
         }
@@ -296,6 +303,15 @@ impl<M, const N: usize, R: Real, J> Solver<M, N, R, J> {
         &self.qdd
     }
 
+    /// The smallest and largest |pivot| of the factors of Φ_q the solver holds at the last
+    /// converged position (a static pivot order's, or dense LU's), or `None` when it holds none
+    /// (before the first position, after [`Solver::set_q`] or a failed [`Solver::position`]).
+    ///
+    /// They cost nothing: [`Solver::position`] factors Φ_q at the converged q anyway.
+    pub const fn pivots(&self) -> Option<PivotInfo<R>> {
+        if self.factored { Some(self.pivots) } else { None }
+    }
+
     /// How many factorisations of Φ_q used a static pivot order of the mechanism, how many fell
     /// back to dense LU, and how many static orders were refused on the way.
     pub const fn factor_counts(&self) -> FactorCounts {
@@ -311,6 +327,7 @@ impl<M, const N: usize, R: Real, J> Solver<M, N, R, J> {
         self.factored = false;
         self.known = Known::Nothing;
         self.history = History::EMPTY;
+        self.accepted.current = false;
     }
 }
 
@@ -329,6 +346,16 @@ impl<M: Mechanism<N, R>, const N: usize, R: Real, J: BorrowMut<[[R; N]; N]>> Sol
     /// [`Solver::set_q`]; velocity and acceleration fail until a position converges.
     pub fn position(&mut self, t: R) -> Result<NewtonReport<R>, NewtonError<R>> {
         let start = self.q;
+        let result = self.solve_position(t);
+        if result.is_err() {
+            self.q = start;
+        }
+        result
+    }
+
+    /// [`Solver::position`], except that a failed solve leaves q at Newton's last iterate.
+    fn solve_position(&mut self, t: R) -> Result<NewtonReport<R>, NewtonError<R>> {
+        self.accepted.current = false;
         if self.predictor && self.known >= Known::Velocity {
             let h = t - self.t;
             let half = R::from_f64(0.5);
@@ -356,18 +383,16 @@ impl<M: Mechanism<N, R>, const N: usize, R: Real, J: BorrowMut<[[R; N]; N]>> Sol
             self.jac.borrow_mut(),
             &mut self.factors,
         );
-        match result {
-            Ok(_) => {
-                if self.known == Known::Acceleration {
-                    self.history.push(self.t, &self.qdd);
-                } else {
-                    self.history.len = 0;
-                }
-                self.t = t;
-                self.factored = true;
-                self.known = Known::Nothing;
+        if let Ok(report) = result {
+            self.pivots = report.pivots;
+            if self.known == Known::Acceleration {
+                self.history.push(self.t, &self.qdd);
+            } else {
+                self.history.len = 0;
             }
-            Err(_) => self.q = start,
+            self.t = t;
+            self.factored = true;
+            self.known = Known::Nothing;
         }
         result
     }
@@ -417,6 +442,7 @@ impl<M: Mechanism<N, R>, const N: usize, R: Real, J: BorrowMut<[[R; N]; N]>> Sol
         if !self.factored {
             return Err(SolveError::NoPosition);
         }
+        self.accepted.current = false;
         self.mechanism.velocity_rhs(&self.q, self.t, &mut self.scratch);
         self.solve_scratch()?;
         self.qd = self.scratch;
@@ -441,9 +467,30 @@ impl<M: Mechanism<N, R>, const N: usize, R: Real, J: BorrowMut<[[R; N]; N]>> Sol
         if self.known < Known::Velocity {
             return Err(SolveError::NoVelocity);
         }
+        self.accepted.current = false;
         self.mechanism.acceleration_rhs(&self.q, &self.qd, self.t, &mut self.scratch);
         self.solve_scratch()?;
         self.qdd = self.scratch;
+        self.known = Known::Acceleration;
+        Ok(())
+    }
+
+    /// [`Solver::velocity`] and [`Solver::acceleration`] right after a successful
+    /// [`Solver::position`], solving in place: q̇ and q̈ hold no usable values after a failure,
+    /// which the step control then undoes ([`Stepper::reject`]). This saves the copies that
+    /// keep the previous values for a plain caller.
+    fn solve_derivatives(&mut self) -> Result<(), SolveError> {
+        self.mechanism.velocity_rhs(&self.q, self.t, &mut self.qd);
+        self.factors.solve(&self.mechanism, self.jac.borrow(), &mut self.qd);
+        if self.qd.iter().any(|v| !v.is_finite()) {
+            return Err(SolveError::NonFinite);
+        }
+        self.known = Known::Velocity;
+        self.mechanism.acceleration_rhs(&self.q, &self.qd, self.t, &mut self.qdd);
+        self.factors.solve(&self.mechanism, self.jac.borrow(), &mut self.qdd);
+        if self.qdd.iter().any(|v| !v.is_finite()) {
+            return Err(SolveError::NonFinite);
+        }
         self.known = Known::Acceleration;
         Ok(())
     }
@@ -468,9 +515,14 @@ pub struct StepReport<R = f64> {
     pub iterations: u32,
     /// max |Φ_i| at the final q.
     pub residual: R,
-    /// ρ = min |u_kk| / max |u_kk| of the dense LU with partial pivoting of Φ_q at the final q,
-    /// a cheap estimate of 1/κ(Φ_q).
+    /// ρ = min |u_kk| / max |u_kk| of the LU of Φ_q at the final q ([`Solver::pivot_ratio`]), a
+    /// cheap estimate of 1/κ(Φ_q).
     pub pivot_ratio: R,
+    /// κ̂, the estimate of the condition number of Φ_q at the final q that the digits rule
+    /// reads ([`Solver::condition`]).
+    pub condition: R,
+    /// The derivatives κ̂ cannot vouch for to six significant digits ([`step::suspect`]).
+    pub suspect: Suspect,
 }
 
 /// Why one attempt of [`Solver::advance_to`] failed before the step control's own checks: the
@@ -506,10 +558,11 @@ impl<M: Mechanism<N, R>, const N: usize, R: Real, J: BorrowMut<[[R; N]; N]>> Sol
     /// such point (a new solver, or after [`Solver::set_q`]) the call solves `t` directly from
     /// the estimate, refusing only a singular result.
     ///
-    /// Each attempt costs one evaluation and dense factorisation of Φ_q more than
-    /// [`Solver::position`], [`Solver::velocity`] and [`Solver::acceleration`] do (for the pivot
-    /// ratio); afterwards the solver holds those dense factors, so [`Solver::velocity`] still
-    /// works.
+    /// An attempt costs what [`Solver::position`], [`Solver::velocity`] and
+    /// [`Solver::acceleration`] cost, plus copies of the state and the continuity check: the
+    /// pivot ratio is that of the factorisation [`Solver::position`] kept
+    /// ([`Solver::pivot_ratio`]), refactored densely only within
+    /// [`step::STRUCTURED_MARGIN`] of the singularity bound.
     ///
     /// # Errors
     ///
@@ -562,12 +615,31 @@ impl<M: Mechanism<N, R>, const N: usize, R: Real, J: BorrowMut<[[R; N]; N]>> Sol
     /// ```
     pub fn advance_to(&mut self, t: R) -> Result<StepReport<R>, Stop<R, AttemptError<R>>> {
         let start = self.start_sample();
+        let current = self.accepted.current;
+        let reached = self.advance_from(start, current, t)?;
+        let condition = self.condition();
+        Ok(StepReport { condition, suspect: step::suspect(condition, R::EPSILON), ..reached })
+    }
+
+    /// [`Solver::advance_to`] without the condition estimate, from the sample `start` of the
+    /// current point (`current`: the copy of it is already kept).
+    fn advance_from(
+        &mut self,
+        start: Option<Sample<R>>,
+        current: bool,
+        t: R,
+    ) -> Result<StepReport<R>, Stop<R, AttemptError<R>>> {
         let mut control = Controlled { solver: self, candidate: start };
-        control.accept();
+        // The copy of the start point is already there when the last call ended on it.
+        if !current {
+            control.accept();
+        }
         let report = |s: Sample<R>, iterations| StepReport {
             iterations,
             residual: s.residual,
             pivot_ratio: s.pivot_ratio,
+            condition: R::NAN,
+            suspect: Suspect::default(),
         };
         match start {
             None => step::first(&mut control, t).map(|s| report(s, s.iterations)),
@@ -582,13 +654,77 @@ impl<M: Mechanism<N, R>, const N: usize, R: Real, J: BorrowMut<[[R; N]; N]>> Sol
             return None;
         }
         let a = &self.accepted;
-        if a.valid && a.sample.t == self.t && a.q == self.q {
+        if a.valid && a.current {
             return Some(a.sample);
         }
         self.mechanism.residual(&self.q, self.t, &mut self.scratch);
         let residual = newton::max_abs(&self.scratch);
-        let pivot_ratio = self.dense_pivot_ratio();
+        let pivot_ratio = self.pivot_ratio();
         Some(Sample { t: self.t, iterations: 0, residual, pivot_ratio })
+    }
+
+    /// ρ = min |u_kk| / max |u_kk| of Φ_q at the current (q, t), as the step control reads it
+    /// ([`crate::step`]): that of the factors [`Solver::position`] kept, unless they come from a
+    /// static pivot order and ρ is at most [`step::STRUCTURED_MARGIN`] times the singularity
+    /// bound ([`step::singular_ratio`]), or no factors are held: then Φ_q is evaluated in full
+    /// and factored by dense LU with partial pivoting, whose ratio is returned and whose
+    /// factors the solver keeps (so [`Solver::velocity`] still works). NaN when that
+    /// factorisation meets a non-finite entry.
+    ///
+    /// Away from singular configurations this costs nothing: the ratio of a static order lies
+    /// within a small factor of dense LU's (see [`step::STRUCTURED_MARGIN`]), and both estimate
+    /// 1/κ(Φ_q).
+    pub fn pivot_ratio(&mut self) -> R {
+        if self.factored {
+            let ratio = self.pivots.smallest / self.pivots.largest;
+            let confirm = R::from_f64(step::STRUCTURED_MARGIN) * step::singular_ratio(R::EPSILON);
+            if !self.factors.holds_structured() || ratio > confirm {
+                return ratio;
+            }
+        }
+        self.dense_pivot_ratio()
+    }
+
+    /// κ̂, the estimate of the condition number κ(Φ_q) at the current (q, t) that the digits
+    /// rule reads ([`step::suspect`]): max |u_kk| / min |u_kk| of the factors
+    /// [`Solver::position`] kept while that is below [`step::suspect_condition`] /
+    /// [`step::CONDITION_MARGIN`] (103 in f64), and
+    /// from there on (or when no factors are held) that of the dense LU of Φ_q equilibrated by
+    /// powers of two ([`Factors::factor_dense_equilibrated`], whose factors the solver then
+    /// keeps). Infinite when Φ_q has an exactly zero pivot, NaN when it holds a NaN.
+    ///
+    /// The factors a static pivot order or plain dense LU leaves are those of Φ_q in the
+    /// description's units, whose pivots spread with the length of the links (by about L for
+    /// links of length L); the equilibrated ones do not, so a step is flagged for what Φ_q is,
+    /// not for the unit it is written in. Below the margin the cheap estimate cannot hide a
+    /// flag (see [`step::CONDITION_MARGIN`]), and a regular step pays nothing for it.
+    pub fn condition(&mut self) -> R {
+        if N == 0 {
+            // No unknowns: Φ_q is empty, as well conditioned as the identity.
+            return R::ONE;
+        }
+        let confirm = step::suspect_condition(R::EPSILON) / R::from_f64(step::CONDITION_MARGIN);
+        if self.factored {
+            let cheap = self.pivots.largest / self.pivots.smallest;
+            if cheap < confirm {
+                return cheap;
+            }
+        }
+        let result = self.factors.factor_dense_equilibrated(
+            &self.mechanism,
+            &self.q,
+            self.t,
+            self.jac.borrow_mut(),
+        );
+        self.factored = result.is_ok();
+        match result {
+            Ok([plain, equilibrated]) => {
+                self.pivots = plain;
+                equilibrated.largest / equilibrated.smallest
+            }
+            Err(Singular::SmallPivot { .. }) => R::INFINITY,
+            Err(_) => R::NAN,
+        }
     }
 
     /// ρ of the dense LU with partial pivoting of Φ_q at the current (q, t), whose factors the
@@ -603,7 +739,10 @@ impl<M: Mechanism<N, R>, const N: usize, R: Real, J: BorrowMut<[[R; N]; N]>> Sol
         );
         self.factored = result.is_ok();
         match result {
-            Ok(p) => p.smallest / p.largest,
+            Ok(p) => {
+                self.pivots = p;
+                p.smallest / p.largest
+            }
             Err(Singular::SmallPivot { pivot, largest, .. }) => pivot / largest,
             Err(_) => R::NAN,
         }
@@ -626,17 +765,18 @@ impl<M: Mechanism<N, R>, const N: usize, R: Real, J: BorrowMut<[[R; N]; N]>> Ste
     fn attempt(&mut self, t: R) -> Result<Sample<R>, Rejection<R, AttemptError<R>>> {
         self.candidate = None;
         let s = &mut *self.solver;
-        let report = s.position(t).map_err(|e| {
+        // A failure here is undone by `reject`, which restores the accepted point: no copies.
+        let report = s.solve_position(t).map_err(|e| {
             let trouble = match e {
                 NewtonError::Singular { .. } => Trouble::Singular,
                 _ => Trouble::NoConvergence,
             };
             Rejection::engine(trouble, AttemptError::Newton(e))
         })?;
-        if let Err(e) = s.velocity().and_then(|()| s.acceleration()) {
+        if let Err(e) = s.solve_derivatives() {
             return Err(Rejection::engine(Trouble::Singular, AttemptError::Solve(e)));
         }
-        let pivot_ratio = s.dense_pivot_ratio();
+        let pivot_ratio = s.pivot_ratio();
         let sample =
             Sample { t, iterations: report.iterations, residual: report.residual, pivot_ratio };
         self.candidate = Some(sample);
@@ -667,6 +807,7 @@ impl<M: Mechanism<N, R>, const N: usize, R: Real, J: BorrowMut<[[R; N]; N]>> Ste
         a.known = s.known;
         a.valid = self.candidate.is_some();
         a.sample = self.candidate.unwrap_or(Sample { t: s.t, ..a.sample });
+        a.current = true;
     }
 
     fn reject(&mut self) {
@@ -680,5 +821,6 @@ impl<M: Mechanism<N, R>, const N: usize, R: Real, J: BorrowMut<[[R; N]; N]>> Ste
         s.t = a.sample.t;
         s.factored = false;
         s.factors.forget();
+        s.accepted.current = true;
     }
 }

@@ -11,9 +11,10 @@
 //! From the last accepted point (t_a, q_a, q̇_a, q̈_a) the stepper is asked for the point at the
 //! requested time t_b, starting Newton from its predictor. An attempt is rejected when
 //! - Newton fails (no convergence, a pivot of Φ_q at most 1e-12 of the largest, NaN), or
-//! - Newton converged but the pivot ratio ρ = min |u_kk| / max |u_kk| of the dense LU with
-//!   partial pivoting of Φ_q at the result (a cheap estimate of 1/κ(Φ_q)) is at most
-//!   [`SINGULAR_RATIO`], or
+//! - Newton converged but the pivot ratio ρ = min |u_kk| / max |u_kk| of the LU of Φ_q at the
+//!   result (a cheap estimate of 1/κ(Φ_q): the factors the solve kept, dense LU with partial
+//!   pivoting whenever a static pivot order's ratio is within [`STRUCTURED_MARGIN`] of the
+//!   bound) is at most [`SINGULAR_RATIO`], or
 //! - the stepper's own check fails (the generic engine's joint-angle branch test), or
 //! - the continuity check fails: the Hermite defect of the step,
 //!   E = q_b − q_a − h/2 (q̇_a + q̇_b) − h²/12 (q̈_a − q̈_b),
@@ -79,6 +80,18 @@ pub const FLOOR: f64 = 1e-6;
 /// of it, with ρ of the order of the tolerance.
 pub const SINGULAR_RATIO: f64 = 1.5e-8;
 
+/// A converged attempt whose factors of Φ_q come from one of the mechanism's static pivot
+/// orders and whose pivot ratio is at most this multiple of [`SINGULAR_RATIO`] takes its ratio
+/// from dense LU with partial pivoting instead ([`crate::Solver::pivot_ratio`]).
+///
+/// A static order pivots by threshold (|l| ≤ 10, [`crate::lu::MAX_MULTIPLIER`]), so its
+/// pivots differ from partial pivoting's: its ratio lies between 0.025 and 1 times the dense
+/// one along the motions of the shipped four-bar, R-S-S-R and slider-crank. Within a factor
+/// of 100 of the bound (four times the largest gap seen), where the two could fall on either
+/// side of it, the dense ratio decides, so the verdict on [`SINGULAR_RATIO`] is dense LU's;
+/// above, the static order's ratio is reported as it is, and no second factorisation is paid.
+pub const STRUCTURED_MARGIN: f64 = 100.0;
+
 /// A failure at the smallest sub-step is singular when the pivot ratio closest to it fell
 /// below this fraction of the ratio at the start of the step (see the module docs).
 pub const SINGULAR_DROP: f64 = 0.1;
@@ -93,6 +106,75 @@ pub fn singular_ratio<R: Real>(eps: R) -> R {
 #[must_use]
 pub fn floor<R: Real>(eps: R) -> R {
     R::from_f64(FLOOR / libm::sqrt(f64::EPSILON) * libm::sqrt(eps.to_f64()))
+}
+
+/// The relative error a reported velocity or acceleration may have and still count as trusted:
+/// six significant digits.
+pub const DIGITS: f64 = 1e-6;
+
+/// Which of a step's derivatives the condition estimate κ̂ of Φ_q cannot vouch for to
+/// [`DIGITS`] (see [`suspect`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Suspect {
+    /// q̇: κ̂² ε > [`DIGITS`].
+    pub velocity: bool,
+    /// q̈: κ̂³ ε > [`DIGITS`].
+    pub acceleration: bool,
+}
+
+impl Suspect {
+    /// Whether any derivative is suspect.
+    #[must_use]
+    pub const fn any(self) -> bool {
+        self.velocity || self.acceleration
+    }
+
+    /// The names of the suspect quantities, in the order of the contract's `"suspect"` list.
+    pub fn names(self) -> impl Iterator<Item = &'static str> {
+        [("velocity", self.velocity), ("acceleration", self.acceleration)]
+            .into_iter()
+            .filter_map(|(name, on)| on.then_some(name))
+    }
+}
+
+/// The digits rule: which derivatives of a step whose Φ_q has the condition estimate
+/// `condition` (κ̂ = 1/ρ, the reciprocal of a pivot ratio) may have lost more than all but six
+/// significant digits in an arithmetic of machine epsilon `eps`.
+///
+/// Newton leaves the residual at the rounding error of evaluating Φ, about ε in relative terms,
+/// so the position is known to about κ ε. Velocities solve Φ_q(q) q̇ = ν(q): the solve adds
+/// κ ε, and the position's error moves Φ_q and ν by that much, which Φ_q⁻¹ amplifies again, so
+/// q̇ is known to about κ² ε. Accelerations solve Φ_q q̈ = γ(q, q̇), and γ carries q̇'s error,
+/// amplified once more: κ³ ε. These are the first-order worst cases; they are met near a
+/// bifurcation, where the error of each stage lies along the direction the next one amplifies
+/// (README, "Where the methods fail", has the measurements). NaN counts as suspect.
+#[must_use]
+pub fn suspect<R: Real>(condition: R, eps: R) -> Suspect {
+    let (k, e) = (condition.to_f64(), eps.to_f64());
+    let over = |x: f64| {
+        !matches!(
+            x.partial_cmp(&DIGITS),
+            Some(core::cmp::Ordering::Less | core::cmp::Ordering::Equal)
+        )
+    };
+    Suspect { velocity: over(k * k * e), acceleration: over(k * k * k * e) }
+}
+
+/// A cheap condition estimate (that of the factors the solve kept) at least
+/// [`suspect_condition`] / `CONDITION_MARGIN` is replaced by that of a dense LU of Φ_q
+/// equilibrated by powers of two ([`crate::Solver::condition`]).
+///
+/// The cheap one is of Φ_q in the description's units and, for static pivot orders, by
+/// threshold pivoting; it was up to 8 times below the equilibrated one (the parallelogram
+/// four-bar 1e-3 rad past its flat configuration: 500 against 4,000), so below 1/16 of the
+/// bound it cannot hide a flag.
+pub const CONDITION_MARGIN: f64 = 16.0;
+
+/// The smallest condition estimate at which [`suspect`] flags an acceleration:
+/// (DIGITS / ε)^⅓, 1651 in f64.
+#[must_use]
+pub fn suspect_condition<R: Real>(eps: R) -> R {
+    R::from_f64(libm::cbrt(DIGITS / eps.to_f64()))
 }
 
 /// Why an attempt was rejected or a step stopped.
@@ -137,8 +219,9 @@ pub struct Sample<R = f64> {
     pub iterations: u32,
     /// max |Φ_i| at the point.
     pub residual: R,
-    /// ρ = min |u_kk| / max |u_kk| of the dense LU with partial pivoting of Φ_q at the point
-    /// (0 for an exactly singular Φ_q).
+    /// ρ = min |u_kk| / max |u_kk| of the LU of Φ_q at the point (0 for an exactly singular
+    /// Φ_q): the engine's own factorisation, by partial pivoting near the bound (see
+    /// [`STRUCTURED_MARGIN`]).
     pub pivot_ratio: R,
 }
 
@@ -371,22 +454,28 @@ pub fn discontinuity<R: Real>(
 ) -> Option<(usize, R)> {
     let (half, twelve) = (R::from_f64(0.5), R::from_f64(12.0));
     let (continuity, floor) = (R::from_f64(CONTINUITY), floor(eps));
+    let (h_half, h2_twelfth) = (half * h, h * h / twelve);
     let mut worst: Option<(usize, R)> = None;
+    // A group that fails (its defect above its allowance, or NaN): the ratio is worked out only
+    // then, so that a passing step costs no division.
+    let mut fail = |group: usize, defect: R, allowed: R| {
+        let ratio = defect / allowed;
+        if worst.is_none_or(|(_, r)| ratio.is_nan() || ratio > r) {
+            worst = Some((group, ratio));
+        }
+    };
     let mut check = |group: usize, range: core::ops::Range<usize>| {
         let (mut defect, mut moved, mut size) = (R::ZERO, R::ZERO, R::ZERO);
         for k in range {
             let dq = b.q[k] - a.q[k];
-            let e = dq - half * h * (a.qd[k] + b.qd[k]) - h * h / twelve * (a.qdd[k] - b.qdd[k]);
+            let e = dq - h_half * (a.qd[k] + b.qd[k]) - h2_twelfth * (a.qdd[k] - b.qdd[k]);
             defect += e * e;
             moved += dq * dq;
             size = size.max(b.q[k].abs());
         }
         let allowed = continuity * moved.sqrt() + floor * size.max(R::ONE);
-        // NaN fails too, and counts as the worst.
-        let ratio = defect.sqrt() / allowed;
-        let fails = ratio.is_nan() || ratio > R::ONE;
-        if fails && worst.is_none_or(|(_, r)| ratio.is_nan() || ratio > r) {
-            worst = Some((group, ratio));
+        if exceeds(defect, allowed * allowed) {
+            fail(group, defect.sqrt(), allowed);
         }
     };
     let n = a.q.len().min(b.q.len());
@@ -397,7 +486,30 @@ pub fn discontinuity<R: Real>(
                 check(body, 7 * body + 3..7 * body + 7);
             }
         }
-        Groups::Each => (0..n).for_each(|k| check(k, k..k + 1)),
+        Groups::Each => {
+            // The same test for groups of one coordinate, without square roots: a first pass
+            // without branches (which the compiler unrolls), then, only when it fails, a second
+            // that finds the worst coordinate.
+            let test = |aq: R, aqd: R, aqdd: R, bq: R, bqd: R, bqdd: R| {
+                let dq = bq - aq;
+                let e = dq - h_half * (aqd + bqd) - h2_twelfth * (aqdd - bqdd);
+                (e.abs(), continuity * dq.abs() + floor * bq.abs().max(R::ONE))
+            };
+            let points = || {
+                let pairs = a.q.iter().zip(a.qd).zip(a.qdd).zip(b.q.iter().zip(b.qd).zip(b.qdd));
+                pairs.map(|(((&aq, &aqd), &aqdd), ((&bq, &bqd), &bqdd))| {
+                    test(aq, aqd, aqdd, bq, bqd, bqdd)
+                })
+            };
+            // Written so that NaN fails too.
+            if !points().fold(true, |pass, (e, allowed)| pass & (e <= allowed)) {
+                for (k, (e, allowed)) in points().enumerate() {
+                    if exceeds(e, allowed) {
+                        fail(k, e, allowed);
+                    }
+                }
+            }
+        }
         Groups::Ends(ends) => {
             let mut lo = 0;
             for (group, &hi) in ends.iter().enumerate() {
@@ -407,6 +519,11 @@ pub fn discontinuity<R: Real>(
         }
     }
     worst
+}
+
+/// Whether `x` exceeds `bound`, or either is NaN.
+fn exceeds<R: Real>(x: R, bound: R) -> bool {
+    !matches!(x.partial_cmp(&bound), Some(core::cmp::Ordering::Less | core::cmp::Ordering::Equal))
 }
 
 /// Whether the pivot ratio of a converged point is at most [`SINGULAR_RATIO`] (or NaN).

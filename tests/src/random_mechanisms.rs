@@ -278,9 +278,11 @@ fn interpreted(mech: &Mechanism, sys: &Symbolic) -> Result<Vec<Frame>, String> {
             t,
             iterations,
             residual: p.residual,
+            condition: 1.0 / p.pivot_ratio,
             q: DVector::from_column_slice(&p.q),
             qd: DVector::from_column_slice(&p.qd),
             qdd: DVector::from_column_slice(&p.qdd),
+            redundant: None,
         });
         last = Some(p);
     }

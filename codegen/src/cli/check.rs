@@ -1,11 +1,12 @@
-//! `mechgen check`: size, rank, mobility and redundant equations of a description, and the
-//! blocks of its generated system.
+//! `mechgen check`: size, rank, mobility and redundant equations of a description, the
+//! equations that contradict each other at the initial configuration (exit status 2, as
+//! `solve` reports them), and the blocks of its generated system.
 
 use std::io::{self, Write};
 use std::path::Path;
 
 use super::args::CheckFormat;
-use super::common::{EXIT_OK, load};
+use super::common::{EXIT_OK, EXIT_STOPPED, load};
 use crate::blocks::Blocks;
 use crate::diag::printable;
 use crate::model::{ConstraintKind, DriverCoordinate, DriverTarget, Mechanism};
@@ -58,6 +59,13 @@ pub(super) fn check(
     };
     let redundant: Vec<String> =
         prep.redundant.iter().map(|&k| eq.labels()[k].equation()).collect();
+    // The first time point as `solve` takes it: only a contradiction is `check`'s to report
+    // (the others are the analysis' own failures), and only equations beyond a full rank
+    // (redundant ones) can contradict the others.
+    let conflict = (!prep.redundant.is_empty())
+        .then(|| crate::generic::Analysis::new(&eq, &prep).first_failure())
+        .flatten()
+        .filter(|f| f.kind == crate::generic::FailureKind::Inconsistent);
     // The generated system's true size and its blocks; the count of eliminated coordinates
     // and no blocks when it cannot be built (its diagnostics belong to `generate`).
     let sys = crate::symbolic::Symbolic::build(mech);
@@ -77,6 +85,10 @@ pub(super) fn check(
             "redundant": redundant,
             "blocks": blocks.as_ref().ok().map(blocks_json),
         });
+        let mut v = v;
+        if let (Some(f), Some(o)) = (&conflict, v.as_object_mut()) {
+            o.insert("error".to_owned(), crate::report::failure_json(f));
+        }
         writeln!(out, "{}", serde_json::to_string_pretty(&v)?)?;
     } else {
         writeln!(out, "mechanism {}: {bodies} bodies ({grounds} ground)", printable(&mech.name))?;
@@ -119,6 +131,13 @@ pub(super) fn check(
             }
             Err(e) => writeln!(out, "blocks:            none ({})", printable(&e.to_string()))?,
         }
+        if let Some(f) = &conflict {
+            writeln!(out, "inconsistent:      {}", printable(&f.constraints.join(", ")))?;
+        }
+    }
+    if let Some(f) = &conflict {
+        writeln!(err, "error: {}", crate::report::failure_text(f))?;
+        return Ok(EXIT_STOPPED);
     }
     Ok(EXIT_OK)
 }

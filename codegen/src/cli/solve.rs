@@ -85,17 +85,23 @@ pub(super) fn solve(
         None => Sink::Out(BufWriter::new(out)),
     };
     let name = if built.is_some() { "generated" } else { "generic" };
-    // The redundant equations each engine leaves out, said in the output itself and on
-    // standard error.
+    // The redundant equations, named by one rule for both engines, said in the output
+    // itself and on standard error; the generic engine solves them with the others, the
+    // generated one leaves them out of its reduced system.
     let removed: Vec<String> = match &built {
         Some(b) => b.removed.clone(),
         None => prep.redundant.iter().map(|&k| eq.labels()[k].equation()).collect(),
     };
+    let fate = if built.is_some() {
+        "is left out of the analysis"
+    } else {
+        "is solved with them and checked at every step"
+    };
     for r in &removed {
         writeln!(
             err,
-            "warning: equation {} depends on the others at the initial configuration and is \
-             left out of the analysis",
+            "warning: equation {} depends on the ones before it at the initial configuration \
+             and {fate}",
             printable(r)
         )?;
     }
@@ -118,9 +124,18 @@ pub(super) fn stream(
     // The writer's own error, kept whatever the engine makes of it: a closed pipe ends the
     // command quietly on either engine.
     let mut sink_error: Option<io::Error> = None;
+    let mut suspects = [Suspects::default(), Suspects::default()];
     let mut sink = |frame: &crate::generic::Frame| {
         bar.inc(1);
-        writer.step(&report::step_result(mech, &layout, frame)).inspect_err(|e| {
+        let step = report::step_result(mech, &layout, frame);
+        for (flag, seen) in
+            [step.suspect.velocity, step.suspect.acceleration].iter().zip(&mut suspects)
+        {
+            if *flag {
+                seen.add(step.t, step.condition);
+            }
+        }
+        writer.step(&step).inspect_err(|e| {
             sink_error = Some(io::Error::new(e.kind(), e.to_string()));
         })
     };
@@ -144,9 +159,57 @@ pub(super) fn stream(
     };
     bar.finish_and_clear();
     writer.finish(failure.as_ref())?.close()?;
+    for (quantity, seen) in ["velocity", "acceleration"].iter().zip(&suspects) {
+        seen.warn(quantity, err)?;
+    }
     if let Some(f) = &failure {
         writeln!(err, "error: {}", report::failure_text(f))?;
         return Ok(EXIT_STOPPED);
     }
     Ok(EXIT_OK)
+}
+
+/// The steps at which one derivative was flagged by the digits rule, for one warning: how
+/// many, the first few times and the largest condition estimate (memory independent of the
+/// number of steps).
+#[derive(Default)]
+struct Suspects {
+    count: usize,
+    first: Vec<f64>,
+    largest: f64,
+}
+
+impl Suspects {
+    /// The times a warning lists before it says how many more there are.
+    const LISTED: usize = 5;
+
+    fn add(&mut self, t: f64, condition: f64) {
+        self.count += 1;
+        if self.first.len() < Self::LISTED {
+            self.first.push(t);
+        }
+        // NaN (a condition that could not be estimated) is the largest.
+        if condition.is_nan() || condition > self.largest {
+            self.largest = condition;
+        }
+    }
+
+    /// `warning: the acceleration at t = 1 cannot be trusted to 6 significant digits …`.
+    fn warn(&self, quantity: &str, err: &mut dyn Write) -> io::Result<()> {
+        if self.count == 0 {
+            return Ok(());
+        }
+        let times: Vec<String> = self.first.iter().map(|t| t.to_string()).collect();
+        let more = self.count - self.first.len();
+        let more = if more > 0 { format!(" and {more} more") } else { String::new() };
+        let (s, are) = if self.count == 1 { ("", "is") } else { ("s", "are") };
+        writeln!(
+            err,
+            "warning: the {quantity} at {} step{s} (t = {}{more}) {are} suspect: the condition \
+             estimate of Φ_q (up to {:.1e}) cannot vouch for 6 significant digits",
+            self.count,
+            times.join(", "),
+            self.largest
+        )
+    }
 }

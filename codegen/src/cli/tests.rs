@@ -196,11 +196,12 @@ fn solve_csv_names_columns_body_quantity_component() {
     assert_eq!(code, EXIT_OK);
     let mut lines = out.lines();
     let header: Vec<&str> = lines.next().unwrap().split(',').collect();
-    assert_eq!(&header[..4], ["t", "iterations", "residual", "crank.r.x"]);
+    assert_eq!(&header[..6], ["t", "iterations", "residual", "condition", "suspect", "crank.r.x"]);
     assert!(header.contains(&"B.a.z"));
     assert!(header.contains(&"coupler.omega.y"));
-    // 3 bodies × 27 scalars (r 3, p 4, ṙ 3, ṗ 4, ω 3, r̈ 3, p̈ 4, α 3) + 2 points × 9 + 3 leading columns.
-    assert_eq!(header.len(), 3 + 3 * 27 + 2 * 9);
+    // 3 bodies × 27 scalars (r 3, p 4, ṙ 3, ṗ 4, ω 3, r̈ 3, p̈ 4, α 3) + 2 points × 9 + 5 leading
+    // columns.
+    assert_eq!(header.len(), 5 + 3 * 27 + 2 * 9);
     assert_eq!(lines.count(), 12);
 }
 
@@ -358,9 +359,10 @@ fn select_writes_only_the_named_points_bodies_and_joints() {
     let (code, out, err) = mechgen(&args);
     assert_eq!(code, EXIT_OK, "{err}");
     let header: Vec<&str> = out.lines().next().expect("a header").split(',').collect();
-    // Every column after t, iterations and residual belongs to the crank or to point B.
-    assert!(header.len() > 3, "{header:?}");
-    for column in &header[3..] {
+    // Every column after t, iterations, residual, condition and suspect belongs to the crank or
+    // to point B.
+    assert!(header.len() > 5, "{header:?}");
+    for column in &header[5..] {
         assert!(column.starts_with("crank.") || column.starts_with("B."), "{column}");
     }
     assert!(header.iter().any(|c| c.starts_with("B.")), "{header:?}");

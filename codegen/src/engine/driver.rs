@@ -239,8 +239,6 @@ fn bench<M: Generated>(
 fn run<M: Generated>(solver: Solver<M, N, Real, Jacobian>, series: &Series, out: &mut impl Write) {
     let mut engine = Engine {
         solver,
-        dense: jacobian(),
-        perm: [0; N],
         expanded: Box::new([[[0.0; 7]; 3]; mechanism::BODIES]),
         accepted: None,
         full: Full::default(),
@@ -256,7 +254,9 @@ fn run<M: Generated>(solver: Solver<M, N, Real, Jacobian>, series: &Series, out:
         };
         match outcome {
             Ok((p, iterations)) => {
-                check(write!(out, "step {t:?} {iterations} {:?}", p.residual));
+                // κ̂ of Φ_q at the step, for the digits rule (runtime::step::suspect).
+                let condition = wide(engine.solver.condition());
+                check(write!(out, "step {t:?} {iterations} {:?} {condition:?}", p.residual));
                 for v in [&engine.full.q, &engine.full.qd, &engine.full.qdd] {
                     numbers(out, v);
                 }
@@ -326,9 +326,6 @@ struct Full {
 /// on the full coordinates of every body (position and Euler parameters).
 struct Engine<M> {
     solver: Solver<M, N, Real, Jacobian>,
-    /// Φ_q at the last result, factored for its pivot ratio.
-    dense: Jacobian,
-    perm: [usize; N],
     expanded: Box<[[[Real; 7]; 3]; mechanism::BODIES]>,
     /// The last accepted (t, reduced q).
     accepted: Option<(Real, [Real; N])>,
@@ -352,15 +349,8 @@ impl<M: Generated> Stepper<f64> for Engine<M> {
         if let Err(e) = self.solver.velocity().and_then(|()| self.solver.acceleration()) {
             return Err(Rejection::engine(Trouble::Singular, AttemptError::Solve(e)));
         }
-        self.solver.mechanism().jacobian(self.solver.q(), t, &mut self.dense);
-        let pivot_ratio = match runtime::lu::factor_with_ratio(&mut self.dense, &mut self.perm, 0.0)
-        {
-            Ok(p) => wide(p.smallest) / wide(p.largest),
-            Err(runtime::lu::Singular::SmallPivot { pivot, largest, .. }) => {
-                wide(pivot) / wide(largest)
-            }
-            Err(_) => f64::NAN,
-        };
+        // The pivots of the factorisation the solve kept, dense only near the singularity bound.
+        let pivot_ratio = wide(self.solver.pivot_ratio());
         self.solver.mechanism().expand(
             self.solver.q(),
             self.solver.qd(),

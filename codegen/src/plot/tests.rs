@@ -8,9 +8,12 @@ fn step(t: f64) -> StepResult {
         t,
         iterations: 1,
         residual: 0.0,
+        condition: 1.0,
+        suspect: crate::report::Suspect::default(),
         bodies: Vec::new(),
         points: vec![PointResult { name: "P".into(), r: [t, 0.0, 0.0], v: [1.0; 3], a: [0.0; 3] }],
         joints: Vec::new(),
+        redundant: None,
     }
 }
 

@@ -20,7 +20,11 @@ fn run(mechanism: &CircleLine, q: [f64; 2], t: f64, options: &NewtonOptions) -> 
 }
 
 const BLANK: Run = Run {
-    result: Ok(NewtonReport { iterations: 0, residual: 0.0 }),
+    result: Ok(NewtonReport {
+        iterations: 0,
+        residual: 0.0,
+        pivots: crate::lu::PivotInfo { smallest: 0.0, largest: 0.0 },
+    }),
     q: [0.0; 2],
     phi: [f64::NAN; 2],
     jac: [[f64::NAN; 2]; 2],

@@ -321,7 +321,8 @@ fn a_700_unknown_chain_solves_with_heap_storage() {
 #[test]
 fn a_mechanism_without_unknowns_is_trivially_solved() {
     let mut solver = Solver::new(Empty, []);
-    assert_eq!(solver.position(1.0), Ok(NewtonReport { iterations: 0, residual: 0.0 }));
+    let report = solver.position(1.0).unwrap();
+    assert_eq!((report.iterations, report.residual), (0, 0.0));
     solver.velocity().unwrap();
     solver.acceleration().unwrap();
 }
@@ -354,4 +355,89 @@ fn single_precision_sweep_matches_the_closed_form() {
     // the same conditioning.
     assert!(worst[0] < 1e-3, "positions off by {worst:?}");
     assert!(worst[1] < 2e-3 && worst[2] < 5e-3, "rates off by {worst:?}");
+}
+
+/// Φ = (q0 − t, d q1 − t): Φ_q = diag(1, d), whose LU by any pivoting has the pivots 1 and d, so
+/// its pivot ratio is d (for d ≤ 1). One static order, the identity, as generated code would
+/// write it (reciprocal pivots on the diagonal).
+struct Diagonal {
+    d: f64,
+}
+
+impl Mechanism<2> for Diagonal {
+    const PIVOT_ORDERS: usize = 1;
+
+    fn residual(&self, q: &[f64; 2], t: f64, phi: &mut [f64; 2]) {
+        *phi = [q[0] - t, self.d * q[1] - t];
+    }
+    fn jacobian(&self, _q: &[f64; 2], _t: f64, jac: &mut [[f64; 2]; 2]) {
+        *jac = [[1.0, 0.0], [0.0, self.d]];
+    }
+    fn velocity_rhs(&self, _q: &[f64; 2], _t: f64, nu: &mut [f64; 2]) {
+        *nu = [1.0, 1.0];
+    }
+    fn acceleration_rhs(&self, _q: &[f64; 2], _qd: &[f64; 2], _t: f64, gamma: &mut [f64; 2]) {
+        *gamma = [0.0; 2];
+    }
+    fn factor_structured(&self, order: usize, jac: &mut [[f64; 2]; 2]) -> Option<PivotInfo> {
+        let (p0, p1) = (jac[0][0], jac[1][1]);
+        if order != 0 || !(p0.is_finite() && p1.is_finite()) {
+            return None;
+        }
+        (jac[0][0], jac[1][1]) = (1.0 / p0, 1.0 / p1);
+        Some(PivotInfo { smallest: p0.abs().min(p1.abs()), largest: p0.abs().max(p1.abs()) })
+    }
+    fn solve_structured(&self, _order: usize, lu: &[[f64; 2]; 2], b: &mut [f64; 2]) {
+        *b = [b[0] * lu[0][0], b[1] * lu[1][1]];
+    }
+}
+
+/// Steps `Diagonal { d }` under the step control and returns the last report and the counts.
+fn diagonal_steps(d: f64) -> (StepReport, FactorCounts) {
+    let mut solver = Solver::new(Diagonal { d }, [0.0; 2]);
+    solver.set_predictor(true);
+    let mut report = solver.advance_to(0.0).unwrap();
+    for k in 1..=4 {
+        report = solver.advance_to(0.1 * f64::from(k)).unwrap();
+        // q1 = t / d exactly solves the linear system; one Newton step lands within round-off.
+        assert_relative_eq!(solver.q()[1], 0.1 * f64::from(k) / d, max_relative = 1e-12);
+    }
+    (report, solver.factor_counts())
+}
+
+#[test]
+fn the_step_control_reads_the_pivots_of_the_factors_it_kept() {
+    // Far from the singularity bound the static order's pivots are the answer: no dense LU.
+    let (report, counts) = diagonal_steps(0.5);
+    assert_eq!(report.pivot_ratio, 0.5);
+    assert_eq!(counts.dense, 0);
+    assert!(counts.structured >= 5, "{counts:?}");
+}
+
+#[test]
+fn near_the_singularity_bound_dense_lu_decides() {
+    // ρ = 1e-7 is above the bound 1.5e-8 but within STRUCTURED_MARGIN (100) of it: every
+    // accepted point is factored densely once more, and its ratio, d, is reported.
+    const { assert!(1e-7 <= step::STRUCTURED_MARGIN * step::SINGULAR_RATIO) };
+    let (report, counts) = diagonal_steps(1e-7);
+    assert_eq!(report.pivot_ratio, 1e-7);
+    assert!(counts.dense >= 5, "{counts:?}");
+}
+
+#[test]
+fn the_condition_estimate_does_not_depend_on_units() {
+    // diag(1, 1e-7) is diag(1, 1) in other units of q1: the pivots of Φ_q differ by 1e7, but
+    // scaling its columns by powers of two makes both pivots equal within a factor of √2 each
+    // (the nearest power of two), so κ̂ ≤ 2 and nothing is suspect. The step control's pivot
+    // ratio stays that of Φ_q as written.
+    let mut solver = Solver::new(Diagonal { d: 1e-7 }, [0.0; 2]);
+    solver.advance_to(0.0).unwrap();
+    let report = solver.advance_to(0.1).unwrap();
+    assert_eq!(report.pivot_ratio, 1e-7);
+    assert!((1.0..=2.0).contains(&report.condition), "{report:?}");
+    assert_eq!(report.suspect, step::Suspect::default());
+    // Where the cheap estimate is small, it is reported as it is: diag(1, 0.5) has κ = 2.
+    let mut solver = Solver::new(Diagonal { d: 0.5 }, [0.0; 2]);
+    let report = solver.advance_to(0.0).unwrap();
+    assert_eq!(report.condition, 2.0);
 }

@@ -223,3 +223,27 @@ fn the_thresholds_scale_as_the_square_root_of_epsilon() {
     assert!((ratio - 2f64.powf(14.5)).abs() < 1e-3 * ratio, "{ratio}");
     assert_eq!(Trouble::Inconsistent.as_str(), "inconsistent");
 }
+
+#[test]
+fn the_digits_rule_flags_where_the_error_bounds_pass_six_digits() {
+    // κ² ε and κ³ ε against 1e-6 in f64 (ε = 2.2e-16): accelerations from κ = (1e-6/ε)^⅓ =
+    // 1651, velocities from (1e-6/ε)^½ = 67,109.
+    let eps = f64::EPSILON;
+    let bound = suspect_condition(eps);
+    assert!(
+        (bound - (1e-6 / eps).cbrt()).abs() < 1e-9 * bound && (1650.0..1652.0).contains(&bound)
+    );
+    assert_eq!(suspect(1650.0, eps), Suspect::default());
+    assert_eq!(suspect(1652.0, eps), Suspect { velocity: false, acceleration: true });
+    assert_eq!(suspect(67_108.0, eps), Suspect { velocity: false, acceleration: true });
+    assert_eq!(suspect(67_110.0, eps), Suspect { velocity: true, acceleration: true });
+    assert_eq!(suspect(f64::NAN, eps), Suspect { velocity: true, acceleration: true });
+    assert_eq!(suspect(f64::INFINITY, eps), Suspect { velocity: true, acceleration: true });
+    // In single precision (ε = 1.2e-7) six digits are out of reach from κ = 2.03 on.
+    assert_eq!(suspect(2.0_f32, f32::EPSILON), Suspect::default());
+    assert!(suspect(2.1_f32, f32::EPSILON).acceleration);
+    assert_eq!(
+        Suspect { velocity: true, acceleration: true }.names().collect::<std::vec::Vec<_>>(),
+        ["velocity", "acceleration"]
+    );
+}

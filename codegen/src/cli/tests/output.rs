@@ -204,7 +204,7 @@ fn a_generated_solver_that_breaks_off_still_ends_the_json_with_its_error() {
     let dir = fresh_dir("broken");
     let script = dir.join("solver.sh");
     let zeros = vec!["0.0"; 63].join(" ");
-    std::fs::write(&script, format!("#!/bin/sh\necho \"step 0.0 1 0.0 {zeros}\"\nexit 7\n"))
+    std::fs::write(&script, format!("#!/bin/sh\necho \"step 0.0 1 0.0 1.0 {zeros}\"\nexit 7\n"))
         .expect("writable");
     std::fs::set_permissions(&script, std::fs::Permissions::from_mode(0o755)).expect("chmod");
     built.binary = script;
