@@ -1345,7 +1345,10 @@ mod tests {
         // (feature float_roundtrip).
         let steps = sample_steps(true);
         // The writer reads the mechanism's name only; the steps bring their own names.
-        let mech = crate::testing::load(&crate::testing::example("rssr.toml")).mechanism;
+        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples/rssr.toml");
+        let mech = crate::validate::load_file(&path)
+            .unwrap_or_else(|_| panic!("the example loads"))
+            .mechanism;
         let mut w = Writer::begin(Vec::new(), Format::Json, &mech, "generic", &[]).unwrap();
         for s in &steps {
             w.step(s).unwrap();
