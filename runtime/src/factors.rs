@@ -116,10 +116,12 @@ impl<const N: usize> Factors<N> {
     }
 
     /// Whether the storage holds the factors of one of the mechanism's static pivot orders
-    /// (threshold pivoting), rather than dense LU's (partial pivoting) or nothing.
+    /// (threshold pivoting) or of its blocks (partial pivoting inside each diagonal block),
+    /// rather than dense LU's (partial pivoting over the whole of Φ_q) or nothing: pivots whose
+    /// ratio the step control confirms with dense LU near its threshold.
     #[must_use]
     pub const fn holds_structured(&self) -> bool {
-        matches!(self.held, Held::Structured(_))
+        matches!(self.held, Held::Structured(_) | Held::Blocks)
     }
 
     /// Forgets the factors (the storage is about to be overwritten).
