@@ -14,6 +14,7 @@ use crate::expr::ExprId;
 use crate::model::Mechanism;
 use crate::symbolic::{Source, Symbolic};
 
+mod blocks;
 mod docs;
 mod function;
 mod inputs;
@@ -43,6 +44,31 @@ pub fn module(mech: &Mechanism, sys: &Symbolic, source: &str) -> String {
 /// [`module`] in the floating-point type `scalar` (see [`scalar`]).
 #[must_use]
 pub fn module_in(mech: &Mechanism, sys: &Symbolic, source: &str, scalar: Scalar) -> String {
+    assemble(mech, sys, source, scalar, true)
+}
+
+/// [`module_in`] with the static pivot orders even where Φ_q would be factored block by block
+/// (a system of 64 unknowns or more with more than one block, none larger than 32): for tests
+/// and comparisons of the two factorisations.
+#[must_use]
+pub fn module_with_static_orders(
+    mech: &Mechanism,
+    sys: &Symbolic,
+    source: &str,
+    scalar: Scalar,
+) -> String {
+    assemble(mech, sys, source, scalar, false)
+}
+
+/// The module, factored block by block when `blocks` allows it and [`blocks::plan`] finds it
+/// worthwhile.
+fn assemble(
+    mech: &Mechanism,
+    sys: &Symbolic,
+    source: &str,
+    scalar: Scalar,
+    blocks: bool,
+) -> String {
     // The outputs' expressions join Φ's arena (after its nodes, so Φ's code is unchanged).
     let mut sys = sys.clone();
     let named = sys.outputs(mech);
@@ -55,9 +81,15 @@ pub fn module_in(mech: &Mechanism, sys: &Symbolic, source: &str, scalar: Scalar)
     items.extend(inputs::items(mech, sys));
     let after_constants = items.len();
     let rows = Rows::new(sys);
-    items.extend(residual_and_jacobian(&rows));
-    // The structured LU: static pivot orders over the description's motion.
-    let orders = if n == 0 { Vec::new() } else { crate::pivot::plan_motion(mech, sys) };
+    // The structured LU: block by block when Φ_q falls apart into blocks (`blocks`), else
+    // static pivot orders over the description's motion.
+    let layout = if blocks { blocks::plan(sys) } else { None };
+    items.extend(residual_and_jacobian(&rows, layout.is_none()));
+    if let Some(b) = &layout {
+        items.extend(blocks::items(&rows, b));
+    }
+    let orders =
+        if n == 0 || layout.is_some() { Vec::new() } else { crate::pivot::plan_motion(mech, sys) };
     let structure = crate::pivot::structure(sys);
     let constant = crate::pivot::constants(sys);
     for (k, order) in orders.iter().enumerate() {
@@ -68,10 +100,15 @@ pub fn module_in(mech: &Mechanism, sys: &Symbolic, source: &str, scalar: Scalar)
     items.push(expand(sys, &moving));
     items.extend(outputs::accessors(&rows, &named));
     items.extend(redundant::items(sys, &rows));
-    if sys.inputs.is_empty() {
-        items.extend(mechanism_type(mech, orders.len()));
+    let structured = if layout.is_some() {
+        blocks::impl_items(!sys.inputs.is_empty())
     } else {
-        items.extend(inputs::mechanism_type(mech, orders.len()));
+        structured_items(orders.len(), !sys.inputs.is_empty())
+    };
+    if sys.inputs.is_empty() {
+        items.extend(mechanism_type(mech, structured));
+    } else {
+        items.extend(inputs::mechanism_type(mech, structured));
     }
     // The law coefficients the functions read, named after the other constants.
     let mut laws = names::LawNames::new(mech);
@@ -254,8 +291,9 @@ impl<'s> Rows<'s> {
     }
 }
 
-/// `residual`, `jacobian`, `residual_jacobian` and `residual_jacobian_structural`.
-fn residual_and_jacobian(rows: &Rows<'_>) -> Vec<syn::Item> {
+/// `residual`, `jacobian`, `residual_jacobian` and, for the static orders' factorisations
+/// (`structural`), `residual_jacobian_structural`.
+fn residual_and_jacobian(rows: &Rows<'_>, structural: bool) -> Vec<syn::Item> {
     let sys = rows.sys;
     let n = sys.unknowns.len();
     let vec_ty = quote::quote!(&mut [f64; N]);
@@ -303,6 +341,9 @@ fn residual_and_jacobian(rows: &Rows<'_>) -> Vec<syn::Item> {
     };
     let what = "Φ and Φ_q at once (see [`residual`] and [`jacobian`]).";
     items.extend(rows.emit(&sig, what, vec![zero_jac], &both));
+    if !structural {
+        return items;
+    }
 
     // Φ and the entries of Φ_q that vary: the constant ones are literals in `factor_k`.
     let mut varying = rows.vector(0, "phi", &sys.phi);
@@ -461,11 +502,10 @@ fn expand(sys: &Symbolic, moving: &[usize]) -> syn::Item {
     }
 }
 
-/// The unit struct and its `runtime::Mechanism` impl, with the structured LU's `orders`.
-fn mechanism_type(mech: &Mechanism, orders: usize) -> Vec<syn::Item> {
+/// The unit struct and its `runtime::Mechanism` impl, with the structured LU's items.
+fn mechanism_type(mech: &Mechanism, structured: Vec<syn::ImplItem>) -> Vec<syn::Item> {
     let ty = ident(&type_name(&mech.name));
     let doc = format!(" The mechanism `{}` as a [`runtime::Mechanism`].", mech.name);
-    let structured = structured_items(orders, false);
     vec![
         parse_quote! {
             #[doc = #doc]

@@ -11,6 +11,7 @@
 //! (`chart`, `plot`); without it, the crate is the model, both engines and the generator, which
 //! is what a build script calling [`build::Builder`] needs.
 
+pub mod blocks;
 pub mod build;
 #[cfg(feature = "cli")]
 pub mod chart;

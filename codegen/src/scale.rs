@@ -77,3 +77,41 @@ pub fn rssr_loops(k: usize, steps: usize) -> String {
     }
     s
 }
+
+/// `count` independent arms of `links` revolute-driven links each, their bases 1.0 apart along
+/// y: every link is 0.5 long along x, and its joint to the link before it (the first to
+/// ground) turns about z for odd links and about y for even ones, so each arm is spatial.
+#[must_use]
+pub fn arms(count: usize, links: usize, steps: usize) -> String {
+    let mut s = header(&format!("arms_{count}x{links}"), steps);
+    for a in 1..=count {
+        let y = a as f64 - 1.0;
+        for k in 1..=links {
+            let x = 0.5 * (k as f64 - 1.0) + 0.25;
+            let _ = write!(s, "[[bodies]]\nname = \"arm{a}_link{k}\"\nr = [{x:?}, {y:?}, 0.0]\n\n");
+        }
+    }
+    for a in 1..=count {
+        let y = a as f64 - 1.0;
+        for k in 1..=links {
+            let (prev, point_i) = if k == 1 {
+                ("ground".to_owned(), format!("[0.0, {y:?}, 0.0]"))
+            } else {
+                (format!("arm{a}_link{}", k - 1), "[0.25, 0.0, 0.0]".to_owned())
+            };
+            let axis = if k % 2 == 1 { "[0.0, 0.0, 1.0]" } else { "[0.0, 1.0, 0.0]" };
+            let _ = write!(
+                s,
+                "[[joints]]\nname = \"arm{a}_joint{k}\"\ntype = \"revolute\"\nbody_i = \"{prev}\"\n\
+                 body_j = \"arm{a}_link{k}\"\npoint_i = {point_i}\npoint_j = [-0.25, 0.0, 0.0]\n\
+                 axis_i = {axis}\naxis_j = {axis}\nref_i = [1.0, 0.0, 0.0]\n\
+                 ref_j = [1.0, 0.0, 0.0]\n\n\
+                 [[drivers]]\nname = \"arm{a}_motor{k}\"\njoint = \"arm{a}_joint{k}\"\n\
+                 motion = \"rotation\"\n\
+                 law = {{ offset = 0.0, amplitude = 0.3, frequency = {:?}, phase = 0.0 }}\n\n",
+                10.0 + k as f64 + 0.1 * a as f64
+            );
+        }
+    }
+    s
+}

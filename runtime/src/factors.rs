@@ -38,6 +38,8 @@ enum Held {
     Structured(usize),
     /// Dense LU factors with the row permutation in [`Factors::perm`].
     Dense,
+    /// Block factors ([`Mechanism::factor_blocks`]) with their pivoting in [`Factors::perm`].
+    Blocks,
 }
 
 /// The pivoting side of a factorisation of Φ_q held in a separate `[[R; N]; N]`.
@@ -114,10 +116,12 @@ impl<const N: usize> Factors<N> {
     }
 
     /// Whether the storage holds the factors of one of the mechanism's static pivot orders
-    /// (threshold pivoting), rather than dense LU's (partial pivoting) or nothing.
+    /// (threshold pivoting) or of its blocks (partial pivoting inside each diagonal block),
+    /// rather than dense LU's (partial pivoting over the whole of Φ_q) or nothing: pivots whose
+    /// ratio the step control confirms with dense LU near its threshold.
     #[must_use]
     pub const fn holds_structured(&self) -> bool {
-        matches!(self.held, Held::Structured(_))
+        matches!(self.held, Held::Structured(_) | Held::Blocks)
     }
 
     /// Forgets the factors (the storage is about to be overwritten).
@@ -138,7 +142,9 @@ impl<const N: usize> Factors<N> {
         jac: &mut [[R; N]; N],
     ) {
         self.held = Held::Nothing;
-        if M::PIVOT_ORDERS > 0 {
+        if M::BLOCKS.is_some() {
+            mechanism.residual_jacobian_blocks(q, t, phi, jac);
+        } else if M::PIVOT_ORDERS > 0 {
             mechanism.residual_jacobian_structural(q, t, phi, jac);
         } else {
             mechanism.residual_jacobian(q, t, phi, jac);
@@ -148,7 +154,9 @@ impl<const N: usize> Factors<N> {
     /// Factors Φ_q(q, t), written into `jac` by [`Factors::evaluate`] at the same (q, t), in
     /// place.
     ///
-    /// Tries the mechanism's static orders, the last successful one first, evaluating Φ_q(q, t)
+    /// With a block layout ([`Mechanism::BLOCKS`]), factors block by block ([`Mechanism::factor_blocks`]),
+    /// and by dense LU when a pivot is zero or the pivot ratio at most `ratio`. Otherwise tries
+    /// the mechanism's static orders, the last successful one first, evaluating Φ_q(q, t)
     /// again after each refusal; when every one is refused, or the smallest |pivot| of the one
     /// that passed is at most `ratio` times the largest, evaluates Φ_q(q, t) in full into `jac`
     /// and factors it by [`lu::factor_with_ratio`].
@@ -164,6 +172,20 @@ impl<const N: usize> Factors<N> {
         jac: &mut [[R; N]; N],
         ratio: R,
     ) -> Result<PivotInfo<R>, Singular<R>> {
+        if M::BLOCKS.is_some() {
+            match mechanism.factor_blocks(jac, &mut self.perm) {
+                Some(p) if p.smallest > ratio * p.largest => {
+                    self.held = Held::Blocks;
+                    self.counts.structured += 1;
+                    return Ok(p);
+                }
+                // A zero or small pivot: dense LU's own verdict decides.
+                _ => {
+                    self.counts.refused += 1;
+                    return self.factor_dense(mechanism, q, t, jac, ratio);
+                }
+            }
+        }
         let orders = M::PIVOT_ORDERS;
         for attempt in 0..orders {
             let order = (self.next + attempt) % orders;
@@ -280,6 +302,7 @@ impl<const N: usize> Factors<N> {
         match self.held {
             Held::Structured(order) => mechanism.solve_structured(order, lu, b),
             Held::Dense => lu::solve(lu, &self.perm, b),
+            Held::Blocks => mechanism.solve_blocks(lu, &self.perm, b),
             Held::Nothing => *b = [R::NAN; N],
         }
     }

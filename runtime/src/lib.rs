@@ -123,6 +123,7 @@
 
 #![no_std]
 
+pub mod blocks;
 pub mod dynamic;
 pub mod factors;
 pub mod input;

@@ -41,6 +41,44 @@ pub trait Mechanism<const N: usize, R: Real = f64> {
     /// The default does nothing.
     fn normalize(&self, _q: &mut [R; N]) {}
 
+    /// The block-lower-triangular form of Φ_q, when the mechanism's solver factors it block by
+    /// block ([`blocks`](crate::blocks)); the default, `None`, means it does not.
+    ///
+    /// With a layout the solvers evaluate Φ_q with [`Mechanism::residual_jacobian_blocks`],
+    /// factor it with [`Mechanism::factor_blocks`] and fall back to dense LU only when that
+    /// meets a zero or small pivot; the static orders are then not used.
+    const BLOCKS: Option<&'static crate::blocks::Layout> = None;
+
+    /// Writes Φ(q, t) into `phi` and, into `jac`, what [`Mechanism::factor_blocks`] and
+    /// [`Mechanism::solve_blocks`] read, leaving the other entries as they were.
+    /// The default calls [`Mechanism::residual_jacobian`].
+    fn residual_jacobian_blocks(&self, q: &[R; N], t: R, phi: &mut [R; N], jac: &mut [[R; N]; N]) {
+        self.residual_jacobian(q, t, phi, jac);
+    }
+
+    /// Factors Φ_q block by block in place, `perm` holding the pivoting (in a layout of the
+    /// mechanism's own, which only [`Mechanism::solve_blocks`] reads); returns the smallest and
+    /// largest |pivot|, or `None` when a pivot is 0 or an entry not finite, or the mechanism
+    /// has no [`Mechanism::BLOCKS`].
+    /// The default runs [`blocks::factor`](crate::blocks::factor) on the layout; generated
+    /// code overrides it with straight-line code per block.
+    fn factor_blocks(
+        &self,
+        jac: &mut [[R; N]; N],
+        perm: &mut [usize; N],
+    ) -> Option<crate::lu::PivotInfo<R>> {
+        Self::BLOCKS.and_then(|layout| crate::blocks::factor(layout, jac, perm))
+    }
+
+    /// Solves Φ_q x = b in place (b by row in, x by column out) with what a successful
+    /// [`Mechanism::factor_blocks`] left in `lu` and `perm`.
+    /// The default runs [`blocks::solve`](crate::blocks::solve) on the layout.
+    fn solve_blocks(&self, lu: &[[R; N]; N], perm: &[usize; N], b: &mut [R; N]) {
+        if let Some(layout) = Self::BLOCKS {
+            crate::blocks::solve(layout, lu, perm, b);
+        }
+    }
+
     /// The number of static pivot orders [`Mechanism::factor_structured`] knows.
     ///
     /// The default, 0, means none: the solvers then evaluate Φ_q with

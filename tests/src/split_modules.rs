@@ -3,7 +3,7 @@
 
 use std::process::Command;
 
-use codegen::emit::{Scalar, module_in};
+use codegen::emit::{Scalar, module_in, module_with_static_orders};
 use codegen::symbolic::Symbolic;
 use codegen::testing::load_toml;
 
@@ -15,7 +15,8 @@ fn split_modules_pass_clippy_with_warnings_denied_in_f64_and_f32() {
     // A chain of 30 links and 10 R-S-S-R loops: big enough that the residuals, the Jacobian,
     // the LU factors and the solves are all split into helpers (CHUNK_OPS), with parts of a
     // solve whose factors are all constants; smaller ones split less and missed two clippy
-    // errors (a self-assignment and an unused argument) that these have.
+    // errors (a self-assignment and an unused argument) that these have. Both are factored
+    // block by block (`emit::blocks`), so each is also emitted with its static pivot orders.
     let cases =
         [("chain", codegen::scale::chain(30, 2)), ("loops", codegen::scale::rssr_loops(10, 2))];
     let mut lib = String::from("#![no_std]\n//! Split generated modules, checked by clippy.\n");
@@ -24,11 +25,16 @@ fn split_modules_pass_clippy_with_warnings_denied_in_f64_and_f32() {
         let mech = load_toml(text);
         let sys = Symbolic::build(&mech).expect("generates");
         for scalar in [Scalar::F64, Scalar::F32] {
-            let module = module_in(&mech, &sys, name, scalar);
-            helpers += module.matches("#[inline(never)]").count();
-            let file = format!("{name}_{}", scalar.name());
-            std::fs::write(dir.join(format!("src/{file}.rs")), module).expect("writable");
-            lib.push_str(&format!("pub mod {file};\n"));
+            let blocks = module_in(&mech, &sys, name, scalar);
+            assert!(blocks.contains("static BLOCKS"), "{name}: factored block by block");
+            let orders = module_with_static_orders(&mech, &sys, name, scalar);
+            assert!(orders.contains("fn factor_0"), "{name}: static orders");
+            for (module, how) in [(blocks, "blocks"), (orders, "orders")] {
+                helpers += module.matches("#[inline(never)]").count();
+                let file = format!("{name}_{how}_{}", scalar.name());
+                std::fs::write(dir.join(format!("src/{file}.rs")), module).expect("writable");
+                lib.push_str(&format!("pub mod {file};\n"));
+            }
         }
     }
     assert!(helpers >= 100, "only {helpers} split helpers: the test no longer checks splitting");

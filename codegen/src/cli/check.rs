@@ -1,12 +1,13 @@
-//! `mechgen check`: size, rank, mobility and redundant equations of a description, and the
+//! `mechgen check`: size, rank, mobility and redundant equations of a description, the
 //! equations that contradict each other at the initial configuration (exit status 2, as
-//! `solve` reports them).
+//! `solve` reports them), and the blocks of its generated system.
 
 use std::io::{self, Write};
 use std::path::Path;
 
 use super::args::CheckFormat;
 use super::common::{EXIT_OK, EXIT_STOPPED, load};
+use crate::blocks::Blocks;
 use crate::diag::printable;
 use crate::model::{ConstraintKind, DriverCoordinate, DriverTarget, Mechanism};
 
@@ -65,10 +66,11 @@ pub(super) fn check(
         .then(|| crate::generic::Analysis::new(&eq, &prep).first_failure())
         .flatten()
         .filter(|f| f.kind == crate::generic::FailureKind::Inconsistent);
-    // The generated system's true size; the count of eliminated coordinates when it cannot
-    // be built (its diagnostics belong to `generate`).
-    let reduced = crate::symbolic::Symbolic::build(mech)
-        .map_or_else(|_| reduced_unknowns(mech), |s| s.unknowns.len());
+    // The generated system's true size and its blocks; the count of eliminated coordinates
+    // and no blocks when it cannot be built (its diagnostics belong to `generate`).
+    let sys = crate::symbolic::Symbolic::build(mech);
+    let reduced = sys.as_ref().map_or_else(|_| reduced_unknowns(mech), |s| s.unknowns.len());
+    let blocks = sys.as_ref().map(Blocks::of);
     let bodies = mech.bodies.len();
     let grounds = mech.bodies.iter().filter(|b| b.ground).count();
     if json {
@@ -81,6 +83,7 @@ pub(super) fn check(
             "mobility": prep.mobility,
             "drivers": mech.drivers.len(),
             "redundant": redundant,
+            "blocks": blocks.as_ref().ok().map(blocks_json),
         });
         let mut v = v;
         if let (Some(f), Some(o)) = (&conflict, v.as_object_mut()) {
@@ -109,6 +112,25 @@ pub(super) fn check(
         } else {
             writeln!(out, "redundant:         {}", printable(&redundant.join(", ")))?;
         }
+        match &blocks {
+            Ok(b) => {
+                let implicit = b.blocks.len() - b.closed_form();
+                let largest = match b.largest_implicit() {
+                    0 => String::new(),
+                    n => format!(", the largest of {n}"),
+                };
+                writeln!(
+                    out,
+                    "blocks:            {} ({} closed form, {implicit} implicit{largest})",
+                    b.blocks.len(),
+                    b.closed_form()
+                )?;
+                let sizes: Vec<String> =
+                    b.sizes().iter().map(|(size, count)| format!("{count} of {size}")).collect();
+                writeln!(out, "block sizes:       {}", sizes.join(", "))?;
+            }
+            Err(e) => writeln!(out, "blocks:            none ({})", printable(&e.to_string()))?,
+        }
         if let Some(f) = &conflict {
             writeln!(out, "inconsistent:      {}", printable(&f.constraints.join(", ")))?;
         }
@@ -118,4 +140,20 @@ pub(super) fn check(
         return Ok(EXIT_STOPPED);
     }
     Ok(EXIT_OK)
+}
+
+/// `{ "count", "closed_form", "implicit", "largest_implicit", "sizes": [{ "size", "count" }] }`.
+fn blocks_json(b: &Blocks) -> serde_json::Value {
+    let sizes: Vec<serde_json::Value> = b
+        .sizes()
+        .into_iter()
+        .map(|(size, count)| serde_json::json!({ "size": size, "count": count }))
+        .collect();
+    serde_json::json!({
+        "count": b.blocks.len(),
+        "closed_form": b.closed_form(),
+        "implicit": b.blocks.len() - b.closed_form(),
+        "largest_implicit": b.largest_implicit(),
+        "sizes": sizes,
+    })
 }

@@ -57,6 +57,61 @@ fn check_json_reports_the_counts_of_the_rssr() {
 }
 
 #[test]
+fn check_reports_the_blocks_of_the_generated_system() {
+    // The R-S-S-R (see `blocks::tests`): the origins of crank, coupler and rocker sit on O2, A
+    // and O4, nine coordinates each alone and affine; the crank's orientation is a block of four
+    // (O2's axis rows, the motor, its normalisation); the coupler's e0, e1, e3 and the rocker's
+    // four Euler parameters close the loop, one block of seven.
+    let (code, out, _) =
+        mechgen(&["check", example("rssr.toml").to_str().unwrap(), "--format", "json"]);
+    assert_eq!(code, EXIT_OK);
+    let v: serde_json::Value = serde_json::from_str(&out).expect("JSON");
+    assert_eq!(
+        v["blocks"],
+        serde_json::json!({
+            "count": 11,
+            "closed_form": 9,
+            "implicit": 2,
+            "largest_implicit": 7,
+            "sizes": [
+                { "size": 1, "count": 9 },
+                { "size": 4, "count": 1 },
+                { "size": 7, "count": 1 },
+            ],
+        })
+    );
+    // A driven chain of five links: per link one orientation block of four and three
+    // closed-form positions.
+    let file = temp_file("chain_5.toml", &crate::scale::chain(5, 3));
+    let (code, out, _) = mechgen(&["check", file.to_str().unwrap()]);
+    assert_eq!(code, EXIT_OK);
+    assert!(
+        out.contains("blocks:            20 (15 closed form, 5 implicit, the largest of 4)\n"),
+        "{out}"
+    );
+    assert!(out.contains("block sizes:       15 of 1, 5 of 4\n"), "{out}");
+}
+
+#[test]
+fn an_input_driver_gives_the_blocks_a_law_driver_gives() {
+    // The structure of Φ_q does not depend on the driver's law.
+    let file = example("inputs/four_bar_input.toml");
+    let text = std::fs::read_to_string(&file).expect("the example");
+    let law = text.replace("law = \"input\"", "law = { start = 0.0, velocity = 1.0 }");
+    assert_ne!(law, text, "the input driver's law is replaced");
+    let law_file = temp_file("four_bar_law.toml", &law);
+    let blocks = |path: &std::path::Path| {
+        let (code, out, err) = mechgen(&["check", path.to_str().unwrap(), "--format", "json"]);
+        assert_eq!(code, EXIT_OK, "{err}");
+        let v: serde_json::Value = serde_json::from_str(&out).expect("JSON");
+        v["blocks"].clone()
+    };
+    let with_input = blocks(&file);
+    assert!(with_input["count"].as_u64().is_some_and(|n| n > 1), "{with_input}");
+    assert_eq!(with_input, blocks(&law_file));
+}
+
+#[test]
 fn check_names_a_redundant_equation() {
     // The crank's y is already held by revolute O2; fixing it again is redundant.
     let extra = "[[constraints]]\nname = \"again\"\ntype = \"fix\"\nbody = \"crank\"\ncoordinate = \"y\"\nvalue = -0.06567\n";

@@ -8,7 +8,6 @@
 
 use syn::parse_quote;
 
-use super::structured_items;
 use super::syntax::{ident, index, literal_signed};
 use crate::model::{Mechanism, type_name};
 use crate::symbolic::Symbolic;
@@ -63,8 +62,8 @@ pub(super) fn items(mech: &Mechanism, sys: &Symbolic) -> Vec<syn::Item> {
 }
 
 /// The mechanism type of a module with input drivers, with its `runtime::Mechanism` and
-/// `runtime::input::Driven` impls and the structured LU's `orders`.
-pub(super) fn mechanism_type(mech: &Mechanism, orders: usize) -> Vec<syn::Item> {
+/// `runtime::input::Driven` impls and the structured LU's items.
+pub(super) fn mechanism_type(mech: &Mechanism, structured: Vec<syn::ImplItem>) -> Vec<syn::Item> {
     let ty = ident(&type_name(&mech.name));
     let doc = format!(
         " The mechanism `{}` as a [`runtime::Mechanism`] whose input drivers take their values \
@@ -73,7 +72,6 @@ pub(super) fn mechanism_type(mech: &Mechanism, orders: usize) -> Vec<syn::Item> 
          `runtime::Solver::advance_with`.",
         mech.name
     );
-    let structured = structured_items(orders, true);
     vec![
         parse_quote! {
             #[doc = #doc]

@@ -1,0 +1,335 @@
+//! The block-by-block LU: the layout of Φ_q's block-lower-triangular form
+//! ([`crate::blocks`]) as a `static`, the function that evaluates Φ and Φ_q for it, straight-line
+//! `factor_blocks_k` and `solve_blocks_k` functions (each diagonal block gathered into a
+//! fixed-size array and factored by `runtime::lu` with partial pivoting inside the block, the
+//! entries below the blocks moved to the right-hand side), and the `runtime::Mechanism` items
+//! that select them instead of static pivot orders.
+
+use syn::parse_quote;
+
+use super::Rows;
+use super::function::Signature;
+use super::syntax::{ident, index};
+use crate::blocks::Blocks;
+use crate::symbolic::Symbolic;
+
+/// A system of at least this many unknowns is factored block by block when it has more than one
+/// block: below it the static pivot orders' straight-line code is faster than the runtime's
+/// loops over index tables (the R-S-S-R, 20 unknowns: see BENCHMARKS.md).
+pub(super) const MIN_UNKNOWNS: usize = 64;
+
+/// Blocks larger than this keep the static pivot orders: each block is factored in a
+/// `[[f64; s]; s]` on the stack, and a large block gains nothing from the decomposition.
+pub(super) const MAX_BLOCK: usize = 32;
+
+/// Entries (gathered, scattered or moved to the right-hand side) per emitted `factor_blocks_k`
+/// or `solve_blocks_k`, which keeps every function small enough to compile fast (as
+/// [`super::CHUNK_OPS`] does for the equations).
+const CHUNK_ENTRIES: usize = 800;
+
+/// The blocks of `sys` when its solver factors Φ_q block by block: at least
+/// [`MIN_UNKNOWNS`] unknowns, more than one block, none larger than [`MAX_BLOCK`].
+pub(super) fn plan(sys: &Symbolic) -> Option<Blocks> {
+    let n = sys.unknowns.len();
+    if n < MIN_UNKNOWNS {
+        return None;
+    }
+    let blocks = Blocks::of(sys);
+    let largest = blocks.blocks.iter().map(|b| b.rows.len()).max().unwrap_or(0);
+    (blocks.blocks.len() > 1 && largest <= MAX_BLOCK).then_some(blocks)
+}
+
+/// `static BLOCKS: runtime::blocks::Layout` and `residual_jacobian_blocks`.
+pub(super) fn items(rows: &Rows<'_>, blocks: &Blocks) -> Vec<syn::Item> {
+    let sys = rows.sys;
+    let n = sys.unknowns.len();
+    let mut block_of_column = vec![0; n];
+    let (mut order_rows, mut order_columns, mut starts) = (Vec::new(), Vec::new(), vec![0]);
+    for (b, block) in blocks.blocks.iter().enumerate() {
+        order_rows.extend(&block.rows);
+        order_columns.extend(&block.unknowns);
+        starts.push(order_rows.len());
+        for &c in &block.unknowns {
+            block_of_column[c] = b;
+        }
+    }
+    let mut block_of_row = vec![0; n];
+    for (b, block) in blocks.blocks.iter().enumerate() {
+        for &r in &block.rows {
+            block_of_row[r] = b;
+        }
+    }
+    let (mut lower, mut lower_starts) = (Vec::new(), vec![0]);
+    for (r, row) in sys.jac.iter().enumerate() {
+        lower.extend(row.iter().map(|&(c, _)| c).filter(|&c| block_of_column[c] < block_of_row[r]));
+        lower_starts.push(lower.len());
+    }
+    let list = |v: &[usize]| {
+        let v = v.iter().map(|&k| index(k));
+        quote::quote!(&[#(#v),*])
+    };
+    let (r, c, s, l, ls) =
+        (list(&order_rows), list(&order_columns), list(&starts), list(&lower), list(&lower_starts));
+    let doc = format!(
+        " The block-lower-triangular form of Φ_q: {} blocks (the largest of {}), {} entries below them.",
+        blocks.blocks.len(),
+        blocks.blocks.iter().map(|b| b.rows.len()).max().unwrap_or(0),
+        lower.len()
+    );
+    let mut items: Vec<syn::Item> = vec![parse_quote! {
+        #[doc = #doc]
+        static BLOCKS: runtime::blocks::Layout = runtime::blocks::Layout {
+            rows: #r,
+            columns: #c,
+            starts: #s,
+            lower: #l,
+            lower_starts: #ls,
+        };
+    }];
+    let vec_ty = quote::quote!(&mut [f64; N]);
+    let mat_ty = quote::quote!(&mut [[f64; N]; N]);
+    let targets = [("phi", vec_ty), ("jac", mat_ty)];
+    let mut outputs = rows.vector(0, "phi", &sys.phi);
+    outputs.extend(rows.jacobian(1, false));
+    let sig = Signature {
+        name: "residual_jacobian_blocks",
+        qd: false,
+        qdd: false,
+        public: false,
+        targets: &targets,
+        inputs: rows.inputs(),
+    };
+    let what = "Φ and the structural non-zeros of Φ_q, the others of `jac` left as they were: what `factor_blocks_k` and `solve_blocks_k` read (the structural zeros of a diagonal block are literals there).";
+    items.extend(rows.emit(&sig, what, Vec::new(), &outputs));
+    items.extend(straight_line(sys, blocks, &lower_starts, &lower));
+    items
+}
+
+/// The `factor_blocks_k` and `solve_blocks_k` functions, blocks in chunks of about
+/// [`CHUNK_ENTRIES`] entries.
+fn straight_line(
+    sys: &Symbolic,
+    blocks: &Blocks,
+    lower_starts: &[usize],
+    lower: &[usize],
+) -> Vec<syn::Item> {
+    let mut chunks: Vec<Vec<usize>> = vec![Vec::new()];
+    let mut size = 0;
+    for (b, block) in blocks.blocks.iter().enumerate() {
+        let s = block.rows.len();
+        let entries = 2 * s * s
+            + block.rows.iter().map(|&r| lower_starts[r + 1] - lower_starts[r]).sum::<usize>();
+        if size + entries > CHUNK_ENTRIES && !chunks.last().is_some_and(Vec::is_empty) {
+            chunks.push(Vec::new());
+            size = 0;
+        }
+        size += entries;
+        chunks.last_mut().expect("a chunk").push(b);
+    }
+    let mut starts = Vec::with_capacity(blocks.blocks.len());
+    let mut at = 0;
+    for block in &blocks.blocks {
+        starts.push(at);
+        at += block.rows.len();
+    }
+    let mut items = Vec::new();
+    for (k, chunk) in chunks.iter().enumerate() {
+        let (factor_body, solve_body): (Vec<_>, Vec<_>) = chunk
+            .iter()
+            .map(|&b| {
+                let block = &blocks.blocks[b];
+                block_code(sys, b, block, starts[b], lower_starts, lower)
+            })
+            .unzip();
+        let (first, last) = (chunk[0], chunk[chunk.len() - 1]);
+        let factor = ident(&format!("factor_blocks_{k}"));
+        let solve = ident(&format!("solve_blocks_{k}"));
+        let doc = format!(
+            " Factors blocks {first} to {last} in place (see `factor_blocks`); false when a pivot is 0 or an entry not finite."
+        );
+        items.push(parse_quote! {
+            #[doc = #doc]
+            fn #factor(jac: &mut [[f64; N]; N], perm: &mut [usize; N], pivots: &mut runtime::lu::PivotInfo) -> bool {
+                #(#factor_body)*
+                true
+            }
+        });
+        let doc = format!(
+            " Solves for the unknowns of blocks {first} to {last}, those of the blocks before them known (see `solve_blocks`)."
+        );
+        items.push(parse_quote! {
+            #[doc = #doc]
+            fn #solve(lu: &[[f64; N]; N], perm: &[usize; N], rhs: &[f64; N], x: &mut [f64; N]) {
+                #(#solve_body)*
+            }
+        });
+    }
+    let factors = (0..chunks.len()).map(|k| ident(&format!("factor_blocks_{k}")));
+    let solves = (0..chunks.len()).map(|k| ident(&format!("solve_blocks_{k}")));
+    items.push(parse_quote! {
+        /// Factors Φ_q's diagonal blocks in place, each by LU with partial pivoting inside the
+        /// block, their row orders in `perm`; the smallest and largest |pivot|, or `None` when a
+        /// pivot is 0 or an entry not finite.
+        fn factor_blocks(jac: &mut [[f64; N]; N], perm: &mut [usize; N]) -> Option<runtime::lu::PivotInfo> {
+            let mut pivots = runtime::lu::PivotInfo { smallest: 0.0, largest: 0.0 };
+            (#(#factors(jac, perm, &mut pivots))&&*).then_some(pivots)
+        }
+    });
+    items.push(parse_quote! {
+        /// Solves Φ_q x = b in place (b by row in, x by column out), block after block, with
+        /// the factors of `factor_blocks`.
+        fn solve_blocks(lu: &[[f64; N]; N], perm: &[usize; N], b: &mut [f64; N]) {
+            let rhs = *b;
+            #(#solves(lu, perm, &rhs, b);)*
+        }
+    });
+    items
+}
+
+/// The statements that factor block `b` (gather, `runtime::lu::factor_with_ratio`, scatter,
+/// its row order into `perm` from position `start`) and that solve for it.
+fn block_code(
+    sys: &Symbolic,
+    b: usize,
+    block: &crate::blocks::Block,
+    start: usize,
+    lower_starts: &[usize],
+    lower: &[usize],
+) -> (syn::Stmt, syn::Stmt) {
+    let z = block.rows.iter().map(|&r| {
+        let terms = lower[lower_starts[r]..lower_starts[r + 1]].iter().map(|&c| {
+            let (r, c) = (index(r), index(c));
+            quote::quote!(- lu[#r][#c] * x[#c])
+        });
+        let r = index(r);
+        quote::quote!(rhs[#r] #(#terms)*)
+    });
+    if let ([r], [c]) = (block.rows.as_slice(), block.unknowns.as_slice()) {
+        // One equation in one unknown: its entry is its pivot.
+        let (r, c) = (index(*r), index(*c));
+        let pivots = if b == 0 {
+            quote::quote!(*pivots = runtime::lu::PivotInfo { smallest: v, largest: v };)
+        } else {
+            quote::quote! {
+                pivots.smallest = pivots.smallest.min(v);
+                pivots.largest = pivots.largest.max(v);
+            }
+        };
+        let factor = parse_quote! {
+            {
+                let v = jac[#r][#c].abs();
+                if !(v > 0.0 && v.is_finite()) {
+                    return false;
+                }
+                #pivots
+            }
+        };
+        let z: Vec<_> = z.collect();
+        let solve = parse_quote!(x[#c] = (#(#z)*) / lu[#r][#c];);
+        return (factor, solve);
+    }
+    // Φ_q's structural zeros in the block are literals; the factors fill the whole block.
+    let gather = |array: &str, zeros: bool| -> Vec<proc_macro2::TokenStream> {
+        let array = ident(array);
+        block
+            .rows
+            .iter()
+            .map(|&r| {
+                let entries = block.unknowns.iter().map(|&c| {
+                    if !zeros || sys.jac[r].iter().any(|&(j, _)| j == c) {
+                        let (r, c) = (index(r), index(c));
+                        quote::quote!(#array[#r][#c])
+                    } else {
+                        quote::quote!(0.0)
+                    }
+                });
+                quote::quote!([#(#entries),*])
+            })
+            .collect()
+    };
+    let rows_in = gather("jac", true);
+    let mut scatter = Vec::new();
+    for (i, &r) in block.rows.iter().enumerate() {
+        for (j, &c) in block.unknowns.iter().enumerate() {
+            let (r, c, i, j) = (index(r), index(c), index(i), index(j));
+            scatter.push(quote::quote!(jac[#r][#c] = a[#i][#j];));
+        }
+    }
+    let keep = (0..block.rows.len()).map(|i| {
+        let (at, i) = (index(start + i), index(i));
+        quote::quote!(perm[#at] = p[#i];)
+    });
+    let pivots = if b == 0 {
+        quote::quote!(*pivots = info;)
+    } else {
+        quote::quote! {
+            pivots.smallest = pivots.smallest.min(info.smallest);
+            pivots.largest = pivots.largest.max(info.largest);
+        }
+    };
+    let s = index(block.rows.len());
+    let factor: syn::Stmt = parse_quote! {
+        {
+            let mut a = [#(#rows_in),*];
+            let mut p = [0; #s];
+            let Ok(info) = runtime::lu::factor_with_ratio(&mut a, &mut p, 0.0) else {
+                return false;
+            };
+            #pivots
+            #(#scatter)*
+            #(#keep)*
+        }
+    };
+    let rows_lu = gather("lu", false);
+    let order = (0..block.rows.len()).map(|i| {
+        let at = index(start + i);
+        quote::quote!(perm[#at])
+    });
+    let out = block.unknowns.iter().enumerate().map(|(i, &c)| {
+        let (c, i) = (index(c), index(i));
+        quote::quote!(x[#c] = z[#i];)
+    });
+    let solve: syn::Stmt = parse_quote! {
+        {
+            let a = [#(#rows_lu),*];
+            let p = [#(#order),*];
+            let mut z = [#(#z),*];
+            runtime::lu::solve(&a, &p, &mut z);
+            #(#out)*
+        }
+    };
+    (factor, solve)
+}
+
+/// The `runtime::Mechanism` items that select the block-by-block LU, for a mechanism whose
+/// functions take its inputs at t when `inputs`.
+pub(super) fn impl_items(inputs: bool) -> Vec<syn::ImplItem> {
+    vec![
+        parse_quote!(
+            const BLOCKS: Option<&'static runtime::blocks::Layout> = Some(&BLOCKS);
+        ),
+        parse_quote! {
+            fn factor_blocks(&self, jac: &mut [[f64; N]; N], perm: &mut [usize; N]) -> Option<runtime::lu::PivotInfo> {
+                factor_blocks(jac, perm)
+            }
+        },
+        parse_quote! {
+            fn solve_blocks(&self, lu: &[[f64; N]; N], perm: &[usize; N], b: &mut [f64; N]) {
+                solve_blocks(lu, perm, b);
+            }
+        },
+        if inputs {
+            parse_quote! {
+                fn residual_jacobian_blocks(&self, q: &[f64; N], t: f64, phi: &mut [f64; N], jac: &mut [[f64; N]; N]) {
+                    residual_jacobian_blocks(q, t, &self.inputs(t), phi, jac);
+                }
+            }
+        } else {
+            parse_quote! {
+                fn residual_jacobian_blocks(&self, q: &[f64; N], t: f64, phi: &mut [f64; N], jac: &mut [[f64; N]; N]) {
+                    residual_jacobian_blocks(q, t, phi, jac);
+                }
+            }
+        },
+    ]
+}

@@ -1,0 +1,123 @@
+//! LU of a block-lower-triangular Φ_q: partial pivoting inside each diagonal block, block
+//! forward substitution across them.
+//!
+//! A generated mechanism whose Φ_q is block lower triangular (see `codegen::blocks`) describes
+//! its blocks by a [`Layout`]: the rows and columns of every diagonal block, in solve order,
+//! and for every row the columns of earlier blocks it involves. [`factor`] factors each
+//! diagonal block in place by LU with partial pivoting within the block, so a block's pivots
+//! never depend on another block's configuration, and leaves the entries below the diagonal
+//! blocks as they are; [`solve`] solves block after block, moving the known unknowns of earlier
+//! blocks to the right-hand side. The cost is the sum of the blocks' cubes plus the entries
+//! below them, linear in the size of a chain of bodies.
+
+#[cfg(test)]
+mod tests;
+
+use crate::Real;
+use crate::lu::PivotInfo;
+
+/// The block-lower-triangular form of a Jacobian, as index tables.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Layout {
+    /// The row at each position, blocks in solve order.
+    pub rows: &'static [usize],
+    /// The column at each position, blocks in solve order.
+    pub columns: &'static [usize],
+    /// Block b holds the positions `starts[b]..starts[b + 1]`.
+    pub starts: &'static [usize],
+    /// Row r involves, outside its own block, the columns `lower[lower_starts[r]..lower_starts[r + 1]]`
+    /// (all of earlier blocks).
+    pub lower: &'static [usize],
+    /// See [`Layout::lower`]; one entry per row, and one more.
+    pub lower_starts: &'static [usize],
+}
+
+/// Factors the diagonal blocks of `jac` in place (see the module docs); `perm[i]` becomes the
+/// row whose factors sit at position i.
+///
+/// Reads every entry of the diagonal blocks (the structural zeros in them must be 0) and none
+/// elsewhere. Returns the smallest and largest |pivot|, or `None` when a pivot is 0 or an entry
+/// is not finite; `jac` then holds a partial factorisation.
+pub fn factor<R: Real, const N: usize>(
+    layout: &Layout,
+    jac: &mut [[R; N]; N],
+    perm: &mut [usize; N],
+) -> Option<PivotInfo<R>> {
+    let (mut smallest, mut largest) = (R::INFINITY, R::ZERO);
+    for bounds in layout.starts.windows(2) {
+        let (start, end) = (bounds[0], bounds[1]);
+        perm[start..end].copy_from_slice(&layout.rows[start..end]);
+        for k in start..end {
+            let ck = layout.columns[k];
+            let mut at = k;
+            let mut pivot = R::ZERO;
+            for i in k..end {
+                let v = jac[perm[i]][ck].abs();
+                if !v.is_finite() {
+                    return None;
+                }
+                if v > pivot {
+                    pivot = v;
+                    at = i;
+                }
+            }
+            if pivot == R::ZERO {
+                return None;
+            }
+            perm.swap(k, at);
+            if pivot < smallest {
+                smallest = pivot;
+            }
+            largest = largest.max(pivot);
+            let rk = perm[k];
+            let inverse = R::ONE / jac[rk][ck];
+            for &ri in &perm[k + 1..end] {
+                let l = jac[ri][ck] * inverse;
+                jac[ri][ck] = l;
+                if l != R::ZERO {
+                    for &cj in &layout.columns[k + 1..end] {
+                        let u = jac[rk][cj];
+                        jac[ri][cj] -= l * u;
+                    }
+                }
+            }
+        }
+    }
+    Some(PivotInfo { smallest, largest })
+}
+
+/// Solves Φ_q x = b in place (b by row in, x by column out) with the factors [`factor`] left in
+/// `lu` and `perm`, and the entries below the diagonal blocks of Φ_q, which it did not touch.
+pub fn solve<R: Real, const N: usize>(
+    layout: &Layout,
+    lu: &[[R; N]; N],
+    perm: &[usize; N],
+    b: &mut [R; N],
+) {
+    let rhs = *b;
+    for bounds in layout.starts.windows(2) {
+        let (start, end) = (bounds[0], bounds[1]);
+        let columns = &layout.columns[start..end];
+        // y = L⁻¹ P (b − Φ_q,lower x_earlier), kept in the block's own columns of b.
+        for (i, &ci) in columns.iter().enumerate() {
+            let r = perm[start + i];
+            let mut y = rhs[r];
+            for &c in &layout.lower[layout.lower_starts[r]..layout.lower_starts[r + 1]] {
+                y -= lu[r][c] * b[c];
+            }
+            for &cj in &columns[..i] {
+                y -= lu[r][cj] * b[cj];
+            }
+            b[ci] = y;
+        }
+        // x = U⁻¹ y.
+        for (i, &ci) in columns.iter().enumerate().rev() {
+            let r = perm[start + i];
+            let mut x = b[ci];
+            for &cj in &columns[i + 1..] {
+                x -= lu[r][cj] * b[cj];
+            }
+            b[ci] = x / lu[r][ci];
+        }
+    }
+}
