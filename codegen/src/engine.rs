@@ -406,6 +406,7 @@ fn step_line(line: &str, index: usize) -> Result<Result<Frame, Failure>, RunErro
         q: DVector::from_column_slice(&values[..m]),
         qd: DVector::from_column_slice(&values[m..2 * m]),
         qdd: DVector::from_column_slice(&values[2 * m..]),
+        redundant: None,
     }))
 }
 

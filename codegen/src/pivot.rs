@@ -11,8 +11,9 @@
 //!
 //! A static order is only safe where its pivots stay large, and over a motion an entry that is
 //! a fine pivot at one crank angle passes through zero at another. The generator therefore
-//! walks the description's motion over its time grid (at most [`MAX_SAMPLES`] configurations
-//! of it, evenly spaced, so that memory and planning time do not grow with the grid), and
+//! walks the description's motion over its time grid (at most [`MAX_WALK`] points of it, and
+//! looks at [`MAX_SAMPLES`] configurations of those, evenly spaced, so that memory and planning
+//! time do not grow with the grid), and
 //! whenever no order chosen so far passes the run-time guard with a margin there
 //! ([`COVER_THRESHOLD`]), it chooses a new one at that configuration, up to [`MAX_ORDERS`].
 //! At run time the guard decides (see `runtime::lu::MAX_MULTIPLIER`), and a factorisation
@@ -366,12 +367,22 @@ impl Sampler<'_> {
 /// [`TimeGrid::sampled`]: crate::model::TimeGrid::sampled
 pub const MAX_SAMPLES: usize = 4096;
 
-/// Walks the description's motion, solved on the reduced system at every point of the time
-/// grid (Newton–Raphson from a Taylor predictor, sparse LU with the static orders' own rules,
-/// so that it stays on the assembly branch the grid's spacing resolves), and calls
-/// `visit(t, q)` with the reduced q at the grid points [`MAX_SAMPLES`] selects, up to the first
-/// point where Newton fails; then with the last configuration solved if it was not visited, or
-/// with the initial estimates when Newton fails at once. Stops early when `visit` returns false.
+/// The most grid points the walk of [`motion`] solves: every point of a grid up to this size,
+/// else this many evenly spaced ones. Four points walked per point looked at keeps the walk's
+/// steps at a quarter of the samples' spacing (small enough for Newton from a Taylor predictor
+/// to stay on its branch on any motion whose samples resolve it), while the walk's cost, a
+/// Newton solve in the expression interpreter per point, no longer grows with the grid: it was
+/// a quarter of a 100,000-point `solve` with the generated engine, paid on every run to find
+/// the cache entry.
+pub const MAX_WALK: usize = 4 * MAX_SAMPLES;
+
+/// Walks the description's motion, solved on the reduced system at the grid points
+/// [`MAX_WALK`] selects (Newton–Raphson from a Taylor predictor, sparse LU with the static
+/// orders' own rules, so that it stays on the assembly branch the spacing resolves), and calls
+/// `visit(t, q)` with the reduced q at [`MAX_SAMPLES`] of them evenly spaced (every point of a
+/// grid of at most [`MAX_SAMPLES`]), up to the first point where Newton fails; then with the last configuration
+/// solved if it was not visited, or with the initial estimates when Newton fails at once. Stops
+/// early when `visit` returns false.
 ///
 /// Only the last configuration is kept, so memory does not grow with the grid.
 pub fn motion(mech: &Mechanism, sys: &Symbolic, mut visit: impl FnMut(f64, &[f64]) -> bool) {
@@ -380,7 +391,10 @@ pub fn motion(mech: &Mechanism, sys: &Symbolic, mut visit: impl FnMut(f64, &[f64
     // The last configuration solved, and whether it has been visited.
     let mut prev: Option<(f64, [Vec<f64>; 3], bool)> = None;
     let (tolerance, max_iterations) = (mech.solver.tolerance, mech.solver.max_iterations);
-    for k in 0..mech.time.count {
+    // The points walked, numbered 0, 1, …: MAX_SAMPLES of them evenly spaced are looked at.
+    let walked_grid = crate::model::TimeGrid::uniform(0.0, 1.0, mech.time.count.min(MAX_WALK));
+    let walk = (0..mech.time.count).filter(|&k| mech.time.sampled(k, MAX_WALK));
+    for (walked, k) in walk.enumerate() {
         let t = mech.time.at(k);
         let guess = match &prev {
             // Taylor predictor q + h q̇ + h²/2 q̈ from the previous time point.
@@ -391,7 +405,7 @@ pub fn motion(mech: &Mechanism, sys: &Symbolic, mut visit: impl FnMut(f64, &[f64
             None => q0.clone(),
         };
         let Some(state) = sampler.step(guess, t, tolerance, max_iterations) else { break };
-        let sampled = mech.time.sampled(k, MAX_SAMPLES);
+        let sampled = walked_grid.sampled(walked, MAX_SAMPLES);
         if sampled && !visit(t, &state[0]) {
             return;
         }

@@ -83,6 +83,10 @@ pub struct StepResult {
     pub points: Vec<PointResult>,
     /// Every joint with a reported coordinate ([`reported_joints`]), in file order.
     pub joints: Vec<JointResult>,
+    /// The equations named redundant from this step on (`joint J4 row 1`), when they differ
+    /// from the previous step's (the first step's from those named at the initial
+    /// configuration); `None` when they are the same ([`Frame::redundant`]).
+    pub redundant: Option<Vec<String>>,
 }
 
 /// The joints whose coordinates are reported, with (angle, translation): revolute,
@@ -221,6 +225,10 @@ pub fn step_result(mech: &Mechanism, layout: &[Option<usize>], frame: &Frame) ->
     );
     s.condition = frame.condition;
     s.suspect = runtime::step::suspect(frame.condition, f64::EPSILON);
+    if let Some(rows) = &frame.redundant {
+        let labels = mech.row_labels();
+        s.redundant = Some(rows.iter().map(|&k| labels[k].equation()).collect());
+    }
     s
 }
 
@@ -317,6 +325,7 @@ pub fn from_coordinates(
         bodies,
         points,
         joints,
+        redundant: None,
     }
 }
 
@@ -336,8 +345,11 @@ pub struct Writer<W: Write> {
     out: W,
     format: Format,
     steps: usize,
-    /// Equations left out of the analysis as redundant (written by `finish` in CSV).
+    /// Equations named redundant at the initial configuration (written by `finish` in CSV).
     removed: Vec<String>,
+    /// Where the redundant equations changed and what they became (written by `finish` in
+    /// CSV).
+    changes: Vec<(f64, Vec<String>)>,
     /// Continuity of the joint angles across steps.
     unwrap: Unwrap,
     /// The bodies, points and joints written.
@@ -406,7 +418,7 @@ impl<W: Write> Writer<W> {
                 if !removed.is_empty() {
                     writeln!(
                         out,
-                        "redundant equations removed (dependent on the others at the initial \
+                        "redundant equations (dependent on the ones before them at the initial \
                          configuration): {}",
                         printable(&removed.join(", "))
                     )?;
@@ -418,6 +430,7 @@ impl<W: Write> Writer<W> {
             format,
             steps: 0,
             removed: removed.to_vec(),
+            changes: Vec::new(),
             unwrap: Unwrap::default(),
             select,
             buf: Vec::new(),
@@ -460,6 +473,9 @@ impl<W: Write> Writer<W> {
             Format::Csv => {
                 write_csv_row(&mut self.buf, s);
                 self.out.write_all(&self.buf)?;
+                if let Some(r) = &s.redundant {
+                    self.changes.push((s.t, r.clone()));
+                }
             }
             Format::Table => write_table_step(&mut self.out, s)?,
         }
@@ -507,6 +523,9 @@ impl<W: Write> Writer<W> {
                 if self.format == Format::Csv && !self.removed.is_empty() {
                     writeln!(self.out, "# removed: {}", printable(&self.removed.join(", ")))?;
                 }
+                for (t, r) in &self.changes {
+                    writeln!(self.out, "# redundant from t = {t}: {}", redundant_list(r))?;
+                }
                 if let Some((_, text)) = error {
                     // CSV readers skip comment lines; the table is for people.
                     let lead = if self.format == Format::Csv { "# " } else { "" };
@@ -517,6 +536,11 @@ impl<W: Write> Writer<W> {
         self.out.flush()?;
         Ok(self.out)
     }
+}
+
+/// A list of redundant equations for a line of text ("none" when empty).
+fn redundant_list(r: &[String]) -> Cow<'static, str> {
+    if r.is_empty() { "none".into() } else { printable(&r.join(", ")).into_owned().into() }
 }
 
 /// The contract's `error` object of a numerical failure.
@@ -577,7 +601,7 @@ pub fn step_json(s: &StepResult) -> serde_json::Value {
         })
         .collect();
     let suspect: Vec<&str> = s.suspect.names().collect();
-    serde_json::json!({
+    let mut v = serde_json::json!({
         "t": s.t,
         "iterations": s.iterations,
         "residual": s.residual,
@@ -586,7 +610,11 @@ pub fn step_json(s: &StepResult) -> serde_json::Value {
         "bodies": bodies,
         "points": points,
         "joints": joints,
-    })
+    });
+    if let (Some(r), Some(o)) = (&s.redundant, v.as_object_mut()) {
+        o.insert("redundant".to_owned(), serde_json::json!(r));
+    }
+    v
 }
 
 const XYZ: [&str; 3] = ["x", "y", "z"];
@@ -832,7 +860,12 @@ fn write_step_json(buf: &mut Vec<u8>, s: &StepResult, keys: &JsonKeys) {
         push_json_array(buf, ",\"v\":", &p.v);
         buf.push(b'}');
     }
-    buf.extend_from_slice(b"},\"residual\":");
+    buf.push(b'}');
+    if let Some(r) = &s.redundant {
+        buf.extend_from_slice(b",\"redundant\":");
+        let _ = serde_json::to_writer(&mut *buf, r);
+    }
+    buf.extend_from_slice(b",\"residual\":");
     push_json(buf, s.residual);
     buf.extend_from_slice(b",\"suspect\":[");
     for (k, name) in s.suspect.names().enumerate() {
@@ -927,6 +960,7 @@ impl Selection {
             bodies: keep(&s.bodies, &self.bodies),
             points: keep(&s.points, &self.points),
             joints: keep(&s.joints, &self.joints),
+            redundant: s.redundant.clone(),
         }
     }
 }
@@ -953,6 +987,9 @@ fn write_table_step(out: &mut impl Write, s: &StepResult) -> io::Result<()> {
             "SUSPECT: {} (fewer than 6 significant digits by the condition estimate)",
             s.suspect.names().collect::<Vec<_>>().join(", ")
         )?;
+    }
+    if let Some(r) = &s.redundant {
+        writeln!(out, "redundant equations from here on: {}", redundant_list(r))?;
     }
     writeln!(out, "POSITION")?;
     writeln!(out, "{:<w$}{}", "BODY", head(&["X", "Y", "Z", "e0", "e1", "e2", "e3"]))?;
@@ -1209,6 +1246,7 @@ mod tests {
                 },
                 JointResult { name: "P".into(), angle: None, translation: Some([7.0, 8.0, 9.0]) },
             ],
+            redundant: Some(vec!["joint \"J4\" row 1".into(), "driver é".into()]),
         }
     }
 
@@ -1307,7 +1345,10 @@ mod tests {
         // (feature float_roundtrip).
         let steps = sample_steps(true);
         // The writer reads the mechanism's name only; the steps bring their own names.
-        let mech = crate::testing::load(&crate::testing::example("rssr.toml")).mechanism;
+        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples/rssr.toml");
+        let loaded = crate::validate::load_file(&path);
+        let Ok(loaded) = loaded else { panic!("examples/rssr.toml loads") };
+        let mech = loaded.mechanism;
         let mut w = Writer::begin(Vec::new(), Format::Json, &mech, "generic", &[]).unwrap();
         for s in &steps {
             w.step(s).unwrap();

@@ -19,6 +19,7 @@ use nalgebra::{DVector, Vector3};
 
 use crate::expr::{ExprId, ExprPool, Node, Var};
 use crate::generic::Equations;
+use crate::generic::redundancy::independent;
 use crate::model::{
     BodyId, Constraint, ConstraintKind, Driver, DriverCoordinate, DriverTarget, Joint, JointKind,
     Law, Mechanism, Motion, RowLabel,
@@ -48,7 +49,10 @@ pub struct Symbolic {
     pub rows: Vec<RowLabel>,
     /// The equations eliminated with their coordinate.
     pub eliminated: Vec<RowLabel>,
-    /// Equations left out because they depend on the others (redundant).
+    /// The equations named redundant by the rule of `generic::redundancy` on the whole Φ_q
+    /// at the assembled initial configuration, as `check` and the generic engine name them.
+    /// The reduced system leaves them out, except one whose coordinate was eliminated (a
+    /// redundant `fix`): it leaves out the row that this one makes dependent instead.
     pub redundant: Vec<RowLabel>,
     /// Φ, one expression per kept row.
     pub phi: Vec<ExprId>,
@@ -74,8 +78,9 @@ pub struct InputDriver {
     /// without a replayed series), the input the generated module starts from.
     pub initial: f64,
     /// The rate at which the generator's own walks (assembly, pivot planning) move it over
-    /// the description's `[time]` grid: one turn over the grid for a joint rotation, none
-    /// otherwise (a translation's or a target's range is not known at generation time).
+    /// the description's `[time]` grid: one turn over the grid for a rotation (a joint's, or a
+    /// body's about a global axis), none otherwise (a translation's or a target's range is not
+    /// known at generation time).
     pub sweep: f64,
     /// The first time point of that grid, where the sweep starts from `initial`.
     pub start: f64,
@@ -634,16 +639,24 @@ impl Symbolic {
         }
         let kept_phi: Vec<ExprId> = kept.iter().map(|&k| phi_all[k]).collect();
         let normalisation: Vec<bool> = kept.iter().map(|&k| labels[k].is_normalisation()).collect();
-        let independent = self.independent_rows(mech, &kept_phi, &jac_rows, &normalisation);
+        let (independent, q) = self.independent_rows(mech, &kept_phi, &jac_rows, &normalisation);
         for (pos, &k) in kept.iter().enumerate() {
             if independent.contains(&pos) {
                 self.rows.push(labels[k].clone());
                 self.phi.push(phi_all[k]);
                 self.jac.push(std::mem::take(&mut jac_rows[pos]));
-            } else {
-                self.redundant.push(labels[k].clone());
             }
         }
+        // The names: the shared rule on the whole Φ_q at the same configuration.
+        let eq = Equations::new(mech);
+        let n = q.len();
+        let zero = vec![0.0; n];
+        let [full, _, _] = self.expand(&eq, &q, &zero, &zero, mech.time.start);
+        self.redundant = eq
+            .redundant_rows(&full, mech.time.start)
+            .into_iter()
+            .map(|k| labels[k].clone())
+            .collect();
     }
 
     /// The structurally non-zero entries of ∂e/∂q.
@@ -660,7 +673,8 @@ impl Symbolic {
     }
 
     /// Rows (positions in `jac_rows`) kept after dropping those that depend on the others
-    /// at the assembled initial configuration (greedy, normalisations first, as `generic`).
+    /// at the assembled initial configuration (greedy, normalisations first, the rule of
+    /// `generic::redundancy`), and that configuration (reduced unknowns).
     ///
     /// The reduced system is assembled first by Newton–Raphson on its independent rows
     /// (sparse, see [`independent`]); when that does not converge, the generic engine's
@@ -671,7 +685,7 @@ impl Symbolic {
         phi: &[ExprId],
         jac_rows: &[Vec<(usize, ExprId)>],
         normalisation: &[bool],
-    ) -> BTreeSet<usize> {
+    ) -> (BTreeSet<usize>, Vec<f64>) {
         let t = mech.time.start;
         let u = self.planning_inputs(t);
         let at = |q: &[f64]| -> SparseRows {
@@ -683,12 +697,12 @@ impl Symbolic {
                 .collect()
         };
         let q = self.assemble(mech, phi, jac_rows, &at).unwrap_or_else(|| {
-            // The one use of the generic engine in building: its dense assembly as a fall-back.
+            // The generic engine's dense assembly as a fall-back.
             let eq = Equations::new(mech);
             let prep = eq.prepare();
             self.reduce(&eq, &prep.q).as_slice().to_vec()
         });
-        independent(&self.balanced(at(&q), mech), self.unknowns.len(), normalisation)
+        (independent(&self.balanced(at(&q), mech), self.unknowns.len(), normalisation), q)
     }
 
     /// Sparse rows of Φ_q with the translational columns times the mechanism's characteristic
@@ -887,66 +901,20 @@ fn input_drivers(mech: &Mechanism) -> Vec<InputDriver> {
         .enumerate()
         .filter(|(_, d)| d.law == Law::Input)
         .map(|(k, d)| {
-            let rotation = matches!(d.target, DriverTarget::Joint { motion: Motion::Rotation, .. });
+            let rotation = matches!(
+                d.target,
+                DriverTarget::Joint { motion: Motion::Rotation, .. }
+                    | DriverTarget::Absolute {
+                        coordinate: DriverCoordinate::Rx
+                            | DriverCoordinate::Ry
+                            | DriverCoordinate::Rz,
+                        ..
+                    }
+            );
             let sweep = if rotation && span > 0.0 { std::f64::consts::TAU / span } else { 0.0 };
             InputDriver { driver: k, initial: eq.held(k), sweep, start: grid.start }
         })
         .collect()
-}
-
-/// A row whose part outside the span of the rows kept before it is below this fraction of its
-/// largest entry depends on them: an exact dependency leaves round-off (≈1e-16 relative, times
-/// the elimination's small growth), a genuine but poorly conditioned row far more (the same
-/// margin as the generic engine's `REDUNDANT_ROW_TOLERANCE`).
-const REDUNDANT_ROW_TOLERANCE: f64 = 1e-8;
-
-/// The rows of a sparse matrix with `n` columns (rows of `(column, value)`) that do not depend
-/// on the rows before them, greedily in row order (the rows marked in `first`, normalisations,
-/// before all others, so redundancy is blamed on a joint, constraint or driver row, as in
-/// `generic::independent_rows`): each row is reduced by the rows kept so far
-/// (row echelon form, each kept row pivoting on its largest remaining entry) and kept when
-/// something is left. In exact arithmetic this is the same set as Gram–Schmidt's, at the cost
-/// of the sparse elimination only.
-fn independent(rows: &[Vec<(usize, f64)>], n: usize, first: &[bool]) -> BTreeSet<usize> {
-    // Kept rows in echelon form: (pivot column, entries by column).
-    let mut basis: Vec<(usize, std::collections::BTreeMap<usize, f64>)> = Vec::new();
-    let mut pivot_of = vec![None; n];
-    let mut kept = BTreeSet::new();
-    let is_first = |k: usize| first.get(k).copied().unwrap_or(false);
-    let order =
-        (0..rows.len()).filter(|&k| is_first(k)).chain((0..rows.len()).filter(|&k| !is_first(k)));
-    for k in order {
-        let row = &rows[k];
-        let scale = row.iter().fold(0.0_f64, |m, &(_, x)| m.max(x.abs()));
-        let mut w: std::collections::BTreeMap<usize, f64> = row.iter().copied().collect();
-        // Reduce by the kept rows in the order they were kept: row b has no entry in the
-        // pivot columns of the rows kept before it, so each elimination is final.
-        let mut pending: BTreeSet<usize> = w.keys().filter_map(|&c| pivot_of[c]).collect();
-        while let Some(b) = pending.pop_first() {
-            let (pc, p) = &basis[b];
-            let Some(x) = w.remove(pc) else { continue };
-            if x == 0.0 {
-                continue;
-            }
-            let l = x / p[pc];
-            for (&c, &y) in p.iter().filter(|&(c, _)| c != pc) {
-                *w.entry(c).or_insert(0.0) -= l * y;
-                if let Some(o) = pivot_of[c] {
-                    pending.insert(o);
-                }
-            }
-        }
-        let (pc, big) = w.iter().fold((usize::MAX, 0.0_f64), |(bc, bv), (&c, &x)| {
-            if x.abs() > bv { (c, x.abs()) } else { (bc, bv) }
-        });
-        if scale > 0.0 && big > REDUNDANT_ROW_TOLERANCE * scale {
-            w.retain(|_, x| *x != 0.0);
-            pivot_of[pc] = Some(basis.len());
-            basis.push((pc, w));
-            kept.insert(k);
-        }
-    }
-    kept
 }
 
 /// The unknowns q_k an expression depends on, in increasing k.

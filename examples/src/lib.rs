@@ -1,6 +1,8 @@
 //! Shipped mechanism descriptions (`examples/*.toml`) and the library side of the example
 //! programs, so that tests run exactly what the examples run.
 
+pub mod stewart;
+
 use std::path::PathBuf;
 
 use generated::rssr;

@@ -8,6 +8,7 @@
 
 #![no_std]
 
+pub mod arm3r_ik;
 pub mod cylindrical_joint;
 pub mod four_bar;
 pub mod four_bar_input;
@@ -22,6 +23,7 @@ pub mod slider_crank_5body;
 pub mod spherical_joint;
 pub mod static_body;
 pub mod static_body_offset;
+pub mod stewart;
 pub mod translation_x;
 pub mod translation_xy;
 pub mod translation_xyz;

@@ -6,6 +6,8 @@
 //! the tests say, at each comparison, which reference value is trusted and how far.
 
 #[cfg(test)]
+mod arm_ik;
+#[cfg(test)]
 mod digits;
 #[cfg(test)]
 mod embedded_inputs;
@@ -22,6 +24,8 @@ mod named_outputs;
 #[cfg(test)]
 mod random_mechanisms;
 #[cfg(test)]
+mod redundancy;
+#[cfg(test)]
 mod rssr_reference;
 #[cfg(test)]
 mod runtime_step;
@@ -35,5 +39,7 @@ mod single_precision;
 mod split_modules;
 #[cfg(test)]
 mod stability;
+#[cfg(test)]
+mod stewart;
 #[cfg(test)]
 mod structured_lu;

@@ -282,6 +282,7 @@ fn interpreted(mech: &Mechanism, sys: &Symbolic) -> Result<Vec<Frame>, String> {
             q: DVector::from_column_slice(&p.q),
             qd: DVector::from_column_slice(&p.qd),
             qdd: DVector::from_column_slice(&p.qdd),
+            redundant: None,
         });
         last = Some(p);
     }

@@ -398,7 +398,7 @@ fn solve_says_what_it_removed_in_every_format() {
     );
     let table = run("table");
     assert!(
-        table.lines().nth(1).is_some_and(|l| l.starts_with("redundant equations removed")
+        table.lines().nth(1).is_some_and(|l| l.starts_with("redundant equations (")
             && l.ends_with("joint J4 row 3, joint J4 row 4, joint J4 row 5")),
         "{}",
         &table[..200]

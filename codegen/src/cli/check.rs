@@ -1,10 +1,12 @@
-//! `mechgen check`: size, rank, mobility and redundant equations of a description.
+//! `mechgen check`: size, rank, mobility and redundant equations of a description, and the
+//! equations that contradict each other at the initial configuration (exit status 2, as
+//! `solve` reports them).
 
 use std::io::{self, Write};
 use std::path::Path;
 
 use super::args::CheckFormat;
-use super::common::{EXIT_OK, load};
+use super::common::{EXIT_OK, EXIT_STOPPED, load};
 use crate::diag::printable;
 use crate::model::{ConstraintKind, DriverCoordinate, DriverTarget, Mechanism};
 
@@ -56,6 +58,13 @@ pub(super) fn check(
     };
     let redundant: Vec<String> =
         prep.redundant.iter().map(|&k| eq.labels()[k].equation()).collect();
+    // The first time point as `solve` takes it: only a contradiction is `check`'s to report
+    // (the others are the analysis' own failures), and only equations beyond a full rank
+    // (redundant ones) can contradict the others.
+    let conflict = (!prep.redundant.is_empty())
+        .then(|| crate::generic::Analysis::new(&eq, &prep).first_failure())
+        .flatten()
+        .filter(|f| f.kind == crate::generic::FailureKind::Inconsistent);
     // The generated system's true size; the count of eliminated coordinates when it cannot
     // be built (its diagnostics belong to `generate`).
     let reduced = crate::symbolic::Symbolic::build(mech)
@@ -73,6 +82,10 @@ pub(super) fn check(
             "drivers": mech.drivers.len(),
             "redundant": redundant,
         });
+        let mut v = v;
+        if let (Some(f), Some(o)) = (&conflict, v.as_object_mut()) {
+            o.insert("error".to_owned(), crate::report::failure_json(f));
+        }
         writeln!(out, "{}", serde_json::to_string_pretty(&v)?)?;
     } else {
         writeln!(out, "mechanism {}: {bodies} bodies ({grounds} ground)", printable(&mech.name))?;
@@ -96,6 +109,13 @@ pub(super) fn check(
         } else {
             writeln!(out, "redundant:         {}", printable(&redundant.join(", ")))?;
         }
+        if let Some(f) = &conflict {
+            writeln!(out, "inconsistent:      {}", printable(&f.constraints.join(", ")))?;
+        }
+    }
+    if let Some(f) = &conflict {
+        writeln!(err, "error: {}", crate::report::failure_text(f))?;
+        return Ok(EXIT_STOPPED);
     }
     Ok(EXIT_OK)
 }

@@ -85,17 +85,23 @@ pub(super) fn solve(
         None => Sink::Out(BufWriter::new(out)),
     };
     let name = if built.is_some() { "generated" } else { "generic" };
-    // The redundant equations each engine leaves out, said in the output itself and on
-    // standard error.
+    // The redundant equations, named by one rule for both engines, said in the output
+    // itself and on standard error; the generic engine solves them with the others, the
+    // generated one leaves them out of its reduced system.
     let removed: Vec<String> = match &built {
         Some(b) => b.removed.clone(),
         None => prep.redundant.iter().map(|&k| eq.labels()[k].equation()).collect(),
     };
+    let fate = if built.is_some() {
+        "is left out of the analysis"
+    } else {
+        "is solved with them and checked at every step"
+    };
     for r in &removed {
         writeln!(
             err,
-            "warning: equation {} depends on the others at the initial configuration and is \
-             left out of the analysis",
+            "warning: equation {} depends on the ones before it at the initial configuration \
+             and {fate}",
             printable(r)
         )?;
     }

@@ -131,6 +131,16 @@ impl Val {
         }
     }
 
+    /// The expression a `let` binds: [`Val::expr`] without enclosing parentheses. The negation
+    /// of a negated product keeps the parentheses the product had as the operand of `-`, which
+    /// a binding does not need (rustc's `unused_parens`).
+    fn binding(&self) -> Expr {
+        match self.expr(Prec::Sum) {
+            Expr::Paren(p) => *p.expr,
+            e => e,
+        }
+    }
+
     /// [`Val::expr`], taking `self`.
     fn into_expr(self, at_least: Prec) -> Expr {
         match self {
@@ -313,8 +323,7 @@ impl Factorizer<'_> {
         match v {
             Val::Const(_) => v,
             Val::Run(..) => {
-                let e = v.expr(Prec::Sum);
-                self.part.stmts.push(let_stmt(name.clone(), e));
+                self.part.stmts.push(let_stmt(name.clone(), v.binding()));
                 Val::Run(path(name), Prec::Atom)
             }
         }
@@ -405,17 +414,34 @@ impl Factorizer<'_> {
         }
     }
 
-    /// `if !(checks…) { return None; }` when there is anything to check.
+    /// `if !(checks…) { return None; }` when there is anything to check (a lone comparison
+    /// `a <= b` as `if a > b || a.is_nan()`).
     fn guard(&mut self, checks: Vec<Expr>) {
         if let Some(ok) =
             checks.into_iter().reduce(|a, b| binary(a, syn::BinOp::And(Default::default()), b))
         {
-            let ok = if matches!(ok, Expr::Binary(_)) { paren(ok) } else { ok };
-            self.part.stmts.push(parse_quote! {
-                if !#ok {
-                    return None;
+            let stmt = match ok {
+                // A lone multiplier check: clippy refuses `!(a <= b)` on floats
+                // (`neg_cmp_op_on_partial_ord`); with b finite, `a > b || a.is_nan()` is the
+                // same test.
+                Expr::Binary(b) if matches!(b.op, syn::BinOp::Le(_)) => {
+                    let (a, b) = (&b.left, &b.right);
+                    parse_quote! {
+                        if #a > #b || #a.is_nan() {
+                            return None;
+                        }
+                    }
                 }
-            });
+                ok => {
+                    let ok = if matches!(ok, Expr::Binary(_)) { paren(ok) } else { ok };
+                    parse_quote! {
+                        if !#ok {
+                            return None;
+                        }
+                    }
+                }
+            };
+            self.part.stmts.push(stmt);
         }
     }
 

@@ -27,6 +27,7 @@
 //!   global axis (eq. 4.62), e_k cos(s/2) − e0 sin(s/2) = 0.
 
 pub(crate) mod kin;
+pub mod redundancy;
 pub mod scaling;
 mod solve;
 #[cfg(test)]
@@ -245,9 +246,7 @@ impl<'m> Equations<'m> {
             nu: DVector::zeros(m),
             gamma: DVector::zeros(m),
         };
-        let states = self.states(q, qd);
-        let mut row = 0;
-        let mut emit = |bodies: [Option<usize>; 2], sk: Sk, sys: &mut System| {
+        self.visit_rows(q, qd, t, |row, bodies, sk| {
             sys.phi[row] = sk.v;
             sys.nu[row] = -sk.t;
             sys.gamma[row] = -sk.d2;
@@ -258,33 +257,77 @@ impl<'m> Equations<'m> {
                     }
                 }
             }
+        });
+        sys
+    }
+
+    /// Φ_q at `(q, t)` by rows, only the entries of the (at most two) bodies each row acts
+    /// on: `(column, value)` in increasing column order, zeros left out.
+    #[must_use]
+    pub fn jacobian_rows(&self, q: &DVector<f64>, t: f64) -> Vec<Vec<(usize, f64)>> {
+        let mut rows = vec![Vec::new(); self.equations()];
+        self.visit_rows(q, &DVector::zeros(q.len()), t, |row, bodies, sk| {
+            let entries = &mut rows[row];
+            for (slot, off) in bodies.iter().enumerate() {
+                if let Some(o) = *off {
+                    for c in 0..7 {
+                        entries.push((o + c, sk.jac[slot][c]));
+                    }
+                }
+            }
+            entries.sort_by_key(|&(c, _)| c);
+            // A row whose two slots are one body adds its blocks, as `evaluate` does.
+            entries.dedup_by(|b, a| {
+                let same = a.0 == b.0;
+                if same {
+                    a.1 += b.1;
+                }
+                same
+            });
+            entries.retain(|&(_, x)| x != 0.0);
+        });
+        rows
+    }
+
+    /// Calls `f(row, bodies, sk)` for every equation in row order, with the column offsets of
+    /// the bodies of its two slots and its value, Jacobian blocks and time derivatives.
+    fn visit_rows(
+        &self,
+        q: &DVector<f64>,
+        qd: &DVector<f64>,
+        t: f64,
+        mut f: impl FnMut(usize, [Option<usize>; 2], &Sk),
+    ) {
+        let states = self.states(q, qd);
+        let mut row = 0;
+        let mut emit = |bodies: [Option<usize>; 2], sk: Sk| {
+            f(row, bodies, &sk);
             row += 1;
         };
         for (k, joint) in self.mech.joints.iter().enumerate() {
             let pair = [self.offset[joint.body_i.0], self.offset[joint.body_j.0]];
             let (bi, bj) = (&states[joint.body_i.0], &states[joint.body_j.0]);
             for sk in self.joint_rows(k, joint, bi, bj) {
-                emit(pair, sk, &mut sys);
+                emit(pair, sk);
             }
         }
         for c in &self.mech.constraints {
             let (bodies, sk) = self.constraint_row(c, &states);
-            emit(bodies, sk, &mut sys);
+            emit(bodies, sk);
         }
         for (k, d) in self.mech.drivers.iter().enumerate() {
             let (bodies, sk) = self.driver_row(k, d, &states, t);
-            emit(bodies, sk, &mut sys);
+            emit(bodies, sk);
         }
         for (b, off) in states.iter().zip(&self.offset) {
             if off.is_some() {
                 // Thesis eq. 3.13: pᵀp − 1 = 0, Jacobian 2pᵀ, γ = −2ṗᵀṗ.
                 let p: Vec<Sk> = (3..7).map(|i| Sk::coordinate(0, b, i)).collect();
                 let sk = p.iter().fold(Sk::constant(-1.0), |acc, e| acc.add(&e.mul(e)));
-                emit([*off, None], sk, &mut sys);
+                emit([*off, None], sk);
             }
         }
-        debug_assert_eq!(row, m);
-        sys
+        debug_assert_eq!(row, self.equations());
     }
 
     /// A constraint's row and the column offsets of its bodies.

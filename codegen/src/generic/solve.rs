@@ -1,11 +1,20 @@
 //! The analysis over the time grid: Newton–Raphson with LU and partial pivoting for the
 //! positions, then Φ_q q̇ = ν and Φ_q q̈ = γ with the same factorisation (thesis ch. 5.2), and
 //! the rank analysis that `check` reports.
+//!
+//! Redundant equations are solved with the others at every step: when Φ_q has more rows than
+//! columns, its LU with row pivoting over all the rows picks, at each configuration, the rows
+//! that the triangular solves use, so the factorisation degenerates only when the whole Φ_q
+//! loses column rank (the Bennett linkage at θ1 = 0, where any set of rows chosen once at the
+//! start becomes singular, is regular here). The rows the pivoting leaves aside are checked:
+//! a step is accepted only when every row meets the tolerance and the velocity and
+//! acceleration equations of every row hold ([`CONSISTENCY`]); otherwise it is rejected as
+//! `inconsistent`.
 
 use nalgebra::{DMatrix, DVector, SVD, Vector4};
 
 use super::scaling::balanced;
-use super::{Equations, angle_alignment};
+use super::{Equations, System, angle_alignment};
 use crate::model::{DriverTarget, JointKind, Motion, RowLabel};
 use crate::stepping::{self, Engine, Point, Rejection, Stop, Trouble};
 
@@ -22,9 +31,21 @@ const SINGULAR_PIVOT_RATIO: f64 = 1e-12;
 /// ([`super::scaling`]), so that this holds whatever the unit of length.
 const RANK_TOLERANCE: f64 = 1e-10;
 
-/// A row whose component outside the span of the rows before it is below this fraction of
-/// its own norm is named redundant (same reasoning as [`RANK_TOLERANCE`], per row).
-const REDUNDANT_ROW_TOLERANCE: f64 = 1e-8;
+/// The velocity and acceleration equations of every row must hold to this fraction of the
+/// step's scale: |Φ_q,i x − b_i| ≤ CONSISTENCY · max_k (Σ_j |Φ_q,kj x_j| + |b_k|), every row
+/// in balanced units, for x = q̇, b = ν and x = q̈, b = γ. The rows of a consistent redundant
+/// system agree exactly only on the constraint manifold; at a configuration that meets Φ to
+/// the tolerance τ (1e-10) the dependency between them is off by about κ·τ/ℓ (κ the
+/// condition of Φ_q in balanced units, ℓ the characteristic length), and the solve adds about
+/// κ·ε: below 1e-6 for the condition numbers (up to 1e4) of the configurations a step is
+/// accepted at in practice. Two drivers that contradict each other differ by their own
+/// scale (1 rad/s against 1.1 rad/s: 5e-2), far above it.
+const CONSISTENCY: f64 = 1e-6;
+
+/// Newton iterations allowed in a row while the rows the factorisation uses meet the tolerance
+/// and others do not: in a consistent system the others follow within one iteration (they depend
+/// on the used rows, to first order); an inconsistent one stays where it is.
+const STALLED_ITERATIONS: u32 = 2;
 
 /// One analysed time point.
 #[derive(Clone, Debug)]
@@ -47,6 +68,10 @@ pub struct Frame {
     pub qd: DVector<f64>,
     /// Accelerations.
     pub qdd: DVector<f64>,
+    /// The rows named redundant here ([`super::redundancy`]), when they differ from those of
+    /// the previous frame (for the first frame: from those named at the initial
+    /// configuration, [`Preparation::redundant`]); `None` when they are the same.
+    pub redundant: Option<Vec<usize>>,
 }
 
 /// Why the analysis stopped.
@@ -58,6 +83,9 @@ pub enum FailureKind {
     Singular,
     /// A driven angle converged on the wrong branch.
     BranchJump,
+    /// Equations that cannot hold together: two drivers that contradict each other, a
+    /// constraint that conflicts with a driver.
+    Inconsistent,
 }
 
 impl FailureKind {
@@ -68,6 +96,7 @@ impl FailureKind {
             Self::NoConvergence => "no_convergence",
             Self::Singular => "singular",
             Self::BranchJump => "branch_jump",
+            Self::Inconsistent => "inconsistent",
         }
     }
 }
@@ -97,9 +126,7 @@ pub struct Preparation {
     pub rank: usize,
     /// Unknowns minus the rank of Φ_q without the driver rows.
     pub mobility: usize,
-    /// Rows kept for the analysis (all when there is no redundancy).
-    pub active: Vec<usize>,
-    /// Rows that depend on the rows before them, in row order.
+    /// Rows named redundant at the configuration used ([`super::redundancy`]), in row order.
     pub redundant: Vec<usize>,
     /// Bodies that can still move when Φ_q has lower column rank than the unknowns.
     pub free_bodies: Vec<String>,
@@ -182,18 +209,8 @@ impl Equations<'_> {
             .collect();
         let kept: Vec<usize> = (0..self.equations()).filter(|k| !driver_rows.contains(k)).collect();
         let rank_nd = numeric_rank(&jac.select_rows(kept.iter()));
-        let normalisation: Vec<bool> =
-            self.labels().iter().map(RowLabel::is_normalisation).collect();
-        let (active, redundant) = independent_rows(&jac, &normalisation);
-        Preparation {
-            assembled,
-            q,
-            rank,
-            mobility: n - rank_nd.min(n),
-            active,
-            redundant,
-            free_bodies,
-        }
+        let redundant = self.redundant_rows(&q, t0);
+        Preparation { assembled, q, rank, mobility: n - rank_nd.min(n), redundant, free_bodies }
     }
 }
 
@@ -220,39 +237,6 @@ fn numeric_rank(m: &DMatrix<f64>) -> usize {
     s.iter().filter(|&&x| x > RANK_TOLERANCE * smax).count()
 }
 
-/// Splits the rows into a maximal independent set, greedily (modified Gram–Schmidt), and the
-/// rows that depend on the ones taken before them; both lists in row order. The test is
-/// relative to each row's norm, so only the columns' units matter: pass Φ_q with balanced
-/// columns ([`super::scaling`]).
-///
-/// The rows marked in `first` (the Euler-parameter normalisations) are taken first and the
-/// others in row order, so that a dependency is blamed on the joint, constraint or driver
-/// equations that close it, never on a normalisation, which holds by construction.
-pub(crate) fn independent_rows(jac: &DMatrix<f64>, first: &[bool]) -> (Vec<usize>, Vec<usize>) {
-    let mut basis: Vec<DVector<f64>> = Vec::new();
-    let (mut active, mut redundant) = (Vec::new(), Vec::new());
-    let order =
-        (0..jac.nrows()).filter(|&k| first[k]).chain((0..jac.nrows()).filter(|&k| !first[k]));
-    for k in order {
-        let row = jac.row(k).transpose();
-        let norm = row.norm();
-        let mut w = row.clone();
-        for b in &basis {
-            let c = b.dot(&w);
-            w -= b * c;
-        }
-        if norm > 0.0 && w.norm() > REDUNDANT_ROW_TOLERANCE * norm {
-            basis.push(w.normalize());
-            active.push(k);
-        } else {
-            redundant.push(k);
-        }
-    }
-    active.sort_unstable();
-    redundant.sort_unstable();
-    (active, redundant)
-}
-
 fn max_abs(v: &DVector<f64>) -> f64 {
     v.iter().fold(0.0_f64, |m, x| m.max(x.abs()))
 }
@@ -267,8 +251,8 @@ fn all_finite<R: nalgebra::Dim, C: nalgebra::Dim, S: nalgebra::RawStorage<f64, R
 #[derive(Clone, Debug)]
 pub struct Analysis<'e, 'm> {
     eq: &'e Equations<'m>,
-    /// Rows used: all, or the independent ones when the system is redundant.
-    active: Option<Vec<usize>>,
+    /// Rows named redundant at the initial configuration ([`Preparation::redundant`]).
+    redundant: Vec<usize>,
     /// Where Newton starts at the first time point.
     start: DVector<f64>,
     tolerance: f64,
@@ -280,14 +264,16 @@ pub struct Analysis<'e, 'm> {
 }
 
 impl<'e, 'm> Analysis<'e, 'm> {
-    /// An analysis that drops the redundant rows found by `prep`, if any.
+    /// An analysis of the equations `eq`, starting from the configuration `prep` assembled when
+    /// it found redundant equations (from the initial estimates otherwise, as the generated
+    /// solver does).
     #[must_use]
     pub fn new(eq: &'e Equations<'m>, prep: &Preparation) -> Self {
         let mech = eq.mechanism();
         let redundant = !prep.redundant.is_empty();
         Self {
             eq,
-            active: redundant.then(|| prep.active.clone()),
+            redundant: prep.redundant.clone(),
             start: if redundant && prep.assembled { prep.q.clone() } else { eq.initial_estimate() },
             tolerance: mech.solver.tolerance,
             max_iterations: mech.solver.max_iterations,
@@ -353,6 +339,10 @@ impl<'e, 'm> Analysis<'e, 'm> {
         let mut report = StepReport { steps: 0, iterations: 0, failure: None };
         let mut engine = GenericEngine { analysis: self, prev: None };
         let mut last: Option<Point> = None;
+        // Only a system with more rows than unknowns can have redundant rows at a regular
+        // configuration.
+        let tall = self.eq.equations() > self.eq.unknowns();
+        let mut named = self.redundant.clone();
         for k in 0..grid.count {
             let t = grid.at(k);
             let outcome = match &last {
@@ -366,15 +356,25 @@ impl<'e, 'm> Analysis<'e, 'm> {
                 Ok((point, iterations)) => {
                     report.steps += 1;
                     report.iterations += u64::from(iterations);
+                    let q = DVector::from_column_slice(&point.q);
+                    let mut redundant = None;
+                    if tall {
+                        let now = self.eq.redundant_rows(&q, t);
+                        if now != named {
+                            named.clone_from(&now);
+                            redundant = Some(now);
+                        }
+                    }
                     let frame = Frame {
                         index: k,
                         t,
                         iterations,
                         residual: point.residual,
                         condition: 1.0 / point.pivot_ratio,
-                        q: DVector::from_column_slice(&point.q),
+                        q,
                         qd: DVector::from_column_slice(&point.qd),
                         qdd: DVector::from_column_slice(&point.qdd),
+                        redundant,
                     };
                     sink(&frame)?;
                     last = Some(point);
@@ -388,6 +388,15 @@ impl<'e, 'm> Analysis<'e, 'm> {
         Ok(report)
     }
 
+    /// The failure of the first time point alone, if the analysis stops there: what `check`
+    /// reports when the equations contradict each other at the initial configuration.
+    #[must_use]
+    pub fn first_failure(&self) -> Option<Failure> {
+        let t = self.eq.mechanism().time.start;
+        let mut engine = GenericEngine { analysis: self, prev: None };
+        stepping::first(&mut engine, t).err().map(|stop| self.failure_of(&stop))
+    }
+
     /// The contract's failure for a step control [`Stop`], naming the equations involved
     /// (see [`Analysis::involved`]).
     #[must_use]
@@ -396,13 +405,15 @@ impl<'e, 'm> Analysis<'e, 'm> {
             Trouble::Singular => FailureKind::Singular,
             Trouble::NoConvergence => FailureKind::NoConvergence,
             Trouble::BranchJump => FailureKind::BranchJump,
-            // No engine rejects a step as inconsistent yet (the rules never do): until one
-            // does, it is reported as the failure to converge that it is.
-            Trouble::Inconsistent => FailureKind::NoConvergence,
+            Trouble::Inconsistent => FailureKind::Inconsistent,
         };
-        let near = stop.near.as_ref().map(|p| (DVector::from_column_slice(&p.q), p.t));
-        let constraints =
-            self.involved(kind, near.as_ref().map(|(q, t)| (q, *t)), stop.t, stop.body);
+        let constraints = match (kind, stop.near.as_deref()) {
+            (FailureKind::Inconsistent, Some(p)) => self.conflicting(p),
+            _ => {
+                let near = stop.near.as_ref().map(|p| (DVector::from_column_slice(&p.q), p.t));
+                self.involved(kind, near.as_ref().map(|(q, t)| (q, *t)), stop.t, stop.body)
+            }
+        };
         let mut message = stop.message.clone();
         if let Some(b) = stop.body {
             let name = self
@@ -426,7 +437,9 @@ impl<'e, 'm> Analysis<'e, 'm> {
     /// - branch jump: the joints, constraints and drivers acting on the moving body `body`
     ///   that jumped;
     /// - no convergence: the (at most four) equations with the largest |Φ_i| above the
-    ///   tolerance at `near` and the failing time `t`.
+    ///   tolerance at `near` and the failing time `t`;
+    /// - inconsistent: the equations that do not hold at `near` and the failing time `t`
+    ///   (the conflict itself is named from the whole point by [`Analysis::failure_of`]).
     #[must_use]
     pub fn involved(
         &self,
@@ -440,7 +453,7 @@ impl<'e, 'm> Analysis<'e, 'm> {
         let zero = DVector::zeros(q.len());
         match kind {
             FailureKind::Singular => {
-                let jac = self.restrict_mat(self.eq.evaluate(q, &zero, t_near).jac);
+                let jac = self.eq.evaluate(q, &zero, t_near).jac;
                 if !all_finite(&jac) {
                     return Vec::new();
                 }
@@ -457,7 +470,7 @@ impl<'e, 'm> Analysis<'e, 'm> {
                 // configuration's scaling, not in the dependency.
                 (0..col.len())
                     .filter(|&k| col[k].abs() >= 0.1 * big)
-                    .map(|k| self.active_label(k))
+                    .map(|k| self.label(k))
                     .collect()
             }
             FailureKind::BranchJump => {
@@ -473,15 +486,15 @@ impl<'e, 'm> Analysis<'e, 'm> {
                     .map(|(_, l)| l.entity())
                     .collect()
             }
-            FailureKind::NoConvergence => {
-                let phi = self.restrict_vec(self.eq.evaluate(q, &zero, t).phi);
+            FailureKind::NoConvergence | FailureKind::Inconsistent => {
+                let phi = self.eq.evaluate(q, &zero, t).phi;
                 let mut worst: Vec<usize> = (0..phi.len()).collect();
                 worst.sort_by(|&a, &b| phi[b].abs().total_cmp(&phi[a].abs()));
                 worst
                     .iter()
                     .take_while(|&&k| phi[k].abs() > self.tolerance)
                     .take(4)
-                    .map(|&k| self.active_label(k))
+                    .map(|&k| self.label(k))
                     .collect()
             }
         }
@@ -504,28 +517,16 @@ impl<'e, 'm> Analysis<'e, 'm> {
         }
     }
 
-    /// Rows of `sys` restricted to the active ones.
-    fn restrict_vec(&self, v: DVector<f64>) -> DVector<f64> {
-        match &self.active {
-            Some(rows) => v.select_rows(rows.iter()),
-            None => v,
-        }
-    }
-
-    fn restrict_mat(&self, m: DMatrix<f64>) -> DMatrix<f64> {
-        match &self.active {
-            Some(rows) => m.select_rows(rows.iter()),
-            None => m,
-        }
-    }
-
-    /// Labels of the active rows.
-    fn active_label(&self, k: usize) -> String {
-        let row = self.active.as_ref().map_or(k, |a| a[k]);
-        self.eq.labels()[row].entity()
+    /// The entity of row `k` (`joint O4`).
+    fn label(&self, k: usize) -> String {
+        self.eq.labels()[k].entity()
     }
 
     /// Positions by Newton–Raphson from `q`, then velocities and accelerations, at time `t`.
+    ///
+    /// Every row takes part: Newton stops when every |Φ_i| meets the tolerance, and the
+    /// velocity and acceleration equations of every row are checked ([`CONSISTENCY`]) when Φ_q
+    /// has more rows than columns (a square regular Φ_q satisfies them all by construction).
     fn step(&self, t: f64, mut q: DVector<f64>) -> Result<Point, Rejection> {
         let n = self.eq.unknowns();
         let zero = DVector::zeros(n);
@@ -534,16 +535,16 @@ impl<'e, 'm> Analysis<'e, 'm> {
         // exactly (|p| − 1 ≤ 1e-14 whatever the tolerance); only a normalised configuration
         // that still meets the tolerance is accepted, otherwise Newton goes on from it.
         let mut normalised = false;
+        let mut stalled = 0;
         let (sys, residual) = loop {
             let sys = self.eq.evaluate(&q, &zero, t);
-            let phi = self.restrict_vec(sys.phi.clone());
-            if !all_finite(&phi) || !all_finite(&sys.jac) {
+            if !all_finite(&sys.phi) || !all_finite(&sys.jac) {
                 return Err(rejection(
                     Trouble::NoConvergence,
                     format!("Newton produced non-finite values after {iterations} iterations"),
                 ));
             }
-            let res = max_abs(&phi);
+            let res = max_abs(&sys.phi);
             if res <= self.tolerance {
                 if normalised {
                     break (sys, res);
@@ -562,18 +563,37 @@ impl<'e, 'm> Analysis<'e, 'm> {
                     ),
                 ));
             }
-            let jac = self.restrict_mat(sys.jac);
-            let dq = self.factor(jac)?.solve(&(-phi));
+            let lu = self.factor(sys.jac.clone())?;
+            let used_met = lu
+                .used()
+                .is_some_and(|used| used.iter().all(|&k| sys.phi[k].abs() <= self.tolerance));
+            stalled = if used_met { stalled + 1 } else { 0 };
+            if stalled > STALLED_ITERATIONS {
+                let worst = (0..sys.phi.len())
+                    .max_by(|&a, &b| sys.phi[a].abs().total_cmp(&sys.phi[b].abs()))
+                    .unwrap_or(0);
+                let message = format!(
+                    "equation {} cannot hold with the others: |Φ| = {res:e} where the \
+                     equations the solve uses meet the tolerance {:e}",
+                    self.eq.labels()[worst].equation(),
+                    self.tolerance
+                );
+                let point = Self::point(t, [&q, &zero, &zero], iterations, res, &lu);
+                return Err(Rejection {
+                    trouble: Trouble::Inconsistent,
+                    message,
+                    point: Some(Box::new(point)),
+                    body: None,
+                });
+            }
+            let dq = lu.solve(&(-&sys.phi));
             q += dq;
             normalised = false;
             iterations += 1;
         };
-        // Redundant rows left out of the analysis are satisfied too when they are consistent;
-        // the reported residual covers every row.
-        let residual = residual.max(max_abs(&sys.phi));
-        let lu = self.factor(self.restrict_mat(sys.jac))?;
-        let qd = lu.solve(&self.restrict_vec(sys.nu));
-        let gamma = self.restrict_vec(self.eq.evaluate(&q, &qd, t).gamma);
+        let lu = self.factor(sys.jac.clone())?;
+        let qd = lu.solve(&sys.nu);
+        let gamma = self.eq.evaluate(&q, &qd, t).gamma;
         let qdd = lu.solve(&gamma);
         if !all_finite(&qd) || !all_finite(&qdd) {
             return Err(rejection(
@@ -581,8 +601,39 @@ impl<'e, 'm> Analysis<'e, 'm> {
                 "velocities or accelerations are not finite".to_owned(),
             ));
         }
-        let (min, max) = pivot_extremes(&lu.lu);
-        let point = Point {
+        let point = Self::point(t, [&q, &qd, &qdd], iterations, residual, &lu);
+        if lu.used().is_some() {
+            let levels = [("velocity", &qd, &sys.nu), ("acceleration", &qdd, &gamma)];
+            for (what, x, b) in levels {
+                let (ratio, row) = inconsistency(&sys, &lu.rows, x, b);
+                // NaN misses too.
+                if ratio.is_nan() || ratio > CONSISTENCY {
+                    return Err(Rejection {
+                        trouble: Trouble::Inconsistent,
+                        message: format!(
+                            "the {what} equation of {} cannot hold with the others: it misses \
+                             by {ratio:.3e} of the {what} terms' scale (at most {CONSISTENCY:e})",
+                            self.eq.labels()[row].equation()
+                        ),
+                        point: Some(Box::new(point)),
+                        body: None,
+                    });
+                }
+            }
+        }
+        self.check_branch(&q, t).map_err(|mut r| {
+            r.point = Some(Box::new(point.clone()));
+            r
+        })?;
+        Ok(point)
+    }
+
+    /// The point of a solved attempt at `t`, with positions, rates and accelerations `q`,
+    /// its Newton `iterations` and `residual`, and the pivot ratio of `lu`.
+    fn point(t: f64, q: [&DVector<f64>; 3], iterations: u32, residual: f64, lu: &Factors) -> Point {
+        let (min, max) = lu.pivot_extremes();
+        let [q, qd, qdd] = q;
+        Point {
             t,
             q: q.as_slice().to_vec(),
             qd: qd.as_slice().to_vec(),
@@ -590,12 +641,57 @@ impl<'e, 'm> Analysis<'e, 'm> {
             iterations,
             residual,
             pivot_ratio: min / max,
+        }
+    }
+
+    /// The equations of an inconsistency at the point `p` (of a rejected attempt, or the last
+    /// accepted one): at each level (positions Φ, velocities Φ_q q̇ = ν and, when `p` has
+    /// rates, accelerations Φ_q q̈ = γ) the residual of the least-squares solution of the
+    /// linearised rows in balanced units is the part of the right-hand side that no motion can
+    /// meet; the level where it is largest against its allowance (the tolerance,
+    /// [`CONSISTENCY`] of the scale) names the rows with a share of at least 0.1 of its largest
+    /// entry, the equations that contradict each other.
+    fn conflicting(&self, p: &Point) -> Vec<String> {
+        let q = DVector::from_column_slice(&p.q);
+        let n = q.len();
+        let rates = p.qd.len() == n && p.qdd.len() == n;
+        let qd = if rates { DVector::from_column_slice(&p.qd) } else { DVector::zeros(n) };
+        let sys = self.eq.evaluate(&q, &qd, p.t);
+        if !all_finite(&sys.jac) || !all_finite(&sys.phi) {
+            return Vec::new();
+        }
+        let (jac, rows) = balanced(sys.jac.clone(), &self.columns);
+        let svd = SVD::new(jac, true, false);
+        let u = svd.u.as_ref().expect("requested U");
+        // The part of b outside the range of Φ_q (full column rank: the range is U's span).
+        let outside = |b: &DVector<f64>| {
+            let b = b.component_mul(&rows);
+            &b - u * (u.transpose() * &b)
         };
-        self.check_branch(&q, t).map_err(|mut r| {
-            r.point = Some(Box::new(point.clone()));
-            r
-        })?;
-        Ok(point)
+        let mut levels = vec![(outside(&sys.phi), self.tolerance, true)];
+        if rates {
+            for (x, b) in [(&qd, &sys.nu), (&DVector::from_column_slice(&p.qdd), &sys.gamma)] {
+                let (_, scale) = residual_and_scale(&sys.jac, &rows, x, b);
+                levels.push((outside(b), CONSISTENCY * scale, false));
+            }
+        }
+        // Position residuals compare with the tolerance in the rows' own units.
+        let ratio = |(r, allowed, unscaled): &(DVector<f64>, f64, bool)| {
+            let big = if *unscaled { r.component_div(&rows).amax() } else { r.amax() };
+            big / allowed
+        };
+        let Some(worst) = levels.iter().max_by(|a, b| ratio(a).total_cmp(&ratio(b))) else {
+            return Vec::new();
+        };
+        let r = &worst.0;
+        let big = r.amax();
+        if big.is_nan() || big <= 0.0 {
+            return Vec::new();
+        }
+        let named: Vec<String> =
+            (0..r.len()).filter(|&k| r[k].abs() >= 0.1 * big).map(|k| self.label(k)).collect();
+        let mut seen = std::collections::BTreeSet::new();
+        named.into_iter().filter(|c| seen.insert(c.clone())).collect()
     }
 
     /// Scales every body's Euler parameters to unit norm.
@@ -670,36 +766,126 @@ fn rejection(trouble: Trouble, message: String) -> Rejection {
     Rejection { trouble, message, point: None, body: None }
 }
 
-/// The smallest and largest |u_kk| of an LU factorisation.
-fn pivot_extremes(lu: &nalgebra::LU<f64, nalgebra::Dyn, nalgebra::Dyn>) -> (f64, f64) {
-    lu.u()
-        .diagonal()
+/// The largest |Φ_q,i x − b_i| over the rows relative to the scale max_k (Σ_j |Φ_q,kj x_j| +
+/// |b_k|), both in balanced rows (`rows`), and the row where it is.
+fn inconsistency(
+    sys: &System,
+    rows: &DVector<f64>,
+    x: &DVector<f64>,
+    b: &DVector<f64>,
+) -> (f64, usize) {
+    let (r, scale) = residual_and_scale(&sys.jac, rows, x, b);
+    let (row, big) = r
         .iter()
-        .fold((f64::INFINITY, 0.0_f64), |(lo, hi), x| (lo.min(x.abs()), hi.max(x.abs())))
+        .enumerate()
+        .fold((0, 0.0_f64), |m, (k, v)| if v.abs() > m.1 { (k, v.abs()) } else { m });
+    if scale > 0.0 { (big / scale, row) } else { (big, row) }
+}
+
+/// R (Φ_q x − b) and max_k R_k (Σ_j |Φ_q,kj x_j| + |b_k|) for the row factors R of the
+/// balanced units.
+fn residual_and_scale(
+    jac: &DMatrix<f64>,
+    rows: &DVector<f64>,
+    x: &DVector<f64>,
+    b: &DVector<f64>,
+) -> (DVector<f64>, f64) {
+    // One pass over the (column-major) matrix for both sums.
+    let mut r = -b;
+    let mut terms = b.abs();
+    for (j, column) in jac.column_iter().enumerate() {
+        for (i, a) in column.iter().enumerate() {
+            let v = a * x[j];
+            r[i] += v;
+            terms[i] += v.abs();
+        }
+    }
+    let scale = terms.component_mul(rows).iter().fold(0.0_f64, |m, v| m.max(*v));
+    (r.component_mul(rows), scale)
 }
 
 /// The LU factors of R Φ_q C (Φ_q in balanced units) with the scales, to solve Φ_q x = b.
 struct Factors {
-    lu: nalgebra::LU<f64, nalgebra::Dyn, nalgebra::Dyn>,
+    lu: Lu,
     rows: DVector<f64>,
     columns: DVector<f64>,
 }
 
+/// LU with row pivoting of a square Φ_q, or of one with more rows than columns.
+enum Lu {
+    /// P A = L U.
+    Square(nalgebra::LU<f64, nalgebra::Dyn, nalgebra::Dyn>),
+    /// P A = [L1; L2] U for A with m > n rows: the solves use the n rows that row pivoting
+    /// brought to the top, `used`, and L1 (unit lower triangular, the top of `l`) and U, both
+    /// n × n.
+    Tall {
+        p: nalgebra::PermutationSequence<nalgebra::Dyn>,
+        l: DMatrix<f64>,
+        u: DMatrix<f64>,
+        used: Vec<usize>,
+    },
+}
+
 impl Factors {
-    /// x = C (R Φ_q C)⁻¹ R b; exact scalings, the factors being powers of two.
+    /// x = C (R Φ_q C)⁻¹ R b, using the rows of [`Factors::used`] when Φ_q has more rows than
+    /// columns; exact scalings, the factors being powers of two.
     fn solve(&self, b: &DVector<f64>) -> DVector<f64> {
-        let y = self.lu.solve(&b.component_mul(&self.rows)).expect("checked non-singular");
+        let mut y = b.component_mul(&self.rows);
+        let y = match &self.lu {
+            Lu::Square(lu) => {
+                assert!(lu.solve_mut(&mut y), "checked non-singular");
+                y
+            }
+            Lu::Tall { p, l, u, .. } => {
+                p.permute_rows(&mut y);
+                let n = u.nrows();
+                let mut z = y.rows(0, n).into_owned();
+                l.view((0, 0), (n, n)).solve_lower_triangular_with_diag_mut(&mut z, 1.0);
+                assert!(u.solve_upper_triangular_mut(&mut z), "checked non-singular");
+                z
+            }
+        };
         y.component_mul(&self.columns)
+    }
+
+    /// The rows the solves use when Φ_q has more rows than columns, `None` for a square Φ_q.
+    fn used(&self) -> Option<&[usize]> {
+        match &self.lu {
+            Lu::Square(_) => None,
+            Lu::Tall { used, .. } => Some(used),
+        }
+    }
+
+    /// The smallest and largest |u_kk|.
+    fn pivot_extremes(&self) -> (f64, f64) {
+        let diagonal = match &self.lu {
+            Lu::Square(lu) => lu.u().diagonal(),
+            Lu::Tall { u, .. } => u.diagonal(),
+        };
+        diagonal
+            .iter()
+            .fold((f64::INFINITY, 0.0_f64), |(lo, hi), x| (lo.min(x.abs()), hi.max(x.abs())))
     }
 }
 
 impl Analysis<'_, '_> {
-    /// LU with partial pivoting of the (square) Jacobian in balanced units, refused when a
-    /// pivot is at most [`SINGULAR_PIVOT_RATIO`] of the largest.
+    /// LU with row pivoting of the Jacobian in balanced units (over all its rows when it has
+    /// more rows than columns), refused when a pivot is at most [`SINGULAR_PIVOT_RATIO`] of
+    /// the largest.
     fn factor(&self, jac: DMatrix<f64>) -> Result<Factors, Rejection> {
+        let (m, n) = jac.shape();
         let (jac, rows) = balanced(jac, &self.columns);
-        let lu = jac.lu();
-        let (min, max) = pivot_extremes(&lu);
+        let lu = if m == n {
+            Lu::Square(jac.lu())
+        } else {
+            let (p, l, u) = nalgebra::LU::new(jac).unpack();
+            let mut order = DVector::from_iterator(m, 0..m);
+            p.permute_rows(&mut order);
+            let used = order.iter().take(n).copied().collect();
+            Lu::Tall { p, l, u, used }
+        };
+        let factors = Factors { lu, rows, columns: self.columns.clone() };
+        let (min, max) = factors.pivot_extremes();
         if min.is_nan() || min <= SINGULAR_PIVOT_RATIO * max {
             return Err(rejection(
                 Trouble::Singular,
@@ -709,7 +895,7 @@ impl Analysis<'_, '_> {
                 ),
             ));
         }
-        Ok(Factors { lu, rows, columns: self.columns.clone() })
+        Ok(factors)
     }
 }
 

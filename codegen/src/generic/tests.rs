@@ -626,3 +626,40 @@ law = { offset = 0.2, amplitude = 0.1, frequency = 3.0 }
         assert_eq!(steps, mech.time.count);
     }
 }
+
+mod redundancy {
+    use crate::generic::redundancy::independent;
+
+    #[test]
+    fn the_row_that_closes_a_dependency_is_named_never_a_normalisation() {
+        // Rows over three columns: a = e0, b = e1, c = a + b, and a "normalisation" n = 2 e0
+        // marked to come first. Order n, a, b, c: a depends on n, c on n and b.
+        let rows = vec![
+            vec![(0, 1.0)],
+            vec![(1, 1.0)],
+            vec![(0, 1.0), (1, 1.0)],
+            vec![(0, 2.0)],
+            vec![(2, 1.0)],
+        ];
+        let first = [false, false, false, true, false];
+        let kept: Vec<usize> = independent(&rows, 3, &first).into_iter().collect();
+        assert_eq!(kept, [1, 3, 4]);
+        // Without the normalisation first, the later of the two equal directions goes.
+        let kept: Vec<usize> = independent(&rows, 3, &[]).into_iter().collect();
+        assert_eq!(kept, [0, 1, 4]);
+    }
+
+    #[test]
+    fn the_test_is_relative_to_each_row() {
+        // A row of size 1e-12 is kept when its direction is new; a row of size 1 that an
+        // earlier row matches to 1e-12 of its size (below the 1e-8 bound) is named, although
+        // the three rows have full rank.
+        let rows = vec![
+            vec![(0, 1.0), (1, 1.0)],
+            vec![(0, 1e-12), (1, -1e-12)],
+            vec![(0, 1.0), (1, 1.0), (2, 1e-12)],
+        ];
+        let kept: Vec<usize> = independent(&rows, 3, &[]).into_iter().collect();
+        assert_eq!(kept, [0, 1]);
+    }
+}

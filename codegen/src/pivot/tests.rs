@@ -133,3 +133,20 @@ fn the_motion_visits_at_most_max_samples_configurations() {
     let orders = plan_motion(&mech, &sys);
     assert_eq!(orders.len(), 2);
 }
+
+#[test]
+fn an_input_rotation_is_planned_over_a_turn_as_its_law_would_be() {
+    // `benches/rssr_input.toml` is the revolution benchmark with its crank's rotation about y
+    // an input: planning sweeps the input through one turn over the `[time]` grid, which is the
+    // benchmark's law 146.6 t, so it finds the law's two orders. Without the inputs in the
+    // planning walk, the driver's Jacobian entries were NaN and no order was planned at all.
+    let (law_mech, law_sys) = load("benches/rssr_revolution.toml");
+    let (mech, sys) = load("benches/rssr_input.toml");
+    assert_eq!(sys.inputs.len(), 1);
+    let (law, input) = (plan_motion(&law_mech, &law_sys), plan_motion(&mech, &sys));
+    assert_eq!(input.len(), 2);
+    assert_eq!(input, law);
+    // A joint rotation as an input (the four-bar's crank) is planned too.
+    let (mech, sys) = load("examples/inputs/four_bar_input.toml");
+    assert!(!plan_motion(&mech, &sys).is_empty());
+}

@@ -13,6 +13,7 @@ fn step(t: f64) -> StepResult {
         bodies: Vec::new(),
         points: vec![PointResult { name: "P".into(), r: [t, 0.0, 0.0], v: [1.0; 3], a: [0.0; 3] }],
         joints: Vec::new(),
+        redundant: None,
     }
 }
 

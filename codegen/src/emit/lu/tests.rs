@@ -27,3 +27,15 @@ fn constant_folding_is_exact() {
     assert_eq!(shown(&Val::Const(2.0).mul(&y.sub(&x))), "2.0 * (y - x)");
     assert_eq!(shown(&y.sub(&x).negated().mul(&x)), "- (y - x) * x");
 }
+
+#[test]
+fn a_binding_has_no_enclosing_parentheses() {
+    let (x, y) = (run("x"), run("y"));
+    // −(−(x y)) keeps the parentheses of the inner operand; the binding drops them.
+    let twice = x.mul(&y).negated().negated();
+    assert_eq!(shown(&twice), "(x * y)");
+    let e = twice.binding();
+    assert_eq!(quote::quote!(#e).to_string(), "x * y");
+    let e = y.sub(&x).binding();
+    assert_eq!(quote::quote!(#e).to_string(), "y - x");
+}
