@@ -3,10 +3,13 @@
 //! and read its frames back. The solver process never outlives the reading: it is killed
 //! when the reader stops, and it stops by itself when its output is closed.
 //!
-//! The built program prints one line per time point: `step t iterations residual` followed
-//! by q, q̇ and q̈ of every moving body (7 each, body by body) in shortest round-trip form,
-//! or, when the analysis stops, `near t q… q̇… q̈…` (the configuration closest to the failure,
-//! if any) and `error kind t body message`. Run mode takes each step under the step control of
+//! The built program writes one binary record per time point ([`step_record`]: t, the Newton
+//! iterations, the residual, the condition estimate and q, q̇ and q̈ of every moving body, 7
+//! each, body by body, as raw little-endian doubles, so that nothing is formatted or parsed),
+//! or, when the analysis stops, the text lines `near t q…` (the configuration closest to the
+//! failure, if any) and `error kind t body message`. A text line
+//! `step t iterations residual condition q… q̇… q̈…` (shortest round-trip numbers) is read as a
+//! step too. Run mode takes each step under the step control of
 //! [`runtime::step`], which the program links with the solver. In `bench` mode it times whole passes
 //! over the grid and prints `bench min_ns median_ns iterations_per_step`.
 
@@ -348,26 +351,43 @@ pub fn run_with(
     let stdout = child.0.stdout.take().expect("piped");
     let mut report = RunReport { steps: 0, failure: None };
     let mut near: Option<Point> = None;
-    for line in BufReader::new(stdout).lines() {
-        let line = line.map_err(RunError::Read)?;
-        let mut words = line.split(' ');
-        match words.next() {
-            Some("step") => match step_line(&line, report.steps)? {
-                Ok(frame) => {
-                    sink(&frame).map_err(EngineError::Output)?;
-                    report.steps += 1;
+    let mut reader = BufReader::with_capacity(1 << 16, stdout);
+    let (mut bytes, mut record) = (Vec::new(), Vec::new());
+    loop {
+        let first = reader.fill_buf().map_err(RunError::Read)?.first().copied();
+        let step = match first {
+            None => break,
+            Some(STEP_RECORD) => step_record(&mut reader, &mut record, report.steps)?,
+            Some(_) => {
+                bytes.clear();
+                reader.read_until(b'\n', &mut bytes).map_err(RunError::Read)?;
+                let text = String::from_utf8_lossy(&bytes);
+                let line = text.strip_suffix('\n').unwrap_or(&text).to_owned();
+                let mut words = line.split(' ');
+                match words.next() {
+                    Some("step") => step_line(&line, report.steps)?,
+                    Some("near") => {
+                        near = Some(near_line(&line, analysis.unknowns())?);
+                        continue;
+                    }
+                    Some("error") => {
+                        let stop = error_line(&line, near.take());
+                        report.failure = Some(analysis.failure_of(&stop));
+                        continue;
+                    }
+                    _ => return Err(RunError::Unexpected(line).into()),
                 }
-                Err(failure) => {
-                    report.failure = Some(failure);
-                    return Ok(report);
-                }
-            },
-            Some("near") => near = Some(near_line(&line, analysis.unknowns())?),
-            Some("error") => {
-                let stop = error_line(&line, near.take());
-                report.failure = Some(analysis.failure_of(&stop));
             }
-            _ => return Err(RunError::Unexpected(line).into()),
+        };
+        match step {
+            Ok(frame) => {
+                sink(&frame).map_err(EngineError::Output)?;
+                report.steps += 1;
+            }
+            Err(failure) => {
+                report.failure = Some(failure);
+                return Ok(report);
+            }
         }
     }
     let status = child.0.wait().map_err(RunError::Read)?;
@@ -375,6 +395,64 @@ pub fn run_with(
         return Err(RunError::Exit(status).into());
     }
     Ok(report)
+}
+
+/// The first byte of a binary step record (see [`step_record`]); text lines start with a
+/// letter.
+const STEP_RECORD: u8 = 0;
+
+/// The most coordinates a step record may announce: 7 per moving body at the bodies' limit,
+/// with room to spare; more is a malformed record, not an allocation.
+const MAX_RECORD_COORDINATES: usize = 1 << 16;
+
+/// The frame of the binary step record at the start of `reader` (the `index`-th), or the
+/// failure it is when it holds a non-finite value other than the condition estimate: the
+/// byte [`STEP_RECORD`], the number m of coordinates and the Newton iterations as
+/// little-endian u32, then t, the residual, the condition estimate and m values each of q, q̇
+/// and q̈ as little-endian f64 (the driver's `step_record`). `record` is reused storage.
+fn step_record(
+    reader: &mut impl Read,
+    record: &mut Vec<u8>,
+    index: usize,
+) -> Result<Result<Frame, Failure>, RunError> {
+    let mut head = [0u8; 9];
+    reader.read_exact(&mut head).map_err(RunError::Read)?;
+    let word = |k: usize| u32::from_le_bytes([head[k], head[k + 1], head[k + 2], head[k + 3]]);
+    let (m, iterations) = (word(1) as usize, word(5));
+    if m > MAX_RECORD_COORDINATES {
+        return Err(RunError::Malformed(format!("a step record of {m} coordinates")));
+    }
+    record.resize(8 * (3 + 3 * m), 0);
+    reader.read_exact(record).map_err(RunError::Read)?;
+    let values: Vec<f64> = record
+        .chunks_exact(8)
+        .map(|b| f64::from_le_bytes([b[0], b[1], b[2], b[3], b[4], b[5], b[6], b[7]]))
+        .collect();
+    let (t, residual, condition) = (values[0], values[1], values[2]);
+    let coordinates = &values[3..];
+    if let Some(bad) = coordinates.iter().chain(&[residual]).find(|v| !v.is_finite()) {
+        return Ok(Err(non_finite(*bad, t)));
+    }
+    Ok(Ok(Frame {
+        index,
+        t,
+        iterations,
+        residual,
+        condition,
+        q: DVector::from_column_slice(&coordinates[..m]),
+        qd: DVector::from_column_slice(&coordinates[m..2 * m]),
+        qdd: DVector::from_column_slice(&coordinates[2 * m..]),
+        redundant: None,
+    }))
+}
+
+/// The failure of a step whose value `bad` is not finite, at time `t`.
+fn non_finite(bad: f64, t: f64) -> Failure {
+    let message = format!(
+        "the generated solver produced the non-finite value {bad} (the steps before this one are \
+         kept)"
+    );
+    Failure { kind: FailureKind::NoConvergence, t, message, constraints: Vec::new() }
 }
 
 /// The frame of a `step t iterations residual condition q… q̇… q̈…` line (the `index`-th),
@@ -390,13 +468,7 @@ fn step_line(line: &str, index: usize) -> Result<Result<Frame, Failure>, RunErro
     let m = (nums.len() - 4) / 3;
     let values: Vec<f64> = nums[4..].iter().map(|s| parse(s)).collect::<Result<_, _>>()?;
     if let Some(bad) = values.iter().chain(&[parse(nums[2])?]).find(|v| !v.is_finite()) {
-        let message = format!(
-            "the generated solver produced the non-finite value {bad} (the steps before this \
-             one are kept)"
-        );
-        let t = parse(nums[0]).unwrap_or(f64::NAN);
-        let kind = FailureKind::NoConvergence;
-        return Ok(Err(Failure { kind, t, message, constraints: Vec::new() }));
+        return Ok(Err(non_finite(*bad, parse(nums[0]).unwrap_or(f64::NAN))));
     }
     Ok(Ok(Frame {
         index,
@@ -500,6 +572,50 @@ pub fn bench_with(
 #[cfg(all(test, unix))]
 mod tests {
     use super::*;
+
+    /// A step record as the driver writes it, by the layout [`step_record`] documents.
+    fn record(t: f64, iterations: u32, residual: f64, condition: f64, values: &[f64]) -> Vec<u8> {
+        let m = u32::try_from(values.len() / 3).unwrap();
+        let mut r = vec![STEP_RECORD];
+        r.extend_from_slice(&m.to_le_bytes());
+        r.extend_from_slice(&iterations.to_le_bytes());
+        for x in [t, residual, condition].iter().chain(values) {
+            r.extend_from_slice(&x.to_le_bytes());
+        }
+        r
+    }
+
+    #[test]
+    fn a_step_record_reads_back_every_value_exactly() {
+        // 7 coordinates: values whose text would need 17 digits, a subnormal, −0.
+        let values: Vec<f64> = (0..21)
+            .map(|k| match k {
+                0 => 0.1 + 0.2,
+                1 => 5e-324,
+                2 => -0.0,
+                _ => std::f64::consts::PI * f64::from(k) * 1e-3,
+            })
+            .collect();
+        let bytes = record(0.25, 3, 1.5e-17, 2.5e3, &values);
+        let mut reader = std::io::Cursor::new(bytes);
+        let frame = step_record(&mut reader, &mut Vec::new(), 4).unwrap().unwrap();
+        assert_eq!((frame.index, frame.t, frame.iterations), (4, 0.25, 3));
+        assert_eq!((frame.residual, frame.condition), (1.5e-17, 2.5e3));
+        let read: Vec<f64> = frame.q.iter().chain(&frame.qd).chain(&frame.qdd).copied().collect();
+        let bits = |xs: &[f64]| xs.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+        assert_eq!(bits(&read), bits(&values));
+        // A NaN among the coordinates is a failure at the record's time, never a frame.
+        let mut nan = values;
+        nan[9] = f64::NAN;
+        let mut reader = std::io::Cursor::new(record(0.5, 1, 0.0, 1.0, &nan));
+        let failure = step_record(&mut reader, &mut Vec::new(), 0).unwrap().unwrap_err();
+        assert_eq!((failure.kind, failure.t), (FailureKind::NoConvergence, 0.5));
+        // A record that announces an absurd size is refused before anything is allocated.
+        let mut huge = record(0.0, 0, 0.0, 1.0, &[]);
+        huge[1..5].copy_from_slice(&u32::MAX.to_le_bytes());
+        let err = step_record(&mut std::io::Cursor::new(huge), &mut Vec::new(), 0).unwrap_err();
+        assert!(matches!(err, RunError::Malformed(_)), "{err:?}");
+    }
 
     #[test]
     fn a_non_finite_value_from_a_solver_stops_the_run_instead_of_being_written() {

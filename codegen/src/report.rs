@@ -223,12 +223,12 @@ pub fn step_result(mech: &Mechanism, layout: &[Option<usize>], frame: &Frame) ->
         &frame.qd,
         &frame.qdd,
     );
+    s.condition = frame.condition;
+    s.suspect = runtime::step::suspect(frame.condition, f64::EPSILON);
     if let Some(rows) = &frame.redundant {
         let labels = mech.row_labels();
         s.redundant = Some(rows.iter().map(|&k| labels[k].equation()).collect());
     }
-    s.condition = frame.condition;
-    s.suspect = runtime::step::suspect(frame.condition, f64::EPSILON);
     s
 }
 
@@ -981,15 +981,15 @@ fn write_table_step(out: &mut impl Write, s: &StepResult) -> io::Result<()> {
         "-----  TIME = {}  (Newton iterations {}, max |Φ| {:.1e}, condition {:.1e})  -----",
         s.t, s.iterations, s.residual, s.condition
     )?;
-    if let Some(r) = &s.redundant {
-        writeln!(out, "redundant equations from here on: {}", redundant_list(r))?;
-    }
     if s.suspect.any() {
         writeln!(
             out,
             "SUSPECT: {} (fewer than 6 significant digits by the condition estimate)",
             s.suspect.names().collect::<Vec<_>>().join(", ")
         )?;
+    }
+    if let Some(r) = &s.redundant {
+        writeln!(out, "redundant equations from here on: {}", redundant_list(r))?;
     }
     writeln!(out, "POSITION")?;
     writeln!(out, "{:<w$}{}", "BODY", head(&["X", "Y", "Z", "e0", "e1", "e2", "e3"]))?;
@@ -1346,9 +1346,9 @@ mod tests {
         let steps = sample_steps(true);
         // The writer reads the mechanism's name only; the steps bring their own names.
         let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples/rssr.toml");
-        let mech = crate::validate::load_file(&path)
-            .unwrap_or_else(|_| panic!("the example loads"))
-            .mechanism;
+        let loaded = crate::validate::load_file(&path);
+        let Ok(loaded) = loaded else { panic!("examples/rssr.toml loads") };
+        let mech = loaded.mechanism;
         let mut w = Writer::begin(Vec::new(), Format::Json, &mech, "generic", &[]).unwrap();
         for s in &steps {
             w.step(s).unwrap();

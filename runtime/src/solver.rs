@@ -703,10 +703,11 @@ impl<M: Mechanism<N, R>, const N: usize, R: Real, J: BorrowMut<[[R; N]; N]>> Sol
             // No unknowns: Φ_q is empty, as well conditioned as the identity.
             return R::ONE;
         }
-        let confirm = step::suspect_condition(R::EPSILON) / R::from_f64(step::CONDITION_MARGIN);
         if self.factored {
             let cheap = self.pivots.largest / self.pivots.smallest;
-            if cheap < confirm {
+            // cheap < suspect_condition / CONDITION_MARGIN, without the cube root.
+            let k = cheap.to_f64() * step::CONDITION_MARGIN;
+            if k * k * k * R::EPSILON.to_f64() < step::DIGITS {
                 return cheap;
             }
         }

@@ -263,7 +263,7 @@ fn bench<M: Generated>(
     ));
 }
 
-/// Steps over the grid under the step control, printing a `step` line per time point, or
+/// Steps over the grid under the step control, writing a step record per time point, or
 /// `near` and `error` lines and exit status 2 when the analysis stops.
 fn run<M: Generated>(solver: Solver<M, N, Real, Jacobian>, series: &Series, out: &mut impl Write) {
     let mut engine = Engine {
@@ -274,6 +274,7 @@ fn run<M: Generated>(solver: Solver<M, N, Real, Jacobian>, series: &Series, out:
         candidate: Full::default(),
     };
     let mut last: Option<Sample<f64>> = None;
+    let mut record = Vec::new();
     for k in 0..series.len() {
         series.aim(engine.solver.mechanism_mut(), k);
         let t = wide(series.time(k));
@@ -285,11 +286,8 @@ fn run<M: Generated>(solver: Solver<M, N, Real, Jacobian>, series: &Series, out:
             Ok((p, iterations)) => {
                 // κ̂ of Φ_q at the step, for the digits rule (runtime::step::suspect).
                 let condition = wide(engine.solver.condition());
-                check(write!(out, "step {t:?} {iterations} {:?} {condition:?}", p.residual));
-                for v in [&engine.full.q, &engine.full.qd, &engine.full.qdd] {
-                    numbers(out, v);
-                }
-                check(writeln!(out));
+                step_record(&mut record, t, iterations, p.residual, condition, &engine.full);
+                check(out.write_all(&record));
                 last = Some(p);
             }
             Err(stop) => {
@@ -309,6 +307,30 @@ fn run<M: Generated>(solver: Solver<M, N, Real, Jacobian>, series: &Series, out:
                 std::process::exit(2);
             }
         }
+    }
+}
+
+/// The binary record of one step (`codegen::engine` reads it back): the byte 0, the number m
+/// of coordinates and the Newton iterations as little-endian u32, then t, the residual and
+/// the condition estimate, then m values each of q, q̇ and q̈, as little-endian f64. Raw
+/// bits need neither formatting nor parsing and carry every value exactly.
+fn step_record(
+    record: &mut Vec<u8>,
+    t: f64,
+    iterations: u32,
+    residual: f64,
+    condition: f64,
+    full: &Full,
+) {
+    record.clear();
+    record.push(0);
+    let m = u32::try_from(full.q.len()).unwrap_or(u32::MAX);
+    record.extend_from_slice(&m.to_le_bytes());
+    record.extend_from_slice(&iterations.to_le_bytes());
+    let values = [t, residual, condition].into_iter().chain(full.q.iter().copied());
+    let values = values.chain(full.qd.iter().copied()).chain(full.qdd.iter().copied());
+    for x in values {
+        record.extend_from_slice(&x.to_le_bytes());
     }
 }
 
