@@ -8,7 +8,7 @@
 //!
 //! `UPDATE_EXPECT=1 cargo test -p tests arm_ik` rewrites the CSV from the closed form.
 
-use std::ffi::OsString;
+use crate::harness::mechgen;
 use std::path::PathBuf;
 
 /// Upper arm and forearm lengths, and the shoulder's height above the base (m).
@@ -193,15 +193,6 @@ fn the_tool_path_file_is_the_forward_kinematics_of_the_trajectory() {
             }
         }
     }
-}
-
-/// Runs `mechgen` in process: (exit status, stdout, stderr).
-fn mechgen(args: &[&str]) -> (i32, String, String) {
-    let mut argv: Vec<OsString> = vec!["mechgen".into()];
-    argv.extend(args.iter().map(OsString::from));
-    let (mut out, mut err) = (Vec::new(), Vec::new());
-    let status = codegen::cli::run(argv, &mut out, &mut err);
-    (status, String::from_utf8_lossy(&out).into_owned(), String::from_utf8_lossy(&err).into_owned())
 }
 
 /// `solve --inputs` of the arm on `engine`, as JSON.

@@ -8,7 +8,7 @@
 //! - The regular four-bar and the R-S-S-R are flagged nowhere.
 //! - κ̂ is checked against κ₂ from a singular value decomposition, for both engines.
 
-use std::ffi::OsString;
+use crate::harness::mechgen;
 use std::path::{Path, PathBuf};
 
 use codegen::generic::scaling::balanced;
@@ -19,14 +19,6 @@ use serde_json::Value;
 
 fn root() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("..")
-}
-
-fn mechgen(args: &[&str]) -> (i32, String, String) {
-    let mut argv: Vec<OsString> = vec!["mechgen".into()];
-    argv.extend(args.iter().map(OsString::from));
-    let (mut out, mut err) = (Vec::new(), Vec::new());
-    let status = codegen::cli::run(argv, &mut out, &mut err);
-    (status, String::from_utf8_lossy(&out).into_owned(), String::from_utf8_lossy(&err).into_owned())
 }
 
 /// `solve --format json` of `file` on `engine`: status, output and standard error.

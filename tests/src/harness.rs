@@ -356,3 +356,12 @@ pub(crate) fn euler_sign(ours: &BodyResult, reference: &Value) -> f64 {
 pub(crate) fn num(v: &Value) -> f64 {
     v.as_f64().unwrap_or_else(|| panic!("expected a number, found {v}"))
 }
+
+/// Runs `mechgen` in process with `args`: (exit status, standard output, standard error).
+pub(crate) fn mechgen(args: &[&str]) -> (i32, String, String) {
+    let mut argv: Vec<std::ffi::OsString> = vec!["mechgen".into()];
+    argv.extend(args.iter().map(std::ffi::OsString::from));
+    let (mut out, mut err) = (Vec::new(), Vec::new());
+    let status = codegen::cli::run(argv, &mut out, &mut err);
+    (status, String::from_utf8_lossy(&out).into_owned(), String::from_utf8_lossy(&err).into_owned())
+}

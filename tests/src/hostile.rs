@@ -2,7 +2,7 @@
 //! `expected.toml`), plus inputs too large to commit, made here: every one is refused with
 //! exit status 1 and a message naming the entity and the place, never a panic or a hang.
 
-use std::ffi::OsString;
+use crate::harness::mechgen;
 use std::path::{Path, PathBuf};
 
 use serde::Deserialize;
@@ -33,15 +33,6 @@ struct Corpus {
 
 fn corpus_dir() -> PathBuf {
     codegen::sync::workspace_root().join("tests/corpus/hostile")
-}
-
-/// Runs `mechgen` in process: (exit status, stdout, stderr).
-fn mechgen(args: &[&str]) -> (i32, String, String) {
-    let mut argv: Vec<OsString> = vec!["mechgen".into()];
-    argv.extend(args.iter().map(OsString::from));
-    let (mut out, mut err) = (Vec::new(), Vec::new());
-    let status = codegen::cli::run(argv, &mut out, &mut err);
-    (status, String::from_utf8_lossy(&out).into_owned(), String::from_utf8_lossy(&err).into_owned())
 }
 
 /// Line and column (1-based, in characters) of the first occurrence of `needle` in the file.

@@ -3,7 +3,7 @@
 //! mobility, redundant equations) as at their own scale, and both engines solve them with
 //! results equal to the unit results scaled.
 
-use std::ffi::OsString;
+use crate::harness::mechgen;
 use std::path::{Path, PathBuf};
 
 use toml::{Table, Value};
@@ -91,14 +91,6 @@ pub(crate) fn scaled(text: &str, s: f64) -> String {
     let tolerance = solver.get("tolerance").and_then(Value::as_float).unwrap_or(1e-10);
     solver.insert("tolerance".into(), Value::Float(tolerance.max(1e-15 * s)));
     toml::to_string(&doc).unwrap()
-}
-
-fn mechgen(args: &[&str]) -> (i32, String, String) {
-    let mut argv: Vec<OsString> = vec!["mechgen".into()];
-    argv.extend(args.iter().map(OsString::from));
-    let (mut out, mut err) = (Vec::new(), Vec::new());
-    let status = codegen::cli::run(argv, &mut out, &mut err);
-    (status, String::from_utf8_lossy(&out).into_owned(), String::from_utf8_lossy(&err).into_owned())
 }
 
 /// `example` scaled by `s`, written to the target directory.

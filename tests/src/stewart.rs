@@ -2,19 +2,11 @@
 //! of `examples::stewart`, the shipped inputs file holds that module's closed-form leg lengths,
 //! and `solve --inputs` on either engine recovers the platform's trajectory from them.
 
-use std::ffi::OsString;
+use crate::harness::mechgen;
 
 use examples::stewart::{self, LEGS, Trajectory};
 use nalgebra::{Matrix3, Vector3};
 use serde_json::Value;
-
-fn mechgen(args: &[&str]) -> (i32, String, String) {
-    let mut argv: Vec<OsString> = vec!["mechgen".into()];
-    argv.extend(args.iter().map(OsString::from));
-    let (mut out, mut err) = (Vec::new(), Vec::new());
-    let status = codegen::cli::run(argv, &mut out, &mut err);
-    (status, String::from_utf8_lossy(&out).into_owned(), String::from_utf8_lossy(&err).into_owned())
-}
 
 fn description() -> String {
     codegen::testing::example_arg("inputs/stewart.toml")
