@@ -88,7 +88,7 @@ impl Series {
     fn aim<M: Generated>(&self, m: &mut M, k: usize) {
         let (t1, u1) = self.sample(k);
         let (t0, u0) = self.sample(k.saturating_sub(1));
-        m.aim(t0, &u0, t1, &u1);
+        config::aim(m.module_mut(), t0, &u0, t1, &u1);
     }
 }
 
@@ -117,80 +117,30 @@ fn read_series() -> Series {
     Series { recorded: Some((times, inputs)) }
 }
 
-/// The generated mechanism, plain or behind [`DenseOnly`]: what the driver does with its
-/// inputs and coordinates beyond `runtime::Mechanism`.
+/// The generated mechanism, plain or behind [`DenseOnly`]: the driver reaches the module's
+/// own functions (`config::aim`, `config::expand`, `config::dropped`) through it.
 trait Generated: Mechanism<N, Real> {
-    /// Sets its inputs to `u0` at `t0` and `u1` at `t1`.
-    fn aim(&mut self, t0: Real, u0: &Inputs, t1: Real, u1: &Inputs);
-    /// The module's `expand` at its inputs at `t`.
-    fn expand(
-        &self,
-        q: &[Real; N],
-        qd: &[Real; N],
-        qdd: &[Real; N],
-        t: Real,
-        out: &mut [[[Real; 7]; 3]; mechanism::BODIES],
-    );
-    /// The module's `dropped_residuals` at its inputs at `t` (nothing without rows left out).
-    fn dropped(
-        &self,
-        q: &[Real; N],
-        qd: &[Real; N],
-        qdd: &[Real; N],
-        t: Real,
-        out: &mut [[Real; 3]; config::DROPPED],
-    );
+    /// The module's mechanism.
+    fn module(&self) -> &config::Generated;
+    /// The module's mechanism, to aim its inputs.
+    fn module_mut(&mut self) -> &mut config::Generated;
 }
 
 impl Generated for config::Generated {
-    fn aim(&mut self, t0: Real, u0: &Inputs, t1: Real, u1: &Inputs) {
-        config::aim(self, t0, u0, t1, u1);
+    fn module(&self) -> &config::Generated {
+        self
     }
-    fn expand(
-        &self,
-        q: &[Real; N],
-        qd: &[Real; N],
-        qdd: &[Real; N],
-        t: Real,
-        out: &mut [[[Real; 7]; 3]; mechanism::BODIES],
-    ) {
-        config::expand(self, q, qd, qdd, t, out);
-    }
-    fn dropped(
-        &self,
-        q: &[Real; N],
-        qd: &[Real; N],
-        qdd: &[Real; N],
-        t: Real,
-        out: &mut [[Real; 3]; config::DROPPED],
-    ) {
-        config::dropped(self, q, qd, qdd, t, out);
+    fn module_mut(&mut self) -> &mut config::Generated {
+        self
     }
 }
 
 impl Generated for DenseOnly<config::Generated> {
-    fn aim(&mut self, t0: Real, u0: &Inputs, t1: Real, u1: &Inputs) {
-        self.0.aim(t0, u0, t1, u1);
+    fn module(&self) -> &config::Generated {
+        &self.0
     }
-    fn expand(
-        &self,
-        q: &[Real; N],
-        qd: &[Real; N],
-        qdd: &[Real; N],
-        t: Real,
-        out: &mut [[[Real; 7]; 3]; mechanism::BODIES],
-    ) {
-        self.0.expand(q, qd, qdd, t, out);
-    }
-    fn dropped(
-        &self,
-        q: &[Real; N],
-        qd: &[Real; N],
-        qdd: &[Real; N],
-        t: Real,
-        out: &mut [[Real; 3]; config::DROPPED],
-    ) {
-        self.0.dropped(q, qd, qdd, t, out);
+    fn module_mut(&mut self) -> &mut config::Generated {
+        &mut self.0
     }
 }
 
@@ -408,7 +358,8 @@ impl<M: Generated> Stepper<f64> for Engine<M> {
         }
         // The pivots of the factorisation the solve kept, dense only near the singularity bound.
         let pivot_ratio = wide(self.solver.pivot_ratio());
-        self.solver.mechanism().expand(
+        config::expand(
+            self.solver.mechanism().module(),
             self.solver.q(),
             self.solver.qd(),
             self.solver.qdd(),
@@ -508,7 +459,7 @@ fn inconsistency<M: Generated>(solver: &Solver<M, N, Real, Jacobian>, t: Real) -
     let m = solver.mechanism();
     let (q, qd, qdd) = (solver.q(), solver.qd(), solver.qdd());
     let mut residuals = [[0.0; 3]; config::DROPPED];
-    m.dropped(q, qd, qdd, t, &mut residuals);
+    config::dropped(m.module(), q, qd, qdd, t, &mut residuals);
     let tolerance = wide(solver.options().tolerance);
     for (k, r) in residuals.iter().enumerate() {
         let phi = wide(r[0]).abs();
