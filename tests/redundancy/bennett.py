@@ -73,33 +73,50 @@ def fmt(v):
     return "[" + ", ".join(repr(float(x)) for x in v) + "]"
 
 
-def write(name, title, a, b, alpha1, alpha2, theta0, step, steps):
-    theta2 = closed_form(theta0, alpha1, alpha2)
-    thetas = [theta0, theta2, -theta0, -theta2]
-    lengths, twists = [a, b, a, b], [alpha1, alpha2, alpha1, alpha2]
-    loop = [[1 if i == j else 0 for j in range(4)] for i in range(4)]
-    frames = []
-    for k in range(4):
-        loop = mul(loop, link(thetas[k], lengths[k], twists[k]))
-        frames.append(loop)
+def identity():
+    return [[1 if i == j else 0 for j in range(4)] for i in range(4)]
+
+
+def inverse(m):
+    """The inverse of a rigid motion (rotation part transposed)."""
+    r = [[m[j][i] for j in range(3)] for i in range(3)]
+    p = [-sum(r[i][k] * m[k][3] for k in range(3)) for i in range(3)]
+    return [r[0] + [p[0]], r[1] + [p[1]], r[2] + [p[2]], [0, 0, 0, 1]]
+
+
+def tz(d):
+    return [[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, d], [0, 0, 0, 1]]
+
+
+def dh(theta, a, alpha, d=0.0):
+    """The DH link Rz(θ) Tz(d) Tx(a) Rx(α)."""
+    return mul(mul(mul(rz(theta), tz(d)), tx(a)), rx(alpha))
+
+
+def write_loop(name, title, comment, links, thetas, step, steps):
+    """Writes a closed loop of revolutes J1 … Jn, ground and link1 … link(n−1), from its DH links
+    (a, α, d) and joint angles θ (the initial configuration), J1 driven at 1 rad/s from θ1
+    over `steps` grid steps of `step` s. Checks the loop's closure first. Joint k's angle (from
+    ref_i to ref_j about axis_i) is its DH angle θk: link k's frame is Fk−1 Rz(θk), and joint
+    k + 1 sits at (ak, 0, dk) on it with axis Rx(αk) z and reference x."""
+    n = len(links)
+    loop = identity()
+    for (a, alpha, d), theta in zip(links, thetas):
+        loop = mul(loop, dh(theta, a, alpha, d))
     closure = max(abs(loop[i][j] - (1 if i == j else 0)) for i in range(4) for j in range(4))
     assert closure < 1e-13, (name, closure)
-    # Link k's frame: joint k's DH frame after its rotation, F_k Rz(θk).
     bodies = []
-    g = [[1 if i == j else 0 for j in range(4)] for i in range(4)]
-    for k in range(3):
+    g = identity()
+    for k in range(n - 1):
         g = mul(g, rz(thetas[k]))
         bodies.append(([g[i][3] for i in range(3)], euler(g)))
-        g = mul(g, mul(tx(lengths[k]), rx(twists[k])))
+        a, alpha, d = links[k]
+        g = mul(g, mul(mul(tz(d), tx(a)), rx(alpha)))
     out = []
     w = out.append
     w(f"# {title}")
-    w("# Written by tests/redundancy/bennett.py (see its docstring): a Bennett linkage of four")
-    w(f"# revolutes, DH a = {a!r}, b = {b!r}, twists {math.degrees(alpha1):g}° and {math.degrees(alpha2):g}°,")
-    w("# a / sin α1 = b / sin α2. Joint k's angle is the DH angle θk; the closed form is")
-    w("# tan(θ1/2) tan(θ2/2) = sin((α2 + α1)/2) / sin((α2 − α1)/2), θ3 = −θ1, θ4 = −θ2.")
-    w(f"# J1 is driven at 1 rad/s from θ1 = {theta0!r} rad through a full turn. Grübler counts")
-    w("# 3·6 − 4·5 = −2 degrees of freedom; the mobility is 1 and 3 rows are redundant.")
+    for line in comment:
+        w(f"# {line}" if line else "#")
     w("")
     w(f'name = "{name}"')
     w(f'description = "{title}"')
@@ -122,16 +139,26 @@ def write(name, title, a, b, alpha1, alpha2, theta0, step, steps):
     x = [1.0, 0.0, 0.0]
     o = [0.0, 0.0, 0.0]
 
-    def axis(alpha):
-        return [0.0, -math.sin(alpha), math.cos(alpha)]
+    def column(m, j):
+        # + 0.0 writes −0.0 as 0.0.
+        return [float(m[i][j]) + 0.0 for i in range(3)]
 
-    joints = [
-        ("J1", "ground", "link1", o, z, o, z),
-        ("J2", "link1", "link2", [a, 0.0, 0.0], axis(alpha1), o, z),
-        ("J3", "link2", "link3", [b, 0.0, 0.0], axis(alpha2), o, z),
-        ("J4", "link3", "ground", [a, 0.0, 0.0], axis(alpha1), [-b, 0.0, 0.0], [0.0, math.sin(alpha2), math.cos(alpha2)]),
-    ]
-    for name_j, bi, bj, pi, ai, pj, aj in joints:
+    def on_link(a, alpha, d):
+        return [a, 0.0, d], [0.0, -math.sin(alpha), math.cos(alpha)]
+
+    # The last joint's frame after its rotation, seen from the ground (J1's frame):
+    # (Tz(dn) Tx(an) Rx(αn))⁻¹.
+    last = inverse(mul(mul(tz(links[-1][2]), tx(links[-1][0])), rx(links[-1][1])))
+    joints = [("J1", "ground", "link1", o, z, o, z, x)]
+    for k in range(1, n):
+        body_j = f"link{k + 1}" if k < n - 1 else "ground"
+        point_i, axis_i = on_link(*links[k - 1])
+        if k < n - 1:
+            point_j, axis_j, ref_j = o, z, x
+        else:
+            point_j, axis_j, ref_j = column(last, 3), column(last, 2), column(last, 0)
+        joints.append((f"J{k + 1}", f"link{k}", body_j, point_i, axis_i, point_j, axis_j, ref_j))
+    for name_j, bi, bj, pi, ai, pj, aj, rj in joints:
         w("")
         w("[[joints]]")
         w(f'name = "{name_j}"')
@@ -143,33 +170,58 @@ def write(name, title, a, b, alpha1, alpha2, theta0, step, steps):
         w(f"axis_i = {fmt(ai)}")
         w(f"axis_j = {fmt(aj)}")
         w(f"ref_i = {fmt(x)}")
-        w(f"ref_j = {fmt(x)}")
+        w(f"ref_j = {fmt(rj)}")
     w("")
     w("[[drivers]]")
     w('name = "motor"')
     w('joint = "J1"')
     w('motion = "rotation"')
-    w(f"law = {{ start = {theta0!r}, velocity = 1.0, acceleration = 0.0 }}")
+    w(f"law = {{ start = {thetas[0]!r}, velocity = 1.0, acceleration = 0.0 }}")
     with open(os.path.join(HERE, f"{name}.toml"), "w") as f:
         f.write("\n".join(out) + "\n")
+
+
+def write(name, title, a, b, alpha1, alpha2, theta0, step, steps):
+    theta2 = closed_form(theta0, alpha1, alpha2)
+    comment = [
+        "Written by tests/redundancy/bennett.py (see its docstring): a Bennett linkage of four",
+        f"revolutes, DH a = {a!r}, b = {b!r}, twists {math.degrees(alpha1):g}° and {math.degrees(alpha2):g}°,",
+        "a / sin α1 = b / sin α2. Joint k's angle is the DH angle θk; the closed form is",
+        "tan(θ1/2) tan(θ2/2) = sin((α2 + α1)/2) / sin((α2 − α1)/2), θ3 = −θ1, θ4 = −θ2.",
+        f"J1 is driven at 1 rad/s from θ1 = {theta0!r} rad through a full turn in steps of",
+        f"{math.degrees(step):g}°. Grübler counts 3·6 − 4·5 = −2 degrees of freedom; the mobility is 1 and 3 rows",
+        "are redundant.",
+    ]
+    links = [(a, alpha1, 0.0), (b, alpha2, 0.0), (a, alpha1, 0.0), (b, alpha2, 0.0)]
+    write_loop(name, title, comment, links, [theta0, theta2, -theta0, -theta2], step, steps)
 
 
 DEG = math.pi / 180
 A = (0.5, 0.5 * math.sin(75 * DEG) / math.sin(45 * DEG), 45 * DEG, 75 * DEG)
 B = (1.0, math.sqrt(2.0), 45 * DEG, 90 * DEG)
-# (suffix, start angle, step, steps): a full turn each; the grids of −149°, 0, 90° and 180°
-# land exactly on θ1 = 0 and π (up to the rounding of t), that of 1 rad on neither.
-STARTS = [
-    ("m149", -149 * DEG, 1 * DEG, 360),
-    ("0", 0.0, 20 * DEG, 18),
-    ("90", 90 * DEG, 5 * DEG, 72),
-    ("1rad", 1.0, 5 * DEG, 72),
-    ("180", math.pi, 5 * DEG, 72),
-]
-for geometry, (a, b, alpha1, alpha2) in [("a", A), ("b", B)]:
-    for suffix, theta0, step, steps in STARTS:
-        write(
-            f"bennett_{geometry}_{suffix}",
-            f"Bennett linkage {geometry.upper()} from theta1 = {theta0:.6g} rad",
-            a, b, alpha1, alpha2, theta0, step, steps,
-        )
+# The starts and steps of issue 15 point 5: a full turn from each start in steps of 5° and of
+# 20°. Every 5° grid lands exactly on θ1 = 0 and π (up to the rounding of t); of the 20° grids
+# those from 0 and 180° do, those from 45°, 90° and 135° step over both.
+STARTS = [0, 45, 90, 135, 180]
+STEPS = [5, 20]
+# (suffix, start angle, step, steps): more full turns, from −149° in steps of 1° (landing on 0
+# and π) and from 1 rad in steps of 5° (landing on neither).
+OTHERS = [("m149", -149 * DEG, 1 * DEG, 360), ("1rad", 1.0, 5 * DEG, 72)]
+
+
+def grids():
+    """(suffix, start, step, steps) of every description: `{start}_{step}` in degrees."""
+    for start in STARTS:
+        for step in STEPS:
+            yield f"{start}_{step}", start * DEG, step * DEG, 360 // step
+    yield from OTHERS
+
+
+if __name__ == "__main__":
+    for geometry, (a, b, alpha1, alpha2) in [("a", A), ("b", B)]:
+        for suffix, theta0, step, steps in grids():
+            write(
+                f"bennett_{geometry}_{suffix}",
+                f"Bennett linkage {geometry.upper()} from theta1 = {theta0:.6g} rad",
+                a, b, alpha1, alpha2, theta0, step, steps,
+            )
