@@ -131,7 +131,7 @@ fn assert_singular_stop(
 
 /// The angle of a planar rotation about z from the Euler parameters of a body that started at
 /// the identity: 2 atan2(e3, e0), in (−π, π].
-fn angle_z(p: &[f64; 4]) -> f64 {
+pub(crate) fn angle_z(p: &[f64; 4]) -> f64 {
     let a = 2.0 * p[3].atan2(p[0]);
     (a + std::f64::consts::PI).rem_euclid(2.0 * std::f64::consts::PI) - std::f64::consts::PI
 }
@@ -208,7 +208,7 @@ fn singular_configurations_stop_with_the_time_and_the_equations_involved() {
 /// The rocker pin B of the crank-rocker of `four_bar_large_steps` for crank angle θ, on the
 /// assembly where B lies to the left of the line from A to O4 (the starting one): the
 /// intersection of the circles |B − A| = b and |B − O4| = 2.5.
-fn rocker_pin(theta: f64) -> [f64; 2] {
+pub(crate) fn rocker_pin(theta: f64) -> [f64; 2] {
     let b = (2.25_f64.powi(2) + (2.1650635094610964_f64 - 1.0).powi(2)).sqrt();
     pin(theta, b, 2.5)
 }
