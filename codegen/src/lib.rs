@@ -33,6 +33,8 @@ pub mod model;
 pub mod output;
 pub mod pivot;
 #[cfg(feature = "cli")]
+pub mod reference;
+#[cfg(feature = "cli")]
 pub mod plot;
 pub mod report;
 pub mod scale;
