@@ -33,9 +33,9 @@ pub mod model;
 pub mod output;
 pub mod pivot;
 #[cfg(feature = "cli")]
-pub mod reference;
-#[cfg(feature = "cli")]
 pub mod plot;
+#[cfg(feature = "cli")]
+pub mod reference;
 pub mod report;
 pub mod scale;
 pub mod stepping;

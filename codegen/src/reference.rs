@@ -196,7 +196,8 @@ impl<'e> Reference<'e> {
     /// # Errors
     /// When the symbolic system cannot be built.
     pub fn new(eq: &'e Equations<'e>) -> Result<Self, ReferenceError> {
-        let sym = Symbolic::build(eq.mechanism()).map_err(|e| ReferenceError::Symbolic(e.message))?;
+        let sym =
+            Symbolic::build(eq.mechanism()).map_err(|e| ReferenceError::Symbolic(e.message))?;
         let mut jac_roots = Vec::new();
         let mut jac_places = Vec::new();
         for (i, row) in sym.jac.iter().enumerate() {
@@ -334,9 +335,8 @@ impl Lu {
         let n = a.first().map_or(0, Vec::len);
         let mut perm: Vec<usize> = (0..m).collect();
         for k in 0..n {
-            let p = (k..m).max_by(|&i, &j| {
-                a[i][k].abs().0.hi().total_cmp(&a[j][k].abs().0.hi())
-            })?;
+            let p =
+                (k..m).max_by(|&i, &j| a[i][k].abs().0.hi().total_cmp(&a[j][k].abs().0.hi()))?;
             a.swap(k, p);
             perm.swap(k, p);
             let pivot = a[k][k];

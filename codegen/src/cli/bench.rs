@@ -146,7 +146,7 @@ fn write_text(
     writeln!(
         out,
         "{} ({} time points, tolerance {tolerance:e}, {} repeats{}; plain steps: no sub-steps, \
-         continuity or condition checks, which solve adds)",
+         continuity, condition or left-out-row checks, which solve adds)",
         printable(&mech.name),
         mech.time.count,
         how.repeats.max(1),

@@ -52,7 +52,8 @@ pub(super) fn compare(
     };
     let layout = report::layout(mech);
     let mut diffs = report::Differences::default();
-    let mut errors = frames.as_deref().map(|f| [reference::Error::new(f), reference::Error::new(f)]);
+    let mut errors =
+        frames.as_deref().map(|f| [reference::Error::new(f), reference::Error::new(f)]);
     let bar = term::bar(mech.time.count as u64, "both engines");
     let (generic, generated) =
         run_both(&eq, &prep, &built, &layout, (&mut diffs, errors.as_mut()), &bar);
@@ -225,7 +226,8 @@ fn write(
         let mut v = v;
         if let Some([g, d]) = errors {
             let levels = |e: [f64; 3]| serde_json::json!({ "q": e[0], "qd": e[1], "qdd": e[2] });
-            v["reference_error"] = serde_json::json!({ "generic": levels(g), "generated": levels(d) });
+            v["reference_error"] =
+                serde_json::json!({ "generic": levels(g), "generated": levels(d) });
         }
         return writeln!(out, "{}", serde_json::to_string_pretty(&v)?);
     }

@@ -134,7 +134,10 @@ fn the_reference_meets_the_rssr_closed_form_to_double_double_precision() {
                 -(quarter * s2 * phid * phid) + h * c2 * phidd,
             ];
             let gap = |x: &[Dd], o: usize, want: &[Dd]| {
-                want.iter().enumerate().map(|(k, w)| (x[o + k] - *w).abs().to_f64()).fold(0.0, f64::max)
+                want.iter()
+                    .enumerate()
+                    .map(|(k, w)| (x[o + k] - *w).abs().to_f64())
+                    .fold(0.0, f64::max)
             };
             // Relative to each level's scale: |A| = 0.1, |Ȧ| = 14.7, |Ä| = 2149.
             worst[0] = worst[0].max(gap(q, coupler, &a) / 0.1).max(gap(q, rocker + 3, &p));
@@ -145,7 +148,10 @@ fn the_reference_meets_the_rssr_closed_form_to_double_double_precision() {
             Ok(())
         })
         .expect("the sink does not fail");
-    println!("R-S-S-R reference vs closed form at {checked} points: q {:e}, q̇ {:e}, q̈ {:e}; residual {residual:e}, rate residuals {rates:e}", worst[0], worst[1], worst[2]);
+    println!(
+        "R-S-S-R reference vs closed form at {checked} points: q {:e}, q̇ {:e}, q̈ {:e}; residual {residual:e}, rate residuals {rates:e}",
+        worst[0], worst[1], worst[2]
+    );
     assert_eq!(checked, 143);
     // The reference's own residual is at the double-double round-off of evaluating Φ.
     assert!(residual < 1e-29, "residual {residual:e}");
