@@ -343,11 +343,13 @@ impl Lu {
             if pivot.0.hi() == 0.0 || !pivot.0.hi().is_finite() {
                 return None;
             }
-            for i in k + 1..m {
-                let l = a[i][k] / pivot;
-                a[i][k] = l;
-                for j in k + 1..n {
-                    a[i][j] = a[i][j] - l * a[k][j];
+            let (top, below) = a.split_at_mut(k + 1);
+            let row_k = &top[k];
+            for row in below {
+                let l = row[k] / pivot;
+                row[k] = l;
+                for (x, &u) in row[k + 1..].iter_mut().zip(&row_k[k + 1..]) {
+                    *x = *x - l * u;
                 }
             }
         }

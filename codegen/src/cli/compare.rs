@@ -201,12 +201,16 @@ fn verdict(
 /// `[generic, generated]` (`compare --reference`).
 type ReferenceErrors = [[f64; 3]; 2];
 
+/// What `compare` found: the differences (name, largest absolute, largest relative), the
+/// quantities flagged, and the errors against the reference when asked for.
+type Findings<'d> = (&'d [(&'static str, f64, f64)], &'d [&'d str], Option<ReferenceErrors>);
+
 /// Writes the differences, the quantities flagged, the errors against the reference when
 /// asked for and the times per step `(generic, generated)`, as JSON or text.
 fn write(
     mech: &Mechanism,
     steps: usize,
-    (diffs, disagree, errors): (&[(&'static str, f64, f64)], &[&str], Option<ReferenceErrors>),
+    (diffs, disagree, errors): Findings<'_>,
     (tg, td): (Option<f64>, Option<f64>),
     json: bool,
     out: &mut dyn Write,
