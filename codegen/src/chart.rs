@@ -1,14 +1,16 @@
 //! Speed against accuracy: every engine and setting of one mechanism as a mark on a log–log
 //! chart of ns per time point against the error to a reference solution.
 //!
-//! The reference is the generic engine at a Newton tolerance of 1e-13 (tight enough that its
-//! own error is at round-off level for the shipped mechanisms). The error of a run is the
-//! largest difference from the reference over the compared time points, taken separately for
-//! positions, velocities and accelerations, each relative to the largest magnitude of that
-//! quantity in the reference there, and then the largest of the three. The compared points
-//! are every point of a grid of at most [`ERROR_SAMPLES`] points, else that many evenly spaced
-//! ones (the first and last among them): only they are kept from the reference, so memory does
-//! not grow with the grid, and runs are compared as their frames arrive.
+//! The reference is the description solved in double-double arithmetic (`crate::reference`:
+//! about 32 digits, its residual near 1e-30), independent of both engines' double-precision
+//! arithmetic, so every mark, the generic engine's at its tightest tolerance included, shows
+//! its own error. The error of a run is the largest difference from the reference over the
+//! compared time points, taken separately for positions, velocities and accelerations, each
+//! relative to the largest magnitude of that quantity in the reference there, and then the
+//! largest of the three. The compared points are every point of a grid of at most
+//! [`ERROR_SAMPLES`] points, else that many evenly spaced ones (the first and last among them):
+//! only they are kept from the reference, so memory does not grow with the grid, and runs are
+//! compared as their frames arrive.
 
 use std::path::Path;
 
@@ -19,6 +21,7 @@ use crate::emit::Scalar;
 use crate::engine::{EngineError, Settings};
 use crate::generic::{Analysis, Equations, Frame};
 use crate::model::Mechanism;
+use crate::reference::{self, Error, ReferenceError, ReferenceFrame};
 
 /// Tolerances swept for every engine in double precision.
 pub const TOLERANCES: [f64; 6] = [1e-4, 1e-6, 1e-8, 1e-10, 1e-12, 1e-14];
@@ -27,15 +30,17 @@ pub const TOLERANCES: [f64; 6] = [1e-4, 1e-6, 1e-8, 1e-10, 1e-12, 1e-14];
 /// digits, so residuals of unit size stop near 1e-7 and tighter tolerances cannot be met.
 pub const F32_TOLERANCES: [f64; 3] = [1e-3, 1e-4, 1e-5];
 
-/// Tolerance of the reference run (see the module docs).
-const REFERENCE_TOLERANCE: f64 = 1e-13;
+/// Tolerance of the generic run the reference starts from at every compared time point: any
+/// double-precision solution on the branch serves, Newton in double-double converging from it
+/// in two or three iterations to the same point.
+const START_TOLERANCE: f64 = 1e-12;
 
 /// Why a chart's runs could not be measured.
 #[derive(Debug, thiserror::Error)]
 pub enum ChartError {
-    /// The reference run, which every mark is compared with, stopped.
-    #[error("the reference run (generic, tolerance 1e-13) failed")]
-    Reference,
+    /// The reference failed (see `crate::reference`).
+    #[error(transparent)]
+    Reference(#[from] ReferenceError),
     /// The conditioning chart needs as many equations as unknowns.
     #[error("the chart needs a square Φ_q (no redundant equations)")]
     NotSquare,
@@ -67,73 +72,14 @@ pub struct Mark {
 
 /// The most time points a run is compared with the reference at (see the module docs): every
 /// shipped example and benchmark has fewer.
-pub const ERROR_SAMPLES: usize = 4096;
-
-/// q, q̇ and q̈ of a frame.
-const PARTS: [fn(&Frame) -> &nalgebra::DVector<f64>; 3] = [|f| &f.q, |f| &f.qd, |f| &f.qdd];
-
-/// A run's difference from the reference, accumulated frame by frame (see the module docs).
-struct Error<'r> {
-    /// The reference's frames at the compared time points, by grid index.
-    reference: &'r [Frame],
-    /// The largest difference so far in q, q̇ and q̈.
-    diff: [f64; 3],
-    /// Frames seen.
-    frames: usize,
-}
-
-impl<'r> Error<'r> {
-    fn new(reference: &'r [Frame]) -> Self {
-        Error { reference, diff: [0.0; 3], frames: 0 }
-    }
-
-    fn add(&mut self, f: &Frame) {
-        self.frames += 1;
-        if let Ok(k) = self.reference.binary_search_by_key(&f.index, |r| r.index) {
-            for (d, get) in self.diff.iter_mut().zip(PARTS) {
-                *d = d.max((get(&self.reference[k]) - get(f)).amax());
-            }
-        }
-    }
-
-    /// The largest relative difference, `None` unless the run gave every time point.
-    fn finish(&self, count: usize) -> Option<f64> {
-        (self.frames == count).then(|| {
-            self.diff
-                .iter()
-                .zip(PARTS)
-                .map(|(d, get)| {
-                    let scale = self
-                        .reference
-                        .iter()
-                        .map(|f| get(f).amax())
-                        .fold(f64::MIN_POSITIVE, f64::max);
-                    d / scale
-                })
-                .fold(0.0, f64::max)
-        })
-    }
-}
-
-/// The frames of one generic run at the compared time points, `None` if it fails.
-fn reference_frames(eq: &Equations<'_>, analysis: &Analysis<'_, '_>) -> Option<Vec<Frame>> {
-    let grid = &eq.mechanism().time;
-    let mut frames = Vec::new();
-    let mut count = 0;
-    let r = analysis
-        .run(|f| {
-            count += 1;
-            if grid.sampled(f.index, ERROR_SAMPLES) {
-                frames.push(f.clone());
-            }
-            Ok::<(), ()>(())
-        })
-        .ok()?;
-    (r.failure.is_none() && count == grid.count).then_some(frames)
-}
+pub const ERROR_SAMPLES: usize = reference::SAMPLES;
 
 /// The error of one generic run against `reference`, `None` if it fails.
-fn generic_error(analysis: &Analysis<'_, '_>, reference: &[Frame], count: usize) -> Option<f64> {
+fn generic_error(
+    analysis: &Analysis<'_, '_>,
+    reference: &[ReferenceFrame],
+    count: usize,
+) -> Option<f64> {
     let mut error = Error::new(reference);
     let r = analysis
         .run(|f| {
@@ -201,9 +147,8 @@ pub fn measure_with(
     let eq = Equations::new(mech);
     let prep = eq.prepare();
     let count = mech.time.count;
-    let reference =
-        reference_frames(&eq, &Analysis::new(&eq, &prep).with_tolerance(REFERENCE_TOLERANCE))
-            .ok_or(ChartError::Reference)?;
+    let analysis = Analysis::new(&eq, &prep).with_tolerance(START_TOLERANCE);
+    let reference = reference::frames(&eq, &analysis, ERROR_SAMPLES)?;
     let mut marks = Vec::new();
     let mut skipped = Vec::new();
     for predictor in [true, false] {
@@ -294,7 +239,7 @@ pub fn draw(marks: &[Mark], title: &str, path: &Path) -> Result<(), DrawError> {
             .x_labels(12)
             .y_labels(12)
             .x_desc("time per step (ns, median; log scale)")
-            .y_desc("max relative error vs reference (log; below 1e-17 drawn at 1e-17)")
+            .y_desc("max relative error vs double-double reference (log; below 1e-17 at 1e-17)")
             .y_label_formatter(&|v| format!("{v:.0e}"))
             .x_label_formatter(&|v| format!("{v:.0}"))
             .draw()
@@ -303,26 +248,30 @@ pub fn draw(marks: &[Mark], title: &str, path: &Path) -> Result<(), DrawError> {
         series.dedup();
         for (k, name) in series.iter().enumerate() {
             let color = PALETTE[k % PALETTE.len()];
-            let points: Vec<(f64, f64)> = marks
-                .iter()
-                .filter(|m| m.series == *name)
-                .map(|m| (m.ns_per_step, m.error.max(floor)))
-                .collect();
+            let of_series: Vec<&Mark> = marks.iter().filter(|m| m.series == *name).collect();
+            let points: Vec<(f64, f64)> =
+                of_series.iter().map(|m| (m.ns_per_step, m.error.max(floor))).collect();
+            // The tolerances go in the legend, not beside every mark (they overlapped where
+            // marks crowd): the loosest is the open circle, the line runs to the tightest.
+            let label = match (of_series.first(), of_series.last()) {
+                (Some(a), Some(b)) if of_series.len() > 1 => {
+                    format!("{name}: tolerance {:.0e} (open) to {:.0e}", a.tolerance, b.tolerance)
+                }
+                (Some(a), _) => format!("{name}: tolerance {:.0e}", a.tolerance),
+                _ => (*name).to_owned(),
+            };
             chart
                 .draw_series(LineSeries::new(points.clone(), color.stroke_width(1)))
                 .map_err(backend)?
-                .label(*name)
+                .label(label)
                 .legend(move |(x, y)| Circle::new((x + 10, y), 4, color.filled()));
             chart
-                .draw_series(points.iter().map(|&p| Circle::new(p, 4, color.filled())))
-                .map_err(backend)?;
-            chart
-                .draw_series(marks.iter().filter(|m| m.series == *name).map(|m| {
-                    Text::new(
-                        format!("{:.0e}", m.tolerance),
-                        (m.ns_per_step * 1.04, m.error.max(floor) * 1.6),
-                        ("sans-serif", 11).into_font().color(&color),
-                    )
+                .draw_series(points.iter().enumerate().map(|(j, &p)| {
+                    if j == 0 {
+                        Circle::new(p, 6, color.stroke_width(2))
+                    } else {
+                        Circle::new(p, 4, color.filled())
+                    }
                 }))
                 .map_err(backend)?;
         }

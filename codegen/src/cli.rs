@@ -105,8 +105,8 @@ fn execute(command: Command, out: &mut dyn Write, err: &mut dyn Write) -> std::i
         Command::Scaling { bodies, repeats, write } => {
             scaling::scaling(&bodies, repeats, write.as_deref(), out, err)
         }
-        Command::Compare { file, format, inputs } => {
-            compare::compare(&file, format, inputs.as_deref(), out, err)
+        Command::Compare { file, format, inputs, reference } => {
+            compare::compare(&file, format, inputs.as_deref(), reference, out, err)
         }
         Command::Bench {
             file,

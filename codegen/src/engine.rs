@@ -104,12 +104,15 @@ pub enum RunError {
     /// A timed pass stopped: Newton failed at `t` (the timed passes run plain stepping, without
     /// the step control `solve` uses).
     #[error(
-        "the timed pass stopped at t = {t}: {message} (bench times plain steps without the step \
-         control of solve; `mechgen solve` shows where and why the analysis itself stops)"
+        "the timed pass stopped at t = {t} ({kind}): {message} (bench times plain steps without \
+         the step control of solve; `mechgen solve` shows where and why the analysis itself \
+         stops)"
     )]
     BenchmarkStopped {
         /// The grid time of the failed step.
         t: f64,
+        /// The contract's `error.kind`: `singular` or `no_convergence`.
+        kind: String,
         /// The runtime's reason.
         message: String,
     },
@@ -560,10 +563,10 @@ pub fn bench_with(
             let p = |s: &str| s.parse::<f64>().map_err(|_| RunError::Benchmark(text.to_string()));
             Ok((p(min)?, p(median)?, p(iters)?))
         }
-        ["error", "bench", t, ..] => {
-            let message = text.splitn(4, ' ').nth(3).unwrap_or_default().trim().to_owned();
+        ["error", "bench", t, kind, ..] => {
+            let message = text.splitn(5, ' ').nth(4).unwrap_or_default().trim().to_owned();
             let t = t.parse::<f64>().map_err(|_| RunError::Benchmark(text.to_string()))?;
-            Err(RunError::BenchmarkStopped { t, message }.into())
+            Err(RunError::BenchmarkStopped { t, kind: (*kind).to_owned(), message }.into())
         }
         _ => Err(RunError::Benchmark(text.to_string()).into()),
     }

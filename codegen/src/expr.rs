@@ -14,6 +14,32 @@ use std::collections::HashMap;
 use std::fmt;
 use std::ops::Index;
 
+/// A number type expressions evaluate in ([`ExprPool::eval_in`]): `f64` for the engines and
+/// the generator, an extended-precision type for the reference solution (`crate::reference`).
+pub trait Scalar:
+    Copy
+    + From<f64>
+    + std::ops::Neg<Output = Self>
+    + std::ops::Add<Output = Self>
+    + std::ops::Mul<Output = Self>
+{
+    /// sin x.
+    #[must_use]
+    fn sin(self) -> Self;
+    /// cos x.
+    #[must_use]
+    fn cos(self) -> Self;
+}
+
+impl Scalar for f64 {
+    fn sin(self) -> Self {
+        f64::sin(self)
+    }
+    fn cos(self) -> Self {
+        f64::cos(self)
+    }
+}
+
 /// Index of a node in an [`ExprPool`].
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
 pub struct ExprId(u32);
@@ -379,8 +405,21 @@ impl ExprPool {
         t: f64,
         inputs: &[[f64; 3]],
     ) -> Vec<f64> {
+        self.eval_in(roots, state, t, inputs)
+    }
+
+    /// [`ExprPool::eval_inputs`] over any [`Scalar`]: the same operations in the same order,
+    /// each rounded as `T` rounds (constants are the pool's doubles, taken exactly).
+    #[must_use]
+    pub fn eval_in<T: Scalar>(
+        &self,
+        roots: &[ExprId],
+        state: [&[T]; 3],
+        t: T,
+        inputs: &[[T; 3]],
+    ) -> Vec<T> {
         let [q, qd, qdd] = state;
-        let input = |k: u32, d: usize| inputs.get(k as usize).map_or(f64::NAN, |u| u[d]);
+        let input = |k: u32, d: usize| inputs.get(k as usize).map_or(T::from(f64::NAN), |u| u[d]);
         let last = roots.iter().map(|r| r.index()).max().map_or(0, |m| m + 1);
         // Only nodes reachable from the roots are evaluated: others may name symbols (q̇)
         // the caller does not provide.
@@ -391,13 +430,14 @@ impl ExprPool {
                 stack.extend(self[x].children());
             }
         }
-        let mut val = vec![0.0; last];
+        let zero = T::from(0.0);
+        let mut val = vec![zero; last];
         for (k, node) in self.nodes[..last].iter().enumerate() {
             if !live[k] {
                 continue;
             }
             val[k] = match *node {
-                Node::Const(bits) => f64::from_bits(bits),
+                Node::Const(bits) => T::from(f64::from_bits(bits)),
                 Node::Var(Var::Q(i)) => q[i as usize],
                 Node::Var(Var::Qd(i)) => qd[i as usize],
                 Node::Var(Var::Qdd(i)) => qdd[i as usize],

@@ -9,7 +9,7 @@ const LAYERS: [(&str, &[&str]); 6] = [
     ("foundations", &["desc", "diag", "expr"]),
     ("model", &["model", "validate", "young", "inputs"]),
     ("interpreted engine", &["stepping", "generic", "report"]),
-    ("symbolic builder", &["symbolic", "blocks", "pivot"]),
+    ("symbolic builder", &["symbolic", "blocks", "pivot", "reference"]),
     ("generator", &["emit", "sync", "build"]),
     (
         "tool",

@@ -34,6 +34,8 @@ pub mod output;
 pub mod pivot;
 #[cfg(feature = "cli")]
 pub mod plot;
+#[cfg(feature = "cli")]
+pub mod reference;
 pub mod report;
 pub mod scale;
 pub mod stepping;

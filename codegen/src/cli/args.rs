@@ -58,6 +58,10 @@ pub(super) enum Command {
         /// time points come from the file.
         #[arg(long)]
         inputs: Option<PathBuf>,
+        /// Also solve the description in double-double arithmetic and report each engine's
+        /// largest error against that reference.
+        #[arg(long)]
+        reference: bool,
     },
     /// Time the analysis: ns per time step (min and median over repeats), Newton
     /// iterations per step.

@@ -48,13 +48,15 @@ pub(super) fn bench(
         spinner.finish_and_clear();
         match timed {
             Ok(r) => results.push(("generic", r)),
-            Err((t, message)) => {
+            Err(stop) => {
                 writeln!(
                     err,
-                    "error: generic engine: the timed pass stopped at t = {t}: {} (bench times \
-                     plain steps without the step control of solve; `mechgen solve` shows where \
-                     and why the analysis itself stops)",
-                    printable(&message)
+                    "error: generic engine: the timed pass stopped at t = {} ({}): {} (bench \
+                     times plain steps without the step control of solve; `mechgen solve` shows \
+                     where and why the analysis itself stops)",
+                    stop.t,
+                    stop.kind,
+                    printable(&stop.message)
                 )?;
                 return Ok(EXIT_STOPPED);
             }
@@ -72,7 +74,7 @@ pub(super) fn bench(
         match timed {
             Ok(r) => results.push(("generated", r)),
             Err(e) => {
-                writeln!(err, "error: {e}")?;
+                writeln!(err, "error: generated engine: {e}")?;
                 return Ok(EXIT_STOPPED);
             }
         }
@@ -143,7 +145,8 @@ fn write_text(
     }
     writeln!(
         out,
-        "{} ({} time points, tolerance {tolerance:e}, {} repeats{})",
+        "{} ({} time points, tolerance {tolerance:e}, {} repeats{}; plain steps: no sub-steps, \
+         continuity, condition or left-out-row checks, which solve adds)",
         printable(&mech.name),
         mech.time.count,
         how.repeats.max(1),

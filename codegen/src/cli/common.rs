@@ -300,6 +300,6 @@ pub(super) fn time_generic(
     tolerance: f64,
     repeats: usize,
     predictor: bool,
-) -> Result<(f64, f64, f64), (f64, String)> {
+) -> Result<(f64, f64, f64), crate::generic::TimedStop> {
     Analysis::new(eq, prep).with_tolerance(tolerance).with_predictor(predictor).time(repeats)
 }

@@ -12,12 +12,13 @@ use indicatif::ProgressBar;
 use crate::engine::{Built, EngineError, RunReport};
 use crate::generic::{Analysis, Equations, Preparation, StepReport};
 use crate::model::Mechanism;
-use crate::report;
+use crate::{reference, report};
 
 pub(super) fn compare(
     file: &Path,
     format: CheckFormat,
     inputs: Option<&Path>,
+    with_reference: bool,
     out: &mut dyn Write,
     err: &mut dyn Write,
 ) -> io::Result<i32> {
@@ -35,10 +36,27 @@ pub(super) fn compare(
         Ok(b) => b,
         Err(e) => return engine_unavailable(&e, mech, json, out, err),
     };
+    let frames = if with_reference {
+        let spinner = term::spinner("solving the double-double reference");
+        let frames = reference::frames(&eq, &Analysis::new(&eq, &prep), reference::SAMPLES);
+        spinner.finish_and_clear();
+        match frames {
+            Ok(f) => Some(f),
+            Err(e) => {
+                writeln!(err, "error: {e}")?;
+                return Ok(EXIT_STOPPED);
+            }
+        }
+    } else {
+        None
+    };
     let layout = report::layout(mech);
     let mut diffs = report::Differences::default();
+    let mut errors =
+        frames.as_deref().map(|f| [reference::Error::new(f), reference::Error::new(f)]);
     let bar = term::bar(mech.time.count as u64, "both engines");
-    let (generic, generated) = run_both(&eq, &prep, &built, &layout, &mut diffs, &bar);
+    let (generic, generated) =
+        run_both(&eq, &prep, &built, &layout, (&mut diffs, errors.as_mut()), &bar);
     bar.finish_and_clear();
     let steps = match verdict(generic, generated, err)? {
         Ok(steps) => steps,
@@ -51,9 +69,14 @@ pub(super) fn compare(
     spinner.finish_and_clear();
     let tg = match tg {
         Ok(r) => Some(r.1),
-        Err((t, message)) => {
-            let message = printable(&message);
-            writeln!(err, "warning: generic engine: the timed pass stopped at t = {t}: {message}")?;
+        Err(stop) => {
+            let message = printable(&stop.message);
+            writeln!(
+                err,
+                "warning: generic engine: the timed pass stopped at t = {} ({}): {message}; no \
+                 time per step",
+                stop.t, stop.kind
+            )?;
             None
         }
     };
@@ -68,8 +91,7 @@ pub(super) fn compare(
         }
     };
     let diffs = diffs.finish();
-    let disagree: Vec<&str> =
-        diffs.iter().filter(|d| d.2 > DISAGREE || d.2.is_nan()).map(|d| d.0).collect();
+    let disagree = disagreeing(&diffs);
     if !disagree.is_empty() {
         writeln!(
             err,
@@ -77,7 +99,8 @@ pub(super) fn compare(
             disagree.join(", ")
         )?;
     }
-    write(mech, steps, &diffs, &disagree, (tg, td), json, out)?;
+    let errors = errors.map(|[g, d]| [g.levels(), d.levels()]);
+    write(mech, steps, (&diffs, &disagree, errors), (tg, td), json, out)?;
     Ok(EXIT_OK)
 }
 
@@ -86,6 +109,12 @@ pub(super) fn compare(
 /// the same tolerance (1e-10 by default) with round-off well below it on every shipped example
 /// (about 1e-15), so a difference of 1e-6 means a different branch or a lost digit, not noise.
 const DISAGREE: f64 = 1e-6;
+
+/// The quantities of `diffs` (name, largest absolute, largest relative difference) whose
+/// relative difference exceeds [`DISAGREE`] or is not a number.
+pub(super) fn disagreeing<'d>(diffs: &[(&'d str, f64, f64)]) -> Vec<&'d str> {
+    diffs.iter().filter(|d| d.2 > DISAGREE || d.2.is_nan()).map(|d| d.0).collect()
+}
 
 /// The generic run's report (`None` when the generated run stopped first) and its steps.
 type GenericRun = (Option<StepReport>, usize);
@@ -98,10 +127,14 @@ fn run_both(
     prep: &Preparation,
     built: &Built,
     layout: &[Option<usize>],
-    diffs: &mut report::Differences,
+    (diffs, errors): (&mut report::Differences, Option<&mut [reference::Error<'_>; 2]>),
     bar: &ProgressBar,
 ) -> (GenericRun, Result<RunReport, EngineError>) {
     let mech = eq.mechanism();
+    let (mut generic_error, mut generated_error) = match errors {
+        Some([g, d]) => (Some(g), Some(d)),
+        None => (None, None),
+    };
     std::thread::scope(|scope| {
         let (send, receive) = std::sync::mpsc::sync_channel(64);
         let generic = scope.spawn(move || {
@@ -109,12 +142,18 @@ fn run_both(
             // A closed queue (the generated run stopped) ends the generic run too.
             let r = Analysis::new(eq, prep).run(|f| {
                 steps += 1;
+                if let Some(e) = generic_error.as_mut() {
+                    e.add(f);
+                }
                 send.send(report::step_result(mech, layout, f)).map_err(|_| ())
             });
             (r.ok(), steps)
         });
         let generated = crate::engine::run(built, &Analysis::new(eq, prep), None, |f| {
             bar.inc(1);
+            if let Some(e) = generated_error.as_mut() {
+                e.add(f);
+            }
             if let Ok(a) = receive.recv() {
                 diffs.add(&a, &report::step_result(mech, layout, f));
             }
@@ -158,12 +197,20 @@ fn verdict(
     }
 }
 
-/// Writes the differences and the times per step `(generic, generated)`, as JSON or text.
+/// Each engine's largest relative error in q, q̇ and q̈ against the double-double reference,
+/// `[generic, generated]` (`compare --reference`).
+type ReferenceErrors = [[f64; 3]; 2];
+
+/// What `compare` found: the differences (name, largest absolute, largest relative), the
+/// quantities flagged, and the errors against the reference when asked for.
+type Findings<'d> = (&'d [(&'static str, f64, f64)], &'d [&'d str], Option<ReferenceErrors>);
+
+/// Writes the differences, the quantities flagged, the errors against the reference when
+/// asked for and the times per step `(generic, generated)`, as JSON or text.
 fn write(
     mech: &Mechanism,
     steps: usize,
-    diffs: &[(&'static str, f64, f64)],
-    disagree: &[&str],
+    (diffs, disagree, errors): Findings<'_>,
     (tg, td): (Option<f64>, Option<f64>),
     json: bool,
     out: &mut dyn Write,
@@ -180,6 +227,12 @@ fn write(
             "speedup": speedup,
             "disagree": disagree,
         });
+        let mut v = v;
+        if let Some([g, d]) = errors {
+            let levels = |e: [f64; 3]| serde_json::json!({ "q": e[0], "qd": e[1], "qdd": e[2] });
+            v["reference_error"] =
+                serde_json::json!({ "generic": levels(g), "generated": levels(d) });
+        }
         return writeln!(out, "{}", serde_json::to_string_pretty(&v)?);
     }
     writeln!(out, "{}: {} time points, generic vs generated", printable(&mech.name), steps)?;
@@ -191,6 +244,13 @@ fn write(
     let speedup = speedup.map_or_else(|| "unknown".to_owned(), |s| format!("{s:.1}x"));
     if !disagree.is_empty() {
         writeln!(out, "differ by more than {DISAGREE:e} relative: {}", disagree.join(", "))?;
+    }
+    if let Some(errors) = errors {
+        writeln!(out, "largest relative error against the double-double reference:")?;
+        writeln!(out, "{:>9} {:>10} {:>10} {:>10}", "engine", "q", "q dot", "q ddot")?;
+        for (name, e) in ["generic", "generated"].iter().zip(errors) {
+            writeln!(out, "{name:>9} {:>10.2e} {:>10.2e} {:>10.2e}", e[0], e[1], e[2])?;
+        }
     }
     writeln!(out, "ns per step: generic {}, generated {}; speedup {speedup}", shown(tg), shown(td))
 }

@@ -410,7 +410,7 @@ fn compare_reports_a_finite_speedup_and_no_disagreement_on_the_rssr() {
 }
 
 #[test]
-fn bench_names_the_time_and_reason_of_a_timed_pass_that_stops() {
+fn bench_names_the_kind_time_and_reason_of_a_timed_pass_that_stops() {
     // A crank-rocker driven into its toggle: plain stepping fails at t = 1.35 on both engines.
     let file = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
         .join("../tests/stability/crank_rocker_toggle.toml");
@@ -418,7 +418,24 @@ fn bench_names_the_time_and_reason_of_a_timed_pass_that_stops() {
         let args = ["bench", file.to_str().unwrap(), "--engine", engine, "--repeats", "1"];
         let (code, _, err) = mechgen(&args);
         assert_eq!(code, EXIT_STOPPED, "{engine}: {err}");
+        // Kind, time and reason, each named, and which engine.
+        assert!(err.contains(&format!("error: {engine} engine")), "{engine}: {err}");
         assert!(err.contains("the timed pass stopped at t = 1.35"), "{engine}: {err}");
+        assert!(err.contains("(no_convergence)"), "{engine}: {err}");
         assert!(err.contains("Newton did not converge"), "{engine}: {err}");
     }
+}
+
+#[test]
+fn disagreeing_flags_differences_above_1e_6_relative_and_nan() {
+    // Made-up differences: round-off, just below and just above the flag, and a NaN (a
+    // quantity one engine did not compute).
+    let diffs = [
+        ("r", 1e-16, 3e-16),
+        ("v", 1e-7, 9.9e-7),
+        ("a", 1e-3, 1.01e-6),
+        ("omega", f64::NAN, f64::NAN),
+    ];
+    assert_eq!(super::compare::disagreeing(&diffs), ["a", "omega"]);
+    assert!(super::compare::disagreeing(&diffs[..2]).is_empty());
 }

@@ -171,7 +171,8 @@ fn drive<M: Generated>(
 }
 
 /// Times `repeats` whole passes of plain stepping (no step control) and prints
-/// `bench min_ns median_ns iterations_per_step`.
+/// `bench min_ns median_ns iterations_per_step`, or `error bench t kind message` and exit
+/// status 2 when a step fails (`kind` is the contract's `error.kind`).
 fn bench<M: Generated>(
     mut solver: Solver<M, N, Real, Jacobian>,
     series: &Series,
@@ -191,7 +192,12 @@ fn bench<M: Generated>(
             match solver.position(t) {
                 Ok(r) => iterations += u64::from(r.iterations),
                 Err(e) => {
-                    check(writeln!(out, "error bench {:?} {e}", wide(t)));
+                    let kind = match e {
+                        NewtonError::Singular { .. } => Trouble::Singular,
+                        _ => Trouble::NoConvergence,
+                    };
+                    let message = e.to_string().replace('\n', " ");
+                    check(writeln!(out, "error bench {:?} {} {message}", wide(t), kind.as_str()));
                     // `exit` runs no destructor: the buffered line must leave now.
                     check(out.flush());
                     std::process::exit(2);

@@ -41,7 +41,7 @@ use crate::model::{
 };
 use kin::{BodyState, Sk, Vk};
 
-pub use solve::{Analysis, Failure, FailureKind, Frame, Preparation, StepReport};
+pub use solve::{Analysis, Failure, FailureKind, Frame, Preparation, StepReport, TimedStop};
 
 /// Re-exported from the model, where the row layout lives, for the tool's existing paths.
 pub use crate::model::RowLabel;

@@ -297,8 +297,8 @@ impl<'e, 'm> Analysis<'e, 'm> {
     /// check, subdivision) is not timed.
     ///
     /// # Errors
-    /// The grid time of the first step that fails, with the reason.
-    pub fn time(&self, repeats: usize) -> Result<(f64, f64, f64), (f64, String)> {
+    /// The grid time of the first step that fails, with its kind and reason.
+    pub fn time(&self, repeats: usize) -> Result<(f64, f64, f64), TimedStop> {
         let grid = &self.eq.mechanism().time;
         let mut times = Vec::with_capacity(repeats.max(1));
         let mut iterations = 0.0;
@@ -308,7 +308,11 @@ impl<'e, 'm> Analysis<'e, 'm> {
             let mut total = 0_u64;
             for k in 0..grid.count {
                 let t = grid.at(k);
-                let p = self.step(t, self.guess(prev.as_ref(), t)).map_err(|r| (t, r.message))?;
+                let p = self.step(t, self.guess(prev.as_ref(), t)).map_err(|r| TimedStop {
+                    t,
+                    kind: r.trouble.as_str(),
+                    message: r.message,
+                })?;
                 total += u64::from(p.iterations);
                 std::hint::black_box(&p.qdd);
                 prev = Some(p);
@@ -923,4 +927,15 @@ impl Engine for GenericEngine<'_, '_, '_> {
             self.prev = Some(p.clone());
         }
     }
+}
+
+/// Where and why a timed pass of [`Analysis::time`] stopped.
+#[derive(Clone, Debug, PartialEq)]
+pub struct TimedStop {
+    /// The grid time of the step that failed.
+    pub t: f64,
+    /// The contract's `error.kind`: `singular`, `no_convergence` or `inconsistent`.
+    pub kind: &'static str,
+    /// Why, for the user.
+    pub message: String,
 }
