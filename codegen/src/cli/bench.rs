@@ -7,6 +7,7 @@ use super::args::{BenchEngine, CheckFormat};
 use super::common::{EXIT_OK, EXIT_STOPPED, build_generated, engine_unavailable, time_generic};
 use super::term;
 use crate::diag::printable;
+use crate::generic::{Analysis, Failure};
 use crate::model::Mechanism;
 
 /// The timing options of `bench`.
@@ -41,8 +42,17 @@ pub(super) fn bench(
         Ok(p) => p,
         Err(code) => return Ok(code),
     };
+    // Only an analysis that `solve` completes is timed: one pass with solve's step control and
+    // checks (sub-steps, continuity, every row of the description) comes first on each engine,
+    // and its failure is the benchmark's, named by kind, time and reason.
+    let analysis = Analysis::new(&eq, &prep)
+        .with_tolerance(tolerance)
+        .with_predictor(how.settings.predictor);
     let mut results = Vec::new();
     if engine != BenchEngine::Generated {
+        if let Some(f) = analysis.run(|_| Ok::<(), io::Error>(()))?.failure {
+            return refuse("generic", &f, err);
+        }
         let spinner = term::spinner(&format!("timing the generic engine ({} passes)", how.repeats));
         let timed = time_generic(&eq, &prep, tolerance, how.repeats, how.settings.predictor);
         spinner.finish_and_clear();
@@ -67,6 +77,19 @@ pub(super) fn bench(
             Ok(b) => b,
             Err(e) => return engine_unavailable(&e, mech, json, out, err),
         };
+        let checked =
+            crate::engine::run_with(&built, &analysis, Some(tolerance), how.settings, |_| Ok(()));
+        match checked {
+            Ok(report) => {
+                if let Some(f) = report.failure {
+                    return refuse("generated", &f, err);
+                }
+            }
+            Err(e) => {
+                writeln!(err, "error: generated engine: {}", printable(&e.to_string()))?;
+                return Ok(EXIT_STOPPED);
+            }
+        }
         let spinner =
             term::spinner(&format!("timing the generated engine ({} passes)", how.repeats));
         let timed = crate::engine::bench_with(&built, tolerance, how.repeats, how.settings);
@@ -85,6 +108,16 @@ pub(super) fn bench(
         write_text(mech, how, tolerance, &results, out)?;
     }
     Ok(EXIT_OK)
+}
+
+/// Reports that `engine`'s checked pass stopped, so nothing is timed.
+fn refuse(engine: &str, f: &Failure, err: &mut dyn Write) -> io::Result<i32> {
+    writeln!(
+        err,
+        "error: {engine} engine: the analysis stops, so it is not timed: {}",
+        printable(&crate::report::failure_text(f))
+    )?;
+    Ok(EXIT_STOPPED)
 }
 
 /// The generic median over the generated median, when both engines were timed.
@@ -145,8 +178,9 @@ fn write_text(
     }
     writeln!(
         out,
-        "{} ({} time points, tolerance {tolerance:e}, {} repeats{}; plain steps: no sub-steps, \
-         continuity, condition or left-out-row checks, which solve adds)",
+        "{} ({} time points, tolerance {tolerance:e}, {} repeats{}; timed: plain steps, without the \
+         sub-steps, continuity, condition and left-out-row checks of the one checked pass solve \
+         runs before them)",
         printable(&mech.name),
         mech.time.count,
         how.repeats.max(1),

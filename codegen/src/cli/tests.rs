@@ -410,19 +410,27 @@ fn compare_reports_a_finite_speedup_and_no_disagreement_on_the_rssr() {
 }
 
 #[test]
-fn bench_names_the_kind_time_and_reason_of_a_timed_pass_that_stops() {
-    // A crank-rocker driven into its toggle: plain stepping fails at t = 1.35 on both engines.
-    let file = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("../tests/stability/crank_rocker_toggle.toml");
-    for engine in ["generic", "generated"] {
-        let args = ["bench", file.to_str().unwrap(), "--engine", engine, "--repeats", "1"];
-        let (code, _, err) = mechgen(&args);
-        assert_eq!(code, EXIT_STOPPED, "{engine}: {err}");
-        // Kind, time and reason, each named, and which engine.
-        assert!(err.contains(&format!("error: {engine} engine")), "{engine}: {err}");
-        assert!(err.contains("the timed pass stopped at t = 1.35"), "{engine}: {err}");
-        assert!(err.contains("(no_convergence)"), "{engine}: {err}");
-        assert!(err.contains("Newton did not converge"), "{engine}: {err}");
+fn bench_names_the_kind_time_and_reason_of_an_analysis_that_stops() {
+    // A crank-rocker driven into its toggle stops at t = 1.35 on both engines; two drivers that
+    // contradict each other stop at t = 0. Plain timed steps would pass the second (they do not
+    // check the rows a generated module leaves out), so bench must run solve's checked pass.
+    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../tests");
+    let cases = [
+        ("stability/crank_rocker_toggle.toml", "singular at t = 1.35", "pivot ratio"),
+        ("redundancy/four_bar_conflict.toml", "inconsistent at t = 0", "driver push"),
+    ];
+    for (name, kind_time, reason) in cases {
+        let file = dir.join(name);
+        for engine in ["generic", "generated"] {
+            let args = ["bench", file.to_str().unwrap(), "--engine", engine, "--repeats", "1"];
+            let (code, out, err) = mechgen(&args);
+            assert_eq!(code, EXIT_STOPPED, "{name}, {engine}: {err}");
+            // Which engine, kind, time and reason, each named; nothing timed.
+            assert!(err.contains(&format!("error: {engine} engine")), "{name}, {engine}: {err}");
+            assert!(err.contains(kind_time), "{name}, {engine}: {err}");
+            assert!(err.contains(reason), "{name}, {engine}: {err}");
+            assert!(!out.contains("ns/step"), "{name}, {engine}: {out}");
+        }
     }
 }
 
