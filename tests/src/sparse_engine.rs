@@ -102,6 +102,14 @@ fn sparse_and_dense_agree_on_chains_trees_and_loops() {
     for text in cases {
         let mech = load(&text);
         let start = std::time::Instant::now();
+        let eq = Equations::new(&mech);
+        let (sparse, dense) = (eq.prepare(), eq.prepare_dense());
+        assert_eq!(
+            (sparse.rank, sparse.mobility, &sparse.redundant, &sparse.free_bodies),
+            (dense.rank, dense.mobility, &dense.redundant, &dense.free_bodies),
+            "{}: what check reports",
+            mech.name
+        );
         let (worst, (lo, hi)) = compare(&mech);
         println!(
             "{}: q, q̇, q̈ differ by {worst:?} their scale, κ̂ sparse / dense in [{lo:.3}, \
@@ -167,11 +175,14 @@ fn sparse_engine_matches_the_closed_form_of_a_driven_chain() {
     assert!(worst <= 1e-7, "the chain departs from its closed form by {worst:e}");
 }
 
-/// Writes the driven chains of the benchmark (`codegen::scale::chain(n, 20)` for n = 100,
-/// 200 and 500, or the sizes in `MECHGEN_CHAINS`) into `MECHGEN_CHAIN_DIR` (default
-/// `/tmp/chains`), and prints the generic engine's ns per step on each, dense and sparse
-/// (`Analysis::time`, as `mechgen bench` times it, one pass; `MECHGEN_DENSE=0` skips the
-/// dense pass). BENCHMARKS.md, "The generic engine, sparse".
+/// Writes the driven chains of the benchmark (`codegen::scale::chain(n, steps)` for n = 100,
+/// 200 and 500, or the sizes in `MECHGEN_CHAINS`, with max(20, n²/500) steps over the same
+/// 0.02 s: link k turns at up to 0.3 (10 + k) rad/s relative to link k − 1, so the last link
+/// turns by about 1.6 rad a step at every size, as chain_100 does with 20 steps) into
+/// `MECHGEN_CHAIN_DIR` (default `/tmp/chains`), and prints the generic engine's ns per step
+/// on each, sparse, and dense on the first `MECHGEN_DENSE_STEPS` (default 3) of those steps
+/// (`Analysis::time`, as `mechgen bench` times it: the median of `MECHGEN_REPEATS` passes,
+/// default 3; `MECHGEN_DENSE=0` skips the dense passes). BENCHMARKS.md, "The generic engine, sparse".
 #[test]
 #[ignore = "benchmark: minutes of dense LU at 500 bodies"]
 fn generic_sparse_timing() {
@@ -180,24 +191,37 @@ fn generic_sparse_timing() {
         .map(|s| s.split(',').map(|n| n.trim().parse().expect("a size")).collect())
         .unwrap_or_else(|_| vec![100, 200, 500]);
     let dense = std::env::var("MECHGEN_DENSE").map_or(true, |v| v != "0");
+    let repeats = std::env::var("MECHGEN_REPEATS").map_or(3, |v| v.parse().expect("a count"));
+    let dense_steps: usize =
+        std::env::var("MECHGEN_DENSE_STEPS").map_or(3, |v| v.parse().expect("a count"));
     std::fs::create_dir_all(&dir).expect("chain directory");
     for n in sizes {
-        let text = codegen::scale::chain(n, 20);
+        let steps = (n * n / 500).max(20);
+        let text = codegen::scale::chain(n, steps);
         std::fs::write(format!("{dir}/chain_{n}.toml"), &text).expect("chain written");
-        let mech = load(&text);
-        let eq = Equations::new(&mech);
-        let start = std::time::Instant::now();
-        let prep = eq.prepare();
-        let prepare = start.elapsed().as_secs_f64();
-        let time = |sparse: bool| {
+        let time = |text: &str, sparse: bool| {
+            let mech = load(text);
+            let eq = Equations::new(&mech);
+            let start = std::time::Instant::now();
+            let prep = if sparse { eq.prepare() } else { eq.prepare_dense() };
+            let prepare = start.elapsed().as_secs_f64();
             let a = Analysis::new(&eq, &prep).with_sparse(sparse).with_tolerance(1e-10);
-            a.time(1).expect("the chain runs")
+            let (_, median, iterations) = a.time(repeats).expect("the chain runs");
+            (prepare, median, iterations)
         };
-        let (s, _, si) = time(true);
-        let d = if dense { time(false).0 } else { f64::NAN };
-        println!(
-            "chain_{n}: prepare {prepare:.2} s, sparse {s:.0} ns/step ({si:.2} iterations), \
-             dense {d:.0} ns/step"
-        );
+        let (p, s, si) = time(&text, true);
+        println!("chain_{n}: sparse: prepare {p:.2} s, {s:.0} ns/step ({si:.2} iterations)");
+        if dense {
+            // The same time step, fewer of them.
+            let end = 0.02 * dense_steps as f64 / steps as f64;
+            let short = text.replacen(
+                &format!("end = 0.02\nsteps = {steps}\n"),
+                &format!("end = {end:?}\nsteps = {dense_steps}\n"),
+                1,
+            );
+            assert_ne!(short, text, "the grid is shortened");
+            let (p, d, di) = time(&short, false);
+            println!("chain_{n}: dense: prepare {p:.2} s, {d:.0} ns/step ({di:.2} iterations)");
+        }
     }
 }

@@ -32,7 +32,7 @@ const SINGULAR_PIVOT_RATIO: f64 = 1e-12;
 /// exact dependency shows up at round-off level (≈1e-16 relative), a genuine but poorly
 /// conditioned configuration far above it. Every rank decision looks at Φ_q in balanced units
 /// ([`super::scaling`]), so that this holds whatever the unit of length.
-const RANK_TOLERANCE: f64 = 1e-10;
+pub(super) const RANK_TOLERANCE: f64 = 1e-10;
 
 /// The velocity and acceleration equations of every row must hold to this fraction of the
 /// step's scale: |Φ_q,i x − b_i| ≤ CONSISTENCY · max_k (Σ_j |Φ_q,kj x_j| + |b_k|), every row
@@ -150,8 +150,23 @@ impl Equations<'_> {
     /// Assembles the mechanism at the first time point (Gauss–Newton with the SVD, which
     /// also handles redundant equations), then finds the rank of Φ_q, the mobility, the
     /// redundant rows and, for a rank-deficient Φ_q, the bodies that can still move.
+    ///
+    /// A square Φ_q of at least [`SPARSE_FROM_UNKNOWNS`] unknowns is first assembled by Newton
+    /// with the sparse LU instead ([`Equations::prepare_sparse`]); only when that LU is not
+    /// clearly regular do the dense SVDs decide.
     #[must_use]
     pub fn prepare(&self) -> Preparation {
+        if self.unknowns() >= SPARSE_FROM_UNKNOWNS
+            && let Some(prep) = self.prepare_sparse()
+        {
+            return prep;
+        }
+        self.prepare_dense()
+    }
+
+    /// [`Equations::prepare`] with the dense SVDs, whatever the size.
+    #[must_use]
+    pub fn prepare_dense(&self) -> Preparation {
         let mech = self.mechanism();
         let n = self.unknowns();
         let t0 = mech.time.start;

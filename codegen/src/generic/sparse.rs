@@ -37,8 +37,11 @@ use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
 use faer::{Conj, MatMut, Par};
 use nalgebra::DVector;
 
-use super::Equations;
+use super::redundancy::independent;
 use super::scaling::power_of_two;
+use super::solve::RANK_TOLERANCE;
+use super::{Equations, Preparation};
+use crate::model::RowLabel;
 
 /// A square Φ_q with at least this many unknowns is factored sparse. Measured on driven chains
 /// (BENCHMARKS.md, "The generic engine, sparse"): at 10 bodies (70 unknowns) the sparse step
@@ -287,5 +290,84 @@ impl Equations<'_> {
             }
         });
         sys
+    }
+}
+
+impl Equations<'_> {
+    /// [`Equations::prepare`] without dense matrices, for a large square Φ_q: Newton with the
+    /// sparse LU from the initial estimates at the first time point; at the assembled
+    /// configuration, Φ_q has full rank when the pivot ratio of its LU in balanced units is
+    /// above [`RANK_TOLERANCE`] (no body free), and the mobility is the unknowns minus the rank
+    /// of the rows other than the drivers, counted by the sparse row echelon elimination of
+    /// [`super::redundancy`]. `None` when Φ_q is not square, Newton does not assemble the
+    /// mechanism or the LU is not clearly regular: the dense SVDs decide then.
+    ///
+    /// The pivot ratio bounds σ_min/σ_max only approximately, so a Φ_q within a few orders of
+    /// magnitude of [`RANK_TOLERANCE`] may be called regular here where the SVD would call it
+    /// rank deficient; such a configuration is refused by the analysis all the same
+    /// (`singular`) if its pivot ratio falls to 1e-12.
+    pub(crate) fn prepare_sparse(&self) -> Option<Preparation> {
+        let pattern = Pattern::new(self)?;
+        let n = self.unknowns();
+        let mech = self.mechanism();
+        let t0 = mech.time.start;
+        let zero = DVector::zeros(n);
+        let columns = self.column_scales();
+        let mut q = self.initial_estimate();
+        let mut assembled = false;
+        for _ in 0..mech.solver.max_iterations.max(50) {
+            let sys = self.evaluate_sparse(&pattern, &q, &zero, t0);
+            if sys.phi.iter().chain(&sys.values).any(|x| !x.is_finite()) {
+                return None;
+            }
+            if sys.phi.amax() <= mech.solver.tolerance {
+                assembled = true;
+                break;
+            }
+            let lu = Self::regular(&pattern, sys.values, &columns)?;
+            let mut y = -sys.phi.component_mul(&lu.1);
+            lu.0.solve_mut(&mut y);
+            q += y.component_mul(&columns);
+        }
+        if !assembled {
+            return None;
+        }
+        let sys = self.evaluate_sparse(&pattern, &q, &zero, t0);
+        Self::regular(&pattern, sys.values, &columns)?;
+        let mut rows = self.jacobian_rows(&q, t0);
+        for row in &mut rows {
+            for (c, x) in row.iter_mut() {
+                *x *= columns[*c];
+            }
+        }
+        let labels = self.labels();
+        let kept: Vec<usize> =
+            (0..rows.len()).filter(|&k| labels[k].kind != RowLabel::DRIVER).collect();
+        let first: Vec<bool> = kept.iter().map(|&k| labels[k].is_normalisation()).collect();
+        let rows: Vec<Vec<(usize, f64)>> =
+            kept.iter().map(|&k| std::mem::take(&mut rows[k])).collect();
+        let rank_nd = independent(&rows, n, &first).len();
+        let redundant = self.redundant_rows(&q, t0);
+        Some(Preparation {
+            assembled,
+            q,
+            rank: n,
+            mobility: n - rank_nd.min(n),
+            redundant,
+            free_bodies: Vec::new(),
+        })
+    }
+
+    /// The LU of Φ_q (`values` of `pattern`) in balanced units and its row factors, when its
+    /// pivot ratio is above [`RANK_TOLERANCE`].
+    fn regular<'p>(
+        pattern: &'p Pattern,
+        mut values: Vec<f64>,
+        columns: &DVector<f64>,
+    ) -> Option<(SparseLu<'p>, DVector<f64>)> {
+        let rows = pattern.balance(&mut values, columns);
+        let lu = pattern.factor(&values).ok()?;
+        let (min, max) = lu.pivot_extremes();
+        (min > RANK_TOLERANCE * max).then_some((lu, rows))
     }
 }
