@@ -135,10 +135,10 @@ impl Pattern {
     pub(crate) fn balance(&self, values: &mut [f64], columns: &DVector<f64>) -> DVector<f64> {
         let mut big = vec![0.0_f64; self.rows];
         for (j, &c) in columns.iter().enumerate() {
-            for p in self.col_ptr[j]..self.col_ptr[j + 1] {
-                values[p] *= c;
-                let i = self.row_idx[p];
-                big[i] = big[i].max(values[p].abs());
+            let range = self.col_ptr[j]..self.col_ptr[j + 1];
+            for (v, &i) in values[range.clone()].iter_mut().zip(&self.row_idx[range]) {
+                *v *= c;
+                big[i] = big[i].max(v.abs());
             }
         }
         let rows = DVector::from_iterator(
