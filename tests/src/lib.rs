@@ -38,6 +38,8 @@ mod seed_examples;
 #[cfg(test)]
 mod single_precision;
 #[cfg(test)]
+mod sparse_engine;
+#[cfg(test)]
 mod split_modules;
 #[cfg(test)]
 mod stability;

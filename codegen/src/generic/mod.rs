@@ -30,6 +30,7 @@ pub(crate) mod kin;
 pub mod redundancy;
 pub mod scaling;
 mod solve;
+mod sparse;
 #[cfg(test)]
 mod tests;
 
@@ -42,6 +43,7 @@ use crate::model::{
 use kin::{BodyState, Sk, Vk};
 
 pub use solve::{Analysis, Failure, FailureKind, Frame, Preparation, StepReport, TimedStop};
+pub use sparse::SPARSE_FROM_UNKNOWNS;
 
 /// Re-exported from the model, where the row layout lives, for the tool's existing paths.
 pub use crate::model::RowLabel;

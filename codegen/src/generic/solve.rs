@@ -11,10 +11,13 @@
 //! acceleration equations of every row hold ([`CONSISTENCY`]); otherwise it is rejected as
 //! `inconsistent`.
 
+use std::sync::Arc;
+
 use nalgebra::{DMatrix, DVector, SVD, Vector4};
 
 use super::scaling::balanced;
-use super::{Equations, System, angle_alignment};
+use super::sparse::{Pattern, SPARSE_FROM_UNKNOWNS, SparseLu};
+use super::{Equations, angle_alignment};
 use crate::model::{DriverTarget, JointKind, Motion, RowLabel};
 use crate::stepping::{self, Engine, Point, Rejection, Stop, Trouble};
 
@@ -29,7 +32,7 @@ const SINGULAR_PIVOT_RATIO: f64 = 1e-12;
 /// exact dependency shows up at round-off level (≈1e-16 relative), a genuine but poorly
 /// conditioned configuration far above it. Every rank decision looks at Φ_q in balanced units
 /// ([`super::scaling`]), so that this holds whatever the unit of length.
-const RANK_TOLERANCE: f64 = 1e-10;
+pub(super) const RANK_TOLERANCE: f64 = 1e-10;
 
 /// The velocity and acceleration equations of every row must hold to this fraction of the
 /// step's scale: |Φ_q,i x − b_i| ≤ CONSISTENCY · max_k (Σ_j |Φ_q,kj x_j| + |b_k|), every row
@@ -147,8 +150,23 @@ impl Equations<'_> {
     /// Assembles the mechanism at the first time point (Gauss–Newton with the SVD, which
     /// also handles redundant equations), then finds the rank of Φ_q, the mobility, the
     /// redundant rows and, for a rank-deficient Φ_q, the bodies that can still move.
+    ///
+    /// A square Φ_q of at least [`SPARSE_FROM_UNKNOWNS`] unknowns is first assembled by Newton
+    /// with the sparse LU instead ([`Equations::prepare_sparse`]); only when that LU is not
+    /// clearly regular do the dense SVDs decide.
     #[must_use]
     pub fn prepare(&self) -> Preparation {
+        if self.unknowns() >= SPARSE_FROM_UNKNOWNS
+            && let Some(prep) = self.prepare_sparse()
+        {
+            return prep;
+        }
+        self.prepare_dense()
+    }
+
+    /// [`Equations::prepare`] with the dense SVDs, whatever the size.
+    #[must_use]
+    pub fn prepare_dense(&self) -> Preparation {
         let mech = self.mechanism();
         let n = self.unknowns();
         let t0 = mech.time.start;
@@ -261,6 +279,9 @@ pub struct Analysis<'e, 'm> {
     predictor: bool,
     /// The column factors of Φ_q in balanced units ([`Equations::column_scales`]).
     columns: DVector<f64>,
+    /// The pattern and symbolic analysis of Φ_q when it is factored sparse
+    /// ([`super::sparse`]), `None` for the dense LU.
+    sparse: Option<Arc<Pattern>>,
 }
 
 impl<'e, 'm> Analysis<'e, 'm> {
@@ -279,7 +300,25 @@ impl<'e, 'm> Analysis<'e, 'm> {
             max_iterations: mech.solver.max_iterations,
             predictor: true,
             columns: eq.column_scales(),
+            sparse: (eq.unknowns() >= SPARSE_FROM_UNKNOWNS)
+                .then(|| Pattern::new(eq).map(Arc::new))
+                .flatten(),
         }
+    }
+
+    /// Chooses the factorisation of Φ_q: sparse (faer's LU, [`super::sparse`]) when `on` and
+    /// Φ_q is square, dense otherwise. By default a square Φ_q of at least
+    /// [`SPARSE_FROM_UNKNOWNS`] unknowns is factored sparse.
+    #[must_use]
+    pub fn with_sparse(mut self, on: bool) -> Self {
+        self.sparse = if on { Pattern::new(self.eq).map(Arc::new) } else { None };
+        self
+    }
+
+    /// Whether Φ_q is factored sparse.
+    #[must_use]
+    pub fn is_sparse(&self) -> bool {
+        self.sparse.is_some()
     }
 
     /// Turns the Taylor predictor off (Newton then starts from the previous positions).
@@ -547,8 +586,8 @@ impl<'e, 'm> Analysis<'e, 'm> {
         let mut normalised = false;
         let mut stalled = 0;
         let (sys, residual) = loop {
-            let sys = self.eq.evaluate(&q, &zero, t);
-            if !all_finite(&sys.phi) || !all_finite(&sys.jac) {
+            let sys = self.evaluate(&q, &zero, t);
+            if !all_finite(&sys.phi) || !sys.jac.is_finite() {
                 return Err(rejection(
                     Trouble::NoConvergence,
                     format!("Newton produced non-finite values after {iterations} iterations"),
@@ -573,7 +612,7 @@ impl<'e, 'm> Analysis<'e, 'm> {
                     ),
                 ));
             }
-            let lu = self.factor(sys.jac.clone())?;
+            let lu = self.factor(&sys.jac)?;
             let used_met = lu
                 .used()
                 .is_some_and(|used| used.iter().all(|&k| sys.phi[k].abs() <= self.tolerance));
@@ -601,9 +640,9 @@ impl<'e, 'm> Analysis<'e, 'm> {
             normalised = false;
             iterations += 1;
         };
-        let lu = self.factor(sys.jac.clone())?;
+        let lu = self.factor(&sys.jac)?;
         let qd = lu.solve(&sys.nu);
-        let gamma = self.eq.evaluate(&q, &qd, t).gamma;
+        let gamma = self.evaluate(&q, &qd, t).gamma;
         let qdd = lu.solve(&gamma);
         if !all_finite(&qd) || !all_finite(&qdd) {
             return Err(rejection(
@@ -612,10 +651,10 @@ impl<'e, 'm> Analysis<'e, 'm> {
             ));
         }
         let point = Self::point(t, [&q, &qd, &qdd], iterations, residual, &lu);
-        if lu.used().is_some() {
+        if let (Some(_), Jacobian::Dense(jac)) = (lu.used(), &sys.jac) {
             let levels = [("velocity", &qd, &sys.nu), ("acceleration", &qdd, &gamma)];
             for (what, x, b) in levels {
-                let (ratio, row) = inconsistency(&sys, &lu.rows, x, b);
+                let (ratio, row) = inconsistency(jac, &lu.rows, x, b);
                 // NaN misses too.
                 if ratio.is_nan() || ratio > CONSISTENCY {
                     return Err(Rejection {
@@ -704,6 +743,21 @@ impl<'e, 'm> Analysis<'e, 'm> {
         named.into_iter().filter(|c| seen.insert(c.clone())).collect()
     }
 
+    /// Φ, ν, γ and Φ_q at `(q, t)` with rates `qd`, Φ_q sparse when the analysis factors it
+    /// sparse.
+    fn evaluate(&self, q: &DVector<f64>, qd: &DVector<f64>, t: f64) -> Evaluated {
+        match &self.sparse {
+            Some(pattern) => {
+                let s = self.eq.evaluate_sparse(pattern, q, qd, t);
+                Evaluated { phi: s.phi, nu: s.nu, gamma: s.gamma, jac: Jacobian::Sparse(s.values) }
+            }
+            None => {
+                let s = self.eq.evaluate(q, qd, t);
+                Evaluated { phi: s.phi, nu: s.nu, gamma: s.gamma, jac: Jacobian::Dense(s.jac) }
+            }
+        }
+    }
+
     /// Scales every body's Euler parameters to unit norm.
     fn normalise(&self, q: &mut DVector<f64>) {
         for body in self.eq.mechanism().moving_bodies() {
@@ -779,12 +833,12 @@ fn rejection(trouble: Trouble, message: String) -> Rejection {
 /// The largest |Φ_q,i x − b_i| over the rows relative to the scale max_k (Σ_j |Φ_q,kj x_j| +
 /// |b_k|), both in balanced rows (`rows`), and the row where it is.
 fn inconsistency(
-    sys: &System,
+    jac: &DMatrix<f64>,
     rows: &DVector<f64>,
     x: &DVector<f64>,
     b: &DVector<f64>,
 ) -> (f64, usize) {
-    let (r, scale) = residual_and_scale(&sys.jac, rows, x, b);
+    let (r, scale) = residual_and_scale(jac, rows, x, b);
     let (row, big) = r
         .iter()
         .enumerate()
@@ -814,17 +868,43 @@ fn residual_and_scale(
     (r.component_mul(rows), scale)
 }
 
+/// Φ, ν, γ and Φ_q at one evaluation.
+struct Evaluated {
+    phi: DVector<f64>,
+    nu: DVector<f64>,
+    gamma: DVector<f64>,
+    jac: Jacobian,
+}
+
+/// Φ_q, dense or as the values of the analysis' sparse pattern.
+enum Jacobian {
+    Dense(DMatrix<f64>),
+    Sparse(Vec<f64>),
+}
+
+impl Jacobian {
+    fn is_finite(&self) -> bool {
+        match self {
+            Self::Dense(m) => all_finite(m),
+            Self::Sparse(v) => v.iter().all(|x| x.is_finite()),
+        }
+    }
+}
+
 /// The LU factors of R Φ_q C (Φ_q in balanced units) with the scales, to solve Φ_q x = b.
-struct Factors {
-    lu: Lu,
+struct Factors<'p> {
+    lu: Lu<'p>,
     rows: DVector<f64>,
     columns: DVector<f64>,
 }
 
-/// LU with row pivoting of a square Φ_q, or of one with more rows than columns.
-enum Lu {
+/// LU with row pivoting of a square Φ_q, dense or sparse, or of one with more rows than
+/// columns.
+enum Lu<'p> {
     /// P A = L U.
     Square(nalgebra::LU<f64, nalgebra::Dyn, nalgebra::Dyn>),
+    /// P A Q = L U, sparse, Q the pattern's fill-reducing column order.
+    Sparse(SparseLu<'p>),
     /// P A = [L1; L2] U for A with m > n rows: the solves use the n rows that row pivoting
     /// brought to the top, `used`, and L1 (unit lower triangular, the top of `l`) and U, both
     /// n × n.
@@ -836,7 +916,7 @@ enum Lu {
     },
 }
 
-impl Factors {
+impl Factors<'_> {
     /// x = C (R Φ_q C)⁻¹ R b, using the rows of [`Factors::used`] when Φ_q has more rows than
     /// columns; exact scalings, the factors being powers of two.
     fn solve(&self, b: &DVector<f64>) -> DVector<f64> {
@@ -844,6 +924,10 @@ impl Factors {
         let y = match &self.lu {
             Lu::Square(lu) => {
                 assert!(lu.solve_mut(&mut y), "checked non-singular");
+                y
+            }
+            Lu::Sparse(lu) => {
+                lu.solve_mut(&mut y);
                 y
             }
             Lu::Tall { p, l, u, .. } => {
@@ -861,7 +945,7 @@ impl Factors {
     /// The rows the solves use when Φ_q has more rows than columns, `None` for a square Φ_q.
     fn used(&self) -> Option<&[usize]> {
         match &self.lu {
-            Lu::Square(_) => None,
+            Lu::Square(_) | Lu::Sparse(_) => None,
             Lu::Tall { used, .. } => Some(used),
         }
     }
@@ -870,6 +954,7 @@ impl Factors {
     fn pivot_extremes(&self) -> (f64, f64) {
         let diagonal = match &self.lu {
             Lu::Square(lu) => lu.u().diagonal(),
+            Lu::Sparse(lu) => return lu.pivot_extremes(),
             Lu::Tall { u, .. } => u.diagonal(),
         };
         diagonal
@@ -882,7 +967,26 @@ impl Analysis<'_, '_> {
     /// LU with row pivoting of the Jacobian in balanced units (over all its rows when it has
     /// more rows than columns), refused when a pivot is at most [`SINGULAR_PIVOT_RATIO`] of
     /// the largest.
-    fn factor(&self, jac: DMatrix<f64>) -> Result<Factors, Rejection> {
+    fn factor(&self, jac: &Jacobian) -> Result<Factors<'_>, Rejection> {
+        let jac = match (jac, &self.sparse) {
+            (Jacobian::Sparse(values), Some(pattern)) => {
+                let mut values = values.clone();
+                let rows = pattern.balance(&mut values, &self.columns);
+                let lu = pattern.factor(&values).map_err(|e| {
+                    rejection(
+                        Trouble::Singular,
+                        format!("the Jacobian is singular (sparse LU: {e})"),
+                    )
+                })?;
+                return self.checked(Factors {
+                    lu: Lu::Sparse(lu),
+                    rows,
+                    columns: self.columns.clone(),
+                });
+            }
+            (Jacobian::Dense(jac), _) => jac.clone(),
+            (Jacobian::Sparse(_), None) => unreachable!("sparse values come from the pattern"),
+        };
         let (m, n) = jac.shape();
         let (jac, rows) = balanced(jac, &self.columns);
         let lu = if m == n {
@@ -894,7 +998,11 @@ impl Analysis<'_, '_> {
             let used = order.iter().take(n).copied().collect();
             Lu::Tall { p, l, u, used }
         };
-        let factors = Factors { lu, rows, columns: self.columns.clone() };
+        self.checked(Factors { lu, rows, columns: self.columns.clone() })
+    }
+
+    /// `factors`, refused when a pivot is at most [`SINGULAR_PIVOT_RATIO`] of the largest.
+    fn checked<'p>(&self, factors: Factors<'p>) -> Result<Factors<'p>, Rejection> {
         let (min, max) = factors.pivot_extremes();
         if min.is_nan() || min <= SINGULAR_PIVOT_RATIO * max {
             return Err(rejection(
