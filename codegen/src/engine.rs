@@ -145,6 +145,9 @@ pub struct Built {
     /// What was found wrong in the cache and repaired on the way (a corrupt lock file, a
     /// binary that did not match its record), one sentence each.
     pub notes: Vec<String>,
+    /// Whether the module was generated for this call: false when the cache's description
+    /// index named a verified entry for the same model, setting and mechgen.
+    pub generated: bool,
 }
 
 pub use cache::cache_dir;
@@ -162,6 +165,12 @@ pub fn build(mech: &Mechanism) -> Result<Built, EngineError> {
 /// # Errors
 /// [`EngineError::Generate`], [`EngineError::Config`] or [`EngineError::Build`].
 pub fn build_in(mech: &Mechanism, scalar: Scalar) -> Result<Built, EngineError> {
+    build_as(mech, scalar, cache::fingerprint())
+}
+
+/// [`build_in`] for a mechgen of fingerprint `fingerprint` (its description index entries
+/// are its own; see [`cache`]).
+fn build_as(mech: &Mechanism, scalar: Scalar, fingerprint: &str) -> Result<Built, EngineError> {
     let start = std::time::Instant::now();
     // The solver is built for the description's own grid, whatever series a run replays
     // (which it reads at run time): one cache entry serves every series.
@@ -173,20 +182,42 @@ pub fn build_in(mech: &Mechanism, scalar: Scalar) -> Result<Built, EngineError> 
     } else {
         mech
     };
-    let sys = Symbolic::build(mech)?;
-    let module = emit::module_in(mech, &sys, &format!("the description \"{}\"", mech.name), scalar);
-    log::debug!(
-        "generated {} in {} ({} unknowns, {} lines) in {:.3} s",
-        mech.name,
-        scalar.name(),
-        sys.unknowns.len(),
-        module.lines().count(),
-        start.elapsed().as_secs_f64()
-    );
-    let mut built = build_module(mech, &module, &sys, scalar)?;
-    built.inputs = sys.inputs.iter().map(|d| d.driver).collect();
+    let index = cache::Index::new(cache_dir()?, &format!("{mech:?}"), scalar.name(), fingerprint);
+    let mut built = match index.lookup() {
+        Some((described, binary)) => Built {
+            binary,
+            unknowns: described.unknowns,
+            removed: described.removed,
+            inputs: described.inputs,
+            series: None,
+            notes: Vec::new(),
+            generated: false,
+        },
+        None => {
+            let sys = Symbolic::build(mech)?;
+            let module =
+                emit::module_in(mech, &sys, &format!("the description \"{}\"", mech.name), scalar);
+            log::debug!(
+                "generated {} in {} ({} unknowns, {} lines) in {:.3} s",
+                mech.name,
+                scalar.name(),
+                sys.unknowns.len(),
+                module.lines().count(),
+                start.elapsed().as_secs_f64()
+            );
+            let (mut built, key) = build_keyed(mech, &module, &sys, scalar)?;
+            built.inputs = sys.inputs.iter().map(|d| d.driver).collect();
+            built.removed = sys.redundant.iter().map(crate::generic::RowLabel::equation).collect();
+            index.record(&cache::Described {
+                key,
+                unknowns: built.unknowns,
+                removed: built.removed.clone(),
+                inputs: built.inputs.clone(),
+            });
+            built
+        }
+    };
     built.series = replayed.map(|r| std::sync::Arc::new(series_text(&r, &built.inputs)));
-    built.removed = sys.redundant.iter().map(crate::generic::RowLabel::equation).collect();
     Ok(built)
 }
 
@@ -240,6 +271,16 @@ pub fn build_module(
     sys: &Symbolic,
     scalar: Scalar,
 ) -> Result<Built, EngineError> {
+    build_keyed(mech, module, sys, scalar).map(|(built, _)| built)
+}
+
+/// [`build_module`], with the KEY of the module's cache entry.
+fn build_keyed(
+    mech: &Mechanism,
+    module: &str,
+    sys: &Symbolic,
+    scalar: Scalar,
+) -> Result<(Built, String), EngineError> {
     let unknowns = sys.unknowns.len();
     let inputs = mech.drivers.iter().any(|d| d.law == crate::model::Law::Input);
     let recipe = cache::Recipe::new(
@@ -251,14 +292,16 @@ pub fn build_module(
     );
     let mut notes = Vec::new();
     recipe.ensure(&mut notes)?;
-    Ok(Built {
+    let built = Built {
         binary: recipe.binary(),
         unknowns,
         removed: Vec::new(),
         inputs: Vec::new(),
         series: None,
         notes,
-    })
+        generated: true,
+    };
+    Ok((built, recipe.key().to_owned()))
 }
 
 /// A running solver, killed and reaped when dropped: no solver outlives the reading side,
@@ -585,6 +628,52 @@ mod tests {
         r
     }
 
+    /// The revolute example with its driver's velocity written as `velocity`.
+    fn revolute(velocity: &str) -> Mechanism {
+        let path = crate::sync::workspace_root().join("examples/revolute_joint.toml");
+        let text = std::fs::read_to_string(&path).unwrap();
+        let text = text.replace("velocity = 1.047", &format!("velocity = {velocity}"));
+        let format = crate::validate::Format::Toml;
+        crate::validate::load_str(&text, format, None).unwrap().mechanism
+    }
+
+    #[test]
+    fn a_described_module_is_generated_once_and_never_served_for_another() {
+        // A mechgen of its own for this run, so that the index starts empty whatever earlier
+        // runs left in the shared cache (the modules' own entries are shared and reused).
+        let nanos = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).unwrap();
+        let me = format!("test {} {}", std::process::id(), nanos.as_nanos());
+        let other = format!("{me} other");
+        let first = build_as(&revolute("1.047"), Scalar::F64, &me).unwrap();
+        assert!(first.generated, "an empty index served a module");
+        // The same model again, even written differently (another spelling of the same
+        // number), finds its entry without generating.
+        let again = build_as(&revolute("1.0470"), Scalar::F64, &me).unwrap();
+        assert!(!again.generated, "the same description was generated again");
+        assert_eq!((&again.binary, again.unknowns), (&first.binary, first.unknowns));
+        // One number changed: a new module, generated and built.
+        let changed = build_as(&revolute("1.048"), Scalar::F64, &me).unwrap();
+        assert!(changed.generated, "a changed description was served a cached module");
+        assert_ne!(changed.binary, first.binary);
+        // Another precision is another module.
+        let single = build_as(&revolute("1.047"), Scalar::F32, &me).unwrap();
+        assert!(single.generated);
+        assert_ne!(single.binary, first.binary);
+        // Another mechgen never reads this one's index, even for the same description.
+        let theirs = build_as(&revolute("1.047"), Scalar::F64, &other).unwrap();
+        assert!(theirs.generated, "another mechgen's index entry was used");
+        // The run's own index files are removed; the modules stay cached for the next run.
+        for (velocity, scalar, fingerprint) in [
+            ("1.047", Scalar::F64, &me),
+            ("1.048", Scalar::F64, &me),
+            ("1.047", Scalar::F32, &me),
+            ("1.047", Scalar::F64, &other),
+        ] {
+            let model = format!("{:?}", revolute(velocity));
+            cache::Index::new(cache_dir().unwrap(), &model, scalar.name(), fingerprint).forget();
+        }
+    }
+
     #[test]
     fn a_step_record_reads_back_every_value_exactly() {
         // 7 coordinates: values whose text would need 17 digits, a subnormal, −0.
@@ -634,6 +723,7 @@ mod tests {
             inputs: Vec::new(),
             series: None,
             notes: Vec::new(),
+            generated: true,
         };
         // The one-body revolute example names failures; the stand-in's output has its size.
         let loaded = crate::validate::load_file(
@@ -680,6 +770,7 @@ mod tests {
             inputs: Vec::new(),
             series: None,
             notes: Vec::new(),
+            generated: true,
         };
         let loaded = crate::validate::load_file(
             &crate::sync::workspace_root().join("examples/revolute_joint.toml"),
