@@ -396,11 +396,32 @@ pub fn run_with(
     let mut near: Option<Point> = None;
     let mut reader = BufReader::with_capacity(1 << 16, stdout);
     let (mut bytes, mut record) = (Vec::new(), Vec::new());
+    // One frame, refilled by every record: no allocation per step.
+    let mut frame = Frame {
+        index: 0,
+        t: f64::NAN,
+        iterations: 0,
+        residual: f64::NAN,
+        condition: f64::NAN,
+        q: DVector::zeros(0),
+        qd: DVector::zeros(0),
+        qdd: DVector::zeros(0),
+        redundant: None,
+    };
     loop {
         let first = reader.fill_buf().map_err(RunError::Read)?.first().copied();
         let step = match first {
             None => break,
-            Some(STEP_RECORD) => step_record(&mut reader, &mut record, report.steps)?,
+            Some(STEP_RECORD) => {
+                match step_record(&mut reader, &mut record, report.steps, &mut frame)? {
+                    Some(failure) => Err(failure),
+                    None => {
+                        sink(&frame).map_err(EngineError::Output)?;
+                        report.steps += 1;
+                        continue;
+                    }
+                }
+            }
             Some(_) => {
                 bytes.clear();
                 reader.read_until(b'\n', &mut bytes).map_err(RunError::Read)?;
@@ -448,16 +469,17 @@ const STEP_RECORD: u8 = 0;
 /// with room to spare; more is a malformed record, not an allocation.
 const MAX_RECORD_COORDINATES: usize = 1 << 16;
 
-/// The frame of the binary step record at the start of `reader` (the `index`-th), or the
-/// failure it is when it holds a non-finite value other than the condition estimate: the
-/// byte [`STEP_RECORD`], the number m of coordinates and the Newton iterations as
-/// little-endian u32, then t, the residual, the condition estimate and m values each of q, q̇
-/// and q̈ as little-endian f64 (the driver's `step_record`). `record` is reused storage.
+/// Reads the binary step record at the start of `reader` (the `index`-th) into `frame`, or
+/// returns the failure it is when it holds a non-finite value other than the condition
+/// estimate: the byte [`STEP_RECORD`], the number m of coordinates and the Newton iterations
+/// as little-endian u32, then t, the residual, the condition estimate and m values each of q,
+/// q̇ and q̈ as little-endian f64 (the driver's `step_record`). `record` is reused storage.
 fn step_record(
     reader: &mut impl Read,
     record: &mut Vec<u8>,
     index: usize,
-) -> Result<Result<Frame, Failure>, RunError> {
+    frame: &mut Frame,
+) -> Result<Option<Failure>, RunError> {
     let mut head = [0u8; 9];
     reader.read_exact(&mut head).map_err(RunError::Read)?;
     let word = |k: usize| u32::from_le_bytes([head[k], head[k + 1], head[k + 2], head[k + 3]]);
@@ -467,26 +489,25 @@ fn step_record(
     }
     record.resize(8 * (3 + 3 * m), 0);
     reader.read_exact(record).map_err(RunError::Read)?;
-    let values: Vec<f64> = record
-        .chunks_exact(8)
-        .map(|b| f64::from_le_bytes([b[0], b[1], b[2], b[3], b[4], b[5], b[6], b[7]]))
-        .collect();
-    let (t, residual, condition) = (values[0], values[1], values[2]);
-    let coordinates = &values[3..];
-    if let Some(bad) = coordinates.iter().chain(&[residual]).find(|v| !v.is_finite()) {
-        return Ok(Err(non_finite(*bad, t)));
+    let value = |k: usize| {
+        let b = &record[8 * k..8 * k + 8];
+        f64::from_le_bytes([b[0], b[1], b[2], b[3], b[4], b[5], b[6], b[7]])
+    };
+    let (t, residual, condition) = (value(0), value(1), value(2));
+    if let Some(bad) = (3..3 + 3 * m).map(value).chain([residual]).find(|v| !v.is_finite()) {
+        return Ok(Some(non_finite(bad, t)));
     }
-    Ok(Ok(Frame {
-        index,
-        t,
-        iterations,
-        residual,
-        condition,
-        q: DVector::from_column_slice(&coordinates[..m]),
-        qd: DVector::from_column_slice(&coordinates[m..2 * m]),
-        qdd: DVector::from_column_slice(&coordinates[2 * m..]),
-        redundant: None,
-    }))
+    for (k, v) in [&mut frame.q, &mut frame.qd, &mut frame.qdd].into_iter().enumerate() {
+        if v.len() != m {
+            *v = DVector::zeros(m);
+        }
+        for (i, x) in v.iter_mut().enumerate() {
+            *x = value(3 + k * m + i);
+        }
+    }
+    (frame.index, frame.t, frame.iterations) = (index, t, iterations);
+    (frame.residual, frame.condition, frame.redundant) = (residual, condition, None);
+    Ok(None)
 }
 
 /// The failure of a step whose value `bad` is not finite, at time `t`.
@@ -687,7 +708,18 @@ mod tests {
             .collect();
         let bytes = record(0.25, 3, 1.5e-17, 2.5e3, &values);
         let mut reader = std::io::Cursor::new(bytes);
-        let frame = step_record(&mut reader, &mut Vec::new(), 4).unwrap().unwrap();
+        let mut frame = Frame {
+            index: 0,
+            t: 0.0,
+            iterations: 0,
+            residual: 0.0,
+            condition: 0.0,
+            q: DVector::zeros(0),
+            qd: DVector::zeros(0),
+            qdd: DVector::zeros(0),
+            redundant: None,
+        };
+        assert!(step_record(&mut reader, &mut Vec::new(), 4, &mut frame).unwrap().is_none());
         assert_eq!((frame.index, frame.t, frame.iterations), (4, 0.25, 3));
         assert_eq!((frame.residual, frame.condition), (1.5e-17, 2.5e3));
         let read: Vec<f64> = frame.q.iter().chain(&frame.qd).chain(&frame.qdd).copied().collect();
@@ -697,12 +729,13 @@ mod tests {
         let mut nan = values;
         nan[9] = f64::NAN;
         let mut reader = std::io::Cursor::new(record(0.5, 1, 0.0, 1.0, &nan));
-        let failure = step_record(&mut reader, &mut Vec::new(), 0).unwrap().unwrap_err();
+        let failure = step_record(&mut reader, &mut Vec::new(), 0, &mut frame).unwrap().unwrap();
         assert_eq!((failure.kind, failure.t), (FailureKind::NoConvergence, 0.5));
         // A record that announces an absurd size is refused before anything is allocated.
         let mut huge = record(0.0, 0, 0.0, 1.0, &[]);
         huge[1..5].copy_from_slice(&u32::MAX.to_le_bytes());
-        let err = step_record(&mut std::io::Cursor::new(huge), &mut Vec::new(), 0).unwrap_err();
+        let err = step_record(&mut std::io::Cursor::new(huge), &mut Vec::new(), 0, &mut frame)
+            .unwrap_err();
         assert!(matches!(err, RunError::Malformed(_)), "{err:?}");
     }
 
