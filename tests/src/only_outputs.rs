@@ -82,3 +82,28 @@ fn an_unknown_output_is_named_with_the_outputs_that_exist() {
     assert!(message.contains("did you mean \"link3\""), "{message}");
     assert!(message.contains("link1, link2, link3, hinge1, hinge2, hinge3"), "{message}");
 }
+
+/// The step cost of the generated solver with and without the pruning, on ten arms asked for
+/// one tool point (BENCHMARKS.md, "Only what is asked"): run with
+/// `cargo test -p tests only_outputs::step_cost -- --ignored --nocapture` (the solvers are built
+/// by the cache in its release profile whatever the test profile).
+#[test]
+#[ignore = "a measurement: it prints the costs"]
+fn step_cost_with_and_without_pruning() {
+    let text = codegen::scale::arms(10, 6, 200);
+    let tool = "[[points]]\nname = \"tool\"\nbody = \"arm3_link6\"\nlocal = [0.25, 0.0, 0.0]\n";
+    let mech = load_toml(&format!("{text}\n{tool}"));
+    let sys = Symbolic::build(&mech).expect("the system builds");
+    let part = only(&mech, &sys, &["tool".to_owned()]).expect("the point exists");
+    for (label, m) in [("whole (10 arms)", &mech), ("pruned (1 arm)", &part)] {
+        let built = build_generated(m);
+        let (min, median, iterations) =
+            codegen::engine::bench(&built, 1e-10, 20).expect("the timed passes run");
+        println!(
+            "{label}: {} unknowns, {min:.0} / {median:.0} ns per step (min / median), \
+             {iterations:.2} iterations",
+            built.unknowns
+        );
+        assert!(min > 0.0);
+    }
+}

@@ -422,3 +422,21 @@ fn bench_names_the_time_and_reason_of_a_timed_pass_that_stops() {
         assert!(err.contains("Newton did not converge"), "{engine}: {err}");
     }
 }
+
+#[test]
+fn generate_outputs_keeps_what_the_named_outputs_need_and_names_an_unknown_one() {
+    // A chain of five driven links: link 2's pose needs links 1 and 2 only.
+    let chain = temp_file("chain_5.toml", &crate::scale::chain(5, 5));
+    let file = chain.to_str().expect("UTF-8");
+    let (code, out, err) = mechgen(&["generate", file, "--outputs", "link2"]);
+    assert_eq!(code, EXIT_OK, "{err}");
+    assert!(out.contains("pub const N: usize = 14;"), "7 unknowns for each of two links");
+    assert!(out.contains("pub const BODY_NAMES: [&str; BODIES] = [\"link1\", \"link2\"];"));
+    let (code, whole, _) = mechgen(&["generate", file]);
+    assert_eq!(code, EXIT_OK);
+    assert!(whole.contains("pub const N: usize = 35;"), "the whole chain without --outputs");
+    let (code, _, err) = mechgen(&["generate", file, "--outputs", "link2,link9"]);
+    assert_eq!(code, EXIT_INVALID);
+    assert!(err.contains("\"link9\""), "{err}");
+    assert!(err.contains("link1, link2, link3, link4, link5, hinge1"), "{err}");
+}
