@@ -12,6 +12,9 @@ use codegen::testing::{build_generated, load_toml, run_generated, run_generic};
 /// of 100 (as `block_solver`).
 const AGREEMENT: f64 = 1e-10;
 
+/// One quantity of a frame: q, q̇ or q̈.
+type Quantity = fn(&codegen::generic::Frame) -> &nalgebra::DVector<f64>;
+
 /// The names of the moving bodies of a mechanism, in file order.
 fn moving(mech: &codegen::model::Mechanism) -> Vec<String> {
     mech.bodies.iter().filter(|b| !b.ground).map(|b| b.name.clone()).collect()
@@ -40,7 +43,7 @@ fn one_arm_of_ten_is_all_its_tool_point_needs_and_has_the_whole_mechanisms_value
     let kept = run_generated(&part, &build_generated(&part));
     assert!(kept.failure.is_none(), "{:?}", kept.failure);
     assert_eq!(kept.frames.len(), whole.frames.len());
-    let quantities: [(&str, fn(&codegen::generic::Frame) -> &nalgebra::DVector<f64>); 3] =
+    let quantities: [(&str, Quantity); 3] =
         [("q", |f| &f.q), ("qd", |f| &f.qd), ("qdd", |f| &f.qdd)];
     for (label, get) in quantities {
         let scale =

@@ -264,6 +264,18 @@ fn restrict(mech: &Mechanism, entities: &Entities, kept: &BTreeSet<BodyId>) -> M
             d
         })
         .collect();
+    // A replayed series is kept per driver: the kept drivers' series, in their new order.
+    if let Some(replay) = &mech.time.replay {
+        let mut replay = (**replay).clone();
+        replay.series = replay
+            .series
+            .into_iter()
+            .zip(&entities.drivers)
+            .filter(|(_, b)| keeps(b))
+            .map(|(series, _)| series)
+            .collect();
+        out.time.replay = Some(std::sync::Arc::new(replay));
+    }
     out.points = mech
         .points
         .iter()
