@@ -3,6 +3,7 @@
 //! the workspace's lock file (which pins the runtime's dependencies).
 
 use std::fmt::Write as _;
+use std::hash::Hasher as _;
 use std::path::{Path, PathBuf};
 
 fn main() {
@@ -11,9 +12,14 @@ fn main() {
     let root = manifest_dir.parent().expect("codegen lies inside the workspace").to_path_buf();
     let runtime = root.join("runtime");
     let lock = root.join("Cargo.lock");
-    for path in
-        [runtime.join("src"), runtime.join("Cargo.toml"), root.join("Cargo.toml"), lock.clone()]
-    {
+    for path in [
+        runtime.join("src"),
+        runtime.join("Cargo.toml"),
+        root.join("Cargo.toml"),
+        lock.clone(),
+        manifest_dir.join("src"),
+        manifest_dir.join("Cargo.toml"),
+    ] {
         println!("cargo:rerun-if-changed={}", path.display());
     }
     let mut files = Vec::new();
@@ -76,6 +82,33 @@ fn main() {
         out,
         "/// The workspace's `Cargo.lock` (empty when there was none): generated solvers build \
          with the versions it pins.\npub(crate) const WORKSPACE_LOCK: &str = {lock_text};"
+    )
+    .unwrap();
+
+    // What decides the modules this mechgen generates: its own sources (the generator, the
+    // driver), its manifest and the lock file (the formatter's version). Any change to them
+    // changes the hash, so the cache never takes an older mechgen's module for this one's.
+    let mut sources = Vec::new();
+    collect(&manifest_dir.join("src"), &mut sources);
+    sources.sort();
+    sources.push(manifest_dir.join("Cargo.toml"));
+    if lock.is_file() {
+        sources.push(lock.clone());
+    }
+    let mut hasher = std::hash::DefaultHasher::new();
+    for file in &sources {
+        let relative = file.strip_prefix(&root).expect("inside the workspace");
+        let bytes = std::fs::read(file).unwrap_or_else(|e| panic!("{}: {e}", file.display()));
+        for part in [relative.to_string_lossy().as_bytes(), &bytes] {
+            hasher.write_usize(part.len());
+            hasher.write(part);
+        }
+    }
+    writeln!(
+        out,
+        "/// A hash of mechgen's own sources, manifest and lock file: the generator's fingerprint.\n\
+         pub(crate) const GENERATOR_HASH: &str = \"{:016x}\";",
+        hasher.finish()
     )
     .unwrap();
 

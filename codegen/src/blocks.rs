@@ -26,6 +26,8 @@ use std::collections::BTreeMap;
 
 use crate::symbolic::Symbolic;
 
+pub mod outputs;
+
 /// How a block is solved.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Kind {

@@ -48,7 +48,8 @@ use crate::validate;
 /// Generates solvers for a list of description files into a directory (`OUT_DIR` by default).
 #[derive(Clone, Debug, Default)]
 pub struct Builder {
-    files: Vec<PathBuf>,
+    /// The description files, each with the outputs its module is restricted to, if any.
+    files: Vec<(PathBuf, Option<Vec<String>>)>,
     out_dir: Option<PathBuf>,
     quiet: bool,
 }
@@ -86,6 +87,14 @@ pub enum Error {
         /// The generator's reason.
         source: GenerateError,
     },
+    /// An output asked of a description is no moving body, point or joint of it.
+    #[error("{}: {source}", .file.display())]
+    Outputs {
+        /// The description file.
+        file: PathBuf,
+        /// The name and the outputs that exist.
+        source: crate::blocks::outputs::UnknownOutput,
+    },
     /// Two descriptions have the same `name`, so their modules would collide.
     #[error("{}: a second description named \"{module}\"; module names must differ", .file.display())]
     DuplicateName {
@@ -121,14 +130,28 @@ impl Builder {
     /// directory, which for a build script is the package's root.
     #[must_use]
     pub fn file(mut self, path: impl AsRef<Path>) -> Self {
-        self.files.push(path.as_ref().to_path_buf());
+        self.files.push((path.as_ref().to_path_buf(), None));
+        self
+    }
+
+    /// Adds a description file whose module computes only what the named moving bodies,
+    /// points and joints need (as `mechgen generate --outputs`): the blocks of the system no
+    /// named output depends on are left out, with their bodies, joints, drivers and points.
+    #[must_use]
+    pub fn file_with_outputs(
+        mut self,
+        path: impl AsRef<Path>,
+        outputs: impl IntoIterator<Item = impl Into<String>>,
+    ) -> Self {
+        let outputs = outputs.into_iter().map(Into::into).collect();
+        self.files.push((path.as_ref().to_path_buf(), Some(outputs)));
         self
     }
 
     /// Adds several description files.
     #[must_use]
     pub fn files(mut self, paths: impl IntoIterator<Item = impl AsRef<Path>>) -> Self {
-        self.files.extend(paths.into_iter().map(|p| p.as_ref().to_path_buf()));
+        self.files.extend(paths.into_iter().map(|p| (p.as_ref().to_path_buf(), None)));
         self
     }
 
@@ -160,11 +183,11 @@ impl Builder {
         };
         std::fs::create_dir_all(&dir).map_err(|source| Error::Io { path: dir.clone(), source })?;
         let mut generated: Vec<Generated> = Vec::new();
-        for file in &self.files {
+        for (file, outputs) in &self.files {
             if !self.quiet {
                 directive("rerun-if-changed", &path_text(file)?);
             }
-            let (module, text, warnings) = generate(file)?;
+            let (module, text, warnings) = generate(file, outputs.as_deref())?;
             if !self.quiet {
                 for w in warnings {
                     directive("warning", &w);
@@ -227,8 +250,12 @@ fn path_text(path: &Path) -> Result<String, Error> {
     }
 }
 
-/// The module name and text of one description, and its warnings (one line each).
-fn generate(file: &Path) -> Result<(String, String, Vec<String>), Error> {
+/// The module name and text of one description, restricted to `outputs` when given, and
+/// its warnings (one line each).
+fn generate(
+    file: &Path,
+    outputs: Option<&[String]>,
+) -> Result<(String, String, Vec<String>), Error> {
     let render_all = |diagnostics: Vec<diag::Diagnostic>, text: Option<&str>| Error::Invalid {
         file: file.to_path_buf(),
         rendered: diag::render(&diagnostics, text, false).trim_end().to_owned(),
@@ -237,11 +264,20 @@ fn generate(file: &Path) -> Result<(String, String, Vec<String>), Error> {
     let (text, format) = validate::read_file(file).map_err(|d| render_all(d, None))?;
     let loaded = validate::load_str(&text, format, Some(&file.display().to_string()))
         .map_err(|d| render_all(d, Some(&text)))?;
-    let sys = Symbolic::build(&loaded.mechanism)
-        .map_err(|source| Error::Generate { file: file.to_path_buf(), source })?;
+    let generate_error = |source| Error::Generate { file: file.to_path_buf(), source };
+    let mut mech = loaded.mechanism;
+    let mut sys = Symbolic::build(&mech).map_err(generate_error)?;
+    if let Some(names) = outputs {
+        let only = crate::blocks::outputs::only(&mech, &sys, names)
+            .map_err(|source| Error::Outputs { file: file.to_path_buf(), source })?;
+        if only != mech {
+            mech = only;
+            sys = Symbolic::build(&mech).map_err(generate_error)?;
+        }
+    }
     let source = file.display().to_string().replace('\\', "/");
     let warnings = loaded.warnings.iter().map(ToString::to_string).collect();
-    Ok((loaded.mechanism.name.clone(), emit::module(&loaded.mechanism, &sys, &source), warnings))
+    Ok((mech.name.clone(), emit::module(&mech, &sys, &source), warnings))
 }
 
 /// Writes `text` unless the file already holds it (so cargo sees no change).

@@ -98,8 +98,9 @@ fn execute(command: Command, out: &mut dyn Write, err: &mut dyn Write) -> std::i
         Command::ImportYoung { deck, output } => {
             import::import_young(&deck, output.as_deref(), out, err)
         }
-        Command::Generate { file, float, output } => {
-            generate::generate(&file, float.scalar(), output.as_deref(), out, err)
+        Command::Generate { file, float, output, outputs } => {
+            let files = generate::Files { file: &file, output: output.as_deref() };
+            generate::generate(files, float.scalar(), outputs.as_deref(), out, err)
         }
         Command::Chart { file, output, repeats } => chart::chart(&file, &output, repeats, out, err),
         Command::Scaling { bodies, repeats, write } => {

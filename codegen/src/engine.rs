@@ -148,6 +148,9 @@ pub struct Built {
     /// What was found wrong in the cache and repaired on the way (a corrupt lock file, a
     /// binary that did not match its record), one sentence each.
     pub notes: Vec<String>,
+    /// Whether the module was generated for this call: false when the cache's description
+    /// index named a verified entry for the same model, setting and mechgen.
+    pub generated: bool,
 }
 
 pub use cache::cache_dir;
@@ -165,6 +168,12 @@ pub fn build(mech: &Mechanism) -> Result<Built, EngineError> {
 /// # Errors
 /// [`EngineError::Generate`], [`EngineError::Config`] or [`EngineError::Build`].
 pub fn build_in(mech: &Mechanism, scalar: Scalar) -> Result<Built, EngineError> {
+    build_as(mech, scalar, cache::fingerprint())
+}
+
+/// [`build_in`] for a mechgen of fingerprint `fingerprint` (its description index entries
+/// are its own; see [`cache`]).
+fn build_as(mech: &Mechanism, scalar: Scalar, fingerprint: &str) -> Result<Built, EngineError> {
     let start = std::time::Instant::now();
     // The solver is built for the description's own grid, whatever series a run replays
     // (which it reads at run time): one cache entry serves every series.
@@ -176,20 +185,42 @@ pub fn build_in(mech: &Mechanism, scalar: Scalar) -> Result<Built, EngineError> 
     } else {
         mech
     };
-    let sys = Symbolic::build(mech)?;
-    let module = emit::module_in(mech, &sys, &format!("the description \"{}\"", mech.name), scalar);
-    log::debug!(
-        "generated {} in {} ({} unknowns, {} lines) in {:.3} s",
-        mech.name,
-        scalar.name(),
-        sys.unknowns.len(),
-        module.lines().count(),
-        start.elapsed().as_secs_f64()
-    );
-    let mut built = build_module(mech, &module, &sys, scalar)?;
-    built.inputs = sys.inputs.iter().map(|d| d.driver).collect();
+    let index = cache::Index::new(cache_dir()?, &format!("{mech:?}"), scalar.name(), fingerprint);
+    let mut built = match index.lookup() {
+        Some((described, binary)) => Built {
+            binary,
+            unknowns: described.unknowns,
+            removed: described.removed,
+            inputs: described.inputs,
+            series: None,
+            notes: Vec::new(),
+            generated: false,
+        },
+        None => {
+            let sys = Symbolic::build(mech)?;
+            let module =
+                emit::module_in(mech, &sys, &format!("the description \"{}\"", mech.name), scalar);
+            log::debug!(
+                "generated {} in {} ({} unknowns, {} lines) in {:.3} s",
+                mech.name,
+                scalar.name(),
+                sys.unknowns.len(),
+                module.lines().count(),
+                start.elapsed().as_secs_f64()
+            );
+            let (mut built, key) = build_keyed(mech, &module, &sys, scalar)?;
+            built.inputs = sys.inputs.iter().map(|d| d.driver).collect();
+            built.removed = sys.redundant.iter().map(crate::generic::RowLabel::equation).collect();
+            index.record(&cache::Described {
+                key,
+                unknowns: built.unknowns,
+                removed: built.removed.clone(),
+                inputs: built.inputs.clone(),
+            });
+            built
+        }
+    };
     built.series = replayed.map(|r| std::sync::Arc::new(series_text(&r, &built.inputs)));
-    built.removed = sys.redundant.iter().map(crate::generic::RowLabel::equation).collect();
     Ok(built)
 }
 
@@ -243,6 +274,16 @@ pub fn build_module(
     sys: &Symbolic,
     scalar: Scalar,
 ) -> Result<Built, EngineError> {
+    build_keyed(mech, module, sys, scalar).map(|(built, _)| built)
+}
+
+/// [`build_module`], with the KEY of the module's cache entry.
+fn build_keyed(
+    mech: &Mechanism,
+    module: &str,
+    sys: &Symbolic,
+    scalar: Scalar,
+) -> Result<(Built, String), EngineError> {
     let unknowns = sys.unknowns.len();
     let inputs = mech.drivers.iter().any(|d| d.law == crate::model::Law::Input);
     let recipe = cache::Recipe::new(
@@ -254,14 +295,16 @@ pub fn build_module(
     );
     let mut notes = Vec::new();
     recipe.ensure(&mut notes)?;
-    Ok(Built {
+    let built = Built {
         binary: recipe.binary(),
         unknowns,
         removed: Vec::new(),
         inputs: Vec::new(),
         series: None,
         notes,
-    })
+        generated: true,
+    };
+    Ok((built, recipe.key().to_owned()))
 }
 
 /// A running solver, killed and reaped when dropped: no solver outlives the reading side,
@@ -356,11 +399,32 @@ pub fn run_with(
     let mut near: Option<Point> = None;
     let mut reader = BufReader::with_capacity(1 << 16, stdout);
     let (mut bytes, mut record) = (Vec::new(), Vec::new());
+    // One frame, refilled by every record: no allocation per step.
+    let mut frame = Frame {
+        index: 0,
+        t: f64::NAN,
+        iterations: 0,
+        residual: f64::NAN,
+        condition: f64::NAN,
+        q: DVector::zeros(0),
+        qd: DVector::zeros(0),
+        qdd: DVector::zeros(0),
+        redundant: None,
+    };
     loop {
         let first = reader.fill_buf().map_err(RunError::Read)?.first().copied();
         let step = match first {
             None => break,
-            Some(STEP_RECORD) => step_record(&mut reader, &mut record, report.steps)?,
+            Some(STEP_RECORD) => {
+                match step_record(&mut reader, &mut record, report.steps, &mut frame)? {
+                    Some(failure) => Err(failure),
+                    None => {
+                        sink(&frame).map_err(EngineError::Output)?;
+                        report.steps += 1;
+                        continue;
+                    }
+                }
+            }
             Some(_) => {
                 bytes.clear();
                 reader.read_until(b'\n', &mut bytes).map_err(RunError::Read)?;
@@ -408,16 +472,17 @@ const STEP_RECORD: u8 = 0;
 /// with room to spare; more is a malformed record, not an allocation.
 const MAX_RECORD_COORDINATES: usize = 1 << 16;
 
-/// The frame of the binary step record at the start of `reader` (the `index`-th), or the
-/// failure it is when it holds a non-finite value other than the condition estimate: the
-/// byte [`STEP_RECORD`], the number m of coordinates and the Newton iterations as
-/// little-endian u32, then t, the residual, the condition estimate and m values each of q, q̇
-/// and q̈ as little-endian f64 (the driver's `step_record`). `record` is reused storage.
+/// Reads the binary step record at the start of `reader` (the `index`-th) into `frame`, or
+/// returns the failure it is when it holds a non-finite value other than the condition
+/// estimate: the byte [`STEP_RECORD`], the number m of coordinates and the Newton iterations
+/// as little-endian u32, then t, the residual, the condition estimate and m values each of q,
+/// q̇ and q̈ as little-endian f64 (the driver's `step_record`). `record` is reused storage.
 fn step_record(
     reader: &mut impl Read,
     record: &mut Vec<u8>,
     index: usize,
-) -> Result<Result<Frame, Failure>, RunError> {
+    frame: &mut Frame,
+) -> Result<Option<Failure>, RunError> {
     let mut head = [0u8; 9];
     reader.read_exact(&mut head).map_err(RunError::Read)?;
     let word = |k: usize| u32::from_le_bytes([head[k], head[k + 1], head[k + 2], head[k + 3]]);
@@ -427,26 +492,25 @@ fn step_record(
     }
     record.resize(8 * (3 + 3 * m), 0);
     reader.read_exact(record).map_err(RunError::Read)?;
-    let values: Vec<f64> = record
-        .chunks_exact(8)
-        .map(|b| f64::from_le_bytes([b[0], b[1], b[2], b[3], b[4], b[5], b[6], b[7]]))
-        .collect();
-    let (t, residual, condition) = (values[0], values[1], values[2]);
-    let coordinates = &values[3..];
-    if let Some(bad) = coordinates.iter().chain(&[residual]).find(|v| !v.is_finite()) {
-        return Ok(Err(non_finite(*bad, t)));
+    let value = |k: usize| {
+        let b = &record[8 * k..8 * k + 8];
+        f64::from_le_bytes([b[0], b[1], b[2], b[3], b[4], b[5], b[6], b[7]])
+    };
+    let (t, residual, condition) = (value(0), value(1), value(2));
+    if let Some(bad) = (3..3 + 3 * m).map(value).chain([residual]).find(|v| !v.is_finite()) {
+        return Ok(Some(non_finite(bad, t)));
     }
-    Ok(Ok(Frame {
-        index,
-        t,
-        iterations,
-        residual,
-        condition,
-        q: DVector::from_column_slice(&coordinates[..m]),
-        qd: DVector::from_column_slice(&coordinates[m..2 * m]),
-        qdd: DVector::from_column_slice(&coordinates[2 * m..]),
-        redundant: None,
-    }))
+    for (k, v) in [&mut frame.q, &mut frame.qd, &mut frame.qdd].into_iter().enumerate() {
+        if v.len() != m {
+            *v = DVector::zeros(m);
+        }
+        for (i, x) in v.iter_mut().enumerate() {
+            *x = value(3 + k * m + i);
+        }
+    }
+    (frame.index, frame.t, frame.iterations) = (index, t, iterations);
+    (frame.residual, frame.condition, frame.redundant) = (residual, condition, None);
+    Ok(None)
 }
 
 /// The failure of a step whose value `bad` is not finite, at time `t`.
@@ -588,6 +652,52 @@ mod tests {
         r
     }
 
+    /// The revolute example with its driver's velocity written as `velocity`.
+    fn revolute(velocity: &str) -> Mechanism {
+        let path = crate::sync::workspace_root().join("examples/revolute_joint.toml");
+        let text = std::fs::read_to_string(&path).unwrap();
+        let text = text.replace("velocity = 1.047", &format!("velocity = {velocity}"));
+        let format = crate::validate::Format::Toml;
+        crate::validate::load_str(&text, format, None).unwrap().mechanism
+    }
+
+    #[test]
+    fn a_described_module_is_generated_once_and_never_served_for_another() {
+        // A mechgen of its own for this run, so that the index starts empty whatever earlier
+        // runs left in the shared cache (the modules' own entries are shared and reused).
+        let nanos = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).unwrap();
+        let me = format!("test {} {}", std::process::id(), nanos.as_nanos());
+        let other = format!("{me} other");
+        let first = build_as(&revolute("1.047"), Scalar::F64, &me).unwrap();
+        assert!(first.generated, "an empty index served a module");
+        // The same model again, even written differently (another spelling of the same
+        // number), finds its entry without generating.
+        let again = build_as(&revolute("1.0470"), Scalar::F64, &me).unwrap();
+        assert!(!again.generated, "the same description was generated again");
+        assert_eq!((&again.binary, again.unknowns), (&first.binary, first.unknowns));
+        // One number changed: a new module, generated and built.
+        let changed = build_as(&revolute("1.048"), Scalar::F64, &me).unwrap();
+        assert!(changed.generated, "a changed description was served a cached module");
+        assert_ne!(changed.binary, first.binary);
+        // Another precision is another module.
+        let single = build_as(&revolute("1.047"), Scalar::F32, &me).unwrap();
+        assert!(single.generated);
+        assert_ne!(single.binary, first.binary);
+        // Another mechgen never reads this one's index, even for the same description.
+        let theirs = build_as(&revolute("1.047"), Scalar::F64, &other).unwrap();
+        assert!(theirs.generated, "another mechgen's index entry was used");
+        // The run's own index files are removed; the modules stay cached for the next run.
+        for (velocity, scalar, fingerprint) in [
+            ("1.047", Scalar::F64, &me),
+            ("1.048", Scalar::F64, &me),
+            ("1.047", Scalar::F32, &me),
+            ("1.047", Scalar::F64, &other),
+        ] {
+            let model = format!("{:?}", revolute(velocity));
+            cache::Index::new(cache_dir().unwrap(), &model, scalar.name(), fingerprint).forget();
+        }
+    }
+
     #[test]
     fn a_step_record_reads_back_every_value_exactly() {
         // 7 coordinates: values whose text would need 17 digits, a subnormal, −0.
@@ -601,7 +711,18 @@ mod tests {
             .collect();
         let bytes = record(0.25, 3, 1.5e-17, 2.5e3, &values);
         let mut reader = std::io::Cursor::new(bytes);
-        let frame = step_record(&mut reader, &mut Vec::new(), 4).unwrap().unwrap();
+        let mut frame = Frame {
+            index: 0,
+            t: 0.0,
+            iterations: 0,
+            residual: 0.0,
+            condition: 0.0,
+            q: DVector::zeros(0),
+            qd: DVector::zeros(0),
+            qdd: DVector::zeros(0),
+            redundant: None,
+        };
+        assert!(step_record(&mut reader, &mut Vec::new(), 4, &mut frame).unwrap().is_none());
         assert_eq!((frame.index, frame.t, frame.iterations), (4, 0.25, 3));
         assert_eq!((frame.residual, frame.condition), (1.5e-17, 2.5e3));
         let read: Vec<f64> = frame.q.iter().chain(&frame.qd).chain(&frame.qdd).copied().collect();
@@ -611,12 +732,13 @@ mod tests {
         let mut nan = values;
         nan[9] = f64::NAN;
         let mut reader = std::io::Cursor::new(record(0.5, 1, 0.0, 1.0, &nan));
-        let failure = step_record(&mut reader, &mut Vec::new(), 0).unwrap().unwrap_err();
+        let failure = step_record(&mut reader, &mut Vec::new(), 0, &mut frame).unwrap().unwrap();
         assert_eq!((failure.kind, failure.t), (FailureKind::NoConvergence, 0.5));
         // A record that announces an absurd size is refused before anything is allocated.
         let mut huge = record(0.0, 0, 0.0, 1.0, &[]);
         huge[1..5].copy_from_slice(&u32::MAX.to_le_bytes());
-        let err = step_record(&mut std::io::Cursor::new(huge), &mut Vec::new(), 0).unwrap_err();
+        let err = step_record(&mut std::io::Cursor::new(huge), &mut Vec::new(), 0, &mut frame)
+            .unwrap_err();
         assert!(matches!(err, RunError::Malformed(_)), "{err:?}");
     }
 
@@ -637,6 +759,7 @@ mod tests {
             inputs: Vec::new(),
             series: None,
             notes: Vec::new(),
+            generated: true,
         };
         // The one-body revolute example names failures; the stand-in's output has its size.
         let loaded = crate::validate::load_file(
@@ -683,6 +806,7 @@ mod tests {
             inputs: Vec::new(),
             series: None,
             notes: Vec::new(),
+            generated: true,
         };
         let loaded = crate::validate::load_file(
             &crate::sync::workspace_root().join("examples/revolute_joint.toml"),

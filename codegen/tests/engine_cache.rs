@@ -64,7 +64,8 @@ fn entry_of(cache: &Path, ty: &str) -> PathBuf {
         .unwrap_or_else(|| panic!("no entry for {ty} in {}", cache.display()))
 }
 
-/// The cache entry `mechgen solve --engine generated file` uses, as its log says. The shared
+/// The cache entry `mechgen solve --engine generated file` uses, as its log says (found by
+/// the description index, verified, or built). The shared
 /// cache may hold older entries of the same mechanism (every change to the generator or the
 /// driver changes the keys), which a search by type could find instead.
 fn entry_used(cache: &Path, file: &Path) -> PathBuf {
@@ -74,9 +75,14 @@ fn entry_used(cache: &Path, file: &Path) -> PathBuf {
     stderr
         .lines()
         .find_map(|l| {
-            let rest =
-                l.split_once("cache hit: ").or_else(|| l.split_once("cache miss: building "))?.1;
-            Some(PathBuf::from(rest.trim_end_matches(" (verified)")))
+            let rest = l
+                .split_once("description index hit: ")
+                .or_else(|| l.split_once("cache hit: "))
+                .or_else(|| l.split_once("cache miss: building "))?
+                .1;
+            Some(PathBuf::from(
+                rest.trim_end_matches(" (verified)").trim_end_matches(" (no generation)"),
+            ))
         })
         .unwrap_or_else(|| panic!("no cache entry logged: {stderr}"))
 }

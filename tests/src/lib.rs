@@ -24,6 +24,8 @@ mod hostile_codegen;
 #[cfg(test)]
 mod named_outputs;
 #[cfg(test)]
+mod only_outputs;
+#[cfg(test)]
 mod random_mechanisms;
 #[cfg(test)]
 mod redundancy;

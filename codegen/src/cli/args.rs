@@ -147,6 +147,10 @@ pub(super) enum Command {
         /// Write the module here instead of standard output.
         #[arg(short = 'o', long = "output")]
         output: Option<PathBuf>,
+        /// Generate only what these moving bodies, points and joints need (names separated by
+        /// commas): the blocks no named output depends on are left out of the module.
+        #[arg(long, value_delimiter = ',')]
+        outputs: Option<Vec<String>>,
     },
     /// Regenerate `generated/src` from `examples/*.toml` (`--check`: only compare).
     #[command(hide = true)]

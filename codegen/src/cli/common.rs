@@ -250,6 +250,35 @@ fn undriven(eq: &Equations<'_>, prep: &Preparation) -> Option<Diagnostic> {
     })
 }
 
+/// The part of `mech` that the outputs `names` depend on (`crate::blocks::outputs`), or
+/// `None` when that is all of it or the generator refuses the whole (the caller then reports
+/// that as it does without `flag`); `Err` carries the exit status after reporting a name
+/// that is no output (invalid input on the command line's `flag`).
+pub(super) fn only_outputs(
+    mech: &Mechanism,
+    names: &[String],
+    flag: &str,
+    out: &mut dyn Write,
+    err: &mut dyn Write,
+) -> io::Result<Result<Option<Mechanism>, i32>> {
+    let Ok(sys) = crate::symbolic::Symbolic::build(mech) else { return Ok(Ok(None)) };
+    match crate::blocks::outputs::only(mech, &sys, names) {
+        Ok(only) if only == *mech => Ok(Ok(None)),
+        Ok(only) => {
+            log::info!(
+                "{flag}: {} of {} moving bodies are needed",
+                only.moving_bodies().count(),
+                mech.moving_bodies().count()
+            );
+            Ok(Ok(Some(only)))
+        }
+        Err(unknown) => {
+            let d = Diagnostic::error(unknown.to_string()).entity("command line").field(flag);
+            Ok(Err(report_invalid(&[d], false, out, err)))
+        }
+    }
+}
+
 /// Builds the generated solver, printing what the cache repaired on the way.
 pub(super) fn build_generated(
     mech: &Mechanism,

@@ -6,17 +6,31 @@ use std::path::Path;
 use super::common::{EXIT_OK, load, report_invalid};
 use crate::diag::Diagnostic;
 
+/// The files of `generate`: the description and `-o`.
+pub(super) struct Files<'a> {
+    pub(super) file: &'a Path,
+    pub(super) output: Option<&'a Path>,
+}
+
 pub(super) fn generate(
-    file: &Path,
+    files: Files<'_>,
     scalar: crate::emit::Scalar,
-    output: Option<&Path>,
+    outputs: Option<&[String]>,
     out: &mut dyn Write,
     err: &mut dyn Write,
 ) -> io::Result<i32> {
-    let loaded = match load(file, false, out, err) {
+    let Files { file, output } = files;
+    let mut loaded = match load(file, false, out, err) {
         Ok(l) => l,
         Err(code) => return Ok(code),
     };
+    if let Some(names) = outputs {
+        match super::common::only_outputs(&loaded.mechanism, names, "--outputs", out, err)? {
+            Ok(Some(only)) => loaded.mechanism = only,
+            Ok(None) => {}
+            Err(code) => return Ok(code),
+        }
+    }
     let sys = match crate::symbolic::Symbolic::build(&loaded.mechanism) {
         Ok(s) => s,
         Err(e) if !loaded.mechanism.input_drivers().is_empty() => {

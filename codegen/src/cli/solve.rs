@@ -9,7 +9,8 @@ use super::common::{
 };
 use super::term;
 use crate::diag::{Diagnostic, printable};
-use crate::generic::Analysis;
+use crate::emit::Scalar;
+use crate::generic::{Analysis, Equations};
 use crate::model::Mechanism;
 use crate::report::{self, Writer};
 
@@ -50,14 +51,23 @@ pub(super) fn solve(
         Ok(p) => p,
         Err(code) => return Ok(code),
     };
+    // With `--select`, the generated solver solves only the blocks the selected outputs
+    // depend on (the names were checked above).
+    let only = match (engine, select) {
+        (Some(Engine::Generic), _) | (_, None) => None,
+        (_, Some(names)) => {
+            super::common::only_outputs(mech, names, "--select", out, err)?.unwrap_or(None)
+        }
+    };
+    let generated = only.as_ref().unwrap_or(mech);
     // The default engine is the generated one when it can be built, else the generic one.
     let built = match engine {
         Some(Engine::Generic) => None,
-        Some(Engine::Generated) => match build_generated(mech, crate::emit::Scalar::F64, err)? {
+        Some(Engine::Generated) => match build_generated(generated, Scalar::F64, err)? {
             Ok(b) => Some(b),
             Err(e) => return engine_unavailable(&e, mech, json, out, err),
         },
-        None => match build_generated(mech, crate::emit::Scalar::F64, err)? {
+        None => match build_generated(generated, Scalar::F64, err)? {
             Ok(b) => Some(b),
             Err(e @ crate::engine::EngineError::Config(_)) => {
                 return engine_unavailable(&e, mech, json, out, err);
@@ -68,6 +78,16 @@ pub(super) fn solve(
                 None
             }
         },
+    };
+    // The part the generated solver solves, with its own equations to name failures by.
+    let part = match (&only, &built, select) {
+        (Some(only), Some(_), Some(names)) => {
+            let eq = Equations::new(only);
+            let prep = eq.prepare();
+            let selection = report::Selection::named(only, names).expect("kept with its outputs");
+            Some((only, eq, prep, selection))
+        }
+        _ => None,
     };
     let fmt = match format {
         SolveFormat::Table => report::Format::Table,
@@ -105,8 +125,16 @@ pub(super) fn solve(
             printable(r)
         )?;
     }
-    let writer = Writer::begin_selected(sink, fmt, mech, name, &removed, selection)?;
-    stream(mech, &Analysis::new(&eq, &prep), built.as_ref(), writer, err)
+    match part {
+        Some((only, eq, prep, selection)) => {
+            let writer = Writer::begin_selected(sink, fmt, only, name, &removed, selection)?;
+            stream(only, &Analysis::new(&eq, &prep), built.as_ref(), writer, err)
+        }
+        None => {
+            let writer = Writer::begin_selected(sink, fmt, mech, name, &removed, selection)?;
+            stream(mech, &Analysis::new(&eq, &prep), built.as_ref(), writer, err)
+        }
+    }
 }
 
 /// Runs the analysis on the generated solver `built`, or on the generic engine, writing each

@@ -447,3 +447,21 @@ fn disagreeing_flags_differences_above_1e_6_relative_and_nan() {
     assert_eq!(super::compare::disagreeing(&diffs), ["a", "omega"]);
     assert!(super::compare::disagreeing(&diffs[..2]).is_empty());
 }
+
+#[test]
+fn generate_outputs_keeps_what_the_named_outputs_need_and_names_an_unknown_one() {
+    // A chain of five driven links: link 2's pose needs links 1 and 2 only.
+    let chain = temp_file("chain_5.toml", &crate::scale::chain(5, 5));
+    let file = chain.to_str().expect("UTF-8");
+    let (code, out, err) = mechgen(&["generate", file, "--outputs", "link2"]);
+    assert_eq!(code, EXIT_OK, "{err}");
+    assert!(out.contains("pub const N: usize = 14;"), "7 unknowns for each of two links");
+    assert!(out.contains("pub const BODY_NAMES: [&str; BODIES] = [\"link1\", \"link2\"];"));
+    let (code, whole, _) = mechgen(&["generate", file]);
+    assert_eq!(code, EXIT_OK);
+    assert!(whole.contains("pub const N: usize = 35;"), "the whole chain without --outputs");
+    let (code, _, err) = mechgen(&["generate", file, "--outputs", "link2,link9"]);
+    assert_eq!(code, EXIT_INVALID);
+    assert!(err.contains("\"link9\""), "{err}");
+    assert!(err.contains("link1, link2, link3, link4, link5, hinge1"), "{err}");
+}

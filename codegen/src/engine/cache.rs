@@ -8,10 +8,19 @@
 //! - `target/`: cargo's shared build directory (a build cache only: entries keep their own
 //!   copy of their binary).
 //!
+//! - `described/DESCRIPTION`: the description index, one small JSON file per description
+//!   and setting that names the KEY of its module (see [`Described`]);
+//!
 //! KEY hashes everything that decides the binary: the generated module, the driver and the
 //! step control, the float type, the manifest, the lock file, the runtime's sources and
 //! mechgen's version. An entry is used only when its recorded hash matches its binary and
 //! the binary, asked for its key, prints KEY; anything else is rebuilt.
+//!
+//! DESCRIPTION hashes what decides the module before it is generated: the validated model
+//! (every number of the description, its own `[time]` grid and solver options), the float
+//! type and mechgen's [`fingerprint`]. A run whose DESCRIPTION is indexed and whose KEY
+//! verifies skips generation; any doubt (no index file, an unreadable one, an entry that does
+//! not verify) generates the module as before, and the build rewrites the index.
 
 use std::ffi::OsString;
 use std::hash::{DefaultHasher, Hasher};
@@ -54,6 +63,98 @@ fn runtime_hash() -> &'static str {
         }
         hash(&parts)
     })
+}
+
+/// What identifies this mechgen as a generator: its version, the hash of its own sources
+/// (the generator, the driver), manifest and lock file taken when it was built, the
+/// runtime's sources and the cache's recipe. Two binaries with the same fingerprint generate
+/// the same module from the same model.
+pub fn fingerprint() -> &'static str {
+    static FINGERPRINT: OnceLock<String> = OnceLock::new();
+    FINGERPRINT.get_or_init(|| {
+        hash(&[
+            RECIPE.as_bytes(),
+            env!("CARGO_PKG_VERSION").as_bytes(),
+            embedded::GENERATOR_HASH.as_bytes(),
+            runtime_hash().as_bytes(),
+        ])
+    })
+}
+
+/// The index entry of one description: the cache entry of its module and what a run needs
+/// to know of the module without generating it.
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub(super) struct Described {
+    /// The KEY of the module's entry.
+    pub(super) key: String,
+    /// Size of the reduced system.
+    pub(super) unknowns: usize,
+    /// The equations left out as redundant.
+    pub(super) removed: Vec<String>,
+    /// The driver indices of the module's input drivers.
+    pub(super) inputs: Vec<usize>,
+}
+
+/// The description index of the cache `cache`, for one description key.
+pub(super) struct Index {
+    path: PathBuf,
+    cache: PathBuf,
+}
+
+impl Index {
+    /// The index file of the description whose canonical text is `model` (the validated
+    /// model, debug-printed: floats in shortest round-trip form), generated in `real` by the
+    /// mechgen of fingerprint `fingerprint`.
+    pub(super) fn new(cache: PathBuf, model: &str, real: &str, fingerprint: &str) -> Index {
+        let key = hash(&[
+            b"mechgen-described 1",
+            fingerprint.as_bytes(),
+            real.as_bytes(),
+            model.as_bytes(),
+        ]);
+        Index { path: cache.join("described").join(key), cache }
+    }
+
+    /// The indexed entry, when the index names one and its solver verifies (its recorded
+    /// hash and its answer to `key`); `None` otherwise, and the caller generates.
+    pub(super) fn lookup(&self) -> Option<(Described, PathBuf)> {
+        let text = std::fs::read(&self.path).ok()?;
+        let Ok(described) = serde_json::from_slice::<Described>(&text) else {
+            log::warn!("description index {} unreadable; generating", self.path.display());
+            return None;
+        };
+        // A key is 16 hex digits: anything else cannot name an entry inside the cache.
+        if described.key.len() != 16 || !described.key.bytes().all(|b| b.is_ascii_hexdigit()) {
+            return None;
+        }
+        let recipe =
+            Recipe { cache: self.cache.clone(), key: described.key.clone(), files: Vec::new() };
+        match recipe.defect() {
+            None => {
+                log::info!("description index hit: {} (no generation)", recipe.dir().display());
+                Some((described, recipe.binary()))
+            }
+            Some(why) => {
+                log::info!("description index names an unusable entry ({why}); generating");
+                None
+            }
+        }
+    }
+
+    /// Removes this description's index file (tests clean up after themselves).
+    #[cfg(test)]
+    pub(super) fn forget(&self) {
+        let _ = std::fs::remove_file(&self.path);
+    }
+
+    /// Records `described` for this description (a failure to write only costs the next
+    /// run a generation).
+    pub(super) fn record(&self, described: &Described) {
+        let text = serde_json::to_vec(described).expect("plain data serialises");
+        if let Err(e) = write_if_changed(&self.path, &text) {
+            log::warn!("cannot write the description index {}: {e}", self.path.display());
+        }
+    }
 }
 
 /// Where built solvers are cached: `$MECHGEN_CACHE`; else `target/mechgen-cache` in the
@@ -260,6 +361,11 @@ impl Recipe {
 
     fn dir(&self) -> PathBuf {
         self.cache.join(&self.key)
+    }
+
+    /// The entry's KEY.
+    pub(super) fn key(&self) -> &str {
+        &self.key
     }
 
     /// The entry's copy of its binary: the program that is run.
