@@ -85,8 +85,8 @@ fn assemble(
     // static pivot orders over the description's motion.
     let layout = if blocks { blocks::plan(sys) } else { None };
     items.extend(residual_and_jacobian(&rows, layout.is_none()));
-    if let Some(b) = &layout {
-        items.extend(blocks::items(&rows, b));
+    if let Some(plan) = &layout {
+        items.extend(blocks::items(&rows, plan));
     }
     let orders =
         if n == 0 || layout.is_some() { Vec::new() } else { crate::pivot::plan_motion(mech, sys) };
@@ -100,8 +100,8 @@ fn assemble(
     items.push(expand(sys, &moving));
     items.extend(outputs::accessors(&rows, &named));
     items.extend(redundant::items(sys, &rows));
-    let structured = if layout.is_some() {
-        blocks::impl_items(!sys.inputs.is_empty())
+    let structured = if let Some(plan) = &layout {
+        blocks::impl_items(plan, !sys.inputs.is_empty())
     } else {
         structured_items(orders.len(), !sys.inputs.is_empty())
     };
