@@ -38,17 +38,54 @@ pub(super) struct Plan {
     pub(super) newton: bool,
 }
 
+/// Newton runs block by block when some chain of implicit blocks, each depending on the one
+/// before, is at least this long (and the system has no row left out as redundant): measured
+/// (BENCHMARKS.md, "Newton per block"), it saved 26 % of the instructions per step on a driven
+/// chain of 100 links (a chain of 100 orientation blocks, where one Newton iteration over the
+/// whole system waits for the worst link) and cost 5–10 % on the chain of 10, ten 6R arms
+/// (chains of 6) and 34 independent R-S-S-R loops (chains of 1), where every block takes
+/// about as many iterations as the whole system.
+pub(super) const MIN_DEPTH: usize = 64;
+
 /// The blocks of `sys` when its solver factors Φ_q block by block: at least
-/// [`MIN_UNKNOWNS`] unknowns, more than one block, none larger than [`MAX_BLOCK`].
-pub(super) fn plan(sys: &Symbolic) -> Option<Plan> {
+/// [`MIN_UNKNOWNS`] unknowns, more than one block, none larger than [`MAX_BLOCK`]; with Newton
+/// block by block when `newton` is `Some(true)`, or `None` and [`MIN_DEPTH`] says so (never
+/// with rows left out as redundant).
+pub(super) fn plan(sys: &Symbolic, newton: Option<bool>) -> Option<Plan> {
     let n = sys.unknowns.len();
     if n < MIN_UNKNOWNS {
         return None;
     }
     let blocks = Blocks::of(sys);
     let largest = blocks.blocks.iter().map(|b| b.rows.len()).max().unwrap_or(0);
-    let newton = sys.dropped.is_empty();
-    (blocks.blocks.len() > 1 && largest <= MAX_BLOCK).then_some(Plan { blocks, newton })
+    if blocks.blocks.len() <= 1 || largest > MAX_BLOCK {
+        return None;
+    }
+    let newton = sys.dropped.is_empty() && newton.unwrap_or_else(|| depth(sys, &blocks) >= MIN_DEPTH);
+    Some(Plan { blocks, newton })
+}
+
+/// The length of the longest chain of implicit blocks each depending on the one before.
+fn depth(sys: &Symbolic, blocks: &Blocks) -> usize {
+    let mut block_of_column = vec![0; sys.unknowns.len()];
+    for (b, block) in blocks.blocks.iter().enumerate() {
+        for &c in &block.unknowns {
+            block_of_column[c] = b;
+        }
+    }
+    let mut depth = vec![0; blocks.blocks.len()];
+    for (b, block) in blocks.blocks.iter().enumerate() {
+        let before = block
+            .rows
+            .iter()
+            .flat_map(|&r| sys.jac[r].iter().map(|&(c, _)| block_of_column[c]))
+            .filter(|&d| d < b)
+            .map(|d| depth[d])
+            .max()
+            .unwrap_or(0);
+        depth[b] = before + usize::from(block.kind == Kind::Implicit);
+    }
+    depth.into_iter().max().unwrap_or(0)
 }
 
 /// `static BLOCKS: runtime::blocks::Layout` and, for Newton block by block, the `block_k`

@@ -51,6 +51,7 @@ pub(super) fn solve<R: Real, M: Mechanism<N, R>, const N: usize>(
     let chord = chord && factors.holds_blocks() && options.max_iterations > 0;
     factors.set_blocks_held(false);
     let (perm, counts) = factors.blocks_mut();
+    let round_off = R::from_f64(CHORD_ROUND_OFF) * R::EPSILON * max_abs(q);
     let mut most = 0;
     let (mut smallest, mut largest) = (R::INFINITY, R::ZERO);
     for b in 0..layout.starts.len() - 1 {
@@ -63,7 +64,15 @@ pub(super) fn solve<R: Real, M: Mechanism<N, R>, const N: usize>(
             let rows = &layout.rows[start..end];
             let columns = &layout.columns[start..end];
             let mut block =
-                Block { mechanism, b, rows, columns, options, size: core::marker::PhantomData };
+                Block {
+                mechanism,
+                b,
+                rows,
+                columns,
+                options,
+                round_off,
+                size: core::marker::PhantomData,
+            };
             let (iterations, pivots) = block.newton(q, t, phi, jac, perm, chord)?;
             counts.iterations += u64::from(iterations);
             most = most.max(iterations);
@@ -124,6 +133,9 @@ struct Block<'a, M, R, const N: usize> {
     rows: &'a [usize],
     columns: &'a [usize],
     options: &'a NewtonOptions<R>,
+    /// The remaining error a chord step may leave, [`CHORD_ROUND_OFF`] ε max |q_k| over all
+    /// unknowns at the start, as for the whole system.
+    round_off: R,
     size: core::marker::PhantomData<[R; N]>,
 }
 
@@ -137,11 +149,6 @@ impl<M: Mechanism<N, R>, R: Real, const N: usize> Block<'_, M, R, N> {
             m = if a > m { a } else { m };
         }
         if nan { R::NAN } else { m }
-    }
-
-    /// max |q_k| over the block's unknowns.
-    fn scale(&self, q: &[R; N]) -> R {
-        self.columns.iter().fold(R::ZERO, |m, &k| m.max(q[k].abs()))
     }
 
     /// Solves the block with its factors in `jac` and `perm` for the step −D⁻¹ Φ, into `x`;
@@ -214,9 +221,8 @@ impl<M: Mechanism<N, R>, R: Real, const N: usize> Block<'_, M, R, N> {
                     }
                     continue;
                 }
-                let scale = R::from_f64(CHORD_ROUND_OFF) * R::EPSILON * self.scale(q);
                 if verdict == Status::Converged
-                    && residual * step > before * scale
+                    && residual * step > before * self.round_off
                     && iterations < options.max_iterations
                 {
                     verdict = Status::Continue;
@@ -262,3 +268,6 @@ impl<M: Mechanism<N, R>, R: Real, const N: usize> Block<'_, M, R, N> {
         }
     }
 }
+
+#[cfg(test)]
+mod tests;
