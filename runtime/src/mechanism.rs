@@ -132,7 +132,14 @@ pub trait Mechanism<const N: usize, R: Real = f64> {
     /// [`Mechanism::factor_block`] left in `lu` and `perm`: r read by row from `rhs`, x written
     /// in the order of the block's unknowns into `x`.
     /// The default runs [`blocks::solve_block`](crate::blocks::solve_block).
-    fn solve_block(&self, b: usize, lu: &[[R; N]; N], perm: &[usize; N], rhs: &[R; N], x: &mut [R]) {
+    fn solve_block(
+        &self,
+        b: usize,
+        lu: &[[R; N]; N],
+        perm: &[usize; N],
+        rhs: &[R; N],
+        x: &mut [R],
+    ) {
         if let Some(layout) = Self::BLOCKS {
             crate::blocks::solve_block(layout, b, lu, perm, rhs, x);
         }

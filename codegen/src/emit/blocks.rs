@@ -61,7 +61,8 @@ pub(super) fn plan(sys: &Symbolic, newton: Option<bool>) -> Option<Plan> {
     if blocks.blocks.len() <= 1 || largest > MAX_BLOCK {
         return None;
     }
-    let newton = sys.dropped.is_empty() && newton.unwrap_or_else(|| depth(sys, &blocks) >= MIN_DEPTH);
+    let newton =
+        sys.dropped.is_empty() && newton.unwrap_or_else(|| depth(sys, &blocks) >= MIN_DEPTH);
     Some(Plan { blocks, newton })
 }
 
@@ -427,7 +428,9 @@ fn block_functions(rows: &Rows<'_>, blocks: &Blocks) -> Vec<syn::Item> {
         let mut all = phi.clone();
         for &r in &block.rows {
             all.extend(
-                sys.jac[r].iter().map(|&(c, e)| (super::syntax::element("jac", &[r, c]), e, Some(r))),
+                sys.jac[r]
+                    .iter()
+                    .map(|&(c, e)| (super::syntax::element("jac", &[r, c]), e, Some(r))),
             );
         }
         // The structural zeros of the diagonal block, which the factorisation before filled in.
@@ -493,12 +496,11 @@ fn newton_impl_items(blocks: &Blocks, inputs: bool) -> Vec<syn::ImplItem> {
         let (lit, f) = (index(b), ident(&format!("block_{b}")));
         quote::quote!(#lit => #f(q, t, #u phi, jac),)
     });
-    let alone = blocks.blocks.iter().enumerate().filter(|(_, k)| k.kind == Kind::Implicit).map(
-        |(b, _)| {
+    let alone =
+        blocks.blocks.iter().enumerate().filter(|(_, k)| k.kind == Kind::Implicit).map(|(b, _)| {
             let (lit, f) = (index(b), ident(&format!("block_residual_{b}")));
             quote::quote!(#lit => #f(q, t, #u phi),)
-        },
-    );
+        });
     let read = inputs.then(|| quote::quote!(let u = self.inputs(t).to_array();));
     vec![
         parse_quote!(

@@ -228,12 +228,7 @@ pub(super) fn function(pool: &ExprPool, n: usize, outputs: &Targets) -> Function
 
 /// [`function`], reading the used entries of q and q̇ one by one (`let q5 = q[5];`) when
 /// `part`: a part of a split function uses few of them.
-pub(super) fn function_with(
-    pool: &ExprPool,
-    n: usize,
-    outputs: &Targets,
-    part: bool,
-) -> Function {
+pub(super) fn function_with(pool: &ExprPool, n: usize, outputs: &Targets, part: bool) -> Function {
     let roots: Vec<ExprId> = outputs.iter().map(|(_, e, _)| *e).collect();
     let ([q, qd, qdd], t, inputs) = symbols(pool, &roots, n);
     let body = Body::new(pool, &roots);

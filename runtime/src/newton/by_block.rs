@@ -63,8 +63,7 @@ pub(super) fn solve<R: Real, M: Mechanism<N, R>, const N: usize>(
             counts.implicit += 1;
             let rows = &layout.rows[start..end];
             let columns = &layout.columns[start..end];
-            let mut block =
-                Block {
+            let mut block = Block {
                 mechanism,
                 b,
                 rows,
