@@ -44,7 +44,32 @@ pub fn module(mech: &Mechanism, sys: &Symbolic, source: &str) -> String {
 /// [`module`] in the floating-point type `scalar` (see [`scalar`]).
 #[must_use]
 pub fn module_in(mech: &Mechanism, sys: &Symbolic, source: &str, scalar: Scalar) -> String {
-    assemble(mech, sys, source, scalar, true)
+    assemble(mech, sys, source, scalar, Factoring::Planned)
+}
+
+/// [`module_in`] solved by Newton block by block wherever Φ_q is factored block by block (a
+/// system of 64 unknowns or more with more than one block, none larger than 32, and no row
+/// left out as redundant), however short its chains of blocks: for tests and comparisons of
+/// the two Newton iterations.
+#[must_use]
+pub fn module_with_block_newton(
+    mech: &Mechanism,
+    sys: &Symbolic,
+    source: &str,
+    scalar: Scalar,
+) -> String {
+    assemble(mech, sys, source, scalar, Factoring::BlockNewton)
+}
+
+/// How the emitted solver factors Φ_q and runs Newton.
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum Factoring {
+    /// As [`blocks::plan`] decides.
+    Planned,
+    /// Static pivot orders only.
+    StaticOrders,
+    /// Newton block by block wherever Φ_q is factored block by block.
+    BlockNewton,
 }
 
 /// [`module_in`] with the static pivot orders even where Φ_q would be factored block by block
@@ -57,17 +82,17 @@ pub fn module_with_static_orders(
     source: &str,
     scalar: Scalar,
 ) -> String {
-    assemble(mech, sys, source, scalar, false)
+    assemble(mech, sys, source, scalar, Factoring::StaticOrders)
 }
 
-/// The module, factored block by block when `blocks` allows it and [`blocks::plan`] finds it
-/// worthwhile.
+/// The module, factored block by block when `factoring` allows it and [`blocks::plan`] finds
+/// it worthwhile.
 fn assemble(
     mech: &Mechanism,
     sys: &Symbolic,
     source: &str,
     scalar: Scalar,
-    blocks: bool,
+    factoring: Factoring,
 ) -> String {
     // The outputs' expressions join Φ's arena (after its nodes, so Φ's code is unchanged).
     let mut sys = sys.clone();
@@ -83,10 +108,14 @@ fn assemble(
     let rows = Rows::new(sys);
     // The structured LU: block by block when Φ_q falls apart into blocks (`blocks`), else
     // static pivot orders over the description's motion.
-    let layout = if blocks { blocks::plan(sys) } else { None };
+    let layout = match factoring {
+        Factoring::Planned => blocks::plan(sys, None),
+        Factoring::StaticOrders => None,
+        Factoring::BlockNewton => blocks::plan(sys, Some(true)),
+    };
     items.extend(residual_and_jacobian(&rows, layout.is_none()));
-    if let Some(b) = &layout {
-        items.extend(blocks::items(&rows, b));
+    if let Some(plan) = &layout {
+        items.extend(blocks::items(&rows, plan));
     }
     let orders =
         if n == 0 || layout.is_some() { Vec::new() } else { crate::pivot::plan_motion(mech, sys) };
@@ -100,8 +129,8 @@ fn assemble(
     items.push(expand(sys, &moving));
     items.extend(outputs::accessors(&rows, &named));
     items.extend(redundant::items(sys, &rows));
-    let structured = if layout.is_some() {
-        blocks::impl_items(!sys.inputs.is_empty())
+    let structured = if let Some(plan) = &layout {
+        blocks::impl_items(plan, !sys.inputs.is_empty())
     } else {
         structured_items(orders.len(), !sys.inputs.is_empty())
     };

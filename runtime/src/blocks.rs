@@ -14,7 +14,7 @@
 mod tests;
 
 use crate::Real;
-use crate::lu::PivotInfo;
+use crate::lu::{PivotInfo, Singular};
 
 /// The block-lower-triangular form of a Jacobian, as index tables.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -30,6 +30,10 @@ pub struct Layout {
     pub lower: &'static [usize],
     /// See [`Layout::lower`]; one entry per row, and one more.
     pub lower_starts: &'static [usize],
+    /// For every block, whether it is one equation affine in its one unknown, which Newton
+    /// block by block ([`crate::newton`]) solves in closed form: q_k ← q_k − Φ_r / (∂Φ_r/∂q_k),
+    /// no iteration. Empty when the solvers do not run Newton block by block.
+    pub affine: &'static [bool],
 }
 
 /// Factors the diagonal blocks of `jac` in place (see the module docs); `perm[i]` becomes the
@@ -44,46 +48,105 @@ pub fn factor<R: Real, const N: usize>(
     perm: &mut [usize; N],
 ) -> Option<PivotInfo<R>> {
     let (mut smallest, mut largest) = (R::INFINITY, R::ZERO);
-    for bounds in layout.starts.windows(2) {
-        let (start, end) = (bounds[0], bounds[1]);
-        perm[start..end].copy_from_slice(&layout.rows[start..end]);
-        for k in start..end {
-            let ck = layout.columns[k];
-            let mut at = k;
-            let mut pivot = R::ZERO;
-            for i in k..end {
-                let v = jac[perm[i]][ck].abs();
-                if !v.is_finite() {
-                    return None;
-                }
-                if v > pivot {
-                    pivot = v;
-                    at = i;
-                }
+    for b in 0..layout.starts.len() - 1 {
+        let p = factor_block(layout, b, jac, perm, R::ZERO).ok()?;
+        if p.smallest < smallest {
+            smallest = p.smallest;
+        }
+        largest = largest.max(p.largest);
+    }
+    Some(PivotInfo { smallest, largest })
+}
+
+/// Factors diagonal block `b` of `jac` in place by LU with partial pivoting inside the block,
+/// its row order into `perm` at the block's positions, as [`factor`] does for every block.
+///
+/// # Errors
+///
+/// [`Singular::SmallPivot`] when a pivot is 0 or the smallest |pivot| ≤ `ratio` · the
+/// largest, or [`Singular::NonFinite`], the column counted within the block; `jac` then holds
+/// a partial factorisation.
+pub fn factor_block<R: Real, const N: usize>(
+    layout: &Layout,
+    b: usize,
+    jac: &mut [[R; N]; N],
+    perm: &mut [usize; N],
+    ratio: R,
+) -> Result<PivotInfo<R>, Singular<R>> {
+    let (mut smallest, mut largest, mut smallest_at) = (R::INFINITY, R::ZERO, 0);
+    let (start, end) = (layout.starts[b], layout.starts[b + 1]);
+    perm[start..end].copy_from_slice(&layout.rows[start..end]);
+    for k in start..end {
+        let ck = layout.columns[k];
+        let mut at = k;
+        let mut pivot = R::ZERO;
+        for i in k..end {
+            let v = jac[perm[i]][ck].abs();
+            if !v.is_finite() {
+                return Err(Singular::NonFinite { column: k - start });
             }
-            if pivot == R::ZERO {
-                return None;
+            if v > pivot {
+                pivot = v;
+                at = i;
             }
-            perm.swap(k, at);
-            if pivot < smallest {
-                smallest = pivot;
-            }
-            largest = largest.max(pivot);
-            let rk = perm[k];
-            let inverse = R::ONE / jac[rk][ck];
-            for &ri in &perm[k + 1..end] {
-                let l = jac[ri][ck] * inverse;
-                jac[ri][ck] = l;
-                if l != R::ZERO {
-                    for &cj in &layout.columns[k + 1..end] {
-                        let u = jac[rk][cj];
-                        jac[ri][cj] -= l * u;
-                    }
+        }
+        if pivot == R::ZERO {
+            return Err(Singular::SmallPivot { column: k - start, pivot, largest });
+        }
+        perm.swap(k, at);
+        if pivot < smallest {
+            smallest = pivot;
+            smallest_at = k - start;
+        }
+        largest = largest.max(pivot);
+        let rk = perm[k];
+        let inverse = R::ONE / jac[rk][ck];
+        for &ri in &perm[k + 1..end] {
+            let l = jac[ri][ck] * inverse;
+            jac[ri][ck] = l;
+            if l != R::ZERO {
+                for &cj in &layout.columns[k + 1..end] {
+                    let u = jac[rk][cj];
+                    jac[ri][cj] -= l * u;
                 }
             }
         }
     }
-    Some(PivotInfo { smallest, largest })
+    if smallest <= ratio * largest {
+        return Err(Singular::SmallPivot { column: smallest_at, pivot: smallest, largest });
+    }
+    Ok(PivotInfo { smallest, largest })
+}
+
+/// Solves diagonal block `b` alone, D_b x = r, with the factors [`factor_block`] left in `lu`
+/// and `perm`: r is read by row from `rhs`, x written in the order of the block's columns
+/// into `x` (at least as long as the block).
+pub fn solve_block<R: Real, const N: usize>(
+    layout: &Layout,
+    b: usize,
+    lu: &[[R; N]; N],
+    perm: &[usize; N],
+    rhs: &[R; N],
+    x: &mut [R],
+) {
+    let (start, end) = (layout.starts[b], layout.starts[b + 1]);
+    let columns = &layout.columns[start..end];
+    for i in 0..columns.len() {
+        let r = perm[start + i];
+        let mut y = rhs[r];
+        for (j, &cj) in columns[..i].iter().enumerate() {
+            y -= lu[r][cj] * x[j];
+        }
+        x[i] = y;
+    }
+    for i in (0..columns.len()).rev() {
+        let r = perm[start + i];
+        let mut v = x[i];
+        for (j, &cj) in columns.iter().enumerate().skip(i + 1) {
+            v -= lu[r][cj] * x[j];
+        }
+        x[i] = v / lu[r][columns[i]];
+    }
 }
 
 /// Solves Φ_q x = b in place (b by row in, x by column out) with the factors [`factor`] left in

@@ -29,6 +29,17 @@ pub struct FactorCounts {
     pub refused: u64,
 }
 
+/// What Newton block by block did ([`Mechanism::BLOCK_NEWTON`]), for tests and benchmarks.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct BlockCounts {
+    /// Blocks solved in closed form (one affine equation in one unknown): no iteration.
+    pub closed_form: u64,
+    /// Blocks solved by Newton on their own unknowns.
+    pub implicit: u64,
+    /// Newton steps (chord steps included) taken by those blocks, in total.
+    pub iterations: u64,
+}
+
 /// Which factors the Jacobian storage holds and how to solve with them.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 enum Held {
@@ -83,6 +94,7 @@ pub struct Factors<const N: usize> {
     /// The static order to try first: the last one that succeeded.
     next: usize,
     counts: FactorCounts,
+    block_counts: BlockCounts,
 }
 
 impl<const N: usize> Default for Factors<N> {
@@ -100,6 +112,7 @@ impl<const N: usize> Factors<N> {
             perm: [0; N],
             next: 0,
             counts: FactorCounts { structured: 0, dense: 0, refused: 0 },
+            block_counts: BlockCounts { closed_form: 0, implicit: 0, iterations: 0 },
         }
     }
 
@@ -107,6 +120,30 @@ impl<const N: usize> Factors<N> {
     #[must_use]
     pub const fn counts(&self) -> FactorCounts {
         self.counts
+    }
+
+    /// What Newton block by block did, when the mechanism runs it.
+    #[must_use]
+    pub const fn block_counts(&self) -> BlockCounts {
+        self.block_counts
+    }
+
+    /// What Newton block by block works in: the row order of the blocks' factors, and its
+    /// counts.
+    pub(crate) const fn blocks_mut(&mut self) -> (&mut [usize; N], &mut BlockCounts) {
+        (&mut self.perm, &mut self.block_counts)
+    }
+
+    /// Records whether the storage holds the factors of every block (after Newton block by
+    /// block succeeded) or nothing.
+    pub(crate) const fn set_blocks_held(&mut self, held: bool) {
+        self.held = if held { Held::Blocks } else { Held::Nothing };
+    }
+
+    /// Whether the storage holds block factors that [`blocks::solve_block`](crate::blocks::solve_block)
+    /// can read, block by block.
+    pub(crate) const fn holds_blocks(&self) -> bool {
+        matches!(self.held, Held::Blocks)
     }
 
     /// Whether the storage holds usable factors (the last [`Factors::factor`] succeeded).

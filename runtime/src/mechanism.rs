@@ -79,6 +79,72 @@ pub trait Mechanism<const N: usize, R: Real = f64> {
         }
     }
 
+    /// Whether the solvers run Newton block by block on [`Mechanism::BLOCKS`]
+    /// ([`newton`](crate::newton)): each diagonal block iterates on its own unknowns, those of
+    /// earlier blocks fixed, and an affine one-unknown block
+    /// ([`Layout::affine`](crate::blocks::Layout::affine)) is solved without iteration.
+    /// Requires a layout and [`Mechanism::block_residual`]; the default, `false`, runs one
+    /// Newton iteration over the whole system.
+    const BLOCK_NEWTON: bool = false;
+
+    /// Writes Φ_i(q, t) for the rows i of block `b` of [`Mechanism::BLOCKS`] into `phi` and,
+    /// when `jacobian`, the structural non-zeros of those rows of Φ_q(q, t) into `jac` (the
+    /// diagonal block's and those below it), leaving every other entry as it was.
+    /// Only called when [`Mechanism::BLOCK_NEWTON`]; the default does nothing.
+    fn block_residual(
+        &self,
+        b: usize,
+        jacobian: bool,
+        q: &[R; N],
+        t: R,
+        phi: &mut [R; N],
+        jac: &mut [[R; N]; N],
+    ) {
+        let _ = (b, jacobian, q, t, phi, jac);
+    }
+
+    /// Factors diagonal block `b` of [`Mechanism::BLOCKS`] in place by LU with partial
+    /// pivoting inside the block, its row order into `perm` at the block's positions (in a
+    /// layout of the mechanism's own, which [`Mechanism::solve_block`] and
+    /// [`Mechanism::solve_blocks`] read), refusing it when its smallest |pivot| ≤ `ratio` ·
+    /// its largest.
+    /// The default runs [`blocks::factor_block`](crate::blocks::factor_block); generated code
+    /// overrides it with straight-line code per block.
+    ///
+    /// # Errors
+    ///
+    /// The [`Singular`](crate::lu::Singular) met, its column counted within the block (0 for
+    /// the block's first unknown).
+    fn factor_block(
+        &self,
+        b: usize,
+        jac: &mut [[R; N]; N],
+        perm: &mut [usize; N],
+        ratio: R,
+    ) -> Result<crate::lu::PivotInfo<R>, crate::lu::Singular<R>> {
+        match Self::BLOCKS {
+            Some(layout) => crate::blocks::factor_block(layout, b, jac, perm, ratio),
+            None => Err(crate::lu::Singular::NonFinite { column: 0 }),
+        }
+    }
+
+    /// Solves diagonal block `b` alone, D_b x = r, with the factors a successful
+    /// [`Mechanism::factor_block`] left in `lu` and `perm`: r read by row from `rhs`, x written
+    /// in the order of the block's unknowns into `x`.
+    /// The default runs [`blocks::solve_block`](crate::blocks::solve_block).
+    fn solve_block(
+        &self,
+        b: usize,
+        lu: &[[R; N]; N],
+        perm: &[usize; N],
+        rhs: &[R; N],
+        x: &mut [R],
+    ) {
+        if let Some(layout) = Self::BLOCKS {
+            crate::blocks::solve_block(layout, b, lu, perm, rhs, x);
+        }
+    }
+
     /// The number of static pivot orders [`Mechanism::factor_structured`] knows.
     ///
     /// The default, 0, means none: the solvers then evaluate Φ_q with

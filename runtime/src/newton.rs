@@ -11,9 +11,14 @@
 //! [`solve_with_chord`] first corrects a start that already meets the tolerance (a good
 //! prediction) by one chord step with factors kept from a nearby configuration.
 //! When to stop is decided by [`status`] alone, which is tested on its own.
+//! A mechanism with [`Mechanism::BLOCK_NEWTON`] is solved block by block instead, each block
+//! of its block-lower-triangular form iterating on its own (see `by_block`).
 
+mod by_block;
 #[cfg(test)]
 mod tests;
+
+pub use by_block::MAX_BLOCK;
 
 use core::fmt;
 
@@ -195,6 +200,9 @@ pub fn solve<R: Real, M: Mechanism<N, R>, const N: usize>(
     jac: &mut [[R; N]; N],
     factors: &mut Factors<N>,
 ) -> Result<NewtonReport<R>, NewtonError<R>> {
+    if let Some(layout) = M::BLOCKS.filter(|_| M::BLOCK_NEWTON) {
+        return by_block::solve(mechanism, layout, q, t, options, phi, jac, factors, false);
+    }
     iterate(mechanism, q, t, options, Scratch { phi, jac, factors }, None)
 }
 
@@ -227,6 +235,9 @@ pub fn solve_with_chord<R: Real, M: Mechanism<N, R>, const N: usize>(
     jac: &mut [[R; N]; N],
     factors: &mut Factors<N>,
 ) -> Result<NewtonReport<R>, NewtonError<R>> {
+    if let Some(layout) = M::BLOCKS.filter(|_| M::BLOCK_NEWTON) {
+        return by_block::solve(mechanism, layout, q, t, options, phi, jac, factors, true);
+    }
     let mut chord = None;
     if factors.holds_factors() && options.max_iterations > 0 {
         mechanism.residual(q, t, phi);

@@ -33,7 +33,7 @@ mod tests;
 use core::borrow::BorrowMut;
 use core::fmt;
 
-use crate::factors::{FactorCounts, Factors};
+use crate::factors::{BlockCounts, FactorCounts, Factors};
 use crate::lu::{PivotInfo, Singular};
 use crate::newton::{self, NewtonError, NewtonOptions, NewtonReport};
 use crate::step::{self, Coordinates, Groups, Rejection, Sample, Stepper, Stop, Suspect, Trouble};
@@ -316,6 +316,12 @@ impl<M, const N: usize, R: Real, J> Solver<M, N, R, J> {
     /// back to dense LU, and how many static orders were refused on the way.
     pub const fn factor_counts(&self) -> FactorCounts {
         self.factors.counts()
+    }
+
+    /// What Newton block by block did ([`Mechanism::BLOCK_NEWTON`]): blocks solved in closed
+    /// form, blocks solved by Newton and their Newton steps; all 0 for other mechanisms.
+    pub const fn block_counts(&self) -> BlockCounts {
+        self.factors.block_counts()
     }
 
     /// Sets the estimate of q that the next [`Solver::position`] starts from.

@@ -2,6 +2,7 @@
 //! of 64 unknowns or more with more than one block, against the generic engine on a driven
 //! chain, independent spatial arms and independent R-S-S-R loops.
 
+use codegen::emit::Scalar;
 use codegen::testing::{
     build_generated, load_toml, relative_differences, run_generated, run_generic,
 };
@@ -13,18 +14,38 @@ use codegen::testing::{
 const AGREEMENT: f64 = 1e-10;
 
 fn check(text: &str) {
+    check_with(text, false);
+}
+
+/// [`check`], with Newton block by block when `block_newton` (else as the generator plans).
+fn check_with(text: &str, block_newton: bool) {
     let mech = load_toml(&format!("{text}\n[solver]\ntolerance = 1e-12\n"));
     let sys = codegen::symbolic::Symbolic::build(&mech).expect("the system builds");
-    let module = codegen::emit::module(&mech, &sys, "block_solver");
+    let module = if block_newton {
+        codegen::emit::module_with_block_newton(&mech, &sys, "block_solver", Scalar::F64)
+    } else {
+        codegen::emit::module(&mech, &sys, "block_solver")
+    };
     assert!(
         module.contains("static BLOCKS: runtime::blocks::Layout"),
         "{}: factored by blocks",
         mech.name
     );
     assert!(!module.contains("fn factor_0"), "{}: no static orders", mech.name);
+    assert_eq!(
+        module.contains("const BLOCK_NEWTON: bool = true;"),
+        block_newton,
+        "{}: Newton block by block only when asked (the chains here are short)",
+        mech.name
+    );
     let generic = run_generic(&mech);
     assert!(generic.failure.is_none(), "{}: {:?}", mech.name, generic.failure);
-    let generated = run_generated(&mech, &build_generated(&mech));
+    let built = if block_newton {
+        codegen::engine::build_module(&mech, &module, &sys, Scalar::F64).expect("it builds")
+    } else {
+        build_generated(&mech)
+    };
+    let generated = run_generated(&mech, &built);
     assert!(generated.failure.is_none(), "{}: {:?}", mech.name, generated.failure);
     for (diff, at) in relative_differences(&generic.frames, &generated.frames) {
         assert!(diff <= AGREEMENT, "{}: {at}", mech.name);
@@ -44,6 +65,21 @@ fn independent_arms_solved_block_by_block_match_the_generic_engine() {
 #[test]
 fn independent_rssr_loops_solved_block_by_block_match_the_generic_engine() {
     check(&codegen::scale::rssr_loops(4, 20));
+}
+
+#[test]
+fn a_driven_chain_solved_by_newton_block_by_block_matches_the_generic_engine() {
+    check_with(&codegen::scale::chain(10, 20), true);
+}
+
+#[test]
+fn independent_arms_solved_by_newton_block_by_block_match_the_generic_engine() {
+    check_with(&codegen::scale::arms(3, 4, 20), true);
+}
+
+#[test]
+fn independent_rssr_loops_solved_by_newton_block_by_block_match_the_generic_engine() {
+    check_with(&codegen::scale::rssr_loops(4, 20), true);
 }
 
 #[test]

@@ -10,7 +10,7 @@ use syn::parse_quote;
 use super::Rows;
 use super::function::Signature;
 use super::syntax::{ident, index};
-use crate::blocks::Blocks;
+use crate::blocks::{Blocks, Kind};
 use crate::symbolic::Symbolic;
 
 /// A system of at least this many unknowns is factored block by block when it has more than one
@@ -27,21 +27,73 @@ pub(super) const MAX_BLOCK: usize = 32;
 /// [`super::CHUNK_OPS`] does for the equations).
 const CHUNK_ENTRIES: usize = 800;
 
+/// How a solver uses the block-lower-triangular form of Φ_q.
+pub(super) struct Plan {
+    /// The blocks.
+    pub(super) blocks: Blocks,
+    /// Whether Newton runs block by block (`runtime::Mechanism::BLOCK_NEWTON`), each block on
+    /// its own unknowns; else one Newton iteration over the whole system factors Φ_q block by
+    /// block. Block by block needs a square system with no row left out as redundant (the
+    /// dropped rows' checks and their re-selection at run time belong to the whole system).
+    pub(super) newton: bool,
+}
+
+/// Newton runs block by block when some chain of implicit blocks, each depending on the one
+/// before, is at least this long (and the system has no row left out as redundant): measured
+/// (BENCHMARKS.md, "Newton per block"), it saved 26 % of the instructions per step on a driven
+/// chain of 100 links (a chain of 100 orientation blocks, where one Newton iteration over the
+/// whole system waits for the worst link) and cost 5–10 % on the chain of 10, ten 6R arms
+/// (chains of 6) and 34 independent R-S-S-R loops (chains of 1), where every block takes
+/// about as many iterations as the whole system.
+pub(super) const MIN_DEPTH: usize = 64;
+
 /// The blocks of `sys` when its solver factors Φ_q block by block: at least
-/// [`MIN_UNKNOWNS`] unknowns, more than one block, none larger than [`MAX_BLOCK`].
-pub(super) fn plan(sys: &Symbolic) -> Option<Blocks> {
+/// [`MIN_UNKNOWNS`] unknowns, more than one block, none larger than [`MAX_BLOCK`]; with Newton
+/// block by block when `newton` is `Some(true)`, or `None` and [`MIN_DEPTH`] says so (never
+/// with rows left out as redundant).
+pub(super) fn plan(sys: &Symbolic, newton: Option<bool>) -> Option<Plan> {
     let n = sys.unknowns.len();
     if n < MIN_UNKNOWNS {
         return None;
     }
     let blocks = Blocks::of(sys);
     let largest = blocks.blocks.iter().map(|b| b.rows.len()).max().unwrap_or(0);
-    (blocks.blocks.len() > 1 && largest <= MAX_BLOCK).then_some(blocks)
+    if blocks.blocks.len() <= 1 || largest > MAX_BLOCK {
+        return None;
+    }
+    let newton =
+        sys.dropped.is_empty() && newton.unwrap_or_else(|| depth(sys, &blocks) >= MIN_DEPTH);
+    Some(Plan { blocks, newton })
 }
 
-/// `static BLOCKS: runtime::blocks::Layout` and `residual_jacobian_blocks`.
-pub(super) fn items(rows: &Rows<'_>, blocks: &Blocks) -> Vec<syn::Item> {
-    let sys = rows.sys;
+/// The length of the longest chain of implicit blocks each depending on the one before.
+fn depth(sys: &Symbolic, blocks: &Blocks) -> usize {
+    let mut block_of_column = vec![0; sys.unknowns.len()];
+    for (b, block) in blocks.blocks.iter().enumerate() {
+        for &c in &block.unknowns {
+            block_of_column[c] = b;
+        }
+    }
+    let mut depth = vec![0; blocks.blocks.len()];
+    for (b, block) in blocks.blocks.iter().enumerate() {
+        let before = block
+            .rows
+            .iter()
+            .flat_map(|&r| sys.jac[r].iter().map(|&(c, _)| block_of_column[c]))
+            .filter(|&d| d < b)
+            .map(|d| depth[d])
+            .max()
+            .unwrap_or(0);
+        depth[b] = before + usize::from(block.kind == Kind::Implicit);
+    }
+    depth.into_iter().max().unwrap_or(0)
+}
+
+/// `static BLOCKS: runtime::blocks::Layout` and, for Newton block by block, the `block_k`
+/// and `block_residual_k` functions; else `residual_jacobian_blocks` and the straight-line
+/// block LU.
+pub(super) fn items(rows: &Rows<'_>, plan: &Plan) -> Vec<syn::Item> {
+    let (sys, blocks) = (rows.sys, &plan.blocks);
     let n = sys.unknowns.len();
     let mut block_of_column = vec![0; n];
     let (mut order_rows, mut order_columns, mut starts) = (Vec::new(), Vec::new(), vec![0]);
@@ -70,6 +122,8 @@ pub(super) fn items(rows: &Rows<'_>, blocks: &Blocks) -> Vec<syn::Item> {
     };
     let (r, c, s, l, ls) =
         (list(&order_rows), list(&order_columns), list(&starts), list(&lower), list(&lower_starts));
+    let affine = blocks.blocks.iter().map(|b| plan.newton && b.kind == Kind::ClosedForm);
+    let affine = if plan.newton { quote::quote!(&[#(#affine),*]) } else { quote::quote!(&[]) };
     let doc = format!(
         " The block-lower-triangular form of Φ_q: {} blocks (the largest of {}), {} entries below them.",
         blocks.blocks.len(),
@@ -84,8 +138,15 @@ pub(super) fn items(rows: &Rows<'_>, blocks: &Blocks) -> Vec<syn::Item> {
             starts: #s,
             lower: #l,
             lower_starts: #ls,
+            affine: #affine,
         };
     }];
+    if plan.newton {
+        items.extend(block_functions(rows, blocks));
+        items.extend(straight_line(sys, blocks, &lower_starts, &lower));
+        items.extend(block_factor_solve(sys, blocks));
+        return items;
+    }
     let vec_ty = quote::quote!(&mut [f64; N]);
     let mat_ty = quote::quote!(&mut [[f64; N]; N]);
     let targets = [("phi", vec_ty), ("jac", mat_ty)];
@@ -301,9 +362,12 @@ fn block_code(
     (factor, solve)
 }
 
-/// The `runtime::Mechanism` items that select the block-by-block LU, for a mechanism whose
-/// functions take its inputs at t when `inputs`.
-pub(super) fn impl_items(inputs: bool) -> Vec<syn::ImplItem> {
+/// The `runtime::Mechanism` items that select the block-by-block LU (and Newton block by block
+/// when planned), for a mechanism whose functions take its inputs at t when `inputs`.
+pub(super) fn impl_items(plan: &Plan, inputs: bool) -> Vec<syn::ImplItem> {
+    if plan.newton {
+        return newton_impl_items(&plan.blocks, inputs);
+    }
     vec![
         parse_quote!(
             const BLOCKS: Option<&'static runtime::blocks::Layout> = Some(&BLOCKS);
@@ -332,4 +396,291 @@ pub(super) fn impl_items(inputs: bool) -> Vec<syn::ImplItem> {
             }
         },
     ]
+}
+
+/// Per block b: `block_b`, writing Φ and the structural non-zeros of Φ_q of the block's rows
+/// (and 0 at the structural zeros of its diagonal block, where its last factors left fill-in),
+/// and, unless the block is solved in closed form (which reads Φ with Φ_q), `block_residual_b`
+/// writing Φ of its rows alone. Each is a small straight-line function of its own, so that
+/// Newton block by block evaluates only the block it iterates on.
+fn block_functions(rows: &Rows<'_>, blocks: &Blocks) -> Vec<syn::Item> {
+    let sys = rows.sys;
+    let n = sys.unknowns.len();
+    let vec_ty = quote::quote!(&mut [f64; N]);
+    let mat_ty = quote::quote!(&mut [[f64; N]; N]);
+    let both = [("phi", vec_ty.clone()), ("jac", mat_ty)];
+    let alone = [("phi", vec_ty)];
+    let signature = |targets| Signature {
+        name: "",
+        qd: false,
+        qdd: false,
+        public: false,
+        targets,
+        inputs: rows.inputs(),
+    };
+    let mut items = Vec::new();
+    for (b, block) in blocks.blocks.iter().enumerate() {
+        let phi: Vec<_> = block
+            .rows
+            .iter()
+            .map(|&r| (super::syntax::element("phi", &[r]), sys.phi[r], Some(r)))
+            .collect();
+        let mut all = phi.clone();
+        for &r in &block.rows {
+            all.extend(
+                sys.jac[r]
+                    .iter()
+                    .map(|&(c, e)| (super::syntax::element("jac", &[r, c]), e, Some(r))),
+            );
+        }
+        // The structural zeros of the diagonal block, which the factorisation before filled in.
+        let zeros: Vec<syn::Stmt> = block
+            .rows
+            .iter()
+            .flat_map(|&r| {
+                block
+                    .unknowns
+                    .iter()
+                    .filter(move |&&c| !sys.jac[r].iter().any(|&(j, _)| j == c))
+                    .map(move |&c| {
+                        let (r, c) = (index(r), index(c));
+                        parse_quote!(jac[#r][#c] = 0.0;)
+                    })
+            })
+            .collect();
+        let mut emit = |name: String,
+                        outputs: &[(syn::Expr, crate::expr::ExprId, Option<usize>)],
+                        targets,
+                        extra: &[syn::Stmt]| {
+            let mut f = super::function::function_with(&sys.pool, n, outputs, true);
+            f.stmts.extend(extra.iter().cloned());
+            let arrays = [true, true];
+            let used = super::function::Used {
+                q: f.uses_q,
+                qd: false,
+                qdd: false,
+                t: f.uses_t,
+                u: f.uses_u,
+                arrays: &arrays,
+            };
+            let doc = format!(" {name}: {} operations.", f.ops);
+            let item = signature(targets).item(&ident(&name), &doc, &used, true);
+            items.push(super::syntax::item_fn(item, f.stmts));
+        };
+        emit(format!("block_{b}"), &all, &both[..], &zeros);
+        if block.kind == Kind::Implicit {
+            emit(format!("block_residual_{b}"), &phi, &alone[..], &[]);
+        }
+    }
+    items
+}
+
+/// The `runtime::Mechanism` items of Newton block by block: the layout, `BLOCK_NEWTON` and
+/// `block_residual` dispatching to the block functions.
+fn newton_impl_items(blocks: &Blocks, inputs: bool) -> Vec<syn::ImplItem> {
+    let chunks = implicit_chunks(blocks);
+    let range = |chunk: &[usize]| {
+        let (first, last) = (index(chunk[0]), index(chunk[chunk.len() - 1]));
+        quote::quote!(#first..=#last)
+    };
+    let factor_arms = chunks.iter().enumerate().map(|(k, chunk)| {
+        let (r, f) = (range(chunk), ident(&format!("factor_block_{k}")));
+        quote::quote!(#r => #f(b, jac, perm, ratio),)
+    });
+    let solve_arms = chunks.iter().enumerate().map(|(k, chunk)| {
+        let (r, f) = (range(chunk), ident(&format!("solve_block_{k}")));
+        quote::quote!(#r => #f(b, lu, perm, rhs, x),)
+    });
+    let u = inputs.then(|| quote::quote!(&u,));
+    let both = blocks.blocks.iter().enumerate().map(|(b, _)| {
+        let (lit, f) = (index(b), ident(&format!("block_{b}")));
+        quote::quote!(#lit => #f(q, t, #u phi, jac),)
+    });
+    let alone =
+        blocks.blocks.iter().enumerate().filter(|(_, k)| k.kind == Kind::Implicit).map(|(b, _)| {
+            let (lit, f) = (index(b), ident(&format!("block_residual_{b}")));
+            quote::quote!(#lit => #f(q, t, #u phi),)
+        });
+    let read = inputs.then(|| quote::quote!(let u = self.inputs(t).to_array();));
+    vec![
+        parse_quote!(
+            const BLOCKS: Option<&'static runtime::blocks::Layout> = Some(&BLOCKS);
+        ),
+        parse_quote!(
+            const BLOCK_NEWTON: bool = true;
+        ),
+        parse_quote! {
+            fn factor_blocks(&self, jac: &mut [[f64; N]; N], perm: &mut [usize; N]) -> Option<runtime::lu::PivotInfo> {
+                factor_blocks(jac, perm)
+            }
+        },
+        parse_quote! {
+            fn solve_blocks(&self, lu: &[[f64; N]; N], perm: &[usize; N], b: &mut [f64; N]) {
+                solve_blocks(lu, perm, b);
+            }
+        },
+        parse_quote! {
+            fn factor_block(&self, b: usize, jac: &mut [[f64; N]; N], perm: &mut [usize; N], ratio: f64) -> Result<runtime::lu::PivotInfo, runtime::lu::Singular> {
+                match b {
+                    #(#factor_arms)*
+                    _ => Err(runtime::lu::Singular::NonFinite { column: 0 }),
+                }
+            }
+        },
+        parse_quote! {
+            fn solve_block(&self, b: usize, lu: &[[f64; N]; N], perm: &[usize; N], rhs: &[f64; N], x: &mut [f64]) {
+                match b {
+                    #(#solve_arms)*
+                    _ => {}
+                }
+            }
+        },
+        parse_quote! {
+            fn block_residual(&self, b: usize, jacobian: bool, q: &[f64; N], t: f64, phi: &mut [f64; N], jac: &mut [[f64; N]; N]) {
+                #read
+                if jacobian {
+                    match b {
+                        #(#both)*
+                        _ => {}
+                    }
+                } else {
+                    match b {
+                        #(#alone)*
+                        _ => {}
+                    }
+                }
+            }
+        },
+    ]
+}
+
+/// The implicit blocks in chunks of about [`CHUNK_ENTRIES`] entries of their diagonal blocks,
+/// each chunk a run of consecutive block indices (the closed-form blocks between them have no
+/// arm).
+fn implicit_chunks(blocks: &Blocks) -> Vec<Vec<usize>> {
+    let mut chunks: Vec<Vec<usize>> = vec![Vec::new()];
+    let mut size = 0;
+    for (b, block) in blocks.blocks.iter().enumerate() {
+        if block.kind != Kind::Implicit {
+            continue;
+        }
+        let entries = 2 * block.rows.len() * block.rows.len();
+        if size + entries > CHUNK_ENTRIES && !chunks.last().is_some_and(Vec::is_empty) {
+            chunks.push(Vec::new());
+            size = 0;
+        }
+        size += entries;
+        chunks.last_mut().expect("a chunk").push(b);
+    }
+    chunks.retain(|c| !c.is_empty());
+    chunks
+}
+
+/// `factor_block_k` and `solve_block_k`: for each implicit block b of chunk k, an arm that
+/// factors its diagonal block alone (gathered into a fixed-size array, `runtime::lu` with
+/// partial pivoting, scattered back in the layout of `factor_blocks`) and one that solves it
+/// alone, for Newton block by block.
+fn block_factor_solve(sys: &Symbolic, blocks: &Blocks) -> Vec<syn::Item> {
+    let mut starts = Vec::with_capacity(blocks.blocks.len());
+    let mut at = 0;
+    for block in &blocks.blocks {
+        starts.push(at);
+        at += block.rows.len();
+    }
+    let mut items = Vec::new();
+    for (k, chunk) in implicit_chunks(blocks).iter().enumerate() {
+        let mut factor_arms = Vec::new();
+        let mut solve_arms = Vec::new();
+        for &b in chunk {
+            let block = &blocks.blocks[b];
+            let s = index(block.rows.len());
+            let lit = index(b);
+            let gather = |array: &str, zeros: bool| -> Vec<proc_macro2::TokenStream> {
+                let array = ident(array);
+                block
+                    .rows
+                    .iter()
+                    .map(|&r| {
+                        let entries = block.unknowns.iter().map(|&c| {
+                            if !zeros || sys.jac[r].iter().any(|&(j, _)| j == c) {
+                                let (r, c) = (index(r), index(c));
+                                quote::quote!(#array[#r][#c])
+                            } else {
+                                quote::quote!(0.0)
+                            }
+                        });
+                        quote::quote!([#(#entries),*])
+                    })
+                    .collect()
+            };
+            let rows_in = gather("jac", true);
+            let mut scatter = Vec::new();
+            for (i, &r) in block.rows.iter().enumerate() {
+                for (j, &c) in block.unknowns.iter().enumerate() {
+                    let (r, c, i, j) = (index(r), index(c), index(i), index(j));
+                    scatter.push(quote::quote!(jac[#r][#c] = a[#i][#j];));
+                }
+            }
+            let keep = (0..block.rows.len()).map(|i| {
+                let (at, i) = (index(starts[b] + i), index(i));
+                quote::quote!(perm[#at] = p[#i];)
+            });
+            factor_arms.push(quote::quote! {
+                #lit => {
+                    let mut a = [#(#rows_in),*];
+                    let mut p = [0; #s];
+                    let info = runtime::lu::factor_with_ratio(&mut a, &mut p, ratio)?;
+                    #(#scatter)*
+                    #(#keep)*
+                    Ok(info)
+                }
+            });
+            let rows_lu = gather("lu", false);
+            let order = (0..block.rows.len()).map(|i| {
+                let at = index(starts[b] + i);
+                quote::quote!(perm[#at])
+            });
+            let z = block.rows.iter().map(|&r| {
+                let r = index(r);
+                quote::quote!(rhs[#r])
+            });
+            solve_arms.push(quote::quote! {
+                #lit => {
+                    let a = [#(#rows_lu),*];
+                    let p = [#(#order),*];
+                    let mut z = [#(#z),*];
+                    runtime::lu::solve(&a, &p, &mut z);
+                    x[..#s].copy_from_slice(&z);
+                }
+            });
+        }
+        let (first, last) = (chunk[0], chunk[chunk.len() - 1]);
+        let factor = ident(&format!("factor_block_{k}"));
+        let solve = ident(&format!("solve_block_{k}"));
+        let doc = format!(
+            " Factors the diagonal block `b` (an implicit one of blocks {first} to {last}) alone, as `factor_blocks` does, refusing it when its smallest |pivot| ≤ `ratio` · its largest."
+        );
+        items.push(parse_quote! {
+            #[doc = #doc]
+            fn #factor(b: usize, jac: &mut [[f64; N]; N], perm: &mut [usize; N], ratio: f64) -> Result<runtime::lu::PivotInfo, runtime::lu::Singular> {
+                match b {
+                    #(#factor_arms)*
+                    _ => Err(runtime::lu::Singular::NonFinite { column: 0 }),
+                }
+            }
+        });
+        let doc = format!(
+            " Solves the diagonal block `b` (an implicit one of blocks {first} to {last}) alone with the factors of `{factor}`: the right-hand side by row from `rhs`, the solution in the order of the block's unknowns into `x`."
+        );
+        items.push(parse_quote! {
+            #[doc = #doc]
+            fn #solve(b: usize, lu: &[[f64; N]; N], perm: &[usize; N], rhs: &[f64; N], x: &mut [f64]) {
+                match b {
+                    #(#solve_arms)*
+                    _ => {}
+                }
+            }
+        });
+    }
+    items
 }

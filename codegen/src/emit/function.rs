@@ -18,75 +18,77 @@ use crate::expr::{ExprId, ExprPool, Node, Var};
 /// One function body under construction: the `let` temporaries and the variables used.
 struct Body<'p> {
     pool: &'p ExprPool,
-    /// Temporary name of each shared node (indexed by node).
-    temp: Vec<Option<Ident>>,
+    /// Temporary name of each shared node, by node index.
+    temp: std::collections::HashMap<usize, Ident>,
     stmts: Vec<syn::Stmt>,
     ops: usize,
 }
 
 impl<'p> Body<'p> {
     /// Plans the temporaries for `roots`: every operation node reachable more than once.
+    ///
+    /// Works on the reachable nodes alone (maps, not arrays over the arena), so that the many
+    /// small functions of a large system each cost what they use.
     fn new(pool: &'p ExprPool, roots: &[ExprId]) -> Self {
-        let last = roots.iter().map(|r| r.index() + 1).max().unwrap_or(0);
-        let mut uses = vec![0usize; last];
-        let mut live = vec![false; last];
+        use std::collections::{BTreeMap, HashMap};
+        let mut uses: HashMap<usize, usize> = HashMap::new();
         let mut stack: Vec<ExprId> = roots.to_vec();
         for r in roots {
-            uses[r.index()] += 1;
+            *uses.entry(r.index()).or_insert(0) += 1;
         }
+        let mut live: Vec<usize> = Vec::new();
+        let mut seen = std::collections::HashSet::new();
         while let Some(x) = stack.pop() {
-            if std::mem::replace(&mut live[x.index()], true) {
+            if !seen.insert(x.index()) {
                 continue;
             }
+            live.push(x.index());
             for c in pool[x].children() {
-                uses[c.index()] += 1;
+                *uses.entry(c.index()).or_insert(0) += 1;
                 stack.push(c);
             }
         }
+        live.sort_unstable();
         // sin a and cos a both needed: one `runtime::math::sin_cos(a)` gives both, with one
         // argument reduction (and the same bits as `sin` and `cos`).
-        let mut trig: std::collections::BTreeMap<ExprId, [Option<usize>; 2]> =
-            std::collections::BTreeMap::new();
-        for k in (0..last).filter(|&k| live[k]) {
+        let mut trig: BTreeMap<ExprId, [Option<usize>; 2]> = BTreeMap::new();
+        for &k in &live {
             match pool.nodes()[k] {
                 Node::Sin(a) => trig.entry(a).or_default()[0] = Some(k),
                 Node::Cos(a) => trig.entry(a).or_default()[1] = Some(k),
                 _ => {}
             }
         }
-        let mut pair: Vec<Option<(ExprId, usize, usize)>> = vec![None; last];
+        let mut pair: HashMap<usize, (ExprId, usize, usize)> = HashMap::new();
         for (&a, &[s, c]) in &trig {
             if let (Some(s), Some(c)) = (s, c) {
-                pair[s] = Some((a, s, c));
-                pair[c] = Some((a, s, c));
+                pair.insert(s, (a, s, c));
+                pair.insert(c, (a, s, c));
             }
         }
-        let mut body = Self { pool, temp: vec![None; last], stmts: Vec::new(), ops: 0 };
+        let mut body = Self { pool, temp: HashMap::new(), stmts: Vec::new(), ops: 0 };
         let mut count = 0;
-        for k in 0..last {
-            if !live[k] {
-                continue;
-            }
+        for &k in &live {
             let leaf = matches!(pool.nodes()[k], Node::Const(_) | Node::Var(_));
             if !leaf {
                 body.ops += 1;
             }
-            if let Some((a, s, c)) = pair[k] {
-                if body.temp[k].is_none() {
+            if let Some(&(a, s, c)) = pair.get(&k) {
+                if !body.temp.contains_key(&k) {
                     let (arg, _) = body.render(a);
                     let (sin, cos) =
                         (ident(&format!("t{count}")), ident(&format!("t{}", count + 1)));
                     count += 2;
                     body.stmts.push(parse_quote!(let (#sin, #cos) = runtime::math::sin_cos(#arg);));
-                    body.temp[s] = Some(sin);
-                    body.temp[c] = Some(cos);
+                    body.temp.insert(s, sin);
+                    body.temp.insert(c, cos);
                 }
-            } else if !leaf && uses[k] >= 2 {
+            } else if !leaf && uses.get(&k).copied().unwrap_or(0) >= 2 {
                 let (e, _) = body.render(ExprId::from_index(k));
                 let name = ident(&format!("t{count}"));
                 count += 1;
                 body.stmts.push(let_stmt(name.clone(), e));
-                body.temp[k] = Some(name);
+                body.temp.insert(k, name);
             }
         }
         body
@@ -94,12 +96,12 @@ impl<'p> Body<'p> {
 
     /// The number of shared temporaries.
     fn shared(&self) -> usize {
-        self.temp.iter().flatten().count()
+        self.temp.len()
     }
 
     /// An expression for `id` with its binding strength.
     fn render(&self, id: ExprId) -> (Expr, Prec) {
-        if let Some(name) = &self.temp[id.index()] {
+        if let Some(name) = self.temp.get(&id.index()) {
             return (path(name.clone()), Prec::Atom);
         }
         let at_least = |e: (Expr, Prec), p: Prec| if e.1 >= p { e.0 } else { paren(e.0) };
@@ -120,7 +122,7 @@ impl<'p> Body<'p> {
                 // x + (−y) and (−y) + x are written x − y: the same IEEE operation, since
                 // addition commutes exactly and negation is exact.
                 let negated = |e: ExprId| -> Option<Expr> {
-                    if self.temp[e.index()].is_some() {
+                    if self.temp.contains_key(&e.index()) {
                         return None;
                     }
                     match (self.pool[e], self.pool.as_const(e)) {
@@ -226,7 +228,7 @@ pub(super) fn function(pool: &ExprPool, n: usize, outputs: &Targets) -> Function
 
 /// [`function`], reading the used entries of q and q̇ one by one (`let q5 = q[5];`) when
 /// `part`: a part of a split function uses few of them.
-fn function_with(pool: &ExprPool, n: usize, outputs: &Targets, part: bool) -> Function {
+pub(super) fn function_with(pool: &ExprPool, n: usize, outputs: &Targets, part: bool) -> Function {
     let roots: Vec<ExprId> = outputs.iter().map(|(_, e, _)| *e).collect();
     let ([q, qd, qdd], t, inputs) = symbols(pool, &roots, n);
     let body = Body::new(pool, &roots);

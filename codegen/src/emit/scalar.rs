@@ -106,6 +106,10 @@ impl VisitMut for ToF32 {
             ty.path = parse_quote!(runtime::lu::PivotInfo<f32>);
             return;
         }
+        if names == ["runtime", "lu", "Singular"] {
+            ty.path = parse_quote!(runtime::lu::Singular<f32>);
+            return;
+        }
         visit_mut::visit_type_path_mut(self, ty);
     }
 
