@@ -45,9 +45,8 @@ pub(super) fn bench(
     // Only an analysis that `solve` completes is timed: one pass with solve's step control and
     // checks (sub-steps, continuity, every row of the description) comes first on each engine,
     // and its failure is the benchmark's, named by kind, time and reason.
-    let analysis = Analysis::new(&eq, &prep)
-        .with_tolerance(tolerance)
-        .with_predictor(how.settings.predictor);
+    let analysis =
+        Analysis::new(&eq, &prep).with_tolerance(tolerance).with_predictor(how.settings.predictor);
     let mut results = Vec::new();
     if engine != BenchEngine::Generated {
         if let Some(f) = analysis.run(|_| Ok::<(), io::Error>(()))?.failure {
