@@ -317,12 +317,12 @@ fn iterate<R: Real, M: Mechanism<N, R>, const N: usize>(
         factors.evaluate(mechanism, q, t, phi, jac);
         let residual = max_abs(phi);
         let mut verdict = status(residual, iterations, options);
-        if let Some(c) = chord.take() {
-            if residual.is_nan() || residual > c.before {
-                *q = c.start;
-                last = None;
-                continue;
-            }
+        if let Some(c) = chord.take()
+            && (residual.is_nan() || residual > c.before)
+        {
+            *q = c.start;
+            last = None;
+            continue;
         }
         if let Some(s) = last {
             let scale = R::from_f64(CHORD_ROUND_OFF) * R::EPSILON * max_abs(q);
