@@ -8,6 +8,8 @@
 //! and the factored Jacobian left in the caller's storage belong to the final q (the velocity
 //! and acceleration solves reuse that factorisation).
 //! If the projection pushed the residual above the tolerance, the iteration simply goes on.
+//! A step that lands within the tolerance ends the iteration only when its estimated remaining
+//! error is at round-off ([`CHORD_ROUND_OFF`]); otherwise one more Newton step follows.
 //! [`solve_with_chord`] first corrects a start that already meets the tolerance (a good
 //! prediction) by one chord step with factors kept from a nearby configuration.
 //! When to stop is decided by [`status`] alone, which is tested on its own.
@@ -179,6 +181,17 @@ pub(crate) fn max_abs<R: Real>(x: &[R]) -> R {
 
 /// Solves Φ(q, t) = 0 for q by Newton's method, starting from `q`.
 ///
+/// A step Δ that brings max |Φ_i| from r₀ down to r₁ ≤ tolerance ends the iteration only when
+/// its estimated remaining error (r₁ / r₀) |Δ| is below [`CHORD_ROUND_OFF`] ε |q|; otherwise
+/// one more Newton step follows, and its result is accepted if it meets the tolerance.
+/// Meeting the tolerance alone would leave the position off by up to κ r₁ / |Φ_q| (κ the
+/// condition number of Φ_q), which the velocity and acceleration solves amplify by κ and κ²
+/// again: one step from a good start (the predictor's) typically lands at r₁ ≈ 1e-13 with a
+/// tolerance of 1e-10, three orders above round-off.
+/// The remaining error is e₁ = Φ_q⁻¹ Φ(q₁) and |Δ| ≥ r₀ / |Φ_q|, so e₁ ≤ κ (r₁ / r₀) |Δ|: the
+/// test bounds the position's error by κ times round-off, the accuracy the digits rule
+/// (`step::suspect`) assumes. A start that already meets the tolerance is accepted as it is.
+///
 /// `phi`, `jac` and `factors` are scratch storage owned by the caller (so `jac`, the only `N × N`
 /// array, never lives on this function's stack).
 /// On success `q` is the normalised solution, `phi` holds Φ at it, and `jac` and `factors` hold
@@ -217,8 +230,9 @@ pub fn solve<R: Real, M: Mechanism<N, R>, const N: usize>(
 /// Newton step costs an evaluation of Φ and Φ_q and a factorisation. From an error e it lands
 /// within about ρ e of the solution, ρ = |Φ_q(q_old)⁻¹ (Φ_q(q) − Φ_q(q_old))|.
 /// It ends the iteration only when its estimated remaining error (r₁ / r₀) |Δ| is below
-/// [`CHORD_ROUND_OFF`] ε |q| (r₀ and r₁ the max |Φ_i| before and after it, Δ the step);
-/// otherwise a Newton step follows, with the Φ_q evaluated after the chord step.
+/// [`CHORD_ROUND_OFF`] ε |q| (r₀ and r₁ the max |Φ_i| before and after it, Δ the step), as
+/// every step of [`solve`] does; otherwise a Newton step follows, with the Φ_q evaluated after
+/// the chord step.
 /// A chord step that does not reduce max |Φ_i| is undone, and Newton proceeds from the start.
 /// Either way it counts as one step.
 /// A start that does not meet the tolerance is solved by [`solve`] from the start.
@@ -258,8 +272,9 @@ pub fn solve_with_chord<R: Real, M: Mechanism<N, R>, const N: usize>(
     iterate(mechanism, q, t, options, Scratch { phi, jac, factors }, chord)
 }
 
-/// The remaining error a chord step may leave and still end the iteration, in units of
-/// the machine epsilon times max |q_k| (see [`solve_with_chord`]).
+/// The estimated remaining error a step (Newton's or the chord step) may leave and still end
+/// the iteration, in units of the machine epsilon times max |q_k| (see [`solve`] and
+/// [`solve_with_chord`]).
 ///
 /// 32 ε ≈ 7e-15 relative: the level of the rounding errors of the Newton step itself, so that
 /// the answer agrees with full Newton's to round-off.
@@ -282,6 +297,15 @@ struct Chord<R, const N: usize> {
     step: R,
 }
 
+/// The last step taken, for the stopping test at the evaluation after it.
+#[derive(Clone, Copy)]
+struct Step<R> {
+    /// max |Φ_i| where it started.
+    before: R,
+    /// max |Δ_k|.
+    size: R,
+}
+
 /// Newton's iteration, after a chord step when `chord` is set.
 fn iterate<R: Real, M: Mechanism<N, R>, const N: usize>(
     mechanism: &M,
@@ -293,6 +317,10 @@ fn iterate<R: Real, M: Mechanism<N, R>, const N: usize>(
 ) -> Result<NewtonReport<R>, NewtonError<R>> {
     let Scratch { phi, jac, factors } = scratch;
     let mut iterations = u32::from(chord.is_some());
+    let mut last = chord.as_ref().map(|c| Step { before: c.before, size: c.step });
+    // Whether a step was already taken because the one before it left more than round-off: at
+    // most one is, so that residuals at the rounding level, which no step reduces, end it.
+    let mut refined = false;
     // Whether q was just projected by `normalize`; a second projection in a row is skipped so
     // that a projection that keeps moving the last bits cannot loop forever.
     let mut normalized = false;
@@ -300,17 +328,22 @@ fn iterate<R: Real, M: Mechanism<N, R>, const N: usize>(
         factors.evaluate(mechanism, q, t, phi, jac);
         let residual = max_abs(phi);
         let mut verdict = status(residual, iterations, options);
-        if let Some(c) = chord.take() {
-            if residual.is_nan() || residual > c.before {
-                *q = c.start;
-                continue;
-            }
+        if let Some(c) = chord.take()
+            && (residual.is_nan() || residual > c.before)
+        {
+            *q = c.start;
+            last = None;
+            continue;
+        }
+        if let Some(s) = last {
             let scale = R::from_f64(CHORD_ROUND_OFF) * R::EPSILON * max_abs(q);
             if verdict == Status::Converged
-                && residual * c.step > c.before * scale
+                && !refined
+                && residual * s.size > s.before * scale
                 && iterations < options.max_iterations
             {
                 verdict = Status::Continue;
+                refined = true;
             }
         }
         match verdict {
@@ -341,6 +374,7 @@ fn iterate<R: Real, M: Mechanism<N, R>, const N: usize>(
         for (qi, d) in q.iter_mut().zip(phi.iter()) {
             *qi += *d;
         }
+        last = Some(Step { before: residual, size: max_abs(phi) });
         iterations += 1;
         normalized = false;
     }

@@ -194,11 +194,11 @@ fn after_normalize_residual_and_factors_belong_to_the_final_q() {
     assert_relative_eq!(back[1], 2.0, epsilon = 1e-14);
 }
 
-/// [`CircleLine`] with its line row scaled by 1e4, so that the small move of x made by the
+/// [`CircleLine`] with its line row scaled by 1e8, so that the small move of x made by the
 /// radial projection shows up as a line residual far above the tolerance.
 struct StiffLine(CircleLine);
 
-const STIFFNESS: f64 = 1e4;
+const STIFFNESS: f64 = 1e8;
 
 impl Mechanism<2> for StiffLine {
     fn residual(&self, q: &[f64; 2], t: f64, phi: &mut [f64; 2]) {
@@ -229,9 +229,11 @@ impl Mechanism<2> for StiffLine {
 #[test]
 fn a_projection_that_breaks_the_tolerance_is_followed_by_more_steps() {
     let t = 1.0;
-    // Newton first stops after two steps with the line row exact and the circle residual
-    // ε ≈ 1.5e-5 ≤ 1e-4; projecting then moves x by about x·ε/2 ≈ 4e-6, which the stiff line
-    // row turns into a residual of about 4e-2 > 1e-4, so Newton must step again.
+    // After two steps the line row is exact and the circle residual 1.5e-5 ≤ 1e-4, three
+    // steps leave it at about (1.5e-5)² ≈ 2e-10 (the stopping test asks for round-off, and
+    // takes one more step at most); projecting then moves x by about x · 1e-10 ≈ 5e-11,
+    // which the stiff line row turns into a residual of about 5e-3 > 1e-4, so Newton must
+    // step again.
     let options = NewtonOptions { tolerance: 1e-4, ..NewtonOptions::default() };
     let m = StiffLine(CircleLine::projected());
     let mut run = BLANK;
@@ -239,7 +241,7 @@ fn a_projection_that_breaks_the_tolerance_is_followed_by_more_steps() {
     let report =
         solve(&m, &mut run.q, t, &options, &mut run.phi, &mut run.jac, &mut run.factors).unwrap();
     assert_eq!(m.0.normalizations.get(), 2);
-    assert_eq!(report.iterations, 3);
+    assert_eq!(report.iterations, 4);
     assert!(report.residual <= options.tolerance);
     let mut phi = [0.0; 2];
     m.residual(&run.q, t, &mut phi);
@@ -349,4 +351,31 @@ fn a_chord_step_ends_the_iteration_only_when_it_leaves_round_off() {
     assert_eq!(m.jacobians.get(), 2);
     assert_relative_eq!(run.q[0], exact[0], epsilon = 1e-15);
     assert_relative_eq!(run.q[1], exact[1], epsilon = 1e-15);
+}
+
+#[test]
+fn a_step_that_meets_the_tolerance_but_leaves_more_than_round_off_is_followed_by_another() {
+    // Near the x axis Φ_q is ill-conditioned (σ_min ≈ y = sin t = 0.01). From y off by
+    // δ = 1e-5 (max |Φ_i| ≈ 2 y δ = 2e-7 above the tolerance 1e-8), a Newton step leaves
+    // y off by e₁ = δ² / 2y = 5e-9 with a circle residual of only about δ² = 1e-10: the
+    // tolerance is met, with an error 50 times the residual. One more step leaves
+    // e₁² / 2y ≈ 1e-15 plus the rounding of the solve, ε / 2y ≈ 1e-14.
+    let t = 0.01;
+    let exact = CircleLine::exact(t)[0];
+    let start = [exact[0], exact[1] + 1e-5];
+    let options = NewtonOptions { tolerance: 1e-8, ..NewtonOptions::default() };
+    let m = CircleLine::default();
+    let two = run(&m, start, t, &options);
+    assert_eq!(two.result.unwrap().iterations, 2);
+    // A few times the rounding of the last solve (1e-14, above).
+    assert!((two.q[1] - exact[1]).abs() < 1e-13, "{:e}", two.q[1] - exact[1]);
+    assert!((two.q[0] - exact[0]).abs() < 1e-15, "{:e}", two.q[0] - exact[0]);
+    // Φ_q evaluated at each of the three iterates, none again at the end (normalize is a no-op).
+    assert_eq!(m.jacobians.get(), 3);
+    // Allowed one step only, Newton stops at the tolerance, 5e-9 off as computed above
+    // (within 10 %, the δ³ terms left out).
+    let one = NewtonOptions { max_iterations: 1, ..options };
+    let first = run(&CircleLine::default(), start, t, &one);
+    assert_eq!(first.result.unwrap().iterations, 1);
+    assert_relative_eq!(first.q[1] - exact[1], 5e-9, max_relative = 0.1);
 }
