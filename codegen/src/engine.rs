@@ -353,6 +353,7 @@ pub fn run_with(
     let mut near: Option<Point> = None;
     let mut reader = BufReader::with_capacity(1 << 16, stdout);
     let (mut bytes, mut record) = (Vec::new(), Vec::new());
+    let mut named = analysis.initially_redundant().to_vec();
     loop {
         let first = reader.fill_buf().map_err(RunError::Read)?.first().copied();
         let step = match first {
@@ -380,7 +381,10 @@ pub fn run_with(
             }
         };
         match step {
-            Ok(frame) => {
+            Ok(mut frame) => {
+                // The redundant rows by the generic engine's rule on the whole Φ_q, reported
+                // where they change as it reports them.
+                frame.redundant = analysis.redundant_change(&mut named, &frame.q, frame.t);
                 sink(&frame).map_err(EngineError::Output)?;
                 report.steps += 1;
             }
