@@ -121,6 +121,9 @@ pub struct Solver<M, const N: usize, R = f64, J = [[R; N]; N]> {
     groups: Groups<'static>,
     /// The rows solved with, for a mechanism with left-out rows ([`crate::rows`]).
     selection: Selection,
+    /// The largest pivot ratio of the rows in force since they were chosen (0 before a first
+    /// position): a fall below [`rows::RESELECT_DROP`] of it chooses the rows again.
+    baseline: R,
 }
 
 /// A point accepted by the step control: everything [`Solver::position`] reads or changes.
@@ -251,6 +254,7 @@ impl<M, const N: usize, R: Real, J> Solver<M, N, R, J> {
             },
             groups: Groups::Each,
             selection: Selection::KEPT,
+            baseline: R::ZERO,
         }
     }
 
@@ -333,6 +337,7 @@ impl<M, const N: usize, R: Real, J> Solver<M, N, R, J> {
         self.history = History::EMPTY;
         self.accepted.current = false;
         self.selection = Selection::KEPT;
+        self.baseline = R::ZERO;
     }
 
     /// Whether rows left out of the mechanism's square system ([`Mechanism::LEFT_OUT`]) stand
@@ -402,7 +407,8 @@ impl<M: Mechanism<N, R>, const N: usize, R: Real, J: BorrowMut<[[R; N]; N]>> Sol
         if M::LEFT_OUT > 0 {
             let ratio = report.pivots.smallest / report.pivots.largest;
             let bound = R::from_f64(step::STRUCTURED_MARGIN) * step::singular_ratio(R::EPSILON);
-            if !(ratio > bound) {
+            let fell = ratio < self.baseline * R::from_f64(rows::RESELECT_DROP);
+            if fell || !(ratio > bound) {
                 // The rows in force degenerate here: the stack's own choice at the converged q,
                 // factored again (the choice used the storage of the factors).
                 self.reselect(t);
@@ -413,12 +419,20 @@ impl<M: Mechanism<N, R>, const N: usize, R: Real, J: BorrowMut<[[R; N]; N]>> Sol
                 });
                 report.pivots = pivots.map_err(|e| match e {
                     crate::lu::Singular::SmallPivot { column, pivot, largest } => {
-                        NewtonError::Singular { iteration: report.iterations, column, pivot, largest }
+                        NewtonError::Singular {
+                            iteration: report.iterations,
+                            column,
+                            pivot,
+                            largest,
+                        }
                     }
                     crate::lu::Singular::NonFinite { .. } => {
                         NewtonError::NonFinite { iteration: report.iterations }
                     }
                 })?;
+                self.baseline = report.pivots.smallest / report.pivots.largest;
+            } else {
+                self.baseline = self.baseline.max(ratio);
             }
         }
         self.pivots = report.pivots;

@@ -132,7 +132,9 @@ pub(super) fn impl_items(sys: &Symbolic, inputs: bool) -> Vec<syn::ImplItem> {
     }
     let u = if inputs { quote::quote!(&self.inputs(t),) } else { quote::quote!() };
     vec![
-        parse_quote!(const LEFT_OUT: usize = DROPPED;),
+        parse_quote!(
+            const LEFT_OUT: usize = DROPPED;
+        ),
         parse_quote! {
             fn left_out_residual_jacobian(&self, q: &[f64; N], t: f64, phi: &mut [f64], jac: &mut [[f64; N]]) {
                 let (mut p, mut j) = ([0.0; DROPPED], [[0.0; N]; DROPPED]);
