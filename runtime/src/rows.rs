@@ -20,7 +20,7 @@
 mod tests;
 
 use crate::factors::reciprocal_power_of_two;
-use crate::lu::{self, Singular};
+use crate::lu::Singular;
 use crate::{Mechanism, Real};
 
 /// The most left-out rows that can stand in for kept ones: the solvers keep the
@@ -40,7 +40,7 @@ pub const RESELECT_DROP: f64 = 0.1;
 /// A candidate pivot of an earlier row of the stack (the kept rows first) is taken when it is
 /// at least this fraction of the column's largest: the solvers choose rows where those in force
 /// degenerate, and a kept row that is within a factor of 2 of the best costs at most that
-/// factor in condition, while 0.1 (the static orders' threshold, [`lu::MAX_MULTIPLIER`]) kept
+/// factor in condition, while 0.1 (the static orders' threshold, [`crate::lu::MAX_MULTIPLIER`]) kept
 /// rows of the Bennett linkage next to θ1 = π whose rate equations then missed the consistency
 /// check of the rows left aside (by 1.3e-6 of their scale, predictor off).
 pub const PREFERENCE: f64 = 0.5;
@@ -203,7 +203,7 @@ pub fn select<R: Real, M: Mechanism<N, R>, const N: usize>(
             }
         }
     }
-    if N > 0 && !(smallest > ratio * largest) {
+    if N > 0 && (smallest <= ratio * largest || smallest.is_nan()) {
         return Err(Singular::SmallPivot { column: small_column, pivot: smallest, largest });
     }
     // Kept rows left aside, each replaced by a selected left-out row, both in row order.

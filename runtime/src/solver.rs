@@ -408,7 +408,7 @@ impl<M: Mechanism<N, R>, const N: usize, R: Real, J: BorrowMut<[[R; N]; N]>> Sol
             let ratio = report.pivots.smallest / report.pivots.largest;
             let bound = R::from_f64(step::STRUCTURED_MARGIN) * step::singular_ratio(R::EPSILON);
             let fell = ratio < self.baseline * R::from_f64(rows::RESELECT_DROP);
-            if fell || !(ratio > bound) {
+            if fell || ratio <= bound || ratio.is_nan() {
                 // The rows in force degenerate here: the stack's own choice at the converged q,
                 // factored again (the choice used the storage of the factors).
                 self.reselect(t);
