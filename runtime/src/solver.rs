@@ -391,6 +391,11 @@ impl<M: Mechanism<N, R>, const N: usize, R: Real, J: BorrowMut<[[R; N]; N]>> Sol
         // stack's choice of rows at Newton's last iterate differs from the rows in force: a
         // singular Jacobian, or the slow convergence of Newton onto a configuration where the
         // rows in force degenerate.
+        if M::LEFT_OUT == 0 {
+            let report = self.newton(t)?;
+            self.converged(t, report.pivots);
+            return Ok(report);
+        }
         let start = self.q;
         let mut result = self.newton(t);
         if M::LEFT_OUT > 0
@@ -435,7 +440,13 @@ impl<M: Mechanism<N, R>, const N: usize, R: Real, J: BorrowMut<[[R; N]; N]>> Sol
                 self.baseline = self.baseline.max(ratio);
             }
         }
-        self.pivots = report.pivots;
+        self.converged(t, report.pivots);
+        Ok(report)
+    }
+
+    /// Keeps a converged position at `t` whose factors have `pivots`.
+    fn converged(&mut self, t: R, pivots: PivotInfo<R>) {
+        self.pivots = pivots;
         if self.known == Known::Acceleration {
             self.history.push(self.t, &self.qdd);
         } else {
@@ -444,7 +455,6 @@ impl<M: Mechanism<N, R>, const N: usize, R: Real, J: BorrowMut<[[R; N]; N]>> Sol
         self.t = t;
         self.factored = true;
         self.known = Known::Nothing;
-        Ok(report)
     }
 
     /// The prediction (when the predictor is on) and Newton's iteration from it, with the rows
@@ -465,10 +475,9 @@ impl<M: Mechanism<N, R>, const N: usize, R: Real, J: BorrowMut<[[R; N]; N]>> Sol
         let chord = self.predictor && self.factored;
         self.factored = false;
         let jac = self.jac.borrow_mut();
-        in_force!(self, m => if chord {
-            newton::solve_with_chord(m, &mut self.q, t, &self.options, &mut self.scratch, jac, &mut self.factors)
-        } else {
-            newton::solve(m, &mut self.q, t, &self.options, &mut self.scratch, jac, &mut self.factors)
+        in_force!(self, m => {
+            let solve = if chord { newton::solve_with_chord } else { newton::solve };
+            solve(m, &mut self.q, t, &self.options, &mut self.scratch, jac, &mut self.factors)
         })
     }
 
