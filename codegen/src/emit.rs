@@ -129,11 +129,12 @@ fn assemble(
     items.push(expand(sys, &moving));
     items.extend(outputs::accessors(&rows, &named));
     items.extend(redundant::items(sys, &rows));
-    let structured = if let Some(plan) = &layout {
+    let mut structured = if let Some(plan) = &layout {
         blocks::impl_items(plan, !sys.inputs.is_empty())
     } else {
         structured_items(orders.len(), !sys.inputs.is_empty())
     };
+    structured.extend(redundant::impl_items(sys, !sys.inputs.is_empty()));
     if sys.inputs.is_empty() {
         items.extend(mechanism_type(mech, structured));
     } else {

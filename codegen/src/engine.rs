@@ -411,6 +411,7 @@ pub fn run_with(
         qdd: DVector::zeros(0),
         redundant: None,
     };
+    let mut named = analysis.initially_redundant().to_vec();
     loop {
         let first = reader.fill_buf().map_err(RunError::Read)?.first().copied();
         let step = match first {
@@ -419,6 +420,7 @@ pub fn run_with(
                 match step_record(&mut reader, &mut record, report.steps, &mut frame)? {
                     Some(failure) => Err(failure),
                     None => {
+                        frame.redundant = analysis.redundant_change(&mut named, &frame.q, frame.t);
                         sink(&frame).map_err(EngineError::Output)?;
                         report.steps += 1;
                         continue;
@@ -447,7 +449,10 @@ pub fn run_with(
             }
         };
         match step {
-            Ok(frame) => {
+            Ok(mut frame) => {
+                // The redundant rows by the generic engine's rule on the whole Φ_q, reported
+                // where they change as it reports them.
+                frame.redundant = analysis.redundant_change(&mut named, &frame.q, frame.t);
                 sink(&frame).map_err(EngineError::Output)?;
                 report.steps += 1;
             }

@@ -87,6 +87,11 @@ pub struct Dropped {
     pub residuals: [ExprId; 3],
     /// The factor that puts it in balanced units, as [`Symbolic::row_factors`].
     pub factor: f64,
+    /// Its row of Φ_q: the structurally non-zero entries `(column, expression)`.
+    pub jac: Vec<(usize, ExprId)>,
+    /// Its ν = −Φ_t and γ (in q, q̇ and t), as [`Symbolic::nu`] and [`Symbolic::gamma`]: the
+    /// run-time solver substitutes the row for a kept one where the kept rows degenerate.
+    pub rates: [ExprId; 2],
 }
 
 /// One input driver of the reduced system.
@@ -674,10 +679,13 @@ impl Symbolic {
                 let rate = self.pool.rate(phi);
                 let acceleration = outputs::acceleration(&mut self.pool, rate);
                 let residuals = [phi, rate, acceleration];
+                // Its rates are derived with the kept rows' (`derive_rates`).
                 self.dropped.push(Dropped {
                     label: labels[k].clone(),
                     residuals,
                     factor: factors[pos],
+                    jac: std::mem::take(&mut jac_rows[pos]),
+                    rates: [phi, phi],
                 });
             }
         }
@@ -928,26 +936,37 @@ impl Symbolic {
 
     /// ν and γ from Φ.
     fn derive_rates(&mut self) {
+        let phi: Vec<ExprId> = self.phi.clone();
+        for phi in phi {
+            let [nu, gamma] = self.rates_of(phi);
+            self.nu.push(nu);
+            self.gamma.push(gamma);
+        }
+        for k in 0..self.dropped.len() {
+            self.dropped[k].rates = self.rates_of(self.dropped[k].residuals[0]);
+        }
+    }
+
+    /// ν = −Φ_t and γ of the row Φ_i = `phi`.
+    fn rates_of(&mut self, phi: ExprId) -> [ExprId; 2] {
         let t = Var::T;
         let inputs = u32::try_from(self.inputs.len()).expect("fewer than 2³² inputs");
-        for &phi in &self.phi {
-            // Φ_t = ∂Φ/∂t + Σ_k ∂Φ/∂s_k ṡ_k: the inputs move with time too.
-            let mut phi_t = self.pool.diff(phi, t);
-            for k in 0..inputs {
-                let d = self.pool.diff(phi, Var::S(k));
-                if self.pool.as_const(d) != Some(0.0) {
-                    let sd = self.pool.var(Var::Sd(k));
-                    let term = self.pool.mul(d, sd);
-                    phi_t = self.pool.add(phi_t, term);
-                }
+        // Φ_t = ∂Φ/∂t + Σ_k ∂Φ/∂s_k ṡ_k: the inputs move with time too.
+        let mut phi_t = self.pool.diff(phi, t);
+        for k in 0..inputs {
+            let d = self.pool.diff(phi, Var::S(k));
+            if self.pool.as_const(d) != Some(0.0) {
+                let sd = self.pool.var(Var::Sd(k));
+                let term = self.pool.mul(d, sd);
+                phi_t = self.pool.add(phi_t, term);
             }
-            self.nu.push(self.pool.neg(phi_t));
-            // Φ̇ = Φ_q q̇ + Φ_t and Φ̈* = (Φ_q q̇)_q q̇ + 2 Φ_qt q̇ + Φ_tt (q̈ = 0), both by
-            // forward-mode differentiation along the motion; γ = −Φ̈*.
-            let phi_dot = self.pool.rate(phi);
-            let s = self.pool.rate(phi_dot);
-            self.gamma.push(self.pool.neg(s));
         }
+        let nu = self.pool.neg(phi_t);
+        // Φ̇ = Φ_q q̇ + Φ_t and Φ̈* = (Φ_q q̇)_q q̇ + 2 Φ_qt q̇ + Φ_tt (q̈ = 0), both by
+        // forward-mode differentiation along the motion; γ = −Φ̈*.
+        let phi_dot = self.pool.rate(phi);
+        let s = self.pool.rate(phi_dot);
+        [nu, self.pool.neg(s)]
     }
 }
 

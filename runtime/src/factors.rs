@@ -346,7 +346,7 @@ impl<const N: usize> Factors<N> {
 }
 
 /// 1 / the power of two nearest `x`, or 1 when `x` is 0 or not finite.
-fn reciprocal_power_of_two<R: Real>(x: R) -> R {
+pub(crate) fn reciprocal_power_of_two<R: Real>(x: R) -> R {
     let x = x.to_f64();
     if x > 0.0 && x.is_finite() {
         R::from_f64(libm::exp2(-libm::round(libm::log2(x))))
@@ -398,5 +398,15 @@ impl<M: Mechanism<N, R>, const N: usize, R: Real> Mechanism<N, R> for DenseOnly<
     }
     fn normalize(&self, q: &mut [R; N]) {
         self.0.normalize(q);
+    }
+    const LEFT_OUT: usize = M::LEFT_OUT;
+    fn left_out_residual_jacobian(&self, q: &[R; N], t: R, phi: &mut [R], jac: &mut [[R; N]]) {
+        self.0.left_out_residual_jacobian(q, t, phi, jac);
+    }
+    fn left_out_velocity_rhs(&self, q: &[R; N], t: R, nu: &mut [R]) {
+        self.0.left_out_velocity_rhs(q, t, nu);
+    }
+    fn left_out_acceleration_rhs(&self, q: &[R; N], qd: &[R; N], t: R, gamma: &mut [R]) {
+        self.0.left_out_acceleration_rhs(q, qd, t, gamma);
     }
 }

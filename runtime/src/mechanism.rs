@@ -200,4 +200,34 @@ pub trait Mechanism<const N: usize, R: Real = f64> {
     fn solve_structured(&self, order: usize, lu: &[[R; N]; N], b: &mut [R; N]) {
         let _ = (order, lu, b);
     }
+
+    /// The number of equations of the description left out of this square system as dependent
+    /// on its rows at the configuration it was generated at (a redundant mechanism: the Bennett
+    /// linkage, a planar loop of four revolutes). The default, 0, means none.
+    ///
+    /// With left-out rows the solvers re-select the rows they solve with where the rows of the
+    /// square system degenerate while the whole stack of N + `LEFT_OUT` rows does not
+    /// ([`rows`](crate::rows)); only the first [`rows::MAX_LEFT_OUT`](crate::rows::MAX_LEFT_OUT)
+    /// left-out rows can stand in for kept ones.
+    const LEFT_OUT: usize = 0;
+
+    /// Writes Φ of the first `phi.len()` left-out rows into `phi` and their whole rows of Φ_q
+    /// (every entry, zeros included) into `jac`, which has as many rows; both hold at most
+    /// [`Mechanism::LEFT_OUT`] rows. The default, for mechanisms without left-out rows, writes
+    /// nothing.
+    fn left_out_residual_jacobian(&self, q: &[R; N], t: R, phi: &mut [R], jac: &mut [[R; N]]) {
+        let _ = (q, t, phi, jac);
+    }
+
+    /// Writes ν = −Φ_t of the first `nu.len()` left-out rows into `nu` (see
+    /// [`Mechanism::left_out_residual_jacobian`]).
+    fn left_out_velocity_rhs(&self, q: &[R; N], t: R, nu: &mut [R]) {
+        let _ = (q, t, nu);
+    }
+
+    /// Writes γ of the first `gamma.len()` left-out rows into `gamma` (see
+    /// [`Mechanism::left_out_residual_jacobian`]).
+    fn left_out_acceleration_rhs(&self, q: &[R; N], qd: &[R; N], t: R, gamma: &mut [R]) {
+        let _ = (q, qd, t, gamma);
+    }
 }

@@ -36,6 +36,7 @@ use core::fmt;
 use crate::factors::{BlockCounts, FactorCounts, Factors};
 use crate::lu::{PivotInfo, Singular};
 use crate::newton::{self, NewtonError, NewtonOptions, NewtonReport};
+use crate::rows::{self, Selection, Swapped};
 use crate::step::{self, Coordinates, Groups, Rejection, Sample, Stepper, Stop, Suspect, Trouble};
 use crate::{Mechanism, Real};
 
@@ -118,6 +119,11 @@ pub struct Solver<M, const N: usize, R = f64, J = [[R; N]; N]> {
     accepted: Accepted<R, N>,
     /// How the continuity check groups the unknowns.
     groups: Groups<'static>,
+    /// The rows solved with, for a mechanism with left-out rows ([`crate::rows`]).
+    selection: Selection,
+    /// The largest pivot ratio of the rows in force since they were chosen (0 before a first
+    /// position): a fall below [`rows::RESELECT_DROP`] of it chooses the rows again.
+    baseline: R,
 }
 
 /// A point accepted by the step control: everything [`Solver::position`] reads or changes.
@@ -247,6 +253,8 @@ impl<M, const N: usize, R: Real, J> Solver<M, N, R, J> {
                 current: false,
             },
             groups: Groups::Each,
+            selection: Selection::KEPT,
+            baseline: R::ZERO,
         }
     }
 
@@ -334,7 +342,30 @@ impl<M, const N: usize, R: Real, J> Solver<M, N, R, J> {
         self.known = Known::Nothing;
         self.history = History::EMPTY;
         self.accepted.current = false;
+        self.selection = Selection::KEPT;
+        self.baseline = R::ZERO;
     }
+
+    /// Whether rows left out of the mechanism's square system ([`Mechanism::LEFT_OUT`]) stand
+    /// in for some of its rows at the last position ([`crate::rows`]): where the kept rows
+    /// degenerate while the whole stack of rows does not.
+    pub fn rows_swapped(&self) -> bool {
+        self.selection.is_swapped()
+    }
+}
+
+/// Evaluates `$body` with `$m` the mechanism whose rows are in force for the solver `$s`:
+/// its own, or [`Swapped`] while left-out rows stand in for kept ones.
+macro_rules! in_force {
+    ($s:expr, $m:ident => $body:expr) => {
+        if M::LEFT_OUT > 0 && $s.selection.is_swapped() {
+            let $m = &Swapped { mechanism: &$s.mechanism, selection: &$s.selection };
+            $body
+        } else {
+            let $m = &$s.mechanism;
+            $body
+        }
+    };
 }
 
 impl<M: Mechanism<N, R>, const N: usize, R: Real, J: BorrowMut<[[R; N]; N]>> Solver<M, N, R, J> {
@@ -362,6 +393,79 @@ impl<M: Mechanism<N, R>, const N: usize, R: Real, J: BorrowMut<[[R; N]; N]>> Sol
     /// [`Solver::position`], except that a failed solve leaves q at Newton's last iterate.
     fn solve_position(&mut self, t: R) -> Result<NewtonReport<R>, NewtonError<R>> {
         self.accepted.current = false;
+        // Only a mechanism with left-out rows tries again, from the same start, when the
+        // stack's choice of rows at Newton's last iterate differs from the rows in force: a
+        // singular Jacobian, or the slow convergence of Newton onto a configuration where the
+        // rows in force degenerate.
+        if M::LEFT_OUT == 0 {
+            let report = self.newton(t)?;
+            self.converged(t, report.pivots);
+            return Ok(report);
+        }
+        let start = self.q;
+        let mut result = self.newton(t);
+        if M::LEFT_OUT > 0
+            && matches!(
+                result,
+                Err(NewtonError::Singular { .. } | NewtonError::NotConverged { .. })
+            )
+            && self.reselect(t)
+        {
+            self.q = start;
+            result = self.newton(t);
+        }
+        let mut report = result?;
+        if M::LEFT_OUT > 0 {
+            let ratio = report.pivots.smallest / report.pivots.largest;
+            let bound = R::from_f64(step::STRUCTURED_MARGIN) * step::singular_ratio(R::EPSILON);
+            let fell = ratio < self.baseline * R::from_f64(rows::RESELECT_DROP);
+            if fell || ratio <= bound || ratio.is_nan() {
+                // The rows in force degenerate here: the stack's own choice at the converged q,
+                // factored again (the choice used the storage of the factors).
+                self.reselect(t);
+                let pivots = in_force!(self, m => {
+                    let jac = self.jac.borrow_mut();
+                    self.factors.evaluate(m, &self.q, t, &mut self.scratch, jac);
+                    self.factors.factor(m, &self.q, t, jac, self.options.pivot_ratio)
+                });
+                report.pivots = pivots.map_err(|e| match e {
+                    crate::lu::Singular::SmallPivot { column, pivot, largest } => {
+                        NewtonError::Singular {
+                            iteration: report.iterations,
+                            column,
+                            pivot,
+                            largest,
+                        }
+                    }
+                    crate::lu::Singular::NonFinite { .. } => {
+                        NewtonError::NonFinite { iteration: report.iterations }
+                    }
+                })?;
+                self.baseline = report.pivots.smallest / report.pivots.largest;
+            } else {
+                self.baseline = self.baseline.max(ratio);
+            }
+        }
+        self.converged(t, report.pivots);
+        Ok(report)
+    }
+
+    /// Keeps a converged position at `t` whose factors have `pivots`.
+    fn converged(&mut self, t: R, pivots: PivotInfo<R>) {
+        self.pivots = pivots;
+        if self.known == Known::Acceleration {
+            self.history.push(self.t, &self.qdd);
+        } else {
+            self.history.len = 0;
+        }
+        self.t = t;
+        self.factored = true;
+        self.known = Known::Nothing;
+    }
+
+    /// The prediction (when the predictor is on) and Newton's iteration from it, with the rows
+    /// in force; the solver's state other than q and the factors is left to the caller.
+    fn newton(&mut self, t: R) -> Result<NewtonReport<R>, NewtonError<R>> {
         if self.predictor && self.known >= Known::Velocity {
             let h = t - self.t;
             let half = R::from_f64(0.5);
@@ -374,33 +478,35 @@ impl<M: Mechanism<N, R>, const N: usize, R: Real, J: BorrowMut<[[R; N]; N]>> Sol
             }
         }
         // With the predictor, the factors of the last position correct the prediction first.
-        let solve = if self.predictor && self.factored {
-            newton::solve_with_chord::<R, M, N>
-        } else {
-            newton::solve::<R, M, N>
-        };
+        let chord = self.predictor && self.factored;
         self.factored = false;
-        let result = solve(
+        let jac = self.jac.borrow_mut();
+        in_force!(self, m => {
+            let solve = if chord { newton::solve_with_chord } else { newton::solve };
+            solve(m, &mut self.q, t, &self.options, &mut self.scratch, jac, &mut self.factors)
+        })
+    }
+
+    /// Chooses the rows to solve with at (q, t) from the whole stack ([`rows::select`]),
+    /// forgetting the factors (the choice uses their storage); whether the choice changed.
+    /// A stack that loses column rank keeps the rows in force.
+    fn reselect(&mut self, t: R) -> bool {
+        self.factors.forget();
+        self.factored = false;
+        let chosen = rows::select(
             &self.mechanism,
-            &mut self.q,
+            &self.q,
             t,
-            &self.options,
-            &mut self.scratch,
             self.jac.borrow_mut(),
-            &mut self.factors,
+            self.options.pivot_ratio,
         );
-        if let Ok(report) = result {
-            self.pivots = report.pivots;
-            if self.known == Known::Acceleration {
-                self.history.push(self.t, &self.qdd);
-            } else {
-                self.history.len = 0;
+        match chosen {
+            Ok(selection) if selection != self.selection => {
+                self.selection = selection;
+                true
             }
-            self.t = t;
-            self.factored = true;
-            self.known = Known::Nothing;
+            _ => false,
         }
-        result
     }
 
     /// Adds to the predictor the terms h³/6 b + h⁴/12 c of q̈(t + τ) ≈ q̈ + b τ + c τ², the
@@ -449,7 +555,7 @@ impl<M: Mechanism<N, R>, const N: usize, R: Real, J: BorrowMut<[[R; N]; N]>> Sol
             return Err(SolveError::NoPosition);
         }
         self.accepted.current = false;
-        self.mechanism.velocity_rhs(&self.q, self.t, &mut self.scratch);
+        in_force!(self, m => m.velocity_rhs(&self.q, self.t, &mut self.scratch));
         self.solve_scratch()?;
         self.qd = self.scratch;
         self.known = Known::Velocity;
@@ -474,7 +580,7 @@ impl<M: Mechanism<N, R>, const N: usize, R: Real, J: BorrowMut<[[R; N]; N]>> Sol
             return Err(SolveError::NoVelocity);
         }
         self.accepted.current = false;
-        self.mechanism.acceleration_rhs(&self.q, &self.qd, self.t, &mut self.scratch);
+        in_force!(self, m => m.acceleration_rhs(&self.q, &self.qd, self.t, &mut self.scratch));
         self.solve_scratch()?;
         self.qdd = self.scratch;
         self.known = Known::Acceleration;
@@ -486,14 +592,18 @@ impl<M: Mechanism<N, R>, const N: usize, R: Real, J: BorrowMut<[[R; N]; N]>> Sol
     /// which the step control then undoes ([`Stepper::reject`]). This saves the copies that
     /// keep the previous values for a plain caller.
     fn solve_derivatives(&mut self) -> Result<(), SolveError> {
-        self.mechanism.velocity_rhs(&self.q, self.t, &mut self.qd);
-        self.factors.solve(&self.mechanism, self.jac.borrow(), &mut self.qd);
+        in_force!(self, m => {
+            m.velocity_rhs(&self.q, self.t, &mut self.qd);
+            self.factors.solve(m, self.jac.borrow(), &mut self.qd);
+        });
         if self.qd.iter().any(|v| !v.is_finite()) {
             return Err(SolveError::NonFinite);
         }
         self.known = Known::Velocity;
-        self.mechanism.acceleration_rhs(&self.q, &self.qd, self.t, &mut self.qdd);
-        self.factors.solve(&self.mechanism, self.jac.borrow(), &mut self.qdd);
+        in_force!(self, m => {
+            m.acceleration_rhs(&self.q, &self.qd, self.t, &mut self.qdd);
+            self.factors.solve(m, self.jac.borrow(), &mut self.qdd);
+        });
         if self.qdd.iter().any(|v| !v.is_finite()) {
             return Err(SolveError::NonFinite);
         }
@@ -506,7 +616,7 @@ impl<M: Mechanism<N, R>, const N: usize, R: Real, J: BorrowMut<[[R; N]; N]>> Sol
     /// A NaN or an infinity in the right-hand side reaches the solution (substitution carries
     /// it through the row that holds it), so checking the solution alone catches both.
     fn solve_scratch(&mut self) -> Result<(), SolveError> {
-        self.factors.solve(&self.mechanism, self.jac.borrow(), &mut self.scratch);
+        in_force!(self, m => self.factors.solve(m, self.jac.borrow(), &mut self.scratch));
         if self.scratch.iter().any(|v| !v.is_finite()) {
             return Err(SolveError::NonFinite);
         }
@@ -663,7 +773,7 @@ impl<M: Mechanism<N, R>, const N: usize, R: Real, J: BorrowMut<[[R; N]; N]>> Sol
         if a.valid && a.current {
             return Some(a.sample);
         }
-        self.mechanism.residual(&self.q, self.t, &mut self.scratch);
+        in_force!(self, m => m.residual(&self.q, self.t, &mut self.scratch));
         let residual = newton::max_abs(&self.scratch);
         let pivot_ratio = self.pivot_ratio();
         Some(Sample { t: self.t, iterations: 0, residual, pivot_ratio })
@@ -717,12 +827,10 @@ impl<M: Mechanism<N, R>, const N: usize, R: Real, J: BorrowMut<[[R; N]; N]>> Sol
                 return cheap;
             }
         }
-        let result = self.factors.factor_dense_equilibrated(
-            &self.mechanism,
-            &self.q,
-            self.t,
-            self.jac.borrow_mut(),
-        );
+        let jac = self.jac.borrow_mut();
+        let result = in_force!(self, m => {
+            self.factors.factor_dense_equilibrated(m, &self.q, self.t, jac)
+        });
         self.factored = result.is_ok();
         match result {
             Ok([plain, equilibrated]) => {
@@ -737,13 +845,9 @@ impl<M: Mechanism<N, R>, const N: usize, R: Real, J: BorrowMut<[[R; N]; N]>> Sol
     /// ρ of the dense LU with partial pivoting of Φ_q at the current (q, t), whose factors the
     /// solver keeps.
     fn dense_pivot_ratio(&mut self) -> R {
-        let result = self.factors.factor_dense(
-            &self.mechanism,
-            &self.q,
-            self.t,
-            self.jac.borrow_mut(),
-            R::ZERO,
-        );
+        let jac = self.jac.borrow_mut();
+        let result =
+            in_force!(self, m => self.factors.factor_dense(m, &self.q, self.t, jac, R::ZERO));
         self.factored = result.is_ok();
         match result {
             Ok(p) => {

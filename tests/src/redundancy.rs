@@ -16,7 +16,7 @@
 //! | `bennett_a_90_5` with b rounded to 0.683 | `inconsistent` at t = 0 | a / sin α1 ≠ b / sin α2 (by 1.9e-5 relative): the loop is a rigid structure that the driver cannot turn |
 //! | `four_bar_flat` | `check`, the generic engine and the symbolic layer (generated engine) all name `constraint flat`; both engines run the whole grid with every row holding | one naming rule (`codegen::generic::redundancy`) |
 //! | `four_bar_conflict`, `four_bar_conflict_later`, `four_bar_fix_conflict` on the generated engine | the generic engine's `inconsistent`, at the same time, naming the same equations | the generated solver checks the rows its reduced system leaves out after every attempt (`dropped_residuals`) and refuses a step where one does not hold |
-//! | `bennett_*` on the generated engine, predictor on and off | every written step on the closed form with every row holding; a run that cannot pass where its kept rows degenerate stops there with `singular` (10 of the 24 descriptions: the 5° grids from 45°, 90° and 135°, geometry b's from 0 and 180° too, and both from −149°); the full turns are asserted by an ignored test until the generated engine re-selects its rows | the generated engine keeps the rows chosen at the start (no re-selection yet), which degenerate at θ1 = 0 or π; it must stop rather than write steps that violate the rows it left out |
+//! | `bennett_*` on the generated engine, predictor on and off | with the predictor on, the generic engine's result: full turns on the closed form, every row holding, the redundant set changing at the same frames (JSON `redundant` too, grids landing on θ1 = 0 and π), with the predictor on and off | the rows kept at the start degenerate at θ1 = 0 or π (225° for geometry b from 180°) while the whole Φ_q does not; the runtime then solves with the rows the row-pivoted LU of the whole stack picks (`runtime::rows`) |
 
 use std::f64::consts::PI;
 use std::path::Path;
@@ -227,20 +227,6 @@ fn bennett_linkages_turn_full_cycles_from_any_start_on_the_closed_form() {
         for predictor in [true, false] {
             let r = run(&mech, predictor);
             assert_full_cycle(&format!("{name} (predictor {predictor})"), &mech, &r);
-            assert_on_the_closed_form(&name, &mech, &r.steps);
-        }
-    }
-}
-
-#[test]
-#[ignore = "needs generated row re-selection (issue 15.1, branch reselect)"]
-fn generated_bennett_linkages_turn_full_cycles_from_any_start_on_the_closed_form() {
-    for name in bennett_names() {
-        let mech = load(&name);
-        let built = engine::build(&mech).expect("the generated solver builds");
-        for predictor in [true, false] {
-            let r = run_built(&mech, &built, predictor, None);
-            assert_full_cycle(&format!("{name} generated (predictor {predictor})"), &mech, &r);
             assert_on_the_closed_form(&name, &mech, &r.steps);
         }
     }
@@ -718,33 +704,57 @@ fn the_generated_engine_stops_on_contradicting_equations_as_the_generic_one_does
 }
 
 #[test]
-fn the_generated_engine_never_writes_a_bennett_step_that_violates_a_row() {
-    // The generated engine keeps the rows chosen at the initial configuration; they become
-    // singular where the whole Φ_q does not (θ1 = 0 and π for the general starts), where it
-    // may stop,
-    // but every step it writes must meet every row of the description, the left-out ones
-    // included, and lie on the closed form.
-    let mut stops = Vec::new();
+fn the_generated_engine_re_selects_its_rows_and_turns_every_bennett_cycle() {
+    // The generated engine keeps the rows chosen at the initial configuration while they are
+    // regular; where they degenerate and the whole Φ_q does not (θ1 = 0 and π for the general
+    // starts, 225° for geometry b from 180°), its runtime solves with the rows that the
+    // row-pivoted LU of the whole stack picks (`runtime::rows`). So it passes where the
+    // generic engine does, on every Bennett grid (starts 0°, 45°, 90°, 135°, 180°, −149° and
+    // 1 rad, steps of 5° and 20°), predictor on and off: full turns, every step on the closed
+    // form (the generic test's tolerances and reasons), every row of the description holding,
+    // the left-out ones included, and the redundant set reported where it changes, frame by
+    // frame as the generic engine reports it.
     for name in bennett_names() {
         let mech = load(&name);
         let built = engine::build(&mech).expect("the generated solver builds");
         for predictor in [true, false] {
             let r = run_built(&mech, &built, predictor, None);
-            let worst = worst_row(&mech, &r.frames);
-            assert!(worst <= TOLERANCE, "{name} (predictor {predictor}): max |Φ| = {worst:e}");
+            assert_full_cycle(&format!("{name} generated (predictor {predictor})"), &mech, &r);
             assert_on_the_closed_form(&name, &mech, &r.steps);
-            if let Some(f) = &r.failure {
-                // A stop is named `singular`: the rows kept from the start degenerate (at
-                // θ1 = 0 and π for the general starts, elsewhere for others: 225° for
-                // geometry b from 180°), never a step past them on rows that do not hold.
-                assert_eq!(f.kind, FailureKind::Singular, "{name}: {f:?}");
-                stops.push(format!("{name} predictor {predictor}: t = {}", f.t));
-            } else {
-                assert_eq!(r.frames.len(), mech.time.count, "{name}");
-            }
+            let generic = run(&mech, predictor);
+            let changes = |run: &Run| -> Vec<(usize, Vec<usize>)> {
+                let f = run.frames.iter().filter_map(|f| Some((f.index, f.redundant.clone()?)));
+                f.collect()
+            };
+            assert_eq!(changes(&r), changes(&generic), "{name} (predictor {predictor})");
         }
     }
-    eprintln!("generated Bennett stops: {stops:#?}");
+}
+
+#[test]
+fn the_generated_engine_lands_on_theta1_zero_and_pi_and_reports_the_redundant_set() {
+    // The grids land exactly on θ1 = 0 and π (steps of 20° or 5° from 0, 90° and 180°), where the
+    // rows kept at a general configuration are singular; the JSON of `solve` reports the
+    // changes of the redundant set there as the generic engine's does.
+    for name in ["bennett_a_0", "bennett_a_90", "bennett_b_180"] {
+        let file = path(name);
+        let json = |engine: &str| {
+            let (code, out) = mechgen(&["solve", &file, "--engine", engine, "--format", "json"]);
+            assert_eq!(code, 0, "{name} {engine}: {out}");
+            let v: serde_json::Value = serde_json::from_str(&out).expect("JSON");
+            let steps = v["steps"].as_array().expect("steps").clone();
+            let changes: Vec<(f64, serde_json::Value)> = steps
+                .iter()
+                .filter(|s| s.get("redundant").is_some())
+                .map(|s| (s["t"].as_f64().expect("t"), s["redundant"].clone()))
+                .collect();
+            (steps.len(), changes)
+        };
+        let (generated, generic) = (json("generated"), json("generic"));
+        assert_eq!(generated.0, load(name).time.count, "{name}: every grid point");
+        assert!(generated.1.len() >= 2, "{name}: the set changes and changes back");
+        assert_eq!(generated, generic, "{name}");
+    }
 }
 
 #[test]

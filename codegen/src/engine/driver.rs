@@ -453,11 +453,13 @@ const CONSISTENCY: f64 = 1e-6;
 /// generic engine's reasoning for [`CONSISTENCY`], 1e4.
 const CONDITION: f64 = 1e4;
 
-/// Why the solved point of `solver` at `t` is refused, when a row the module left out as
-/// redundant does not hold with the kept ones: |Φ_i| above the Newton tolerance (as the generic
-/// engine requires of every row), or its velocity or acceleration equation missing by more than
-/// [`CONSISTENCY`] of the scale, which is taken over the kept rows (the left-out ones are
-/// combinations of them). `None` when every row holds, or the module left none out.
+/// Why the solved point of `solver` at `t` is refused, when a row of the description does not
+/// hold with the others: |Φ_i| above the Newton tolerance (as the generic engine requires of
+/// every row), or its velocity or acceleration equation missing by more than [`CONSISTENCY`]
+/// of the scale, which is taken over the kept rows (the left-out ones are combinations of
+/// them). Every row is checked, the kept ones too: where the solver re-selected its rows
+/// (`runtime::rows`), some kept rows are not among those it solved with. `None` when every row
+/// holds, or the module left none out.
 fn inconsistency<M: Generated>(solver: &Solver<M, N, Real, Jacobian>, t: Real) -> Option<String> {
     if config::DROPPED == 0 {
         return None;
@@ -466,15 +468,18 @@ fn inconsistency<M: Generated>(solver: &Solver<M, N, Real, Jacobian>, t: Real) -
     let (q, qd, qdd) = (solver.q(), solver.qd(), solver.qdd());
     let mut residuals = [[0.0; 3]; config::DROPPED];
     config::dropped(m.module(), q, qd, qdd, t, &mut residuals);
+    let mut phi = [0.0; N];
+    m.residual(q, t, &mut phi);
     let tolerance = wide(solver.options().tolerance);
-    for (k, r) in residuals.iter().enumerate() {
-        let phi = wide(r[0]).abs();
+    let positions = phi.iter().zip(mechanism::EQUATIONS);
+    let positions = positions.chain(residuals.iter().map(|r| &r[0]).zip(config::DROPPED_EQUATIONS));
+    for (&r, equation) in positions {
+        let phi = wide(r).abs();
         // NaN misses too.
         if phi.is_nan() || phi > tolerance {
             return Some(format!(
-                "equation {} cannot hold with the others: |Φ| = {phi:e} where the equations the \
-                 solve uses meet the tolerance {tolerance:e}",
-                config::DROPPED_EQUATIONS[k]
+                "equation {equation} cannot hold with the others: |Φ| = {phi:e} where the \
+                 equations the solve uses meet the tolerance {tolerance:e}"
             ));
         }
     }
@@ -491,6 +496,18 @@ fn inconsistency<M: Generated>(solver: &Solver<M, N, Real, Jacobian>, t: Real) -
             let terms = (0..N).fold(wide(b[i]).abs(), |a, j| a + wide(jac[i][j] * x[j]).abs());
             s.max(wide(config::ROW_FACTORS[i]) * terms)
         });
+        for i in 0..N {
+            let rate = (0..N).fold(-wide(b[i]), |a, j| a + wide(jac[i][j] * x[j]));
+            let miss = wide(config::ROW_FACTORS[i]) * rate.abs();
+            let ratio = if scale > 0.0 { miss / scale } else { miss };
+            if ratio.is_nan() || ratio > allowed {
+                return Some(format!(
+                    "the {what} equation of {} cannot hold with the others: it misses by \
+                     {ratio:.3e} of the {what} terms' scale (at most {allowed:e})",
+                    mechanism::EQUATIONS[i]
+                ));
+            }
+        }
         for (k, r) in residuals.iter().enumerate() {
             let miss = wide(config::DROPPED_ROW_FACTORS[k]) * wide(r[level + 1]).abs();
             let ratio = if scale > 0.0 { miss / scale } else { miss };

@@ -382,9 +382,6 @@ impl<'e, 'm> Analysis<'e, 'm> {
         let mut report = StepReport { steps: 0, iterations: 0, failure: None };
         let mut engine = GenericEngine { analysis: self, prev: None };
         let mut last: Option<Point> = None;
-        // Only a system with more rows than unknowns can have redundant rows at a regular
-        // configuration.
-        let tall = self.eq.equations() > self.eq.unknowns();
         let mut named = self.redundant.clone();
         for k in 0..grid.count {
             let t = grid.at(k);
@@ -400,14 +397,7 @@ impl<'e, 'm> Analysis<'e, 'm> {
                     report.steps += 1;
                     report.iterations += u64::from(iterations);
                     let q = DVector::from_column_slice(&point.q);
-                    let mut redundant = None;
-                    if tall {
-                        let now = self.eq.redundant_rows(&q, t);
-                        if now != named {
-                            named.clone_from(&now);
-                            redundant = Some(now);
-                        }
-                    }
+                    let redundant = self.redundant_change(&mut named, &q, t);
                     let frame = Frame {
                         index: k,
                         t,
@@ -429,6 +419,36 @@ impl<'e, 'm> Analysis<'e, 'm> {
             }
         }
         Ok(report)
+    }
+
+    /// The rows named redundant at the frame (q, t) ([`super::redundancy`]) when they differ
+    /// from `named`, the set in force before it (which becomes theirs); `None` when they are
+    /// the same. Both engines report a frame's `redundant` this way: `named` starts as the set
+    /// of the initial configuration ([`Preparation::redundant`]).
+    #[must_use]
+    pub fn redundant_change(
+        &self,
+        named: &mut Vec<usize>,
+        q: &DVector<f64>,
+        t: f64,
+    ) -> Option<Vec<usize>> {
+        // Only a system with more rows than unknowns can have redundant rows at a regular
+        // configuration.
+        if self.eq.equations() <= self.eq.unknowns() {
+            return None;
+        }
+        let now = self.eq.redundant_rows(q, t);
+        if now == *named {
+            return None;
+        }
+        named.clone_from(&now);
+        Some(now)
+    }
+
+    /// The rows named redundant at the initial configuration ([`Preparation::redundant`]).
+    #[must_use]
+    pub fn initially_redundant(&self) -> &[usize] {
+        &self.redundant
     }
 
     /// The failure of the first time point alone, if the analysis stops there: what `check`
