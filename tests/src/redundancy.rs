@@ -736,7 +736,7 @@ fn the_generated_engine_lands_on_theta1_zero_and_pi_and_reports_the_redundant_se
     // The grids land exactly on θ1 = 0 and π (steps of 20° or 5° from 0, 90° and 180°), where the
     // rows kept at a general configuration are singular; the JSON of `solve` reports the
     // changes of the redundant set there as the generic engine's does.
-    for name in ["bennett_a_0", "bennett_a_90", "bennett_b_180"] {
+    for name in ["bennett_a_0_20", "bennett_a_90_5", "bennett_b_180_20"] {
         let file = path(name);
         let json = |engine: &str| {
             let (code, out) = mechgen(&["solve", &file, "--engine", engine, "--format", "json"]);

@@ -483,7 +483,13 @@ fn inconsistency<M: Generated>(solver: &Solver<M, N, Real, Jacobian>, t: Real) -
             ));
         }
     }
-    let allowed = CONSISTENCY.max(CONDITION * wide(Real::EPSILON));
+    let floor = CONSISTENCY.max(CONDITION * wide(Real::EPSILON));
+    // Where the rows solved with are ill-conditioned (κ̂ from their factors' pivots), consistent
+    // rows miss by the round-off the digits rule ascribes to the quantity, κ̂²ε for velocities
+    // and κ̂³ε for accelerations (README "Digits"): the allowance is at least that, so round-off
+    // is not taken for a conflict. A step where it exceeds 1e-6 is flagged suspect anyway, and
+    // a real conflict misses by far more (5e-2 for 1 against 1.1 rad/s).
+    let kappa = solver.pivots().map_or(1.0, |p| wide(p.largest) / wide(p.smallest));
     let mut jac = jacobian();
     m.jacobian(q, t, &mut jac);
     let (mut nu, mut gamma) = ([0.0; N], [0.0; N]);
@@ -492,6 +498,7 @@ fn inconsistency<M: Generated>(solver: &Solver<M, N, Real, Jacobian>, t: Real) -
     for (level, (what, x, b)) in
         [("velocity", qd, &nu), ("acceleration", qdd, &gamma)].into_iter().enumerate()
     {
+        let allowed = floor.max(kappa.powi(level as i32 + 2) * wide(Real::EPSILON));
         let scale = (0..N).fold(0.0_f64, |s, i| {
             let terms = (0..N).fold(wide(b[i]).abs(), |a, j| a + wide(jac[i][j] * x[j]).abs());
             s.max(wide(config::ROW_FACTORS[i]) * terms)
