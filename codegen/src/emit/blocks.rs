@@ -247,6 +247,44 @@ fn straight_line(
     items
 }
 
+/// The rows of `block` read from `array` (`array[r][c]` per entry, in the block's order), with
+/// Φ_q's structural zeros as literals when `zeros`.
+fn gather(
+    sys: &Symbolic,
+    block: &crate::blocks::Block,
+    array: &str,
+    zeros: bool,
+) -> Vec<proc_macro2::TokenStream> {
+    let array = ident(array);
+    block
+        .rows
+        .iter()
+        .map(|&r| {
+            let entries = block.unknowns.iter().map(|&c| {
+                if !zeros || sys.jac[r].iter().any(|&(j, _)| j == c) {
+                    let (r, c) = (index(r), index(c));
+                    quote::quote!(#array[#r][#c])
+                } else {
+                    quote::quote!(0.0)
+                }
+            });
+            quote::quote!([#(#entries),*])
+        })
+        .collect()
+}
+
+/// `jac[r][c] = a[i][j];` for every entry of `block`: its factors written back in place.
+fn scatter(block: &crate::blocks::Block) -> Vec<proc_macro2::TokenStream> {
+    let mut scatter = Vec::new();
+    for (i, &r) in block.rows.iter().enumerate() {
+        for (j, &c) in block.unknowns.iter().enumerate() {
+            let (r, c, i, j) = (index(r), index(c), index(i), index(j));
+            scatter.push(quote::quote!(jac[#r][#c] = a[#i][#j];));
+        }
+    }
+    scatter
+}
+
 /// The statements that factor block `b` (gather, `runtime::lu::factor_with_ratio`, scatter,
 /// its row order into `perm` from position `start`) and that solve for it.
 fn block_code(
@@ -290,32 +328,8 @@ fn block_code(
         return (factor, solve);
     }
     // Φ_q's structural zeros in the block are literals; the factors fill the whole block.
-    let gather = |array: &str, zeros: bool| -> Vec<proc_macro2::TokenStream> {
-        let array = ident(array);
-        block
-            .rows
-            .iter()
-            .map(|&r| {
-                let entries = block.unknowns.iter().map(|&c| {
-                    if !zeros || sys.jac[r].iter().any(|&(j, _)| j == c) {
-                        let (r, c) = (index(r), index(c));
-                        quote::quote!(#array[#r][#c])
-                    } else {
-                        quote::quote!(0.0)
-                    }
-                });
-                quote::quote!([#(#entries),*])
-            })
-            .collect()
-    };
-    let rows_in = gather("jac", true);
-    let mut scatter = Vec::new();
-    for (i, &r) in block.rows.iter().enumerate() {
-        for (j, &c) in block.unknowns.iter().enumerate() {
-            let (r, c, i, j) = (index(r), index(c), index(i), index(j));
-            scatter.push(quote::quote!(jac[#r][#c] = a[#i][#j];));
-        }
-    }
+    let rows_in = gather(sys, block, "jac", true);
+    let scatter = scatter(block);
     let keep = (0..block.rows.len()).map(|i| {
         let (at, i) = (index(start + i), index(i));
         quote::quote!(perm[#at] = p[#i];)
@@ -341,7 +355,7 @@ fn block_code(
             #(#keep)*
         }
     };
-    let rows_lu = gather("lu", false);
+    let rows_lu = gather(sys, block, "lu", false);
     let order = (0..block.rows.len()).map(|i| {
         let at = index(start + i);
         quote::quote!(perm[#at])
@@ -595,32 +609,8 @@ fn block_factor_solve(sys: &Symbolic, blocks: &Blocks) -> Vec<syn::Item> {
             let block = &blocks.blocks[b];
             let s = index(block.rows.len());
             let lit = index(b);
-            let gather = |array: &str, zeros: bool| -> Vec<proc_macro2::TokenStream> {
-                let array = ident(array);
-                block
-                    .rows
-                    .iter()
-                    .map(|&r| {
-                        let entries = block.unknowns.iter().map(|&c| {
-                            if !zeros || sys.jac[r].iter().any(|&(j, _)| j == c) {
-                                let (r, c) = (index(r), index(c));
-                                quote::quote!(#array[#r][#c])
-                            } else {
-                                quote::quote!(0.0)
-                            }
-                        });
-                        quote::quote!([#(#entries),*])
-                    })
-                    .collect()
-            };
-            let rows_in = gather("jac", true);
-            let mut scatter = Vec::new();
-            for (i, &r) in block.rows.iter().enumerate() {
-                for (j, &c) in block.unknowns.iter().enumerate() {
-                    let (r, c, i, j) = (index(r), index(c), index(i), index(j));
-                    scatter.push(quote::quote!(jac[#r][#c] = a[#i][#j];));
-                }
-            }
+            let rows_in = gather(sys, block, "jac", true);
+            let scatter = scatter(block);
             let keep = (0..block.rows.len()).map(|i| {
                 let (at, i) = (index(starts[b] + i), index(i));
                 quote::quote!(perm[#at] = p[#i];)
@@ -635,7 +625,7 @@ fn block_factor_solve(sys: &Symbolic, blocks: &Blocks) -> Vec<syn::Item> {
                     Ok(info)
                 }
             });
-            let rows_lu = gather("lu", false);
+            let rows_lu = gather(sys, block, "lu", false);
             let order = (0..block.rows.len()).map(|i| {
                 let at = index(starts[b] + i);
                 quote::quote!(perm[#at])

@@ -110,6 +110,6 @@ fn plot_compare_and_chart_stop_when_sub_steps_no_longer_change_t() {
         assert!(err.contains(&format!("at t = {t_fail}")), "{err}");
         let (code, _, err) = mechgen_bounded(&["chart", file, "-o", &svg, "--repeats", "1"]);
         assert_eq!(code, EXIT_STOPPED, "{err}");
-        assert!(err.contains("reference run"), "{err}");
+        assert!(err.contains("the run the reference starts from stopped"), "{err}");
     }
 }
