@@ -382,20 +382,13 @@ pub(super) fn impl_items(plan: &Plan, inputs: bool) -> Vec<syn::ImplItem> {
     if plan.newton {
         return newton_impl_items(&plan.blocks, inputs);
     }
+    let [factor, solve] = factor_solve_blocks();
     vec![
         parse_quote!(
             const BLOCKS: Option<&'static runtime::blocks::Layout> = Some(&BLOCKS);
         ),
-        parse_quote! {
-            fn factor_blocks(&self, jac: &mut [[f64; N]; N], perm: &mut [usize; N]) -> Option<runtime::lu::PivotInfo> {
-                factor_blocks(jac, perm)
-            }
-        },
-        parse_quote! {
-            fn solve_blocks(&self, lu: &[[f64; N]; N], perm: &[usize; N], b: &mut [f64; N]) {
-                solve_blocks(lu, perm, b);
-            }
-        },
+        factor,
+        solve,
         if inputs {
             parse_quote! {
                 fn residual_jacobian_blocks(&self, q: &[f64; N], t: f64, phi: &mut [f64; N], jac: &mut [[f64; N]; N]) {
@@ -489,6 +482,23 @@ fn block_functions(rows: &Rows<'_>, blocks: &Blocks) -> Vec<syn::Item> {
     items
 }
 
+/// The `runtime::Mechanism` items that hand the runtime the emitted `factor_blocks` and
+/// `solve_blocks`.
+fn factor_solve_blocks() -> [syn::ImplItem; 2] {
+    [
+        parse_quote! {
+            fn factor_blocks(&self, jac: &mut [[f64; N]; N], perm: &mut [usize; N]) -> Option<runtime::lu::PivotInfo> {
+                factor_blocks(jac, perm)
+            }
+        },
+        parse_quote! {
+            fn solve_blocks(&self, lu: &[[f64; N]; N], perm: &[usize; N], b: &mut [f64; N]) {
+                solve_blocks(lu, perm, b);
+            }
+        },
+    ]
+}
+
 /// The `runtime::Mechanism` items of Newton block by block: the layout, `BLOCK_NEWTON` and
 /// `block_residual` dispatching to the block functions.
 fn newton_impl_items(blocks: &Blocks, inputs: bool) -> Vec<syn::ImplItem> {
@@ -516,6 +526,7 @@ fn newton_impl_items(blocks: &Blocks, inputs: bool) -> Vec<syn::ImplItem> {
             quote::quote!(#lit => #f(q, t, #u phi),)
         });
     let read = inputs.then(|| quote::quote!(let u = self.inputs(t).to_array();));
+    let [factor, solve] = factor_solve_blocks();
     vec![
         parse_quote!(
             const BLOCKS: Option<&'static runtime::blocks::Layout> = Some(&BLOCKS);
@@ -523,16 +534,8 @@ fn newton_impl_items(blocks: &Blocks, inputs: bool) -> Vec<syn::ImplItem> {
         parse_quote!(
             const BLOCK_NEWTON: bool = true;
         ),
-        parse_quote! {
-            fn factor_blocks(&self, jac: &mut [[f64; N]; N], perm: &mut [usize; N]) -> Option<runtime::lu::PivotInfo> {
-                factor_blocks(jac, perm)
-            }
-        },
-        parse_quote! {
-            fn solve_blocks(&self, lu: &[[f64; N]; N], perm: &[usize; N], b: &mut [f64; N]) {
-                solve_blocks(lu, perm, b);
-            }
-        },
+        factor,
+        solve,
         parse_quote! {
             fn factor_block(&self, b: usize, jac: &mut [[f64; N]; N], perm: &mut [usize; N], ratio: f64) -> Result<runtime::lu::PivotInfo, runtime::lu::Singular> {
                 match b {
