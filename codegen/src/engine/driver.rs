@@ -503,26 +503,21 @@ fn inconsistency<M: Generated>(solver: &Solver<M, N, Real, Jacobian>, t: Real) -
             let terms = (0..N).fold(wide(b[i]).abs(), |a, j| a + wide(jac[i][j] * x[j]).abs());
             s.max(wide(config::ROW_FACTORS[i]) * terms)
         });
-        for i in 0..N {
+        // The kept rows evaluated here, then the left-out ones from `dropped_residuals`.
+        let kept = (0..N).map(|i| {
             let rate = (0..N).fold(-wide(b[i]), |a, j| a + wide(jac[i][j] * x[j]));
-            let miss = wide(config::ROW_FACTORS[i]) * rate.abs();
-            let ratio = if scale > 0.0 { miss / scale } else { miss };
-            if ratio.is_nan() || ratio > allowed {
-                return Some(format!(
-                    "the {what} equation of {} cannot hold with the others: it misses by \
-                     {ratio:.3e} of the {what} terms' scale (at most {allowed:e})",
-                    mechanism::EQUATIONS[i]
-                ));
-            }
-        }
-        for (k, r) in residuals.iter().enumerate() {
+            (wide(config::ROW_FACTORS[i]) * rate.abs(), mechanism::EQUATIONS[i])
+        });
+        let left_out = residuals.iter().enumerate().map(|(k, r)| {
             let miss = wide(config::DROPPED_ROW_FACTORS[k]) * wide(r[level + 1]).abs();
+            (miss, config::DROPPED_EQUATIONS[k])
+        });
+        for (miss, equation) in kept.chain(left_out) {
             let ratio = if scale > 0.0 { miss / scale } else { miss };
             if ratio.is_nan() || ratio > allowed {
                 return Some(format!(
-                    "the {what} equation of {} cannot hold with the others: it misses by \
-                     {ratio:.3e} of the {what} terms' scale (at most {allowed:e})",
-                    config::DROPPED_EQUATIONS[k]
+                    "the {what} equation of {equation} cannot hold with the others: it misses \
+                     by {ratio:.3e} of the {what} terms' scale (at most {allowed:e})"
                 ));
             }
         }
