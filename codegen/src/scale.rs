@@ -115,3 +115,40 @@ pub fn arms(count: usize, links: usize, steps: usize) -> String {
     }
     s
 }
+
+/// The descriptions `benches/scaling.sh` measures, by file name under `benches/scale/`:
+/// chains of 10 and 100 links, one and ten 6R arms, one and 34 R-S-S-R loops, each on 21
+/// time points.
+#[must_use]
+pub fn bench_descriptions() -> Vec<(&'static str, String)> {
+    vec![
+        ("chain_10.toml", chain(10, 20)),
+        ("chain_100.toml", chain(100, 20)),
+        ("arms_1x6.toml", arms(1, 6, 20)),
+        ("arms_10x6.toml", arms(10, 6, 20)),
+        ("rssr_loops_1.toml", rssr_loops(1, 20)),
+        ("rssr_loops_34.toml", rssr_loops(34, 20)),
+    ]
+}
+
+#[cfg(test)]
+mod tests {
+    use std::path::Path;
+
+    /// The files under `benches/scale/` are the families' text (rewritten with
+    /// `UPDATE_EXPECT=1`), so the benchmark script measures what this module describes.
+    #[test]
+    fn the_committed_bench_descriptions_are_the_families() {
+        let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../benches/scale");
+        for (file, text) in super::bench_descriptions() {
+            let path = dir.join(file);
+            if std::env::var_os("UPDATE_EXPECT").is_some() {
+                std::fs::create_dir_all(&dir).unwrap();
+                std::fs::write(&path, &text).unwrap();
+            }
+            let committed = std::fs::read_to_string(&path)
+                .unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+            assert!(committed == text, "{file} is stale: run with UPDATE_EXPECT=1");
+        }
+    }
+}
