@@ -22,6 +22,8 @@ mod hostile;
 #[cfg(test)]
 mod hostile_codegen;
 #[cfg(test)]
+mod large_generated;
+#[cfg(test)]
 mod named_outputs;
 #[cfg(test)]
 mod only_outputs;

@@ -55,38 +55,6 @@ fn compare(mech: &Mechanism) -> ([f64; 3], (f64, f64)) {
     (worst, range)
 }
 
-/// A binary tree of `n` revolute-driven links 0.5 long along x: link k hangs from the tip of
-/// link (k − 1)/2 (link 0 from ground), turning about z at odd depths and y at even ones.
-fn tree(n: usize, steps: usize) -> String {
-    let mut s = format!(
-        "name = \"tree_{n}\"\n\n[time]\nstart = 0.0\nend = 0.02\nsteps = {steps}\n\n\
-         [[bodies]]\nname = \"ground\"\nground = true\n\n"
-    );
-    let depth = |k: usize| (k + 1).ilog2() as usize;
-    for k in 0..n {
-        let x = 0.5 * depth(k) as f64 + 0.25;
-        let _ = write!(s, "[[bodies]]\nname = \"link{k}\"\nr = [{x:?}, 0.0, 0.0]\n\n");
-    }
-    for k in 0..n {
-        let (parent, point_i) = if k == 0 {
-            ("ground".to_owned(), "[0.0, 0.0, 0.0]")
-        } else {
-            (format!("link{}", (k - 1) / 2), "[0.25, 0.0, 0.0]")
-        };
-        let axis = if depth(k) % 2 == 1 { "[0.0, 0.0, 1.0]" } else { "[0.0, 1.0, 0.0]" };
-        let _ = write!(
-            s,
-            "[[joints]]\nname = \"joint{k}\"\ntype = \"revolute\"\nbody_i = \"{parent}\"\n\
-             body_j = \"link{k}\"\npoint_i = {point_i}\npoint_j = [-0.25, 0.0, 0.0]\n\
-             axis_i = {axis}\naxis_j = {axis}\nref_i = [1.0, 0.0, 0.0]\nref_j = [1.0, 0.0, 0.0]\n\n\
-             [[drivers]]\nname = \"motor{k}\"\njoint = \"joint{k}\"\nmotion = \"rotation\"\n\
-             law = {{ offset = 0.0, amplitude = 0.2, frequency = {:?}, phase = 0.0 }}\n\n",
-            5.0 + (k % 7) as f64
-        );
-    }
-    s
-}
-
 #[test]
 fn sparse_and_dense_agree_on_chains_trees_and_loops() {
     // Few steps keep the dense runs (714 unknowns at most) within a few seconds; the chain of
@@ -95,7 +63,7 @@ fn sparse_and_dense_agree_on_chains_trees_and_loops() {
         codegen::scale::chain(20, 4),
         codegen::scale::chain(50, 3),
         codegen::scale::arms(4, 6, 4),
-        tree(63, 4),
+        codegen::scale::tree(63, 4),
         codegen::scale::rssr_loops(7, 4),
         codegen::scale::rssr_loops(34, 3),
     ];
