@@ -497,21 +497,26 @@ fn step_record(
     }
     record.resize(8 * (3 + 3 * m), 0);
     reader.read_exact(record).map_err(RunError::Read)?;
-    let value = |k: usize| {
-        let b = &record[8 * k..8 * k + 8];
-        f64::from_le_bytes([b[0], b[1], b[2], b[3], b[4], b[5], b[6], b[7]])
-    };
-    let (t, residual, condition) = (value(0), value(1), value(2));
-    if let Some(bad) = (3..3 + 3 * m).map(value).chain([residual]).find(|v| !v.is_finite()) {
-        return Ok(Some(non_finite(bad, t)));
-    }
-    for (k, v) in [&mut frame.q, &mut frame.qd, &mut frame.qdd].into_iter().enumerate() {
+    let mut values = record
+        .chunks_exact(8)
+        .map(|b| f64::from_le_bytes(b.try_into().expect("chunks of 8 bytes")));
+    let mut next = || values.next().expect("3 + 3m values were read");
+    let (t, residual, condition) = (next(), next(), next());
+    // Straight into the frame, then checked: one pass over the record when all is well.
+    let mut finite = residual.is_finite();
+    for v in [&mut frame.q, &mut frame.qd, &mut frame.qdd] {
         if v.len() != m {
             *v = DVector::zeros(m);
         }
-        for (i, x) in v.iter_mut().enumerate() {
-            *x = value(3 + k * m + i);
+        for x in v.iter_mut() {
+            *x = next();
+            finite &= x.is_finite();
         }
+    }
+    if !finite {
+        let mut read = frame.q.iter().chain(&frame.qd).chain(&frame.qdd).chain([&residual]);
+        let bad = read.find(|v| !v.is_finite()).copied().unwrap_or(f64::NAN);
+        return Ok(Some(non_finite(bad, t)));
     }
     (frame.index, frame.t, frame.iterations) = (index, t, iterations);
     (frame.residual, frame.condition, frame.redundant) = (residual, condition, None);

@@ -19,9 +19,19 @@ use crate::diag::printable;
 /// [`CHUNK`] bytes at a time, so that a long output costs the caller the formatting only: the
 /// writes and the final sync overlap with what the caller computes meanwhile. A failed write
 /// is returned by the next write or by [`commit`](Self::commit).
+///
+/// On Linux, the whole chunks of a temporary file go to the disk unbuffered (`O_DIRECT`),
+/// straight from the chunk's memory, where the file system allows it: the kernel neither
+/// copies them into its page cache nor writes them back later, which costs more CPU than
+/// formatting them when the page cache has to take memory the machine gave back to its
+/// host (BENCHMARKS.md, "End to end, again"). The tail, anything not page-aligned and every
+/// file system that refuses unbuffered writes take the ordinary buffered path.
 pub struct OutputFile {
-    /// What has not been handed to the writer yet.
+    /// What has not been handed to the writer yet: the bytes from `start` on.
     buf: Vec<u8>,
+    /// Where the text starts in `buf`: the padding before it puts it on a page boundary in
+    /// memory, as unbuffered writes need.
+    start: usize,
     /// The target until the first full chunk, then the writer that owns it.
     sink: Option<Sink>,
     path: PathBuf,
@@ -31,44 +41,63 @@ pub struct OutputFile {
 pub const CHUNK: usize = 1 << 20;
 
 /// A temporary file is synced to the disk by the writer each time this many more bytes are
-/// written, so that the sync before the rename has only the last part left to wait for.
+/// written through the page cache, so that the sync before the rename has only the last part
+/// left to wait for.
 const SYNC_EVERY: u64 = 16 << 20;
+
+/// The alignment, in memory, in the file and in length, of an unbuffered write: a page,
+/// a multiple of every block size Linux's file systems ask `O_DIRECT` writes to keep to.
+const PAGE: usize = 4096;
+
+/// An empty buffer for a chunk with room for a whole chunk and a row beyond it, and the
+/// padding that starts its text on a page boundary in memory ([`PAGE`]); `reuse` is an old
+/// one to refill.
+fn chunk_buffer(reuse: Option<Vec<u8>>) -> (Vec<u8>, usize) {
+    let mut buf = reuse.unwrap_or_else(|| Vec::with_capacity(CHUNK + 2 * PAGE));
+    buf.clear();
+    let start = buf.as_ptr().addr().wrapping_neg() % PAGE;
+    buf.resize(start, 0);
+    (buf, start)
+}
 
 /// Where an [`OutputFile`]'s chunks go.
 enum Sink {
     /// Written by the caller (nothing longer than a chunk was written yet).
     Here(Target),
-    /// Written by a thread, which returns the target when the channel closes.
+    /// Written by a thread, which returns the target when the channel closes. A chunk is
+    /// the buffer and where its text starts.
     Thread {
-        chunks: SyncSender<Vec<u8>>,
+        chunks: SyncSender<(Vec<u8>, usize)>,
         spare: Receiver<Vec<u8>>,
         writer: JoinHandle<io::Result<Target>>,
     },
 }
 
 impl Sink {
-    /// Hands a full chunk over, starting the writer with the first; `buf` comes back empty
-    /// (a spare chunk when one was returned).
-    fn send(&mut self, buf: &mut Vec<u8>) -> Result<(), ()> {
+    /// Hands a full chunk, the text of `buf` from `start` on, over, starting the writer with
+    /// the first; `buf` and `start` come back with what went beyond the chunk (in a spare
+    /// chunk when one was returned).
+    fn send(&mut self, buf: &mut Vec<u8>, start: &mut usize) -> Result<(), ()> {
         if let Sink::Here(_) = self {
             let Sink::Here(target) = std::mem::replace(self, Sink::Here(Target::Nothing)) else {
                 unreachable!("matched above")
             };
             // A few chunks in flight: enough to keep the writer busy, bounded memory.
-            let (chunks, queue) = std::sync::mpsc::sync_channel::<Vec<u8>>(16);
+            let (chunks, queue) = std::sync::mpsc::sync_channel(16);
             let (give_back, spare) = std::sync::mpsc::channel();
             let writer = std::thread::spawn(move || write_chunks(target, &queue, &give_back));
             *self = Sink::Thread { chunks, spare, writer };
         }
         let Sink::Thread { chunks, spare, .. } = self else { unreachable!("started above") };
-        let mut next = spare.try_recv().unwrap_or_else(|_| Vec::with_capacity(CHUNK));
+        let (mut next, next_start) = chunk_buffer(spare.try_recv().ok());
         // Whole chunks only, so that every write starts on a page boundary of the file and
         // the kernel never reads or zeroes part of a page first.
-        if buf.len() > CHUNK {
-            next.extend_from_slice(&buf[CHUNK..]);
-            buf.truncate(CHUNK);
+        if buf.len() - *start > CHUNK {
+            next.extend_from_slice(&buf[*start + CHUNK..]);
+            buf.truncate(*start + CHUNK);
         }
-        chunks.send(std::mem::replace(buf, next)).map_err(|_| ())
+        let chunk = (std::mem::replace(buf, next), std::mem::replace(start, next_start));
+        chunks.send(chunk).map_err(|_| ())
     }
 
     /// Waits for everything handed over to be written and returns the target.
@@ -83,28 +112,111 @@ impl Sink {
     }
 }
 
-/// The writer thread: every chunk to `target`, each returned through `spare` for reuse,
-/// syncing a temporary file every [`SYNC_EVERY`] bytes.
+/// The writer thread: every chunk to `target`, each returned through `spare` for reuse; a
+/// temporary file's whole chunks unbuffered where the file system allows ([`Unbuffered`]),
+/// the others through the page cache, synced every [`SYNC_EVERY`] bytes.
 fn write_chunks(
     mut target: Target,
-    chunks: &Receiver<Vec<u8>>,
+    chunks: &Receiver<(Vec<u8>, usize)>,
     spare: &std::sync::mpsc::Sender<Vec<u8>>,
 ) -> io::Result<Target> {
-    let (mut written, mut synced) = (0u64, 0u64);
-    for mut chunk in chunks {
-        target.write_all(&chunk)?;
-        written += chunk.len() as u64;
-        if let Target::Temporary(temp) = &target
-            && written - synced >= SYNC_EVERY
-        {
-            temp.as_file().sync_data()?;
-            synced = written;
+    let mut unbuffered = match &target {
+        Target::Temporary(temp) => Unbuffered::open(temp),
+        _ => None,
+    };
+    let (mut written, mut buffered, mut synced) = (0u64, 0u64, 0u64);
+    for (chunk, start) in chunks {
+        let text = &chunk[start..];
+        let direct = unbuffered.as_ref().is_some_and(|u| u.fits(text, written));
+        if direct && unbuffered.as_ref().is_some_and(|u| u.write(text, written).is_ok()) {
+            written += text.len() as u64;
+        } else {
+            if direct {
+                // Refused (or failed part way): this chunk and the rest go through the page
+                // cache, where an error that is no refusal shows again.
+                unbuffered = None;
+            }
+            write_at(&mut target, text, written)?;
+            written += text.len() as u64;
+            buffered += text.len() as u64;
+            if let Target::Temporary(temp) = &target
+                && buffered - synced >= SYNC_EVERY
+            {
+                temp.as_file().sync_data()?;
+                synced = buffered;
+            }
         }
-        chunk.clear();
         // The caller may have finished: a chunk nobody takes back is simply freed.
         let _ = spare.send(chunk);
     }
+    if let Target::Temporary(temp) = &mut target {
+        // What the caller writes after the chunks (`commit`) follows them.
+        use std::io::Seek;
+        temp.as_file_mut().seek(io::SeekFrom::Start(written))?;
+    }
     Ok(target)
+}
+
+/// Writes `text` to `target` at `offset`, the number of bytes written before: a temporary
+/// file at that offset (unbuffered writes do not move its position), anything else where it
+/// stands.
+fn write_at(target: &mut Target, text: &[u8], offset: u64) -> io::Result<()> {
+    #[cfg(unix)]
+    if let Target::Temporary(temp) = target {
+        use std::os::unix::fs::FileExt;
+        return temp.as_file().write_all_at(text, offset);
+    }
+    let _ = offset;
+    target.write_all(text)
+}
+
+/// A second handle on a temporary file that writes past the page cache (`O_DIRECT`, Linux):
+/// whole pages from page-aligned memory at page-aligned offsets only.
+struct Unbuffered {
+    #[cfg(target_os = "linux")]
+    file: std::fs::File,
+}
+
+impl Unbuffered {
+    /// The handle, when the file system allows unbuffered writes to `temp` and the path still
+    /// names the same file; `None` otherwise (and on other systems).
+    #[cfg(target_os = "linux")]
+    fn open(temp: &tempfile::NamedTempFile) -> Option<Self> {
+        use std::os::unix::fs::{MetadataExt, OpenOptionsExt};
+        let file = std::fs::OpenOptions::new()
+            .write(true)
+            .custom_flags(libc::O_DIRECT)
+            .open(temp.path())
+            .ok()?;
+        let (ours, opened) = (temp.as_file().metadata().ok()?, file.metadata().ok()?);
+        ((ours.dev(), ours.ino()) == (opened.dev(), opened.ino())).then_some(Self { file })
+    }
+
+    #[cfg(not(target_os = "linux"))]
+    fn open(_temp: &tempfile::NamedTempFile) -> Option<Self> {
+        None
+    }
+
+    /// Whether `text` at `offset` may be written unbuffered: page-aligned in memory, in the
+    /// file and in length.
+    fn fits(&self, text: &[u8], offset: u64) -> bool {
+        let page = PAGE as u64;
+        text.as_ptr().addr().is_multiple_of(PAGE)
+            && text.len().is_multiple_of(PAGE)
+            && offset.is_multiple_of(page)
+    }
+
+    /// Writes `text` at `offset`.
+    #[cfg(target_os = "linux")]
+    fn write(&self, text: &[u8], offset: u64) -> io::Result<()> {
+        use std::os::unix::fs::FileExt;
+        self.file.write_all_at(text, offset)
+    }
+
+    #[cfg(not(target_os = "linux"))]
+    fn write(&self, _text: &[u8], _offset: u64) -> io::Result<()> {
+        Err(io::Error::from(io::ErrorKind::Unsupported))
+    }
 }
 
 /// Where an [`OutputFile`] writes.
@@ -167,17 +279,14 @@ impl OutputFile {
     }
 
     fn new(target: Target, path: &Path) -> Self {
-        Self {
-            buf: Vec::with_capacity(CHUNK),
-            sink: Some(Sink::Here(target)),
-            path: path.to_owned(),
-        }
+        let (buf, start) = chunk_buffer(None);
+        Self { buf, start, sink: Some(Sink::Here(target)), path: path.to_owned() }
     }
 
     /// Hands the buffer to the writer thread; a writer that stopped returns its error.
     fn send(&mut self) -> io::Result<()> {
         let sink = self.sink.as_mut().expect("present until commit or drop");
-        if sink.send(&mut self.buf).is_ok() {
+        if sink.send(&mut self.buf, &mut self.start).is_ok() {
             return Ok(());
         }
         let failed = self.sink.take().expect("present").finish();
@@ -199,7 +308,7 @@ impl OutputFile {
         let path = std::mem::take(&mut self.path);
         let sink = self.sink.take().ok_or_else(|| naming(&path, io::Error::other("closed")))?;
         let mut target = sink.finish().map_err(|e| naming(&path, e))?;
-        target.write_all(&self.buf).map_err(|e| naming(&path, e))?;
+        target.write_all(&self.buf[self.start..]).map_err(|e| naming(&path, e))?;
         match target {
             Target::Temporary(temp) => {
                 temp.as_file().sync_all().map_err(|e| naming(&path, e))?;
@@ -228,7 +337,7 @@ impl Write for OutputFile {
             return Err(io::Error::other("the output file was closed after a failed write"));
         }
         self.buf.extend_from_slice(buf);
-        if self.buf.len() >= CHUNK {
+        if self.buf.len() - self.start >= CHUNK {
             self.send()?;
         }
         Ok(buf.len())
@@ -237,7 +346,7 @@ impl Write for OutputFile {
     /// Hands what is buffered to the writer (it reaches the file asynchronously; `commit`
     /// waits for all of it).
     fn flush(&mut self) -> io::Result<()> {
-        if self.buf.is_empty() || self.sink.is_none() { Ok(()) } else { self.send() }
+        if self.buf.len() == self.start || self.sink.is_none() { Ok(()) } else { self.send() }
     }
 }
 

@@ -153,9 +153,11 @@ pub(super) fn stream(
     // command quietly on either engine.
     let mut sink_error: Option<io::Error> = None;
     let mut suspects = [Suspects::default(), Suspects::default()];
+    // One step, refilled by every frame.
+    let mut step = report::StepResult::empty();
     let mut sink = |frame: &crate::generic::Frame| {
         bar.inc(1);
-        let step = report::step_result(mech, &layout, frame);
+        report::step_result_into(mech, &layout, frame, &mut step);
         for (flag, seen) in
             [step.suspect.velocity, step.suspect.acceleration].iter().zip(&mut suspects)
         {

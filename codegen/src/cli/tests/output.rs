@@ -142,6 +142,37 @@ fn an_output_file_not_committed_leaves_the_previous_file_and_no_temporary_file()
     }
 }
 
+#[test]
+fn an_output_file_of_many_chunks_holds_every_byte_written_in_order() {
+    // Whole chunks go unbuffered where the file system allows, the rest through the page
+    // cache; a flush half-way leaves every later chunk off the page boundaries of the file,
+    // so that both paths and the switch between them are taken.
+    let dir = fresh_dir("chunks");
+    let path = dir.join("long.csv");
+    let mut expected = Vec::new();
+    let mut file = crate::output::OutputFile::create(&path).expect("created");
+    let mut x = 0x9e37_79b9_7f4a_7c15_u64;
+    for k in 0..4000 {
+        // Rows of 700 to 1,700 bytes of varied text, as a writer hands them over.
+        x ^= x << 13;
+        x ^= x >> 7;
+        x ^= x << 17;
+        let len = 700 + usize::try_from(x % 1000).expect("small");
+        let row: Vec<u8> = (0..len).map(|i| b'0' + u8::try_from((i + k) % 10).unwrap()).collect();
+        file.write_all(&row).expect("written");
+        expected.extend_from_slice(&row);
+        if k == 2500 {
+            file.flush().expect("handed over");
+        }
+    }
+    assert!(expected.len() > 4 * crate::output::CHUNK, "several chunks on either side");
+    file.commit().expect("committed");
+    let written = std::fs::read(&path).expect("readable");
+    assert_eq!(written.len(), expected.len());
+    assert!(written == expected, "the file differs from what was written");
+    assert_eq!(listing(&dir), ["long.csv"]);
+}
+
 /// A writer that takes `room` bytes, then fails as a pipe whose reader has gone does.
 struct ClosedPipe {
     room: usize,
