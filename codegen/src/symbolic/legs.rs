@@ -207,7 +207,8 @@ impl Symbolic {
             let e = builder.leg_row(&leg, s);
             let u = self.planning_inputs(t);
             let value = builder.pool.eval_inputs(&[e], [q, &[], &[]], t, &u)[0];
-            if !(value.abs() <= VANISHES * mech.solver.tolerance) {
+            let vanishes = value.abs() <= VANISHES * mech.solver.tolerance;
+            if !vanishes {
                 log::debug!(
                     "leg of driver {}: its distance row is {value:e} at the assembled \
                      configuration, the driver row is kept",
@@ -269,7 +270,8 @@ impl Symbolic {
         let ((ra, pa), (rb, pb)) = (pose(a), pose(b));
         let length = ((rb + rotation(&pb) * s_end) - (ra + rotation(&pa) * u_end)).norm();
         let factor = s0 + along;
-        if !(length > 0.0 && factor.abs() >= BRANCH_MARGIN * length) {
+        let away = length > 0.0 && factor.abs() >= BRANCH_MARGIN * length;
+        if !away {
             return None;
         }
         Some(Leg {
