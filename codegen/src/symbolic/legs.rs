@@ -306,3 +306,6 @@ fn ends(joint: &crate::model::Joint, own: BodyId) -> (Vector3<f64>, Vector3<f64>
         (joint.point_j, joint.point_i, joint.body_i)
     }
 }
+
+#[cfg(test)]
+mod tests;
