@@ -150,7 +150,8 @@ fn assemble(
     if scalar == Scalar::F32 {
         items.iter_mut().for_each(scalar::to_f32);
     }
-    print(&docs, items, &notes::row_notes(mech, &sys.rows))
+    let legs: Vec<usize> = sys.legs.iter().map(|l| l.driver).collect();
+    print(&docs, items, &notes::row_notes(mech, &sys.rows, &legs))
 }
 
 /// The module as text: the inner docs, then each item printed on its own (one at a time keeps

@@ -318,6 +318,46 @@ pub enum DriverTarget {
         /// 0, 1 or 2 for x, y or z.
         axis: usize,
     },
+    /// The driven length of a U-P-S leg whose cylinder and rod are left out, as one distance
+    /// equation between the bodies the leg joins. No description states it: only
+    /// `blocks::outputs` makes one, from a driver of a prismatic joint that the generator
+    /// reduced (`symbolic::legs`), when no requested output needs the leg's bodies.
+    Leg(Leg),
+}
+
+/// A U-P-S (or S-P-U) leg reduced to the distance between its end points: with U the
+/// universal joint's point on the body it joins, S the spherical joint's, and s the prismatic
+/// joint's translation, |S − U|² = s² + 2 s·along + base, written as the row
+/// (|S − U|² − s² − 2 s·along − base) / (2 length).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Leg {
+    /// The body of the universal joint's end (U), never one of the leg's own bodies.
+    pub body_i: BodyId,
+    /// U, local to `body_i`.
+    pub point_i: Vector3<f64>,
+    /// The body of the spherical joint's end (S).
+    pub body_j: BodyId,
+    /// S, local to `body_j`.
+    pub point_j: Vector3<f64>,
+    /// v0·a: S − U = A_c (±s a + v0) with a the prismatic axis and v0 constant in the
+    /// cylinder's frame; the sign is folded in.
+    pub along: f64,
+    /// |v0|².
+    pub base: f64,
+    /// |S − U| at the assembled configuration where the leg was reduced: the row's scale.
+    pub length: f64,
+    /// The sign of s + along there: which root of the quadratic the leg is on.
+    pub branch: f64,
+}
+
+impl Leg {
+    /// The driven length s that the distance |S − U| = `distance` means on the leg's branch:
+    /// s = −along + branch·√(distance² − base + along²), the radicand clamped at 0.
+    #[must_use]
+    pub fn length_of(&self, distance: f64) -> f64 {
+        let radicand = (distance * distance - self.base + self.along * self.along).max(0.0);
+        -self.along + self.branch * radicand.sqrt()
+    }
 }
 
 /// A motion law s(t).

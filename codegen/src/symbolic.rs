@@ -75,6 +75,9 @@ pub struct Symbolic {
     /// The input drivers (`law = "input"`), in file order: input k is the symbol
     /// `Var::S(k)` with its rates `Var::Sd(k)` and `Var::Sdd(k)`.
     pub inputs: Vec<InputDriver>,
+    /// The U-P-S legs whose driver row was replaced by the distance row of the bodies they
+    /// join (`legs`), in driver order.
+    pub legs: Vec<ReducedLeg>,
 }
 
 /// A row of the reduced system left out as dependent on the kept ones.
@@ -413,6 +416,7 @@ impl Builder {
                     }
                 }
             }
+            DriverTarget::Leg(leg) => self.leg_row(&leg, s),
             DriverTarget::Absolute { body, coordinate } => {
                 let k = crate::generic::absolute_index(coordinate);
                 let q = self.coordinate(body, k);
@@ -634,8 +638,9 @@ impl Symbolic {
             gamma: Vec::new(),
             laws: builder.laws,
             inputs,
+            legs: Vec::new(),
         };
-        sys.keep_independent(mech, &labels, &kept, &phi_all);
+        let q = sys.keep_independent(mech, &labels, &kept, &phi_all);
         let n = sys.unknowns.len();
         if sys.rows.len() != n {
             return Err(GenerateError {
@@ -647,19 +652,21 @@ impl Symbolic {
                 ),
             });
         }
+        sys.reduce_legs(mech, &q, builder.input_of);
         sys.derive_rates();
         Ok(sys)
     }
 
     /// Keeps the rows `kept` (indices into `labels` and `phi_all`) that do not depend on the
-    /// others, with their Jacobian rows; the others become `redundant`.
+    /// others, with their Jacobian rows; the others become `redundant`. Returns the assembled
+    /// initial configuration (reduced unknowns) the choice was made at.
     fn keep_independent(
         &mut self,
         mech: &Mechanism,
         labels: &[RowLabel],
         kept: &[usize],
         phi_all: &[ExprId],
-    ) {
+    ) -> Vec<f64> {
         let mut jac_rows = Vec::with_capacity(kept.len());
         for &k in kept {
             jac_rows.push(self.jacobian_row(phi_all[k]));
@@ -699,6 +706,7 @@ impl Symbolic {
             .into_iter()
             .map(|k| labels[k].clone())
             .collect();
+        q
     }
 
     /// The balanced-unit factor of every row of `jac_rows` at the reduced configuration `q`
@@ -1024,7 +1032,9 @@ fn vars_of(pool: &ExprPool, e: ExprId, pick: impl Fn(Var) -> Option<u32>) -> BTr
     vars
 }
 
+mod legs;
 mod outputs;
+pub use legs::ReducedLeg;
 pub use outputs::{JointCoordinate, Outputs, Rates};
 
 #[cfg(test)]

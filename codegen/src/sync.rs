@@ -92,6 +92,37 @@ pub fn render(file: &Path, source: &str) -> Result<String, SyncError> {
     Ok(emit::module(&loaded.mechanism, &sys, source))
 }
 
+/// The modules of shipped descriptions restricted to some outputs (`blocks::outputs::only`,
+/// as `mechgen generate --outputs`), as (module, description, outputs): the module's
+/// mechanism takes the module's name. The Stewart platform's forward kinematics alone, its
+/// legs reduced to distance rows (`symbolic::legs`), is what `examples/benches/stewart.rs`
+/// sets against the motion-control baseline.
+const RESTRICTED: &[(&str, &str, &[&str])] =
+    &[("stewart_platform", "examples/inputs/stewart.toml", &["platform"])];
+
+/// The generated module of one description restricted to `outputs`, named `module`.
+///
+/// # Errors
+/// When the description is invalid, cannot be generated, or has no such outputs.
+fn render_restricted(
+    file: &Path,
+    source: &str,
+    module: &str,
+    outputs: &[&str],
+) -> Result<String, SyncError> {
+    let loaded = load_file(file)
+        .map_err(|diagnostics| SyncError::Invalid { file: file.to_path_buf(), diagnostics })?;
+    let generate = |source| SyncError::Generate { file: file.to_path_buf(), source };
+    let sys = Symbolic::build(&loaded.mechanism).map_err(generate)?;
+    let names: Vec<String> = outputs.iter().map(|&o| o.to_owned()).collect();
+    let mut only = crate::blocks::outputs::only(&loaded.mechanism, &sys, &names)
+        .map_err(|e| generate(GenerateError { message: e.to_string() }))?;
+    module.clone_into(&mut only.name);
+    let sys = Symbolic::build(&only).map_err(generate)?;
+    let source = format!("{source} --outputs {}", outputs.join(","));
+    Ok(emit::module(&only, &sys, &source))
+}
+
 /// Every file `generated/src` should hold, by file name.
 ///
 /// # Errors
@@ -120,6 +151,14 @@ pub fn expected(root: &Path) -> Result<BTreeMap<String, String>, SyncError> {
         let source = format!("{folder}/{stem}.toml");
         files.insert(format!("{stem}.rs"), render(d, &source)?);
         modules.push(stem.to_owned());
+    }
+    for &(module, description, outputs) in RESTRICTED {
+        if modules.iter().any(|m| m == module) {
+            return Err(SyncError::FileName { path: root.join(description) });
+        }
+        let text = render_restricted(&root.join(description), description, module, outputs)?;
+        files.insert(format!("{module}.rs"), text);
+        modules.push(module.to_owned());
     }
     modules.sort();
     let mut lib = String::from(

@@ -2,9 +2,10 @@
 //! position (to max |Φ| or max |Δl| ≤ 1e-12), velocity and acceleration from the six leg
 //! lengths, rates and accelerations of the shipped trajectory, over 201 periods (0.2 s). Side by
 //! side: the generated solver under its step control (`advance_with`) and with plain calls,
-//! the generic engine straight from point to point (as `mechgen bench` times it) and under
-//! its step control (as `solve` runs), and the motion-control baseline (Newton on the six pose
-//! parameters). Run with `cargo bench -p examples --bench stewart`.
+//! the generated solver of the platform alone (`generated::stewart_platform`, the legs reduced
+//! to distance rows) with plain calls, the generic engine straight from point to point (as
+//! `mechgen bench` times it) and under its step control (as `solve` runs), and the
+//! motion-control baseline (Newton on the six pose parameters). Run with `cargo bench -p examples --bench stewart`.
 
 use std::hint::black_box;
 use std::sync::Arc;
@@ -14,7 +15,7 @@ use codegen::inputs::Replay;
 use codegen::model::TimeGrid;
 use criterion::{Criterion, criterion_group, criterion_main};
 use examples::stewart::baseline::ForwardKinematics;
-use examples::stewart::{LEGS, Trajectory, control, leg_lengths};
+use examples::stewart::{LEGS, Trajectory, control, leg_lengths, pose};
 
 /// Control periods per pass (0.2 s at 1 kHz).
 const PERIODS: usize = 201;
@@ -51,6 +52,16 @@ fn benches(c: &mut Criterion) {
             solver.set_q(generated::stewart::Q0);
             for (t, u) in &samples {
                 control::plain_step(&mut solver, *t, u).expect("the platform follows");
+            }
+            black_box(solver.qdd()[0])
+        });
+    });
+    group.bench_function("generated platform only, plain calls", |b| {
+        let mut solver = Box::new(pose::solver(&Trajectory::SHIPPED, 0.0));
+        b.iter(|| {
+            solver.set_q(generated::stewart_platform::Q0);
+            for (t, u) in &samples {
+                pose::plain_step(&mut solver, *t, u).expect("the platform follows");
             }
             black_box(solver.qdd()[0])
         });

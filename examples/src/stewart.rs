@@ -17,6 +17,7 @@
 
 pub mod baseline;
 pub mod control;
+pub mod pose;
 #[cfg(test)]
 mod tests;
 

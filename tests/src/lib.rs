@@ -50,4 +50,6 @@ mod stability;
 #[cfg(test)]
 mod stewart;
 #[cfg(test)]
+mod stewart_legs;
+#[cfg(test)]
 mod structured_lu;

@@ -19,7 +19,9 @@
 use std::collections::BTreeSet;
 
 use super::Blocks;
-use crate::model::{BodyId, ConstraintKind, DriverTarget, JointId, Mechanism, PointId, RowLabel};
+use crate::model::{
+    BodyId, ConstraintKind, DriverTarget, JointId, Leg, Mechanism, PointId, RowLabel,
+};
 use crate::symbolic::Symbolic;
 
 /// A requested output that the mechanism does not have.
@@ -38,15 +40,18 @@ pub struct UnknownOutput {
     pub known: Vec<String>,
 }
 
-/// The moving bodies each joint, constraint and driver of `mech` involves.
+/// The moving bodies each joint, constraint and driver of `mech` involves; a driver whose row
+/// the generator replaced by a leg's distance row (`symbolic::legs`) involves the bodies the
+/// leg joins, not the leg's own, and is kept as that distance when the leg is left out.
 struct Entities {
     joints: Vec<Vec<BodyId>>,
     constraints: Vec<Vec<BodyId>>,
     drivers: Vec<Vec<BodyId>>,
+    legs: Vec<Option<Leg>>,
 }
 
 impl Entities {
-    fn of(mech: &Mechanism) -> Self {
+    fn of(mech: &Mechanism, sys: &Symbolic) -> Self {
         let moving = |bodies: &[BodyId]| -> Vec<BodyId> {
             bodies.iter().copied().filter(|b| !mech.bodies[b.0].ground).collect()
         };
@@ -69,9 +74,17 @@ impl Entities {
                 DriverTarget::Joint { joint, .. } => joints[joint.0].clone(),
                 DriverTarget::Absolute { body, .. } => moving(&[body]),
                 DriverTarget::Point { point, .. } => moving(&[mech.points[point.0].body]),
+                DriverTarget::Leg(leg) => moving(&[leg.body_i, leg.body_j]),
             })
             .collect();
-        Entities { joints, constraints, drivers }
+        let mut entities = Entities { joints, constraints, drivers, legs: Vec::new() };
+        entities.legs = vec![None; mech.drivers.len()];
+        for reduced in &sys.legs {
+            let leg = reduced.leg;
+            entities.drivers[reduced.driver] = moving(&[leg.body_i, leg.body_j]);
+            entities.legs[reduced.driver] = Some(leg);
+        }
+        entities
     }
 
     /// The bodies of the entity a row of the reduced system belongs to.
@@ -114,7 +127,7 @@ pub fn only(
     sys: &Symbolic,
     names: &[String],
 ) -> Result<Mechanism, UnknownOutput> {
-    let entities = Entities::of(mech);
+    let entities = Entities::of(mech, sys);
     let mut wanted: BTreeSet<BodyId> = BTreeSet::new();
     for name in names {
         let mut found = false;
@@ -249,13 +262,20 @@ fn restrict(mech: &Mechanism, entities: &Entities, kept: &BTreeSet<BodyId>) -> M
         .drivers
         .iter()
         .zip(&entities.drivers)
-        .filter(|(_, b)| keeps(b))
-        .map(|(d, _)| {
+        .zip(&entities.legs)
+        .filter(|((_, b), _)| keeps(b))
+        .map(|((d, _), leg)| {
             let mut d = d.clone();
+            let leg_of =
+                |leg: &Leg| Leg { body_i: body(leg.body_i), body_j: body(leg.body_j), ..*leg };
             match &mut d.target {
-                DriverTarget::Joint { joint, .. } => {
-                    *joint = JointId(joint_id[joint.0].expect("its joint's bodies are kept"));
-                }
+                DriverTarget::Joint { joint, .. } => match (joint_id[joint.0], leg) {
+                    (Some(id), _) => *joint = JointId(id),
+                    // The leg's bodies are left out: its driver is the distance it holds.
+                    (None, Some(leg)) => d.target = DriverTarget::Leg(leg_of(leg)),
+                    (None, None) => unreachable!("a kept driver's joint has its bodies kept"),
+                },
+                DriverTarget::Leg(leg) => *leg = leg_of(leg),
                 DriverTarget::Absolute { body: b, .. } => *b = body(*b),
                 DriverTarget::Point { point, .. } => {
                     *point = PointId(point_id[point.0].expect("its point's body is kept"));

@@ -89,6 +89,11 @@ pub(super) fn check(
         if let (Some(f), Some(o)) = (&conflict, v.as_object_mut()) {
             o.insert("error".to_owned(), crate::report::failure_json(f));
         }
+        if let (Ok(sys), Some(o)) = (&sys, v.as_object_mut())
+            && !sys.legs.is_empty()
+        {
+            o.insert("reduced_legs".to_owned(), legs_json(mech, sys));
+        }
         writeln!(out, "{}", serde_json::to_string_pretty(&v)?)?;
     } else {
         writeln!(out, "mechanism {}: {bodies} bodies ({grounds} ground)", printable(&mech.name))?;
@@ -131,6 +136,16 @@ pub(super) fn check(
             }
             Err(e) => writeln!(out, "blocks:            none ({})", printable(&e.to_string()))?,
         }
+        if let Ok(sys) = &sys
+            && !sys.legs.is_empty()
+        {
+            writeln!(
+                out,
+                "reduced legs:      {}, each driver row replaced by a distance row: {}",
+                sys.legs.len(),
+                printable(&legs_text(mech, sys))
+            )?;
+        }
         if let Some(f) = &conflict {
             writeln!(out, "inconsistent:      {}", printable(&f.constraints.join(", ")))?;
         }
@@ -156,4 +171,39 @@ fn blocks_json(b: &Blocks) -> serde_json::Value {
         "largest_implicit": b.largest_implicit(),
         "sizes": sizes,
     })
+}
+
+/// `leg1 (cylinder1, rod1: ground to platform), …`: each reduced leg by its driver, its bodies
+/// and the bodies it joins.
+fn legs_text(mech: &Mechanism, sys: &crate::symbolic::Symbolic) -> String {
+    let name = |b: crate::model::BodyId| mech.bodies[b.0].name.as_str();
+    sys.legs
+        .iter()
+        .map(|l| {
+            format!(
+                "{} ({}, {}: {} to {})",
+                mech.drivers[l.driver].name,
+                name(l.bodies[0]),
+                name(l.bodies[1]),
+                name(l.leg.body_i),
+                name(l.leg.body_j)
+            )
+        })
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
+/// `[{ "driver", "bodies": [u, s], "joins": [a, b] }]`: the reduced legs.
+fn legs_json(mech: &Mechanism, sys: &crate::symbolic::Symbolic) -> serde_json::Value {
+    let name = |b: crate::model::BodyId| mech.bodies[b.0].name.clone();
+    sys.legs
+        .iter()
+        .map(|l| {
+            serde_json::json!({
+                "driver": mech.drivers[l.driver].name,
+                "bodies": [name(l.bodies[0]), name(l.bodies[1])],
+                "joins": [name(l.leg.body_i), name(l.leg.body_j)],
+            })
+        })
+        .collect()
 }

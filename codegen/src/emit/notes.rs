@@ -17,6 +17,10 @@ use crate::desc::{DriverCoordinate, Motion};
 use crate::model::RowLabel;
 use crate::model::{ConstraintKind, DriverTarget, JointKind, Law, Mechanism};
 
+/// The row of a U-P-S leg reduced to a distance (`symbolic::legs`): U and S its end points on
+/// the bodies it joins, v0 and a its constant offset and axis, L its assembled length.
+const LEG_FORM: &str = "(|S − U|² − s² − 2 s v0·a − |v0|²) / (2 L)";
+
 /// The name of the marker macro; nothing else in an emitted module is called this.
 const MARKER: &str = "__mechgen_note";
 
@@ -27,11 +31,22 @@ pub(super) fn marker(row: usize) -> syn::Stmt {
     parse_quote!(#name!(#row);)
 }
 
-/// The note of every row of the reduced system: `joint O2 row 4: b_i · a_j = 0`.
-pub(super) fn row_notes(mech: &Mechanism, rows: &[RowLabel]) -> Vec<String> {
+/// The note of every row of the reduced system: `joint O2 row 4: b_i · a_j = 0`; the driver
+/// rows of the reduced legs (`legs`, driver indices) are their distance rows.
+pub(super) fn row_notes(mech: &Mechanism, rows: &[RowLabel], legs: &[usize]) -> Vec<String> {
+    let reduced = |label: &RowLabel| {
+        label.kind == RowLabel::DRIVER
+            && legs.iter().any(|&k| mech.drivers.get(k).is_some_and(|d| d.name == label.name))
+    };
     rows.iter()
         .map(|label| {
-            let text = format!("{}: {}", label.equation(), form(mech, label));
+            let form = if reduced(label) {
+                let d = mech.drivers.iter().find(|d| d.name == label.name).expect("a driver");
+                format!("{LEG_FORM} = 0 (leg reduced), s = {}", law(&d.law))
+            } else {
+                form(mech, label)
+            };
+            let text = format!("{}: {form}", label.equation());
             let line = doc_safe(&text);
             assert!(!line.contains(['\n', '\r']), "a note is one line");
             line
@@ -114,6 +129,7 @@ fn form(mech: &Mechanism, label: &RowLabel) -> String {
                     DriverCoordinate::E3 => "e3 − s",
                 },
                 DriverTarget::Point { axis, .. } => ["r_P.x − s", "r_P.y − s", "r_P.z − s"][axis],
+                DriverTarget::Leg(_) => LEG_FORM,
             };
             format!("{lhs} = 0, s = {}", law(&d.law))
         }

@@ -38,7 +38,7 @@ use nalgebra::{DMatrix, DVector, Vector3};
 
 use crate::model::{
     BodyId, Constraint, ConstraintKind, Driver, DriverCoordinate, DriverTarget, Joint, JointKind,
-    Mechanism, Motion,
+    Leg, Mechanism, Motion,
 };
 use kin::{BodyState, Sk, Vk};
 
@@ -113,6 +113,7 @@ impl<'m> Equations<'m> {
                 }
                 DriverTarget::Absolute { body, .. } => vec![body],
                 DriverTarget::Point { point, .. } => vec![mech.points[point.0].body],
+                DriverTarget::Leg(leg) => vec![leg.body_i, leg.body_j],
             });
         }
         row_bodies.extend(mech.moving_bodies().map(|b| vec![b]));
@@ -167,6 +168,10 @@ impl<'m> Equations<'m> {
             DriverTarget::Point { point, axis } => {
                 let pt = &self.mech.points[point.0];
                 Vk::point(0, &states[pt.body.0], &pt.local).component(axis)
+            }
+            DriverTarget::Leg(leg) => {
+                let d = leg_separation(&leg, states);
+                Sk::constant(leg.length_of(d.v.norm()))
             }
         }
     }
@@ -382,6 +387,9 @@ impl<'m> Equations<'m> {
                 let sk = Vk::point(0, &states[pt.body.0], &pt.local).component(axis).sub(&s);
                 ([self.offset[pt.body.0], None], sk)
             }
+            DriverTarget::Leg(leg) => {
+                ([self.offset[leg.body_i.0], self.offset[leg.body_j.0]], leg_row(&leg, states, &s))
+            }
         }
     }
 
@@ -504,6 +512,19 @@ fn screw(
 /// Distance: (d·d − L²)/(2L) = 0.
 fn distance(v: &JointVectors, length: f64) -> Vec<Sk> {
     vec![v.d.dot(&v.d).sub(&Sk::constant(length * length)).scale(0.5 / length)]
+}
+
+/// d = S − U of a reduced leg, body i in slot 0 and body j in slot 1.
+fn leg_separation(leg: &Leg, states: &[BodyState]) -> Vk {
+    let u = Vk::point(0, &states[leg.body_i.0], &leg.point_i);
+    Vk::point(1, &states[leg.body_j.0], &leg.point_j).sub(&u)
+}
+
+/// A reduced leg's row: (d·d − s² − 2 s·along − base) / (2 length).
+fn leg_row(leg: &Leg, states: &[BodyState], s: &Sk) -> Sk {
+    let d = leg_separation(leg, states);
+    let f = s.mul(s).add(&s.scale(2.0 * leg.along)).add(&Sk::constant(leg.base));
+    d.dot(&d).sub(&f).scale(0.5 / leg.length)
 }
 
 /// An absolute driver's row: `q_b[c] − s(t)`, or for a rotation about a global axis
