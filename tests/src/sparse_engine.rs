@@ -2,8 +2,6 @@
 //! trees and multi-loop mechanisms of 20 to 100 bodies, and against the closed-form forward
 //! kinematics of a driven spatial chain of 100 links.
 
-use std::fmt::Write;
-
 use codegen::generic::{Analysis, Equations, Frame};
 use codegen::model::Mechanism;
 use codegen::validate::{Format, load_str};
