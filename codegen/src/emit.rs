@@ -97,6 +97,14 @@ fn assemble(
     // The outputs' expressions join Φ's arena (after its nodes, so Φ's code is unchanged).
     let mut sys = sys.clone();
     let named = sys.outputs(mech);
+    // The structured LU: block by block when Φ_q falls apart into blocks (`blocks`), else
+    // static pivot orders over the description's motion. The closed forms' expressions join
+    // the arena after the outputs'.
+    let layout = match factoring {
+        Factoring::Planned => blocks::plan(&mut sys, mech, None),
+        Factoring::StaticOrders => None,
+        Factoring::BlockNewton => blocks::plan(&mut sys, mech, Some(true)),
+    };
     let sys = &sys;
     let n = sys.unknowns.len();
     let moving: Vec<usize> =
@@ -106,13 +114,6 @@ fn assemble(
     items.extend(inputs::items(mech, sys));
     let after_constants = items.len();
     let rows = Rows::new(sys);
-    // The structured LU: block by block when Φ_q falls apart into blocks (`blocks`), else
-    // static pivot orders over the description's motion.
-    let layout = match factoring {
-        Factoring::Planned => blocks::plan(sys, None),
-        Factoring::StaticOrders => None,
-        Factoring::BlockNewton => blocks::plan(sys, Some(true)),
-    };
     items.extend(residual_and_jacobian(&rows, layout.is_none()));
     if let Some(plan) = &layout {
         items.extend(blocks::items(&rows, plan));

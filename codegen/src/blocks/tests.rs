@@ -45,7 +45,7 @@ fn assert_lower_triangular(pattern: &[Vec<usize>], n: usize, blocks: &[Part]) {
 /// The decomposition of a description's reduced system, checked triangular.
 fn decompose(mech: &Mechanism) -> (Symbolic, Blocks) {
     let sys = Symbolic::build(mech).expect("the system builds");
-    let blocks = Blocks::of(&sys);
+    let blocks = Blocks::of(&sys, mech);
     let pattern: Vec<Vec<usize>> =
         sys.jac.iter().map(|row| row.iter().map(|&(c, _)| c).collect()).collect();
     let parts: Vec<_> =
@@ -78,13 +78,15 @@ fn set(names: &[String]) -> BTreeSet<String> {
 /// Every link `(joint, driver, body)` of driven open chains must give, in this order or after
 /// the blocks of the link before it: the orientation block of four (the joint's two axis rows
 /// hold a_j ∥ a_i with body i known, the driver sets the angle, the normalisation |p| = 1),
-/// implicit; then x, y and z each alone from the joint's coincident rows, closed form (they
-/// enter those rows with coefficient 1).
+/// a rotation about the joint's axis in closed form; then x, y and z each alone from the
+/// joint's coincident rows, closed form (they enter those rows with coefficient 1). No block
+/// is implicit.
 fn assert_driven_links(mech: &Mechanism, links: &[(String, String, String)]) {
     let (sys, blocks) = decompose(mech);
     assert_eq!(blocks.blocks.len(), 4 * links.len());
-    assert_eq!(blocks.closed_form(), 3 * links.len());
-    assert_eq!(blocks.largest_implicit(), 4);
+    assert_eq!(blocks.closed_form(), 4 * links.len());
+    assert_eq!(blocks.rotations(), links.len());
+    assert_eq!(blocks.largest_implicit(), 0);
     for (joint, driver, body) in links {
         let orientation = set(&["e0", "e1", "e2", "e3"].map(|e| format!("{body}.{e}")));
         let found = blocks
@@ -93,7 +95,12 @@ fn assert_driven_links(mech: &Mechanism, links: &[(String, String, String)]) {
             .position(|b| unknown_names(mech, &sys, &b.unknowns) == orientation)
             .unwrap_or_else(|| panic!("{body}: no block of its four Euler parameters"));
         let block = &blocks.blocks[found];
-        assert_eq!(block.kind, Kind::Implicit);
+        let Kind::Rotation(rotation) = block.kind else {
+            panic!("{body}: its orientation block is {:?}, not a rotation", block.kind)
+        };
+        assert_eq!(mech.bodies[rotation.body.0].name, *body);
+        assert_eq!(mech.joints[rotation.joint].name, *joint);
+        assert!(!rotation.linear, "{body}: a joint angle's row is quadratic");
         let rows = set(&[
             format!("joint {joint} row 4"),
             format!("joint {joint} row 5"),
@@ -153,8 +160,22 @@ fn the_rssr_is_one_loop_block_and_its_driven_parts() {
     // fixed) and the rocker's four Euler parameters, held by B, O4's axis rows and the two
     // normalisations.
     assert_eq!(blocks.sizes().into_iter().collect::<Vec<_>>(), [(1, 9), (4, 1), (7, 1)]);
-    assert_eq!(blocks.closed_form(), 9);
+    assert_eq!(blocks.closed_form(), 10);
+    assert_eq!(blocks.rotations(), 1);
     assert_eq!(blocks.largest_implicit(), 7);
+    // Exactly one implicit block: the loop.
+    let implicit: Vec<_> = blocks.blocks.iter().filter(|b| b.kind == Kind::Implicit).collect();
+    assert_eq!(implicit.len(), 1);
+    assert_eq!(implicit[0].unknowns.len(), 7);
+    // The crank's orientation: an absolute rotation about z (the motor), linear in its
+    // Euler parameters.
+    let crank = blocks.blocks.iter().find_map(|b| match b.kind {
+        Kind::Rotation(r) => Some(r),
+        _ => None,
+    });
+    let crank = crank.expect("the crank's orientation is a rotation block");
+    assert_eq!(mech.bodies[crank.body.0].name, "crank");
+    assert!(crank.linear);
     let closed: BTreeSet<String> = blocks
         .blocks
         .iter()
