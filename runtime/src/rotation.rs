@@ -13,7 +13,9 @@
 //! f(e_j) is
 //!
 //! - for a joint angle driver, x sin s − y cos s with x and y quadratic forms in e_j: the
-//!   homogeneous quadratic a c² + b c s′ + d s′², a = f(u), d = f(w), b = f(u + w) − a − d;
+//!   quadratic a c² + b c s′ + d s′² on the unit circle, a = f(u), d = f(w),
+//!   b = 2 f((u + w)/√2) − a − d (a unit point: where the row involves j's axis too, as when j
+//!   is the joint's body i, it is a quartic form equal to (c² + s′²) times that quadratic);
 //! - for an absolute rx, ry or rz driver on j, e_k cos(s/2) − e0 sin(s/2), linear in e_j:
 //!   A c + B s′, A = f(u), B = f(w).
 //!
@@ -28,18 +30,22 @@
 
 use crate::Real;
 
-/// The number of coefficients [`about_axis`] reads: u, w, f(u), f(w), f(u + w).
+/// The number of coefficients [`about_axis`] reads: u, w, f(u), f(w), f((u + w)/√2).
 pub const COEFFICIENTS: usize = 11;
 
 /// The unit quaternion c u + s′ w of the family (see the module docs) that zeroes the driver's
-/// row and lies nearest `previous`, from `k` = [u₀ … u₃, w₀ … w₃, f(u), f(w), f(u + w)] (the
-/// last unused when `linear`).
+/// row and lies nearest `previous`, from `k` = [u₀ … u₃, w₀ … w₃, f(u), f(w), f((u + w)/√2)]
+/// (the last unused when `linear`).
 ///
 /// Returns `None` when the row has no zero on the family (b² − 4ad < 0 beyond round-off: a
 /// driver angle out of reach when the joint's references are not perpendicular to its axis),
 /// or when a coefficient is not finite.
 #[must_use]
-pub fn about_axis<R: Real>(k: &[R; COEFFICIENTS], linear: bool, previous: &[R; 4]) -> Option<[R; 4]> {
+pub fn about_axis<R: Real>(
+    k: &[R; COEFFICIENTS],
+    linear: bool,
+    previous: &[R; 4],
+) -> Option<[R; 4]> {
     let dot = |a: &[R], b: &[R]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2] + a[3] * b[3];
     let (u, w) = (&k[0..4], &k[4..8]);
     let (pu, pw) = (dot(u, previous), dot(w, previous));
@@ -62,7 +68,7 @@ pub fn about_axis<R: Real>(k: &[R; COEFFICIENTS], linear: bool, previous: &[R; 4
         consider(fw, -fu);
     } else {
         let (a, d) = (fu, fw);
-        let b = k[10] - a - d;
+        let b = R::from_f64(2.0) * k[10] - a - d;
         let four_ad = R::from_f64(4.0) * a * d;
         let discriminant = b * b - four_ad;
         // A double root (a driver at the edge of its reach) may come out slightly negative.

@@ -12,8 +12,12 @@
 //! where f_k turns the z axis onto k's joint axis and f_j onto σ times j's, σ = ±1 the sign of
 //! a_j · a_k at the initial estimates (the parallel rows hold for either). The driver's row is a
 //! homogeneous quadratic in (cos φ/2, sin φ/2) for a joint angle (x and y are quadratic forms
-//! in e_j) and linear for an absolute rotation, so its three (or two) values f(u), f(w) and
-//! f(u + w), emitted from the row itself with e_j replaced, determine it; the runtime solves it.
+//! in e_j; where j is the joint's body i the row involves j's axis too and is (c² + s′²) times
+//! that quadratic) and linear for an absolute rotation, so its three (or two) values at the
+//! unit points u, w and (u + w)/√2, emitted from the row itself with e_j replaced, determine it
+//! on the unit circle; the runtime solves it. Evaluating the row rather than deriving formulas
+//! per driver keeps one path for both drivers, any law or input, and whatever the joint's
+//! references, and it cannot disagree with the equations the rest of the solver uses.
 //! The recognition is checked numerically against the block's own rows at the initial
 //! estimates before a block is called closed form: on the family the other three rows vanish
 //! and the driver's row is the quadratic (or linear) form its values predict.
@@ -23,7 +27,9 @@ use std::collections::BTreeMap;
 use nalgebra::{Vector3, Vector4};
 
 use crate::expr::{ExprId, ExprPool, Var};
-use crate::model::{BodyId, DriverCoordinate, DriverTarget, JointKind, Mechanism, Motion, RowLabel};
+use crate::model::{
+    BodyId, DriverCoordinate, DriverTarget, JointKind, Mechanism, Motion, RowLabel,
+};
 use crate::symbolic::{Source, Symbolic};
 
 /// A block of four Euler parameters with a closed form (see the module docs).
@@ -100,7 +106,7 @@ impl Rotation {
     }
 
     /// The expressions of what `runtime::rotation::about_axis` reads, written into the pool:
-    /// u, w, f(u), f(w) and, for a joint angle, f(u + w) (0 for an absolute rotation).
+    /// u, w, f(u), f(w) and, for a joint angle, f((u + w)/√2) (0 for an absolute rotation).
     pub fn coefficients(&self, sys: &mut Symbolic, mech: &Mechanism) -> [ExprId; 11] {
         let (g, h) = self.frames(mech);
         let known: [ExprId; 4] = std::array::from_fn(|c| match sys.coords[self.known.0][3 + c] {
@@ -115,9 +121,8 @@ impl Rotation {
         let row = sys.phi[self.driver_row];
         let pool = &mut sys.pool;
         let at = |pool: &mut ExprPool, e: [ExprId; 4]| {
-            let map: BTreeMap<Var, ExprId> = (0..4)
-                .map(|c| (Var::Q(u32::try_from(first + c).expect("small")), e[c]))
-                .collect();
+            let map: BTreeMap<Var, ExprId> =
+                (0..4).map(|c| (Var::Q(u32::try_from(first + c).expect("small")), e[c])).collect();
             substitute(pool, row, &map)
         };
         let fu = at(pool, u);
@@ -125,8 +130,12 @@ impl Rotation {
         let fuw = if self.linear {
             pool.constant(0.0)
         } else {
-            let sum: [ExprId; 4] = std::array::from_fn(|c| pool.add(u[c], w[c]));
-            at(pool, sum)
+            let half = pool.constant(std::f64::consts::FRAC_1_SQRT_2);
+            let mid: [ExprId; 4] = std::array::from_fn(|c| {
+                let sum = pool.add(u[c], w[c]);
+                pool.mul(half, sum)
+            });
+            at(pool, mid)
         };
         [u[0], u[1], u[2], u[3], w[0], w[1], w[2], w[3], fu, fw, fuw]
     }
@@ -252,15 +261,14 @@ pub fn recognise(
     if alignment.abs() < 0.5 {
         return None;
     }
-    let rotation =
-        Rotation { body, known, joint, driver_row, linear, flipped: alignment < 0.0 };
+    let rotation = Rotation { body, known, joint, driver_row, linear, flipped: alignment < 0.0 };
     rotation.holds(sys, mech, rows).then_some(rotation)
 }
 
 impl Rotation {
     /// Whether the block's own rows, evaluated at the initial estimates with e_j on the family,
     /// agree with the closed form: the normalisation and parallel rows vanish and the driver's
-    /// row is the form its values at u, w (and u + w) predict, at four angles.
+    /// row is the form its values at u, w (and (u + w)/√2) predict, at four angles.
     fn holds(&self, sys: &Symbolic, mech: &Mechanism, rows: &[usize]) -> bool {
         let mut q = sys.initial_estimate(mech);
         let known: Vector4<f64> = Vector4::from_fn(|c, _| match sys.coords[self.known.0][3 + c] {
@@ -285,15 +293,16 @@ impl Rotation {
             q[first..first + 4].copy_from_slice(e.as_slice());
             sys.pool.eval_inputs(&exprs, [&q, &[], &[]], t, &inputs)
         };
-        let (fu, fw, fuw) = (at(u)[driver], at(w)[driver], at(u + w)[driver]);
-        let scale = 1.0 + fu.abs() + fw.abs() + fuw.abs();
+        let mid = (u + w) * std::f64::consts::FRAC_1_SQRT_2;
+        let (fu, fw, fm) = (at(u)[driver], at(w)[driver], at(mid)[driver]);
+        let scale = 1.0 + fu.abs() + fw.abs() + fm.abs();
         [0.3_f64, 1.7, 2.9, -2.2].iter().all(|&phi| {
             let (s, c) = (0.5 * phi).sin_cos();
             let values = at(c * u + s * w);
             let predicted = if self.linear {
                 fu * c + fw * s
             } else {
-                fu * c * c + (fuw - fu - fw) * c * s + fw * s * s
+                fu * c * c + (2.0 * fm - fu - fw) * c * s + fw * s * s
             };
             // Round-off of rows of unit quantities: far below any modelling difference.
             values.iter().enumerate().all(|(r, v)| {

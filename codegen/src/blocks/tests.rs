@@ -351,3 +351,58 @@ fn a_greedy_pairing_that_blocks_a_row_is_augmented() {
     assert_eq!(blocks[0], (vec![n - 1], vec![0]));
     assert!((1..n).all(|c| blocks[c] == (vec![c - 1], vec![c])));
 }
+
+/// The closed form of every rotation block (the emitted coefficients, evaluated, then
+/// `runtime::rotation::about_axis`), at random orientations of the known body, random times
+/// and random predictions, zeroes the block's own four rows: the normalisation, the two
+/// parallel-axis rows and the driver's row, evaluated from their expressions.
+#[test]
+fn a_rotation_blocks_closed_form_satisfies_its_four_rows() {
+    let mut rng = StdRng::seed_from_u64(16);
+    let unit = |rng: &mut StdRng| {
+        let e: [f64; 4] = std::array::from_fn(|_| rng.random_range(-1.0..1.0));
+        let n = e.iter().map(|v| v * v).sum::<f64>().sqrt();
+        e.map(|v| v / n)
+    };
+    let texts = [
+        crate::scale::chain(4, 3),
+        crate::scale::arms(2, 6, 3),
+        std::fs::read_to_string(crate::testing::example("rssr.toml")).expect("the example"),
+    ];
+    let mut checked = 0;
+    for text in texts {
+        let mech = load_toml(&text);
+        let mut sys = Symbolic::build(&mech).expect("the system builds");
+        let blocks = Blocks::of(&sys, &mech);
+        for block in &blocks.blocks {
+            let Kind::Rotation(rotation) = block.kind else { continue };
+            let coefficients = rotation.coefficients(&mut sys, &mech);
+            let first = rotation.first_unknown(&sys);
+            let rows: Vec<_> = block.rows.iter().map(|&r| sys.phi[r]).collect();
+            for _ in 0..50 {
+                let mut q = sys.initial_estimate(&mech);
+                let known = unit(&mut rng);
+                for (c, source) in sys.coords[rotation.known.0][3..].iter().enumerate() {
+                    if let crate::symbolic::Source::Unknown(k) = *source {
+                        q[k] = known[c];
+                    }
+                }
+                let t = rng.random_range(-1.0..1.0);
+                let k = sys.pool.eval(&coefficients, &q, &[], t);
+                let k: [f64; 11] = k.try_into().expect("eleven coefficients");
+                let previous = unit(&mut rng);
+                let e = runtime::rotation::about_axis(&k, rotation.linear, &previous)
+                    .expect("a driven revolute reaches every angle");
+                q[first..first + 4].copy_from_slice(&e);
+                for (r, v) in block.rows.iter().zip(sys.pool.eval(&rows, &q, &[], t)) {
+                    // Rows of unit vectors and unit quaternions: round-off of a few dozen
+                    // products.
+                    assert!(v.abs() < 1e-14, "{}: {} = {v}", mech.name, sys.rows[*r].equation());
+                }
+                checked += 1;
+            }
+        }
+    }
+    // Four links, twelve arm links and the R-S-S-R's crank, fifty states each.
+    assert_eq!(checked, 50 * (4 + 12 + 1));
+}

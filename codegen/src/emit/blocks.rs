@@ -50,27 +50,26 @@ pub(super) struct Closed {
     first: usize,
     /// Whether the driver's row is linear in e (an absolute rotation).
     linear: bool,
-    /// u, w, f(u), f(w), f(u + w), in the pool.
+    /// u, w, f(u), f(w), f((u + w)/√2), in the pool.
     coefficients: [crate::expr::ExprId; 11],
 }
 
-/// Newton runs block by block when some chain of implicit blocks, each depending on the one
-/// before, is at least this long (and the system has no row left out as redundant): measured
-/// (BENCHMARKS.md, "Newton per block"), it saved 26 % of the instructions per step on a driven
-/// chain of 100 links (a chain of 100 orientation blocks, where one Newton iteration over the
-/// whole system waits for the worst link) and cost 5–10 % on the chain of 10, ten 6R arms
-/// (chains of 6) and 34 independent R-S-S-R loops (chains of 1), where every block takes
-/// about as many iterations as the whole system.
-pub(super) const MIN_DEPTH: usize = 64;
-
-/// The blocks of `sys` when its solver factors Φ_q block by block: at least
-/// [`MIN_UNKNOWNS`] unknowns, more than one block, none larger than [`MAX_BLOCK`]; with Newton
-/// block by block when `newton` is `Some(true)`, or `None` and [`MIN_DEPTH`] says so (never
-/// with rows left out as redundant). With Newton block by block the rotation blocks'
-/// coefficients join the pool.
+/// The blocks of `sys` when its solver factors Φ_q block by block: more than one block, none
+/// larger than [`MAX_BLOCK`], and at least [`MIN_UNKNOWNS`] unknowns unless `newton` is
+/// `Some(true)`. Newton runs block by block unless `newton` is `Some(false)` or rows are left
+/// out as redundant; its rotation blocks' coefficients then join the pool.
+///
+/// Newton block by block is the plan wherever Φ_q is factored block by block: measured
+/// (BENCHMARKS.md, "Closed-form orientation blocks"), with the orientation blocks in closed
+/// form it took 21 % fewer instructions per step than one Newton iteration over the whole
+/// system on a driven chain of 10 links, 57 % fewer on 100 links, 21 % fewer on ten 6R arms
+/// and 27 % fewer on 34 R-S-S-R loops. Below [`MIN_UNKNOWNS`] the static orders stay: one 6R
+/// arm took 5 % more instructions block by block and the R-S-S-R 85 % more (the runtime's
+/// loops over a block's rows and its small LU cost more than the straight-line static order
+/// of the whole 20 × 20 system).
 pub(super) fn plan(sys: &mut Symbolic, mech: &Mechanism, newton: Option<bool>) -> Option<Plan> {
     let n = sys.unknowns.len();
-    if n < MIN_UNKNOWNS {
+    if n == 0 || (n < MIN_UNKNOWNS && newton != Some(true)) {
         return None;
     }
     let blocks = Blocks::of(sys, mech);
@@ -78,8 +77,10 @@ pub(super) fn plan(sys: &mut Symbolic, mech: &Mechanism, newton: Option<bool>) -
     if blocks.blocks.len() <= 1 || largest > MAX_BLOCK {
         return None;
     }
-    let newton =
-        sys.dropped.is_empty() && newton.unwrap_or_else(|| depth(sys, &blocks) >= MIN_DEPTH);
+    let newton = sys.dropped.is_empty() && newton != Some(false);
+    if n < MIN_UNKNOWNS && !newton {
+        return None;
+    }
     let mut rotations = Vec::new();
     if newton {
         for (b, block) in blocks.blocks.iter().enumerate() {
@@ -91,29 +92,6 @@ pub(super) fn plan(sys: &mut Symbolic, mech: &Mechanism, newton: Option<bool>) -
         }
     }
     Some(Plan { blocks, newton, rotations })
-}
-
-/// The length of the longest chain of implicit blocks each depending on the one before.
-fn depth(sys: &Symbolic, blocks: &Blocks) -> usize {
-    let mut block_of_column = vec![0; sys.unknowns.len()];
-    for (b, block) in blocks.blocks.iter().enumerate() {
-        for &c in &block.unknowns {
-            block_of_column[c] = b;
-        }
-    }
-    let mut depth = vec![0; blocks.blocks.len()];
-    for (b, block) in blocks.blocks.iter().enumerate() {
-        let before = block
-            .rows
-            .iter()
-            .flat_map(|&r| sys.jac[r].iter().map(|&(c, _)| block_of_column[c]))
-            .filter(|&d| d < b)
-            .map(|d| depth[d])
-            .max()
-            .unwrap_or(0);
-        depth[b] = before + usize::from(block.kind == Kind::Implicit);
-    }
-    depth.into_iter().max().unwrap_or(0)
 }
 
 /// `static BLOCKS: runtime::blocks::Layout` and, for Newton block by block, the `block_k`
@@ -516,7 +494,7 @@ fn block_functions(rows: &Rows<'_>, blocks: &Blocks) -> Vec<syn::Item> {
 
 /// Per rotation block b solved in closed form, `rotation_b` writing what
 /// `runtime::rotation::about_axis` reads: u and w (the family of the body's Euler parameters,
-/// from the known body's) and the driver's row at u, at w and at u + w.
+/// from the known body's) and the driver's row at u, at w and at (u + w)/√2.
 fn rotation_functions(rows: &Rows<'_>, rotations: &[Closed]) -> Vec<syn::Item> {
     let sys = rows.sys;
     let n = sys.unknowns.len();
@@ -549,7 +527,7 @@ fn rotation_functions(rows: &Rows<'_>, rotations: &[Closed]) -> Vec<syn::Item> {
         };
         let name = format!("rotation_{}", r.block);
         let doc = format!(
-            " {name}: u, w, the driver's row at u, at w and at u + w (`runtime::rotation`): {} operations.",
+            " {name}: u, w, the driver's row at u, at w and at (u + w)/√2 (`runtime::rotation`): {} operations.",
             f.ops
         );
         let item = signature.item(&ident(&name), &doc, &used, true);
@@ -597,11 +575,12 @@ fn newton_impl_items(plan: &Plan, inputs: bool) -> Vec<syn::ImplItem> {
         let (lit, f) = (index(b), ident(&format!("block_{b}")));
         quote::quote!(#lit => #f(q, t, #u phi, jac),)
     });
-    let alone =
-        blocks.blocks.iter().enumerate().filter(|(_, k)| k.kind != Kind::ClosedForm).map(|(b, _)| {
+    let alone = blocks.blocks.iter().enumerate().filter(|(_, k)| k.kind != Kind::ClosedForm).map(
+        |(b, _)| {
             let (lit, f) = (index(b), ident(&format!("block_residual_{b}")));
             quote::quote!(#lit => #f(q, t, #u phi),)
-        });
+        },
+    );
     let read = inputs.then(|| quote::quote!(let u = self.inputs(t).to_array();));
     let [factor, solve] = factor_solve_blocks();
     let mut items = Vec::new();

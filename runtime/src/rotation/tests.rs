@@ -33,13 +33,13 @@ fn family(rng: &mut StdRng) -> ([f64; 4], [f64; 4]) {
 
 /// The coefficients `about_axis` reads for the row `f`.
 fn coefficients(u: &[f64; 4], w: &[f64; 4], f: &dyn Fn(&[f64; 4]) -> f64) -> [f64; COEFFICIENTS] {
-    let sum: [f64; 4] = core::array::from_fn(|i| u[i] + w[i]);
+    let mid: [f64; 4] = core::array::from_fn(|i| (u[i] + w[i]) * core::f64::consts::FRAC_1_SQRT_2);
     let mut k = [0.0; COEFFICIENTS];
     k[..4].copy_from_slice(u);
     k[4..8].copy_from_slice(w);
     k[8] = f(u);
     k[9] = f(w);
-    k[10] = f(&sum);
+    k[10] = f(&mid);
     k
 }
 
@@ -60,7 +60,9 @@ fn quadratic_rows_are_zeroed_on_the_family_nearest_the_prediction() {
             }
             m
         };
-        let form = |e: &[f64; 4]| (0..4).map(|i| (0..4).map(|j| e[i] * m[i][j] * e[j]).sum::<f64>()).sum::<f64>();
+        let form = |e: &[f64; 4]| {
+            (0..4).map(|i| (0..4).map(|j| e[i] * m[i][j] * e[j]).sum::<f64>()).sum::<f64>()
+        };
         let (fu, fw) = (form(&u), form(&w));
         let lambda = fu + rng.random_range(0.05..0.95) * (fw - fu);
         let f = |e: &[f64; 4]| form(e) - lambda * dot(e, e);
