@@ -73,7 +73,7 @@ pub fn about_axis<R: Real>(
         let discriminant = b * b - four_ad;
         // A double root (a driver at the edge of its reach) may come out slightly negative.
         let reach = R::from_f64(16.0) * R::EPSILON * (b * b + four_ad.abs());
-        if !(discriminant >= -reach) {
+        if discriminant.is_nan() || discriminant < -reach {
             return None;
         }
         let root = discriminant.max(R::ZERO).sqrt();

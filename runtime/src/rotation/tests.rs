@@ -50,16 +50,11 @@ fn quadratic_rows_are_zeroed_on_the_family_nearest_the_prediction() {
         let (u, w) = family(&mut rng);
         // A homogeneous quadratic form with real zeros on the family: eᵀ M e with a random
         // symmetric M, shifted by −λ |e|² for a λ between the form's extremes on the family.
-        let m: [[f64; 4]; 4] = {
-            let mut m = [[0.0; 4]; 4];
-            for i in 0..4 {
-                for j in i..4 {
-                    m[i][j] = rng.random_range(-1.0..1.0);
-                    m[j][i] = m[i][j];
-                }
-            }
-            m
-        };
+        // A random symmetric M: the upper triangle drawn, mirrored below.
+        let upper: [[f64; 4]; 4] =
+            core::array::from_fn(|_| core::array::from_fn(|_| rng.random_range(-1.0..1.0)));
+        let m: [[f64; 4]; 4] =
+            core::array::from_fn(|i| core::array::from_fn(|j| upper[i.min(j)][i.max(j)]));
         let form = |e: &[f64; 4]| {
             (0..4).map(|i| (0..4).map(|j| e[i] * m[i][j] * e[j]).sum::<f64>()).sum::<f64>()
         };
