@@ -150,11 +150,15 @@ fn times(pool: &mut ExprPool, e: &[ExprId; 4], c: &Vector4<f64>) -> [ExprId; 4] 
         [c[2], -c[3], c[0], c[1]],
         [c[3], c[2], -c[1], c[0]],
     ];
+    // Entries within a few ulps of −1, 0 or 1 are those values up to the round-off of the
+    // quaternion products that made c: exact, they fold (a single-precision module would
+    // otherwise round −0.9999999999999998 to −1 and print a product by −1).
+    let exact = |v: f64| if (v - v.round()).abs() <= 4.0 * f64::EPSILON { v.round() } else { v };
     std::array::from_fn(|r| {
         let terms: Vec<ExprId> = (0..4)
-            .filter(|&k| m[r][k] != 0.0)
+            .filter(|&k| exact(m[r][k]) != 0.0)
             .map(|k| {
-                let v = pool.constant(m[r][k]);
+                let v = pool.constant(exact(m[r][k]));
                 pool.mul(v, e[k])
             })
             .collect();
