@@ -16,17 +16,21 @@
 //! found, so they are a property of the system's structure. A block of one equation affine in
 //! its unknown (∂Φ_r/∂q_k free of q_k, for instance a body's x held by a joint to a known point)
 //! is solved in closed form, q_k ← q_k − Φ_r / (∂Φ_r/∂q_k); every other block needs Newton on
-//! its own unknowns. The normalisation pᵀp − 1 of a body couples its four Euler parameters, so a
-//! body whose orientation is set by a driven revolute to a known body is a block of four
-//! (two axis rows, the driver and the normalisation): it has a closed form
-//! p_j = p_i ⊗ c_i ⊗ (cos θ/2, sin θ/2 · z) ⊗ c_j⁻¹ up to the sign of p_j and the branch of the
-//! axis rows, which this module does not yet recognise, so it reports such a block as implicit.
+//! its own unknowns, except one: the normalisation pᵀp − 1 of a body couples its four Euler
+//! parameters, so a body whose orientation is set by a driven rotation about a revolute's axis
+//! to a known body is a block of four (two axis rows, the driver and the normalisation), and
+//! that block has a closed form too, p_j = p_k ⊗ f_k ⊗ (cos θ/2, sin θ/2 · z) ⊗ f_j* with θ
+//! from the driver's row ([`rotation`]), which Newton block by block runs as straight-line code.
 
 use std::collections::BTreeMap;
 
+use crate::model::Mechanism;
 use crate::symbolic::Symbolic;
 
 pub mod outputs;
+pub mod rotation;
+
+pub use rotation::Rotation;
 
 /// How a block is solved.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -35,8 +39,20 @@ pub enum Kind {
     /// coincident point, `x_j + (A_j s'_j)_x − (x_i + (A_i s'_i)_x) = 0`, with body i known):
     /// straight-line code, q_k ← q_k − Φ_r / (∂Φ_r/∂q_k).
     ClosedForm,
-    /// Newton on the block's unknowns (a closed loop, a body's Euler parameters).
+    /// A body's four Euler parameters turned by a driven rotation about a joint axis to a
+    /// known body (a link of a driven chain, the R-S-S-R's crank): straight-line code too
+    /// ([`Rotation`]).
+    Rotation(Rotation),
+    /// Newton on the block's unknowns (a closed loop).
     Implicit,
+}
+
+impl Kind {
+    /// Whether the block is solved without iteration.
+    #[must_use]
+    pub fn is_closed_form(self) -> bool {
+        !matches!(self, Kind::Implicit)
+    }
 }
 
 /// One diagonal block: equations solved together for their unknowns once every earlier block
@@ -75,14 +91,15 @@ pub struct StructurallySingular {
 }
 
 impl Blocks {
-    /// The blocks of a reduced system, classified.
+    /// The blocks of a reduced system, classified (the rotation blocks recognised against
+    /// the mechanism the system was built from).
     ///
     /// # Panics
     /// Never for a system [`Symbolic::build`] returned: it is square with full numeric rank at
     /// the initial configuration, and a non-zero determinant has a non-zero term, that is a
     /// perfect matching on the structural non-zeros.
     #[must_use]
-    pub fn of(sys: &Symbolic) -> Self {
+    pub fn of(sys: &Symbolic, mech: &Mechanism) -> Self {
         let pattern: Vec<Vec<usize>> =
             sys.jac.iter().map(|row| row.iter().map(|&(c, _)| c).collect()).collect();
         let parts = triangular(&pattern, sys.unknowns.len())
@@ -98,7 +115,8 @@ impl Blocks {
                     });
                     if affine { Kind::ClosedForm } else { Kind::Implicit }
                 } else {
-                    Kind::Implicit
+                    rotation::recognise(sys, mech, &rows, &unknowns)
+                        .map_or(Kind::Implicit, Kind::Rotation)
                 };
                 Block { rows, unknowns, kind }
             })
@@ -106,10 +124,16 @@ impl Blocks {
         Self { blocks }
     }
 
-    /// The number of blocks solved in closed form.
+    /// The number of blocks solved in closed form (affine ones and rotations).
     #[must_use]
     pub fn closed_form(&self) -> usize {
-        self.blocks.iter().filter(|b| b.kind == Kind::ClosedForm).count()
+        self.blocks.iter().filter(|b| b.kind.is_closed_form()).count()
+    }
+
+    /// The number of rotation blocks among them.
+    #[must_use]
+    pub fn rotations(&self) -> usize {
+        self.blocks.iter().filter(|b| matches!(b.kind, Kind::Rotation(_))).count()
     }
 
     /// The size of the largest block that needs Newton, 0 when there is none.

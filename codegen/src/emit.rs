@@ -47,10 +47,9 @@ pub fn module_in(mech: &Mechanism, sys: &Symbolic, source: &str, scalar: Scalar)
     assemble(mech, sys, source, scalar, Factoring::Planned)
 }
 
-/// [`module_in`] solved by Newton block by block wherever Φ_q is factored block by block (a
-/// system of 64 unknowns or more with more than one block, none larger than 32, and no row
-/// left out as redundant), however short its chains of blocks: for tests and comparisons of
-/// the two Newton iterations.
+/// [`module_in`] solved by Newton block by block wherever Φ_q falls apart into blocks (more
+/// than one block, none larger than 32, and no row left out as redundant), below 64 unknowns
+/// too, where the plan keeps the static orders: for tests and comparisons.
 #[must_use]
 pub fn module_with_block_newton(
     mech: &Mechanism,
@@ -61,6 +60,19 @@ pub fn module_with_block_newton(
     assemble(mech, sys, source, scalar, Factoring::BlockNewton)
 }
 
+/// [`module_in`] with Φ_q factored block by block where the plan does so (64 unknowns or more)
+/// but one Newton iteration over the whole system, as for rows left out as redundant: for
+/// tests and comparisons of the two Newton iterations.
+#[must_use]
+pub fn module_with_whole_newton(
+    mech: &Mechanism,
+    sys: &Symbolic,
+    source: &str,
+    scalar: Scalar,
+) -> String {
+    assemble(mech, sys, source, scalar, Factoring::WholeNewton)
+}
+
 /// How the emitted solver factors Φ_q and runs Newton.
 #[derive(Clone, Copy, PartialEq, Eq)]
 enum Factoring {
@@ -68,8 +80,10 @@ enum Factoring {
     Planned,
     /// Static pivot orders only.
     StaticOrders,
-    /// Newton block by block wherever Φ_q is factored block by block.
+    /// Newton block by block wherever Φ_q falls apart into blocks.
     BlockNewton,
+    /// Block LU as planned, one Newton iteration over the whole system.
+    WholeNewton,
 }
 
 /// [`module_in`] with the static pivot orders even where Φ_q would be factored block by block
@@ -97,6 +111,15 @@ fn assemble(
     // The outputs' expressions join Φ's arena (after its nodes, so Φ's code is unchanged).
     let mut sys = sys.clone();
     let named = sys.outputs(mech);
+    // The structured LU: block by block when Φ_q falls apart into blocks (`blocks`), else
+    // static pivot orders over the description's motion. The closed forms' expressions join
+    // the arena after the outputs'.
+    let layout = match factoring {
+        Factoring::Planned => blocks::plan(&mut sys, mech, None),
+        Factoring::StaticOrders => None,
+        Factoring::BlockNewton => blocks::plan(&mut sys, mech, Some(true)),
+        Factoring::WholeNewton => blocks::plan(&mut sys, mech, Some(false)),
+    };
     let sys = &sys;
     let n = sys.unknowns.len();
     let moving: Vec<usize> =
@@ -106,13 +129,6 @@ fn assemble(
     items.extend(inputs::items(mech, sys));
     let after_constants = items.len();
     let rows = Rows::new(sys);
-    // The structured LU: block by block when Φ_q falls apart into blocks (`blocks`), else
-    // static pivot orders over the description's motion.
-    let layout = match factoring {
-        Factoring::Planned => blocks::plan(sys, None),
-        Factoring::StaticOrders => None,
-        Factoring::BlockNewton => blocks::plan(sys, Some(true)),
-    };
     items.extend(residual_and_jacobian(&rows, layout.is_none()));
     if let Some(plan) = &layout {
         items.extend(blocks::items(&rows, plan));

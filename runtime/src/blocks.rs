@@ -30,10 +30,25 @@ pub struct Layout {
     pub lower: &'static [usize],
     /// See [`Layout::lower`]; one entry per row, and one more.
     pub lower_starts: &'static [usize],
-    /// For every block, whether it is one equation affine in its one unknown, which Newton
-    /// block by block ([`crate::newton`]) solves in closed form: q_k ← q_k − Φ_r / (∂Φ_r/∂q_k),
-    /// no iteration. Empty when the solvers do not run Newton block by block.
-    pub affine: &'static [bool],
+    /// For every block, how Newton block by block ([`crate::newton`]) solves it. Empty when
+    /// the solvers do not run Newton block by block.
+    pub solve: &'static [Solve],
+}
+
+/// How Newton block by block solves one block.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Solve {
+    /// Newton on the block's own unknowns (a closed loop).
+    Newton,
+    /// One equation affine in its one unknown (a body's x held by a joint to a known point):
+    /// q_k ← q_k − Φ_r / (∂Φ_r/∂q_k), one evaluation, no iteration.
+    Affine,
+    /// Straight-line code of the mechanism's own, [`Mechanism::closed_form_block`]
+    /// (the Euler parameters of a body turned by a driven revolute about a known body,
+    /// [`crate::rotation`]), no iteration; Newton only when it finds no real solution.
+    ///
+    /// [`Mechanism::closed_form_block`]: crate::Mechanism::closed_form_block
+    Explicit,
 }
 
 /// Factors the diagonal blocks of `jac` in place (see the module docs); `perm[i]` becomes the

@@ -32,7 +32,8 @@ pub struct FactorCounts {
 /// What Newton block by block did ([`Mechanism::BLOCK_NEWTON`]), for tests and benchmarks.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct BlockCounts {
-    /// Blocks solved in closed form (one affine equation in one unknown): no iteration.
+    /// Blocks solved in closed form (one affine equation in one unknown, or a body's
+    /// orientation about a driven axis): no iteration.
     pub closed_form: u64,
     /// Blocks solved by Newton on their own unknowns.
     pub implicit: u64,

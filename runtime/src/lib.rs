@@ -133,6 +133,7 @@ mod mechanism;
 pub mod newton;
 pub mod outputs;
 mod real;
+pub mod rotation;
 pub mod rows;
 mod solver;
 pub mod step;

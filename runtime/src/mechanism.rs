@@ -81,8 +81,8 @@ pub trait Mechanism<const N: usize, R: Real = f64> {
 
     /// Whether the solvers run Newton block by block on [`Mechanism::BLOCKS`]
     /// ([`newton`](crate::newton)): each diagonal block iterates on its own unknowns, those of
-    /// earlier blocks fixed, and an affine one-unknown block
-    /// ([`Layout::affine`](crate::blocks::Layout::affine)) is solved without iteration.
+    /// earlier blocks fixed, and a block solved in closed form
+    /// ([`Layout::solve`](crate::blocks::Layout::solve)) without iteration.
     /// Requires a layout and [`Mechanism::block_residual`]; the default, `false`, runs one
     /// Newton iteration over the whole system.
     const BLOCK_NEWTON: bool = false;
@@ -101,6 +101,18 @@ pub trait Mechanism<const N: usize, R: Real = f64> {
         jac: &mut [[R; N]; N],
     ) {
         let _ = (b, jacobian, q, t, phi, jac);
+    }
+
+    /// Solves block `b` of [`Mechanism::BLOCKS`] in closed form, when its
+    /// [`Layout::solve`](crate::blocks::Layout::solve) is
+    /// [`Solve::Explicit`](crate::blocks::Solve::Explicit): writes the block's unknowns into `q`
+    /// from those of earlier blocks and t, choosing among the discrete solutions the one
+    /// nearest the block's unknowns in `q` on entry (the prediction). Returns false, `q`
+    /// unchanged, when there is no real solution (Newton then tries the block).
+    /// Only called when [`Mechanism::BLOCK_NEWTON`]; the default returns false.
+    fn closed_form_block(&self, b: usize, q: &mut [R; N], t: R) -> bool {
+        let _ = (b, q, t);
+        false
     }
 
     /// Factors diagonal block `b` of [`Mechanism::BLOCKS`] in place by LU with partial

@@ -166,7 +166,7 @@ fn kept_bodies(
     entities: &Entities,
     mut bodies: BTreeSet<BodyId>,
 ) -> BTreeSet<BodyId> {
-    let blocks = Blocks::of(sys);
+    let blocks = Blocks::of(sys, mech);
     let n = sys.unknowns.len();
     let mut block_of = vec![0; n];
     for (b, block) in blocks.blocks.iter().enumerate() {

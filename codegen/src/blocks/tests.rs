@@ -45,7 +45,7 @@ fn assert_lower_triangular(pattern: &[Vec<usize>], n: usize, blocks: &[Part]) {
 /// The decomposition of a description's reduced system, checked triangular.
 fn decompose(mech: &Mechanism) -> (Symbolic, Blocks) {
     let sys = Symbolic::build(mech).expect("the system builds");
-    let blocks = Blocks::of(&sys);
+    let blocks = Blocks::of(&sys, mech);
     let pattern: Vec<Vec<usize>> =
         sys.jac.iter().map(|row| row.iter().map(|&(c, _)| c).collect()).collect();
     let parts: Vec<_> =
@@ -78,13 +78,15 @@ fn set(names: &[String]) -> BTreeSet<String> {
 /// Every link `(joint, driver, body)` of driven open chains must give, in this order or after
 /// the blocks of the link before it: the orientation block of four (the joint's two axis rows
 /// hold a_j ∥ a_i with body i known, the driver sets the angle, the normalisation |p| = 1),
-/// implicit; then x, y and z each alone from the joint's coincident rows, closed form (they
-/// enter those rows with coefficient 1).
+/// a rotation about the joint's axis in closed form; then x, y and z each alone from the
+/// joint's coincident rows, closed form (they enter those rows with coefficient 1). No block
+/// is implicit.
 fn assert_driven_links(mech: &Mechanism, links: &[(String, String, String)]) {
     let (sys, blocks) = decompose(mech);
     assert_eq!(blocks.blocks.len(), 4 * links.len());
-    assert_eq!(blocks.closed_form(), 3 * links.len());
-    assert_eq!(blocks.largest_implicit(), 4);
+    assert_eq!(blocks.closed_form(), 4 * links.len());
+    assert_eq!(blocks.rotations(), links.len());
+    assert_eq!(blocks.largest_implicit(), 0);
     for (joint, driver, body) in links {
         let orientation = set(&["e0", "e1", "e2", "e3"].map(|e| format!("{body}.{e}")));
         let found = blocks
@@ -93,7 +95,12 @@ fn assert_driven_links(mech: &Mechanism, links: &[(String, String, String)]) {
             .position(|b| unknown_names(mech, &sys, &b.unknowns) == orientation)
             .unwrap_or_else(|| panic!("{body}: no block of its four Euler parameters"));
         let block = &blocks.blocks[found];
-        assert_eq!(block.kind, Kind::Implicit);
+        let Kind::Rotation(rotation) = block.kind else {
+            panic!("{body}: its orientation block is {:?}, not a rotation", block.kind)
+        };
+        assert_eq!(mech.bodies[rotation.body.0].name, *body);
+        assert_eq!(mech.joints[rotation.joint].name, *joint);
+        assert!(!rotation.linear, "{body}: a joint angle's row is quadratic");
         let rows = set(&[
             format!("joint {joint} row 4"),
             format!("joint {joint} row 5"),
@@ -153,8 +160,22 @@ fn the_rssr_is_one_loop_block_and_its_driven_parts() {
     // fixed) and the rocker's four Euler parameters, held by B, O4's axis rows and the two
     // normalisations.
     assert_eq!(blocks.sizes().into_iter().collect::<Vec<_>>(), [(1, 9), (4, 1), (7, 1)]);
-    assert_eq!(blocks.closed_form(), 9);
+    assert_eq!(blocks.closed_form(), 10);
+    assert_eq!(blocks.rotations(), 1);
     assert_eq!(blocks.largest_implicit(), 7);
+    // Exactly one implicit block: the loop.
+    let implicit: Vec<_> = blocks.blocks.iter().filter(|b| b.kind == Kind::Implicit).collect();
+    assert_eq!(implicit.len(), 1);
+    assert_eq!(implicit[0].unknowns.len(), 7);
+    // The crank's orientation: an absolute rotation about z (the motor), linear in its
+    // Euler parameters.
+    let crank = blocks.blocks.iter().find_map(|b| match b.kind {
+        Kind::Rotation(r) => Some(r),
+        _ => None,
+    });
+    let crank = crank.expect("the crank's orientation is a rotation block");
+    assert_eq!(mech.bodies[crank.body.0].name, "crank");
+    assert!(crank.linear);
     let closed: BTreeSet<String> = blocks
         .blocks
         .iter()
@@ -329,4 +350,59 @@ fn a_greedy_pairing_that_blocks_a_row_is_augmented() {
     let blocks = triangular(&pattern, n).expect("a perfect matching");
     assert_eq!(blocks[0], (vec![n - 1], vec![0]));
     assert!((1..n).all(|c| blocks[c] == (vec![c - 1], vec![c])));
+}
+
+/// The closed form of every rotation block (the emitted coefficients, evaluated, then
+/// `runtime::rotation::about_axis`), at random orientations of the known body, random times
+/// and random predictions, zeroes the block's own four rows: the normalisation, the two
+/// parallel-axis rows and the driver's row, evaluated from their expressions.
+#[test]
+fn a_rotation_blocks_closed_form_satisfies_its_four_rows() {
+    let mut rng = StdRng::seed_from_u64(16);
+    let unit = |rng: &mut StdRng| {
+        let e: [f64; 4] = std::array::from_fn(|_| rng.random_range(-1.0..1.0));
+        let n = e.iter().map(|v| v * v).sum::<f64>().sqrt();
+        e.map(|v| v / n)
+    };
+    let texts = [
+        crate::scale::chain(4, 3),
+        crate::scale::arms(2, 6, 3),
+        std::fs::read_to_string(crate::testing::example("rssr.toml")).expect("the example"),
+    ];
+    let mut checked = 0;
+    for text in texts {
+        let mech = load_toml(&text);
+        let mut sys = Symbolic::build(&mech).expect("the system builds");
+        let blocks = Blocks::of(&sys, &mech);
+        for block in &blocks.blocks {
+            let Kind::Rotation(rotation) = block.kind else { continue };
+            let coefficients = rotation.coefficients(&mut sys, &mech);
+            let first = rotation.first_unknown(&sys);
+            let rows: Vec<_> = block.rows.iter().map(|&r| sys.phi[r]).collect();
+            for _ in 0..50 {
+                let mut q = sys.initial_estimate(&mech);
+                let known = unit(&mut rng);
+                for (c, source) in sys.coords[rotation.known.0][3..].iter().enumerate() {
+                    if let crate::symbolic::Source::Unknown(k) = *source {
+                        q[k] = known[c];
+                    }
+                }
+                let t = rng.random_range(-1.0..1.0);
+                let k = sys.pool.eval(&coefficients, &q, &[], t);
+                let k: [f64; 11] = k.try_into().expect("eleven coefficients");
+                let previous = unit(&mut rng);
+                let e = runtime::rotation::about_axis(&k, rotation.linear, &previous)
+                    .expect("a driven revolute reaches every angle");
+                q[first..first + 4].copy_from_slice(&e);
+                for (r, v) in block.rows.iter().zip(sys.pool.eval(&rows, &q, &[], t)) {
+                    // Rows of unit vectors and unit quaternions: round-off of a few dozen
+                    // products.
+                    assert!(v.abs() < 1e-14, "{}: {} = {v}", mech.name, sys.rows[*r].equation());
+                }
+                checked += 1;
+            }
+        }
+    }
+    // Four links, twelve arm links and the R-S-S-R's crank, fifty states each.
+    assert_eq!(checked, 50 * (4 + 12 + 1));
 }

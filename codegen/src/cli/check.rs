@@ -70,7 +70,7 @@ pub(super) fn check(
     // and no blocks when it cannot be built (its diagnostics belong to `generate`).
     let sys = crate::symbolic::Symbolic::build(mech);
     let reduced = sys.as_ref().map_or_else(|_| reduced_unknowns(mech), |s| s.unknowns.len());
-    let blocks = sys.as_ref().map(Blocks::of);
+    let blocks = sys.as_ref().map(|sys| Blocks::of(sys, mech));
     let bodies = mech.bodies.len();
     let grounds = mech.bodies.iter().filter(|b| b.ground).count();
     if json {
@@ -124,9 +124,14 @@ pub(super) fn check(
                     0 => String::new(),
                     n => format!(", the largest of {n}"),
                 };
+                let rotations = match b.rotations() {
+                    0 => String::new(),
+                    1 => ", 1 of them a rotation".to_owned(),
+                    n => format!(", {n} of them rotations"),
+                };
                 writeln!(
                     out,
-                    "blocks:            {} ({} closed form, {implicit} implicit{largest})",
+                    "blocks:            {} ({} closed form{rotations}, {implicit} implicit{largest})",
                     b.blocks.len(),
                     b.closed_form()
                 )?;
@@ -157,7 +162,9 @@ pub(super) fn check(
     Ok(EXIT_OK)
 }
 
-/// `{ "count", "closed_form", "implicit", "largest_implicit", "sizes": [{ "size", "count" }] }`.
+/// `{ "count", "closed_form", "rotations", "implicit", "largest_implicit", "sizes": [{ "size",
+/// "count" }] }` (`rotations`: the closed-form blocks that are a body's orientation about a
+/// driven axis).
 fn blocks_json(b: &Blocks) -> serde_json::Value {
     let sizes: Vec<serde_json::Value> = b
         .sizes()
@@ -167,6 +174,7 @@ fn blocks_json(b: &Blocks) -> serde_json::Value {
     serde_json::json!({
         "count": b.blocks.len(),
         "closed_form": b.closed_form(),
+        "rotations": b.rotations(),
         "implicit": b.blocks.len() - b.closed_form(),
         "largest_implicit": b.largest_implicit(),
         "sizes": sizes,

@@ -60,8 +60,9 @@ fn check_json_reports_the_counts_of_the_rssr() {
 fn check_reports_the_blocks_of_the_generated_system() {
     // The R-S-S-R (see `blocks::tests`): the origins of crank, coupler and rocker sit on O2, A
     // and O4, nine coordinates each alone and affine; the crank's orientation is a block of four
-    // (O2's axis rows, the motor, its normalisation); the coupler's e0, e1, e3 and the rocker's
-    // four Euler parameters close the loop, one block of seven.
+    // (O2's axis rows, the motor, its normalisation), a rotation about O2's axis in closed form;
+    // the coupler's e0, e1, e3 and the rocker's four Euler parameters close the loop, one
+    // implicit block of seven.
     let (code, out, _) =
         mechgen(&["check", example("rssr.toml").to_str().unwrap(), "--format", "json"]);
     assert_eq!(code, EXIT_OK);
@@ -70,8 +71,9 @@ fn check_reports_the_blocks_of_the_generated_system() {
         v["blocks"],
         serde_json::json!({
             "count": 11,
-            "closed_form": 9,
-            "implicit": 2,
+            "closed_form": 10,
+            "rotations": 1,
+            "implicit": 1,
             "largest_implicit": 7,
             "sizes": [
                 { "size": 1, "count": 9 },
@@ -80,13 +82,13 @@ fn check_reports_the_blocks_of_the_generated_system() {
             ],
         })
     );
-    // A driven chain of five links: per link one orientation block of four and three
-    // closed-form positions.
+    // A driven chain of five links: per link one orientation block of four, a rotation in
+    // closed form, and three closed-form positions.
     let file = temp_file("chain_5.toml", &crate::scale::chain(5, 3));
     let (code, out, _) = mechgen(&["check", file.to_str().unwrap()]);
     assert_eq!(code, EXIT_OK);
     assert!(
-        out.contains("blocks:            20 (15 closed form, 5 implicit, the largest of 4)\n"),
+        out.contains("blocks:            20 (20 closed form, 5 of them rotations, 0 implicit)\n"),
         "{out}"
     );
     assert!(out.contains("block sizes:       15 of 1, 5 of 4\n"), "{out}");

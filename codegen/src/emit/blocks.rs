@@ -11,6 +11,7 @@ use super::Rows;
 use super::function::Signature;
 use super::syntax::{ident, index};
 use crate::blocks::{Blocks, Kind};
+use crate::model::Mechanism;
 use crate::symbolic::Symbolic;
 
 /// A system of at least this many unknowns is factored block by block when it has more than one
@@ -36,57 +37,61 @@ pub(super) struct Plan {
     /// block. Block by block needs a square system with no row left out as redundant (the
     /// dropped rows' checks and their re-selection at run time belong to the whole system).
     pub(super) newton: bool,
+    /// With Newton block by block, the rotation blocks it solves in closed form.
+    pub(super) rotations: Vec<Closed>,
 }
 
-/// Newton runs block by block when some chain of implicit blocks, each depending on the one
-/// before, is at least this long (and the system has no row left out as redundant): measured
-/// (BENCHMARKS.md, "Newton per block"), it saved 26 % of the instructions per step on a driven
-/// chain of 100 links (a chain of 100 orientation blocks, where one Newton iteration over the
-/// whole system waits for the worst link) and cost 5–10 % on the chain of 10, ten 6R arms
-/// (chains of 6) and 34 independent R-S-S-R loops (chains of 1), where every block takes
-/// about as many iterations as the whole system.
-pub(super) const MIN_DEPTH: usize = 64;
+/// A rotation block solved in closed form: `runtime::rotation::about_axis` on coefficients an
+/// emitted function computes.
+pub(super) struct Closed {
+    /// The block.
+    block: usize,
+    /// The first of its unknowns e0 … e3 (consecutive).
+    first: usize,
+    /// Whether the driver's row is linear in e (an absolute rotation).
+    linear: bool,
+    /// u, w, f(u), f(w), f((u + w)/√2), in the pool.
+    coefficients: [crate::expr::ExprId; 11],
+}
 
-/// The blocks of `sys` when its solver factors Φ_q block by block: at least
-/// [`MIN_UNKNOWNS`] unknowns, more than one block, none larger than [`MAX_BLOCK`]; with Newton
-/// block by block when `newton` is `Some(true)`, or `None` and [`MIN_DEPTH`] says so (never
-/// with rows left out as redundant).
-pub(super) fn plan(sys: &Symbolic, newton: Option<bool>) -> Option<Plan> {
+/// The blocks of `sys` when its solver factors Φ_q block by block: more than one block, none
+/// larger than [`MAX_BLOCK`], and at least [`MIN_UNKNOWNS`] unknowns unless `newton` is
+/// `Some(true)`. Newton runs block by block unless `newton` is `Some(false)` or rows are left
+/// out as redundant; its rotation blocks' coefficients then join the pool.
+///
+/// Newton block by block is the plan wherever Φ_q is factored block by block: measured
+/// (BENCHMARKS.md, "Closed-form orientation blocks"), with the orientation blocks in closed
+/// form it took 21 % fewer instructions per step than one Newton iteration over the whole
+/// system on a driven chain of 10 links, 57 % fewer on 100 links, 21 % fewer on ten 6R arms
+/// and 27 % fewer on 34 R-S-S-R loops. Below [`MIN_UNKNOWNS`] the static orders stay: one 6R
+/// arm took 5 % more instructions block by block and the R-S-S-R 85 % more (the runtime's
+/// loops over a block's rows and its small LU cost more than the straight-line static order
+/// of the whole 20 × 20 system).
+pub(super) fn plan(sys: &mut Symbolic, mech: &Mechanism, newton: Option<bool>) -> Option<Plan> {
     let n = sys.unknowns.len();
-    if n < MIN_UNKNOWNS {
+    if n == 0 || (n < MIN_UNKNOWNS && newton != Some(true)) {
         return None;
     }
-    let blocks = Blocks::of(sys);
+    let blocks = Blocks::of(sys, mech);
     let largest = blocks.blocks.iter().map(|b| b.rows.len()).max().unwrap_or(0);
     if blocks.blocks.len() <= 1 || largest > MAX_BLOCK {
         return None;
     }
-    let newton =
-        sys.dropped.is_empty() && newton.unwrap_or_else(|| depth(sys, &blocks) >= MIN_DEPTH);
-    Some(Plan { blocks, newton })
-}
-
-/// The length of the longest chain of implicit blocks each depending on the one before.
-fn depth(sys: &Symbolic, blocks: &Blocks) -> usize {
-    let mut block_of_column = vec![0; sys.unknowns.len()];
-    for (b, block) in blocks.blocks.iter().enumerate() {
-        for &c in &block.unknowns {
-            block_of_column[c] = b;
+    let newton = sys.dropped.is_empty() && newton != Some(false);
+    if n < MIN_UNKNOWNS && !newton {
+        return None;
+    }
+    let mut rotations = Vec::new();
+    if newton {
+        for (b, block) in blocks.blocks.iter().enumerate() {
+            if let Kind::Rotation(r) = block.kind {
+                let coefficients = r.coefficients(sys, mech);
+                let first = r.first_unknown(sys);
+                rotations.push(Closed { block: b, first, linear: r.linear, coefficients });
+            }
         }
     }
-    let mut depth = vec![0; blocks.blocks.len()];
-    for (b, block) in blocks.blocks.iter().enumerate() {
-        let before = block
-            .rows
-            .iter()
-            .flat_map(|&r| sys.jac[r].iter().map(|&(c, _)| block_of_column[c]))
-            .filter(|&d| d < b)
-            .map(|d| depth[d])
-            .max()
-            .unwrap_or(0);
-        depth[b] = before + usize::from(block.kind == Kind::Implicit);
-    }
-    depth.into_iter().max().unwrap_or(0)
+    Some(Plan { blocks, newton, rotations })
 }
 
 /// `static BLOCKS: runtime::blocks::Layout` and, for Newton block by block, the `block_k`
@@ -122,8 +127,12 @@ pub(super) fn items(rows: &Rows<'_>, plan: &Plan) -> Vec<syn::Item> {
     };
     let (r, c, s, l, ls) =
         (list(&order_rows), list(&order_columns), list(&starts), list(&lower), list(&lower_starts));
-    let affine = blocks.blocks.iter().map(|b| plan.newton && b.kind == Kind::ClosedForm);
-    let affine = if plan.newton { quote::quote!(&[#(#affine),*]) } else { quote::quote!(&[]) };
+    let solve = blocks.blocks.iter().map(|b| match b.kind {
+        Kind::ClosedForm => quote::quote!(runtime::blocks::Solve::Affine),
+        Kind::Rotation(_) => quote::quote!(runtime::blocks::Solve::Explicit),
+        Kind::Implicit => quote::quote!(runtime::blocks::Solve::Newton),
+    });
+    let solve = if plan.newton { quote::quote!(&[#(#solve),*]) } else { quote::quote!(&[]) };
     let doc = format!(
         " The block-lower-triangular form of Φ_q: {} blocks (the largest of {}), {} entries below them.",
         blocks.blocks.len(),
@@ -138,11 +147,12 @@ pub(super) fn items(rows: &Rows<'_>, plan: &Plan) -> Vec<syn::Item> {
             starts: #s,
             lower: #l,
             lower_starts: #ls,
-            affine: #affine,
+            solve: #solve,
         };
     }];
     if plan.newton {
         items.extend(block_functions(rows, blocks));
+        items.extend(rotation_functions(rows, &plan.rotations));
         items.extend(straight_line(sys, blocks, &lower_starts, &lower));
         items.extend(block_factor_solve(sys, blocks));
         return items;
@@ -380,7 +390,7 @@ fn block_code(
 /// when planned), for a mechanism whose functions take its inputs at t when `inputs`.
 pub(super) fn impl_items(plan: &Plan, inputs: bool) -> Vec<syn::ImplItem> {
     if plan.newton {
-        return newton_impl_items(&plan.blocks, inputs);
+        return newton_impl_items(plan, inputs);
     }
     let [factor, solve] = factor_solve_blocks();
     vec![
@@ -407,8 +417,8 @@ pub(super) fn impl_items(plan: &Plan, inputs: bool) -> Vec<syn::ImplItem> {
 
 /// Per block b: `block_b`, writing Φ and the structural non-zeros of Φ_q of the block's rows
 /// (and 0 at the structural zeros of its diagonal block, where its last factors left fill-in),
-/// and, unless the block is solved in closed form (which reads Φ with Φ_q), `block_residual_b`
-/// writing Φ of its rows alone. Each is a small straight-line function of its own, so that
+/// and, unless the block is affine (solved in closed form from Φ with Φ_q), `block_residual_b`
+/// writing Φ of its rows alone (for a rotation block, Newton's when its closed form fails). Each is a small straight-line function of its own, so that
 /// Newton block by block evaluates only the block it iterates on.
 fn block_functions(rows: &Rows<'_>, blocks: &Blocks) -> Vec<syn::Item> {
     let sys = rows.sys;
@@ -475,9 +485,53 @@ fn block_functions(rows: &Rows<'_>, blocks: &Blocks) -> Vec<syn::Item> {
             items.push(super::syntax::item_fn(item, f.stmts));
         };
         emit(format!("block_{b}"), &all, &both[..], &zeros);
-        if block.kind == Kind::Implicit {
+        if block.kind != Kind::ClosedForm {
             emit(format!("block_residual_{b}"), &phi, &alone[..], &[]);
         }
+    }
+    items
+}
+
+/// Per rotation block b solved in closed form, `rotation_b` writing what
+/// `runtime::rotation::about_axis` reads: u and w (the family of the body's Euler parameters,
+/// from the known body's) and the driver's row at u, at w and at (u + w)/√2.
+fn rotation_functions(rows: &Rows<'_>, rotations: &[Closed]) -> Vec<syn::Item> {
+    let sys = rows.sys;
+    let n = sys.unknowns.len();
+    let targets = [("k", quote::quote!(&mut [f64; runtime::rotation::COEFFICIENTS]))];
+    let signature = Signature {
+        name: "",
+        qd: false,
+        qdd: false,
+        public: false,
+        targets: &targets,
+        inputs: rows.inputs(),
+    };
+    let mut items = Vec::new();
+    for r in rotations {
+        let outputs: Vec<_> = r
+            .coefficients
+            .iter()
+            .enumerate()
+            .map(|(i, &e)| (super::syntax::element("k", &[i]), e, None))
+            .collect();
+        let f = super::function::function_with(&sys.pool, n, &outputs, true);
+        let arrays = [true];
+        let used = super::function::Used {
+            q: f.uses_q,
+            qd: false,
+            qdd: false,
+            t: f.uses_t,
+            u: f.uses_u,
+            arrays: &arrays,
+        };
+        let name = format!("rotation_{}", r.block);
+        let doc = format!(
+            " {name}: u, w, the driver's row at u, at w and at (u + w)/√2 (`runtime::rotation`): {} operations.",
+            f.ops
+        );
+        let item = signature.item(&ident(&name), &doc, &used, true);
+        items.push(super::syntax::item_fn(item, f.stmts));
     }
     items
 }
@@ -501,7 +555,8 @@ fn factor_solve_blocks() -> [syn::ImplItem; 2] {
 
 /// The `runtime::Mechanism` items of Newton block by block: the layout, `BLOCK_NEWTON` and
 /// `block_residual` dispatching to the block functions.
-fn newton_impl_items(blocks: &Blocks, inputs: bool) -> Vec<syn::ImplItem> {
+fn newton_impl_items(plan: &Plan, inputs: bool) -> Vec<syn::ImplItem> {
+    let blocks = &plan.blocks;
     let chunks = implicit_chunks(blocks);
     let range = |chunk: &[usize]| {
         let (first, last) = (index(chunk[0]), index(chunk[chunk.len() - 1]));
@@ -520,14 +575,39 @@ fn newton_impl_items(blocks: &Blocks, inputs: bool) -> Vec<syn::ImplItem> {
         let (lit, f) = (index(b), ident(&format!("block_{b}")));
         quote::quote!(#lit => #f(q, t, #u phi, jac),)
     });
-    let alone =
-        blocks.blocks.iter().enumerate().filter(|(_, k)| k.kind == Kind::Implicit).map(|(b, _)| {
+    let alone = blocks.blocks.iter().enumerate().filter(|(_, k)| k.kind != Kind::ClosedForm).map(
+        |(b, _)| {
             let (lit, f) = (index(b), ident(&format!("block_residual_{b}")));
             quote::quote!(#lit => #f(q, t, #u phi),)
-        });
+        },
+    );
     let read = inputs.then(|| quote::quote!(let u = self.inputs(t).to_array();));
     let [factor, solve] = factor_solve_blocks();
-    vec![
+    let mut items = Vec::new();
+    if !plan.rotations.is_empty() {
+        let arms = plan.rotations.iter().map(|r| {
+            let (lit, f) = (index(r.block), ident(&format!("rotation_{}", r.block)));
+            let (first, linear) = (index(r.first), r.linear);
+            quote::quote!(#lit => { #f(q, t, #u &mut k); (#first, #linear) })
+        });
+        items.push(parse_quote! {
+            fn closed_form_block(&self, b: usize, q: &mut [f64; N], t: f64) -> bool {
+                #read
+                let mut k = [0.0; runtime::rotation::COEFFICIENTS];
+                let (at, linear) = match b {
+                    #(#arms)*
+                    _ => return false,
+                };
+                let previous = [q[at], q[at + 1], q[at + 2], q[at + 3]];
+                let Some(e) = runtime::rotation::about_axis(&k, linear, &previous) else {
+                    return false;
+                };
+                q[at..at + 4].copy_from_slice(&e);
+                true
+            }
+        });
+    }
+    items.extend([
         parse_quote!(
             const BLOCKS: Option<&'static runtime::blocks::Layout> = Some(&BLOCKS);
         ),
@@ -568,17 +648,18 @@ fn newton_impl_items(blocks: &Blocks, inputs: bool) -> Vec<syn::ImplItem> {
                 }
             }
         },
-    ]
+    ]);
+    items
 }
 
-/// The implicit blocks in chunks of about [`CHUNK_ENTRIES`] entries of their diagonal blocks,
-/// each chunk a run of consecutive block indices (the closed-form blocks between them have no
-/// arm).
+/// The blocks factored alone (implicit and rotation blocks) in chunks of about
+/// [`CHUNK_ENTRIES`] entries of their diagonal blocks, each chunk a run of consecutive block
+/// indices (the affine blocks between them have no arm).
 fn implicit_chunks(blocks: &Blocks) -> Vec<Vec<usize>> {
     let mut chunks: Vec<Vec<usize>> = vec![Vec::new()];
     let mut size = 0;
     for (b, block) in blocks.blocks.iter().enumerate() {
-        if block.kind != Kind::Implicit {
+        if block.kind == Kind::ClosedForm {
             continue;
         }
         let entries = 2 * block.rows.len() * block.rows.len();

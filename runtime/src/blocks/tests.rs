@@ -51,7 +51,7 @@ fn random(seed: u64, sizes: &[usize]) -> ([[f64; N]; N], Layout) {
         starts: Box::leak(starts.into_boxed_slice()),
         lower: Box::leak(lower.concat().into_boxed_slice()),
         lower_starts: Box::leak(lower_starts.into_boxed_slice()),
-        affine: &[],
+        solve: &[],
     };
     (a, layout)
 }

@@ -6,8 +6,12 @@
 //! one takes two Newton steps, where one iteration over the whole system would have every
 //! block wait for the worst.
 //!
-//! - A block of one equation affine in its one unknown ([`Layout::affine`]) is solved in
+//! - A block of one equation affine in its one unknown ([`Solve::Affine`]) is solved in
 //!   closed form, q_k ← q_k − Φ_r / (∂Φ_r/∂q_k): one evaluation, no iteration.
+//! - A block the mechanism solves in closed form itself ([`Solve::Explicit`], a body's
+//!   orientation about a driven axis: [`crate::rotation`]) is straight-line code, then one
+//!   evaluation of its rows and its factorisation; when that code finds no real solution the
+//!   block is solved by Newton as below.
 //! - Any other block follows [`super::solve_with_chord`] on its own rows: a prediction that
 //!   meets the tolerance is corrected by one chord step with the block's factors kept from
 //!   the last position, then Newton steps until max |Φ_i| over its rows ≤ tolerance, and its
@@ -20,7 +24,7 @@
 //! rows belong to their blocks, which Newton solves to round-off.
 
 use super::{CHORD_ROUND_OFF, NewtonError, NewtonOptions, NewtonReport, Status, max_abs, status};
-use crate::blocks::Layout;
+use crate::blocks::{Layout, Solve};
 use crate::factors::Factors;
 use crate::lu::{PivotInfo, Singular};
 use crate::{Mechanism, Real};
@@ -56,26 +60,35 @@ pub(super) fn solve<R: Real, M: Mechanism<N, R>, const N: usize>(
     let (mut smallest, mut largest) = (R::INFINITY, R::ZERO);
     for b in 0..layout.starts.len() - 1 {
         let (start, end) = (layout.starts[b], layout.starts[b + 1]);
-        let pivots = if layout.affine.get(b) == Some(&true) {
-            counts.closed_form += 1;
-            closed_form(mechanism, layout, b, q, t, phi, jac, perm)?
-        } else {
-            counts.implicit += 1;
-            let rows = &layout.rows[start..end];
-            let columns = &layout.columns[start..end];
-            let mut block = Block {
-                mechanism,
-                b,
-                rows,
-                columns,
-                options,
-                round_off,
-                size: core::marker::PhantomData,
-            };
-            let (iterations, pivots) = block.newton(q, t, phi, jac, perm, chord)?;
-            counts.iterations += u64::from(iterations);
-            most = most.max(iterations);
-            pivots
+        let solve = layout.solve.get(b).copied().unwrap_or(Solve::Newton);
+        let mut block = Block {
+            mechanism,
+            b,
+            rows: &layout.rows[start..end],
+            columns: &layout.columns[start..end],
+            options,
+            round_off,
+            size: core::marker::PhantomData,
+        };
+        let pivots = match solve {
+            Solve::Affine => {
+                counts.closed_form += 1;
+                closed_form(mechanism, layout, b, q, t, phi, jac, perm)?
+            }
+            Solve::Explicit if mechanism.closed_form_block(b, q, t) => {
+                // The block's rows and its factors at the closed form, for the velocity and
+                // acceleration solves.
+                counts.closed_form += 1;
+                mechanism.block_residual(b, true, q, t, phi, jac);
+                block.factor(jac, perm, 0)?
+            }
+            Solve::Newton | Solve::Explicit => {
+                counts.implicit += 1;
+                let (iterations, pivots) = block.newton(q, t, phi, jac, perm, chord)?;
+                counts.iterations += u64::from(iterations);
+                most = most.max(iterations);
+                pivots
+            }
         };
         if pivots.smallest < smallest {
             smallest = pivots.smallest;

@@ -1,6 +1,6 @@
 use core::cell::Cell;
 
-use crate::blocks::Layout;
+use crate::blocks::{Layout, Solve};
 use crate::{Mechanism, Solver};
 
 /// A crank driven to the angle q0 = t, as two blocks: q0 − t = 0 (affine in q0: closed form),
@@ -18,7 +18,7 @@ static LAYOUT: Layout = Layout {
     starts: &[0, 1, 3],
     lower: &[0],
     lower_starts: &[0, 0, 0, 1],
-    affine: &[true, false],
+    solve: &[Solve::Affine, Solve::Newton],
 };
 
 impl Mechanism<3> for Crank {
