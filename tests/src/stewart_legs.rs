@@ -65,7 +65,7 @@ fn agree(names: &[&str], reference: (&Mechanism, &[Frame]), other: (&Mechanism, 
 
 /// The block of the platform: 7 unknowns, all of them the platform's.
 fn platform_block(mech: &Mechanism, sys: &Symbolic) {
-    let blocks = Blocks::of(sys);
+    let blocks = Blocks::of(sys, mech);
     let platform = mech.bodies.iter().position(|b| b.name == "platform").expect("a platform");
     let block = blocks
         .blocks

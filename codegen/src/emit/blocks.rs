@@ -568,18 +568,23 @@ fn newton_impl_items(plan: &Plan, inputs: bool) -> Vec<syn::ImplItem> {
     });
     let solve_arms = chunks.iter().enumerate().map(|(k, chunk)| {
         let (r, f) = (range(chunk), ident(&format!("solve_block_{k}")));
-        quote::quote!(#r => #f(b, lu, perm, rhs, x),)
+        (r, quote::quote!(#f(b, lu, perm, rhs, x)))
     });
     let u = inputs.then(|| quote::quote!(&u,));
     let both = blocks.blocks.iter().enumerate().map(|(b, _)| {
         let (lit, f) = (index(b), ident(&format!("block_{b}")));
-        quote::quote!(#lit => #f(q, t, #u phi, jac),)
+        (quote::quote!(#lit), quote::quote!(#f(q, t, #u phi, jac)))
     });
     let alone = blocks.blocks.iter().enumerate().filter(|(_, k)| k.kind != Kind::ClosedForm).map(
         |(b, _)| {
             let (lit, f) = (index(b), ident(&format!("block_residual_{b}")));
-            quote::quote!(#lit => #f(q, t, #u phi),)
+            (quote::quote!(#lit), quote::quote!(#f(q, t, #u phi)))
         },
+    );
+    let (solve_arms, both, alone) = (
+        unit_dispatch(solve_arms.collect()),
+        unit_dispatch(both.collect()),
+        unit_dispatch(alone.collect()),
     );
     let read = inputs.then(|| quote::quote!(let u = self.inputs(t).to_array();));
     let [factor, solve] = factor_solve_blocks();
@@ -626,25 +631,16 @@ fn newton_impl_items(plan: &Plan, inputs: bool) -> Vec<syn::ImplItem> {
         },
         parse_quote! {
             fn solve_block(&self, b: usize, lu: &[[f64; N]; N], perm: &[usize; N], rhs: &[f64; N], x: &mut [f64]) {
-                match b {
-                    #(#solve_arms)*
-                    _ => {}
-                }
+                #solve_arms
             }
         },
         parse_quote! {
             fn block_residual(&self, b: usize, jacobian: bool, q: &[f64; N], t: f64, phi: &mut [f64; N], jac: &mut [[f64; N]; N]) {
                 #read
                 if jacobian {
-                    match b {
-                        #(#both)*
-                        _ => {}
-                    }
+                    #both
                 } else {
-                    match b {
-                        #(#alone)*
-                        _ => {}
-                    }
+                    #alone
                 }
             }
         },
@@ -718,16 +714,20 @@ fn block_factor_solve(sys: &Symbolic, blocks: &Blocks) -> Vec<syn::Item> {
                 let r = index(r);
                 quote::quote!(rhs[#r])
             });
-            solve_arms.push(quote::quote! {
-                #lit => {
-                    let a = [#(#rows_lu),*];
-                    let p = [#(#order),*];
-                    let mut z = [#(#z),*];
-                    runtime::lu::solve(&a, &p, &mut z);
-                    x[..#s].copy_from_slice(&z);
-                }
-            });
+            solve_arms.push((
+                quote::quote!(#lit),
+                quote::quote! {
+                    {
+                        let a = [#(#rows_lu),*];
+                        let p = [#(#order),*];
+                        let mut z = [#(#z),*];
+                        runtime::lu::solve(&a, &p, &mut z);
+                        x[..#s].copy_from_slice(&z);
+                    }
+                },
+            ));
         }
+        let solve_dispatch = unit_dispatch(solve_arms);
         let (first, last) = (chunk[0], chunk[chunk.len() - 1]);
         let factor = ident(&format!("factor_block_{k}"));
         let solve = ident(&format!("solve_block_{k}"));
@@ -749,12 +749,24 @@ fn block_factor_solve(sys: &Symbolic, blocks: &Blocks) -> Vec<syn::Item> {
         items.push(parse_quote! {
             #[doc = #doc]
             fn #solve(b: usize, lu: &[[f64; N]; N], perm: &[usize; N], rhs: &[f64; N], x: &mut [f64]) {
-                match b {
-                    #(#solve_arms)*
-                    _ => {}
-                }
+                #solve_dispatch
             }
         });
     }
     items
+}
+
+/// A dispatch on the block index `b` to calls that return nothing: `if let` for one arm (what
+/// clippy asks of a `match` with one arm), a `match` for several, nothing for none.
+fn unit_dispatch(
+    arms: Vec<(proc_macro2::TokenStream, proc_macro2::TokenStream)>,
+) -> proc_macro2::TokenStream {
+    match arms.as_slice() {
+        [] => proc_macro2::TokenStream::new(),
+        [(pattern, body)] => quote::quote!(if let #pattern = b { #body }),
+        _ => {
+            let (patterns, bodies): (Vec<_>, Vec<_>) = arms.into_iter().unzip();
+            quote::quote!(match b { #(#patterns => #bodies,)* _ => {} })
+        }
+    }
 }

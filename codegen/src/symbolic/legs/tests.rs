@@ -30,7 +30,7 @@ fn the_shipped_platforms_six_legs_are_reduced_and_its_pose_is_a_block_of_seven()
         // tolerance), the frames unrotated: |S − U| from the joint points to round-off.
         assert!((l.leg.length - (s - u).norm()).abs() < 1e-12, "{}", l.leg.length);
     }
-    let sizes = Blocks::of(&sys).sizes();
+    let sizes = Blocks::of(&sys, &mech).sizes();
     assert_eq!(sizes.get(&7), Some(&1), "{sizes:?}");
 }
 
@@ -52,5 +52,5 @@ fn a_leg_whose_cylinder_carries_another_joint_keeps_its_driver_row() {
     // longer a block of its own.
     let mech = load_toml(&format!("{text}\n{probe}"));
     let sys = Symbolic::build(&mech).expect("the system builds");
-    assert_eq!(Blocks::of(&sys).sizes().get(&7), None);
+    assert_eq!(Blocks::of(&sys, &mech).sizes().get(&7), None);
 }
