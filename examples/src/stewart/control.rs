@@ -6,7 +6,7 @@
 use generated::stewart::{self as gs, Inputs, Stewart};
 use nalgebra::{Matrix3, Vector3};
 use runtime::input::{Driven, Input};
-use runtime::{AttemptError, InputsError, NewtonOptions, Solver};
+use runtime::{AttemptError, InputsError, Mechanism, NewtonOptions, Solver};
 
 use super::{LEGS, Motion, Trajectory, leg_lengths};
 
@@ -35,12 +35,13 @@ pub fn solver(trajectory: &Trajectory, t: f64) -> PlatformSolver {
 /// One step without the step control: the inputs `u` at `t` go to the mechanism, then plain
 /// [`Solver::position`], [`Solver::velocity`] and [`Solver::acceleration`] calls, which trust
 /// the caller's step (a step that is large for the motion may converge on another assembly
-/// branch and still succeed). The benchmarks' lower bound on a period's cost.
+/// branch and still succeed). The benchmarks' lower bound on a period's cost; it serves the
+/// whole module and the platform's alone ([`super::pose`]).
 ///
 /// # Errors
 /// The Newton or solve failure; the solver then stands where it was.
-pub fn plain_step(
-    solver: &mut PlatformSolver,
+pub fn plain_step<M: Mechanism<N> + Driven<LEGS>, const N: usize>(
+    solver: &mut Solver<M, N>,
     t: f64,
     u: &[[f64; 3]; LEGS],
 ) -> Result<(), AttemptError> {

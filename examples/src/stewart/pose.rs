@@ -5,8 +5,10 @@
 //! legs. Used as [`super::control`] uses the whole module.
 
 use generated::stewart_platform::{self as sp, Inputs, StewartPlatform};
-use runtime::input::{Driven, Input};
-use runtime::{AttemptError, NewtonOptions, Solver};
+use runtime::input::Input;
+use runtime::{NewtonOptions, Solver};
+
+pub use super::control::plain_step;
 
 use super::{LEGS, Trajectory, leg_lengths};
 
@@ -29,23 +31,4 @@ pub fn solver(trajectory: &Trajectory, t: f64) -> PoseSolver {
     solver.set_options(NewtonOptions { tolerance: sp::TOLERANCE, ..NewtonOptions::DEFAULT });
     solver.set_predictor(true);
     solver
-}
-
-/// One step of plain calls, as [`super::control::plain_step`]: the inputs `u` at `t`, then
-/// position, velocity and acceleration.
-///
-/// # Errors
-/// The Newton or solve failure; the solver then stands where it was.
-pub fn plain_step(
-    solver: &mut PoseSolver,
-    t: f64,
-    u: &[[f64; 3]; LEGS],
-) -> Result<(), AttemptError> {
-    solver.mechanism_mut().segment_mut().aim(t, *u);
-    let result = solver.position(t).map_err(AttemptError::Newton).and_then(|_| {
-        solver.velocity().and_then(|()| solver.acceleration()).map_err(AttemptError::Solve)
-    });
-    let reached = solver.t();
-    solver.mechanism_mut().segment_mut().settle(reached);
-    result
 }
