@@ -24,9 +24,10 @@
 
 use std::collections::BTreeMap;
 
-use nalgebra::{Vector3, Vector4};
+use nalgebra::{Quaternion, UnitQuaternion, Vector3, Vector4};
 
 use crate::expr::{ExprId, ExprPool, Var};
+use crate::model::frame::rotation;
 use crate::model::{
     BodyId, DriverCoordinate, DriverTarget, JointKind, Mechanism, Motion, RowLabel,
 };
@@ -50,35 +51,27 @@ pub struct Rotation {
     pub flipped: bool,
 }
 
-/// The Hamilton product a ⊗ b.
+/// The Hamilton product a ⊗ b of Euler parameters [e0, e1, e2, e3].
 fn product(a: Vector4<f64>, b: Vector4<f64>) -> Vector4<f64> {
-    Vector4::new(
-        a[0] * b[0] - a[1] * b[1] - a[2] * b[2] - a[3] * b[3],
-        a[0] * b[1] + a[1] * b[0] + a[2] * b[3] - a[3] * b[2],
-        a[0] * b[2] - a[1] * b[3] + a[2] * b[0] + a[3] * b[1],
-        a[0] * b[3] + a[1] * b[2] - a[2] * b[1] + a[3] * b[0],
-    )
+    parameters(quaternion(a) * quaternion(b))
 }
 
-/// The conjugate of a quaternion.
-fn conjugate(a: Vector4<f64>) -> Vector4<f64> {
-    Vector4::new(a[0], -a[1], -a[2], -a[3])
+fn quaternion(p: Vector4<f64>) -> Quaternion<f64> {
+    Quaternion::new(p[0], p[1], p[2], p[3])
 }
 
-/// A unit quaternion turning the z axis onto the unit vector `a`: half way between them, or a
+fn parameters(q: Quaternion<f64>) -> Vector4<f64> {
+    Vector4::new(q.w, q.i, q.j, q.k)
+}
+
+/// A unit quaternion turning the z axis onto the unit vector `a` (the shortest rotation), or a
 /// half turn about x when `a` is −z.
-fn onto(a: &Vector3<f64>) -> Vector4<f64> {
-    let z = Vector3::z();
-    let c = z.cross(a);
-    let f = Vector4::new(1.0 + z.dot(a), c.x, c.y, c.z);
-    let n = f.norm();
-    if n < 1e-8 { Vector4::new(0.0, 1.0, 0.0, 0.0) } else { f / n }
-}
-
-/// A(p) v for unit Euler parameters p.
-fn rotate(p: &Vector4<f64>, v: &Vector3<f64>) -> Vector3<f64> {
-    let e = Vector3::new(p[1], p[2], p[3]);
-    v + 2.0 * e.cross(&(e.cross(v) + p[0] * v))
+fn onto(a: &Vector3<f64>) -> Quaternion<f64> {
+    UnitQuaternion::rotation_between(&Vector3::z(), a)
+        .unwrap_or_else(|| {
+            UnitQuaternion::from_axis_angle(&Vector3::x_axis(), std::f64::consts::PI)
+        })
+        .into_inner()
 }
 
 impl Rotation {
@@ -91,9 +84,9 @@ impl Rotation {
             a_body = -a_body;
         }
         let (fk, fj) = (onto(&a_known), onto(&a_body));
-        let g = product(fk, conjugate(fj));
-        let h = product(product(fk, Vector4::new(0.0, 0.0, 0.0, 1.0)), conjugate(fj));
-        (g, h)
+        let g = fk * fj.conjugate();
+        let h = fk * Quaternion::new(0.0, 0.0, 0.0, 1.0) * fj.conjugate();
+        (parameters(g), parameters(h))
     }
 
     /// The first of the body's four consecutive unknowns e0 … e3.
@@ -261,7 +254,7 @@ pub fn recognise(
     let (a_known, a_body) = if j.body_i == known { (ai, aj) } else { (aj, ai) };
     let pk = mech.bodies[known.0].p.normalize();
     let pj = mech.bodies[body.0].p.normalize();
-    let alignment = rotate(&pk, &a_known).dot(&rotate(&pj, &a_body));
+    let alignment = (rotation(&pk) * a_known).dot(&(rotation(&pj) * a_body));
     if alignment.abs() < 0.5 {
         return None;
     }
