@@ -16,6 +16,7 @@ use crate::symbolic::{Source, Symbolic};
 
 mod blocks;
 mod docs;
+mod from_blocks;
 mod function;
 mod inputs;
 pub mod lu;
@@ -129,7 +130,14 @@ fn assemble(
     items.extend(inputs::items(mech, sys));
     let after_constants = items.len();
     let rows = Rows::new(sys);
-    items.extend(residual_and_jacobian(&rows, layout.is_none()));
+    // Newton block by block emits every row's Jacobian entries in its `block_b` functions:
+    // the whole Jacobian is then their calls (`from_blocks`), not two more copies of them.
+    let by_blocks = layout.as_ref().filter(|plan| plan.newton);
+    items.extend(residual_and_jacobian(&rows, layout.is_none(), by_blocks.is_none()));
+    if let Some(plan) = by_blocks {
+        let nnz = sys.jac.iter().map(Vec::len).sum::<usize>();
+        items.extend(from_blocks::items(&plan.blocks, nnz, !sys.inputs.is_empty()));
+    }
     if let Some(plan) = &layout {
         items.extend(blocks::items(&rows, plan));
     }
@@ -338,9 +346,9 @@ impl<'s> Rows<'s> {
     }
 }
 
-/// `residual`, `jacobian`, `residual_jacobian` and, for the static orders' factorisations
-/// (`structural`), `residual_jacobian_structural`.
-fn residual_and_jacobian(rows: &Rows<'_>, structural: bool) -> Vec<syn::Item> {
+/// `residual`, then (when `whole`) `jacobian` and `residual_jacobian` and, for the static
+/// orders' factorisations (`structural`), `residual_jacobian_structural`.
+fn residual_and_jacobian(rows: &Rows<'_>, structural: bool, whole: bool) -> Vec<syn::Item> {
     let sys = rows.sys;
     let n = sys.unknowns.len();
     let vec_ty = quote::quote!(&mut [f64; N]);
@@ -358,6 +366,9 @@ fn residual_and_jacobian(rows: &Rows<'_>, structural: bool) -> Vec<syn::Item> {
     };
     let what = format!("Constraint residuals Φ(q, t), {n} rows.");
     items.extend(rows.emit(&sig, &what, Vec::new(), &rows.vector(0, "phi", &sys.phi)));
+    if !whole {
+        return items;
+    }
 
     let nnz = sys.jac.iter().map(Vec::len).sum::<usize>();
     let targets = [("jac", mat_ty.clone())];

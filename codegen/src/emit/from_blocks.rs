@@ -1,0 +1,64 @@
+//! `jacobian` and `residual_jacobian` of a module solved by Newton block by block, written as
+//! calls of the blocks' own `block_b` functions rather than as a second and third copy of every
+//! Jacobian entry's code.
+//!
+//! The `block_b` functions ([`super::blocks`]) already write Φ and the structural non-zeros of
+//! Φ_q of every row, block by block, and the blocks' rows are all the rows, so the whole
+//! Jacobian is theirs with the other entries 0: the same expressions, the same values, and
+//! a third of the code rustc compiles for the chain of 100 links (BENCHMARKS.md, "Explicit
+//! velocities of closed-form blocks").
+
+use syn::parse_quote;
+
+use super::syntax::ident;
+use crate::blocks::Blocks;
+
+/// `jacobian` and `residual_jacobian` as calls of `block_0` … `block_{m−1}` (the public
+/// signatures of [`super::residual_and_jacobian`]'s, with `inputs: &Inputs` when `inputs`).
+pub(super) fn items(blocks: &Blocks, nnz: usize, inputs: bool) -> Vec<syn::Item> {
+    let u = inputs.then(|| quote::quote!(&u,));
+    let calls = (0..blocks.blocks.len()).map(|b| {
+        let f = ident(&format!("block_{b}"));
+        quote::quote!(#f(q, t, #u phi, jac);)
+    });
+    let doc = " Φ and Φ_q at once (see [`residual`] and [`jacobian`]), block by block.";
+    let jacobian_doc = format!(
+        " Jacobian Φ_q, row-major: `jac[i][j] = ∂Φ_i/∂q_j`; the {nnz} structurally non-zero entries are written, the others set to 0."
+    );
+    if inputs {
+        vec![
+            parse_quote! {
+                #[doc = #jacobian_doc]
+                pub fn jacobian(q: &[f64; N], t: f64, inputs: &Inputs, jac: &mut [[f64; N]; N]) {
+                    let mut phi = [0.0; N];
+                    residual_jacobian(q, t, inputs, &mut phi, jac);
+                }
+            },
+            parse_quote! {
+                #[doc = #doc]
+                pub fn residual_jacobian(q: &[f64; N], t: f64, inputs: &Inputs, phi: &mut [f64; N], jac: &mut [[f64; N]; N]) {
+                    let u = inputs.to_array();
+                    *jac = [[0.0; N]; N];
+                    #(#calls)*
+                }
+            },
+        ]
+    } else {
+        vec![
+            parse_quote! {
+                #[doc = #jacobian_doc]
+                pub fn jacobian(q: &[f64; N], t: f64, jac: &mut [[f64; N]; N]) {
+                    let mut phi = [0.0; N];
+                    residual_jacobian(q, t, &mut phi, jac);
+                }
+            },
+            parse_quote! {
+                #[doc = #doc]
+                pub fn residual_jacobian(q: &[f64; N], t: f64, phi: &mut [f64; N], jac: &mut [[f64; N]; N]) {
+                    *jac = [[0.0; N]; N];
+                    #(#calls)*
+                }
+            },
+        ]
+    }
+}
