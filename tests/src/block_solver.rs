@@ -210,3 +210,66 @@ fn systems_below_64_unknowns_keep_the_static_orders() {
         assert!(module.contains("fn factor_0"), "{}: static orders", mech.name);
     }
 }
+
+/// The lines of `module` that assign an entry of Φ_q (`jac[r][c] = …`), other than the
+/// structural zeros of a diagonal block (`= 0.0`) and the factors scattered back (`= a[i][j]`).
+fn jacobian_assignments(module: &str) -> usize {
+    module
+        .lines()
+        .map(str::trim_start)
+        .filter(|l| {
+            l.strip_prefix("jac[").is_some_and(|rest| {
+                rest.split_once(" =").is_some_and(|(at, value)| {
+                    let value = value.trim_start();
+                    at.ends_with(']') && value != "0.0;" && !value.starts_with("a[")
+                })
+            })
+        })
+        .count()
+}
+
+#[test]
+fn a_module_solved_block_by_block_emits_each_jacobian_entry_once() {
+    // `jacobian` and `residual_jacobian` call the blocks' `block_b` functions (emit::from_blocks)
+    // instead of repeating every entry's code: a Jacobian emitted three times costed the chain
+    // of 100 links a third of its build time (BENCHMARKS.md, "Explicit velocities of
+    // closed-form blocks").
+    for text in [codegen::scale::chain(10, 20), turning_chain(6, 20)] {
+        let mech = load_toml(&text);
+        let sys = codegen::symbolic::Symbolic::build(&mech).expect("the system builds");
+        let module = codegen::emit::module_with_block_newton(&mech, &sys, "once", Scalar::F64);
+        let nnz: usize = sys.jac.iter().map(Vec::len).sum();
+        assert_eq!(jacobian_assignments(&module), nnz, "{}: each entry once", mech.name);
+        let body = module.split("pub fn residual_jacobian(").nth(1).expect("residual_jacobian");
+        let body = &body[..body.find("\n}\n").expect("its end")];
+        assert!(body.contains("block_0(q, t, phi, jac);"), "{}: {body}", mech.name);
+    }
+}
+
+#[test]
+fn the_jacobian_gathered_from_the_blocks_drives_dense_lu_as_the_generic_engine() {
+    // The driver's `dense` mode factors `residual_jacobian` (the blocks' functions called in
+    // turn) by dense LU with partial pivoting instead of block by block: the whole Φ_q they
+    // write must be the generic engine's, oblique, reversed and swapped axes included.
+    let mech = load_toml(&format!("{}\n[solver]\ntolerance = 1e-12\n", turning_chain(6, 100)));
+    let sys = codegen::symbolic::Symbolic::build(&mech).expect("the system builds");
+    let module = codegen::emit::module_with_block_newton(&mech, &sys, "dense", Scalar::F64);
+    let built = codegen::engine::build_module(&mech, &module, &sys, Scalar::F64).expect("builds");
+    let generic = run_generic(&mech);
+    assert!(generic.failure.is_none(), "{:?}", generic.failure);
+    let eq = codegen::generic::Equations::new(&mech);
+    let prep = eq.prepare();
+    let analysis = codegen::generic::Analysis::new(&eq, &prep);
+    let settings = codegen::engine::Settings { predictor: true, dense_lu: true };
+    let mut frames = Vec::new();
+    let report = codegen::engine::run_with(&built, &analysis, None, settings, |f| {
+        frames.push(f.clone());
+        Ok(())
+    })
+    .expect("runs");
+    assert!(report.failure.is_none(), "{:?}", report.failure);
+    assert_eq!(generic.frames.len(), frames.len(), "every frame");
+    for (diff, at) in relative_differences(&generic.frames, &frames) {
+        assert!(diff <= AGREEMENT, "{at}");
+    }
+}
