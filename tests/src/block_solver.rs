@@ -273,3 +273,47 @@ fn the_jacobian_gathered_from_the_blocks_drives_dense_lu_as_the_generic_engine()
         assert!(diff <= AGREEMENT, "{at}");
     }
 }
+
+#[test]
+fn a_single_precision_module_solved_block_by_block_follows_the_generic_engine() {
+    // The f32 rewrite of a module solved block by block (the rotation blocks' closed forms,
+    // the blocks' functions and the Jacobian gathered from them), run both block by block and
+    // by dense LU on that Jacobian, against the double-precision generic engine.
+    let mech = load_toml(&turning_chain(6, 100));
+    let sys = codegen::symbolic::Symbolic::build(&mech).expect("the system builds");
+    let module = codegen::emit::module_with_block_newton(&mech, &sys, "f32", Scalar::F32);
+    assert!(module.contains("const BLOCK_NEWTON: bool = true;"));
+    let built = codegen::engine::build_module(&mech, &module, &sys, Scalar::F32).expect("builds");
+    let generic = run_generic(&mech);
+    assert!(generic.failure.is_none(), "{:?}", generic.failure);
+    let eq = codegen::generic::Equations::new(&mech);
+    let prep = eq.prepare();
+    let analysis = codegen::generic::Analysis::new(&eq, &prep);
+    for dense_lu in [false, true] {
+        let settings = codegen::engine::Settings { predictor: true, dense_lu };
+        let mut frames = Vec::new();
+        // 1e-4: the f32 default Newton tolerance (runtime::Real::DEFAULT_TOLERANCE).
+        let report = codegen::engine::run_with(&built, &analysis, Some(1e-4), settings, |f| {
+            frames.push(f.clone());
+            Ok(())
+        })
+        .expect("runs");
+        assert!(report.failure.is_none(), "dense {dense_lu}: {:?}", report.failure);
+        assert_eq!(generic.frames.len(), frames.len(), "every frame");
+        for (a, b) in generic.frames.iter().zip(&frames) {
+            // The f32 grid times are the f64 ones rounded to f32: within 1 ulp of t ≤ 1 s.
+            assert!((a.t - b.t).abs() <= 4.0 * f64::from(f32::EPSILON), "t {} vs {}", a.t, b.t);
+        }
+        let scale = |get: fn(&codegen::generic::Frame) -> &nalgebra::DVector<f64>| {
+            let s = generic.frames.iter().map(|f| get(f).amax()).fold(1.0, f64::max);
+            let d = generic.frames.iter().zip(&frames).map(|(a, b)| (get(a) - get(b)).amax());
+            d.fold(0.0, f64::max) / s
+        };
+        let [q, qd, qdd] = [scale(|f| &f.q), scale(|f| &f.qd), scale(|f| &f.qdd)];
+        println!("f32 turning chain, dense {dense_lu}: q {q:e}, qd {qd:e}, qdd {qdd:e}");
+        // f32 round-off is 6e-8 and six links in series sum their errors: observed 7e-7 (q),
+        // 2.5e-6 (q̇) and 3.2e-6 (q̈) relative, both ways. The bounds are about 20× those, so a
+        // quantity left in f64 and rounded twice, or a wrong entry, shows.
+        assert!(q <= 2e-5 && qd <= 5e-5 && qdd <= 1e-4, "q {q:e}, qd {qd:e}, qdd {qdd:e}");
+    }
+}
