@@ -6002,6 +6002,13 @@ static BLOCKS: runtime::blocks::Layout = runtime::blocks::Layout {
     ],
 };
 
+/// Where each block's entries start in the packed storage of Φ_q (`runtime::blocks`), and their end: 511 entries of the 8281 of `N × N`.
+static PACKED_BLOCKS: [usize; 50] = [
+    0, 49, 50, 51, 52, 58, 64, 70, 98, 126, 127, 128, 129, 135, 141, 147, 175, 203, 204,
+    205, 206, 212, 218, 224, 252, 280, 281, 282, 283, 289, 295, 301, 329, 357, 358, 359,
+    360, 366, 372, 378, 406, 434, 435, 436, 437, 443, 449, 455, 483, 511,
+];
+
 /// block_0: 622 operations.
 #[inline(never)]
 fn block_0(
@@ -16063,7 +16070,7 @@ impl runtime::Mechanism<N> for Stewart {
     }
     const BLOCKS: Option<&'static runtime::blocks::Layout> = Some(&BLOCKS);
     const BLOCK_NEWTON: bool = true;
-    const PACKED_BLOCKS: bool = true;
+    const PACKED_BLOCKS: Option<&'static [usize]> = Some(&PACKED_BLOCKS);
     fn factor_blocks(
         &self,
         jac: &mut [[f64; N]; N],

@@ -69,7 +69,7 @@ pub trait Mechanism<const N: usize, R: Real = f64> {
         perm: &mut [usize; N],
     ) -> Option<crate::lu::PivotInfo<R>> {
         Self::BLOCKS
-            .filter(|_| !Self::PACKED_BLOCKS)
+            .filter(|_| Self::PACKED_BLOCKS.is_none())
             .and_then(|layout| crate::blocks::factor(layout, jac, perm))
     }
 
@@ -90,17 +90,20 @@ pub trait Mechanism<const N: usize, R: Real = f64> {
     /// Newton iteration over the whole system.
     const BLOCK_NEWTON: bool = false;
 
-    /// Whether the methods that take `jac` under [`Mechanism::BLOCKS`]
+    /// Where each block of [`Mechanism::BLOCKS`] starts, and its entries end, when the methods
+    /// that take `jac` under it
     /// ([`Mechanism::residual_jacobian_blocks`], [`Mechanism::block_residual`],
     /// [`Mechanism::factor_blocks`], [`Mechanism::solve_blocks`], [`Mechanism::factor_block`],
     /// [`Mechanism::solve_block`]) keep Φ_q's block entries packed at the front of the storage
-    /// ([`blocks`](crate::blocks), "Packed storage") rather than at `jac[i][j]`: a step then
-    /// touches [`blocks::packed_len`](crate::blocks::packed_len) entries, not N rows. The
-    /// other methods, [`Mechanism::jacobian`] and the dense fallbacks, keep `jac[i][j]`.
-    /// Generated code sets it with Newton block by block; a mechanism that sets it overrides
-    /// every one of those methods (their defaults then refuse to factor, so that the solvers
-    /// fall back to dense LU or report the block singular). The default, `false`.
-    const PACKED_BLOCKS: bool = false;
+    /// ([`blocks`](crate::blocks), "Packed storage") rather than at `jac[i][j]`: block b's
+    /// entries are `jac.as_flattened()[starts[b]..starts[b + 1]]`, one start per block and the
+    /// end, [`blocks::packed_len`](crate::blocks::packed_len), last. A step then touches those
+    /// entries, not N rows. The other methods, [`Mechanism::jacobian`] and the dense
+    /// fallbacks, keep `jac[i][j]`.
+    /// Generated code packs with Newton block by block; a mechanism that packs overrides every
+    /// one of those methods (their defaults then refuse to factor, so that the solvers fall
+    /// back to dense LU or report the block singular). The default, `None`, does not pack.
+    const PACKED_BLOCKS: Option<&'static [usize]> = None;
 
     /// Writes Φ_i(q, t) for the rows i of block `b` of [`Mechanism::BLOCKS`] into `phi` and,
     /// when `jacobian`, the structural non-zeros of those rows of Φ_q(q, t) into `jac` (the
@@ -150,7 +153,7 @@ pub trait Mechanism<const N: usize, R: Real = f64> {
         ratio: R,
     ) -> Result<crate::lu::PivotInfo<R>, crate::lu::Singular<R>> {
         match Self::BLOCKS {
-            Some(layout) if !Self::PACKED_BLOCKS => {
+            Some(layout) if Self::PACKED_BLOCKS.is_none() => {
                 crate::blocks::factor_block(layout, b, jac, perm, ratio)
             }
             _ => Err(crate::lu::Singular::NonFinite { column: 0 }),

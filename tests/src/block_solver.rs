@@ -45,7 +45,7 @@ fn check_with(text: &str, block_newton: bool) {
     // Newton block by block keeps Φ_q's blocks packed at the front of the storage
     // (`runtime::blocks`, "Packed storage"); one iteration over the whole system keeps it dense.
     assert_eq!(
-        module.contains("const PACKED_BLOCKS: bool = true;"),
+        module.contains("const PACKED_BLOCKS: Option<&'static [usize]> = Some(&PACKED_BLOCKS);"),
         block_newton,
         "{}: packed storage with Newton block by block",
         mech.name
@@ -232,9 +232,15 @@ fn a_block_factored_module_touches_only_its_packed_blocks() {
     use runtime::{Mechanism, NewtonOptions, Solver};
     const N: usize = gs::N;
 
-    assert!(<Stewart as Mechanism<N>>::PACKED_BLOCKS);
     let layout = <Stewart as Mechanism<N>>::BLOCKS.expect("factored by blocks");
+    let starts = <Stewart as Mechanism<N>>::PACKED_BLOCKS.expect("packed");
     let packed = runtime::blocks::packed_len(layout);
+    // The module's block starts are those of the runtime's packed order.
+    assert_eq!(starts.len(), layout.starts.len());
+    for b in 0..starts.len() - 1 {
+        assert_eq!(starts[b + 1] - starts[b], runtime::blocks::packed_block_len(layout, b));
+    }
+    assert_eq!(starts[starts.len() - 1], packed);
     // 91 unknowns in blocks of at most 7: the packed form is a small part of N × N.
     assert!(10 * packed < N * N, "{packed} entries packed of {}", N * N);
 

@@ -63,14 +63,17 @@ struct Entries {
     n: usize,
     /// The flat index of every entry, when packed.
     packed: Option<std::collections::HashMap<(usize, usize), usize>>,
+    /// When packed, the flat index of every block's first entry, and the number of entries.
+    starts: Vec<usize>,
 }
 
 impl Entries {
     /// The packed form of `blocks`, with row r's columns below the blocks in
     /// `lower[lower_starts[r]..lower_starts[r + 1]]`.
     fn packed(n: usize, blocks: &Blocks, lower_starts: &[usize], lower: &[usize]) -> Entries {
-        let mut at = std::collections::HashMap::new();
+        let (mut at, mut starts) = (std::collections::HashMap::new(), Vec::new());
         for block in &blocks.blocks {
+            starts.push(at.len());
             for &r in &block.rows {
                 let below = &lower[lower_starts[r]..lower_starts[r + 1]];
                 for &c in block.unknowns.iter().chain(below) {
@@ -79,7 +82,8 @@ impl Entries {
                 }
             }
         }
-        Entries { n, packed: Some(at) }
+        starts.push(at.len());
+        Entries { n, packed: Some(at), starts }
     }
 
     /// The indices `[i, j]` of entry (r, c) in the storage.
@@ -198,6 +202,17 @@ pub(super) fn items(rows: &Rows<'_>, plan: &Plan) -> Vec<syn::Item> {
     }];
     if plan.newton {
         let entries = Entries::packed(n, blocks, &lower_starts, &lower);
+        let len = index(entries.starts.len());
+        let starts = entries.starts.iter().map(|&k| index(k));
+        let doc = format!(
+            " Where each block's entries start in the packed storage of Φ_q (`runtime::blocks`), and their end: {} entries of the {} of `N × N`.",
+            entries.starts.last().unwrap_or(&0),
+            n * n
+        );
+        items.push(parse_quote! {
+            #[doc = #doc]
+            static PACKED_BLOCKS: [usize; #len] = [#(#starts),*];
+        });
         items.extend(block_functions(rows, blocks, &entries));
         items.extend(rotation_functions(rows, &plan.rotations));
         items.extend(straight_line(sys, blocks, &lower_starts, &lower, &entries));
@@ -219,7 +234,7 @@ pub(super) fn items(rows: &Rows<'_>, plan: &Plan) -> Vec<syn::Item> {
     };
     let what = "Φ and the structural non-zeros of Φ_q, the others of `jac` left as they were: what `factor_blocks_k` and `solve_blocks_k` read (the structural zeros of a diagonal block are literals there).";
     items.extend(rows.emit(&sig, what, Vec::new(), &outputs));
-    let entries = Entries { n, packed: None };
+    let entries = Entries { n, packed: None, starts: Vec::new() };
     items.extend(straight_line(sys, blocks, &lower_starts, &lower, &entries));
     items
 }
@@ -674,7 +689,7 @@ fn newton_impl_items(plan: &Plan, inputs: bool) -> Vec<syn::ImplItem> {
             const BLOCK_NEWTON: bool = true;
         ),
         parse_quote!(
-            const PACKED_BLOCKS: bool = true;
+            const PACKED_BLOCKS: Option<&'static [usize]> = Some(&PACKED_BLOCKS);
         ),
         factor,
         solve,

@@ -58,8 +58,6 @@ pub(super) fn solve<R: Real, M: Mechanism<N, R>, const N: usize>(
     let round_off = R::from_f64(CHORD_ROUND_OFF) * R::EPSILON * max_abs(q);
     let mut most = 0;
     let (mut smallest, mut largest) = (R::INFINITY, R::ZERO);
-    // Where block b's entries start in packed storage (Mechanism::PACKED_BLOCKS).
-    let mut packed = 0;
     for b in 0..layout.starts.len() - 1 {
         let (start, end) = (layout.starts[b], layout.starts[b + 1]);
         let solve = layout.solve.get(b).copied().unwrap_or(Solve::Newton);
@@ -75,7 +73,7 @@ pub(super) fn solve<R: Real, M: Mechanism<N, R>, const N: usize>(
         let pivots = match solve {
             Solve::Affine => {
                 counts.closed_form += 1;
-                closed_form(mechanism, layout, b, packed, q, t, phi, jac, perm)?
+                closed_form(mechanism, layout, b, q, t, phi, jac, perm)?
             }
             Solve::Explicit if mechanism.closed_form_block(b, q, t) => {
                 // The block's rows and its factors at the closed form, for the velocity and
@@ -96,9 +94,6 @@ pub(super) fn solve<R: Real, M: Mechanism<N, R>, const N: usize>(
             smallest = pivots.smallest;
         }
         largest = largest.max(pivots.largest);
-        if M::PACKED_BLOCKS {
-            packed += crate::blocks::packed_block_len(layout, b);
-        }
     }
     mechanism.residual(q, t, phi);
     let residual = max_abs(phi);
@@ -114,14 +109,12 @@ pub(super) fn solve<R: Real, M: Mechanism<N, R>, const N: usize>(
 /// Block `b`, one equation affine in one unknown: q_k ← q_k − Φ_r / (∂Φ_r/∂q_k), which
 /// leaves Φ_r at round-off since ∂Φ_r/∂q_k does not depend on q_k; its |∂Φ_r/∂q_k| is its
 /// pivot, and the entries of row r below the blocks are those at the final q. With
-/// [`Mechanism::PACKED_BLOCKS`], ∂Φ_r/∂q_k is the block's first entry, `packed` in the flat
-/// storage.
+/// [`Mechanism::PACKED_BLOCKS`], ∂Φ_r/∂q_k is the block's first entry in the flat storage.
 #[allow(clippy::too_many_arguments)]
 fn closed_form<R: Real, M: Mechanism<N, R>, const N: usize>(
     mechanism: &M,
     layout: &Layout,
     b: usize,
-    packed: usize,
     q: &mut [R; N],
     t: R,
     phi: &mut [R; N],
@@ -131,7 +124,10 @@ fn closed_form<R: Real, M: Mechanism<N, R>, const N: usize>(
     let at = layout.starts[b];
     let (r, k) = (layout.rows[at], layout.columns[at]);
     mechanism.block_residual(b, true, q, t, phi, jac);
-    let d = if M::PACKED_BLOCKS { jac.as_flattened()[packed] } else { jac[r][k] };
+    let d = match M::PACKED_BLOCKS {
+        Some(starts) => jac.as_flattened()[starts[b]],
+        None => jac[r][k],
+    };
     let step = phi[r] / d;
     if !step.is_finite() {
         return Err(if d == R::ZERO && phi[r].is_finite() {
