@@ -246,7 +246,8 @@ fn a_block_factored_module_touches_only_its_packed_blocks() {
 
     let mut storage = Box::new([[f64::NAN; N]; N]);
     let legs = |t: f64| leg_lengths(&Trajectory::SHIPPED.at(t));
-    let mut solver = Solver::with_storage(Stewart::new(0.0, &inputs(&legs(0.0))), gs::Q0, &mut *storage);
+    let mut solver =
+        Solver::with_storage(Stewart::new(0.0, &inputs(&legs(0.0))), gs::Q0, &mut *storage);
     solver.set_options(NewtonOptions { tolerance: gs::TOLERANCE, ..NewtonOptions::DEFAULT });
     solver.set_predictor(true);
     let (mut phi, mut nu, mut jac) = ([0.0; N], [0.0; N], Box::new([[0.0; N]; N]));
