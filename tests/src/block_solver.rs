@@ -271,7 +271,6 @@ fn a_block_factored_module_touches_only_its_packed_blocks() {
             assert!((rate - nu[i]).abs() <= 1e-10, "t = {t}: row {i} of Φ_q q̇ = ν");
         }
     }
-    drop(solver);
     let flat = storage.as_flattened();
     assert!(flat[..packed].iter().all(|v| v.is_finite()), "the packed blocks hold Φ_q's factors");
     let touched = flat[packed..].iter().filter(|v| !v.is_nan()).count();
