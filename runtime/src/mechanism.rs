@@ -59,7 +59,8 @@ pub trait Mechanism<const N: usize, R: Real = f64> {
     /// Factors Φ_q block by block in place, `perm` holding the pivoting (in a layout of the
     /// mechanism's own, which only [`Mechanism::solve_blocks`] reads); returns the smallest and
     /// largest |pivot|, or `None` when a pivot is 0 or an entry not finite, or the mechanism
-    /// has no [`Mechanism::BLOCKS`].
+    /// has no [`Mechanism::BLOCKS`] (or keeps them packed, [`Mechanism::PACKED_BLOCKS`], and
+    /// does not override this).
     /// The default runs [`blocks::factor`](crate::blocks::factor) on the layout; generated
     /// code overrides it with straight-line code per block.
     fn factor_blocks(
@@ -67,7 +68,9 @@ pub trait Mechanism<const N: usize, R: Real = f64> {
         jac: &mut [[R; N]; N],
         perm: &mut [usize; N],
     ) -> Option<crate::lu::PivotInfo<R>> {
-        Self::BLOCKS.and_then(|layout| crate::blocks::factor(layout, jac, perm))
+        Self::BLOCKS
+            .filter(|_| Self::PACKED_BLOCKS.is_none())
+            .and_then(|layout| crate::blocks::factor(layout, jac, perm))
     }
 
     /// Solves Φ_q x = b in place (b by row in, x by column out) with what a successful
@@ -86,6 +89,21 @@ pub trait Mechanism<const N: usize, R: Real = f64> {
     /// Requires a layout and [`Mechanism::block_residual`]; the default, `false`, runs one
     /// Newton iteration over the whole system.
     const BLOCK_NEWTON: bool = false;
+
+    /// Where each block of [`Mechanism::BLOCKS`] starts, and its entries end, when the methods
+    /// that take `jac` under it
+    /// ([`Mechanism::residual_jacobian_blocks`], [`Mechanism::block_residual`],
+    /// [`Mechanism::factor_blocks`], [`Mechanism::solve_blocks`], [`Mechanism::factor_block`],
+    /// [`Mechanism::solve_block`]) keep Φ_q's block entries packed at the front of the storage
+    /// ([`blocks`](crate::blocks), "Packed storage") rather than at `jac[i][j]`: block b's
+    /// entries are `jac.as_flattened()[starts[b]..starts[b + 1]]`, one start per block and the
+    /// end, [`blocks::packed_len`](crate::blocks::packed_len), last. A step then touches those
+    /// entries, not N rows. The other methods, [`Mechanism::jacobian`] and the dense
+    /// fallbacks, keep `jac[i][j]`.
+    /// Generated code packs with Newton block by block; a mechanism that packs overrides every
+    /// one of those methods (their defaults then refuse to factor, so that the solvers fall
+    /// back to dense LU or report the block singular). The default, `None`, does not pack.
+    const PACKED_BLOCKS: Option<&'static [usize]> = None;
 
     /// Writes Φ_i(q, t) for the rows i of block `b` of [`Mechanism::BLOCKS`] into `phi` and,
     /// when `jacobian`, the structural non-zeros of those rows of Φ_q(q, t) into `jac` (the
@@ -135,8 +153,10 @@ pub trait Mechanism<const N: usize, R: Real = f64> {
         ratio: R,
     ) -> Result<crate::lu::PivotInfo<R>, crate::lu::Singular<R>> {
         match Self::BLOCKS {
-            Some(layout) => crate::blocks::factor_block(layout, b, jac, perm, ratio),
-            None => Err(crate::lu::Singular::NonFinite { column: 0 }),
+            Some(layout) if Self::PACKED_BLOCKS.is_none() => {
+                crate::blocks::factor_block(layout, b, jac, perm, ratio)
+            }
+            _ => Err(crate::lu::Singular::NonFinite { column: 0 }),
         }
     }
 

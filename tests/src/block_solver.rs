@@ -42,6 +42,14 @@ fn check_with(text: &str, block_newton: bool) {
         "{}: Newton block by block as planned",
         mech.name
     );
+    // Newton block by block keeps Φ_q's blocks packed at the front of the storage
+    // (`runtime::blocks`, "Packed storage"); one iteration over the whole system keeps it dense.
+    assert_eq!(
+        module.contains("const PACKED_BLOCKS: Option<&'static [usize]> = Some(&PACKED_BLOCKS);"),
+        block_newton,
+        "{}: packed storage with Newton block by block",
+        mech.name
+    );
     let generic = run_generic(&mech);
     assert!(generic.failure.is_none(), "{}: {:?}", mech.name, generic.failure);
     let built = codegen::engine::build_module(&mech, &module, &sys, Scalar::F64).expect("builds");
@@ -196,6 +204,77 @@ fn independent_rssr_loops_solved_block_by_block_match_the_generic_engine() {
 #[test]
 fn independent_rssr_loops_solved_by_newton_block_by_block_match_the_generic_engine() {
     check_with(&codegen::scale::rssr_loops(4, 20), true);
+}
+
+/// Two 6R arms (84 unknowns, the arms of `benches/scale/arms_10x6.toml`) through packed
+/// storage, as the generator plans them (Newton block by block), against the generic engine to
+/// [`AGREEMENT`]: the packing moves where the entries of Φ_q are kept, not what is computed,
+/// so the bound of the dense storage holds. The loops are
+/// `independent_rssr_loops_solved_by_newton_block_by_block_match_the_generic_engine`.
+#[test]
+fn six_revolute_arms_through_packed_storage_match_the_generic_engine() {
+    check_with(&codegen::scale::arms(2, 6, 20), true);
+}
+
+/// A module factored block by block keeps Φ_q in [`runtime::blocks::packed_len`] entries at the
+/// front of the solver's `N × N` storage (`runtime::Mechanism::PACKED_BLOCKS`): stepping the
+/// committed Stewart module (91 unknowns, Newton block by block) along its shipped trajectory
+/// leaves every other entry of a storage filled with NaN as it was, while the solutions satisfy
+/// Φ = 0 and Φ_q q̇ = ν with Φ_q evaluated in full apart from the solver. Fails when a
+/// block-factored module goes back to touching N rows of N (the memory traffic that made ten
+/// arms cost 13× one arm, BENCHMARKS.md "Block-only Jacobian storage").
+#[test]
+fn a_block_factored_module_touches_only_its_packed_blocks() {
+    use examples::stewart::control::inputs;
+    use examples::stewart::{Trajectory, leg_lengths};
+    use generated::stewart::{self as gs, Stewart};
+    use runtime::input::Driven;
+    use runtime::{Mechanism, NewtonOptions, Solver};
+    const N: usize = gs::N;
+
+    let layout = <Stewart as Mechanism<N>>::BLOCKS.expect("factored by blocks");
+    let starts = <Stewart as Mechanism<N>>::PACKED_BLOCKS.expect("packed");
+    let packed = runtime::blocks::packed_len(layout);
+    // The module's block starts are those of the runtime's packed order.
+    assert_eq!(starts.len(), layout.starts.len());
+    for b in 0..starts.len() - 1 {
+        assert_eq!(starts[b + 1] - starts[b], runtime::blocks::packed_block_len(layout, b));
+    }
+    assert_eq!(starts[starts.len() - 1], packed);
+    // 91 unknowns in blocks of at most 7: the packed form is a small part of N × N.
+    assert!(10 * packed < N * N, "{packed} entries packed of {}", N * N);
+
+    let mut storage = Box::new([[f64::NAN; N]; N]);
+    let legs = |t: f64| leg_lengths(&Trajectory::SHIPPED.at(t));
+    let mut solver =
+        Solver::with_storage(Stewart::new(0.0, &inputs(&legs(0.0))), gs::Q0, &mut *storage);
+    solver.set_options(NewtonOptions { tolerance: gs::TOLERANCE, ..NewtonOptions::DEFAULT });
+    solver.set_predictor(true);
+    let (mut phi, mut nu, mut jac) = ([0.0; N], [0.0; N], Box::new([[0.0; N]; N]));
+    for k in 0..gs::T_COUNT {
+        let t = gs::T_START + k as f64 * gs::T_STEP;
+        solver.mechanism_mut().segment_mut().aim(t, legs(t));
+        solver.position(t).expect("the platform follows");
+        solver.velocity().expect("Φ_q is regular");
+        solver.acceleration().expect("q̇ is known");
+        solver.mechanism_mut().segment_mut().settle(t);
+        let (m, q, qd) = (solver.mechanism(), solver.q(), solver.qd());
+        m.residual(q, t, &mut phi);
+        m.jacobian(q, t, &mut jac);
+        m.velocity_rhs(q, t, &mut nu);
+        // Newton stops at max |Φ| ≤ 1e-12 (the module's tolerance); Φ_q q̇ − ν sums products of
+        // entries of order 1 (lengths in m, rates below 1 m/s) with round-off of 1e-16 each,
+        // so 1e-10 leaves a factor of 100 over the 91 terms of a row.
+        assert!(phi.iter().all(|v| v.abs() <= 1e-12), "t = {t}: Φ");
+        for i in 0..N {
+            let rate: f64 = (0..N).map(|j| jac[i][j] * qd[j]).sum();
+            assert!((rate - nu[i]).abs() <= 1e-10, "t = {t}: row {i} of Φ_q q̇ = ν");
+        }
+    }
+    let flat = storage.as_flattened();
+    assert!(flat[..packed].iter().all(|v| v.is_finite()), "the packed blocks hold Φ_q's factors");
+    let touched = flat[packed..].iter().filter(|v| !v.is_nan()).count();
+    assert_eq!(touched, 0, "entries written past the {packed} packed ones");
 }
 
 #[test]

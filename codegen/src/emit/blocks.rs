@@ -54,6 +54,56 @@ pub(super) struct Closed {
     coefficients: [crate::expr::ExprId; 11],
 }
 
+/// Where the emitted block functions keep entry (r, c) of Φ_q in the `N × N` storage: packed
+/// at its front with Newton block by block (`runtime::Mechanism::PACKED_BLOCKS`; the layout is
+/// `runtime::blocks`' "Packed storage": row after row in the blocks' order, each row's
+/// diagonal-block columns then its columns below the blocks), at `[r][c]` otherwise.
+struct Entries {
+    /// The number of unknowns, N.
+    n: usize,
+    /// The flat index of every entry, when packed.
+    packed: Option<std::collections::HashMap<(usize, usize), usize>>,
+    /// When packed, the flat index of every block's first entry, and the number of entries.
+    starts: Vec<usize>,
+}
+
+impl Entries {
+    /// The packed form of `blocks`, with row r's columns below the blocks in
+    /// `lower[lower_starts[r]..lower_starts[r + 1]]`.
+    fn packed(n: usize, blocks: &Blocks, lower_starts: &[usize], lower: &[usize]) -> Entries {
+        let (mut at, mut starts) = (std::collections::HashMap::new(), Vec::new());
+        for block in &blocks.blocks {
+            starts.push(at.len());
+            for &r in &block.rows {
+                let below = &lower[lower_starts[r]..lower_starts[r + 1]];
+                for &c in block.unknowns.iter().chain(below) {
+                    let k = at.len();
+                    at.insert((r, c), k);
+                }
+            }
+        }
+        starts.push(at.len());
+        Entries { n, packed: Some(at), starts }
+    }
+
+    /// The indices `[i, j]` of entry (r, c) in the storage.
+    fn at(&self, r: usize, c: usize) -> [usize; 2] {
+        match &self.packed {
+            Some(at) => {
+                let k = at[&(r, c)];
+                [k / self.n, k % self.n]
+            }
+            None => [r, c],
+        }
+    }
+
+    /// `array[i][j]` for entry (r, c).
+    fn element(&self, array: &syn::Ident, r: usize, c: usize) -> proc_macro2::TokenStream {
+        let [i, j] = self.at(r, c).map(index);
+        quote::quote!(#array[#i][#j])
+    }
+}
+
 /// The blocks of `sys` when its solver factors Φ_q block by block: more than one block, none
 /// larger than [`MAX_BLOCK`], and at least [`MIN_UNKNOWNS`] unknowns unless `newton` is
 /// `Some(true)`. Newton runs block by block unless `newton` is `Some(false)` or rows are left
@@ -151,10 +201,22 @@ pub(super) fn items(rows: &Rows<'_>, plan: &Plan) -> Vec<syn::Item> {
         };
     }];
     if plan.newton {
-        items.extend(block_functions(rows, blocks));
+        let entries = Entries::packed(n, blocks, &lower_starts, &lower);
+        let len = index(entries.starts.len());
+        let starts = entries.starts.iter().map(|&k| index(k));
+        let doc = format!(
+            " Where each block's entries start in the packed storage of Φ_q (`runtime::blocks`), and their end: {} entries of the {} of `N × N`.",
+            entries.starts.last().unwrap_or(&0),
+            n * n
+        );
+        items.push(parse_quote! {
+            #[doc = #doc]
+            static PACKED_BLOCKS: [usize; #len] = [#(#starts),*];
+        });
+        items.extend(block_functions(rows, blocks, &entries));
         items.extend(rotation_functions(rows, &plan.rotations));
-        items.extend(straight_line(sys, blocks, &lower_starts, &lower));
-        items.extend(block_factor_solve(sys, blocks));
+        items.extend(straight_line(sys, blocks, &lower_starts, &lower, &entries));
+        items.extend(block_factor_solve(sys, blocks, &entries));
         return items;
     }
     let vec_ty = quote::quote!(&mut [f64; N]);
@@ -172,7 +234,8 @@ pub(super) fn items(rows: &Rows<'_>, plan: &Plan) -> Vec<syn::Item> {
     };
     let what = "Φ and the structural non-zeros of Φ_q, the others of `jac` left as they were: what `factor_blocks_k` and `solve_blocks_k` read (the structural zeros of a diagonal block are literals there).";
     items.extend(rows.emit(&sig, what, Vec::new(), &outputs));
-    items.extend(straight_line(sys, blocks, &lower_starts, &lower));
+    let entries = Entries { n, packed: None, starts: Vec::new() };
+    items.extend(straight_line(sys, blocks, &lower_starts, &lower, &entries));
     items
 }
 
@@ -183,6 +246,7 @@ fn straight_line(
     blocks: &Blocks,
     lower_starts: &[usize],
     lower: &[usize],
+    entries: &Entries,
 ) -> Vec<syn::Item> {
     let mut chunks: Vec<Vec<usize>> = vec![Vec::new()];
     let mut size = 0;
@@ -209,7 +273,7 @@ fn straight_line(
             .iter()
             .map(|&b| {
                 let block = &blocks.blocks[b];
-                block_code(sys, b, block, starts[b], lower_starts, lower)
+                block_code(sys, b, block, starts[b], lower_starts, lower, entries)
             })
             .unzip();
         let (first, last) = (chunk[0], chunk[chunk.len() - 1]);
@@ -257,39 +321,41 @@ fn straight_line(
     items
 }
 
-/// The rows of `block` read from `array` (`array[r][c]` per entry, in the block's order), with
-/// Φ_q's structural zeros as literals when `zeros`.
+/// The rows of `block` read from `array` (entry (r, c) where `entries` keeps it, in the
+/// block's order), with Φ_q's structural zeros as literals when `zeros`.
 fn gather(
     sys: &Symbolic,
     block: &crate::blocks::Block,
     array: &str,
     zeros: bool,
+    entries: &Entries,
 ) -> Vec<proc_macro2::TokenStream> {
     let array = ident(array);
     block
         .rows
         .iter()
         .map(|&r| {
-            let entries = block.unknowns.iter().map(|&c| {
+            let row = block.unknowns.iter().map(|&c| {
                 if !zeros || sys.jac[r].iter().any(|&(j, _)| j == c) {
-                    let (r, c) = (index(r), index(c));
-                    quote::quote!(#array[#r][#c])
+                    entries.element(&array, r, c)
                 } else {
                     quote::quote!(0.0)
                 }
             });
-            quote::quote!([#(#entries),*])
+            quote::quote!([#(#row),*])
         })
         .collect()
 }
 
-/// `jac[r][c] = a[i][j];` for every entry of `block`: its factors written back in place.
-fn scatter(block: &crate::blocks::Block) -> Vec<proc_macro2::TokenStream> {
+/// `jac[r][c] = a[i][j];` for every entry of `block` (where `entries` keeps it): its factors
+/// written back in place.
+fn scatter(block: &crate::blocks::Block, entries: &Entries) -> Vec<proc_macro2::TokenStream> {
     let mut scatter = Vec::new();
+    let jac = ident("jac");
     for (i, &r) in block.rows.iter().enumerate() {
         for (j, &c) in block.unknowns.iter().enumerate() {
-            let (r, c, i, j) = (index(r), index(c), index(i), index(j));
-            scatter.push(quote::quote!(jac[#r][#c] = a[#i][#j];));
+            let (entry, i, j) = (entries.element(&jac, r, c), index(i), index(j));
+            scatter.push(quote::quote!(#entry = a[#i][#j];));
         }
     }
     scatter
@@ -304,18 +370,21 @@ fn block_code(
     start: usize,
     lower_starts: &[usize],
     lower: &[usize],
+    entries: &Entries,
 ) -> (syn::Stmt, syn::Stmt) {
+    let (jac, lu) = (ident("jac"), ident("lu"));
     let z = block.rows.iter().map(|&r| {
         let terms = lower[lower_starts[r]..lower_starts[r + 1]].iter().map(|&c| {
-            let (r, c) = (index(r), index(c));
-            quote::quote!(- lu[#r][#c] * x[#c])
+            let (entry, c) = (entries.element(&lu, r, c), index(c));
+            quote::quote!(- #entry * x[#c])
         });
         let r = index(r);
         quote::quote!(rhs[#r] #(#terms)*)
     });
     if let ([r], [c]) = (block.rows.as_slice(), block.unknowns.as_slice()) {
         // One equation in one unknown: its entry is its pivot.
-        let (r, c) = (index(*r), index(*c));
+        let (entry, pivot) = (entries.element(&jac, *r, *c), entries.element(&lu, *r, *c));
+        let c = index(*c);
         let pivots = if b == 0 {
             quote::quote!(*pivots = runtime::lu::PivotInfo { smallest: v, largest: v };)
         } else {
@@ -326,7 +395,7 @@ fn block_code(
         };
         let factor = parse_quote! {
             {
-                let v = jac[#r][#c].abs();
+                let v = #entry.abs();
                 if !(v > 0.0 && v.is_finite()) {
                     return false;
                 }
@@ -334,12 +403,12 @@ fn block_code(
             }
         };
         let z: Vec<_> = z.collect();
-        let solve = parse_quote!(x[#c] = (#(#z)*) / lu[#r][#c];);
+        let solve = parse_quote!(x[#c] = (#(#z)*) / #pivot;);
         return (factor, solve);
     }
     // Φ_q's structural zeros in the block are literals; the factors fill the whole block.
-    let rows_in = gather(sys, block, "jac", true);
-    let scatter = scatter(block);
+    let rows_in = gather(sys, block, "jac", true, entries);
+    let scatter = scatter(block, entries);
     let keep = (0..block.rows.len()).map(|i| {
         let (at, i) = (index(start + i), index(i));
         quote::quote!(perm[#at] = p[#i];)
@@ -365,7 +434,7 @@ fn block_code(
             #(#keep)*
         }
     };
-    let rows_lu = gather(sys, block, "lu", false);
+    let rows_lu = gather(sys, block, "lu", false, entries);
     let order = (0..block.rows.len()).map(|i| {
         let at = index(start + i);
         quote::quote!(perm[#at])
@@ -420,7 +489,7 @@ pub(super) fn impl_items(plan: &Plan, inputs: bool) -> Vec<syn::ImplItem> {
 /// and, unless the block is affine (solved in closed form from Φ with Φ_q), `block_residual_b`
 /// writing Φ of its rows alone (for a rotation block, Newton's when its closed form fails). Each is a small straight-line function of its own, so that
 /// Newton block by block evaluates only the block it iterates on.
-fn block_functions(rows: &Rows<'_>, blocks: &Blocks) -> Vec<syn::Item> {
+fn block_functions(rows: &Rows<'_>, blocks: &Blocks, entries: &Entries) -> Vec<syn::Item> {
     let sys = rows.sys;
     let n = sys.unknowns.len();
     let vec_ty = quote::quote!(&mut [f64; N]);
@@ -447,7 +516,7 @@ fn block_functions(rows: &Rows<'_>, blocks: &Blocks) -> Vec<syn::Item> {
             all.extend(
                 sys.jac[r]
                     .iter()
-                    .map(|&(c, e)| (super::syntax::element("jac", &[r, c]), e, Some(r))),
+                    .map(|&(c, e)| (super::syntax::element("jac", &entries.at(r, c)), e, Some(r))),
             );
         }
         // The structural zeros of the diagonal block, which the factorisation before filled in.
@@ -460,8 +529,8 @@ fn block_functions(rows: &Rows<'_>, blocks: &Blocks) -> Vec<syn::Item> {
                     .iter()
                     .filter(move |&&c| !sys.jac[r].iter().any(|&(j, _)| j == c))
                     .map(move |&c| {
-                        let (r, c) = (index(r), index(c));
-                        parse_quote!(jac[#r][#c] = 0.0;)
+                        let entry = entries.element(&ident("jac"), r, c);
+                        parse_quote!(#entry = 0.0;)
                     })
             })
             .collect();
@@ -619,6 +688,9 @@ fn newton_impl_items(plan: &Plan, inputs: bool) -> Vec<syn::ImplItem> {
         parse_quote!(
             const BLOCK_NEWTON: bool = true;
         ),
+        parse_quote!(
+            const PACKED_BLOCKS: Option<&'static [usize]> = Some(&PACKED_BLOCKS);
+        ),
         factor,
         solve,
         parse_quote! {
@@ -674,7 +746,7 @@ fn implicit_chunks(blocks: &Blocks) -> Vec<Vec<usize>> {
 /// factors its diagonal block alone (gathered into a fixed-size array, `runtime::lu` with
 /// partial pivoting, scattered back in the layout of `factor_blocks`) and one that solves it
 /// alone, for Newton block by block.
-fn block_factor_solve(sys: &Symbolic, blocks: &Blocks) -> Vec<syn::Item> {
+fn block_factor_solve(sys: &Symbolic, blocks: &Blocks, entries: &Entries) -> Vec<syn::Item> {
     let mut starts = Vec::with_capacity(blocks.blocks.len());
     let mut at = 0;
     for block in &blocks.blocks {
@@ -689,8 +761,8 @@ fn block_factor_solve(sys: &Symbolic, blocks: &Blocks) -> Vec<syn::Item> {
             let block = &blocks.blocks[b];
             let s = index(block.rows.len());
             let lit = index(b);
-            let rows_in = gather(sys, block, "jac", true);
-            let scatter = scatter(block);
+            let rows_in = gather(sys, block, "jac", true, entries);
+            let scatter = scatter(block, entries);
             let keep = (0..block.rows.len()).map(|i| {
                 let (at, i) = (index(starts[b] + i), index(i));
                 quote::quote!(perm[#at] = p[#i];)
@@ -705,7 +777,7 @@ fn block_factor_solve(sys: &Symbolic, blocks: &Blocks) -> Vec<syn::Item> {
                     Ok(info)
                 }
             });
-            let rows_lu = gather(sys, block, "lu", false);
+            let rows_lu = gather(sys, block, "lu", false, entries);
             let order = (0..block.rows.len()).map(|i| {
                 let at = index(starts[b] + i);
                 quote::quote!(perm[#at])

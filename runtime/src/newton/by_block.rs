@@ -108,7 +108,8 @@ pub(super) fn solve<R: Real, M: Mechanism<N, R>, const N: usize>(
 
 /// Block `b`, one equation affine in one unknown: q_k ← q_k − Φ_r / (∂Φ_r/∂q_k), which
 /// leaves Φ_r at round-off since ∂Φ_r/∂q_k does not depend on q_k; its |∂Φ_r/∂q_k| is its
-/// pivot, and the entries of row r below the blocks are those at the final q.
+/// pivot, and the entries of row r below the blocks are those at the final q. With
+/// [`Mechanism::PACKED_BLOCKS`], ∂Φ_r/∂q_k is the block's first entry in the flat storage.
 #[allow(clippy::too_many_arguments)]
 fn closed_form<R: Real, M: Mechanism<N, R>, const N: usize>(
     mechanism: &M,
@@ -123,7 +124,10 @@ fn closed_form<R: Real, M: Mechanism<N, R>, const N: usize>(
     let at = layout.starts[b];
     let (r, k) = (layout.rows[at], layout.columns[at]);
     mechanism.block_residual(b, true, q, t, phi, jac);
-    let d = jac[r][k];
+    let d = match M::PACKED_BLOCKS {
+        Some(starts) => jac.as_flattened()[starts[b]],
+        None => jac[r][k],
+    };
     let step = phi[r] / d;
     if !step.is_finite() {
         return Err(if d == R::ZERO && phi[r].is_finite() {
