@@ -213,6 +213,7 @@ pub(super) fn items(rows: &Rows<'_>, plan: &Plan) -> Vec<syn::Item> {
             #[doc = #doc]
             static PACKED_BLOCKS: [usize; #len] = [#(#starts),*];
         });
+        items.extend(unpack(&entries));
         items.extend(block_functions(rows, blocks, &entries));
         items.extend(rotation_functions(rows, &plan.rotations));
         items.extend(straight_line(sys, blocks, &lower_starts, &lower, &entries));
@@ -478,6 +479,39 @@ pub(super) fn impl_items(plan: &Plan, inputs: bool) -> Vec<syn::ImplItem> {
             parse_quote! {
                 fn residual_jacobian_blocks(&self, q: &[f64; N], t: f64, phi: &mut [f64; N], jac: &mut [[f64; N]; N]) {
                     residual_jacobian_blocks(q, t, phi, jac);
+                }
+            }
+        },
+    ]
+}
+
+/// `UNPACKED`, the row-major index `r · N + c` of every packed entry (r, c), and `unpack`,
+/// which moves the packed entries at the front of the storage to their places `[r][c]`, so
+/// that `jacobian` and `residual_jacobian`, written as calls of the block functions
+/// ([`super::from_blocks`]), return Φ_q row-major as the trait says.
+fn unpack(entries: &Entries) -> Vec<syn::Item> {
+    let Some(at) = &entries.packed else { return Vec::new() };
+    let mut dense = vec![0; at.len()];
+    for (&(r, c), &k) in at {
+        dense[k] = r * entries.n + c;
+    }
+    let len = index(dense.len());
+    let dense = dense.into_iter().map(index);
+    vec![
+        parse_quote! {
+            /// The row-major index of every entry of the packed storage of Φ_q.
+            static UNPACKED: [usize; #len] = [#(#dense),*];
+        },
+        parse_quote! {
+            /// Moves the packed entries at the front of `jac`, the rest of which is 0, to their
+            /// row-major places.
+            fn unpack(jac: &mut [[f64; N]; N]) {
+                let flat = jac.as_flattened_mut();
+                let mut packed = [0.0; #len];
+                packed.copy_from_slice(&flat[..#len]);
+                flat[..#len].fill(0.0);
+                for (&value, &k) in packed.iter().zip(&UNPACKED) {
+                    flat[k] = value;
                 }
             }
         },

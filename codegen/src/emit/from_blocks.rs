@@ -3,8 +3,9 @@
 //! Jacobian entry's code.
 //!
 //! The `block_b` functions ([`super::blocks`]) already write Φ and the structural non-zeros of
-//! Φ_q of every row, block by block, and the blocks' rows are all the rows, so the whole
-//! Jacobian is theirs with the other entries 0: the same expressions, the same values, and
+//! Φ_q of every row, block by block, packed at the front of the storage, and the blocks'
+//! rows are all the rows, so the whole Jacobian is theirs, moved to its row-major places by
+//! `unpack` with the other entries 0: the same expressions, the same values, and
 //! a third of the code rustc compiles for the chain of 100 links (BENCHMARKS.md, "Explicit
 //! velocities of closed-form blocks").
 
@@ -40,6 +41,7 @@ pub(super) fn items(blocks: &Blocks, nnz: usize, inputs: bool) -> Vec<syn::Item>
                     let u = inputs.to_array();
                     *jac = [[0.0; N]; N];
                     #(#calls)*
+                    unpack(jac);
                 }
             },
         ]
@@ -57,6 +59,7 @@ pub(super) fn items(blocks: &Blocks, nnz: usize, inputs: bool) -> Vec<syn::Item>
                 pub fn residual_jacobian(q: &[f64; N], t: f64, phi: &mut [f64; N], jac: &mut [[f64; N]; N]) {
                     *jac = [[0.0; N]; N];
                     #(#calls)*
+                    unpack(jac);
                 }
             },
         ]
