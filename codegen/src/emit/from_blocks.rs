@@ -26,42 +26,31 @@ pub(super) fn items(blocks: &Blocks, nnz: usize, inputs: bool) -> Vec<syn::Item>
     let jacobian_doc = format!(
         " Jacobian Φ_q, row-major: `jac[i][j] = ∂Φ_i/∂q_j`; the {nnz} structurally non-zero entries are written, the others set to 0."
     );
-    if inputs {
-        vec![
-            parse_quote! {
-                #[doc = #jacobian_doc]
-                pub fn jacobian(q: &[f64; N], t: f64, inputs: &Inputs, jac: &mut [[f64; N]; N]) {
-                    let mut phi = [0.0; N];
-                    residual_jacobian(q, t, inputs, &mut phi, jac);
-                }
-            },
-            parse_quote! {
-                #[doc = #doc]
-                pub fn residual_jacobian(q: &[f64; N], t: f64, inputs: &Inputs, phi: &mut [f64; N], jac: &mut [[f64; N]; N]) {
-                    let u = inputs.to_array();
-                    *jac = [[0.0; N]; N];
-                    #(#calls)*
-                    unpack(jac);
-                }
-            },
-        ]
+    let (param, arg, gather) = if inputs {
+        (
+            Some(quote::quote!(inputs: &Inputs,)),
+            Some(quote::quote!(inputs,)),
+            Some(quote::quote!(let u = inputs.to_array();)),
+        )
     } else {
-        vec![
-            parse_quote! {
-                #[doc = #jacobian_doc]
-                pub fn jacobian(q: &[f64; N], t: f64, jac: &mut [[f64; N]; N]) {
-                    let mut phi = [0.0; N];
-                    residual_jacobian(q, t, &mut phi, jac);
-                }
-            },
-            parse_quote! {
-                #[doc = #doc]
-                pub fn residual_jacobian(q: &[f64; N], t: f64, phi: &mut [f64; N], jac: &mut [[f64; N]; N]) {
-                    *jac = [[0.0; N]; N];
-                    #(#calls)*
-                    unpack(jac);
-                }
-            },
-        ]
-    }
+        (None, None, None)
+    };
+    vec![
+        parse_quote! {
+            #[doc = #jacobian_doc]
+            pub fn jacobian(q: &[f64; N], t: f64, #param jac: &mut [[f64; N]; N]) {
+                let mut phi = [0.0; N];
+                residual_jacobian(q, t, #arg &mut phi, jac);
+            }
+        },
+        parse_quote! {
+            #[doc = #doc]
+            pub fn residual_jacobian(q: &[f64; N], t: f64, #param phi: &mut [f64; N], jac: &mut [[f64; N]; N]) {
+                #gather
+                *jac = [[0.0; N]; N];
+                #(#calls)*
+                unpack(jac);
+            }
+        },
+    ]
 }
