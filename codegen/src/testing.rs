@@ -93,11 +93,27 @@ pub fn build_generated(mech: &Mechanism) -> Built {
 /// The generated engine's run of `mech` over its whole grid with the solver `built`.
 #[must_use]
 pub fn run_generated(mech: &Mechanism, built: &Built) -> Run {
+    run_generated_with(mech, built, None, engine::Settings::default())
+}
+
+/// [`run_generated`] with a Newton tolerance (`None`: the description's) and the solver's
+/// [`engine::Settings`] (predictor, dense LU).
+///
+/// # Panics
+///
+/// When the solver cannot be run.
+#[must_use]
+pub fn run_generated_with(
+    mech: &Mechanism,
+    built: &Built,
+    tolerance: Option<f64>,
+    settings: engine::Settings,
+) -> Run {
     let eq = Equations::new(mech);
     let prep = eq.prepare();
     let analysis = Analysis::new(&eq, &prep);
     let mut run = Run::default();
-    let report = engine::run(built, &analysis, None, |f| {
+    let report = engine::run_with(built, &analysis, tolerance, settings, |f| {
         run.frames.push(f.clone());
         Ok(())
     })

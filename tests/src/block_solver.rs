@@ -7,7 +7,9 @@
 use std::fmt::Write;
 
 use codegen::emit::Scalar;
-use codegen::testing::{load_toml, relative_differences, run_generated, run_generic};
+use codegen::testing::{
+    load_toml, relative_differences, run_generated, run_generated_with, run_generic,
+};
 
 /// Generated and generic runs agree to this fraction of each quantity's scale: with Newton
 /// asked for max |Φ| ≤ 1e-12 (below), where each engine stops accounts for 1e-12 times the
@@ -50,15 +52,26 @@ fn check_with(text: &str, block_newton: bool) {
         "{}: packed storage with Newton block by block",
         mech.name
     );
-    let generic = run_generic(&mech);
+    agrees_with_generic(&mech, &sys, &module);
+}
+
+/// Builds `module` of `mech` and asserts that its run agrees with the generic engine's to
+/// [`AGREEMENT`], every frame; the generic run, for further checks.
+fn agrees_with_generic(
+    mech: &codegen::model::Mechanism,
+    sys: &codegen::symbolic::Symbolic,
+    module: &str,
+) -> codegen::testing::Run {
+    let generic = run_generic(mech);
     assert!(generic.failure.is_none(), "{}: {:?}", mech.name, generic.failure);
-    let built = codegen::engine::build_module(&mech, &module, &sys, Scalar::F64).expect("builds");
-    let generated = run_generated(&mech, &built);
+    let built = codegen::engine::build_module(mech, module, sys, Scalar::F64).expect("builds");
+    let generated = run_generated(mech, &built);
     assert!(generated.failure.is_none(), "{}: {:?}", mech.name, generated.failure);
     assert_eq!(generic.frames.len(), generated.frames.len(), "{}: every frame", mech.name);
     for (diff, at) in relative_differences(&generic.frames, &generated.frames) {
         assert!(diff <= AGREEMENT, "{}: {at}", mech.name);
     }
+    generic
 }
 
 /// Newton block by block on `text` (tolerance 1e-12) with `rotations` orientation blocks in
@@ -74,16 +87,7 @@ fn check_closed_form(text: &str, rotations: usize) -> codegen::testing::Run {
         "{}: the orientation blocks in closed form",
         mech.name
     );
-    let generic = run_generic(&mech);
-    assert!(generic.failure.is_none(), "{}: {:?}", mech.name, generic.failure);
-    let built = codegen::engine::build_module(&mech, &module, &sys, Scalar::F64).expect("builds");
-    let generated = run_generated(&mech, &built);
-    assert!(generated.failure.is_none(), "{}: {:?}", mech.name, generated.failure);
-    assert_eq!(generic.frames.len(), generated.frames.len(), "{}: every frame", mech.name);
-    for (diff, at) in relative_differences(&generic.frames, &generated.frames) {
-        assert!(diff <= AGREEMENT, "{}: {at}", mech.name);
-    }
-    generic
+    agrees_with_generic(&mech, &sys, &module)
 }
 
 /// A spatial chain of `n` links, all starting at the identity orientation, link k joined to
@@ -336,17 +340,10 @@ fn the_jacobian_gathered_from_the_blocks_drives_dense_lu_as_the_generic_engine()
     let built = codegen::engine::build_module(&mech, &module, &sys, Scalar::F64).expect("builds");
     let generic = run_generic(&mech);
     assert!(generic.failure.is_none(), "{:?}", generic.failure);
-    let eq = codegen::generic::Equations::new(&mech);
-    let prep = eq.prepare();
-    let analysis = codegen::generic::Analysis::new(&eq, &prep);
     let settings = codegen::engine::Settings { predictor: true, dense_lu: true };
-    let mut frames = Vec::new();
-    let report = codegen::engine::run_with(&built, &analysis, None, settings, |f| {
-        frames.push(f.clone());
-        Ok(())
-    })
-    .expect("runs");
+    let report = run_generated_with(&mech, &built, None, settings);
     assert!(report.failure.is_none(), "{:?}", report.failure);
+    let frames = report.frames;
     assert_eq!(generic.frames.len(), frames.len(), "every frame");
     for (diff, at) in relative_differences(&generic.frames, &frames) {
         assert!(diff <= AGREEMENT, "{at}");
@@ -365,19 +362,12 @@ fn a_single_precision_module_solved_block_by_block_follows_the_generic_engine() 
     let built = codegen::engine::build_module(&mech, &module, &sys, Scalar::F32).expect("builds");
     let generic = run_generic(&mech);
     assert!(generic.failure.is_none(), "{:?}", generic.failure);
-    let eq = codegen::generic::Equations::new(&mech);
-    let prep = eq.prepare();
-    let analysis = codegen::generic::Analysis::new(&eq, &prep);
     for dense_lu in [false, true] {
         let settings = codegen::engine::Settings { predictor: true, dense_lu };
-        let mut frames = Vec::new();
         // 1e-4: the f32 default Newton tolerance (runtime::Real::DEFAULT_TOLERANCE).
-        let report = codegen::engine::run_with(&built, &analysis, Some(1e-4), settings, |f| {
-            frames.push(f.clone());
-            Ok(())
-        })
-        .expect("runs");
+        let report = run_generated_with(&mech, &built, Some(1e-4), settings);
         assert!(report.failure.is_none(), "dense {dense_lu}: {:?}", report.failure);
+        let frames = report.frames;
         assert_eq!(generic.frames.len(), frames.len(), "every frame");
         for (a, b) in generic.frames.iter().zip(&frames) {
             // The f32 grid times are the f64 ones rounded to f32: within 1 ulp of t ≤ 1 s.

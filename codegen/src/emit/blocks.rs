@@ -575,14 +575,7 @@ fn block_functions(rows: &Rows<'_>, blocks: &Blocks, entries: &Entries) -> Vec<s
             let mut f = super::function::function_with(&sys.pool, n, outputs, true);
             f.stmts.extend(extra.iter().cloned());
             let arrays = [true, true];
-            let used = super::function::Used {
-                q: f.uses_q,
-                qd: false,
-                qdd: false,
-                t: f.uses_t,
-                u: f.uses_u,
-                arrays: &arrays,
-            };
+            let used = super::function::Used::of(&f, &arrays);
             let doc = format!(" {name}: {} operations.", f.ops);
             let item = signature(targets).item(&ident(&name), &doc, &used, true);
             items.push(super::syntax::item_fn(item, f.stmts));
@@ -620,14 +613,7 @@ fn rotation_functions(rows: &Rows<'_>, rotations: &[Closed]) -> Vec<syn::Item> {
             .collect();
         let f = super::function::function_with(&sys.pool, n, &outputs, true);
         let arrays = [true];
-        let used = super::function::Used {
-            q: f.uses_q,
-            qd: false,
-            qdd: false,
-            t: f.uses_t,
-            u: f.uses_u,
-            arrays: &arrays,
-        };
+        let used = super::function::Used::of(&f, &arrays);
         let name = format!("rotation_{}", r.block);
         let doc = format!(
             " {name}: u, w, the driver's row at u, at w and at (u + w)/√2 (`runtime::rotation`): {} operations.",

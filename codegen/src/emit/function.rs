@@ -361,7 +361,8 @@ pub(super) struct Used<'a> {
 }
 
 impl Used<'_> {
-    fn of<'a>(f: &Function, arrays: &'a [bool]) -> Used<'a> {
+    /// What `f` reads, with `arrays` the targets it writes.
+    pub(super) fn of<'a>(f: &Function, arrays: &'a [bool]) -> Used<'a> {
         Used { q: f.uses_q, qd: f.uses_qd, qdd: f.uses_qdd, t: f.uses_t, u: f.uses_u, arrays }
     }
 }
