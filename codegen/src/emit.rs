@@ -25,6 +25,7 @@ mod notes;
 mod outputs;
 mod redundant;
 pub mod scalar;
+mod shared;
 mod syntax;
 
 pub use function::CHUNK_OPS;
@@ -136,7 +137,7 @@ fn assemble(
     items.extend(residual_and_jacobian(&rows, layout.is_none(), by_blocks.is_none()));
     if let Some(plan) = by_blocks {
         let nnz = sys.jac.iter().map(Vec::len).sum::<usize>();
-        items.extend(from_blocks::items(&plan.blocks, nnz, !sys.inputs.is_empty()));
+        items.extend(from_blocks::items(plan, nnz, !sys.inputs.is_empty()));
     }
     if let Some(plan) = &layout {
         items.extend(blocks::items(&rows, plan));

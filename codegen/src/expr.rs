@@ -74,6 +74,10 @@ pub enum Var {
     Sd(u32),
     /// Its acceleration s̈_k.
     Sdd(u32),
+    /// Parameter k of a function shared by several blocks: a constant whose value differs
+    /// between them, read from their table at run time. Only the emitter's templates hold it
+    /// (`emit::shared`), never a system's expressions; it evaluates to NaN.
+    Param(u32),
 }
 
 /// One node of the arena.
@@ -160,6 +164,12 @@ impl ExprPool {
         self.nodes.push(node);
         self.index.insert(node, id);
         id
+    }
+
+    /// `node` as it is, without folding or reordering (its children must be in the pool):
+    /// for copying another pool's nodes one to one (the emitter's templates, `emit::shared`).
+    pub(crate) fn node(&mut self, node: Node) -> ExprId {
+        self.intern(node)
     }
 
     /// A constant.
@@ -329,7 +339,9 @@ impl ExprPool {
             return d;
         }
         let d = match self[e] {
-            Node::Const(_) | Node::Var(Var::Qd(_) | Var::Qdd(_)) => self.constant(0.0),
+            Node::Const(_) | Node::Var(Var::Qd(_) | Var::Qdd(_) | Var::Param(_)) => {
+                self.constant(0.0)
+            }
             Node::Var(Var::Q(k)) => self.var(Var::Qd(k)),
             Node::Var(Var::T) => self.constant(1.0),
             Node::Var(Var::S(k)) => self.var(Var::Sd(k)),
@@ -445,6 +457,7 @@ impl ExprPool {
                 Node::Var(Var::S(k)) => input(k, 0),
                 Node::Var(Var::Sd(k)) => input(k, 1),
                 Node::Var(Var::Sdd(k)) => input(k, 2),
+                Node::Var(Var::Param(_)) => T::from(f64::NAN),
                 Node::Neg(a) => -val[a.index()],
                 Node::Add(a, b) => val[a.index()] + val[b.index()],
                 Node::Mul(a, b) => val[a.index()] * val[b.index()],
@@ -481,6 +494,7 @@ impl fmt::Display for Display<'_> {
             Node::Var(Var::S(k)) => write!(f, "s{k}"),
             Node::Var(Var::Sd(k)) => write!(f, "sd{k}"),
             Node::Var(Var::Sdd(k)) => write!(f, "sdd{k}"),
+            Node::Var(Var::Param(k)) => write!(f, "c{k}"),
             Node::Neg(a) => write!(f, "-({})", sub(a)),
             Node::Add(a, b) => write!(f, "({} + {})", sub(a), sub(b)),
             Node::Mul(a, b) => write!(f, "{} * {}", sub(a), sub(b)),

@@ -9,6 +9,7 @@ use syn::parse_quote;
 
 use super::Rows;
 use super::function::Signature;
+use super::shared::{Array, Gathers, Output, Sharing, Slice};
 use super::syntax::{ident, index};
 use crate::blocks::{Blocks, Kind};
 use crate::model::Mechanism;
@@ -39,6 +40,314 @@ pub(super) struct Plan {
     pub(super) newton: bool,
     /// With Newton block by block, the rotation blocks it solves in closed form.
     pub(super) rotations: Vec<Closed>,
+    /// With Newton block by block, the blocks whose `block_b`, `block_residual_b` and
+    /// `rotation_b` are one function per structure ([`super::shared`]).
+    pub(super) shared: Shared,
+}
+
+/// The block functions grouped by structure, per kind of function.
+pub(super) struct Shared {
+    /// `block_b`: Φ and Φ_q of the block's rows.
+    pub(super) both: Sharing,
+    /// `block_residual_b`: Φ of the block's rows.
+    pub(super) alone: Sharing,
+    /// `rotation_b`: a rotation block's coefficients.
+    pub(super) rotations: Sharing,
+    /// The arms of `factor_block_k` (Newton's factors of one block).
+    pub(super) factor: Gathers,
+    /// The arms of `solve_block_k`.
+    pub(super) solve: Gathers,
+    /// The blocks of two or more rows in `factor_blocks_k` (all blocks' factors at once).
+    pub(super) factor_all: Gathers,
+    /// The blocks of two or more rows in `solve_blocks_k`.
+    pub(super) solve_all: Gathers,
+}
+
+/// The code of a block's LU with its indices as holes ([`Gathers`]): what the
+/// `factor_block_k`, `solve_block_k`, `factor_blocks_k` and `solve_blocks_k` of shared
+/// blocks run, the entries of Φ_q flat (in the packed storage).
+struct Lu<'a> {
+    sys: &'a Symbolic,
+    blocks: &'a Blocks,
+    entries: &'a Entries,
+    /// Where each block's rows start in the blocks' order (`perm`).
+    starts: Vec<usize>,
+    lower_starts: &'a [usize],
+    lower: &'a [usize],
+}
+
+/// The arrays of [`Lu::factor`]: `jac` (0) and `perm` (1).
+const FACTOR_SLICES: [Slice; 2] = [
+    Slice { name: "jac", square: true, mutable: true },
+    Slice { name: "perm", square: false, mutable: true },
+];
+
+/// The arrays of [`Lu::solve_one`]: `lu` (0), `perm` (1), `rhs` (2).
+const SOLVE_ONE_SLICES: [Slice; 3] = [
+    Slice { name: "lu", square: true, mutable: false },
+    Slice { name: "perm", square: false, mutable: false },
+    Slice { name: "rhs", square: false, mutable: false },
+];
+
+/// The arrays of [`Lu::solve_all`]: [`SOLVE_ONE_SLICES`] and `x` (3).
+const SOLVE_ALL_SLICES: [Slice; 4] = [
+    Slice { name: "lu", square: true, mutable: false },
+    Slice { name: "perm", square: false, mutable: false },
+    Slice { name: "rhs", square: false, mutable: false },
+    Slice { name: "x", square: false, mutable: true },
+];
+
+type Hole<'h> = &'h mut dyn FnMut(usize, usize) -> syn::Expr;
+
+impl<'a> Lu<'a> {
+    fn new(
+        sys: &'a Symbolic,
+        blocks: &'a Blocks,
+        entries: &'a Entries,
+        lower_starts: &'a [usize],
+        lower: &'a [usize],
+    ) -> Self {
+        let mut starts = Vec::with_capacity(blocks.blocks.len());
+        let mut at = 0;
+        for block in &blocks.blocks {
+            starts.push(at);
+            at += block.rows.len();
+        }
+        Lu { sys, blocks, entries, starts, lower_starts, lower }
+    }
+
+    /// The diagonal block gathered from array `a` (structural zeros as literals when
+    /// `zeros`).
+    fn gather(
+        &self,
+        b: usize,
+        a: usize,
+        zeros: bool,
+        hole: Hole<'_>,
+    ) -> Vec<proc_macro2::TokenStream> {
+        let block = &self.blocks.blocks[b];
+        block
+            .rows
+            .iter()
+            .map(|&r| {
+                let row: Vec<_> = block
+                    .unknowns
+                    .iter()
+                    .map(|&c| {
+                        if !zeros || self.sys.jac[r].iter().any(|&(j, _)| j == c) {
+                            let e = hole(a, self.entries.flat(r, c));
+                            quote::quote!(#e)
+                        } else {
+                            quote::quote!(0.0)
+                        }
+                    })
+                    .collect();
+                quote::quote!([#(#row),*])
+            })
+            .collect()
+    }
+
+    /// Factors block b in place, its row order into `perm`: `factor_with_ratio`'s result
+    /// (`?` on its error when `ratio`, else `.ok()?`).
+    fn factor(&self, b: usize, ratio: bool, hole: Hole<'_>) -> proc_macro2::TokenStream {
+        let block = &self.blocks.blocks[b];
+        let s = index(block.rows.len());
+        let rows = self.gather(b, 0, true, hole);
+        let mut scatter = Vec::new();
+        for (i, &r) in block.rows.iter().enumerate() {
+            for (j, &c) in block.unknowns.iter().enumerate() {
+                let (e, i, j) = (hole(0, self.entries.flat(r, c)), index(i), index(j));
+                scatter.push(quote::quote!(#e = a[#i][#j];));
+            }
+        }
+        let keep: Vec<_> = (0..block.rows.len())
+            .map(|i| {
+                let (e, i) = (hole(1, self.starts[b] + i), index(i));
+                quote::quote!(#e = p[#i];)
+            })
+            .collect();
+        let (factor, done) = if ratio {
+            (
+                quote::quote!(runtime::lu::factor_with_ratio(&mut a, &mut p, ratio)?),
+                quote::quote!(Ok(info)),
+            )
+        } else {
+            (
+                quote::quote!(runtime::lu::factor_with_ratio(&mut a, &mut p, 0.0).ok()?),
+                quote::quote!(Some(info)),
+            )
+        };
+        quote::quote! {
+            let mut a = [#(#rows),*];
+            let mut p = [0; #s];
+            let info = #factor;
+            #(#scatter)*
+            #(#keep)*
+            #done
+        }
+    }
+
+    /// Solves block b alone (Newton's `solve_block`): the solution into `x[..s]`.
+    fn solve_one(&self, b: usize, hole: Hole<'_>) -> proc_macro2::TokenStream {
+        let block = &self.blocks.blocks[b];
+        let s = index(block.rows.len());
+        let rows = self.gather(b, 0, false, hole);
+        let order: Vec<_> = (0..block.rows.len()).map(|i| hole(1, self.starts[b] + i)).collect();
+        let z: Vec<_> = block.rows.iter().map(|&r| hole(2, r)).collect();
+        quote::quote! {
+            let a = [#(#rows),*];
+            let p = [#(#order),*];
+            let mut z = [#(#z),*];
+            runtime::lu::solve(&a, &p, &mut z);
+            x[..#s].copy_from_slice(&z);
+        }
+    }
+
+    /// Solves for block b's unknowns, those of the blocks before it known (`solve_blocks`).
+    fn solve_all(&self, b: usize, hole: Hole<'_>) -> proc_macro2::TokenStream {
+        let block = &self.blocks.blocks[b];
+        let rows = self.gather(b, 0, false, hole);
+        let order: Vec<_> = (0..block.rows.len()).map(|i| hole(1, self.starts[b] + i)).collect();
+        let z: Vec<_> = block
+            .rows
+            .iter()
+            .map(|&r| {
+                let first = hole(2, r);
+                let terms: Vec<_> = self.lower[self.lower_starts[r]..self.lower_starts[r + 1]]
+                    .iter()
+                    .map(|&c| {
+                        let (entry, x) = (hole(0, self.entries.flat(r, c)), hole(3, c));
+                        quote::quote!(- #entry * #x)
+                    })
+                    .collect();
+                quote::quote!(#first #(#terms)*)
+            })
+            .collect();
+        let out: Vec<_> = block
+            .unknowns
+            .iter()
+            .enumerate()
+            .map(|(i, &c)| {
+                let (x, i) = (hole(3, c), index(i));
+                quote::quote!(#x = z[#i];)
+            })
+            .collect();
+        quote::quote! {
+            let a = [#(#rows),*];
+            let p = [#(#order),*];
+            let mut z = [#(#z),*];
+            runtime::lu::solve(&a, &p, &mut z);
+            #(#out)*
+        }
+    }
+}
+
+impl Shared {
+    /// The block functions of `blocks` with the rotation blocks `rotations`, grouped.
+    fn of(sys: &Symbolic, blocks: &Blocks, rotations: &[Closed]) -> Shared {
+        let n = sys.unknowns.len();
+        let (lower_starts, lower) = lower(sys, blocks);
+        let entries = Entries::packed(n, blocks, &lower_starts, &lower);
+        let (both, alone): (Vec<_>, Vec<_>) = blocks
+            .blocks
+            .iter()
+            .map(|block| {
+                let (both, alone) = block_outputs(sys, block, &entries);
+                (Some(both), (block.kind != Kind::ClosedForm).then_some(alone))
+            })
+            .unzip();
+        let mut closed = vec![None; blocks.blocks.len()];
+        for r in rotations {
+            closed[r.block] = Some(
+                r.coefficients.iter().enumerate().map(|(i, &e)| (Array::K, i, Some(e))).collect(),
+            );
+        }
+        let lu = Lu::new(sys, blocks, &entries, &lower_starts, &lower);
+        let m = blocks.blocks.len();
+        let implicit: Vec<usize> =
+            (0..m).filter(|&b| blocks.blocks[b].kind != Kind::ClosedForm).collect();
+        let square: Vec<usize> = (0..m).filter(|&b| blocks.blocks[b].rows.len() > 1).collect();
+        Shared {
+            both: Sharing::of(&sys.pool, &both),
+            alone: Sharing::of(&sys.pool, &alone),
+            rotations: Sharing::of(&sys.pool, &closed),
+            // Newton's factor and solve of one block share alike: `factor_block_k` and
+            // `solve_block_k` take the same blocks.
+            factor: Gathers::of(
+                m,
+                &implicit,
+                2,
+                &|b, hole| lu.factor(b, true, hole),
+                Some(&|b, hole| lu.solve_one(b, hole)),
+            ),
+            solve: Gathers::of(
+                m,
+                &implicit,
+                3,
+                &|b, hole| lu.solve_one(b, hole),
+                Some(&|b, hole| lu.factor(b, true, hole)),
+            ),
+            factor_all: Gathers::of(m, &square, 2, &|b, hole| lu.factor(b, false, hole), None),
+            solve_all: Gathers::of(m, &square, 4, &|b, hole| lu.solve_all(b, hole), None),
+        }
+    }
+
+    /// No sharing, for `blocks` blocks.
+    fn none(blocks: usize) -> Shared {
+        Shared {
+            both: Sharing::none(blocks),
+            alone: Sharing::none(blocks),
+            rotations: Sharing::none(blocks),
+            factor: Gathers::none(blocks),
+            solve: Gathers::none(blocks),
+            factor_all: Gathers::none(blocks),
+            solve_all: Gathers::none(blocks),
+        }
+    }
+}
+
+/// The outputs of `block_b` (Φ of the block's rows, their structural non-zeros of Φ_q, and
+/// 0 at the structural zeros of the diagonal block) and of `block_residual_b` (Φ alone), in
+/// the order the functions write them.
+fn block_outputs(
+    sys: &Symbolic,
+    block: &crate::blocks::Block,
+    entries: &Entries,
+) -> (Vec<Output>, Vec<Output>) {
+    let phi: Vec<Output> = block.rows.iter().map(|&r| (Array::Phi, r, Some(sys.phi[r]))).collect();
+    let mut both = phi.clone();
+    for &r in &block.rows {
+        both.extend(sys.jac[r].iter().map(|&(c, e)| (Array::Jac, entries.flat(r, c), Some(e))));
+    }
+    for &r in &block.rows {
+        for &c in &block.unknowns {
+            if !sys.jac[r].iter().any(|&(j, _)| j == c) {
+                both.push((Array::Jac, entries.flat(r, c), None));
+            }
+        }
+    }
+    (both, phi)
+}
+
+/// Row r's columns below the blocks, `lower[lower_starts[r]..lower_starts[r + 1]]`:
+/// `(lower_starts, lower)`.
+fn lower(sys: &Symbolic, blocks: &Blocks) -> (Vec<usize>, Vec<usize>) {
+    let n = sys.unknowns.len();
+    let (mut block_of_column, mut block_of_row) = (vec![0; n], vec![0; n]);
+    for (b, block) in blocks.blocks.iter().enumerate() {
+        for &c in &block.unknowns {
+            block_of_column[c] = b;
+        }
+        for &r in &block.rows {
+            block_of_row[r] = b;
+        }
+    }
+    let (mut lower, mut lower_starts) = (Vec::new(), vec![0]);
+    for (r, row) in sys.jac.iter().enumerate() {
+        lower.extend(row.iter().map(|&(c, _)| c).filter(|&c| block_of_column[c] < block_of_row[r]));
+        lower_starts.push(lower.len());
+    }
+    (lower_starts, lower)
 }
 
 /// A rotation block solved in closed form: `runtime::rotation::about_axis` on coefficients an
@@ -84,6 +393,14 @@ impl Entries {
         }
         starts.push(at.len());
         Entries { n, packed: Some(at), starts }
+    }
+
+    /// The flat index of entry (r, c) in the storage.
+    fn flat(&self, r: usize, c: usize) -> usize {
+        match &self.packed {
+            Some(at) => at[&(r, c)],
+            None => r * self.n + c,
+        }
     }
 
     /// The indices `[i, j]` of entry (r, c) in the storage.
@@ -141,7 +458,12 @@ pub(super) fn plan(sys: &mut Symbolic, mech: &Mechanism, newton: Option<bool>) -
             }
         }
     }
-    Some(Plan { blocks, newton, rotations })
+    let shared = if newton {
+        Shared::of(sys, &blocks, &rotations)
+    } else {
+        Shared::none(blocks.blocks.len())
+    };
+    Some(Plan { blocks, newton, rotations, shared })
 }
 
 /// `static BLOCKS: runtime::blocks::Layout` and, for Newton block by block, the `block_k`
@@ -150,27 +472,13 @@ pub(super) fn plan(sys: &mut Symbolic, mech: &Mechanism, newton: Option<bool>) -
 pub(super) fn items(rows: &Rows<'_>, plan: &Plan) -> Vec<syn::Item> {
     let (sys, blocks) = (rows.sys, &plan.blocks);
     let n = sys.unknowns.len();
-    let mut block_of_column = vec![0; n];
     let (mut order_rows, mut order_columns, mut starts) = (Vec::new(), Vec::new(), vec![0]);
-    for (b, block) in blocks.blocks.iter().enumerate() {
+    for block in &blocks.blocks {
         order_rows.extend(&block.rows);
         order_columns.extend(&block.unknowns);
         starts.push(order_rows.len());
-        for &c in &block.unknowns {
-            block_of_column[c] = b;
-        }
     }
-    let mut block_of_row = vec![0; n];
-    for (b, block) in blocks.blocks.iter().enumerate() {
-        for &r in &block.rows {
-            block_of_row[r] = b;
-        }
-    }
-    let (mut lower, mut lower_starts) = (Vec::new(), vec![0]);
-    for (r, row) in sys.jac.iter().enumerate() {
-        lower.extend(row.iter().map(|&(c, _)| c).filter(|&c| block_of_column[c] < block_of_row[r]));
-        lower_starts.push(lower.len());
-    }
+    let (lower_starts, lower) = lower(sys, blocks);
     let list = |v: &[usize]| {
         let v = v.iter().map(|&k| index(k));
         quote::quote!(&[#(#v),*])
@@ -214,10 +522,44 @@ pub(super) fn items(rows: &Rows<'_>, plan: &Plan) -> Vec<syn::Item> {
             static PACKED_BLOCKS: [usize; #len] = [#(#starts),*];
         });
         items.extend(unpack(&entries));
-        items.extend(block_functions(rows, blocks, &entries));
-        items.extend(rotation_functions(rows, &plan.rotations));
-        items.extend(straight_line(sys, blocks, &lower_starts, &lower, &entries));
-        items.extend(block_factor_solve(sys, blocks, &entries));
+        items.extend(block_functions(rows, blocks, &entries, &plan.shared));
+        items.extend(rotation_functions(rows, &plan.rotations, &plan.shared.rotations));
+        let lu = Lu::new(sys, blocks, &entries, &lower_starts, &lower);
+        let shared = &plan.shared;
+        items.extend(shared.factor.items(
+            "factor_block",
+            &FACTOR_SLICES,
+            &quote::quote!(jac: &mut [[f64; N]; N], perm: &mut [usize; N], ratio: f64),
+            &quote::quote!(-> Result<runtime::lu::PivotInfo, runtime::lu::Singular>),
+            "Factors the diagonal block alone (see `factor_block_k`)",
+            &|b, hole| lu.factor(b, true, hole),
+        ));
+        items.extend(shared.solve.items(
+            "solve_block",
+            &SOLVE_ONE_SLICES,
+            &quote::quote!(lu: &[[f64; N]; N], perm: &[usize; N], rhs: &[f64; N], x: &mut [f64]),
+            &quote::quote!(),
+            "Solves the diagonal block alone (see `solve_block_k`)",
+            &|b, hole| lu.solve_one(b, hole),
+        ));
+        items.extend(shared.factor_all.items(
+            "factor_blocks",
+            &FACTOR_SLICES,
+            &quote::quote!(jac: &mut [[f64; N]; N], perm: &mut [usize; N]),
+            &quote::quote!(-> Option<runtime::lu::PivotInfo>),
+            "Factors the diagonal block in place, its pivots returned (see `factor_blocks`)",
+            &|b, hole| lu.factor(b, false, hole),
+        ));
+        items.extend(shared.solve_all.items(
+            "solve_blocks",
+            &SOLVE_ALL_SLICES,
+            &quote::quote!(lu: &[[f64; N]; N], perm: &[usize; N], rhs: &[f64; N], x: &mut [f64; N]),
+            &quote::quote!(),
+            "Solves for the block's unknowns, those of the blocks before it known (see `solve_blocks`)",
+            &|b, hole| lu.solve_all(b, hole),
+        ));
+        items.extend(straight_line(sys, blocks, &lower_starts, &lower, &entries, shared));
+        items.extend(block_factor_solve(sys, blocks, &entries, shared));
         return items;
     }
     let vec_ty = quote::quote!(&mut [f64; N]);
@@ -236,7 +578,7 @@ pub(super) fn items(rows: &Rows<'_>, plan: &Plan) -> Vec<syn::Item> {
     let what = "Φ and the structural non-zeros of Φ_q, the others of `jac` left as they were: what `factor_blocks_k` and `solve_blocks_k` read (the structural zeros of a diagonal block are literals there).";
     items.extend(rows.emit(&sig, what, Vec::new(), &outputs));
     let entries = Entries { n, packed: None, starts: Vec::new() };
-    items.extend(straight_line(sys, blocks, &lower_starts, &lower, &entries));
+    items.extend(straight_line(sys, blocks, &lower_starts, &lower, &entries, &plan.shared));
     items
 }
 
@@ -248,6 +590,7 @@ fn straight_line(
     lower_starts: &[usize],
     lower: &[usize],
     entries: &Entries,
+    shared: &Shared,
 ) -> Vec<syn::Item> {
     let mut chunks: Vec<Vec<usize>> = vec![Vec::new()];
     let mut size = 0;
@@ -274,7 +617,34 @@ fn straight_line(
             .iter()
             .map(|&b| {
                 let block = &blocks.blocks[b];
-                block_code(sys, b, block, starts[b], lower_starts, lower, entries)
+                let (mut factor, mut solve) =
+                    block_code(sys, b, block, starts[b], lower_starts, lower, entries);
+                if let Some(call) =
+                    shared.factor_all.call("factor_blocks", b, &quote::quote!(jac, perm))
+                {
+                    let pivots = if b == 0 {
+                        quote::quote!(*pivots = info;)
+                    } else {
+                        quote::quote! {
+                            pivots.smallest = pivots.smallest.min(info.smallest);
+                            pivots.largest = pivots.largest.max(info.largest);
+                        }
+                    };
+                    factor = parse_quote! {
+                        {
+                            let Some(info) = #call else {
+                                return false;
+                            };
+                            #pivots
+                        }
+                    };
+                }
+                if let Some(call) =
+                    shared.solve_all.call("solve_blocks", b, &quote::quote!(lu, perm, rhs, x))
+                {
+                    solve = parse_quote!(#call;);
+                }
+                (factor, solve)
             })
             .unzip();
         let (first, last) = (chunk[0], chunk[chunk.len() - 1]);
@@ -523,7 +893,12 @@ fn unpack(entries: &Entries) -> Vec<syn::Item> {
 /// and, unless the block is affine (solved in closed form from Φ with Φ_q), `block_residual_b`
 /// writing Φ of its rows alone (for a rotation block, Newton's when its closed form fails). Each is a small straight-line function of its own, so that
 /// Newton block by block evaluates only the block it iterates on.
-fn block_functions(rows: &Rows<'_>, blocks: &Blocks, entries: &Entries) -> Vec<syn::Item> {
+fn block_functions(
+    rows: &Rows<'_>,
+    blocks: &Blocks,
+    entries: &Entries,
+    shared: &Shared,
+) -> Vec<syn::Item> {
     let sys = rows.sys;
     let n = sys.unknowns.len();
     let vec_ty = quote::quote!(&mut [f64; N]);
@@ -538,7 +913,12 @@ fn block_functions(rows: &Rows<'_>, blocks: &Blocks, entries: &Entries) -> Vec<s
         targets,
         inputs: rows.inputs(),
     };
-    let mut items = Vec::new();
+    let mut items = shared.both.items(
+        "block",
+        &signature(&both[..]),
+        "Φ and the structural non-zeros of Φ_q of the rows (see `block_b`)",
+    );
+    items.extend(shared.alone.items("block_residual", &signature(&alone[..]), "Φ of the rows"));
     for (b, block) in blocks.blocks.iter().enumerate() {
         let phi: Vec<_> = block
             .rows
@@ -580,8 +960,10 @@ fn block_functions(rows: &Rows<'_>, blocks: &Blocks, entries: &Entries) -> Vec<s
             let item = signature(targets).item(&ident(&name), &doc, &used, true);
             items.push(super::syntax::item_fn(item, f.stmts));
         };
-        emit(format!("block_{b}"), &all, &both[..], &zeros);
-        if block.kind != Kind::ClosedForm {
+        if shared.both.shared(b).is_none() {
+            emit(format!("block_{b}"), &all, &both[..], &zeros);
+        }
+        if block.kind != Kind::ClosedForm && shared.alone.shared(b).is_none() {
             emit(format!("block_residual_{b}"), &phi, &alone[..], &[]);
         }
     }
@@ -591,7 +973,7 @@ fn block_functions(rows: &Rows<'_>, blocks: &Blocks, entries: &Entries) -> Vec<s
 /// Per rotation block b solved in closed form, `rotation_b` writing what
 /// `runtime::rotation::about_axis` reads: u and w (the family of the body's Euler parameters,
 /// from the known body's) and the driver's row at u, at w and at (u + w)/√2.
-fn rotation_functions(rows: &Rows<'_>, rotations: &[Closed]) -> Vec<syn::Item> {
+fn rotation_functions(rows: &Rows<'_>, rotations: &[Closed], shared: &Sharing) -> Vec<syn::Item> {
     let sys = rows.sys;
     let n = sys.unknowns.len();
     let targets = [("k", quote::quote!(&mut [f64; runtime::rotation::COEFFICIENTS]))];
@@ -603,8 +985,12 @@ fn rotation_functions(rows: &Rows<'_>, rotations: &[Closed]) -> Vec<syn::Item> {
         targets: &targets,
         inputs: rows.inputs(),
     };
-    let mut items = Vec::new();
-    for r in rotations {
+    let mut items = shared.items(
+        "rotation",
+        &signature,
+        "u, w, the driver's row at u, at w and at (u + w)/√2 (`runtime::rotation`)",
+    );
+    for r in rotations.iter().filter(|r| shared.shared(r.block).is_none()) {
         let outputs: Vec<_> = r
             .coefficients
             .iter()
@@ -646,43 +1032,56 @@ fn factor_solve_blocks() -> [syn::ImplItem; 2] {
 /// `block_residual` dispatching to the block functions.
 fn newton_impl_items(plan: &Plan, inputs: bool) -> Vec<syn::ImplItem> {
     let blocks = &plan.blocks;
-    let chunks = implicit_chunks(blocks);
+    let chunks = implicit_chunks(blocks, &plan.shared.factor);
     let range = |chunk: &[usize]| {
         let (first, last) = (index(chunk[0]), index(chunk[chunk.len() - 1]));
         quote::quote!(#first..=#last)
     };
-    let factor_arms = chunks.iter().enumerate().map(|(k, chunk)| {
+    let shared = &plan.shared;
+    let mut factor_arms = Vec::new();
+    let mut solve_arms = Vec::new();
+    for b in 0..blocks.blocks.len() {
+        let lit = index(b);
+        if let Some(call) = shared.factor.call("factor_block", b, &quote::quote!(jac, perm, ratio))
+        {
+            factor_arms.push(quote::quote!(#lit => #call,));
+        }
+        if let Some(call) = shared.solve.call("solve_block", b, &quote::quote!(lu, perm, rhs, x)) {
+            solve_arms.push((quote::quote!(#lit), call));
+        }
+    }
+    factor_arms.extend(chunks.iter().enumerate().map(|(k, chunk)| {
         let (r, f) = (range(chunk), ident(&format!("factor_block_{k}")));
         quote::quote!(#r => #f(b, jac, perm, ratio),)
-    });
-    let solve_arms = chunks.iter().enumerate().map(|(k, chunk)| {
+    }));
+    solve_arms.extend(chunks.iter().enumerate().map(|(k, chunk)| {
         let (r, f) = (range(chunk), ident(&format!("solve_block_{k}")));
         (r, quote::quote!(#f(b, lu, perm, rhs, x)))
-    });
+    }));
     let u = inputs.then(|| quote::quote!(&u,));
     let both = blocks.blocks.iter().enumerate().map(|(b, _)| {
-        let (lit, f) = (index(b), ident(&format!("block_{b}")));
-        (quote::quote!(#lit), quote::quote!(#f(q, t, #u phi, jac)))
+        let lit = index(b);
+        (quote::quote!(#lit), plan.shared.both.call("block", b, &quote::quote!(q, t, #u phi, jac)))
     });
     let alone = blocks.blocks.iter().enumerate().filter(|(_, k)| k.kind != Kind::ClosedForm).map(
         |(b, _)| {
-            let (lit, f) = (index(b), ident(&format!("block_residual_{b}")));
-            (quote::quote!(#lit), quote::quote!(#f(q, t, #u phi)))
+            let lit = index(b);
+            let args = quote::quote!(q, t, #u phi);
+            (quote::quote!(#lit), plan.shared.alone.call("block_residual", b, &args))
         },
     );
-    let (solve_arms, both, alone) = (
-        unit_dispatch(solve_arms.collect()),
-        unit_dispatch(both.collect()),
-        unit_dispatch(alone.collect()),
-    );
+    let (solve_arms, both, alone) =
+        (unit_dispatch(solve_arms), unit_dispatch(both.collect()), unit_dispatch(alone.collect()));
     let read = inputs.then(|| quote::quote!(let u = self.inputs(t).to_array();));
     let [factor, solve] = factor_solve_blocks();
     let mut items = Vec::new();
     if !plan.rotations.is_empty() {
         let arms = plan.rotations.iter().map(|r| {
-            let (lit, f) = (index(r.block), ident(&format!("rotation_{}", r.block)));
+            let lit = index(r.block);
+            let call =
+                plan.shared.rotations.call("rotation", r.block, &quote::quote!(q, t, #u &mut k));
             let (first, linear) = (index(r.first), r.linear);
-            quote::quote!(#lit => { #f(q, t, #u &mut k); (#first, #linear) })
+            quote::quote!(#lit => { #call; (#first, #linear) })
         });
         items.push(parse_quote! {
             fn closed_form_block(&self, b: usize, q: &mut [f64; N], t: f64) -> bool {
@@ -743,11 +1142,11 @@ fn newton_impl_items(plan: &Plan, inputs: bool) -> Vec<syn::ImplItem> {
 /// The blocks factored alone (implicit and rotation blocks) in chunks of about
 /// [`CHUNK_ENTRIES`] entries of their diagonal blocks, each chunk a run of consecutive block
 /// indices (the affine blocks between them have no arm).
-fn implicit_chunks(blocks: &Blocks) -> Vec<Vec<usize>> {
+fn implicit_chunks(blocks: &Blocks, shared: &Gathers) -> Vec<Vec<usize>> {
     let mut chunks: Vec<Vec<usize>> = vec![Vec::new()];
     let mut size = 0;
     for (b, block) in blocks.blocks.iter().enumerate() {
-        if block.kind == Kind::ClosedForm {
+        if block.kind == Kind::ClosedForm || shared.shared(b).is_some() {
             continue;
         }
         let entries = 2 * block.rows.len() * block.rows.len();
@@ -766,7 +1165,12 @@ fn implicit_chunks(blocks: &Blocks) -> Vec<Vec<usize>> {
 /// factors its diagonal block alone (gathered into a fixed-size array, `runtime::lu` with
 /// partial pivoting, scattered back in the layout of `factor_blocks`) and one that solves it
 /// alone, for Newton block by block.
-fn block_factor_solve(sys: &Symbolic, blocks: &Blocks, entries: &Entries) -> Vec<syn::Item> {
+fn block_factor_solve(
+    sys: &Symbolic,
+    blocks: &Blocks,
+    entries: &Entries,
+    shared: &Shared,
+) -> Vec<syn::Item> {
     let mut starts = Vec::with_capacity(blocks.blocks.len());
     let mut at = 0;
     for block in &blocks.blocks {
@@ -774,7 +1178,7 @@ fn block_factor_solve(sys: &Symbolic, blocks: &Blocks, entries: &Entries) -> Vec
         at += block.rows.len();
     }
     let mut items = Vec::new();
-    for (k, chunk) in implicit_chunks(blocks).iter().enumerate() {
+    for (k, chunk) in implicit_chunks(blocks, &shared.factor).iter().enumerate() {
         let mut factor_arms = Vec::new();
         let mut solve_arms = Vec::new();
         for &b in chunk {

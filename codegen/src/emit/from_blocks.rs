@@ -11,17 +11,14 @@
 
 use syn::parse_quote;
 
-use super::syntax::ident;
-use crate::blocks::Blocks;
+use super::blocks::Plan;
 
-/// `jacobian` and `residual_jacobian` as calls of `block_0` … `block_{m−1}` (the public
+/// `jacobian` and `residual_jacobian` as calls of `block_0` … `block_{m−1}` (or of the
+/// functions they share, [`super::shared`]) (the public
 /// signatures of [`super::residual_and_jacobian`]'s, with `inputs: &Inputs` when `inputs`).
-pub(super) fn items(blocks: &Blocks, nnz: usize, inputs: bool) -> Vec<syn::Item> {
+pub(super) fn items(plan: &Plan, nnz: usize, inputs: bool) -> Vec<syn::Item> {
     let u = inputs.then(|| quote::quote!(&u,));
-    let calls = (0..blocks.blocks.len()).map(|b| {
-        let f = ident(&format!("block_{b}"));
-        quote::quote!(#f(q, t, #u phi, jac);)
-    });
+    let calls = plan.shared.both.calls_all("block", &quote::quote!(q, t, #u phi, jac));
     let doc = " Φ and Φ_q at once (see [`residual`] and [`jacobian`]), block by block.";
     let jacobian_doc = format!(
         " Jacobian Φ_q, row-major: `jac[i][j] = ∂Φ_i/∂q_j`; the {nnz} structurally non-zero entries are written, the others set to 0."

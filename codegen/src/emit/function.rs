@@ -117,6 +117,7 @@ impl<'p> Body<'p> {
             Node::Var(Var::S(k)) => (path(ident(&format!("s{k}"))), Prec::Atom),
             Node::Var(Var::Sd(k)) => (path(ident(&format!("sd{k}"))), Prec::Atom),
             Node::Var(Var::Sdd(k)) => (path(ident(&format!("sdd{k}"))), Prec::Atom),
+            Node::Var(Var::Param(k)) => (path(ident(&format!("c{k}"))), Prec::Atom),
             Node::Neg(a) => (neg(at_least(self.render(a), Prec::Unary)), Prec::Unary),
             Node::Add(a, b) => {
                 // x + (−y) and (−y) + x are written x − y: the same IEEE operation, since
@@ -205,6 +206,22 @@ fn symbols(pool: &ExprPool, roots: &[ExprId], n: usize) -> ([Vec<bool>; 3], bool
     ([q, qd, qdd], t, inputs)
 }
 
+/// The parameters (`Var::Param`) the expressions reachable from `roots` use, in order.
+fn parameters(pool: &ExprPool, roots: &[ExprId]) -> std::collections::BTreeSet<u32> {
+    let mut used = std::collections::BTreeSet::new();
+    let mut seen = std::collections::BTreeSet::new();
+    let mut stack = roots.to_vec();
+    while let Some(x) = stack.pop() {
+        if seen.insert(x) {
+            if let Node::Var(Var::Param(k)) = pool[x] {
+                used.insert(k);
+            }
+            stack.extend(pool[x].children());
+        }
+    }
+    used
+}
+
 /// A function body: destructuring, temporaries, then `target = value;` per output.
 pub(super) struct Function {
     pub(super) stmts: Vec<syn::Stmt>,
@@ -229,6 +246,29 @@ pub(super) fn function(pool: &ExprPool, n: usize, outputs: &Targets) -> Function
 /// [`function`], reading the used entries of q and q̇ one by one (`let q5 = q[5];`) when
 /// `part`: a part of a split function uses few of them.
 pub(super) fn function_with(pool: &ExprPool, n: usize, outputs: &Targets, part: bool) -> Function {
+    let reads = if part { Reads::OneByOne } else { Reads::Destructured };
+    function_reading(pool, n, outputs, &reads)
+}
+
+/// How a function reads the entries of q, q̇ and q̈ it uses, the inputs and the parameters
+/// (`Var::Param`) of a template.
+pub(super) enum Reads<'a> {
+    /// `let [q0, _q1, …] = *q;`.
+    Destructured,
+    /// `let q5 = q[5];`.
+    OneByOne,
+    /// `let q5 = read("q", 5);` (also "qd", "qdd"), `let [s2, sd2, sdd2] = read("u", 2);` and
+    /// `let c3 = read("c", 3);`: a shared block function's entries at its block's places.
+    With(&'a dyn Fn(&str, usize) -> Expr),
+}
+
+/// [`function_with`], reading the symbols as `reads` says.
+pub(super) fn function_reading(
+    pool: &ExprPool,
+    n: usize,
+    outputs: &Targets,
+    reads: &Reads<'_>,
+) -> Function {
     let roots: Vec<ExprId> = outputs.iter().map(|(_, e, _)| *e).collect();
     let ([q, qd, qdd], t, inputs) = symbols(pool, &roots, n);
     let body = Body::new(pool, &roots);
@@ -239,15 +279,35 @@ pub(super) fn function_with(pool: &ExprPool, n: usize, outputs: &Targets, part: 
         if !used.iter().any(|&u| u) {
             continue;
         }
-        if part {
-            for k in (0..n).filter(|&k| used[k]) {
-                stmts.push(let_stmt(ident(&format!("{prefix}{k}")), element(prefix, &[k])));
+        match reads {
+            Reads::Destructured => stmts.push(destructure(prefix, n, used)),
+            Reads::OneByOne => {
+                for k in (0..n).filter(|&k| used[k]) {
+                    stmts.push(let_stmt(ident(&format!("{prefix}{k}")), element(prefix, &[k])));
+                }
             }
-        } else {
-            stmts.push(destructure(prefix, n, used));
+            Reads::With(read) => {
+                for k in (0..n).filter(|&k| used[k]) {
+                    stmts.push(let_stmt(ident(&format!("{prefix}{k}")), read(prefix, k)));
+                }
+            }
         }
     }
-    stmts.extend(destructure_inputs(&inputs));
+    if let Reads::With(read) = reads {
+        for (&k, d) in &inputs {
+            let names = ["s", "sd", "sdd"]
+                .iter()
+                .zip(d)
+                .map(|(p, &u)| ident(&if u { format!("{p}{k}") } else { format!("_{p}{k}") }));
+            let at = read("u", k as usize);
+            stmts.push(parse_quote!(let [#(#names),*] = #at;));
+        }
+        for k in parameters(pool, &roots) {
+            stmts.push(let_stmt(ident(&format!("c{k}")), read("c", k as usize)));
+        }
+    } else {
+        stmts.extend(destructure_inputs(&inputs));
+    }
     stmts.extend(body.stmts.iter().cloned());
     let mut last_row = None;
     for (target, e, row) in outputs {
