@@ -134,10 +134,13 @@ fn assemble(
     // Newton block by block emits every row's Jacobian entries in its `block_b` functions:
     // the whole Jacobian is then their calls (`from_blocks`), not two more copies of them.
     let by_blocks = layout.as_ref().filter(|plan| plan.newton);
-    items.extend(residual_and_jacobian(&rows, layout.is_none(), by_blocks.is_none()));
     if let Some(plan) = by_blocks {
+        // Φ, ν and γ block by block too, so that copies of one structure share their code.
+        items.extend(blocks::vectors(&rows, plan));
         let nnz = sys.jac.iter().map(Vec::len).sum::<usize>();
         items.extend(from_blocks::items(plan, nnz, !sys.inputs.is_empty()));
+    } else {
+        items.extend(residual_and_jacobian(&rows, layout.is_none(), true));
     }
     if let Some(plan) = &layout {
         items.extend(blocks::items(&rows, plan));
@@ -149,7 +152,9 @@ fn assemble(
     for (k, order) in orders.iter().enumerate() {
         items.extend(lu::emit(order, &structure, &constant, k));
     }
-    items.extend(right_hand_sides(&rows));
+    if by_blocks.is_none() {
+        items.extend(right_hand_sides(&rows));
+    }
     items.push(normalize(sys));
     items.push(expand(sys, &moving));
     items.extend(outputs::accessors(&rows, &named));

@@ -872,635 +872,1806 @@ pub const INITIAL_INPUTS: Inputs = Inputs {
     },
 };
 
-/// Constraint residuals Φ(q, t), 91 rows.
-///
-/// 1160 operations, 346 shared subexpressions.
-pub fn residual(q: &[f64; N], _t: f64, inputs: &Inputs, phi: &mut [f64; N]) {
+/// Constraint residuals Φ(q, t), 91 rows, block by block.
+pub fn residual(q: &[f64; N], t: f64, inputs: &Inputs, phi: &mut [f64; N]) {
     let u = inputs.to_array();
-    let [q0, q1, q2, q3, q4, q5, q6, q7, q8, q9, q10, q11, q12, q13, q14, q15, q16, q17,
-    q18, q19, q20, q21, q22, q23, q24, q25, q26, q27, q28, q29, q30, q31, q32, q33, q34,
-    q35, q36, q37, q38, q39, q40, q41, q42, q43, q44, q45, q46, q47, q48, q49, q50, q51,
-    q52, q53, q54, q55, q56, q57, q58, q59, q60, q61, q62, q63, q64, q65, q66, q67, q68,
-    q69, q70, q71, q72, q73, q74, q75, q76, q77, q78, q79, q80, q81, q82, q83, q84, q85,
-    q86, q87, q88, q89, q90] = *q;
-    let [s0, _sd0, _sdd0] = u[0];
-    let [s1, _sd1, _sdd1] = u[1];
-    let [s2, _sd2, _sdd2] = u[2];
-    let [s3, _sd3, _sdd3] = u[3];
-    let [s4, _sd4, _sdd4] = u[4];
-    let [s5, _sd5, _sdd5] = u[5];
-    let t0 = q10 * q10;
-    let t1 = q11 * q11;
-    let t2 = q12 * q12;
-    let t3 = q13 * q13;
-    let t4 = t0 + t1;
-    let t5 = t4 - (t2 + t3);
-    let t6 = t0 + t2 - (t1 + t3);
-    let t7 = q11 * q12;
-    let t8 = q10 * q13;
-    let t9 = t7 - t8;
-    let t10 = q11 * q13;
-    let t11 = q10 * q12;
-    let t12 = t7 + t8;
-    let t13 = q12 * q13;
-    let t14 = q10 * q11;
-    let t15 = t10 - t11;
-    let t16 = t13 + t14;
-    let t17 = 1.0534578959402132 * (t10 + t11)
-        + (0.8400407006062905 * t5 + 0.2599094972885536 * t9);
-    let t18 = 1.0534578959402132 * (t13 - t14)
-        + (1.680081401212581 * t12 + 0.1299547486442768 * t6);
-    let t19 = 0.5267289479701066 * (t0 + t3 - (t1 + t2))
-        + (1.680081401212581 * t15 + 0.2599094972885536 * t16);
-    let t20 = q17 * q17;
-    let t21 = q18 * q18;
-    let t22 = q19 * q19;
-    let t23 = q20 * q20;
-    let t24 = t20 + t21;
-    let t25 = t24 - (t22 + t23);
-    let t26 = t20 + t22 - (t21 + t23);
-    let t27 = t20 + t23 - (t21 + t22);
-    let t28 = q18 * q19;
-    let t29 = q17 * q20;
-    let t30 = t28 - t29;
-    let t31 = q18 * q20;
-    let t32 = q17 * q19;
-    let t33 = t31 + t32;
-    let t34 = t28 + t29;
-    let t35 = q19 * q20;
-    let t36 = q17 * q18;
-    let t37 = t35 - t36;
-    let t38 = t31 - t32;
-    let t39 = t35 + t36;
-    let t40 = q14 - q7;
-    let t41 = q15 - q8;
-    let t42 = q16 - q9;
-    let t43 = 1.7000666050132325 * t33
-        + (-0.5205369638785167 * t25 + -0.16105469711661508 * t30);
-    let t44 = 1.7000666050132325 * t37
-        + (-1.0410739277570333 * t34 + -0.08052734855830754 * t26);
-    let t45 = 0.8500333025066162 * t27
-        + (-1.0410739277570333 * t38 + -0.16105469711661508 * t39);
-    let t46 = 0.15288194975545125 * t5 + -1.976488916679243 * t9;
-    let t47 = 0.3057638995109025 * t12 + -0.9882444583396215 * t6;
-    let t48 = 0.3057638995109025 * t15 + -1.976488916679243 * t16;
-    let t49 = q3 * q3;
-    let t50 = q4 * q4;
-    let t51 = q5 * q5;
-    let t52 = q6 * q6;
-    let t53 = t49 + t50;
-    let t54 = t53 - (t51 + t52);
-    let t55 = t49 + t51 - (t50 + t52);
-    let t56 = q4 * q5;
-    let t57 = q3 * q6;
-    let t58 = t56 - t57;
-    let t59 = t56 + t57;
-    let t60 = q4 * q6 - q3 * q5;
-    let t61 = q5 * q6 + q3 * q4;
-    let t62 = 0.3535533905932738 * t54;
-    let t63 = core::f64::consts::FRAC_1_SQRT_2 * t59;
-    let t64 = core::f64::consts::FRAC_1_SQRT_2 * t60;
-    let t65 = t62 + -0.7071067811865475 * t58 + q0;
-    let t66 = t63 + -0.35355339059327373 * t55 + q1;
-    let t67 = t64 + -0.7071067811865475 * t61 + q2;
-    let t68 = q24 * q24;
-    let t69 = q25 * q25;
-    let t70 = q26 * q26;
-    let t71 = q27 * q27;
-    let t72 = t68 + t69;
-    let t73 = t72 - (t70 + t71);
-    let t74 = t68 + t70 - (t69 + t71);
-    let t75 = q25 * q26;
-    let t76 = q24 * q27;
-    let t77 = t75 - t76;
-    let t78 = q25 * q27;
-    let t79 = q24 * q26;
-    let t80 = t75 + t76;
-    let t81 = q26 * q27;
-    let t82 = q24 * q25;
-    let t83 = t78 - t79;
-    let t84 = t81 + t82;
-    let t85 = 1.0534578959402132 * (t78 + t79)
-        + (0.8400407006062905 * t73 + -0.2599094972885536 * t77);
-    let t86 = 1.0534578959402132 * (t81 - t82)
-        + (1.680081401212581 * t80 + -0.1299547486442768 * t74);
-    let t87 = 0.5267289479701066 * (t68 + t71 - (t69 + t70))
-        + (1.680081401212581 * t83 + -0.2599094972885536 * t84);
-    let t88 = q31 * q31;
-    let t89 = q32 * q32;
-    let t90 = q33 * q33;
-    let t91 = q34 * q34;
-    let t92 = t88 + t89;
-    let t93 = t92 - (t90 + t91);
-    let t94 = t88 + t90 - (t89 + t91);
-    let t95 = t88 + t91 - (t89 + t90);
-    let t96 = q32 * q33;
-    let t97 = q31 * q34;
-    let t98 = t96 - t97;
-    let t99 = q32 * q34;
-    let t100 = q31 * q33;
-    let t101 = t99 + t100;
-    let t102 = t96 + t97;
-    let t103 = q33 * q34;
-    let t104 = q31 * q32;
-    let t105 = t103 - t104;
-    let t106 = t99 - t100;
-    let t107 = t103 + t104;
-    let t108 = q28 - q21;
-    let t109 = q29 - q22;
-    let t110 = q30 - q23;
-    let t111 = 1.7000666050132325 * t101
-        + (-0.5205369638785167 * t93 + 0.16105469711661508 * t98);
-    let t112 = 1.7000666050132325 * t105
-        + (-1.0410739277570333 * t102 + 0.08052734855830754 * t94);
-    let t113 = 0.8500333025066162 * t95
-        + (-1.0410739277570333 * t106 + 0.16105469711661508 * t107);
-    let t114 = -0.15288194975545125 * t73 + -1.976488916679243 * t77;
-    let t115 = -0.3057638995109025 * t80 + -0.9882444583396215 * t74;
-    let t116 = -0.3057638995109025 * t83 + -1.976488916679243 * t84;
-    let t117 = q0 + (t62 + 0.7071067811865475 * t58);
-    let t118 = q1 + (t63 + 0.35355339059327373 * t55);
-    let t119 = q2 + (t64 + 0.7071067811865475 * t61);
-    let t120 = q38 * q38;
-    let t121 = q39 * q39;
-    let t122 = q40 * q40;
-    let t123 = q41 * q41;
-    let t124 = t120 + t121;
-    let t125 = t124 - (t122 + t123);
-    let t126 = t120 + t122 - (t121 + t123);
-    let t127 = q39 * q40;
-    let t128 = q38 * q41;
-    let t129 = t127 - t128;
-    let t130 = q39 * q41;
-    let t131 = q38 * q40;
-    let t132 = t127 + t128;
-    let t133 = q40 * q41;
-    let t134 = q38 * q39;
-    let t135 = t130 - t131;
-    let t136 = t133 + t134;
-    let t137 = 1.0534578959402134 * (t130 + t131)
-        + (-0.5325644639715102 * t125 + 1.3250384252315741 * t129);
-    let t138 = 1.0534578959402134 * (t133 - t134)
-        + (-1.0651289279430205 * t132 + 0.6625192126157871 * t126);
-    let t139 = 0.5267289479701067 * (t120 + t123 - (t121 + t122))
-        + (-1.0651289279430205 * t135 + 1.3250384252315741 * t136);
-    let t140 = q45 * q45;
-    let t141 = q46 * q46;
-    let t142 = q47 * q47;
-    let t143 = q48 * q48;
-    let t144 = t140 + t141;
-    let t145 = t144 - (t142 + t143);
-    let t146 = t140 + t142 - (t141 + t143);
-    let t147 = t140 + t143 - (t141 + t142);
-    let t148 = q46 * q47;
-    let t149 = q45 * q48;
-    let t150 = t148 - t149;
-    let t151 = q46 * q48;
-    let t152 = q45 * q47;
-    let t153 = t151 + t152;
-    let t154 = t148 + t149;
-    let t155 = q47 * q48;
-    let t156 = q45 * q46;
-    let t157 = t155 - t156;
-    let t158 = t151 - t152;
-    let t159 = t155 + t156;
-    let t160 = q42 - q35;
-    let t161 = q43 - q36;
-    let t162 = q44 - q37;
-    let t163 = 1.7000666050132325 * t153
-        + (0.33000721149015694 * t145 + -0.8210691200969289 * t150);
-    let t164 = 1.7000666050132325 * t157
-        + (0.6600144229803139 * t154 + -0.41053456004846445 * t146);
-    let t165 = 0.8500333025066162 * t147
-        + (0.6600144229803139 * t158 + -0.8210691200969289 * t159);
-    let t166 = 0.7794038311935788 * t125 + 1.2530437628762552 * t129;
-    let t167 = 1.5588076623871576 * t132 + 0.6265218814381276 * t126;
-    let t168 = 1.5588076623871576 * t135 + 1.2530437628762552 * t136;
-    let t169 = q0 + (0.12940952255126037 * t54 + 0.9659258262890683 * t58);
-    let t170 = q1 + (0.25881904510252074 * t59 + 0.48296291314453416 * t55);
-    let t171 = q2 + (0.25881904510252074 * t60 + 0.9659258262890683 * t61);
-    let t172 = q52 * q52;
-    let t173 = q53 * q53;
-    let t174 = q54 * q54;
-    let t175 = q55 * q55;
-    let t176 = t172 + t173;
-    let t177 = t176 - (t174 + t175);
-    let t178 = t172 + t174 - (t173 + t175);
-    let t179 = q53 * q54;
-    let t180 = q52 * q55;
-    let t181 = t179 - t180;
-    let t182 = q53 * q55;
-    let t183 = q52 * q54;
-    let t184 = t179 + t180;
-    let t185 = q54 * q55;
-    let t186 = q52 * q53;
-    let t187 = t182 - t183;
-    let t188 = t185 + t186;
-    let t189 = 1.0534578959402134 * (t182 + t183);
-    let t190 = 1.0534578959402134 * (t185 - t186);
-    let t191 = q59 * q59;
-    let t192 = q60 * q60;
-    let t193 = q61 * q61;
-    let t194 = q62 * q62;
-    let t195 = t191 + t192;
-    let t196 = t195 - (t193 + t194);
-    let t197 = t191 + t193 - (t192 + t194);
-    let t198 = t191 + t194 - (t192 + t193);
-    let t199 = q60 * q61;
-    let t200 = q59 * q62;
-    let t201 = t199 - t200;
-    let t202 = q60 * q62;
-    let t203 = q59 * q61;
-    let t204 = t202 + t203;
-    let t205 = t199 + t200;
-    let t206 = q61 * q62;
-    let t207 = q59 * q60;
-    let t208 = t206 - t207;
-    let t209 = t202 - t203;
-    let t210 = t206 + t207;
-    let t211 = q56 - q49;
-    let t212 = q57 - q50;
-    let t213 = q58 - q51;
-    let t214 = 1.7000666050132325 * t204
-        + (0.1905297523883598 * t196 + -0.9821238172135439 * t201);
-    let t215 = 1.7000666050132325 * t208
-        + (0.3810595047767196 * t205 + -0.49106190860677196 * t197);
-    let t216 = 0.8500333025066162 * t198
-        + (0.3810595047767196 * t209 + -0.9821238172135439 * t210);
-    let t217 = 0.9322857809490301 * t177 + 0.7234451538029876 * t181;
-    let t218 = 1.8645715618980603 * t184 + 0.3617225769014938 * t178;
-    let t219 = 1.8645715618980603 * t187 + 0.7234451538029876 * t188;
-    let t220 = t189 + (-0.30747623663478024 * t177 + 1.5849479225201277 * t181);
-    let t221 = t190 + (-0.6149524732695605 * t184 + 0.7924739612600639 * t178);
-    let t222 = 0.5267289479701067 * (t172 + t175 - (t173 + t174))
-        + (-0.6149524732695605 * t187 + 1.5849479225201277 * t188);
-    let t223 = q0 + (-0.4829629131445341 * t54 + 0.258819045102521 * t58);
-    let t224 = q1 + (-0.9659258262890682 * t59 + 0.1294095225512605 * t55);
-    let t225 = q2 + (-0.9659258262890682 * t60 + 0.258819045102521 * t61);
-    let t226 = q66 * q66;
-    let t227 = q67 * q67;
-    let t228 = q68 * q68;
-    let t229 = q69 * q69;
-    let t230 = t226 + t227;
-    let t231 = t230 - (t228 + t229);
-    let t232 = t226 + t228 - (t227 + t229);
-    let t233 = q67 * q68;
-    let t234 = q66 * q69;
-    let t235 = t233 - t234;
-    let t236 = q67 * q69;
-    let t237 = q66 * q68;
-    let t238 = t233 + t234;
-    let t239 = q68 * q69;
-    let t240 = q66 * q67;
-    let t241 = t236 - t237;
-    let t242 = t239 + t240;
-    let t243 = -1.5849479225201275 * t235;
-    let t244 = 1.0534578959402134 * (t236 + t237);
-    let t245 = -0.7924739612600638 * t232;
-    let t246 = 1.0534578959402134 * (t239 - t240);
-    let t247 = q73 * q73;
-    let t248 = q74 * q74;
-    let t249 = q75 * q75;
-    let t250 = q76 * q76;
-    let t251 = t247 + t248;
-    let t252 = t251 - (t249 + t250);
-    let t253 = t247 + t249 - (t248 + t250);
-    let t254 = t247 + t250 - (t248 + t249);
-    let t255 = q74 * q75;
-    let t256 = q73 * q76;
-    let t257 = t255 - t256;
-    let t258 = q74 * q76;
-    let t259 = q73 * q75;
-    let t260 = t258 + t259;
-    let t261 = t255 + t256;
-    let t262 = q75 * q76;
-    let t263 = q73 * q74;
-    let t264 = t262 - t263;
-    let t265 = t258 - t259;
-    let t266 = t262 + t263;
-    let t267 = q70 - q63;
-    let t268 = q71 - q64;
-    let t269 = q72 - q65;
-    let t270 = 1.7000666050132325 * t260
-        + (0.19052975238835995 * t252 + 0.9821238172135439 * t257);
-    let t271 = 1.7000666050132325 * t264
-        + (0.3810595047767199 * t261 + 0.49106190860677196 * t253);
-    let t272 = 0.8500333025066162 * t254
-        + (0.3810595047767199 * t265 + 0.9821238172135439 * t266);
-    let t273 = -0.9322857809490299 * t231 + 0.7234451538029879 * t235;
-    let t274 = -1.8645715618980598 * t238 + 0.36172257690149395 * t232;
-    let t275 = -1.8645715618980598 * t241 + 0.7234451538029879 * t242;
-    let t276 = t244 + (t243 + -0.30747623663478035 * t231);
-    let t277 = t246 + (t245 + -0.6149524732695607 * t238);
-    let t278 = 0.5267289479701067 * (t226 + t229 - (t227 + t228))
-        + (-1.5849479225201275 * t242 + -0.6149524732695607 * t241);
-    let t279 = q0 + (-0.48296291314453416 * t54 + -0.2588190451025208 * t58);
-    let t280 = q1 + (-0.9659258262890683 * t59 + -0.1294095225512604 * t55);
-    let t281 = q2 + (-0.9659258262890683 * t60 + -0.2588190451025208 * t61);
-    let t282 = q80 * q80;
-    let t283 = q81 * q81;
-    let t284 = q82 * q82;
-    let t285 = q83 * q83;
-    let t286 = t282 + t283;
-    let t287 = t286 - (t284 + t285);
-    let t288 = t282 + t284 - (t283 + t285);
-    let t289 = q81 * q82;
-    let t290 = q80 * q83;
-    let t291 = t289 - t290;
-    let t292 = q81 * q83;
-    let t293 = q80 * q82;
-    let t294 = t289 + t290;
-    let t295 = q82 * q83;
-    let t296 = q80 * q81;
-    let t297 = t292 - t293;
-    let t298 = t295 + t296;
-    let t299 = 1.0534578959402132 * (t292 + t293)
-        + (-0.53256446397151 * t287 + -1.3250384252315748 * t291);
-    let t300 = 1.0534578959402132 * (t295 - t296)
-        + (-1.06512892794302 * t294 + -0.6625192126157874 * t288);
-    let t301 = 0.5267289479701066 * (t282 + t285 - (t283 + t284))
-        + (-1.06512892794302 * t297 + -1.3250384252315748 * t298);
-    let t302 = q87 * q87;
-    let t303 = q88 * q88;
-    let t304 = q89 * q89;
-    let t305 = q90 * q90;
-    let t306 = t302 + t303;
-    let t307 = t306 - (t304 + t305);
-    let t308 = t302 + t304 - (t303 + t305);
-    let t309 = t302 + t305 - (t303 + t304);
-    let t310 = q88 * q89;
-    let t311 = q87 * q90;
-    let t312 = t310 - t311;
-    let t313 = q88 * q90;
-    let t314 = q87 * q89;
-    let t315 = t313 + t314;
-    let t316 = t310 + t311;
-    let t317 = q89 * q90;
-    let t318 = q87 * q88;
-    let t319 = t317 - t318;
-    let t320 = t313 - t314;
-    let t321 = t317 + t318;
-    let t322 = q84 - q77;
-    let t323 = q85 - q78;
-    let t324 = q86 - q79;
-    let t325 = 1.7000666050132325 * t315
-        + (0.33000721149015655 * t307 + 0.8210691200969288 * t312);
-    let t326 = 1.7000666050132325 * t319
-        + (0.6600144229803131 * t316 + 0.4105345600484644 * t308);
-    let t327 = 0.8500333025066162 * t309
-        + (0.6600144229803131 * t320 + 0.8210691200969288 * t321);
-    let t328 = -0.7794038311935793 * t287 + 1.2530437628762547 * t291;
-    let t329 = -1.5588076623871585 * t294 + 0.6265218814381274 * t288;
-    let t330 = -1.5588076623871585 * t297 + 1.2530437628762547 * t298;
-    let t331 = q0 + (0.12940952255126015 * t54 + -0.9659258262890684 * t58);
-    let t332 = q1 + (0.2588190451025203 * t59 + -0.4829629131445342 * t55);
-    let t333 = q2 + (0.2588190451025203 * t60 + -0.9659258262890684 * t61);
-    let t334 = t65 - 0.9659258262890683;
-    let t335 = 0.25881904510252074 + t66;
-    let t336 = t117 - 0.9659258262890683;
-    let t337 = t118 - 0.25881904510252074;
-    let t338 = 0.25881904510252085 + t169;
-    let t339 = t170 - 0.9659258262890683;
-    let t340 = 0.7071067811865475 + t223;
-    let t341 = t224 - core::f64::consts::FRAC_1_SQRT_2;
-    let t342 = 0.7071067811865477 + t279;
-    let t343 = 0.7071067811865475 + t280;
-    let t344 = 0.25881904510252063 + t331;
-    let t345 = 0.9659258262890683 + t332;
-    // joint U1 row 1: (P_j − P_i)_x = 0
-    phi[0] = q7 - 0.9659258262890683;
-    // joint U1 row 2: (P_j − P_i)_y = 0
-    phi[1] = q8 + 0.25881904510252074;
-    // joint U1 row 3: (P_j − P_i)_z = 0
-    phi[2] = q9;
-    // joint U1 row 4: a_i · a_j = 0
-    phi[3] = 0.15288194975545125 * t17 + -0.9882444583396215 * t18;
-    // joint P1 row 1: b_i · a_j = 0
-    phi[4] = t45 * t48 + (t43 * t46 + t44 * t47);
-    // joint P1 row 2: c_i · a_j = 0
-    phi[5] = t19 * t45 + (t17 * t43 + t18 * t44);
-    // joint P1 row 3: b_i · (P_j − P_i) = 0
-    phi[6] = t42 * t48 + (t40 * t46 + t41 * t47);
-    // joint P1 row 4: c_i · (P_j − P_i) = 0
-    phi[7] = t19 * t42 + (t17 * t40 + t18 * t41);
-    // joint P1 row 5: r_i · r_j = 0
-    phi[8] = t48
-        * (0.5267289479701066 * t27
-            + (1.680081401212581 * t38 + 0.2599094972885536 * t39))
-        + (t46
-            * (1.0534578959402132 * t33
-                + (0.8400407006062905 * t25 + 0.2599094972885536 * t30))
-            + t47
-                * (1.0534578959402132 * t37
-                    + (1.680081401212581 * t34 + 0.1299547486442768 * t26)));
-    // joint S1 row 1: (P_j − P_i)_x = 0
-    phi[9] = t65 - q14;
-    // joint S1 row 2: (P_j − P_i)_y = 0
-    phi[10] = t66 - q15;
-    // joint S1 row 3: (P_j − P_i)_z = 0
-    phi[11] = t67 - q16;
-    // joint U2 row 1: (P_j − P_i)_x = 0
-    phi[12] = q21 - 0.9659258262890683;
-    // joint U2 row 2: (P_j − P_i)_y = 0
-    phi[13] = q22 - 0.25881904510252074;
-    // joint U2 row 3: (P_j − P_i)_z = 0
-    phi[14] = q23;
-    // joint U2 row 4: a_i · a_j = 0
-    phi[15] = -0.15288194975545125 * t85 + -0.9882444583396215 * t86;
-    // joint P2 row 1: b_i · a_j = 0
-    phi[16] = t113 * t116 + (t111 * t114 + t112 * t115);
-    // joint P2 row 2: c_i · a_j = 0
-    phi[17] = t87 * t113 + (t85 * t111 + t86 * t112);
-    // joint P2 row 3: b_i · (P_j − P_i) = 0
-    phi[18] = t110 * t116 + (t108 * t114 + t109 * t115);
-    // joint P2 row 4: c_i · (P_j − P_i) = 0
-    phi[19] = t87 * t110 + (t85 * t108 + t86 * t109);
-    // joint P2 row 5: r_i · r_j = 0
-    phi[20] = t116
-        * (0.5267289479701066 * t95
-            + (1.680081401212581 * t106 + -0.2599094972885536 * t107))
-        + (t114
-            * (1.0534578959402132 * t101
-                + (0.8400407006062905 * t93 + -0.2599094972885536 * t98))
-            + t115
-                * (1.0534578959402132 * t105
-                    + (1.680081401212581 * t102 + -0.1299547486442768 * t94)));
-    // joint S2 row 1: (P_j − P_i)_x = 0
-    phi[21] = t117 - q28;
-    // joint S2 row 2: (P_j − P_i)_y = 0
-    phi[22] = t118 - q29;
-    // joint S2 row 3: (P_j − P_i)_z = 0
-    phi[23] = t119 - q30;
-    // joint U3 row 1: (P_j − P_i)_x = 0
-    phi[24] = q35 + 0.25881904510252085;
-    // joint U3 row 2: (P_j − P_i)_y = 0
-    phi[25] = q36 - 0.9659258262890683;
-    // joint U3 row 3: (P_j − P_i)_z = 0
-    phi[26] = q37;
-    // joint U3 row 4: a_i · a_j = 0
-    phi[27] = 0.7794038311935788 * t137 + 0.6265218814381276 * t138;
-    // joint P3 row 1: b_i · a_j = 0
-    phi[28] = t165 * t168 + (t163 * t166 + t164 * t167);
-    // joint P3 row 2: c_i · a_j = 0
-    phi[29] = t139 * t165 + (t137 * t163 + t138 * t164);
-    // joint P3 row 3: b_i · (P_j − P_i) = 0
-    phi[30] = t162 * t168 + (t160 * t166 + t161 * t167);
-    // joint P3 row 4: c_i · (P_j − P_i) = 0
-    phi[31] = t139 * t162 + (t137 * t160 + t138 * t161);
-    // joint P3 row 5: r_i · r_j = 0
-    phi[32] = t168
-        * (0.5267289479701067 * t147
-            + (-1.0651289279430205 * t158 + 1.3250384252315741 * t159))
-        + (t166
-            * (1.0534578959402134 * t153
-                + (-0.5325644639715102 * t145 + 1.3250384252315741 * t150))
-            + t167
-                * (1.0534578959402134 * t157
-                    + (-1.0651289279430205 * t154 + 0.6625192126157871 * t146)));
-    // joint S3 row 1: (P_j − P_i)_x = 0
-    phi[33] = t169 - q42;
-    // joint S3 row 2: (P_j − P_i)_y = 0
-    phi[34] = t170 - q43;
-    // joint S3 row 3: (P_j − P_i)_z = 0
-    phi[35] = t171 - q44;
-    // joint U4 row 1: (P_j − P_i)_x = 0
-    phi[36] = 0.7071067811865475 + q49;
-    // joint U4 row 2: (P_j − P_i)_y = 0
-    phi[37] = q50 - core::f64::consts::FRAC_1_SQRT_2;
-    // joint U4 row 3: (P_j − P_i)_z = 0
-    phi[38] = q51;
-    // joint U4 row 4: a_i · a_j = 0
-    phi[39] = 0.9322857809490301
-        * (t189 + (-0.3074762366347802 * t177 + 1.5849479225201275 * t181))
-        + 0.3617225769014938
-            * (t190 + (-0.6149524732695604 * t184 + 0.7924739612600638 * t178));
-    // joint P4 row 1: b_i · a_j = 0
-    phi[40] = t216 * t219 + (t214 * t217 + t215 * t218);
-    // joint P4 row 2: c_i · a_j = 0
-    phi[41] = t216 * t222 + (t214 * t220 + t215 * t221);
-    // joint P4 row 3: b_i · (P_j − P_i) = 0
-    phi[42] = t213 * t219 + (t211 * t217 + t212 * t218);
-    // joint P4 row 4: c_i · (P_j − P_i) = 0
-    phi[43] = t213 * t222 + (t211 * t220 + t212 * t221);
-    // joint P4 row 5: r_i · r_j = 0
-    phi[44] = t219
-        * (0.5267289479701067 * t198
-            + (-0.6149524732695604 * t209 + 1.5849479225201275 * t210))
-        + (t217
-            * (1.0534578959402134 * t204
-                + (-0.3074762366347802 * t196 + 1.5849479225201275 * t201))
-            + t218
-                * (1.0534578959402134 * t208
-                    + (-0.6149524732695604 * t205 + 0.7924739612600638 * t197)));
-    // joint S4 row 1: (P_j − P_i)_x = 0
-    phi[45] = t223 - q56;
-    // joint S4 row 2: (P_j − P_i)_y = 0
-    phi[46] = t224 - q57;
-    // joint S4 row 3: (P_j − P_i)_z = 0
-    phi[47] = t225 - q58;
-    // joint U5 row 1: (P_j − P_i)_x = 0
-    phi[48] = q63 + 0.7071067811865477;
-    // joint U5 row 2: (P_j − P_i)_y = 0
-    phi[49] = 0.7071067811865475 + q64;
-    // joint U5 row 3: (P_j − P_i)_z = 0
-    phi[50] = q65;
-    // joint U5 row 4: a_i · a_j = 0
-    phi[51] = -0.9322857809490299 * (t244 + (-0.3074762366347804 * t231 + t243))
-        + 0.36172257690149395 * (t246 + (-0.6149524732695608 * t238 + t245));
-    // joint P5 row 1: b_i · a_j = 0
-    phi[52] = t272 * t275 + (t270 * t273 + t271 * t274);
-    // joint P5 row 2: c_i · a_j = 0
-    phi[53] = t272 * t278 + (t270 * t276 + t271 * t277);
-    // joint P5 row 3: b_i · (P_j − P_i) = 0
-    phi[54] = t269 * t275 + (t267 * t273 + t268 * t274);
-    // joint P5 row 4: c_i · (P_j − P_i) = 0
-    phi[55] = t269 * t278 + (t267 * t276 + t268 * t277);
-    // joint P5 row 5: r_i · r_j = 0
-    phi[56] = t275
-        * (0.5267289479701067 * t254
-            + (-0.6149524732695608 * t265 + -1.5849479225201275 * t266))
-        + (t273
-            * (1.0534578959402134 * t260
-                + (-0.3074762366347804 * t252 + -1.5849479225201275 * t257))
-            + t274
-                * (1.0534578959402134 * t264
-                    + (-0.6149524732695608 * t261 + -0.7924739612600638 * t253)));
-    // joint S5 row 1: (P_j − P_i)_x = 0
-    phi[57] = t279 - q70;
-    // joint S5 row 2: (P_j − P_i)_y = 0
-    phi[58] = t280 - q71;
-    // joint S5 row 3: (P_j − P_i)_z = 0
-    phi[59] = t281 - q72;
-    // joint U6 row 1: (P_j − P_i)_x = 0
-    phi[60] = q77 + 0.25881904510252063;
-    // joint U6 row 2: (P_j − P_i)_y = 0
-    phi[61] = 0.9659258262890683 + q78;
-    // joint U6 row 3: (P_j − P_i)_z = 0
-    phi[62] = q79;
-    // joint U6 row 4: a_i · a_j = 0
-    phi[63] = -0.7794038311935793 * t299 + 0.6265218814381274 * t300;
-    // joint P6 row 1: b_i · a_j = 0
-    phi[64] = t327 * t330 + (t325 * t328 + t326 * t329);
-    // joint P6 row 2: c_i · a_j = 0
-    phi[65] = t301 * t327 + (t299 * t325 + t300 * t326);
-    // joint P6 row 3: b_i · (P_j − P_i) = 0
-    phi[66] = t324 * t330 + (t322 * t328 + t323 * t329);
-    // joint P6 row 4: c_i · (P_j − P_i) = 0
-    phi[67] = t301 * t324 + (t299 * t322 + t300 * t323);
-    // joint P6 row 5: r_i · r_j = 0
-    phi[68] = t330
-        * (0.5267289479701066 * t309
-            + (-1.06512892794302 * t320 + -1.3250384252315748 * t321))
-        + (t328
-            * (1.0534578959402132 * t315
-                + (-0.53256446397151 * t307 + -1.3250384252315748 * t312))
-            + t329
-                * (1.0534578959402132 * t319
-                    + (-1.06512892794302 * t316 + -0.6625192126157874 * t308)));
-    // joint S6 row 1: (P_j − P_i)_x = 0
-    phi[69] = t331 - q84;
-    // joint S6 row 2: (P_j − P_i)_y = 0
-    phi[70] = t332 - q85;
-    // joint S6 row 3: (P_j − P_i)_z = 0
-    phi[71] = t333 - q86;
+    block_residual_0(q, t, &u, phi);
+    for m in 0..6 {
+        block_residual_shared_0(m, q, t, &u, phi);
+    }
+    for m in 0..6 {
+        block_residual_shared_1(m, q, t, &u, phi);
+    }
+    block_residual_4(q, t, &u, phi);
+    block_residual_5(q, t, &u, phi);
+    block_residual_6(q, t, &u, phi);
+    for m in 0..4 {
+        block_residual_shared_2(m, q, t, &u, phi);
+    }
+    for m in 0..4 {
+        block_residual_shared_3(m, q, t, &u, phi);
+    }
+    for m in 0..6 {
+        block_residual_shared_4(m, q, t, &u, phi);
+    }
+    for m in 0..5 {
+        block_residual_shared_5(m, q, t, &u, phi);
+    }
+    for m in 0..5 {
+        block_residual_shared_6(m, q, t, &u, phi);
+    }
+    for m in 0..5 {
+        block_residual_shared_7(m, q, t, &u, phi);
+    }
+    block_residual_31(q, t, &u, phi);
+    block_residual_32(q, t, &u, phi);
+    block_residual_39(q, t, &u, phi);
+    block_residual_40(q, t, &u, phi);
+}
+
+/// Where `block_velocity_shared_0` reads and writes for each of its blocks: the starts of its windows and the indices that do not move with them, one row per block.
+static BLOCK_VELOCITY_SHARED_0_AT: [[usize; 1]; 36] = [
+    [0],
+    [1],
+    [2],
+    [9],
+    [10],
+    [11],
+    [12],
+    [13],
+    [14],
+    [21],
+    [22],
+    [23],
+    [24],
+    [25],
+    [26],
+    [33],
+    [34],
+    [35],
+    [36],
+    [37],
+    [38],
+    [45],
+    [46],
+    [47],
+    [48],
+    [49],
+    [50],
+    [57],
+    [58],
+    [59],
+    [60],
+    [61],
+    [62],
+    [69],
+    [70],
+    [71],
+];
+
+/// ν of the rows of the `m`th of blocks 1, 2, 3, 4, 5, 6, 9, 10, 11, 12, 13, 14, 17, 18, 19, 20, 21, 22, 25, 26, 27, 28, 29, 30, 33, 34, 35, 36, 37, 38, 41, 42, 43, 44, 45, 46 (one structure: the same code up to the constants in `BLOCK_VELOCITY_SHARED_0_C` and the places in `BLOCK_VELOCITY_SHARED_0_AT`): 0 operations.
+#[inline(never)]
+fn block_velocity_shared_0(
+    m: usize,
+    _q: &[f64; N],
+    _t: f64,
+    _u: &[[f64; 3]; INPUTS],
+    nu: &mut [f64; N],
+) {
+    let at = &BLOCK_VELOCITY_SHARED_0_AT[m];
+    nu[at[0]] = 0.0;
+}
+
+/// Where `block_velocity_shared_1` reads and writes for each of its blocks: the starts of its windows and the indices that do not move with them, one row per block.
+static BLOCK_VELOCITY_SHARED_1_AT: [[usize; 3]; 12] = [
+    [3, 6, 79],
+    [4, 5, 80],
+    [15, 18, 81],
+    [16, 17, 82],
+    [27, 30, 83],
+    [28, 29, 84],
+    [39, 42, 85],
+    [40, 41, 86],
+    [51, 54, 87],
+    [52, 53, 88],
+    [63, 66, 89],
+    [64, 65, 90],
+];
+
+/// ν of the rows of the `m`th of blocks 7, 8, 15, 16, 23, 24, 31, 32, 39, 40, 47, 48 (one structure: the same code up to the constants in `BLOCK_VELOCITY_SHARED_1_C` and the places in `BLOCK_VELOCITY_SHARED_1_AT`): 0 operations.
+#[inline(never)]
+fn block_velocity_shared_1(
+    m: usize,
+    _q: &[f64; N],
+    _t: f64,
+    _u: &[[f64; 3]; INPUTS],
+    nu: &mut [f64; N],
+) {
+    let at = &BLOCK_VELOCITY_SHARED_1_AT[m];
+    nu[at[0]] = 0.0;
+    nu[at[1]] = 0.0;
+    nu[at[0] + 4] = 0.0;
+    nu[at[2]] = 0.0;
+}
+
+/// block_velocity_0: 18 operations.
+#[inline(never)]
+fn block_velocity_0(_q: &[f64; N], _t: f64, u: &[[f64; 3]; INPUTS], nu: &mut [f64; N]) {
+    let [s0, sd0, _sdd0] = u[0];
+    let [s1, sd1, _sdd1] = u[1];
+    let [s2, sd2, _sdd2] = u[2];
+    let [s3, sd3, _sdd3] = u[3];
+    let [s4, sd4, _sdd4] = u[4];
+    let [s5, sd5, _sdd5] = u[5];
     // driver leg1: (|S − U|² − s² − 2 s v0·a − |v0|²) / (2 L) = 0 (leg reduced), s = the input
-    phi[72] = 0.4250166512533081 * (t67 * t67 + (t334 * t334 + t335 * t335) - s0 * s0);
+    nu[72] = 0.4250166512533081 * (s0 + s0) * sd0;
     // driver leg2: (|S − U|² − s² − 2 s v0·a − |v0|²) / (2 L) = 0 (leg reduced), s = the input
-    phi[73] = 0.4250166512533081 * (t119 * t119 + (t336 * t336 + t337 * t337) - s1 * s1);
+    nu[73] = 0.4250166512533081 * (s1 + s1) * sd1;
     // driver leg3: (|S − U|² − s² − 2 s v0·a − |v0|²) / (2 L) = 0 (leg reduced), s = the input
-    phi[74] = 0.4250166512533081 * (t171 * t171 + (t338 * t338 + t339 * t339) - s2 * s2);
+    nu[74] = 0.4250166512533081 * (s2 + s2) * sd2;
     // driver leg4: (|S − U|² − s² − 2 s v0·a − |v0|²) / (2 L) = 0 (leg reduced), s = the input
-    phi[75] = 0.4250166512533081 * (t225 * t225 + (t340 * t340 + t341 * t341) - s3 * s3);
+    nu[75] = 0.4250166512533081 * (s3 + s3) * sd3;
     // driver leg5: (|S − U|² − s² − 2 s v0·a − |v0|²) / (2 L) = 0 (leg reduced), s = the input
-    phi[76] = 0.4250166512533081 * (t281 * t281 + (t342 * t342 + t343 * t343) - s4 * s4);
+    nu[76] = 0.4250166512533081 * (s4 + s4) * sd4;
     // driver leg6: (|S − U|² − s² − 2 s v0·a − |v0|²) / (2 L) = 0 (leg reduced), s = the input
-    phi[77] = 0.4250166512533081 * (t333 * t333 + (t344 * t344 + t345 * t345) - s5 * s5);
+    nu[77] = 0.4250166512533081 * (s5 + s5) * sd5;
     // body platform normalisation: e0² + e1² + e2² + e3² − 1 = 0
-    phi[78] = t52 + (t51 + t53) - 1.0;
-    // body cylinder1 normalisation: e0² + e1² + e2² + e3² − 1 = 0
-    phi[79] = t3 + (t2 + t4) - 1.0;
-    // body rod1 normalisation: e0² + e1² + e2² + e3² − 1 = 0
-    phi[80] = t23 + (t22 + t24) - 1.0;
-    // body cylinder2 normalisation: e0² + e1² + e2² + e3² − 1 = 0
-    phi[81] = t71 + (t70 + t72) - 1.0;
-    // body rod2 normalisation: e0² + e1² + e2² + e3² − 1 = 0
-    phi[82] = t91 + (t90 + t92) - 1.0;
-    // body cylinder3 normalisation: e0² + e1² + e2² + e3² − 1 = 0
-    phi[83] = t123 + (t122 + t124) - 1.0;
-    // body rod3 normalisation: e0² + e1² + e2² + e3² − 1 = 0
-    phi[84] = t143 + (t142 + t144) - 1.0;
+    nu[78] = 0.0;
+}
+
+/// Velocity right-hand side ν = −Φ_t, block by block.
+pub fn velocity_rhs(q: &[f64; N], t: f64, inputs: &Inputs, nu: &mut [f64; N]) {
+    let u = inputs.to_array();
+    block_velocity_0(q, t, &u, nu);
+    for m in 0..36 {
+        block_velocity_shared_0(m, q, t, &u, nu);
+    }
+    for m in 0..12 {
+        block_velocity_shared_1(m, q, t, &u, nu);
+    }
+}
+
+/// Where `block_acceleration_shared_0` reads and writes for each of its blocks: the starts of its windows and the indices that do not move with them, one row per block.
+static BLOCK_ACCELERATION_SHARED_0_AT: [[usize; 1]; 18] = [
+    [0],
+    [1],
+    [2],
+    [12],
+    [13],
+    [14],
+    [24],
+    [25],
+    [26],
+    [36],
+    [37],
+    [38],
+    [48],
+    [49],
+    [50],
+    [60],
+    [61],
+    [62],
+];
+
+/// γ of the rows of the `m`th of blocks 1, 2, 3, 9, 10, 11, 17, 18, 19, 25, 26, 27, 33, 34, 35, 41, 42, 43 (one structure: the same code up to the constants in `BLOCK_ACCELERATION_SHARED_0_C` and the places in `BLOCK_ACCELERATION_SHARED_0_AT`): 0 operations.
+#[inline(never)]
+fn block_acceleration_shared_0(
+    m: usize,
+    _q: &[f64; N],
+    _qd: &[f64; N],
+    _t: f64,
+    _u: &[[f64; 3]; INPUTS],
+    gamma: &mut [f64; N],
+) {
+    let at = &BLOCK_ACCELERATION_SHARED_0_AT[m];
+    gamma[at[0]] = 0.0;
+}
+
+/// The constants of `block_acceleration_shared_1` that differ between its blocks, one row per block.
+static BLOCK_ACCELERATION_SHARED_1_C: [[f64; 2]; 6] = [
+    [0.3535533905932738, -0.7071067811865475],
+    [0.3535533905932738, 0.7071067811865475],
+    [0.12940952255126037, 0.9659258262890683],
+    [-0.4829629131445341, 0.258819045102521],
+    [-0.48296291314453416, -0.2588190451025208],
+    [0.12940952255126015, -0.9659258262890684],
+];
+
+/// Where `block_acceleration_shared_1` reads and writes for each of its blocks: the starts of its windows and the indices that do not move with them, one row per block.
+static BLOCK_ACCELERATION_SHARED_1_AT: [[usize; 1]; 6] = [
+    [9],
+    [21],
+    [33],
+    [45],
+    [57],
+    [69],
+];
+
+/// γ of the rows of the `m`th of blocks 4, 12, 20, 28, 36, 44 (one structure: the same code up to the constants in `BLOCK_ACCELERATION_SHARED_1_C` and the places in `BLOCK_ACCELERATION_SHARED_1_AT`): 22 operations.
+#[inline(never)]
+fn block_acceleration_shared_1(
+    m: usize,
+    _q: &[f64; N],
+    qd: &[f64; N],
+    _t: f64,
+    _u: &[[f64; 3]; INPUTS],
+    gamma: &mut [f64; N],
+) {
+    let at = &BLOCK_ACCELERATION_SHARED_1_AT[m];
+    let c = &BLOCK_ACCELERATION_SHARED_1_C[m];
+    let qd0 = qd[3];
+    let qd1 = qd[4];
+    let qd2 = qd[5];
+    let qd3 = qd[6];
+    let c0 = c[0];
+    let c1 = c[1];
+    let t0 = qd0 * qd0;
+    let t1 = qd1 * qd1;
+    let t2 = qd2 * qd2;
+    let t3 = qd3 * qd3;
+    let t4 = qd1 * qd2;
+    let t5 = qd0 * qd3;
+    gamma[at[0]] = -(c0 * (t0 + t0 + (t1 + t1) - (t2 + t2 + (t3 + t3)))
+        + c1 * (t4 + t4 - (t5 + t5)));
+}
+
+/// The constants of `block_acceleration_shared_2` that differ between its blocks, one row per block.
+static BLOCK_ACCELERATION_SHARED_2_C: [[f64; 2]; 6] = [
+    [core::f64::consts::FRAC_1_SQRT_2, -0.35355339059327373],
+    [core::f64::consts::FRAC_1_SQRT_2, 0.35355339059327373],
+    [0.25881904510252074, 0.48296291314453416],
+    [-0.9659258262890682, 0.1294095225512605],
+    [-0.9659258262890683, -0.1294095225512604],
+    [0.2588190451025203, -0.4829629131445342],
+];
+
+/// Where `block_acceleration_shared_2` reads and writes for each of its blocks: the starts of its windows and the indices that do not move with them, one row per block.
+static BLOCK_ACCELERATION_SHARED_2_AT: [[usize; 1]; 6] = [
+    [10],
+    [22],
+    [34],
+    [46],
+    [58],
+    [70],
+];
+
+/// γ of the rows of the `m`th of blocks 5, 13, 21, 29, 37, 45 (one structure: the same code up to the constants in `BLOCK_ACCELERATION_SHARED_2_C` and the places in `BLOCK_ACCELERATION_SHARED_2_AT`): 21 operations.
+#[inline(never)]
+fn block_acceleration_shared_2(
+    m: usize,
+    _q: &[f64; N],
+    qd: &[f64; N],
+    _t: f64,
+    _u: &[[f64; 3]; INPUTS],
+    gamma: &mut [f64; N],
+) {
+    let at = &BLOCK_ACCELERATION_SHARED_2_AT[m];
+    let c = &BLOCK_ACCELERATION_SHARED_2_C[m];
+    let qd0 = qd[4];
+    let qd1 = qd[5];
+    let qd2 = qd[3];
+    let qd3 = qd[6];
+    let c0 = c[0];
+    let c1 = c[1];
+    let t0 = qd0 * qd1;
+    let t1 = qd2 * qd3;
+    let t2 = qd2 * qd2;
+    let t3 = qd1 * qd1;
+    let t4 = qd0 * qd0;
+    let t5 = qd3 * qd3;
+    gamma[at[0]] = -(c0 * (t0 + t0 + (t1 + t1))
+        + c1 * (t2 + t2 + (t3 + t3) - (t4 + t4 + (t5 + t5))));
+}
+
+/// The constants of `block_acceleration_shared_3` that differ between its blocks, one row per block.
+static BLOCK_ACCELERATION_SHARED_3_C: [[f64; 2]; 6] = [
+    [core::f64::consts::FRAC_1_SQRT_2, -0.7071067811865475],
+    [core::f64::consts::FRAC_1_SQRT_2, 0.7071067811865475],
+    [0.25881904510252074, 0.9659258262890683],
+    [-0.9659258262890682, 0.258819045102521],
+    [-0.9659258262890683, -0.2588190451025208],
+    [0.2588190451025203, -0.9659258262890684],
+];
+
+/// Where `block_acceleration_shared_3` reads and writes for each of its blocks: the starts of its windows and the indices that do not move with them, one row per block.
+static BLOCK_ACCELERATION_SHARED_3_AT: [[usize; 1]; 6] = [
+    [11],
+    [23],
+    [35],
+    [47],
+    [59],
+    [71],
+];
+
+/// γ of the rows of the `m`th of blocks 6, 14, 22, 30, 38, 46 (one structure: the same code up to the constants in `BLOCK_ACCELERATION_SHARED_3_C` and the places in `BLOCK_ACCELERATION_SHARED_3_AT`): 15 operations.
+#[inline(never)]
+fn block_acceleration_shared_3(
+    m: usize,
+    _q: &[f64; N],
+    qd: &[f64; N],
+    _t: f64,
+    _u: &[[f64; 3]; INPUTS],
+    gamma: &mut [f64; N],
+) {
+    let at = &BLOCK_ACCELERATION_SHARED_3_AT[m];
+    let c = &BLOCK_ACCELERATION_SHARED_3_C[m];
+    let qd0 = qd[4];
+    let qd1 = qd[6];
+    let qd2 = qd[3];
+    let qd3 = qd[5];
+    let c0 = c[0];
+    let c1 = c[1];
+    let t0 = qd0 * qd1;
+    let t1 = qd2 * qd3;
+    let t2 = qd3 * qd1;
+    let t3 = qd2 * qd0;
+    gamma[at[0]] = -(c0 * (t0 + t0 - (t1 + t1)) + c1 * (t2 + t2 + (t3 + t3)));
+}
+
+/// The constants of `block_acceleration_shared_4` that differ between its blocks, one row per block.
+static BLOCK_ACCELERATION_SHARED_4_C: [[f64; 10]; 4] = [
+    [
+        0.15288194975545125,
+        1.0534578959402132,
+        0.8400407006062905,
+        0.2599094972885536,
+        -0.9882444583396215,
+        1.680081401212581,
+        0.1299547486442768,
+        0.3057638995109025,
+        -1.976488916679243,
+        0.5267289479701066,
+    ],
+    [
+        -0.15288194975545125,
+        1.0534578959402132,
+        0.8400407006062905,
+        -0.2599094972885536,
+        -0.9882444583396215,
+        1.680081401212581,
+        -0.1299547486442768,
+        -0.3057638995109025,
+        -1.976488916679243,
+        0.5267289479701066,
+    ],
+    [
+        0.7794038311935788,
+        1.0534578959402134,
+        -0.5325644639715102,
+        1.3250384252315741,
+        0.6265218814381276,
+        -1.0651289279430205,
+        0.6625192126157871,
+        1.5588076623871576,
+        1.2530437628762552,
+        0.5267289479701067,
+    ],
+    [
+        -0.7794038311935793,
+        1.0534578959402132,
+        -0.53256446397151,
+        -1.3250384252315748,
+        0.6265218814381274,
+        -1.06512892794302,
+        -0.6625192126157874,
+        -1.5588076623871585,
+        1.2530437628762547,
+        0.5267289479701066,
+    ],
+];
+
+/// Where `block_acceleration_shared_4` reads and writes for each of its blocks: the starts of its windows and the indices that do not move with them, one row per block.
+static BLOCK_ACCELERATION_SHARED_4_AT: [[usize; 3]; 4] = [
+    [7, 3, 79],
+    [21, 15, 81],
+    [35, 27, 83],
+    [77, 63, 89],
+];
+
+/// γ of the rows of the `m`th of blocks 7, 15, 23, 47 (one structure: the same code up to the constants in `BLOCK_ACCELERATION_SHARED_4_C` and the places in `BLOCK_ACCELERATION_SHARED_4_AT`): 185 operations.
+#[inline(never)]
+fn block_acceleration_shared_4(
+    m: usize,
+    q: &[f64; N],
+    qd: &[f64; N],
+    _t: f64,
+    _u: &[[f64; 3]; INPUTS],
+    gamma: &mut [f64; N],
+) {
+    let at = &BLOCK_ACCELERATION_SHARED_4_AT[m];
+    let window0 = &q[at[0]..at[0] + 10];
+    let qd_window0 = &qd[at[0]..at[0] + 10];
+    let c = &BLOCK_ACCELERATION_SHARED_4_C[m];
+    let q0 = window0[4];
+    let q1 = window0[6];
+    let q2 = window0[3];
+    let q3 = window0[5];
+    let q4 = window0[9];
+    let q5 = window0[2];
+    let q6 = window0[7];
+    let q7 = window0[0];
+    let q8 = window0[8];
+    let q9 = window0[1];
+    let qd0 = qd_window0[4];
+    let qd1 = qd_window0[6];
+    let qd2 = qd_window0[3];
+    let qd3 = qd_window0[5];
+    let qd4 = qd_window0[9];
+    let qd5 = qd_window0[2];
+    let qd6 = qd_window0[7];
+    let qd7 = qd_window0[0];
+    let qd8 = qd_window0[8];
+    let qd9 = qd_window0[1];
+    let c0 = c[0];
+    let c1 = c[1];
+    let c2 = c[2];
+    let c3 = c[3];
+    let c4 = c[4];
+    let c5 = c[5];
+    let c6 = c[6];
+    let c7 = c[7];
+    let c8 = c[8];
+    let c9 = c[9];
+    let t0 = qd0 * qd1;
+    let t1 = t0 + t0;
+    let t2 = qd2 * qd3;
+    let t3 = t2 + t2;
+    let t4 = qd2 * qd2;
+    let t5 = t4 + t4;
+    let t6 = qd0 * qd0;
+    let t7 = t6 + t6;
+    let t8 = t5 + t7;
+    let t9 = qd3 * qd3;
+    let t10 = t9 + t9;
+    let t11 = qd1 * qd1;
+    let t12 = t11 + t11;
+    let t13 = t8 - (t10 + t12);
+    let t14 = qd0 * qd3;
+    let t15 = t14 + t14;
+    let t16 = qd1 * qd2;
+    let t17 = t16 + t16;
+    let t18 = t15 - t17;
+    let t19 = c1 * (t1 + t3) + (c2 * t13 + c3 * t18);
+    let t20 = qd1 * qd3;
+    let t21 = t20 + t20;
+    let t22 = qd0 * qd2;
+    let t23 = t22 + t22;
+    let t24 = t15 + t17;
+    let t25 = t5 + t10 - (t7 + t12);
+    let t26 = c1 * (t21 - t23) + (c5 * t24 + c6 * t25);
+    let t27 = q1 * qd0 + q0 * qd1;
+    let t28 = q3 * qd2 + q2 * qd3;
+    let t29 = t27 - t28;
+    let t30 = q1 * qd3 + q3 * qd1;
+    let t31 = q0 * qd2 + q2 * qd0;
+    let t32 = t30 + t31;
+    let t33 = qd4 - qd5;
+    let t34 = (c7 * t29 + c8 * t32) * t33;
+    let t35 = q4 - q5;
+    let t36 = t1 - t3;
+    let t37 = t21 + t23;
+    let t38 = q2 * qd2;
+    let t39 = t38 + t38;
+    let t40 = q0 * qd0;
+    let t41 = t40 + t40;
+    let t42 = q3 * qd3;
+    let t43 = t42 + t42;
+    let t44 = q1 * qd1;
+    let t45 = t44 + t44;
+    let t46 = t39 + t41 - (t43 + t45);
+    let t47 = q3 * qd0 + q0 * qd3;
+    let t48 = q1 * qd2 + q2 * qd1;
+    let t49 = t47 - t48;
+    let t50 = qd6 - qd7;
+    let t51 = (c0 * t46 + c8 * t49) * t50;
+    let t52 = q6 - q7;
+    let t53 = t47 + t48;
+    let t54 = t39 + t43 - (t41 + t45);
+    let t55 = qd8 - qd9;
+    let t56 = (c7 * t53 + c4 * t54) * t55;
+    let t57 = q8 - q9;
+    let t58 = (c9 * (t39 + t45 - (t41 + t43)) + (c5 * t29 + c3 * t32)) * t33;
+    let t59 = (c1 * (t27 + t28) + (c2 * t46 + c3 * t49)) * t50;
+    let t60 = (c1 * (t30 - t31) + (c5 * t53 + c6 * t54)) * t55;
+    gamma[at[1]] = -(c0 * t19 + c4 * t26);
+    gamma[at[1] + 3] = -(t34 + (t34 + t35 * (c7 * t36 + c8 * t37))
+        + (t51 + (t51 + t52 * (c0 * t13 + c8 * t18))
+            + (t56 + (t56 + t57 * (c7 * t24 + c4 * t25)))));
+    gamma[at[1] + 4] = -(t58
+        + (t58 + t35 * (c9 * (t5 + t12 - (t7 + t10)) + (c5 * t36 + c3 * t37)))
+        + (t59 + (t59 + t52 * t19) + (t60 + (t60 + t57 * t26))));
+    gamma[at[2]] = -(t12 + (t8 + t10));
+}
+
+/// The constants of `block_acceleration_shared_5` that differ between its blocks, one row per block.
+static BLOCK_ACCELERATION_SHARED_5_C: [[f64; 14]; 4] = [
+    [
+        -1.0410739277570333,
+        -0.16105469711661508,
+        0.3057638995109025,
+        -1.976488916679243,
+        -0.5205369638785167,
+        0.15288194975545125,
+        -0.08052734855830754,
+        -0.9882444583396215,
+        0.5267289479701066,
+        1.680081401212581,
+        0.2599094972885536,
+        1.0534578959402132,
+        0.8400407006062905,
+        0.1299547486442768,
+    ],
+    [
+        -1.0410739277570333,
+        0.16105469711661508,
+        -0.3057638995109025,
+        -1.976488916679243,
+        -0.5205369638785167,
+        -0.15288194975545125,
+        0.08052734855830754,
+        -0.9882444583396215,
+        0.5267289479701066,
+        1.680081401212581,
+        -0.2599094972885536,
+        1.0534578959402132,
+        0.8400407006062905,
+        -0.1299547486442768,
+    ],
+    [
+        0.6600144229803139,
+        -0.8210691200969289,
+        1.5588076623871576,
+        1.2530437628762552,
+        0.33000721149015694,
+        0.7794038311935788,
+        -0.41053456004846445,
+        0.6265218814381276,
+        0.5267289479701067,
+        -1.0651289279430205,
+        1.3250384252315741,
+        1.0534578959402134,
+        -0.5325644639715102,
+        0.6625192126157871,
+    ],
+    [
+        0.6600144229803131,
+        0.8210691200969288,
+        -1.5588076623871585,
+        1.2530437628762547,
+        0.33000721149015655,
+        -0.7794038311935793,
+        0.4105345600484644,
+        0.6265218814381274,
+        0.5267289479701066,
+        -1.06512892794302,
+        -1.3250384252315748,
+        1.0534578959402132,
+        -0.53256446397151,
+        -0.6625192126157874,
+    ],
+];
+
+/// Where `block_acceleration_shared_5` reads and writes for each of its blocks: the starts of its windows and the indices that do not move with them, one row per block.
+static BLOCK_ACCELERATION_SHARED_5_AT: [[usize; 3]; 4] = [
+    [10, 4, 80],
+    [24, 16, 82],
+    [38, 28, 84],
+    [80, 64, 90],
+];
+
+/// γ of the rows of the `m`th of blocks 8, 16, 24, 48 (one structure: the same code up to the constants in `BLOCK_ACCELERATION_SHARED_5_C` and the places in `BLOCK_ACCELERATION_SHARED_5_AT`): 466 operations.
+#[inline(never)]
+fn block_acceleration_shared_5(
+    m: usize,
+    q: &[f64; N],
+    qd: &[f64; N],
+    _t: f64,
+    _u: &[[f64; 3]; INPUTS],
+    gamma: &mut [f64; N],
+) {
+    let at = &BLOCK_ACCELERATION_SHARED_5_AT[m];
+    let window0 = &q[at[0]..at[0] + 11];
+    let qd_window0 = &qd[at[0]..at[0] + 11];
+    let c = &BLOCK_ACCELERATION_SHARED_5_C[m];
+    let q0 = window0[7];
+    let q1 = window0[10];
+    let q2 = window0[8];
+    let q3 = window0[9];
+    let q4 = window0[3];
+    let q5 = window0[1];
+    let q6 = window0[2];
+    let q7 = window0[0];
+    let qd0 = qd_window0[7];
+    let qd1 = qd_window0[10];
+    let qd2 = qd_window0[8];
+    let qd3 = qd_window0[9];
+    let qd4 = qd_window0[3];
+    let qd5 = qd_window0[1];
+    let qd6 = qd_window0[2];
+    let qd7 = qd_window0[0];
+    let c1 = c[0];
+    let c2 = c[1];
+    let c3 = c[2];
+    let c4 = c[3];
+    let c6 = c[4];
+    let c7 = c[5];
+    let c8 = c[6];
+    let c9 = c[7];
+    let c10 = c[8];
+    let c11 = c[9];
+    let c12 = c[10];
+    let c13 = c[11];
+    let c14 = c[12];
+    let c15 = c[13];
+    let t0 = q0 * qd0;
+    let t1 = t0 + t0;
+    let t2 = q1 * qd1;
+    let t3 = t2 + t2;
+    let t4 = q2 * qd2;
+    let t5 = t4 + t4;
+    let t6 = q3 * qd3;
+    let t7 = t6 + t6;
+    let t8 = t1 + t3 - (t5 + t7);
+    let t9 = q1 * qd2 + q2 * qd1;
+    let t10 = q3 * qd0 + q0 * qd3;
+    let t11 = t9 - t10;
+    let t12 = q1 * qd3 + q3 * qd1;
+    let t13 = q2 * qd0 + q0 * qd2;
+    let t14 = t12 + t13;
+    let t15 = 0.8500333025066162 * t8 + (c1 * t11 + c2 * t14);
+    let t16 = q4 * qd5 + q5 * qd4;
+    let t17 = q6 * qd7 + q7 * qd6;
+    let t18 = t16 - t17;
+    let t19 = q4 * qd6 + q6 * qd4;
+    let t20 = q5 * qd7 + q7 * qd5;
+    let t21 = t19 + t20;
+    let t22 = c3 * t18 + c4 * t21;
+    let t23 = t15 * t22;
+    let t24 = q5 * q4;
+    let t25 = q7 * q6;
+    let t26 = t24 - t25;
+    let t27 = q6 * q4;
+    let t28 = q7 * q5;
+    let t29 = t27 + t28;
+    let t30 = c3 * t26 + c4 * t29;
+    let t31 = qd0 * qd0;
+    let t32 = t31 + t31;
+    let t33 = qd1 * qd1;
+    let t34 = t33 + t33;
+    let t35 = qd2 * qd2;
+    let t36 = t35 + t35;
+    let t37 = qd3 * qd3;
+    let t38 = t37 + t37;
+    let t39 = t32 + t34 - (t36 + t38);
+    let t40 = qd1 * qd2;
+    let t41 = t40 + t40;
+    let t42 = qd0 * qd3;
+    let t43 = t42 + t42;
+    let t44 = t41 - t43;
+    let t45 = qd1 * qd3;
+    let t46 = t45 + t45;
+    let t47 = qd0 * qd2;
+    let t48 = t47 + t47;
+    let t49 = t46 + t48;
+    let t50 = 0.8500333025066162 * t39 + (c1 * t44 + c2 * t49);
+    let t51 = q0 * q0;
+    let t52 = q1 * q1;
+    let t53 = q2 * q2;
+    let t54 = q3 * q3;
+    let t55 = t51 + t52 - (t53 + t54);
+    let t56 = q2 * q1;
+    let t57 = q0 * q3;
+    let t58 = t56 - t57;
+    let t59 = q3 * q1;
+    let t60 = q0 * q2;
+    let t61 = t59 + t60;
+    let t62 = 0.8500333025066162 * t55 + (c1 * t58 + c2 * t61);
+    let t63 = qd5 * qd4;
+    let t64 = t63 + t63;
+    let t65 = qd7 * qd6;
+    let t66 = t65 + t65;
+    let t67 = t64 - t66;
+    let t68 = qd4 * qd6;
+    let t69 = t68 + t68;
+    let t70 = qd5 * qd7;
+    let t71 = t70 + t70;
+    let t72 = t69 + t71;
+    let t73 = c3 * t67 + c4 * t72;
+    let t74 = t9 + t10;
+    let t75 = t1 + t5 - (t3 + t7);
+    let t76 = q3 * qd2 + q2 * qd3;
+    let t77 = q1 * qd0 + q0 * qd1;
+    let t78 = t76 - t77;
+    let t79 = 1.7000666050132325 * t74 + (c6 * t75 + c2 * t78);
+    let t80 = q7 * qd7;
+    let t81 = t80 + t80;
+    let t82 = q5 * qd5;
+    let t83 = t82 + t82;
+    let t84 = q6 * qd6;
+    let t85 = t84 + t84;
+    let t86 = q4 * qd4;
+    let t87 = t86 + t86;
+    let t88 = t81 + t83 - (t85 + t87);
+    let t89 = q6 * qd5 + q5 * qd6;
+    let t90 = q4 * qd7 + q7 * qd4;
+    let t91 = t89 - t90;
+    let t92 = c7 * t88 + c4 * t91;
+    let t93 = t79 * t92;
+    let t94 = q7 * q7;
+    let t95 = q5 * q5;
+    let t96 = q6 * q6;
+    let t97 = q4 * q4;
+    let t98 = t94 + t95 - (t96 + t97);
+    let t99 = q5 * q6;
+    let t100 = q7 * q4;
+    let t101 = t99 - t100;
+    let t102 = c7 * t98 + c4 * t101;
+    let t103 = t41 + t43;
+    let t104 = t32 + t36;
+    let t105 = t104 - (t34 + t38);
+    let t106 = qd2 * qd3;
+    let t107 = t106 + t106;
+    let t108 = qd0 * qd1;
+    let t109 = t108 + t108;
+    let t110 = t107 - t109;
+    let t111 = 1.7000666050132325 * t103 + (c6 * t105 + c2 * t110);
+    let t112 = t56 + t57;
+    let t113 = t51 + t53 - (t54 + t52);
+    let t114 = q2 * q3;
+    let t115 = q0 * q1;
+    let t116 = t114 - t115;
+    let t117 = 1.7000666050132325 * t112 + (c6 * t113 + c2 * t116);
+    let t118 = qd7 * qd7;
+    let t119 = t118 + t118;
+    let t120 = qd5 * qd5;
+    let t121 = t120 + t120;
+    let t122 = qd6 * qd6;
+    let t123 = t122 + t122;
+    let t124 = qd4 * qd4;
+    let t125 = t124 + t124;
+    let t126 = t119 + t121 - (t123 + t125);
+    let t127 = qd5 * qd6;
+    let t128 = t127 + t127;
+    let t129 = qd4 * qd7;
+    let t130 = t129 + t129;
+    let t131 = t128 - t130;
+    let t132 = c7 * t126 + c4 * t131;
+    let t133 = t12 - t13;
+    let t134 = t76 + t77;
+    let t135 = t1 + t7 - (t3 + t5);
+    let t136 = 1.7000666050132325 * t133 + (c1 * t134 + c8 * t135);
+    let t137 = t89 + t90;
+    let t138 = t81 + t85 - (t83 + t87);
+    let t139 = c3 * t137 + c9 * t138;
+    let t140 = t136 * t139;
+    let t141 = t99 + t100;
+    let t142 = t94 + t96 - (t95 + t97);
+    let t143 = c3 * t141 + c9 * t142;
+    let t144 = t46 - t48;
+    let t145 = t107 + t109;
+    let t146 = t32 + t38 - (t34 + t36);
+    let t147 = 1.7000666050132325 * t144 + (c1 * t145 + c8 * t146);
+    let t148 = t59 - t60;
+    let t149 = t114 + t115;
+    let t150 = t51 + t54 - (t53 + t52);
+    let t151 = 1.7000666050132325 * t148 + (c1 * t149 + c8 * t150);
+    let t152 = t128 + t130;
+    let t153 = t119 + t123 - (t121 + t125);
+    let t154 = c3 * t152 + c9 * t153;
+    let t155 = t15 * (c10 * (t81 + t87 - (t83 + t85)) + (c11 * t18 + c12 * t21));
+    let t156 = (c13 * (t16 + t17) + (c14 * t88 + c12 * t91)) * t79;
+    let t157 = (c13 * (t19 - t20) + (c11 * t137 + c15 * t138)) * t136;
+    let t158 = t22 * (c10 * t8 + (c11 * t11 + c12 * t14));
+    let t159 = t92 * (c13 * t74 + (c14 * t75 + c12 * t78));
+    let t160 = t139 * (c13 * t133 + (c11 * t134 + c15 * t135));
+    gamma[at[1]] = -(t23 + t30 * t50 + (t23 + t62 * t73)
+        + (t93 + t102 * t111 + (t93 + t117 * t132)
+            + (t140 + t143 * t147 + (t140 + t151 * t154))));
+    gamma[at[1] + 1] = -(t155
+        + t62 * (c10 * (t119 + t125 - (t121 + t123)) + (c11 * t67 + c12 * t72))
+        + (t155 + (c10 * (t94 + t97 - (t95 + t96)) + (c11 * t26 + c12 * t29)) * t50)
+        + (t156 + t117 * (c13 * (t64 + t66) + (c14 * t126 + c12 * t131))
+            + (t156 + (c13 * (t24 + t25) + (c14 * t98 + c12 * t101)) * t111)
+            + (t157 + t151 * (c13 * (t69 - t71) + (c11 * t152 + c15 * t153))
+                + (t157 + (c13 * (t27 - t28) + (c11 * t141 + c15 * t142)) * t147))));
+    gamma[at[1] + 4] = -(t158 + (c10 * t55 + (c11 * t58 + c12 * t61)) * t73
+        + (t158 + t30 * (c10 * t39 + (c11 * t44 + c12 * t49)))
+        + (t159 + (c13 * t112 + (c14 * t113 + c12 * t116)) * t132
+            + (t159 + t102 * (c13 * t103 + (c14 * t105 + c12 * t110)))
+            + (t160 + (c13 * t148 + (c11 * t149 + c15 * t150)) * t154
+                + (t160 + t143 * (c13 * t144 + (c11 * t145 + c15 * t146))))));
+    gamma[at[2]] = -(t34 + (t38 + t104));
+}
+
+/// block_acceleration_0: 434 operations.
+#[inline(never)]
+fn block_acceleration_0(
+    q: &[f64; N],
+    qd: &[f64; N],
+    _t: f64,
+    u: &[[f64; 3]; INPUTS],
+    gamma: &mut [f64; N],
+) {
+    let q0 = q[0];
+    let q1 = q[1];
+    let q2 = q[2];
+    let q3 = q[3];
+    let q4 = q[4];
+    let q5 = q[5];
+    let q6 = q[6];
+    let qd0 = qd[0];
+    let qd1 = qd[1];
+    let qd2 = qd[2];
+    let qd3 = qd[3];
+    let qd4 = qd[4];
+    let qd5 = qd[5];
+    let qd6 = qd[6];
+    let [s0, sd0, sdd0] = u[0];
+    let [s1, sd1, sdd1] = u[1];
+    let [s2, sd2, sdd2] = u[2];
+    let [s3, sd3, sdd3] = u[3];
+    let [s4, sd4, sdd4] = u[4];
+    let [s5, sd5, sdd5] = u[5];
+    let t0 = q3 * q3;
+    let t1 = q4 * q4;
+    let t2 = q5 * q5;
+    let t3 = q6 * q6;
+    let t4 = t0 + t1 - (t2 + t3);
+    let t5 = t0 + t2 - (t1 + t3);
+    let t6 = q4 * q5;
+    let t7 = q3 * q6;
+    let t8 = t6 - t7;
+    let t9 = t6 + t7;
+    let t10 = q4 * q6 - q3 * q5;
+    let t11 = q5 * q6 + q3 * q4;
+    let t12 = 0.3535533905932738 * t4;
+    let t13 = core::f64::consts::FRAC_1_SQRT_2 * t9;
+    let t14 = core::f64::consts::FRAC_1_SQRT_2 * t10;
+    let t15 = q3 * qd3;
+    let t16 = t15 + t15;
+    let t17 = q4 * qd4;
+    let t18 = t17 + t17;
+    let t19 = q5 * qd5;
+    let t20 = t19 + t19;
+    let t21 = q6 * qd6;
+    let t22 = t21 + t21;
+    let t23 = t16 + t18 - (t20 + t22);
+    let t24 = 0.3535533905932738 * t23;
+    let t25 = q5 * qd4 + q4 * qd5;
+    let t26 = q6 * qd3 + q3 * qd6;
+    let t27 = t25 - t26;
+    let t28 = t24 + -0.7071067811865475 * t27 + qd0;
+    let t29 = qd3 * qd3;
+    let t30 = t29 + t29;
+    let t31 = qd4 * qd4;
+    let t32 = t31 + t31;
+    let t33 = t30 + t32;
+    let t34 = qd5 * qd5;
+    let t35 = t34 + t34;
+    let t36 = qd6 * qd6;
+    let t37 = t36 + t36;
+    let t38 = t33 - (t35 + t37);
+    let t39 = 0.3535533905932738 * t38;
+    let t40 = qd4 * qd5;
+    let t41 = t40 + t40;
+    let t42 = qd3 * qd6;
+    let t43 = t42 + t42;
+    let t44 = t41 - t43;
+    let t45 = t25 + t26;
+    let t46 = core::f64::consts::FRAC_1_SQRT_2 * t45;
+    let t47 = t16 + t20 - (t18 + t22);
+    let t48 = t46 + -0.35355339059327373 * t47 + qd1;
+    let t49 = t41 + t43;
+    let t50 = core::f64::consts::FRAC_1_SQRT_2 * t49;
+    let t51 = t30 + t35 - (t32 + t37);
+    let t52 = q6 * qd4 + q4 * qd6 - (q5 * qd3 + q3 * qd5);
+    let t53 = core::f64::consts::FRAC_1_SQRT_2 * t52;
+    let t54 = q6 * qd5 + q5 * qd6 + (q4 * qd3 + q3 * qd4);
+    let t55 = t53 + -0.7071067811865475 * t54 + qd2;
+    let t56 = qd4 * qd6;
+    let t57 = qd3 * qd5;
+    let t58 = t56 + t56 - (t57 + t57);
+    let t59 = core::f64::consts::FRAC_1_SQRT_2 * t58;
+    let t60 = qd5 * qd6;
+    let t61 = qd3 * qd4;
+    let t62 = t60 + t60 + (t61 + t61);
+    let t63 = qd0 + (t24 + 0.7071067811865475 * t27);
+    let t64 = qd1 + (t46 + 0.35355339059327373 * t47);
+    let t65 = qd2 + (t53 + 0.7071067811865475 * t54);
+    let t66 = qd0 + (0.12940952255126037 * t23 + 0.9659258262890683 * t27);
+    let t67 = qd1 + (0.25881904510252074 * t45 + 0.48296291314453416 * t47);
+    let t68 = qd2 + (0.25881904510252074 * t52 + 0.9659258262890683 * t54);
+    let t69 = qd0 + (-0.4829629131445341 * t23 + 0.258819045102521 * t27);
+    let t70 = qd1 + (-0.9659258262890682 * t45 + 0.1294095225512605 * t47);
+    let t71 = qd2 + (-0.9659258262890682 * t52 + 0.258819045102521 * t54);
+    let t72 = qd0 + (-0.48296291314453416 * t23 + -0.2588190451025208 * t27);
+    let t73 = qd1 + (-0.9659258262890683 * t45 + -0.1294095225512604 * t47);
+    let t74 = qd2 + (-0.9659258262890683 * t52 + -0.2588190451025208 * t54);
+    let t75 = qd0 + (0.12940952255126015 * t23 + -0.9659258262890684 * t27);
+    let t76 = qd1 + (0.2588190451025203 * t45 + -0.4829629131445342 * t47);
+    let t77 = qd2 + (0.2588190451025203 * t52 + -0.9659258262890684 * t54);
+    let t78 = t55 * t55
+        + (t14 + -0.7071067811865475 * t11 + q2) * (t59 + -0.7071067811865475 * t62);
+    let t79 = t28 * t28
+        + (t12 + -0.7071067811865475 * t8 + q0 - 0.9659258262890683)
+            * (t39 + -0.7071067811865475 * t44);
+    let t80 = t48 * t48
+        + (0.25881904510252074 + (t13 + -0.35355339059327373 * t5 + q1))
+            * (t50 + -0.35355339059327373 * t51);
+    let t81 = sd0 * sd0 + s0 * sdd0;
+    let t82 = t65 * t65
+        + (q2 + (t14 + 0.7071067811865475 * t11)) * (t59 + 0.7071067811865475 * t62);
+    let t83 = t63 * t63
+        + (q0 + (t12 + 0.7071067811865475 * t8) - 0.9659258262890683)
+            * (t39 + 0.7071067811865475 * t44);
+    let t84 = t64 * t64
+        + (q1 + (t13 + 0.35355339059327373 * t5) - 0.25881904510252074)
+            * (t50 + 0.35355339059327373 * t51);
+    let t85 = sd1 * sd1 + s1 * sdd1;
+    let t86 = t68 * t68
+        + (q2 + (0.25881904510252074 * t10 + 0.9659258262890683 * t11))
+            * (0.25881904510252074 * t58 + 0.9659258262890683 * t62);
+    let t87 = t66 * t66
+        + (0.25881904510252085
+            + (q0 + (0.12940952255126037 * t4 + 0.9659258262890683 * t8)))
+            * (0.12940952255126037 * t38 + 0.9659258262890683 * t44);
+    let t88 = t67 * t67
+        + (q1 + (0.25881904510252074 * t9 + 0.48296291314453416 * t5)
+            - 0.9659258262890683)
+            * (0.25881904510252074 * t49 + 0.48296291314453416 * t51);
+    let t89 = sd2 * sd2 + s2 * sdd2;
+    let t90 = t71 * t71
+        + (q2 + (-0.9659258262890682 * t10 + 0.258819045102521 * t11))
+            * (-0.9659258262890682 * t58 + 0.258819045102521 * t62);
+    let t91 = t69 * t69
+        + (0.7071067811865475
+            + (q0 + (-0.4829629131445341 * t4 + 0.258819045102521 * t8)))
+            * (-0.4829629131445341 * t38 + 0.258819045102521 * t44);
+    let t92 = t70 * t70
+        + (q1 + (-0.9659258262890682 * t9 + 0.1294095225512605 * t5)
+            - core::f64::consts::FRAC_1_SQRT_2)
+            * (-0.9659258262890682 * t49 + 0.1294095225512605 * t51);
+    let t93 = sd3 * sd3 + s3 * sdd3;
+    let t94 = t74 * t74
+        + (q2 + (-0.9659258262890683 * t10 + -0.2588190451025208 * t11))
+            * (-0.9659258262890683 * t58 + -0.2588190451025208 * t62);
+    let t95 = t72 * t72
+        + (0.7071067811865477
+            + (q0 + (-0.48296291314453416 * t4 + -0.2588190451025208 * t8)))
+            * (-0.48296291314453416 * t38 + -0.2588190451025208 * t44);
+    let t96 = t73 * t73
+        + (0.7071067811865475
+            + (q1 + (-0.9659258262890683 * t9 + -0.1294095225512604 * t5)))
+            * (-0.9659258262890683 * t49 + -0.1294095225512604 * t51);
+    let t97 = sd4 * sd4 + s4 * sdd4;
+    let t98 = t77 * t77
+        + (q2 + (0.2588190451025203 * t10 + -0.9659258262890684 * t11))
+            * (0.2588190451025203 * t58 + -0.9659258262890684 * t62);
+    let t99 = t75 * t75
+        + (0.25881904510252063
+            + (q0 + (0.12940952255126015 * t4 + -0.9659258262890684 * t8)))
+            * (0.12940952255126015 * t38 + -0.9659258262890684 * t44);
+    let t100 = t76 * t76
+        + (0.9659258262890683
+            + (q1 + (0.2588190451025203 * t9 + -0.4829629131445342 * t5)))
+            * (0.2588190451025203 * t49 + -0.4829629131445342 * t51);
+    let t101 = sd5 * sd5 + s5 * sdd5;
+    // driver leg1: (|S − U|² − s² − 2 s v0·a − |v0|²) / (2 L) = 0 (leg reduced), s = the input
+    gamma[72] = -(0.4250166512533081
+        * (t78 + t78 + (t79 + t79 + (t80 + t80)) - (t81 + t81)));
+    // driver leg2: (|S − U|² − s² − 2 s v0·a − |v0|²) / (2 L) = 0 (leg reduced), s = the input
+    gamma[73] = -(0.4250166512533081
+        * (t82 + t82 + (t83 + t83 + (t84 + t84)) - (t85 + t85)));
+    // driver leg3: (|S − U|² − s² − 2 s v0·a − |v0|²) / (2 L) = 0 (leg reduced), s = the input
+    gamma[74] = -(0.4250166512533081
+        * (t86 + t86 + (t87 + t87 + (t88 + t88)) - (t89 + t89)));
+    // driver leg4: (|S − U|² − s² − 2 s v0·a − |v0|²) / (2 L) = 0 (leg reduced), s = the input
+    gamma[75] = -(0.4250166512533081
+        * (t90 + t90 + (t91 + t91 + (t92 + t92)) - (t93 + t93)));
+    // driver leg5: (|S − U|² − s² − 2 s v0·a − |v0|²) / (2 L) = 0 (leg reduced), s = the input
+    gamma[76] = -(0.4250166512533081
+        * (t94 + t94 + (t95 + t95 + (t96 + t96)) - (t97 + t97)));
+    // driver leg6: (|S − U|² − s² − 2 s v0·a − |v0|²) / (2 L) = 0 (leg reduced), s = the input
+    gamma[77] = -(0.4250166512533081
+        * (t98 + t98 + (t99 + t99 + (t100 + t100)) - (t101 + t101)));
+    // body platform normalisation: e0² + e1² + e2² + e3² − 1 = 0
+    gamma[78] = -(t37 + (t33 + t35));
+}
+
+/// block_acceleration_31: 193 operations.
+#[inline(never)]
+fn block_acceleration_31(
+    q: &[f64; N],
+    qd: &[f64; N],
+    _t: f64,
+    _u: &[[f64; 3]; INPUTS],
+    gamma: &mut [f64; N],
+) {
+    let q49 = q[49];
+    let q50 = q[50];
+    let q51 = q[51];
+    let q52 = q[52];
+    let q53 = q[53];
+    let q54 = q[54];
+    let q55 = q[55];
+    let q56 = q[56];
+    let q57 = q[57];
+    let q58 = q[58];
+    let qd49 = qd[49];
+    let qd50 = qd[50];
+    let qd51 = qd[51];
+    let qd52 = qd[52];
+    let qd53 = qd[53];
+    let qd54 = qd[54];
+    let qd55 = qd[55];
+    let qd56 = qd[56];
+    let qd57 = qd[57];
+    let qd58 = qd[58];
+    let t0 = q56 - q49;
+    let t1 = q57 - q50;
+    let t2 = q58 - q51;
+    let t3 = q55 * qd53 + q53 * qd55;
+    let t4 = q54 * qd52 + q52 * qd54;
+    let t5 = q52 * qd52;
+    let t6 = t5 + t5;
+    let t7 = q53 * qd53;
+    let t8 = t7 + t7;
+    let t9 = q54 * qd54;
+    let t10 = t9 + t9;
+    let t11 = q55 * qd55;
+    let t12 = t11 + t11;
+    let t13 = t6 + t8 - (t10 + t12);
+    let t14 = q54 * qd53 + q53 * qd54;
+    let t15 = q55 * qd52 + q52 * qd55;
+    let t16 = t14 - t15;
+    let t17 = q55 * qd54 + q54 * qd55;
+    let t18 = q53 * qd52 + q52 * qd53;
+    let t19 = t14 + t15;
+    let t20 = t6 + t10 - (t8 + t12);
+    let t21 = qd53 * qd55;
+    let t22 = t21 + t21;
+    let t23 = qd52 * qd54;
+    let t24 = t23 + t23;
+    let t25 = 1.0534578959402134 * (t22 + t24);
+    let t26 = qd52 * qd52;
+    let t27 = t26 + t26;
+    let t28 = qd53 * qd53;
+    let t29 = t28 + t28;
+    let t30 = t27 + t29;
+    let t31 = qd54 * qd54;
+    let t32 = t31 + t31;
+    let t33 = qd55 * qd55;
+    let t34 = t33 + t33;
+    let t35 = t30 - (t32 + t34);
+    let t36 = qd53 * qd54;
+    let t37 = t36 + t36;
+    let t38 = qd55 * qd52;
+    let t39 = t38 + t38;
+    let t40 = t37 - t39;
+    let t41 = qd55 * qd54;
+    let t42 = t41 + t41;
+    let t43 = qd53 * qd52;
+    let t44 = t43 + t43;
+    let t45 = 1.0534578959402134 * (t42 - t44);
+    let t46 = t37 + t39;
+    let t47 = t27 + t32 - (t29 + t34);
+    let t48 = t3 - t4;
+    let t49 = t17 + t18;
+    let t50 = t22 - t24;
+    let t51 = t42 + t44;
+    let t52 = qd58 - qd51;
+    let t53 = qd56 - qd49;
+    let t54 = qd57 - qd50;
+    let t55 = (1.8645715618980603 * t48 + 0.7234451538029876 * t49) * t52;
+    let t56 = (0.9322857809490301 * t13 + 0.7234451538029876 * t16) * t53;
+    let t57 = (1.8645715618980603 * t19 + 0.3617225769014938 * t20) * t54;
+    let t58 = (0.5267289479701067 * (t6 + t12 - (t8 + t10))
+        + (-0.6149524732695605 * t48 + 1.5849479225201277 * t49)) * t52;
+    let t59 = (1.0534578959402134 * (t3 + t4)
+        + (-0.30747623663478024 * t13 + 1.5849479225201277 * t16)) * t53;
+    let t60 = (1.0534578959402134 * (t17 - t18)
+        + (-0.6149524732695605 * t19 + 0.7924739612600639 * t20)) * t54;
+    // joint U4 row 4: a_i · a_j = 0
+    gamma[39] = -(0.9322857809490301
+        * (t25 + (-0.3074762366347802 * t35 + 1.5849479225201275 * t40))
+        + 0.3617225769014938
+            * (t45 + (-0.6149524732695604 * t46 + 0.7924739612600638 * t47)));
+    // joint P4 row 3: b_i · (P_j − P_i) = 0
+    gamma[42] = -(t55
+        + (t55 + t2 * (1.8645715618980603 * t50 + 0.7234451538029876 * t51))
+        + (t56 + (t56 + t0 * (0.9322857809490301 * t35 + 0.7234451538029876 * t40))
+            + (t57
+                + (t57 + t1 * (1.8645715618980603 * t46 + 0.3617225769014938 * t47)))));
+    // joint P4 row 4: c_i · (P_j − P_i) = 0
+    gamma[43] = -(t58
+        + (t58
+            + t2
+                * (0.5267289479701067 * (t27 + t34 - (t29 + t32))
+                    + (-0.6149524732695605 * t50 + 1.5849479225201277 * t51)))
+        + (t59
+            + (t59
+                + t0 * (t25 + (-0.30747623663478024 * t35 + 1.5849479225201277 * t40)))
+            + (t60
+                + (t60
+                    + t1
+                        * (t45
+                            + (-0.6149524732695605 * t46
+                                + 0.7924739612600639 * t47))))));
     // body cylinder4 normalisation: e0² + e1² + e2² + e3² − 1 = 0
-    phi[85] = t175 + (t174 + t176) - 1.0;
+    gamma[85] = -(t34 + (t30 + t32));
+}
+
+/// block_acceleration_32: 466 operations.
+#[inline(never)]
+fn block_acceleration_32(
+    q: &[f64; N],
+    qd: &[f64; N],
+    _t: f64,
+    _u: &[[f64; 3]; INPUTS],
+    gamma: &mut [f64; N],
+) {
+    let q52 = q[52];
+    let q53 = q[53];
+    let q54 = q[54];
+    let q55 = q[55];
+    let q59 = q[59];
+    let q60 = q[60];
+    let q61 = q[61];
+    let q62 = q[62];
+    let qd52 = qd[52];
+    let qd53 = qd[53];
+    let qd54 = qd[54];
+    let qd55 = qd[55];
+    let qd59 = qd[59];
+    let qd60 = qd[60];
+    let qd61 = qd[61];
+    let qd62 = qd[62];
+    let t0 = q52 * q52;
+    let t1 = q53 * q53;
+    let t2 = q54 * q54;
+    let t3 = q55 * q55;
+    let t4 = t0 + t1 - (t2 + t3);
+    let t5 = t0 + t2 - (t1 + t3);
+    let t6 = q53 * q54;
+    let t7 = q52 * q55;
+    let t8 = t6 - t7;
+    let t9 = q53 * q55;
+    let t10 = q52 * q54;
+    let t11 = t6 + t7;
+    let t12 = q54 * q55;
+    let t13 = q52 * q53;
+    let t14 = t9 - t10;
+    let t15 = t12 + t13;
+    let t16 = q59 * q59;
+    let t17 = q60 * q60;
+    let t18 = q61 * q61;
+    let t19 = q62 * q62;
+    let t20 = t16 + t17 - (t18 + t19);
+    let t21 = t16 + t18 - (t17 + t19);
+    let t22 = t16 + t19 - (t17 + t18);
+    let t23 = q60 * q61;
+    let t24 = q59 * q62;
+    let t25 = t23 - t24;
+    let t26 = q60 * q62;
+    let t27 = q59 * q61;
+    let t28 = t26 + t27;
+    let t29 = t23 + t24;
+    let t30 = q61 * q62;
+    let t31 = q59 * q60;
+    let t32 = t30 - t31;
+    let t33 = t26 - t27;
+    let t34 = t30 + t31;
+    let t35 = 1.7000666050132325 * t28
+        + (0.1905297523883598 * t20 + -0.9821238172135439 * t25);
+    let t36 = 1.7000666050132325 * t32
+        + (0.3810595047767196 * t29 + -0.49106190860677196 * t21);
+    let t37 = 0.8500333025066162 * t22
+        + (0.3810595047767196 * t33 + -0.9821238172135439 * t34);
+    let t38 = 0.9322857809490301 * t4 + 0.7234451538029876 * t8;
+    let t39 = 1.8645715618980603 * t11 + 0.3617225769014938 * t5;
+    let t40 = 1.8645715618980603 * t14 + 0.7234451538029876 * t15;
+    let t41 = q55 * qd53 + q53 * qd55;
+    let t42 = q54 * qd52 + q52 * qd54;
+    let t43 = q52 * qd52;
+    let t44 = t43 + t43;
+    let t45 = q53 * qd53;
+    let t46 = t45 + t45;
+    let t47 = q54 * qd54;
+    let t48 = t47 + t47;
+    let t49 = q55 * qd55;
+    let t50 = t49 + t49;
+    let t51 = t44 + t46 - (t48 + t50);
+    let t52 = q54 * qd53 + q53 * qd54;
+    let t53 = q55 * qd52 + q52 * qd55;
+    let t54 = t52 - t53;
+    let t55 = q55 * qd54 + q54 * qd55;
+    let t56 = q53 * qd52 + q52 * qd53;
+    let t57 = t52 + t53;
+    let t58 = t44 + t48 - (t46 + t50);
+    let t59 = qd53 * qd55;
+    let t60 = t59 + t59;
+    let t61 = qd52 * qd54;
+    let t62 = t61 + t61;
+    let t63 = qd52 * qd52;
+    let t64 = t63 + t63;
+    let t65 = qd53 * qd53;
+    let t66 = t65 + t65;
+    let t67 = qd54 * qd54;
+    let t68 = t67 + t67;
+    let t69 = qd55 * qd55;
+    let t70 = t69 + t69;
+    let t71 = t64 + t66 - (t68 + t70);
+    let t72 = qd53 * qd54;
+    let t73 = t72 + t72;
+    let t74 = qd55 * qd52;
+    let t75 = t74 + t74;
+    let t76 = t73 - t75;
+    let t77 = qd55 * qd54;
+    let t78 = t77 + t77;
+    let t79 = qd53 * qd52;
+    let t80 = t79 + t79;
+    let t81 = t73 + t75;
+    let t82 = t64 + t68 - (t66 + t70);
+    let t83 = q59 * qd59;
+    let t84 = t83 + t83;
+    let t85 = q62 * qd62;
+    let t86 = t85 + t85;
+    let t87 = q60 * qd60;
+    let t88 = t87 + t87;
+    let t89 = q61 * qd61;
+    let t90 = t89 + t89;
+    let t91 = t84 + t86 - (t88 + t90);
+    let t92 = q62 * qd60 + q60 * qd62;
+    let t93 = q61 * qd59 + q59 * qd61;
+    let t94 = t92 - t93;
+    let t95 = q62 * qd61 + q61 * qd62;
+    let t96 = q60 * qd59 + q59 * qd60;
+    let t97 = t95 + t96;
+    let t98 = 0.8500333025066162 * t91
+        + (0.3810595047767196 * t94 + -0.9821238172135439 * t97);
+    let t99 = t41 - t42;
+    let t100 = t55 + t56;
+    let t101 = 1.8645715618980603 * t99 + 0.7234451538029876 * t100;
+    let t102 = t92 + t93;
+    let t103 = t84 + t88 - (t86 + t90);
+    let t104 = q61 * qd60 + q60 * qd61;
+    let t105 = q62 * qd59 + q59 * qd62;
+    let t106 = t104 - t105;
+    let t107 = 1.7000666050132325 * t102
+        + (0.1905297523883598 * t103 + -0.9821238172135439 * t106);
+    let t108 = 0.9322857809490301 * t51 + 0.7234451538029876 * t54;
+    let t109 = t95 - t96;
+    let t110 = t104 + t105;
+    let t111 = t84 + t90 - (t86 + t88);
+    let t112 = 1.7000666050132325 * t109
+        + (0.3810595047767196 * t110 + -0.49106190860677196 * t111);
+    let t113 = 1.8645715618980603 * t57 + 0.3617225769014938 * t58;
+    let t114 = qd59 * qd59;
+    let t115 = t114 + t114;
+    let t116 = qd62 * qd62;
+    let t117 = t116 + t116;
+    let t118 = qd60 * qd60;
+    let t119 = t118 + t118;
+    let t120 = qd61 * qd61;
+    let t121 = t120 + t120;
+    let t122 = t115 + t117 - (t119 + t121);
+    let t123 = qd62 * qd60;
+    let t124 = t123 + t123;
+    let t125 = qd59 * qd61;
+    let t126 = t125 + t125;
+    let t127 = t124 - t126;
+    let t128 = qd62 * qd61;
+    let t129 = t128 + t128;
+    let t130 = qd59 * qd60;
+    let t131 = t130 + t130;
+    let t132 = t129 + t131;
+    let t133 = 0.8500333025066162 * t122
+        + (0.3810595047767196 * t127 + -0.9821238172135439 * t132);
+    let t134 = t98 * t101;
+    let t135 = t60 - t62;
+    let t136 = t78 + t80;
+    let t137 = 1.8645715618980603 * t135 + 0.7234451538029876 * t136;
+    let t138 = t124 + t126;
+    let t139 = t115 + t119;
+    let t140 = t139 - (t117 + t121);
+    let t141 = qd60 * qd61;
+    let t142 = t141 + t141;
+    let t143 = qd59 * qd62;
+    let t144 = t143 + t143;
+    let t145 = t142 - t144;
+    let t146 = 1.7000666050132325 * t138
+        + (0.1905297523883598 * t140 + -0.9821238172135439 * t145);
+    let t147 = t107 * t108;
+    let t148 = 0.9322857809490301 * t71 + 0.7234451538029876 * t76;
+    let t149 = t129 - t131;
+    let t150 = t142 + t144;
+    let t151 = t115 + t121 - (t117 + t119);
+    let t152 = 1.7000666050132325 * t149
+        + (0.3810595047767196 * t150 + -0.49106190860677196 * t151);
+    let t153 = t112 * t113;
+    let t154 = 1.8645715618980603 * t81 + 0.3617225769014938 * t82;
+    let t155 = t98
+        * (0.5267289479701067 * (t44 + t50 - (t46 + t48))
+            + (-0.6149524732695605 * t99 + 1.5849479225201277 * t100));
+    let t156 = t107
+        * (1.0534578959402134 * (t41 + t42)
+            + (-0.30747623663478024 * t51 + 1.5849479225201277 * t54));
+    let t157 = t112
+        * (1.0534578959402134 * (t55 - t56)
+            + (-0.6149524732695605 * t57 + 0.7924739612600639 * t58));
+    let t158 = t101
+        * (0.5267289479701067 * t91
+            + (-0.6149524732695604 * t94 + 1.5849479225201275 * t97));
+    let t159 = t108
+        * (1.0534578959402134 * t102
+            + (-0.3074762366347802 * t103 + 1.5849479225201275 * t106));
+    let t160 = t113
+        * (1.0534578959402134 * t109
+            + (-0.6149524732695604 * t110 + 0.7924739612600638 * t111));
+    // joint P4 row 1: b_i · a_j = 0
+    gamma[40] = -(t134 + t40 * t133 + (t134 + t37 * t137)
+        + (t147 + t38 * t146 + (t147 + t35 * t148)
+            + (t153 + t39 * t152 + (t153 + t36 * t154))));
+    // joint P4 row 2: c_i · a_j = 0
+    gamma[41] = -(t155
+        + (0.5267289479701067 * (t0 + t3 - (t1 + t2))
+            + (-0.6149524732695605 * t14 + 1.5849479225201277 * t15)) * t133
+        + (t155
+            + t37
+                * (0.5267289479701067 * (t64 + t70 - (t66 + t68))
+                    + (-0.6149524732695605 * t135 + 1.5849479225201277 * t136)))
+        + (t156
+            + (1.0534578959402134 * (t9 + t10)
+                + (-0.30747623663478024 * t4 + 1.5849479225201277 * t8)) * t146
+            + (t156
+                + t35
+                    * (1.0534578959402134 * (t60 + t62)
+                        + (-0.30747623663478024 * t71 + 1.5849479225201277 * t76)))
+            + (t157
+                + (1.0534578959402134 * (t12 - t13)
+                    + (-0.6149524732695605 * t11 + 0.7924739612600639 * t5)) * t152
+                + (t157
+                    + t36
+                        * (1.0534578959402134 * (t78 - t80)
+                            + (-0.6149524732695605 * t81
+                                + 0.7924739612600639 * t82))))));
+    // joint P4 row 5: r_i · r_j = 0
+    gamma[44] = -(t158
+        + (0.5267289479701067 * t22
+            + (-0.6149524732695604 * t33 + 1.5849479225201275 * t34)) * t137
+        + (t158
+            + t40
+                * (0.5267289479701067 * t122
+                    + (-0.6149524732695604 * t127 + 1.5849479225201275 * t132)))
+        + (t159
+            + (1.0534578959402134 * t28
+                + (-0.3074762366347802 * t20 + 1.5849479225201275 * t25)) * t148
+            + (t159
+                + t38
+                    * (1.0534578959402134 * t138
+                        + (-0.3074762366347802 * t140 + 1.5849479225201275 * t145)))
+            + (t160
+                + (1.0534578959402134 * t32
+                    + (-0.6149524732695604 * t29 + 0.7924739612600638 * t21)) * t154
+                + (t160
+                    + t39
+                        * (1.0534578959402134 * t149
+                            + (-0.6149524732695604 * t150
+                                + 0.7924739612600638 * t151))))));
     // body rod4 normalisation: e0² + e1² + e2² + e3² − 1 = 0
-    phi[86] = t194 + (t193 + t195) - 1.0;
+    gamma[86] = -(t117 + (t121 + t139));
+}
+
+/// block_acceleration_39: 191 operations.
+#[inline(never)]
+fn block_acceleration_39(
+    q: &[f64; N],
+    qd: &[f64; N],
+    _t: f64,
+    _u: &[[f64; 3]; INPUTS],
+    gamma: &mut [f64; N],
+) {
+    let q63 = q[63];
+    let q64 = q[64];
+    let q65 = q[65];
+    let q66 = q[66];
+    let q67 = q[67];
+    let q68 = q[68];
+    let q69 = q[69];
+    let q70 = q[70];
+    let q71 = q[71];
+    let q72 = q[72];
+    let qd63 = qd[63];
+    let qd64 = qd[64];
+    let qd65 = qd[65];
+    let qd66 = qd[66];
+    let qd67 = qd[67];
+    let qd68 = qd[68];
+    let qd69 = qd[69];
+    let qd70 = qd[70];
+    let qd71 = qd[71];
+    let qd72 = qd[72];
+    let t0 = q70 - q63;
+    let t1 = q71 - q64;
+    let t2 = q72 - q65;
+    let t3 = q69 * qd67 + q67 * qd69;
+    let t4 = q68 * qd66 + q66 * qd68;
+    let t5 = q66 * qd66;
+    let t6 = t5 + t5;
+    let t7 = q67 * qd67;
+    let t8 = t7 + t7;
+    let t9 = q68 * qd68;
+    let t10 = t9 + t9;
+    let t11 = q69 * qd69;
+    let t12 = t11 + t11;
+    let t13 = t6 + t8 - (t10 + t12);
+    let t14 = q68 * qd67 + q67 * qd68;
+    let t15 = q69 * qd66 + q66 * qd69;
+    let t16 = t14 - t15;
+    let t17 = q69 * qd68 + q68 * qd69;
+    let t18 = q67 * qd66 + q66 * qd67;
+    let t19 = t14 + t15;
+    let t20 = t6 + t10 - (t8 + t12);
+    let t21 = qd67 * qd69;
+    let t22 = t21 + t21;
+    let t23 = qd66 * qd68;
+    let t24 = t23 + t23;
+    let t25 = 1.0534578959402134 * (t22 + t24);
+    let t26 = qd66 * qd66;
+    let t27 = t26 + t26;
+    let t28 = qd67 * qd67;
+    let t29 = t28 + t28;
+    let t30 = t27 + t29;
+    let t31 = qd68 * qd68;
+    let t32 = t31 + t31;
+    let t33 = qd69 * qd69;
+    let t34 = t33 + t33;
+    let t35 = t30 - (t32 + t34);
+    let t36 = qd67 * qd68;
+    let t37 = t36 + t36;
+    let t38 = qd69 * qd66;
+    let t39 = t38 + t38;
+    let t40 = t37 - t39;
+    let t41 = -1.5849479225201275 * t40;
+    let t42 = qd69 * qd68;
+    let t43 = t42 + t42;
+    let t44 = qd67 * qd66;
+    let t45 = t44 + t44;
+    let t46 = 1.0534578959402134 * (t43 - t45);
+    let t47 = t37 + t39;
+    let t48 = t27 + t32 - (t29 + t34);
+    let t49 = -0.7924739612600638 * t48;
+    let t50 = t3 - t4;
+    let t51 = t17 + t18;
+    let t52 = t22 - t24;
+    let t53 = t43 + t45;
+    let t54 = qd72 - qd65;
+    let t55 = qd70 - qd63;
+    let t56 = qd71 - qd64;
+    let t57 = (-1.8645715618980598 * t50 + 0.7234451538029879 * t51) * t54;
+    let t58 = (-0.9322857809490299 * t13 + 0.7234451538029879 * t16) * t55;
+    let t59 = (-1.8645715618980598 * t19 + 0.36172257690149395 * t20) * t56;
+    let t60 = (0.5267289479701067 * (t6 + t12 - (t8 + t10))
+        + (-1.5849479225201275 * t51 + -0.6149524732695607 * t50)) * t54;
+    let t61 = (1.0534578959402134 * (t3 + t4)
+        + (-1.5849479225201275 * t16 + -0.30747623663478035 * t13)) * t55;
+    let t62 = (1.0534578959402134 * (t17 - t18)
+        + (-0.7924739612600638 * t20 + -0.6149524732695607 * t19)) * t56;
+    // joint U5 row 4: a_i · a_j = 0
+    gamma[51] = -(-0.9322857809490299 * (t25 + (-0.3074762366347804 * t35 + t41))
+        + 0.36172257690149395 * (t46 + (-0.6149524732695608 * t47 + t49)));
+    // joint P5 row 3: b_i · (P_j − P_i) = 0
+    gamma[54] = -(t57
+        + (t57 + t2 * (-1.8645715618980598 * t52 + 0.7234451538029879 * t53))
+        + (t58 + (t58 + t0 * (-0.9322857809490299 * t35 + 0.7234451538029879 * t40))
+            + (t59
+                + (t59
+                    + t1 * (-1.8645715618980598 * t47 + 0.36172257690149395 * t48)))));
+    // joint P5 row 4: c_i · (P_j − P_i) = 0
+    gamma[55] = -(t60
+        + (t60
+            + t2
+                * (0.5267289479701067 * (t27 + t34 - (t29 + t32))
+                    + (-1.5849479225201275 * t53 + -0.6149524732695607 * t52)))
+        + (t61 + (t61 + t0 * (t25 + (t41 + -0.30747623663478035 * t35)))
+            + (t62 + (t62 + t1 * (t46 + (t49 + -0.6149524732695607 * t47))))));
     // body cylinder5 normalisation: e0² + e1² + e2² + e3² − 1 = 0
-    phi[87] = t229 + (t228 + t230) - 1.0;
+    gamma[87] = -(t34 + (t30 + t32));
+}
+
+/// block_acceleration_40: 466 operations.
+#[inline(never)]
+fn block_acceleration_40(
+    q: &[f64; N],
+    qd: &[f64; N],
+    _t: f64,
+    _u: &[[f64; 3]; INPUTS],
+    gamma: &mut [f64; N],
+) {
+    let q66 = q[66];
+    let q67 = q[67];
+    let q68 = q[68];
+    let q69 = q[69];
+    let q73 = q[73];
+    let q74 = q[74];
+    let q75 = q[75];
+    let q76 = q[76];
+    let qd66 = qd[66];
+    let qd67 = qd[67];
+    let qd68 = qd[68];
+    let qd69 = qd[69];
+    let qd73 = qd[73];
+    let qd74 = qd[74];
+    let qd75 = qd[75];
+    let qd76 = qd[76];
+    let t0 = q66 * q66;
+    let t1 = q67 * q67;
+    let t2 = q68 * q68;
+    let t3 = q69 * q69;
+    let t4 = t0 + t1 - (t2 + t3);
+    let t5 = t0 + t2 - (t1 + t3);
+    let t6 = q67 * q68;
+    let t7 = q66 * q69;
+    let t8 = t6 - t7;
+    let t9 = q67 * q69;
+    let t10 = q66 * q68;
+    let t11 = t6 + t7;
+    let t12 = q68 * q69;
+    let t13 = q66 * q67;
+    let t14 = t9 - t10;
+    let t15 = t12 + t13;
+    let t16 = q73 * q73;
+    let t17 = q74 * q74;
+    let t18 = q75 * q75;
+    let t19 = q76 * q76;
+    let t20 = t16 + t17 - (t18 + t19);
+    let t21 = t16 + t18 - (t17 + t19);
+    let t22 = t16 + t19 - (t17 + t18);
+    let t23 = q74 * q75;
+    let t24 = q73 * q76;
+    let t25 = t23 - t24;
+    let t26 = q74 * q76;
+    let t27 = q73 * q75;
+    let t28 = t26 + t27;
+    let t29 = t23 + t24;
+    let t30 = q75 * q76;
+    let t31 = q73 * q74;
+    let t32 = t30 - t31;
+    let t33 = t26 - t27;
+    let t34 = t30 + t31;
+    let t35 = 1.7000666050132325 * t28
+        + (0.19052975238835995 * t20 + 0.9821238172135439 * t25);
+    let t36 = 1.7000666050132325 * t32
+        + (0.3810595047767199 * t29 + 0.49106190860677196 * t21);
+    let t37 = 0.8500333025066162 * t22
+        + (0.3810595047767199 * t33 + 0.9821238172135439 * t34);
+    let t38 = -0.9322857809490299 * t4 + 0.7234451538029879 * t8;
+    let t39 = -1.8645715618980598 * t11 + 0.36172257690149395 * t5;
+    let t40 = -1.8645715618980598 * t14 + 0.7234451538029879 * t15;
+    let t41 = q69 * qd67 + q67 * qd69;
+    let t42 = q68 * qd66 + q66 * qd68;
+    let t43 = q66 * qd66;
+    let t44 = t43 + t43;
+    let t45 = q67 * qd67;
+    let t46 = t45 + t45;
+    let t47 = q68 * qd68;
+    let t48 = t47 + t47;
+    let t49 = q69 * qd69;
+    let t50 = t49 + t49;
+    let t51 = t44 + t46 - (t48 + t50);
+    let t52 = q68 * qd67 + q67 * qd68;
+    let t53 = q69 * qd66 + q66 * qd69;
+    let t54 = t52 - t53;
+    let t55 = q69 * qd68 + q68 * qd69;
+    let t56 = q67 * qd66 + q66 * qd67;
+    let t57 = t52 + t53;
+    let t58 = t44 + t48 - (t46 + t50);
+    let t59 = qd67 * qd69;
+    let t60 = t59 + t59;
+    let t61 = qd66 * qd68;
+    let t62 = t61 + t61;
+    let t63 = qd66 * qd66;
+    let t64 = t63 + t63;
+    let t65 = qd67 * qd67;
+    let t66 = t65 + t65;
+    let t67 = qd68 * qd68;
+    let t68 = t67 + t67;
+    let t69 = qd69 * qd69;
+    let t70 = t69 + t69;
+    let t71 = t64 + t66 - (t68 + t70);
+    let t72 = qd67 * qd68;
+    let t73 = t72 + t72;
+    let t74 = qd69 * qd66;
+    let t75 = t74 + t74;
+    let t76 = t73 - t75;
+    let t77 = qd69 * qd68;
+    let t78 = t77 + t77;
+    let t79 = qd67 * qd66;
+    let t80 = t79 + t79;
+    let t81 = t73 + t75;
+    let t82 = t64 + t68 - (t66 + t70);
+    let t83 = q73 * qd73;
+    let t84 = t83 + t83;
+    let t85 = q76 * qd76;
+    let t86 = t85 + t85;
+    let t87 = q74 * qd74;
+    let t88 = t87 + t87;
+    let t89 = q75 * qd75;
+    let t90 = t89 + t89;
+    let t91 = t84 + t86 - (t88 + t90);
+    let t92 = q76 * qd74 + q74 * qd76;
+    let t93 = q75 * qd73 + q73 * qd75;
+    let t94 = t92 - t93;
+    let t95 = q76 * qd75 + q75 * qd76;
+    let t96 = q74 * qd73 + q73 * qd74;
+    let t97 = t95 + t96;
+    let t98 = 0.8500333025066162 * t91
+        + (0.3810595047767199 * t94 + 0.9821238172135439 * t97);
+    let t99 = t41 - t42;
+    let t100 = t55 + t56;
+    let t101 = -1.8645715618980598 * t99 + 0.7234451538029879 * t100;
+    let t102 = t92 + t93;
+    let t103 = t84 + t88 - (t86 + t90);
+    let t104 = q75 * qd74 + q74 * qd75;
+    let t105 = q76 * qd73 + q73 * qd76;
+    let t106 = t104 - t105;
+    let t107 = 1.7000666050132325 * t102
+        + (0.19052975238835995 * t103 + 0.9821238172135439 * t106);
+    let t108 = -0.9322857809490299 * t51 + 0.7234451538029879 * t54;
+    let t109 = t95 - t96;
+    let t110 = t104 + t105;
+    let t111 = t84 + t90 - (t86 + t88);
+    let t112 = 1.7000666050132325 * t109
+        + (0.3810595047767199 * t110 + 0.49106190860677196 * t111);
+    let t113 = -1.8645715618980598 * t57 + 0.36172257690149395 * t58;
+    let t114 = qd73 * qd73;
+    let t115 = t114 + t114;
+    let t116 = qd76 * qd76;
+    let t117 = t116 + t116;
+    let t118 = qd74 * qd74;
+    let t119 = t118 + t118;
+    let t120 = qd75 * qd75;
+    let t121 = t120 + t120;
+    let t122 = t115 + t117 - (t119 + t121);
+    let t123 = qd76 * qd74;
+    let t124 = t123 + t123;
+    let t125 = qd73 * qd75;
+    let t126 = t125 + t125;
+    let t127 = t124 - t126;
+    let t128 = qd76 * qd75;
+    let t129 = t128 + t128;
+    let t130 = qd73 * qd74;
+    let t131 = t130 + t130;
+    let t132 = t129 + t131;
+    let t133 = 0.8500333025066162 * t122
+        + (0.3810595047767199 * t127 + 0.9821238172135439 * t132);
+    let t134 = t98 * t101;
+    let t135 = t60 - t62;
+    let t136 = t78 + t80;
+    let t137 = -1.8645715618980598 * t135 + 0.7234451538029879 * t136;
+    let t138 = t124 + t126;
+    let t139 = t115 + t119;
+    let t140 = t139 - (t117 + t121);
+    let t141 = qd74 * qd75;
+    let t142 = t141 + t141;
+    let t143 = qd73 * qd76;
+    let t144 = t143 + t143;
+    let t145 = t142 - t144;
+    let t146 = 1.7000666050132325 * t138
+        + (0.19052975238835995 * t140 + 0.9821238172135439 * t145);
+    let t147 = t107 * t108;
+    let t148 = -0.9322857809490299 * t71 + 0.7234451538029879 * t76;
+    let t149 = t129 - t131;
+    let t150 = t142 + t144;
+    let t151 = t115 + t121 - (t117 + t119);
+    let t152 = 1.7000666050132325 * t149
+        + (0.3810595047767199 * t150 + 0.49106190860677196 * t151);
+    let t153 = t112 * t113;
+    let t154 = -1.8645715618980598 * t81 + 0.36172257690149395 * t82;
+    let t155 = t98
+        * (0.5267289479701067 * (t44 + t50 - (t46 + t48))
+            + (-1.5849479225201275 * t100 + -0.6149524732695607 * t99));
+    let t156 = t107
+        * (1.0534578959402134 * (t41 + t42)
+            + (-1.5849479225201275 * t54 + -0.30747623663478035 * t51));
+    let t157 = t112
+        * (1.0534578959402134 * (t55 - t56)
+            + (-0.7924739612600638 * t58 + -0.6149524732695607 * t57));
+    let t158 = t101
+        * (0.5267289479701067 * t91
+            + (-0.6149524732695608 * t94 + -1.5849479225201275 * t97));
+    let t159 = t108
+        * (1.0534578959402134 * t102
+            + (-0.3074762366347804 * t103 + -1.5849479225201275 * t106));
+    let t160 = t113
+        * (1.0534578959402134 * t109
+            + (-0.6149524732695608 * t110 + -0.7924739612600638 * t111));
+    // joint P5 row 1: b_i · a_j = 0
+    gamma[52] = -(t134 + t40 * t133 + (t134 + t37 * t137)
+        + (t147 + t38 * t146 + (t147 + t35 * t148)
+            + (t153 + t39 * t152 + (t153 + t36 * t154))));
+    // joint P5 row 2: c_i · a_j = 0
+    gamma[53] = -(t155
+        + (0.5267289479701067 * (t0 + t3 - (t1 + t2))
+            + (-1.5849479225201275 * t15 + -0.6149524732695607 * t14)) * t133
+        + (t155
+            + t37
+                * (0.5267289479701067 * (t64 + t70 - (t66 + t68))
+                    + (-1.5849479225201275 * t136 + -0.6149524732695607 * t135)))
+        + (t156
+            + (1.0534578959402134 * (t9 + t10)
+                + (-1.5849479225201275 * t8 + -0.30747623663478035 * t4)) * t146
+            + (t156
+                + t35
+                    * (1.0534578959402134 * (t60 + t62)
+                        + (-1.5849479225201275 * t76 + -0.30747623663478035 * t71)))
+            + (t157
+                + (1.0534578959402134 * (t12 - t13)
+                    + (-0.7924739612600638 * t5 + -0.6149524732695607 * t11)) * t152
+                + (t157
+                    + t36
+                        * (1.0534578959402134 * (t78 - t80)
+                            + (-0.7924739612600638 * t82
+                                + -0.6149524732695607 * t81))))));
+    // joint P5 row 5: r_i · r_j = 0
+    gamma[56] = -(t158
+        + (0.5267289479701067 * t22
+            + (-0.6149524732695608 * t33 + -1.5849479225201275 * t34)) * t137
+        + (t158
+            + t40
+                * (0.5267289479701067 * t122
+                    + (-0.6149524732695608 * t127 + -1.5849479225201275 * t132)))
+        + (t159
+            + (1.0534578959402134 * t28
+                + (-0.3074762366347804 * t20 + -1.5849479225201275 * t25)) * t148
+            + (t159
+                + t38
+                    * (1.0534578959402134 * t138
+                        + (-0.3074762366347804 * t140 + -1.5849479225201275 * t145)))
+            + (t160
+                + (1.0534578959402134 * t32
+                    + (-0.6149524732695608 * t29 + -0.7924739612600638 * t21)) * t154
+                + (t160
+                    + t39
+                        * (1.0534578959402134 * t149
+                            + (-0.6149524732695608 * t150
+                                + -0.7924739612600638 * t151))))));
     // body rod5 normalisation: e0² + e1² + e2² + e3² − 1 = 0
-    phi[88] = t250 + (t249 + t251) - 1.0;
-    // body cylinder6 normalisation: e0² + e1² + e2² + e3² − 1 = 0
-    phi[89] = t285 + (t284 + t286) - 1.0;
-    // body rod6 normalisation: e0² + e1² + e2² + e3² − 1 = 0
-    phi[90] = t305 + (t304 + t306) - 1.0;
+    gamma[88] = -(t117 + (t121 + t139));
+}
+
+/// Acceleration right-hand side γ = −(Φ_q q̇)_q q̇ − 2Φ_qt q̇ − Φ_tt, block by block.
+pub fn acceleration_rhs(
+    q: &[f64; N],
+    qd: &[f64; N],
+    t: f64,
+    inputs: &Inputs,
+    gamma: &mut [f64; N],
+) {
+    let u = inputs.to_array();
+    block_acceleration_0(q, qd, t, &u, gamma);
+    for m in 0..18 {
+        block_acceleration_shared_0(m, q, qd, t, &u, gamma);
+    }
+    for m in 0..6 {
+        block_acceleration_shared_1(m, q, qd, t, &u, gamma);
+    }
+    for m in 0..6 {
+        block_acceleration_shared_2(m, q, qd, t, &u, gamma);
+    }
+    for m in 0..6 {
+        block_acceleration_shared_3(m, q, qd, t, &u, gamma);
+    }
+    for m in 0..4 {
+        block_acceleration_shared_4(m, q, qd, t, &u, gamma);
+    }
+    for m in 0..4 {
+        block_acceleration_shared_5(m, q, qd, t, &u, gamma);
+    }
+    block_acceleration_31(q, qd, t, &u, gamma);
+    block_acceleration_32(q, qd, t, &u, gamma);
+    block_acceleration_39(q, qd, t, &u, gamma);
+    block_acceleration_40(q, qd, t, &u, gamma);
 }
 
 /// Jacobian Φ_q, row-major: `jac[i][j] = ∂Φ_i/∂q_j`; the 508 structurally non-zero entries are written, the others set to 0.
@@ -1520,54 +2691,38 @@ pub fn residual_jacobian(
     let u = inputs.to_array();
     *jac = [[0.0; N]; N];
     block_0(q, t, &u, phi, jac);
-    block_1(q, t, &u, phi, jac);
-    block_2(q, t, &u, phi, jac);
-    block_3(q, t, &u, phi, jac);
+    for m in 0..6 {
+        block_shared_0(m, q, t, &u, phi, jac);
+    }
+    for m in 0..6 {
+        block_shared_1(m, q, t, &u, phi, jac);
+    }
     block_4(q, t, &u, phi, jac);
     block_5(q, t, &u, phi, jac);
     block_6(q, t, &u, phi, jac);
-    block_7(q, t, &u, phi, jac);
-    block_8(q, t, &u, phi, jac);
-    block_9(q, t, &u, phi, jac);
-    block_10(q, t, &u, phi, jac);
-    block_11(q, t, &u, phi, jac);
-    block_12(q, t, &u, phi, jac);
-    block_13(q, t, &u, phi, jac);
+    for m in 0..4 {
+        block_shared_2(m, q, t, &u, phi, jac);
+    }
+    for m in 0..4 {
+        block_shared_3(m, q, t, &u, phi, jac);
+    }
+    for m in 0..6 {
+        block_shared_4(m, q, t, &u, phi, jac);
+    }
+    for m in 0..5 {
+        block_shared_5(m, q, t, &u, phi, jac);
+    }
+    for m in 0..5 {
+        block_shared_6(m, q, t, &u, phi, jac);
+    }
     block_14(q, t, &u, phi, jac);
-    block_15(q, t, &u, phi, jac);
-    block_16(q, t, &u, phi, jac);
-    block_17(q, t, &u, phi, jac);
-    block_18(q, t, &u, phi, jac);
-    block_19(q, t, &u, phi, jac);
-    block_20(q, t, &u, phi, jac);
-    block_21(q, t, &u, phi, jac);
-    block_22(q, t, &u, phi, jac);
-    block_23(q, t, &u, phi, jac);
-    block_24(q, t, &u, phi, jac);
-    block_25(q, t, &u, phi, jac);
-    block_26(q, t, &u, phi, jac);
-    block_27(q, t, &u, phi, jac);
-    block_28(q, t, &u, phi, jac);
-    block_29(q, t, &u, phi, jac);
-    block_30(q, t, &u, phi, jac);
+    for m in 0..4 {
+        block_shared_7(m, q, t, &u, phi, jac);
+    }
     block_31(q, t, &u, phi, jac);
     block_32(q, t, &u, phi, jac);
-    block_33(q, t, &u, phi, jac);
-    block_34(q, t, &u, phi, jac);
-    block_35(q, t, &u, phi, jac);
-    block_36(q, t, &u, phi, jac);
-    block_37(q, t, &u, phi, jac);
-    block_38(q, t, &u, phi, jac);
     block_39(q, t, &u, phi, jac);
     block_40(q, t, &u, phi, jac);
-    block_41(q, t, &u, phi, jac);
-    block_42(q, t, &u, phi, jac);
-    block_43(q, t, &u, phi, jac);
-    block_44(q, t, &u, phi, jac);
-    block_45(q, t, &u, phi, jac);
-    block_46(q, t, &u, phi, jac);
-    block_47(q, t, &u, phi, jac);
-    block_48(q, t, &u, phi, jac);
     unpack(jac);
 }
 
@@ -1723,6 +2878,1225 @@ fn unpack(jac: &mut [[f64; N]; N]) {
     for (&value, &k) in packed.iter().zip(&UNPACKED) {
         flat[k] = value;
     }
+}
+
+/// The constants of `block_shared_0` that differ between its blocks, one row per block.
+static BLOCK_SHARED_0_C: [[f64; 1]; 6] = [
+    [-0.9659258262890683],
+    [0.25881904510252074],
+    [0.25881904510252085],
+    [-core::f64::consts::FRAC_1_SQRT_2],
+    [0.7071067811865477],
+    [0.25881904510252063],
+];
+
+/// Where `block_shared_0` reads and writes for each of its blocks: the starts of its windows and the indices that do not move with them, one row per block.
+static BLOCK_SHARED_0_AT: [[usize; 3]; 6] = [
+    [7, 0, 49],
+    [8, 1, 50],
+    [35, 24, 203],
+    [50, 37, 281],
+    [63, 48, 357],
+    [77, 60, 434],
+];
+
+/// Φ and the structural non-zeros of Φ_q of the rows (see `block_b`) of the `m`th of blocks 1, 2, 17, 26, 33, 41 (one structure: the same code up to the constants in `BLOCK_SHARED_0_C` and the places in `BLOCK_SHARED_0_AT`): 1 operations.
+#[inline(never)]
+fn block_shared_0(
+    m: usize,
+    q: &[f64; N],
+    _t: f64,
+    _u: &[[f64; 3]; INPUTS],
+    phi: &mut [f64; N],
+    jac: &mut [[f64; N]; N],
+) {
+    let at = &BLOCK_SHARED_0_AT[m];
+    let jac = jac.as_flattened_mut();
+    let c = &BLOCK_SHARED_0_C[m];
+    let q0 = q[at[0]];
+    let c0 = c[0];
+    phi[at[1]] = q0 + c0;
+    jac[at[2]] = 1.0;
+}
+
+/// Where `block_shared_1` reads and writes for each of its blocks: the starts of its windows and the indices that do not move with them, one row per block.
+static BLOCK_SHARED_1_AT: [[usize; 3]; 6] = [
+    [9, 2, 51],
+    [23, 14, 128],
+    [37, 26, 205],
+    [51, 38, 282],
+    [65, 50, 359],
+    [79, 62, 436],
+];
+
+/// Φ and the structural non-zeros of Φ_q of the rows (see `block_b`) of the `m`th of blocks 3, 11, 19, 27, 35, 43 (one structure: the same code up to the constants in `BLOCK_SHARED_1_C` and the places in `BLOCK_SHARED_1_AT`): 0 operations.
+#[inline(never)]
+fn block_shared_1(
+    m: usize,
+    q: &[f64; N],
+    _t: f64,
+    _u: &[[f64; 3]; INPUTS],
+    phi: &mut [f64; N],
+    jac: &mut [[f64; N]; N],
+) {
+    let at = &BLOCK_SHARED_1_AT[m];
+    let jac = jac.as_flattened_mut();
+    let q0 = q[at[0]];
+    phi[at[1]] = q0;
+    jac[at[2]] = 1.0;
+}
+
+/// The constants of `block_shared_2` that differ between its blocks, one row per block.
+static BLOCK_SHARED_2_C: [[f64; 10]; 4] = [
+    [
+        0.15288194975545125,
+        1.0534578959402132,
+        0.8400407006062905,
+        0.2599094972885536,
+        -0.9882444583396215,
+        1.680081401212581,
+        0.1299547486442768,
+        0.3057638995109025,
+        -1.976488916679243,
+        0.5267289479701066,
+    ],
+    [
+        -0.15288194975545125,
+        1.0534578959402132,
+        0.8400407006062905,
+        -0.2599094972885536,
+        -0.9882444583396215,
+        1.680081401212581,
+        -0.1299547486442768,
+        -0.3057638995109025,
+        -1.976488916679243,
+        0.5267289479701066,
+    ],
+    [
+        0.7794038311935788,
+        1.0534578959402134,
+        -0.5325644639715102,
+        1.3250384252315741,
+        0.6265218814381276,
+        -1.0651289279430205,
+        0.6625192126157871,
+        1.5588076623871576,
+        1.2530437628762552,
+        0.5267289479701067,
+    ],
+    [
+        -0.7794038311935793,
+        1.0534578959402132,
+        -0.53256446397151,
+        -1.3250384252315748,
+        0.6265218814381274,
+        -1.06512892794302,
+        -0.6625192126157874,
+        -1.5588076623871585,
+        1.2530437628762547,
+        0.5267289479701066,
+    ],
+];
+
+/// Where `block_shared_2` reads and writes for each of its blocks: the starts of its windows and the indices that do not move with them, one row per block.
+static BLOCK_SHARED_2_AT: [[usize; 4]; 4] = [
+    [7, 3, 79, 70],
+    [21, 15, 81, 147],
+    [35, 27, 83, 224],
+    [77, 63, 89, 455],
+];
+
+/// Φ and the structural non-zeros of Φ_q of the rows (see `block_b`) of the `m`th of blocks 7, 15, 23, 47 (one structure: the same code up to the constants in `BLOCK_SHARED_2_C` and the places in `BLOCK_SHARED_2_AT`): 235 operations.
+#[inline(never)]
+fn block_shared_2(
+    m: usize,
+    q: &[f64; N],
+    _t: f64,
+    _u: &[[f64; 3]; INPUTS],
+    phi: &mut [f64; N],
+    jac: &mut [[f64; N]; N],
+) {
+    let at = &BLOCK_SHARED_2_AT[m];
+    let window0 = &q[at[0]..at[0] + 10];
+    let jac = &mut jac.as_flattened_mut()[at[3]..at[3] + 28];
+    let c = &BLOCK_SHARED_2_C[m];
+    let q0 = window0[4];
+    let q1 = window0[6];
+    let q2 = window0[3];
+    let q3 = window0[5];
+    let q4 = window0[9];
+    let q5 = window0[2];
+    let q6 = window0[7];
+    let q7 = window0[0];
+    let q8 = window0[8];
+    let q9 = window0[1];
+    let c0 = c[0];
+    let c1 = c[1];
+    let c2 = c[2];
+    let c3 = c[3];
+    let c4 = c[4];
+    let c5 = c[5];
+    let c6 = c[6];
+    let c7 = c[7];
+    let c8 = c[8];
+    let c9 = c[9];
+    let t0 = q0 * q1;
+    let t1 = q2 * q3;
+    let t2 = q2 * q2;
+    let t3 = q0 * q0;
+    let t4 = t2 + t3;
+    let t5 = q3 * q3;
+    let t6 = q1 * q1;
+    let t7 = t4 - (t5 + t6);
+    let t8 = q0 * q3;
+    let t9 = q2 * q1;
+    let t10 = t8 - t9;
+    let t11 = c1 * (t0 + t1) + (c2 * t7 + c3 * t10);
+    let t12 = q3 * q1;
+    let t13 = q2 * q0;
+    let t14 = t8 + t9;
+    let t15 = t2 + t5 - (t3 + t6);
+    let t16 = c1 * (t12 - t13) + (c5 * t14 + c6 * t15);
+    let t17 = q4 - q5;
+    let t18 = t0 - t1;
+    let t19 = t12 + t13;
+    let t20 = c7 * t18 + c8 * t19;
+    let t21 = q6 - q7;
+    let t22 = c0 * t7 + c8 * t10;
+    let t23 = q8 - q9;
+    let t24 = c7 * t14 + c4 * t15;
+    let t25 = c9 * (t2 + t6 - (t3 + t5)) + (c5 * t18 + c3 * t19);
+    let t26 = c1 * q3;
+    let t27 = q2 + q2;
+    let t28 = c3 * q1;
+    let t29 = t26 + (c2 * t27 - t28);
+    let t30 = c1 * q0;
+    let t31 = c5 * q1;
+    let t32 = t31 + c6 * t27 - t30;
+    let t33 = c1 * q1;
+    let t34 = q0 + q0;
+    let t35 = c3 * q3;
+    let t36 = t33 + (c2 * t34 + t35);
+    let t37 = c1 * q2;
+    let t38 = c5 * q3;
+    let t39 = t38 - c6 * t34 - t37;
+    let t40 = q3 + q3;
+    let t41 = c3 * q0;
+    let t42 = t37 + (t41 - c2 * t40);
+    let t43 = c5 * q0;
+    let t44 = t33 + (t43 + c6 * t40);
+    let t45 = q1 + q1;
+    let t46 = c3 * q2;
+    let t47 = t30 + (-(c2 * t45) - t46);
+    let t48 = c5 * q2;
+    let t49 = t26 + (t48 - c6 * t45);
+    let t50 = c7 * q3;
+    let t51 = c8 * q0;
+    let t52 = c8 * q1;
+    let t53 = c7 * q1;
+    let t54 = c8 * q2;
+    let t55 = c8 * q3;
+    let t56 = c7 * q2;
+    let t57 = c7 * q0;
+    phi[at[1]] = c0 * t11 + c4 * t16;
+    phi[at[1] + 3] = t17 * t20 + (t21 * t22 + t23 * t24);
+    phi[at[1] + 4] = t25 * t17 + (t11 * t21 + t16 * t23);
+    phi[at[2]] = t6 + (t5 + t4) - 1.0;
+    jac[0] = c0 * t29 + c4 * t32;
+    jac[1] = c0 * t36 + c4 * t39;
+    jac[2] = c0 * t42 + c4 * t44;
+    jac[3] = c0 * t47 + c4 * t49;
+    jac[8] = -t22;
+    jac[9] = -t24;
+    jac[10] = -t20;
+    jac[4] = t17 * (t51 - t50) + (t21 * (c0 * t27 - t52) + t23 * (t53 + c4 * t27));
+    jac[5] = t17 * (t53 + t54) + (t21 * (c0 * t34 + t55) + t23 * (t50 - c4 * t34));
+    jac[6] = t17 * (t52 - t56) + (t21 * (t51 - c0 * t40) + t23 * (t57 + c4 * t40));
+    jac[7] = t17 * (t55 + t57) + (t21 * (-(c0 * t45) - t54) + t23 * (t56 - c4 * t45));
+    jac[11] = t22;
+    jac[12] = t24;
+    jac[13] = t20;
+    jac[18] = -t11;
+    jac[19] = -t16;
+    jac[20] = -t25;
+    jac[14] = t17 * (c9 * t27 + (t41 - t38)) + (t21 * t29 + t23 * t32);
+    jac[15] = t17 * (t31 + t46 - c9 * t34) + (t21 * t36 + t23 * t39);
+    jac[16] = t17 * (t28 - t48 - c9 * t40) + (t21 * t42 + t23 * t44);
+    jac[17] = t17 * (c9 * t45 + (t35 + t43)) + (t21 * t47 + t23 * t49);
+    jac[21] = t11;
+    jac[22] = t16;
+    jac[23] = t25;
+    jac[24] = t27;
+    jac[25] = t34;
+    jac[26] = t40;
+    jac[27] = t45;
+}
+
+/// The constants of `block_shared_3` that differ between its blocks, one row per block.
+static BLOCK_SHARED_3_C: [[f64; 14]; 4] = [
+    [
+        -1.0410739277570333,
+        -0.16105469711661508,
+        0.3057638995109025,
+        -1.976488916679243,
+        -0.5205369638785167,
+        0.15288194975545125,
+        -0.08052734855830754,
+        -0.9882444583396215,
+        0.5267289479701066,
+        1.680081401212581,
+        0.2599094972885536,
+        1.0534578959402132,
+        0.8400407006062905,
+        0.1299547486442768,
+    ],
+    [
+        -1.0410739277570333,
+        0.16105469711661508,
+        -0.3057638995109025,
+        -1.976488916679243,
+        -0.5205369638785167,
+        -0.15288194975545125,
+        0.08052734855830754,
+        -0.9882444583396215,
+        0.5267289479701066,
+        1.680081401212581,
+        -0.2599094972885536,
+        1.0534578959402132,
+        0.8400407006062905,
+        -0.1299547486442768,
+    ],
+    [
+        0.6600144229803139,
+        -0.8210691200969289,
+        1.5588076623871576,
+        1.2530437628762552,
+        0.33000721149015694,
+        0.7794038311935788,
+        -0.41053456004846445,
+        0.6265218814381276,
+        0.5267289479701067,
+        -1.0651289279430205,
+        1.3250384252315741,
+        1.0534578959402134,
+        -0.5325644639715102,
+        0.6625192126157871,
+    ],
+    [
+        0.6600144229803131,
+        0.8210691200969288,
+        -1.5588076623871585,
+        1.2530437628762547,
+        0.33000721149015655,
+        -0.7794038311935793,
+        0.4105345600484644,
+        0.6265218814381274,
+        0.5267289479701066,
+        -1.06512892794302,
+        -1.3250384252315748,
+        1.0534578959402132,
+        -0.53256446397151,
+        -0.6625192126157874,
+    ],
+];
+
+/// Where `block_shared_3` reads and writes for each of its blocks: the starts of its windows and the indices that do not move with them, one row per block.
+static BLOCK_SHARED_3_AT: [[usize; 4]; 4] = [
+    [10, 4, 80, 98],
+    [24, 16, 82, 175],
+    [38, 28, 84, 252],
+    [80, 64, 90, 483],
+];
+
+/// Φ and the structural non-zeros of Φ_q of the rows (see `block_b`) of the `m`th of blocks 8, 16, 24, 48 (one structure: the same code up to the constants in `BLOCK_SHARED_3_C` and the places in `BLOCK_SHARED_3_AT`): 478 operations.
+#[inline(never)]
+fn block_shared_3(
+    m: usize,
+    q: &[f64; N],
+    _t: f64,
+    _u: &[[f64; 3]; INPUTS],
+    phi: &mut [f64; N],
+    jac: &mut [[f64; N]; N],
+) {
+    let at = &BLOCK_SHARED_3_AT[m];
+    let window0 = &q[at[0]..at[0] + 11];
+    let jac = &mut jac.as_flattened_mut()[at[3]..at[3] + 28];
+    let c = &BLOCK_SHARED_3_C[m];
+    let q0 = window0[7];
+    let q1 = window0[10];
+    let q2 = window0[8];
+    let q3 = window0[9];
+    let q4 = window0[1];
+    let q5 = window0[3];
+    let q6 = window0[0];
+    let q7 = window0[2];
+    let c1 = c[0];
+    let c2 = c[1];
+    let c3 = c[2];
+    let c4 = c[3];
+    let c6 = c[4];
+    let c7 = c[5];
+    let c8 = c[6];
+    let c9 = c[7];
+    let c10 = c[8];
+    let c11 = c[9];
+    let c12 = c[10];
+    let c13 = c[11];
+    let c14 = c[12];
+    let c15 = c[13];
+    let t0 = q0 * q0;
+    let t1 = q1 * q1;
+    let t2 = q2 * q2;
+    let t3 = q3 * q3;
+    let t4 = t0 + t1 - (t2 + t3);
+    let t5 = q2 * q1;
+    let t6 = q0 * q3;
+    let t7 = t5 - t6;
+    let t8 = q3 * q1;
+    let t9 = q0 * q2;
+    let t10 = t8 + t9;
+    let t11 = 0.8500333025066162 * t4 + (c1 * t7 + c2 * t10);
+    let t12 = q4 * q5;
+    let t13 = q6 * q7;
+    let t14 = t12 - t13;
+    let t15 = q7 * q5;
+    let t16 = q6 * q4;
+    let t17 = t15 + t16;
+    let t18 = c3 * t14 + c4 * t17;
+    let t19 = t5 + t6;
+    let t20 = t0 + t2;
+    let t21 = t20 - (t3 + t1);
+    let t22 = q2 * q3;
+    let t23 = q0 * q1;
+    let t24 = t22 - t23;
+    let t25 = 1.7000666050132325 * t19 + (c6 * t21 + c2 * t24);
+    let t26 = q6 * q6;
+    let t27 = q4 * q4;
+    let t28 = q7 * q7;
+    let t29 = q5 * q5;
+    let t30 = t26 + t27 - (t28 + t29);
+    let t31 = q4 * q7;
+    let t32 = q6 * q5;
+    let t33 = t31 - t32;
+    let t34 = c7 * t30 + c4 * t33;
+    let t35 = t8 - t9;
+    let t36 = t22 + t23;
+    let t37 = t0 + t3 - (t2 + t1);
+    let t38 = 1.7000666050132325 * t35 + (c1 * t36 + c8 * t37);
+    let t39 = t31 + t32;
+    let t40 = t26 + t28 - (t27 + t29);
+    let t41 = c3 * t39 + c9 * t40;
+    let t42 = c10 * (t26 + t29 - (t27 + t28)) + (c11 * t14 + c12 * t17);
+    let t43 = c13 * (t12 + t13) + (c14 * t30 + c12 * t33);
+    let t44 = c13 * (t15 - t16) + (c11 * t39 + c15 * t40);
+    let t45 = c10 * t4 + (c11 * t7 + c12 * t10);
+    let t46 = c13 * t19 + (c14 * t21 + c12 * t24);
+    let t47 = c13 * t35 + (c11 * t36 + c15 * t37);
+    let t48 = c3 * q7;
+    let t49 = c4 * q4;
+    let t50 = t49 - t48;
+    let t51 = q6 + q6;
+    let t52 = c4 * q5;
+    let t53 = c7 * t51 - t52;
+    let t54 = c3 * q5;
+    let t55 = t54 + c9 * t51;
+    let t56 = c4 * q6;
+    let t57 = t54 + t56;
+    let t58 = q4 + q4;
+    let t59 = c4 * q7;
+    let t60 = c7 * t58 + t59;
+    let t61 = t48 - c9 * t58;
+    let t62 = c3 * q6;
+    let t63 = t52 - t62;
+    let t64 = q7 + q7;
+    let t65 = t49 - c7 * t64;
+    let t66 = c3 * q4;
+    let t67 = t66 + c9 * t64;
+    let t68 = t59 + t66;
+    let t69 = q5 + q5;
+    let t70 = -(c7 * t69) - t56;
+    let t71 = t62 - c9 * t69;
+    let t72 = q0 + q0;
+    let t73 = c1 * q3;
+    let t74 = c2 * q2;
+    let t75 = 0.8500333025066162 * t72 + (t74 - t73);
+    let t76 = 1.7000666050132325 * q3;
+    let t77 = c2 * q1;
+    let t78 = t76 + (c6 * t72 - t77);
+    let t79 = 1.7000666050132325 * q2;
+    let t80 = c1 * q1;
+    let t81 = t80 + c8 * t72 - t79;
+    let t82 = q2 + q2;
+    let t83 = c2 * q0;
+    let t84 = t80 + t83 - 0.8500333025066162 * t82;
+    let t85 = 1.7000666050132325 * q1;
+    let t86 = c2 * q3;
+    let t87 = t85 + (c6 * t82 + t86);
+    let t88 = 1.7000666050132325 * q0;
+    let t89 = t73 - c8 * t82 - t88;
+    let t90 = q3 + q3;
+    let t91 = c1 * q0;
+    let t92 = t77 - t91 - 0.8500333025066162 * t90;
+    let t93 = t88 + (t74 - c6 * t90);
+    let t94 = c1 * q2;
+    let t95 = t85 + (t94 + c8 * t90);
+    let t96 = q1 + q1;
+    let t97 = 0.8500333025066162 * t96 + (t86 + t94);
+    let t98 = t79 + (-(c6 * t96) - t83);
+    let t99 = t76 + (t91 - c8 * t96);
+    let t100 = c12 * q4;
+    let t101 = c11 * q7;
+    let t102 = c13 * q7;
+    let t103 = c12 * q5;
+    let t104 = c13 * q4;
+    let t105 = c11 * q5;
+    let t106 = c12 * q6;
+    let t107 = c13 * q5;
+    let t108 = c12 * q7;
+    let t109 = c13 * q6;
+    let t110 = c11 * q6;
+    let t111 = c11 * q4;
+    let t112 = c11 * q3;
+    let t113 = c12 * q2;
+    let t114 = c13 * q3;
+    let t115 = c12 * q1;
+    let t116 = c13 * q2;
+    let t117 = c11 * q1;
+    let t118 = c12 * q0;
+    let t119 = c13 * q1;
+    let t120 = c12 * q3;
+    let t121 = c13 * q0;
+    let t122 = c11 * q0;
+    let t123 = c11 * q2;
+    phi[at[1]] = t11 * t18 + (t25 * t34 + t38 * t41);
+    phi[at[1] + 1] = t42 * t11 + (t43 * t25 + t44 * t38);
+    phi[at[1] + 4] = t18 * t45 + (t34 * t46 + t41 * t47);
+    phi[at[2]] = t1 + (t3 + t20) - 1.0;
+    jac[4] = t11 * t50 + (t25 * t53 + t38 * t55);
+    jac[5] = t11 * t57 + (t25 * t60 + t38 * t61);
+    jac[6] = t11 * t63 + (t25 * t65 + t38 * t67);
+    jac[7] = t11 * t68 + (t25 * t70 + t38 * t71);
+    jac[0] = t18 * t75 + (t34 * t78 + t41 * t81);
+    jac[1] = t18 * t84 + (t34 * t87 + t41 * t89);
+    jac[2] = t18 * t92 + (t34 * t93 + t41 * t95);
+    jac[3] = t18 * t97 + (t34 * t98 + t41 * t99);
+    jac[12] = t11 * (c10 * t51 + (t100 - t101))
+        + (t25 * (t102 + (c14 * t51 - t103)) + t38 * (t105 + c15 * t51 - t104));
+    jac[13] = t11 * (t105 + t106 - c10 * t58)
+        + (t25 * (t107 + (c14 * t58 + t108)) + t38 * (t101 - c15 * t58 - t109));
+    jac[14] = t11 * (t103 - t110 - c10 * t64)
+        + (t25 * (t109 + (t100 - c14 * t64)) + t38 * (t107 + (t111 + c15 * t64)));
+    jac[15] = t11 * (c10 * t69 + (t108 + t111))
+        + (t25 * (t104 + (-(c14 * t69) - t106)) + t38 * (t102 + (t110 - c15 * t69)));
+    jac[8] = t42 * t75 + (t43 * t78 + t44 * t81);
+    jac[9] = t42 * t84 + (t43 * t87 + t44 * t89);
+    jac[10] = t42 * t92 + (t43 * t93 + t44 * t95);
+    jac[11] = t42 * t97 + (t43 * t98 + t44 * t99);
+    jac[20] = t45 * t50 + (t46 * t53 + t47 * t55);
+    jac[21] = t45 * t57 + (t46 * t60 + t47 * t61);
+    jac[22] = t45 * t63 + (t46 * t65 + t47 * t67);
+    jac[23] = t45 * t68 + (t46 * t70 + t47 * t71);
+    jac[16] = t18 * (c10 * t72 + (t113 - t112))
+        + (t34 * (t114 + (c14 * t72 - t115)) + t41 * (t117 + c15 * t72 - t116));
+    jac[17] = t18 * (t117 + t118 - c10 * t82)
+        + (t34 * (t119 + (c14 * t82 + t120)) + t41 * (t112 - c15 * t82 - t121));
+    jac[18] = t18 * (t115 - t122 - c10 * t90)
+        + (t34 * (t121 + (t113 - c14 * t90)) + t41 * (t119 + (t123 + c15 * t90)));
+    jac[19] = t18 * (c10 * t96 + (t120 + t123))
+        + (t34 * (t116 + (-(c14 * t96) - t118)) + t41 * (t114 + (t122 - c15 * t96)));
+    jac[24] = t72;
+    jac[25] = t82;
+    jac[26] = t90;
+    jac[27] = t96;
+}
+
+/// The constants of `block_shared_4` that differ between its blocks, one row per block.
+static BLOCK_SHARED_4_C: [[f64; 1]; 6] = [
+    [-0.9659258262890683],
+    [-0.25881904510252074],
+    [-0.9659258262890683],
+    [0.7071067811865475],
+    [0.7071067811865475],
+    [0.9659258262890683],
+];
+
+/// Where `block_shared_4` reads and writes for each of its blocks: the starts of its windows and the indices that do not move with them, one row per block.
+static BLOCK_SHARED_4_AT: [[usize; 3]; 6] = [
+    [21, 12, 126],
+    [22, 13, 127],
+    [36, 25, 204],
+    [49, 36, 280],
+    [64, 49, 358],
+    [78, 61, 435],
+];
+
+/// Φ and the structural non-zeros of Φ_q of the rows (see `block_b`) of the `m`th of blocks 9, 10, 18, 25, 34, 42 (one structure: the same code up to the constants in `BLOCK_SHARED_4_C` and the places in `BLOCK_SHARED_4_AT`): 1 operations.
+#[inline(never)]
+fn block_shared_4(
+    m: usize,
+    q: &[f64; N],
+    _t: f64,
+    _u: &[[f64; 3]; INPUTS],
+    phi: &mut [f64; N],
+    jac: &mut [[f64; N]; N],
+) {
+    let at = &BLOCK_SHARED_4_AT[m];
+    let jac = jac.as_flattened_mut();
+    let c = &BLOCK_SHARED_4_C[m];
+    let q0 = q[at[0]];
+    let c0 = c[0];
+    phi[at[1]] = c0 + q0;
+    jac[at[2]] = 1.0;
+}
+
+/// The constants of `block_shared_5` that differ between its blocks, one row per block.
+static BLOCK_SHARED_5_C: [[f64; 2]; 5] = [
+    [0.3535533905932738, 0.7071067811865475],
+    [0.12940952255126037, 0.9659258262890683],
+    [-0.4829629131445341, 0.258819045102521],
+    [-0.48296291314453416, -0.2588190451025208],
+    [0.12940952255126015, -0.9659258262890684],
+];
+
+/// Where `block_shared_5` reads and writes for each of its blocks: the starts of its windows and the indices that do not move with them, one row per block.
+static BLOCK_SHARED_5_AT: [[usize; 3]; 5] = [
+    [28, 21, 129],
+    [42, 33, 206],
+    [56, 45, 283],
+    [70, 57, 360],
+    [84, 69, 437],
+];
+
+/// Φ and the structural non-zeros of Φ_q of the rows (see `block_b`) of the `m`th of blocks 12, 20, 28, 36, 44 (one structure: the same code up to the constants in `BLOCK_SHARED_5_C` and the places in `BLOCK_SHARED_5_AT`): 38 operations.
+#[inline(never)]
+fn block_shared_5(
+    m: usize,
+    q: &[f64; N],
+    _t: f64,
+    _u: &[[f64; 3]; INPUTS],
+    phi: &mut [f64; N],
+    jac: &mut [[f64; N]; N],
+) {
+    let at = &BLOCK_SHARED_5_AT[m];
+    let jac = &mut jac.as_flattened_mut()[at[2]..at[2] + 6];
+    let c = &BLOCK_SHARED_5_C[m];
+    let q0 = q[0];
+    let q1 = q[3];
+    let q2 = q[4];
+    let q3 = q[5];
+    let q4 = q[6];
+    let q5 = q[at[0]];
+    let c0 = c[0];
+    let c1 = c[1];
+    phi[at[1]] = q0
+        + (c0 * (q1 * q1 + q2 * q2 - (q3 * q3 + q4 * q4)) + c1 * (q2 * q3 - q1 * q4))
+        - q5;
+    jac[1] = 1.0;
+    jac[2] = c0 * (q1 + q1) - c1 * q4;
+    jac[3] = c0 * (q2 + q2) + c1 * q3;
+    jac[4] = c1 * q2 - c0 * (q3 + q3);
+    jac[5] = -(c0 * (q4 + q4)) - c1 * q1;
+    jac[0] = -1.0;
+}
+
+/// The constants of `block_shared_6` that differ between its blocks, one row per block.
+static BLOCK_SHARED_6_C: [[f64; 2]; 5] = [
+    [core::f64::consts::FRAC_1_SQRT_2, 0.35355339059327373],
+    [0.25881904510252074, 0.48296291314453416],
+    [-0.9659258262890682, 0.1294095225512605],
+    [-0.9659258262890683, -0.1294095225512604],
+    [0.2588190451025203, -0.4829629131445342],
+];
+
+/// Where `block_shared_6` reads and writes for each of its blocks: the starts of its windows and the indices that do not move with them, one row per block.
+static BLOCK_SHARED_6_AT: [[usize; 3]; 5] = [
+    [29, 22, 135],
+    [43, 34, 212],
+    [57, 46, 289],
+    [71, 58, 366],
+    [85, 70, 443],
+];
+
+/// Φ and the structural non-zeros of Φ_q of the rows (see `block_b`) of the `m`th of blocks 13, 21, 29, 37, 45 (one structure: the same code up to the constants in `BLOCK_SHARED_6_C` and the places in `BLOCK_SHARED_6_AT`): 35 operations.
+#[inline(never)]
+fn block_shared_6(
+    m: usize,
+    q: &[f64; N],
+    _t: f64,
+    _u: &[[f64; 3]; INPUTS],
+    phi: &mut [f64; N],
+    jac: &mut [[f64; N]; N],
+) {
+    let at = &BLOCK_SHARED_6_AT[m];
+    let jac = &mut jac.as_flattened_mut()[at[2]..at[2] + 6];
+    let c = &BLOCK_SHARED_6_C[m];
+    let q0 = q[1];
+    let q1 = q[4];
+    let q2 = q[5];
+    let q3 = q[3];
+    let q4 = q[6];
+    let q5 = q[at[0]];
+    let c0 = c[0];
+    let c1 = c[1];
+    phi[at[1]] = q0
+        + (c0 * (q1 * q2 + q3 * q4) + c1 * (q3 * q3 + q2 * q2 - (q1 * q1 + q4 * q4)))
+        - q5;
+    jac[1] = 1.0;
+    jac[2] = c0 * q4 + c1 * (q3 + q3);
+    jac[3] = c0 * q2 - c1 * (q1 + q1);
+    jac[4] = c0 * q1 + c1 * (q2 + q2);
+    jac[5] = c0 * q3 - c1 * (q4 + q4);
+    jac[0] = -1.0;
+}
+
+/// The constants of `block_shared_7` that differ between its blocks, one row per block.
+static BLOCK_SHARED_7_C: [[f64; 2]; 4] = [
+    [0.25881904510252074, 0.9659258262890683],
+    [-0.9659258262890682, 0.258819045102521],
+    [-0.9659258262890683, -0.2588190451025208],
+    [0.2588190451025203, -0.9659258262890684],
+];
+
+/// Where `block_shared_7` reads and writes for each of its blocks: the starts of its windows and the indices that do not move with them, one row per block.
+static BLOCK_SHARED_7_AT: [[usize; 3]; 4] = [
+    [44, 35, 218],
+    [58, 47, 295],
+    [72, 59, 372],
+    [86, 71, 449],
+];
+
+/// Φ and the structural non-zeros of Φ_q of the rows (see `block_b`) of the `m`th of blocks 22, 30, 38, 46 (one structure: the same code up to the constants in `BLOCK_SHARED_7_C` and the places in `BLOCK_SHARED_7_AT`): 27 operations.
+#[inline(never)]
+fn block_shared_7(
+    m: usize,
+    q: &[f64; N],
+    _t: f64,
+    _u: &[[f64; 3]; INPUTS],
+    phi: &mut [f64; N],
+    jac: &mut [[f64; N]; N],
+) {
+    let at = &BLOCK_SHARED_7_AT[m];
+    let jac = &mut jac.as_flattened_mut()[at[2]..at[2] + 6];
+    let c = &BLOCK_SHARED_7_C[m];
+    let q0 = q[2];
+    let q1 = q[4];
+    let q2 = q[6];
+    let q3 = q[3];
+    let q4 = q[5];
+    let q5 = q[at[0]];
+    let c0 = c[0];
+    let c1 = c[1];
+    phi[at[1]] = q0 + (c0 * (q1 * q2 - q3 * q4) + c1 * (q4 * q2 + q3 * q1)) - q5;
+    jac[1] = 1.0;
+    jac[2] = c1 * q1 - c0 * q4;
+    jac[3] = c1 * q3 + c0 * q2;
+    jac[4] = c1 * q2 - c0 * q3;
+    jac[5] = c1 * q4 + c0 * q1;
+    jac[0] = -1.0;
+}
+
+/// The constants of `block_residual_shared_0` that differ between its blocks, one row per block.
+static BLOCK_RESIDUAL_SHARED_0_C: [[f64; 1]; 6] = [
+    [-0.9659258262890683],
+    [0.25881904510252074],
+    [0.25881904510252085],
+    [-core::f64::consts::FRAC_1_SQRT_2],
+    [0.7071067811865477],
+    [0.25881904510252063],
+];
+
+/// Where `block_residual_shared_0` reads and writes for each of its blocks: the starts of its windows and the indices that do not move with them, one row per block.
+static BLOCK_RESIDUAL_SHARED_0_AT: [[usize; 2]; 6] = [
+    [7, 0],
+    [8, 1],
+    [35, 24],
+    [50, 37],
+    [63, 48],
+    [77, 60],
+];
+
+/// Φ of the rows of the `m`th of blocks 1, 2, 17, 26, 33, 41 (one structure: the same code up to the constants in `BLOCK_RESIDUAL_SHARED_0_C` and the places in `BLOCK_RESIDUAL_SHARED_0_AT`): 1 operations.
+#[inline(never)]
+fn block_residual_shared_0(
+    m: usize,
+    q: &[f64; N],
+    _t: f64,
+    _u: &[[f64; 3]; INPUTS],
+    phi: &mut [f64; N],
+) {
+    let at = &BLOCK_RESIDUAL_SHARED_0_AT[m];
+    let c = &BLOCK_RESIDUAL_SHARED_0_C[m];
+    let q0 = q[at[0]];
+    let c0 = c[0];
+    phi[at[1]] = q0 + c0;
+}
+
+/// Where `block_residual_shared_1` reads and writes for each of its blocks: the starts of its windows and the indices that do not move with them, one row per block.
+static BLOCK_RESIDUAL_SHARED_1_AT: [[usize; 2]; 6] = [
+    [9, 2],
+    [23, 14],
+    [37, 26],
+    [51, 38],
+    [65, 50],
+    [79, 62],
+];
+
+/// Φ of the rows of the `m`th of blocks 3, 11, 19, 27, 35, 43 (one structure: the same code up to the constants in `BLOCK_RESIDUAL_SHARED_1_C` and the places in `BLOCK_RESIDUAL_SHARED_1_AT`): 0 operations.
+#[inline(never)]
+fn block_residual_shared_1(
+    m: usize,
+    q: &[f64; N],
+    _t: f64,
+    _u: &[[f64; 3]; INPUTS],
+    phi: &mut [f64; N],
+) {
+    let at = &BLOCK_RESIDUAL_SHARED_1_AT[m];
+    let q0 = q[at[0]];
+    phi[at[1]] = q0;
+}
+
+/// The constants of `block_residual_shared_2` that differ between its blocks, one row per block.
+static BLOCK_RESIDUAL_SHARED_2_C: [[f64; 10]; 4] = [
+    [
+        0.15288194975545125,
+        1.0534578959402132,
+        0.8400407006062905,
+        0.2599094972885536,
+        -0.9882444583396215,
+        1.680081401212581,
+        0.1299547486442768,
+        0.3057638995109025,
+        -1.976488916679243,
+        0.5267289479701066,
+    ],
+    [
+        -0.15288194975545125,
+        1.0534578959402132,
+        0.8400407006062905,
+        -0.2599094972885536,
+        -0.9882444583396215,
+        1.680081401212581,
+        -0.1299547486442768,
+        -0.3057638995109025,
+        -1.976488916679243,
+        0.5267289479701066,
+    ],
+    [
+        0.7794038311935788,
+        1.0534578959402134,
+        -0.5325644639715102,
+        1.3250384252315741,
+        0.6265218814381276,
+        -1.0651289279430205,
+        0.6625192126157871,
+        1.5588076623871576,
+        1.2530437628762552,
+        0.5267289479701067,
+    ],
+    [
+        -0.7794038311935793,
+        1.0534578959402132,
+        -0.53256446397151,
+        -1.3250384252315748,
+        0.6265218814381274,
+        -1.06512892794302,
+        -0.6625192126157874,
+        -1.5588076623871585,
+        1.2530437628762547,
+        0.5267289479701066,
+    ],
+];
+
+/// Where `block_residual_shared_2` reads and writes for each of its blocks: the starts of its windows and the indices that do not move with them, one row per block.
+static BLOCK_RESIDUAL_SHARED_2_AT: [[usize; 3]; 4] = [
+    [7, 3, 79],
+    [21, 15, 81],
+    [35, 27, 83],
+    [77, 63, 89],
+];
+
+/// Φ of the rows of the `m`th of blocks 7, 15, 23, 47 (one structure: the same code up to the constants in `BLOCK_RESIDUAL_SHARED_2_C` and the places in `BLOCK_RESIDUAL_SHARED_2_AT`): 77 operations.
+#[inline(never)]
+fn block_residual_shared_2(
+    m: usize,
+    q: &[f64; N],
+    _t: f64,
+    _u: &[[f64; 3]; INPUTS],
+    phi: &mut [f64; N],
+) {
+    let at = &BLOCK_RESIDUAL_SHARED_2_AT[m];
+    let window0 = &q[at[0]..at[0] + 10];
+    let c = &BLOCK_RESIDUAL_SHARED_2_C[m];
+    let q0 = window0[4];
+    let q1 = window0[6];
+    let q2 = window0[3];
+    let q3 = window0[5];
+    let q4 = window0[9];
+    let q5 = window0[2];
+    let q6 = window0[7];
+    let q7 = window0[0];
+    let q8 = window0[8];
+    let q9 = window0[1];
+    let c0 = c[0];
+    let c1 = c[1];
+    let c2 = c[2];
+    let c3 = c[3];
+    let c4 = c[4];
+    let c5 = c[5];
+    let c6 = c[6];
+    let c7 = c[7];
+    let c8 = c[8];
+    let c9 = c[9];
+    let t0 = q0 * q1;
+    let t1 = q2 * q3;
+    let t2 = q2 * q2;
+    let t3 = q0 * q0;
+    let t4 = t2 + t3;
+    let t5 = q3 * q3;
+    let t6 = q1 * q1;
+    let t7 = t4 - (t5 + t6);
+    let t8 = q0 * q3;
+    let t9 = q2 * q1;
+    let t10 = t8 - t9;
+    let t11 = c1 * (t0 + t1) + (c2 * t7 + c3 * t10);
+    let t12 = q3 * q1;
+    let t13 = q2 * q0;
+    let t14 = t8 + t9;
+    let t15 = t2 + t5 - (t3 + t6);
+    let t16 = c1 * (t12 - t13) + (c5 * t14 + c6 * t15);
+    let t17 = q4 - q5;
+    let t18 = t0 - t1;
+    let t19 = t12 + t13;
+    let t20 = q6 - q7;
+    let t21 = q8 - q9;
+    phi[at[1]] = c0 * t11 + c4 * t16;
+    phi[at[1] + 3] = t17 * (c7 * t18 + c8 * t19)
+        + (t20 * (c0 * t7 + c8 * t10) + t21 * (c7 * t14 + c4 * t15));
+    phi[at[1] + 4] = (c9 * (t2 + t6 - (t3 + t5)) + (c5 * t18 + c3 * t19)) * t17
+        + (t11 * t20 + t16 * t21);
+    phi[at[2]] = t6 + (t5 + t4) - 1.0;
+}
+
+/// The constants of `block_residual_shared_3` that differ between its blocks, one row per block.
+static BLOCK_RESIDUAL_SHARED_3_C: [[f64; 14]; 4] = [
+    [
+        -1.0410739277570333,
+        -0.16105469711661508,
+        0.3057638995109025,
+        -1.976488916679243,
+        -0.5205369638785167,
+        0.15288194975545125,
+        -0.08052734855830754,
+        -0.9882444583396215,
+        0.5267289479701066,
+        1.680081401212581,
+        0.2599094972885536,
+        1.0534578959402132,
+        0.8400407006062905,
+        0.1299547486442768,
+    ],
+    [
+        -1.0410739277570333,
+        0.16105469711661508,
+        -0.3057638995109025,
+        -1.976488916679243,
+        -0.5205369638785167,
+        -0.15288194975545125,
+        0.08052734855830754,
+        -0.9882444583396215,
+        0.5267289479701066,
+        1.680081401212581,
+        -0.2599094972885536,
+        1.0534578959402132,
+        0.8400407006062905,
+        -0.1299547486442768,
+    ],
+    [
+        0.6600144229803139,
+        -0.8210691200969289,
+        1.5588076623871576,
+        1.2530437628762552,
+        0.33000721149015694,
+        0.7794038311935788,
+        -0.41053456004846445,
+        0.6265218814381276,
+        0.5267289479701067,
+        -1.0651289279430205,
+        1.3250384252315741,
+        1.0534578959402134,
+        -0.5325644639715102,
+        0.6625192126157871,
+    ],
+    [
+        0.6600144229803131,
+        0.8210691200969288,
+        -1.5588076623871585,
+        1.2530437628762547,
+        0.33000721149015655,
+        -0.7794038311935793,
+        0.4105345600484644,
+        0.6265218814381274,
+        0.5267289479701066,
+        -1.06512892794302,
+        -1.3250384252315748,
+        1.0534578959402132,
+        -0.53256446397151,
+        -0.6625192126157874,
+    ],
+];
+
+/// Where `block_residual_shared_3` reads and writes for each of its blocks: the starts of its windows and the indices that do not move with them, one row per block.
+static BLOCK_RESIDUAL_SHARED_3_AT: [[usize; 3]; 4] = [
+    [10, 4, 80],
+    [24, 16, 82],
+    [38, 28, 84],
+    [80, 64, 90],
+];
+
+/// Φ of the rows of the `m`th of blocks 8, 16, 24, 48 (one structure: the same code up to the constants in `BLOCK_RESIDUAL_SHARED_3_C` and the places in `BLOCK_RESIDUAL_SHARED_3_AT`): 134 operations.
+#[inline(never)]
+fn block_residual_shared_3(
+    m: usize,
+    q: &[f64; N],
+    _t: f64,
+    _u: &[[f64; 3]; INPUTS],
+    phi: &mut [f64; N],
+) {
+    let at = &BLOCK_RESIDUAL_SHARED_3_AT[m];
+    let window0 = &q[at[0]..at[0] + 11];
+    let c = &BLOCK_RESIDUAL_SHARED_3_C[m];
+    let q0 = window0[7];
+    let q1 = window0[10];
+    let q2 = window0[8];
+    let q3 = window0[9];
+    let q4 = window0[1];
+    let q5 = window0[3];
+    let q6 = window0[0];
+    let q7 = window0[2];
+    let c1 = c[0];
+    let c2 = c[1];
+    let c3 = c[2];
+    let c4 = c[3];
+    let c6 = c[4];
+    let c7 = c[5];
+    let c8 = c[6];
+    let c9 = c[7];
+    let c10 = c[8];
+    let c11 = c[9];
+    let c12 = c[10];
+    let c13 = c[11];
+    let c14 = c[12];
+    let c15 = c[13];
+    let t0 = q0 * q0;
+    let t1 = q1 * q1;
+    let t2 = q2 * q2;
+    let t3 = q3 * q3;
+    let t4 = t0 + t1 - (t2 + t3);
+    let t5 = q2 * q1;
+    let t6 = q0 * q3;
+    let t7 = t5 - t6;
+    let t8 = q3 * q1;
+    let t9 = q0 * q2;
+    let t10 = t8 + t9;
+    let t11 = 0.8500333025066162 * t4 + (c1 * t7 + c2 * t10);
+    let t12 = q4 * q5;
+    let t13 = q6 * q7;
+    let t14 = t12 - t13;
+    let t15 = q7 * q5;
+    let t16 = q6 * q4;
+    let t17 = t15 + t16;
+    let t18 = c3 * t14 + c4 * t17;
+    let t19 = t5 + t6;
+    let t20 = t0 + t2;
+    let t21 = t20 - (t3 + t1);
+    let t22 = q2 * q3;
+    let t23 = q0 * q1;
+    let t24 = t22 - t23;
+    let t25 = 1.7000666050132325 * t19 + (c6 * t21 + c2 * t24);
+    let t26 = q6 * q6;
+    let t27 = q4 * q4;
+    let t28 = q7 * q7;
+    let t29 = q5 * q5;
+    let t30 = t26 + t27 - (t28 + t29);
+    let t31 = q4 * q7;
+    let t32 = q6 * q5;
+    let t33 = t31 - t32;
+    let t34 = c7 * t30 + c4 * t33;
+    let t35 = t8 - t9;
+    let t36 = t22 + t23;
+    let t37 = t0 + t3 - (t2 + t1);
+    let t38 = 1.7000666050132325 * t35 + (c1 * t36 + c8 * t37);
+    let t39 = t31 + t32;
+    let t40 = t26 + t28 - (t27 + t29);
+    let t41 = c3 * t39 + c9 * t40;
+    phi[at[1]] = t11 * t18 + (t25 * t34 + t38 * t41);
+    phi[at[1] + 1] = (c10 * (t26 + t29 - (t27 + t28)) + (c11 * t14 + c12 * t17)) * t11
+        + ((c13 * (t12 + t13) + (c14 * t30 + c12 * t33)) * t25
+            + (c13 * (t15 - t16) + (c11 * t39 + c15 * t40)) * t38);
+    phi[at[1] + 4] = t18 * (c10 * t4 + (c11 * t7 + c12 * t10))
+        + (t34 * (c13 * t19 + (c14 * t21 + c12 * t24))
+            + t41 * (c13 * t35 + (c11 * t36 + c15 * t37)));
+    phi[at[2]] = t1 + (t3 + t20) - 1.0;
+}
+
+/// The constants of `block_residual_shared_4` that differ between its blocks, one row per block.
+static BLOCK_RESIDUAL_SHARED_4_C: [[f64; 1]; 6] = [
+    [-0.9659258262890683],
+    [-0.25881904510252074],
+    [-0.9659258262890683],
+    [0.7071067811865475],
+    [0.7071067811865475],
+    [0.9659258262890683],
+];
+
+/// Where `block_residual_shared_4` reads and writes for each of its blocks: the starts of its windows and the indices that do not move with them, one row per block.
+static BLOCK_RESIDUAL_SHARED_4_AT: [[usize; 2]; 6] = [
+    [21, 12],
+    [22, 13],
+    [36, 25],
+    [49, 36],
+    [64, 49],
+    [78, 61],
+];
+
+/// Φ of the rows of the `m`th of blocks 9, 10, 18, 25, 34, 42 (one structure: the same code up to the constants in `BLOCK_RESIDUAL_SHARED_4_C` and the places in `BLOCK_RESIDUAL_SHARED_4_AT`): 1 operations.
+#[inline(never)]
+fn block_residual_shared_4(
+    m: usize,
+    q: &[f64; N],
+    _t: f64,
+    _u: &[[f64; 3]; INPUTS],
+    phi: &mut [f64; N],
+) {
+    let at = &BLOCK_RESIDUAL_SHARED_4_AT[m];
+    let c = &BLOCK_RESIDUAL_SHARED_4_C[m];
+    let q0 = q[at[0]];
+    let c0 = c[0];
+    phi[at[1]] = c0 + q0;
+}
+
+/// The constants of `block_residual_shared_5` that differ between its blocks, one row per block.
+static BLOCK_RESIDUAL_SHARED_5_C: [[f64; 2]; 5] = [
+    [0.3535533905932738, 0.7071067811865475],
+    [0.12940952255126037, 0.9659258262890683],
+    [-0.4829629131445341, 0.258819045102521],
+    [-0.48296291314453416, -0.2588190451025208],
+    [0.12940952255126015, -0.9659258262890684],
+];
+
+/// Where `block_residual_shared_5` reads and writes for each of its blocks: the starts of its windows and the indices that do not move with them, one row per block.
+static BLOCK_RESIDUAL_SHARED_5_AT: [[usize; 2]; 5] = [
+    [28, 21],
+    [42, 33],
+    [56, 45],
+    [70, 57],
+    [84, 69],
+];
+
+/// Φ of the rows of the `m`th of blocks 12, 20, 28, 36, 44 (one structure: the same code up to the constants in `BLOCK_RESIDUAL_SHARED_5_C` and the places in `BLOCK_RESIDUAL_SHARED_5_AT`): 18 operations.
+#[inline(never)]
+fn block_residual_shared_5(
+    m: usize,
+    q: &[f64; N],
+    _t: f64,
+    _u: &[[f64; 3]; INPUTS],
+    phi: &mut [f64; N],
+) {
+    let at = &BLOCK_RESIDUAL_SHARED_5_AT[m];
+    let c = &BLOCK_RESIDUAL_SHARED_5_C[m];
+    let q0 = q[0];
+    let q1 = q[3];
+    let q2 = q[4];
+    let q3 = q[5];
+    let q4 = q[6];
+    let q5 = q[at[0]];
+    let c0 = c[0];
+    let c1 = c[1];
+    phi[at[1]] = q0
+        + (c0 * (q1 * q1 + q2 * q2 - (q3 * q3 + q4 * q4)) + c1 * (q2 * q3 - q1 * q4))
+        - q5;
+}
+
+/// The constants of `block_residual_shared_6` that differ between its blocks, one row per block.
+static BLOCK_RESIDUAL_SHARED_6_C: [[f64; 2]; 5] = [
+    [core::f64::consts::FRAC_1_SQRT_2, 0.35355339059327373],
+    [0.25881904510252074, 0.48296291314453416],
+    [-0.9659258262890682, 0.1294095225512605],
+    [-0.9659258262890683, -0.1294095225512604],
+    [0.2588190451025203, -0.4829629131445342],
+];
+
+/// Where `block_residual_shared_6` reads and writes for each of its blocks: the starts of its windows and the indices that do not move with them, one row per block.
+static BLOCK_RESIDUAL_SHARED_6_AT: [[usize; 2]; 5] = [
+    [29, 22],
+    [43, 34],
+    [57, 46],
+    [71, 58],
+    [85, 70],
+];
+
+/// Φ of the rows of the `m`th of blocks 13, 21, 29, 37, 45 (one structure: the same code up to the constants in `BLOCK_RESIDUAL_SHARED_6_C` and the places in `BLOCK_RESIDUAL_SHARED_6_AT`): 17 operations.
+#[inline(never)]
+fn block_residual_shared_6(
+    m: usize,
+    q: &[f64; N],
+    _t: f64,
+    _u: &[[f64; 3]; INPUTS],
+    phi: &mut [f64; N],
+) {
+    let at = &BLOCK_RESIDUAL_SHARED_6_AT[m];
+    let c = &BLOCK_RESIDUAL_SHARED_6_C[m];
+    let q0 = q[1];
+    let q1 = q[4];
+    let q2 = q[5];
+    let q3 = q[3];
+    let q4 = q[6];
+    let q5 = q[at[0]];
+    let c0 = c[0];
+    let c1 = c[1];
+    phi[at[1]] = q0
+        + (c0 * (q1 * q2 + q3 * q4) + c1 * (q3 * q3 + q2 * q2 - (q1 * q1 + q4 * q4)))
+        - q5;
+}
+
+/// The constants of `block_residual_shared_7` that differ between its blocks, one row per block.
+static BLOCK_RESIDUAL_SHARED_7_C: [[f64; 2]; 5] = [
+    [core::f64::consts::FRAC_1_SQRT_2, 0.7071067811865475],
+    [0.25881904510252074, 0.9659258262890683],
+    [-0.9659258262890682, 0.258819045102521],
+    [-0.9659258262890683, -0.2588190451025208],
+    [0.2588190451025203, -0.9659258262890684],
+];
+
+/// Where `block_residual_shared_7` reads and writes for each of its blocks: the starts of its windows and the indices that do not move with them, one row per block.
+static BLOCK_RESIDUAL_SHARED_7_AT: [[usize; 2]; 5] = [
+    [30, 23],
+    [44, 35],
+    [58, 47],
+    [72, 59],
+    [86, 71],
+];
+
+/// Φ of the rows of the `m`th of blocks 14, 22, 30, 38, 46 (one structure: the same code up to the constants in `BLOCK_RESIDUAL_SHARED_7_C` and the places in `BLOCK_RESIDUAL_SHARED_7_AT`): 13 operations.
+#[inline(never)]
+fn block_residual_shared_7(
+    m: usize,
+    q: &[f64; N],
+    _t: f64,
+    _u: &[[f64; 3]; INPUTS],
+    phi: &mut [f64; N],
+) {
+    let at = &BLOCK_RESIDUAL_SHARED_7_AT[m];
+    let c = &BLOCK_RESIDUAL_SHARED_7_C[m];
+    let q0 = q[2];
+    let q1 = q[4];
+    let q2 = q[6];
+    let q3 = q[3];
+    let q4 = q[5];
+    let q5 = q[at[0]];
+    let c0 = c[0];
+    let c1 = c[1];
+    phi[at[1]] = q0 + (c0 * (q1 * q2 - q3 * q4) + c1 * (q4 * q2 + q3 * q1)) - q5;
 }
 
 /// block_0: 622 operations.
@@ -2061,51 +4435,6 @@ fn block_residual_0(q: &[f64; N], _t: f64, u: &[[f64; 3]; INPUTS], phi: &mut [f6
     phi[78] = t3 + (t2 + t4) - 1.0;
 }
 
-/// block_1: 1 operations.
-#[inline(never)]
-fn block_1(
-    q: &[f64; N],
-    _t: f64,
-    _u: &[[f64; 3]; INPUTS],
-    phi: &mut [f64; N],
-    jac: &mut [[f64; N]; N],
-) {
-    let q7 = q[7];
-    // joint U1 row 1: (P_j − P_i)_x = 0
-    phi[0] = q7 - 0.9659258262890683;
-    jac[0][49] = 1.0;
-}
-
-/// block_2: 1 operations.
-#[inline(never)]
-fn block_2(
-    q: &[f64; N],
-    _t: f64,
-    _u: &[[f64; 3]; INPUTS],
-    phi: &mut [f64; N],
-    jac: &mut [[f64; N]; N],
-) {
-    let q8 = q[8];
-    // joint U1 row 2: (P_j − P_i)_y = 0
-    phi[1] = q8 + 0.25881904510252074;
-    jac[0][50] = 1.0;
-}
-
-/// block_3: 0 operations.
-#[inline(never)]
-fn block_3(
-    q: &[f64; N],
-    _t: f64,
-    _u: &[[f64; 3]; INPUTS],
-    phi: &mut [f64; N],
-    jac: &mut [[f64; N]; N],
-) {
-    let q9 = q[9];
-    // joint U1 row 3: (P_j − P_i)_z = 0
-    phi[2] = q9;
-    jac[0][51] = 1.0;
-}
-
 /// block_4: 38 operations.
 #[inline(never)]
 fn block_4(
@@ -2130,6 +4459,20 @@ fn block_4(
     jac[0][56] = -0.7071067811865475 * q4 - 0.3535533905932738 * (q5 + q5);
     jac[0][57] = -(0.3535533905932738 * (q6 + q6)) - -0.7071067811865475 * q3;
     jac[0][52] = -1.0;
+}
+
+/// block_residual_4: 18 operations.
+#[inline(never)]
+fn block_residual_4(q: &[f64; N], _t: f64, _u: &[[f64; 3]; INPUTS], phi: &mut [f64; N]) {
+    let q0 = q[0];
+    let q3 = q[3];
+    let q4 = q[4];
+    let q5 = q[5];
+    let q6 = q[6];
+    let q14 = q[14];
+    // joint S1 row 1: (P_j − P_i)_x = 0
+    phi[9] = 0.3535533905932738 * (q3 * q3 + q4 * q4 - (q5 * q5 + q6 * q6))
+        + -0.7071067811865475 * (q4 * q5 - q3 * q6) + q0 - q14;
 }
 
 /// block_5: 35 operations.
@@ -2162,6 +4505,20 @@ fn block_5(
     jac[0][58] = -1.0;
 }
 
+/// block_residual_5: 17 operations.
+#[inline(never)]
+fn block_residual_5(q: &[f64; N], _t: f64, _u: &[[f64; 3]; INPUTS], phi: &mut [f64; N]) {
+    let q1 = q[1];
+    let q3 = q[3];
+    let q4 = q[4];
+    let q5 = q[5];
+    let q6 = q[6];
+    let q15 = q[15];
+    // joint S1 row 2: (P_j − P_i)_y = 0
+    phi[10] = core::f64::consts::FRAC_1_SQRT_2 * (q4 * q5 + q3 * q6)
+        + -0.35355339059327373 * (q3 * q3 + q5 * q5 - (q4 * q4 + q6 * q6)) + q1 - q15;
+}
+
 /// block_6: 27 operations.
 #[inline(never)]
 fn block_6(
@@ -2188,573 +4545,18 @@ fn block_6(
     jac[0][64] = -1.0;
 }
 
-/// block_7: 235 operations.
+/// block_residual_6: 13 operations.
 #[inline(never)]
-fn block_7(
-    q: &[f64; N],
-    _t: f64,
-    _u: &[[f64; 3]; INPUTS],
-    phi: &mut [f64; N],
-    jac: &mut [[f64; N]; N],
-) {
-    let q7 = q[7];
-    let q8 = q[8];
-    let q9 = q[9];
-    let q10 = q[10];
-    let q11 = q[11];
-    let q12 = q[12];
-    let q13 = q[13];
-    let q14 = q[14];
-    let q15 = q[15];
-    let q16 = q[16];
-    let t0 = q10 * q10;
-    let t1 = q11 * q11;
-    let t2 = q12 * q12;
-    let t3 = q13 * q13;
-    let t4 = t0 + t1;
-    let t5 = t4 - (t2 + t3);
-    let t6 = t0 + t2 - (t1 + t3);
-    let t7 = q11 * q12;
-    let t8 = q10 * q13;
-    let t9 = t7 - t8;
-    let t10 = q11 * q13;
-    let t11 = q10 * q12;
-    let t12 = t7 + t8;
-    let t13 = q12 * q13;
-    let t14 = q10 * q11;
-    let t15 = t10 - t11;
-    let t16 = t13 + t14;
-    let t17 = 1.0534578959402132 * (t10 + t11)
-        + (0.8400407006062905 * t5 + 0.2599094972885536 * t9);
-    let t18 = 1.0534578959402132 * (t13 - t14)
-        + (1.680081401212581 * t12 + 0.1299547486442768 * t6);
-    let t19 = 0.5267289479701066 * (t0 + t3 - (t1 + t2))
-        + (1.680081401212581 * t15 + 0.2599094972885536 * t16);
-    let t20 = q14 - q7;
-    let t21 = q15 - q8;
-    let t22 = q16 - q9;
-    let t23 = 0.15288194975545125 * t5 + -1.976488916679243 * t9;
-    let t24 = 0.3057638995109025 * t12 + -0.9882444583396215 * t6;
-    let t25 = 0.3057638995109025 * t15 + -1.976488916679243 * t16;
-    let t26 = 1.0534578959402132 * q12;
-    let t27 = q10 + q10;
-    let t28 = 0.2599094972885536 * q13;
-    let t29 = t26 + (0.8400407006062905 * t27 - t28);
-    let t30 = 1.0534578959402132 * q11;
-    let t31 = 1.680081401212581 * q13;
-    let t32 = t31 + 0.1299547486442768 * t27 - t30;
-    let t33 = 1.0534578959402132 * q13;
-    let t34 = q11 + q11;
-    let t35 = 0.2599094972885536 * q12;
-    let t36 = t33 + (0.8400407006062905 * t34 + t35);
-    let t37 = 1.0534578959402132 * q10;
-    let t38 = 1.680081401212581 * q12;
-    let t39 = t38 - 0.1299547486442768 * t34 - t37;
-    let t40 = q12 + q12;
-    let t41 = 0.2599094972885536 * q11;
-    let t42 = t37 + (t41 - 0.8400407006062905 * t40);
-    let t43 = 1.680081401212581 * q11;
-    let t44 = t33 + (t43 + 0.1299547486442768 * t40);
-    let t45 = q13 + q13;
-    let t46 = 0.2599094972885536 * q10;
-    let t47 = t30 + (-(0.8400407006062905 * t45) - t46);
-    let t48 = 1.680081401212581 * q10;
-    let t49 = t26 + (t48 - 0.1299547486442768 * t45);
-    let t50 = 0.3057638995109025 * q12;
-    let t51 = -1.976488916679243 * q11;
-    let t52 = -1.976488916679243 * q13;
-    let t53 = 0.3057638995109025 * q13;
-    let t54 = -1.976488916679243 * q10;
-    let t55 = -1.976488916679243 * q12;
-    let t56 = 0.3057638995109025 * q10;
-    let t57 = 0.3057638995109025 * q11;
-    // joint U1 row 4: a_i · a_j = 0
-    phi[3] = 0.15288194975545125 * t17 + -0.9882444583396215 * t18;
-    // joint P1 row 3: b_i · (P_j − P_i) = 0
-    phi[6] = t22 * t25 + (t20 * t23 + t21 * t24);
-    // joint P1 row 4: c_i · (P_j − P_i) = 0
-    phi[7] = t19 * t22 + (t17 * t20 + t18 * t21);
-    // body cylinder1 normalisation: e0² + e1² + e2² + e3² − 1 = 0
-    phi[79] = t3 + (t2 + t4) - 1.0;
-    // joint U1 row 4: a_i · a_j = 0
-    jac[0][70] = 0.15288194975545125 * t29 + -0.9882444583396215 * t32;
-    jac[0][71] = 0.15288194975545125 * t36 + -0.9882444583396215 * t39;
-    jac[0][72] = 0.15288194975545125 * t42 + -0.9882444583396215 * t44;
-    jac[0][73] = 0.15288194975545125 * t47 + -0.9882444583396215 * t49;
-    // joint P1 row 3: b_i · (P_j − P_i) = 0
-    jac[0][78] = -t23;
-    jac[0][79] = -t24;
-    jac[0][80] = -t25;
-    jac[0][74] = t22 * (t51 - t50)
-        + (t20 * (0.15288194975545125 * t27 - t52)
-            + t21 * (t53 + -0.9882444583396215 * t27));
-    jac[0][75] = t22 * (t53 + t54)
-        + (t20 * (0.15288194975545125 * t34 + t55)
-            + t21 * (t50 - -0.9882444583396215 * t34));
-    jac[0][76] = t22 * (t52 - t56)
-        + (t20 * (t51 - 0.15288194975545125 * t40)
-            + t21 * (t57 + -0.9882444583396215 * t40));
-    jac[0][77] = t22 * (t55 + t57)
-        + (t20 * (-(0.15288194975545125 * t45) - t54)
-            + t21 * (t56 - -0.9882444583396215 * t45));
-    jac[0][81] = t23;
-    jac[0][82] = t24;
-    jac[0][83] = t25;
-    // joint P1 row 4: c_i · (P_j − P_i) = 0
-    jac[0][88] = -t17;
-    jac[0][89] = -t18;
-    jac[0][90] = -t19;
-    jac[0][84] = t22 * (0.5267289479701066 * t27 + (t41 - t38))
-        + (t20 * t29 + t21 * t32);
-    jac[0][85] = t22 * (t31 + t46 - 0.5267289479701066 * t34) + (t20 * t36 + t21 * t39);
-    jac[0][86] = t22 * (t28 - t48 - 0.5267289479701066 * t40) + (t20 * t42 + t21 * t44);
-    jac[0][87] = t22 * (0.5267289479701066 * t45 + (t35 + t43))
-        + (t20 * t47 + t21 * t49);
-    jac[1][0] = t17;
-    jac[1][1] = t18;
-    jac[1][2] = t19;
-    // body cylinder1 normalisation: e0² + e1² + e2² + e3² − 1 = 0
-    jac[1][3] = t27;
-    jac[1][4] = t34;
-    jac[1][5] = t40;
-    jac[1][6] = t45;
-}
-
-/// block_residual_7: 77 operations.
-#[inline(never)]
-fn block_residual_7(q: &[f64; N], _t: f64, _u: &[[f64; 3]; INPUTS], phi: &mut [f64; N]) {
-    let q7 = q[7];
-    let q8 = q[8];
-    let q9 = q[9];
-    let q10 = q[10];
-    let q11 = q[11];
-    let q12 = q[12];
-    let q13 = q[13];
-    let q14 = q[14];
-    let q15 = q[15];
-    let q16 = q[16];
-    let t0 = q10 * q10;
-    let t1 = q11 * q11;
-    let t2 = q12 * q12;
-    let t3 = q13 * q13;
-    let t4 = t0 + t1;
-    let t5 = t4 - (t2 + t3);
-    let t6 = t0 + t2 - (t1 + t3);
-    let t7 = q11 * q12;
-    let t8 = q10 * q13;
-    let t9 = t7 - t8;
-    let t10 = q11 * q13;
-    let t11 = q10 * q12;
-    let t12 = t7 + t8;
-    let t13 = q12 * q13;
-    let t14 = q10 * q11;
-    let t15 = t10 - t11;
-    let t16 = t13 + t14;
-    let t17 = 1.0534578959402132 * (t10 + t11)
-        + (0.8400407006062905 * t5 + 0.2599094972885536 * t9);
-    let t18 = 1.0534578959402132 * (t13 - t14)
-        + (1.680081401212581 * t12 + 0.1299547486442768 * t6);
-    let t19 = q14 - q7;
-    let t20 = q15 - q8;
-    let t21 = q16 - q9;
-    // joint U1 row 4: a_i · a_j = 0
-    phi[3] = 0.15288194975545125 * t17 + -0.9882444583396215 * t18;
-    // joint P1 row 3: b_i · (P_j − P_i) = 0
-    phi[6] = t21 * (0.3057638995109025 * t15 + -1.976488916679243 * t16)
-        + (t19 * (0.15288194975545125 * t5 + -1.976488916679243 * t9)
-            + t20 * (0.3057638995109025 * t12 + -0.9882444583396215 * t6));
-    // joint P1 row 4: c_i · (P_j − P_i) = 0
-    phi[7] = (0.5267289479701066 * (t0 + t3 - (t1 + t2))
-        + (1.680081401212581 * t15 + 0.2599094972885536 * t16)) * t21
-        + (t17 * t19 + t18 * t20);
-    // body cylinder1 normalisation: e0² + e1² + e2² + e3² − 1 = 0
-    phi[79] = t3 + (t2 + t4) - 1.0;
-}
-
-/// block_8: 478 operations.
-#[inline(never)]
-fn block_8(
-    q: &[f64; N],
-    _t: f64,
-    _u: &[[f64; 3]; INPUTS],
-    phi: &mut [f64; N],
-    jac: &mut [[f64; N]; N],
-) {
-    let q10 = q[10];
-    let q11 = q[11];
-    let q12 = q[12];
-    let q13 = q[13];
-    let q17 = q[17];
-    let q18 = q[18];
-    let q19 = q[19];
-    let q20 = q[20];
-    let t0 = q10 * q10;
-    let t1 = q11 * q11;
-    let t2 = q12 * q12;
-    let t3 = q13 * q13;
-    let t4 = t0 + t1 - (t2 + t3);
-    let t5 = t0 + t2 - (t1 + t3);
-    let t6 = q11 * q12;
-    let t7 = q10 * q13;
-    let t8 = t6 - t7;
-    let t9 = q11 * q13;
-    let t10 = q10 * q12;
-    let t11 = t6 + t7;
-    let t12 = q12 * q13;
-    let t13 = q10 * q11;
-    let t14 = t9 - t10;
-    let t15 = t12 + t13;
-    let t16 = 1.0534578959402132 * (t9 + t10)
-        + (0.8400407006062905 * t4 + 0.2599094972885536 * t8);
-    let t17 = 1.0534578959402132 * (t12 - t13)
-        + (1.680081401212581 * t11 + 0.1299547486442768 * t5);
-    let t18 = 0.5267289479701066 * (t0 + t3 - (t1 + t2))
-        + (1.680081401212581 * t14 + 0.2599094972885536 * t15);
-    let t19 = q17 * q17;
-    let t20 = q18 * q18;
-    let t21 = q19 * q19;
-    let t22 = q20 * q20;
-    let t23 = t19 + t20;
-    let t24 = t23 - (t21 + t22);
-    let t25 = t19 + t21 - (t20 + t22);
-    let t26 = t19 + t22 - (t20 + t21);
-    let t27 = q18 * q19;
-    let t28 = q17 * q20;
-    let t29 = t27 - t28;
-    let t30 = q18 * q20;
-    let t31 = q17 * q19;
-    let t32 = t30 + t31;
-    let t33 = t27 + t28;
-    let t34 = q19 * q20;
-    let t35 = q17 * q18;
-    let t36 = t34 - t35;
-    let t37 = t30 - t31;
-    let t38 = t34 + t35;
-    let t39 = 1.7000666050132325 * t32
-        + (-0.5205369638785167 * t24 + -0.16105469711661508 * t29);
-    let t40 = 1.7000666050132325 * t36
-        + (-1.0410739277570333 * t33 + -0.08052734855830754 * t25);
-    let t41 = 0.8500333025066162 * t26
-        + (-1.0410739277570333 * t37 + -0.16105469711661508 * t38);
-    let t42 = 0.15288194975545125 * t4 + -1.976488916679243 * t8;
-    let t43 = 0.3057638995109025 * t11 + -0.9882444583396215 * t5;
-    let t44 = 0.3057638995109025 * t14 + -1.976488916679243 * t15;
-    let t45 = 1.0534578959402132 * t32
-        + (0.8400407006062905 * t24 + 0.2599094972885536 * t29);
-    let t46 = 1.0534578959402132 * t36
-        + (1.680081401212581 * t33 + 0.1299547486442768 * t25);
-    let t47 = 0.5267289479701066 * t26
-        + (1.680081401212581 * t37 + 0.2599094972885536 * t38);
-    let t48 = 1.0534578959402132 * q12;
-    let t49 = q10 + q10;
-    let t50 = 0.2599094972885536 * q13;
-    let t51 = 1.0534578959402132 * q11;
-    let t52 = 1.680081401212581 * q13;
-    let t53 = 1.0534578959402132 * q13;
-    let t54 = q11 + q11;
-    let t55 = 0.2599094972885536 * q12;
-    let t56 = 1.0534578959402132 * q10;
-    let t57 = 1.680081401212581 * q12;
-    let t58 = q12 + q12;
-    let t59 = 0.2599094972885536 * q11;
-    let t60 = 1.680081401212581 * q11;
-    let t61 = q13 + q13;
-    let t62 = 0.2599094972885536 * q10;
-    let t63 = 1.680081401212581 * q10;
-    let t64 = 0.3057638995109025 * q12;
-    let t65 = -1.976488916679243 * q11;
-    let t66 = t65 - t64;
-    let t67 = -1.976488916679243 * q13;
-    let t68 = 0.15288194975545125 * t49 - t67;
-    let t69 = 0.3057638995109025 * q13;
-    let t70 = t69 + -0.9882444583396215 * t49;
-    let t71 = -1.976488916679243 * q10;
-    let t72 = t69 + t71;
-    let t73 = -1.976488916679243 * q12;
-    let t74 = 0.15288194975545125 * t54 + t73;
-    let t75 = t64 - -0.9882444583396215 * t54;
-    let t76 = 0.3057638995109025 * q10;
-    let t77 = t67 - t76;
-    let t78 = t65 - 0.15288194975545125 * t58;
-    let t79 = 0.3057638995109025 * q11;
-    let t80 = t79 + -0.9882444583396215 * t58;
-    let t81 = t73 + t79;
-    let t82 = -(0.15288194975545125 * t61) - t71;
-    let t83 = t76 - -0.9882444583396215 * t61;
-    let t84 = q17 + q17;
-    let t85 = -1.0410739277570333 * q19;
-    let t86 = -0.16105469711661508 * q18;
-    let t87 = 0.8500333025066162 * t84 + (t86 - t85);
-    let t88 = 1.7000666050132325 * q19;
-    let t89 = -0.16105469711661508 * q20;
-    let t90 = t88 + (-0.5205369638785167 * t84 - t89);
-    let t91 = 1.7000666050132325 * q18;
-    let t92 = -1.0410739277570333 * q20;
-    let t93 = t92 + -0.08052734855830754 * t84 - t91;
-    let t94 = q18 + q18;
-    let t95 = -0.16105469711661508 * q17;
-    let t96 = t92 + t95 - 0.8500333025066162 * t94;
-    let t97 = 1.7000666050132325 * q20;
-    let t98 = -0.16105469711661508 * q19;
-    let t99 = t97 + (-0.5205369638785167 * t94 + t98);
-    let t100 = 1.7000666050132325 * q17;
-    let t101 = t85 - -0.08052734855830754 * t94 - t100;
-    let t102 = q19 + q19;
-    let t103 = -1.0410739277570333 * q17;
-    let t104 = t89 - t103 - 0.8500333025066162 * t102;
-    let t105 = t100 + (t86 - -0.5205369638785167 * t102);
-    let t106 = -1.0410739277570333 * q18;
-    let t107 = t97 + (t106 + -0.08052734855830754 * t102);
-    let t108 = q20 + q20;
-    let t109 = 0.8500333025066162 * t108 + (t98 + t106);
-    let t110 = t91 + (-(-0.5205369638785167 * t108) - t95);
-    let t111 = t88 + (t103 - -0.08052734855830754 * t108);
-    let t112 = 1.680081401212581 * q19;
-    let t113 = 0.2599094972885536 * q18;
-    let t114 = 1.0534578959402132 * q19;
-    let t115 = 0.2599094972885536 * q20;
-    let t116 = 1.0534578959402132 * q18;
-    let t117 = 1.680081401212581 * q20;
-    let t118 = 0.2599094972885536 * q17;
-    let t119 = 1.0534578959402132 * q20;
-    let t120 = 0.2599094972885536 * q19;
-    let t121 = 1.0534578959402132 * q17;
-    let t122 = 1.680081401212581 * q17;
-    let t123 = 1.680081401212581 * q18;
-    // joint P1 row 1: b_i · a_j = 0
-    phi[4] = t41 * t44 + (t39 * t42 + t40 * t43);
-    // joint P1 row 2: c_i · a_j = 0
-    phi[5] = t18 * t41 + (t16 * t39 + t17 * t40);
-    // joint P1 row 5: r_i · r_j = 0
-    phi[8] = t44 * t47 + (t42 * t45 + t43 * t46);
-    // body rod1 normalisation: e0² + e1² + e2² + e3² − 1 = 0
-    phi[80] = t22 + (t21 + t23) - 1.0;
-    // joint P1 row 1: b_i · a_j = 0
-    jac[1][11] = t41 * t66 + (t39 * t68 + t40 * t70);
-    jac[1][12] = t41 * t72 + (t39 * t74 + t40 * t75);
-    jac[1][13] = t41 * t77 + (t39 * t78 + t40 * t80);
-    jac[1][14] = t41 * t81 + (t39 * t82 + t40 * t83);
-    jac[1][7] = t44 * t87 + (t42 * t90 + t43 * t93);
-    jac[1][8] = t44 * t96 + (t42 * t99 + t43 * t101);
-    jac[1][9] = t44 * t104 + (t42 * t105 + t43 * t107);
-    jac[1][10] = t44 * t109 + (t42 * t110 + t43 * t111);
-    // joint P1 row 2: c_i · a_j = 0
-    jac[1][19] = t41 * (0.5267289479701066 * t49 + (t59 - t57))
-        + (t39 * (t48 + (0.8400407006062905 * t49 - t50))
-            + t40 * (t52 + 0.1299547486442768 * t49 - t51));
-    jac[1][20] = t41 * (t52 + t62 - 0.5267289479701066 * t54)
-        + (t39 * (t53 + (0.8400407006062905 * t54 + t55))
-            + t40 * (t57 - 0.1299547486442768 * t54 - t56));
-    jac[1][21] = t41 * (t50 - t63 - 0.5267289479701066 * t58)
-        + (t39 * (t56 + (t59 - 0.8400407006062905 * t58))
-            + t40 * (t53 + (t60 + 0.1299547486442768 * t58)));
-    jac[1][22] = t41 * (0.5267289479701066 * t61 + (t55 + t60))
-        + (t39 * (t51 + (-(0.8400407006062905 * t61) - t62))
-            + t40 * (t48 + (t63 - 0.1299547486442768 * t61)));
-    jac[1][15] = t18 * t87 + (t16 * t90 + t17 * t93);
-    jac[1][16] = t18 * t96 + (t16 * t99 + t17 * t101);
-    jac[1][17] = t18 * t104 + (t16 * t105 + t17 * t107);
-    jac[1][18] = t18 * t109 + (t16 * t110 + t17 * t111);
-    // joint P1 row 5: r_i · r_j = 0
-    jac[1][27] = t47 * t66 + (t45 * t68 + t46 * t70);
-    jac[1][28] = t47 * t72 + (t45 * t74 + t46 * t75);
-    jac[1][29] = t47 * t77 + (t45 * t78 + t46 * t80);
-    jac[1][30] = t47 * t81 + (t45 * t82 + t46 * t83);
-    jac[1][23] = t44 * (0.5267289479701066 * t84 + (t113 - t112))
-        + (t42 * (t114 + (0.8400407006062905 * t84 - t115))
-            + t43 * (t117 + 0.1299547486442768 * t84 - t116));
-    jac[1][24] = t44 * (t117 + t118 - 0.5267289479701066 * t94)
-        + (t42 * (t119 + (0.8400407006062905 * t94 + t120))
-            + t43 * (t112 - 0.1299547486442768 * t94 - t121));
-    jac[1][25] = t44 * (t115 - t122 - 0.5267289479701066 * t102)
-        + (t42 * (t121 + (t113 - 0.8400407006062905 * t102))
-            + t43 * (t119 + (t123 + 0.1299547486442768 * t102)));
-    jac[1][26] = t44 * (0.5267289479701066 * t108 + (t120 + t123))
-        + (t42 * (t116 + (-(0.8400407006062905 * t108) - t118))
-            + t43 * (t114 + (t122 - 0.1299547486442768 * t108)));
-    // body rod1 normalisation: e0² + e1² + e2² + e3² − 1 = 0
-    jac[1][31] = t84;
-    jac[1][32] = t94;
-    jac[1][33] = t102;
-    jac[1][34] = t108;
-}
-
-/// block_residual_8: 134 operations.
-#[inline(never)]
-fn block_residual_8(q: &[f64; N], _t: f64, _u: &[[f64; 3]; INPUTS], phi: &mut [f64; N]) {
-    let q10 = q[10];
-    let q11 = q[11];
-    let q12 = q[12];
-    let q13 = q[13];
-    let q17 = q[17];
-    let q18 = q[18];
-    let q19 = q[19];
-    let q20 = q[20];
-    let t0 = q10 * q10;
-    let t1 = q11 * q11;
-    let t2 = q12 * q12;
-    let t3 = q13 * q13;
-    let t4 = t0 + t1 - (t2 + t3);
-    let t5 = t0 + t2 - (t1 + t3);
-    let t6 = q11 * q12;
-    let t7 = q10 * q13;
-    let t8 = t6 - t7;
-    let t9 = q11 * q13;
-    let t10 = q10 * q12;
-    let t11 = t6 + t7;
-    let t12 = q12 * q13;
-    let t13 = q10 * q11;
-    let t14 = t9 - t10;
-    let t15 = t12 + t13;
-    let t16 = q17 * q17;
-    let t17 = q18 * q18;
-    let t18 = q19 * q19;
-    let t19 = q20 * q20;
-    let t20 = t16 + t17;
-    let t21 = t20 - (t18 + t19);
-    let t22 = t16 + t18 - (t17 + t19);
-    let t23 = t16 + t19 - (t17 + t18);
-    let t24 = q18 * q19;
-    let t25 = q17 * q20;
-    let t26 = t24 - t25;
-    let t27 = q18 * q20;
-    let t28 = q17 * q19;
-    let t29 = t27 + t28;
-    let t30 = t24 + t25;
-    let t31 = q19 * q20;
-    let t32 = q17 * q18;
-    let t33 = t31 - t32;
-    let t34 = t27 - t28;
-    let t35 = t31 + t32;
-    let t36 = 1.7000666050132325 * t29
-        + (-0.5205369638785167 * t21 + -0.16105469711661508 * t26);
-    let t37 = 1.7000666050132325 * t33
-        + (-1.0410739277570333 * t30 + -0.08052734855830754 * t22);
-    let t38 = 0.8500333025066162 * t23
-        + (-1.0410739277570333 * t34 + -0.16105469711661508 * t35);
-    let t39 = 0.15288194975545125 * t4 + -1.976488916679243 * t8;
-    let t40 = 0.3057638995109025 * t11 + -0.9882444583396215 * t5;
-    let t41 = 0.3057638995109025 * t14 + -1.976488916679243 * t15;
-    // joint P1 row 1: b_i · a_j = 0
-    phi[4] = t38 * t41 + (t36 * t39 + t37 * t40);
-    // joint P1 row 2: c_i · a_j = 0
-    phi[5] = (0.5267289479701066 * (t0 + t3 - (t1 + t2))
-        + (1.680081401212581 * t14 + 0.2599094972885536 * t15)) * t38
-        + ((1.0534578959402132 * (t9 + t10)
-            + (0.8400407006062905 * t4 + 0.2599094972885536 * t8)) * t36
-            + (1.0534578959402132 * (t12 - t13)
-                + (1.680081401212581 * t11 + 0.1299547486442768 * t5)) * t37);
-    // joint P1 row 5: r_i · r_j = 0
-    phi[8] = t41
-        * (0.5267289479701066 * t23
-            + (1.680081401212581 * t34 + 0.2599094972885536 * t35))
-        + (t39
-            * (1.0534578959402132 * t29
-                + (0.8400407006062905 * t21 + 0.2599094972885536 * t26))
-            + t40
-                * (1.0534578959402132 * t33
-                    + (1.680081401212581 * t30 + 0.1299547486442768 * t22)));
-    // body rod1 normalisation: e0² + e1² + e2² + e3² − 1 = 0
-    phi[80] = t19 + (t18 + t20) - 1.0;
-}
-
-/// block_9: 1 operations.
-#[inline(never)]
-fn block_9(
-    q: &[f64; N],
-    _t: f64,
-    _u: &[[f64; 3]; INPUTS],
-    phi: &mut [f64; N],
-    jac: &mut [[f64; N]; N],
-) {
-    let q21 = q[21];
-    // joint U2 row 1: (P_j − P_i)_x = 0
-    phi[12] = q21 - 0.9659258262890683;
-    jac[1][35] = 1.0;
-}
-
-/// block_10: 1 operations.
-#[inline(never)]
-fn block_10(
-    q: &[f64; N],
-    _t: f64,
-    _u: &[[f64; 3]; INPUTS],
-    phi: &mut [f64; N],
-    jac: &mut [[f64; N]; N],
-) {
-    let q22 = q[22];
-    // joint U2 row 2: (P_j − P_i)_y = 0
-    phi[13] = q22 - 0.25881904510252074;
-    jac[1][36] = 1.0;
-}
-
-/// block_11: 0 operations.
-#[inline(never)]
-fn block_11(
-    q: &[f64; N],
-    _t: f64,
-    _u: &[[f64; 3]; INPUTS],
-    phi: &mut [f64; N],
-    jac: &mut [[f64; N]; N],
-) {
-    let q23 = q[23];
-    // joint U2 row 3: (P_j − P_i)_z = 0
-    phi[14] = q23;
-    jac[1][37] = 1.0;
-}
-
-/// block_12: 38 operations.
-#[inline(never)]
-fn block_12(
-    q: &[f64; N],
-    _t: f64,
-    _u: &[[f64; 3]; INPUTS],
-    phi: &mut [f64; N],
-    jac: &mut [[f64; N]; N],
-) {
-    let q0 = q[0];
+fn block_residual_6(q: &[f64; N], _t: f64, _u: &[[f64; 3]; INPUTS], phi: &mut [f64; N]) {
+    let q2 = q[2];
     let q3 = q[3];
     let q4 = q[4];
     let q5 = q[5];
     let q6 = q[6];
-    let q28 = q[28];
-    // joint S2 row 1: (P_j − P_i)_x = 0
-    phi[21] = q0
-        + (0.3535533905932738 * (q3 * q3 + q4 * q4 - (q5 * q5 + q6 * q6))
-            + 0.7071067811865475 * (q4 * q5 - q3 * q6)) - q28;
-    jac[1][39] = 1.0;
-    jac[1][40] = 0.3535533905932738 * (q3 + q3) - 0.7071067811865475 * q6;
-    jac[1][41] = 0.3535533905932738 * (q4 + q4) + 0.7071067811865475 * q5;
-    jac[1][42] = 0.7071067811865475 * q4 - 0.3535533905932738 * (q5 + q5);
-    jac[1][43] = -(0.3535533905932738 * (q6 + q6)) - 0.7071067811865475 * q3;
-    jac[1][38] = -1.0;
-}
-
-/// block_13: 35 operations.
-#[inline(never)]
-fn block_13(
-    q: &[f64; N],
-    _t: f64,
-    _u: &[[f64; 3]; INPUTS],
-    phi: &mut [f64; N],
-    jac: &mut [[f64; N]; N],
-) {
-    let q1 = q[1];
-    let q3 = q[3];
-    let q4 = q[4];
-    let q5 = q[5];
-    let q6 = q[6];
-    let q29 = q[29];
-    // joint S2 row 2: (P_j − P_i)_y = 0
-    phi[22] = q1
-        + (core::f64::consts::FRAC_1_SQRT_2 * (q4 * q5 + q3 * q6)
-            + 0.35355339059327373 * (q3 * q3 + q5 * q5 - (q4 * q4 + q6 * q6))) - q29;
-    jac[1][45] = 1.0;
-    jac[1][46] = core::f64::consts::FRAC_1_SQRT_2 * q6 + 0.35355339059327373 * (q3 + q3);
-    jac[1][47] = core::f64::consts::FRAC_1_SQRT_2 * q5 - 0.35355339059327373 * (q4 + q4);
-    jac[1][48] = core::f64::consts::FRAC_1_SQRT_2 * q4 + 0.35355339059327373 * (q5 + q5);
-    jac[1][49] = core::f64::consts::FRAC_1_SQRT_2 * q3 - 0.35355339059327373 * (q6 + q6);
-    jac[1][44] = -1.0;
+    let q16 = q[16];
+    // joint S1 row 3: (P_j − P_i)_z = 0
+    phi[11] = core::f64::consts::FRAC_1_SQRT_2 * (q4 * q6 - q3 * q5)
+        + -0.7071067811865475 * (q5 * q6 + q3 * q4) + q2 - q16;
 }
 
 /// block_14: 27 operations.
@@ -2782,1218 +4584,6 @@ fn block_14(
     jac[1][54] = 0.7071067811865475 * q6 - core::f64::consts::FRAC_1_SQRT_2 * q3;
     jac[1][55] = core::f64::consts::FRAC_1_SQRT_2 * q4 + 0.7071067811865475 * q5;
     jac[1][50] = -1.0;
-}
-
-/// block_15: 235 operations.
-#[inline(never)]
-fn block_15(
-    q: &[f64; N],
-    _t: f64,
-    _u: &[[f64; 3]; INPUTS],
-    phi: &mut [f64; N],
-    jac: &mut [[f64; N]; N],
-) {
-    let q21 = q[21];
-    let q22 = q[22];
-    let q23 = q[23];
-    let q24 = q[24];
-    let q25 = q[25];
-    let q26 = q[26];
-    let q27 = q[27];
-    let q28 = q[28];
-    let q29 = q[29];
-    let q30 = q[30];
-    let t0 = q24 * q24;
-    let t1 = q25 * q25;
-    let t2 = q26 * q26;
-    let t3 = q27 * q27;
-    let t4 = t0 + t1;
-    let t5 = t4 - (t2 + t3);
-    let t6 = t0 + t2 - (t1 + t3);
-    let t7 = q25 * q26;
-    let t8 = q24 * q27;
-    let t9 = t7 - t8;
-    let t10 = q25 * q27;
-    let t11 = q24 * q26;
-    let t12 = t7 + t8;
-    let t13 = q26 * q27;
-    let t14 = q24 * q25;
-    let t15 = t10 - t11;
-    let t16 = t13 + t14;
-    let t17 = 1.0534578959402132 * (t10 + t11)
-        + (0.8400407006062905 * t5 + -0.2599094972885536 * t9);
-    let t18 = 1.0534578959402132 * (t13 - t14)
-        + (1.680081401212581 * t12 + -0.1299547486442768 * t6);
-    let t19 = 0.5267289479701066 * (t0 + t3 - (t1 + t2))
-        + (1.680081401212581 * t15 + -0.2599094972885536 * t16);
-    let t20 = q28 - q21;
-    let t21 = q29 - q22;
-    let t22 = q30 - q23;
-    let t23 = -0.15288194975545125 * t5 + -1.976488916679243 * t9;
-    let t24 = -0.3057638995109025 * t12 + -0.9882444583396215 * t6;
-    let t25 = -0.3057638995109025 * t15 + -1.976488916679243 * t16;
-    let t26 = 1.0534578959402132 * q26;
-    let t27 = q24 + q24;
-    let t28 = -0.2599094972885536 * q27;
-    let t29 = t26 + (0.8400407006062905 * t27 - t28);
-    let t30 = 1.0534578959402132 * q25;
-    let t31 = 1.680081401212581 * q27;
-    let t32 = t31 + -0.1299547486442768 * t27 - t30;
-    let t33 = 1.0534578959402132 * q27;
-    let t34 = q25 + q25;
-    let t35 = -0.2599094972885536 * q26;
-    let t36 = t33 + (0.8400407006062905 * t34 + t35);
-    let t37 = 1.0534578959402132 * q24;
-    let t38 = 1.680081401212581 * q26;
-    let t39 = t38 - -0.1299547486442768 * t34 - t37;
-    let t40 = q26 + q26;
-    let t41 = -0.2599094972885536 * q25;
-    let t42 = t37 + (t41 - 0.8400407006062905 * t40);
-    let t43 = 1.680081401212581 * q25;
-    let t44 = t33 + (t43 + -0.1299547486442768 * t40);
-    let t45 = q27 + q27;
-    let t46 = -0.2599094972885536 * q24;
-    let t47 = t30 + (-(0.8400407006062905 * t45) - t46);
-    let t48 = 1.680081401212581 * q24;
-    let t49 = t26 + (t48 - -0.1299547486442768 * t45);
-    let t50 = -0.3057638995109025 * q26;
-    let t51 = -1.976488916679243 * q25;
-    let t52 = -1.976488916679243 * q27;
-    let t53 = -0.3057638995109025 * q27;
-    let t54 = -1.976488916679243 * q24;
-    let t55 = -1.976488916679243 * q26;
-    let t56 = -0.3057638995109025 * q24;
-    let t57 = -0.3057638995109025 * q25;
-    // joint U2 row 4: a_i · a_j = 0
-    phi[15] = -0.15288194975545125 * t17 + -0.9882444583396215 * t18;
-    // joint P2 row 3: b_i · (P_j − P_i) = 0
-    phi[18] = t22 * t25 + (t20 * t23 + t21 * t24);
-    // joint P2 row 4: c_i · (P_j − P_i) = 0
-    phi[19] = t19 * t22 + (t17 * t20 + t18 * t21);
-    // body cylinder2 normalisation: e0² + e1² + e2² + e3² − 1 = 0
-    phi[81] = t3 + (t2 + t4) - 1.0;
-    // joint U2 row 4: a_i · a_j = 0
-    jac[1][56] = -0.15288194975545125 * t29 + -0.9882444583396215 * t32;
-    jac[1][57] = -0.15288194975545125 * t36 + -0.9882444583396215 * t39;
-    jac[1][58] = -0.15288194975545125 * t42 + -0.9882444583396215 * t44;
-    jac[1][59] = -0.15288194975545125 * t47 + -0.9882444583396215 * t49;
-    // joint P2 row 3: b_i · (P_j − P_i) = 0
-    jac[1][64] = -t23;
-    jac[1][65] = -t24;
-    jac[1][66] = -t25;
-    jac[1][60] = t22 * (t51 - t50)
-        + (t20 * (-0.15288194975545125 * t27 - t52)
-            + t21 * (t53 + -0.9882444583396215 * t27));
-    jac[1][61] = t22 * (t53 + t54)
-        + (t20 * (-0.15288194975545125 * t34 + t55)
-            + t21 * (t50 - -0.9882444583396215 * t34));
-    jac[1][62] = t22 * (t52 - t56)
-        + (t20 * (t51 - -0.15288194975545125 * t40)
-            + t21 * (t57 + -0.9882444583396215 * t40));
-    jac[1][63] = t22 * (t55 + t57)
-        + (t20 * (-(-0.15288194975545125 * t45) - t54)
-            + t21 * (t56 - -0.9882444583396215 * t45));
-    jac[1][67] = t23;
-    jac[1][68] = t24;
-    jac[1][69] = t25;
-    // joint P2 row 4: c_i · (P_j − P_i) = 0
-    jac[1][74] = -t17;
-    jac[1][75] = -t18;
-    jac[1][76] = -t19;
-    jac[1][70] = t22 * (0.5267289479701066 * t27 + (t41 - t38))
-        + (t20 * t29 + t21 * t32);
-    jac[1][71] = t22 * (t31 + t46 - 0.5267289479701066 * t34) + (t20 * t36 + t21 * t39);
-    jac[1][72] = t22 * (t28 - t48 - 0.5267289479701066 * t40) + (t20 * t42 + t21 * t44);
-    jac[1][73] = t22 * (0.5267289479701066 * t45 + (t35 + t43))
-        + (t20 * t47 + t21 * t49);
-    jac[1][77] = t17;
-    jac[1][78] = t18;
-    jac[1][79] = t19;
-    // body cylinder2 normalisation: e0² + e1² + e2² + e3² − 1 = 0
-    jac[1][80] = t27;
-    jac[1][81] = t34;
-    jac[1][82] = t40;
-    jac[1][83] = t45;
-}
-
-/// block_residual_15: 77 operations.
-#[inline(never)]
-fn block_residual_15(
-    q: &[f64; N],
-    _t: f64,
-    _u: &[[f64; 3]; INPUTS],
-    phi: &mut [f64; N],
-) {
-    let q21 = q[21];
-    let q22 = q[22];
-    let q23 = q[23];
-    let q24 = q[24];
-    let q25 = q[25];
-    let q26 = q[26];
-    let q27 = q[27];
-    let q28 = q[28];
-    let q29 = q[29];
-    let q30 = q[30];
-    let t0 = q24 * q24;
-    let t1 = q25 * q25;
-    let t2 = q26 * q26;
-    let t3 = q27 * q27;
-    let t4 = t0 + t1;
-    let t5 = t4 - (t2 + t3);
-    let t6 = t0 + t2 - (t1 + t3);
-    let t7 = q25 * q26;
-    let t8 = q24 * q27;
-    let t9 = t7 - t8;
-    let t10 = q25 * q27;
-    let t11 = q24 * q26;
-    let t12 = t7 + t8;
-    let t13 = q26 * q27;
-    let t14 = q24 * q25;
-    let t15 = t10 - t11;
-    let t16 = t13 + t14;
-    let t17 = 1.0534578959402132 * (t10 + t11)
-        + (0.8400407006062905 * t5 + -0.2599094972885536 * t9);
-    let t18 = 1.0534578959402132 * (t13 - t14)
-        + (1.680081401212581 * t12 + -0.1299547486442768 * t6);
-    let t19 = q28 - q21;
-    let t20 = q29 - q22;
-    let t21 = q30 - q23;
-    // joint U2 row 4: a_i · a_j = 0
-    phi[15] = -0.15288194975545125 * t17 + -0.9882444583396215 * t18;
-    // joint P2 row 3: b_i · (P_j − P_i) = 0
-    phi[18] = t21 * (-0.3057638995109025 * t15 + -1.976488916679243 * t16)
-        + (t19 * (-0.15288194975545125 * t5 + -1.976488916679243 * t9)
-            + t20 * (-0.3057638995109025 * t12 + -0.9882444583396215 * t6));
-    // joint P2 row 4: c_i · (P_j − P_i) = 0
-    phi[19] = (0.5267289479701066 * (t0 + t3 - (t1 + t2))
-        + (1.680081401212581 * t15 + -0.2599094972885536 * t16)) * t21
-        + (t17 * t19 + t18 * t20);
-    // body cylinder2 normalisation: e0² + e1² + e2² + e3² − 1 = 0
-    phi[81] = t3 + (t2 + t4) - 1.0;
-}
-
-/// block_16: 478 operations.
-#[inline(never)]
-fn block_16(
-    q: &[f64; N],
-    _t: f64,
-    _u: &[[f64; 3]; INPUTS],
-    phi: &mut [f64; N],
-    jac: &mut [[f64; N]; N],
-) {
-    let q24 = q[24];
-    let q25 = q[25];
-    let q26 = q[26];
-    let q27 = q[27];
-    let q31 = q[31];
-    let q32 = q[32];
-    let q33 = q[33];
-    let q34 = q[34];
-    let t0 = q24 * q24;
-    let t1 = q25 * q25;
-    let t2 = q26 * q26;
-    let t3 = q27 * q27;
-    let t4 = t0 + t1 - (t2 + t3);
-    let t5 = t0 + t2 - (t1 + t3);
-    let t6 = q25 * q26;
-    let t7 = q24 * q27;
-    let t8 = t6 - t7;
-    let t9 = q25 * q27;
-    let t10 = q24 * q26;
-    let t11 = t6 + t7;
-    let t12 = q26 * q27;
-    let t13 = q24 * q25;
-    let t14 = t9 - t10;
-    let t15 = t12 + t13;
-    let t16 = 1.0534578959402132 * (t9 + t10)
-        + (0.8400407006062905 * t4 + -0.2599094972885536 * t8);
-    let t17 = 1.0534578959402132 * (t12 - t13)
-        + (1.680081401212581 * t11 + -0.1299547486442768 * t5);
-    let t18 = 0.5267289479701066 * (t0 + t3 - (t1 + t2))
-        + (1.680081401212581 * t14 + -0.2599094972885536 * t15);
-    let t19 = q31 * q31;
-    let t20 = q32 * q32;
-    let t21 = q33 * q33;
-    let t22 = q34 * q34;
-    let t23 = t19 + t20;
-    let t24 = t23 - (t21 + t22);
-    let t25 = t19 + t21 - (t20 + t22);
-    let t26 = t19 + t22 - (t20 + t21);
-    let t27 = q32 * q33;
-    let t28 = q31 * q34;
-    let t29 = t27 - t28;
-    let t30 = q32 * q34;
-    let t31 = q31 * q33;
-    let t32 = t30 + t31;
-    let t33 = t27 + t28;
-    let t34 = q33 * q34;
-    let t35 = q31 * q32;
-    let t36 = t34 - t35;
-    let t37 = t30 - t31;
-    let t38 = t34 + t35;
-    let t39 = 1.7000666050132325 * t32
-        + (-0.5205369638785167 * t24 + 0.16105469711661508 * t29);
-    let t40 = 1.7000666050132325 * t36
-        + (-1.0410739277570333 * t33 + 0.08052734855830754 * t25);
-    let t41 = 0.8500333025066162 * t26
-        + (-1.0410739277570333 * t37 + 0.16105469711661508 * t38);
-    let t42 = -0.15288194975545125 * t4 + -1.976488916679243 * t8;
-    let t43 = -0.3057638995109025 * t11 + -0.9882444583396215 * t5;
-    let t44 = -0.3057638995109025 * t14 + -1.976488916679243 * t15;
-    let t45 = 1.0534578959402132 * t32
-        + (0.8400407006062905 * t24 + -0.2599094972885536 * t29);
-    let t46 = 1.0534578959402132 * t36
-        + (1.680081401212581 * t33 + -0.1299547486442768 * t25);
-    let t47 = 0.5267289479701066 * t26
-        + (1.680081401212581 * t37 + -0.2599094972885536 * t38);
-    let t48 = 1.0534578959402132 * q26;
-    let t49 = q24 + q24;
-    let t50 = -0.2599094972885536 * q27;
-    let t51 = 1.0534578959402132 * q25;
-    let t52 = 1.680081401212581 * q27;
-    let t53 = 1.0534578959402132 * q27;
-    let t54 = q25 + q25;
-    let t55 = -0.2599094972885536 * q26;
-    let t56 = 1.0534578959402132 * q24;
-    let t57 = 1.680081401212581 * q26;
-    let t58 = q26 + q26;
-    let t59 = -0.2599094972885536 * q25;
-    let t60 = 1.680081401212581 * q25;
-    let t61 = q27 + q27;
-    let t62 = -0.2599094972885536 * q24;
-    let t63 = 1.680081401212581 * q24;
-    let t64 = -0.3057638995109025 * q26;
-    let t65 = -1.976488916679243 * q25;
-    let t66 = t65 - t64;
-    let t67 = -1.976488916679243 * q27;
-    let t68 = -0.15288194975545125 * t49 - t67;
-    let t69 = -0.3057638995109025 * q27;
-    let t70 = t69 + -0.9882444583396215 * t49;
-    let t71 = -1.976488916679243 * q24;
-    let t72 = t69 + t71;
-    let t73 = -1.976488916679243 * q26;
-    let t74 = -0.15288194975545125 * t54 + t73;
-    let t75 = t64 - -0.9882444583396215 * t54;
-    let t76 = -0.3057638995109025 * q24;
-    let t77 = t67 - t76;
-    let t78 = t65 - -0.15288194975545125 * t58;
-    let t79 = -0.3057638995109025 * q25;
-    let t80 = t79 + -0.9882444583396215 * t58;
-    let t81 = t73 + t79;
-    let t82 = -(-0.15288194975545125 * t61) - t71;
-    let t83 = t76 - -0.9882444583396215 * t61;
-    let t84 = q31 + q31;
-    let t85 = -1.0410739277570333 * q33;
-    let t86 = 0.16105469711661508 * q32;
-    let t87 = 0.8500333025066162 * t84 + (t86 - t85);
-    let t88 = 1.7000666050132325 * q33;
-    let t89 = 0.16105469711661508 * q34;
-    let t90 = t88 + (-0.5205369638785167 * t84 - t89);
-    let t91 = 1.7000666050132325 * q32;
-    let t92 = -1.0410739277570333 * q34;
-    let t93 = t92 + 0.08052734855830754 * t84 - t91;
-    let t94 = q32 + q32;
-    let t95 = 0.16105469711661508 * q31;
-    let t96 = t92 + t95 - 0.8500333025066162 * t94;
-    let t97 = 1.7000666050132325 * q34;
-    let t98 = 0.16105469711661508 * q33;
-    let t99 = t97 + (-0.5205369638785167 * t94 + t98);
-    let t100 = 1.7000666050132325 * q31;
-    let t101 = t85 - 0.08052734855830754 * t94 - t100;
-    let t102 = q33 + q33;
-    let t103 = -1.0410739277570333 * q31;
-    let t104 = t89 - t103 - 0.8500333025066162 * t102;
-    let t105 = t100 + (t86 - -0.5205369638785167 * t102);
-    let t106 = -1.0410739277570333 * q32;
-    let t107 = t97 + (t106 + 0.08052734855830754 * t102);
-    let t108 = q34 + q34;
-    let t109 = 0.8500333025066162 * t108 + (t98 + t106);
-    let t110 = t91 + (-(-0.5205369638785167 * t108) - t95);
-    let t111 = t88 + (t103 - 0.08052734855830754 * t108);
-    let t112 = 1.680081401212581 * q33;
-    let t113 = -0.2599094972885536 * q32;
-    let t114 = 1.0534578959402132 * q33;
-    let t115 = -0.2599094972885536 * q34;
-    let t116 = 1.0534578959402132 * q32;
-    let t117 = 1.680081401212581 * q34;
-    let t118 = -0.2599094972885536 * q31;
-    let t119 = 1.0534578959402132 * q34;
-    let t120 = -0.2599094972885536 * q33;
-    let t121 = 1.0534578959402132 * q31;
-    let t122 = 1.680081401212581 * q31;
-    let t123 = 1.680081401212581 * q32;
-    // joint P2 row 1: b_i · a_j = 0
-    phi[16] = t41 * t44 + (t39 * t42 + t40 * t43);
-    // joint P2 row 2: c_i · a_j = 0
-    phi[17] = t18 * t41 + (t16 * t39 + t17 * t40);
-    // joint P2 row 5: r_i · r_j = 0
-    phi[20] = t44 * t47 + (t42 * t45 + t43 * t46);
-    // body rod2 normalisation: e0² + e1² + e2² + e3² − 1 = 0
-    phi[82] = t22 + (t21 + t23) - 1.0;
-    // joint P2 row 1: b_i · a_j = 0
-    jac[1][88] = t41 * t66 + (t39 * t68 + t40 * t70);
-    jac[1][89] = t41 * t72 + (t39 * t74 + t40 * t75);
-    jac[1][90] = t41 * t77 + (t39 * t78 + t40 * t80);
-    jac[2][0] = t41 * t81 + (t39 * t82 + t40 * t83);
-    jac[1][84] = t44 * t87 + (t42 * t90 + t43 * t93);
-    jac[1][85] = t44 * t96 + (t42 * t99 + t43 * t101);
-    jac[1][86] = t44 * t104 + (t42 * t105 + t43 * t107);
-    jac[1][87] = t44 * t109 + (t42 * t110 + t43 * t111);
-    // joint P2 row 2: c_i · a_j = 0
-    jac[2][5] = t41 * (0.5267289479701066 * t49 + (t59 - t57))
-        + (t39 * (t48 + (0.8400407006062905 * t49 - t50))
-            + t40 * (t52 + -0.1299547486442768 * t49 - t51));
-    jac[2][6] = t41 * (t52 + t62 - 0.5267289479701066 * t54)
-        + (t39 * (t53 + (0.8400407006062905 * t54 + t55))
-            + t40 * (t57 - -0.1299547486442768 * t54 - t56));
-    jac[2][7] = t41 * (t50 - t63 - 0.5267289479701066 * t58)
-        + (t39 * (t56 + (t59 - 0.8400407006062905 * t58))
-            + t40 * (t53 + (t60 + -0.1299547486442768 * t58)));
-    jac[2][8] = t41 * (0.5267289479701066 * t61 + (t55 + t60))
-        + (t39 * (t51 + (-(0.8400407006062905 * t61) - t62))
-            + t40 * (t48 + (t63 - -0.1299547486442768 * t61)));
-    jac[2][1] = t18 * t87 + (t16 * t90 + t17 * t93);
-    jac[2][2] = t18 * t96 + (t16 * t99 + t17 * t101);
-    jac[2][3] = t18 * t104 + (t16 * t105 + t17 * t107);
-    jac[2][4] = t18 * t109 + (t16 * t110 + t17 * t111);
-    // joint P2 row 5: r_i · r_j = 0
-    jac[2][13] = t47 * t66 + (t45 * t68 + t46 * t70);
-    jac[2][14] = t47 * t72 + (t45 * t74 + t46 * t75);
-    jac[2][15] = t47 * t77 + (t45 * t78 + t46 * t80);
-    jac[2][16] = t47 * t81 + (t45 * t82 + t46 * t83);
-    jac[2][9] = t44 * (0.5267289479701066 * t84 + (t113 - t112))
-        + (t42 * (t114 + (0.8400407006062905 * t84 - t115))
-            + t43 * (t117 + -0.1299547486442768 * t84 - t116));
-    jac[2][10] = t44 * (t117 + t118 - 0.5267289479701066 * t94)
-        + (t42 * (t119 + (0.8400407006062905 * t94 + t120))
-            + t43 * (t112 - -0.1299547486442768 * t94 - t121));
-    jac[2][11] = t44 * (t115 - t122 - 0.5267289479701066 * t102)
-        + (t42 * (t121 + (t113 - 0.8400407006062905 * t102))
-            + t43 * (t119 + (t123 + -0.1299547486442768 * t102)));
-    jac[2][12] = t44 * (0.5267289479701066 * t108 + (t120 + t123))
-        + (t42 * (t116 + (-(0.8400407006062905 * t108) - t118))
-            + t43 * (t114 + (t122 - -0.1299547486442768 * t108)));
-    // body rod2 normalisation: e0² + e1² + e2² + e3² − 1 = 0
-    jac[2][17] = t84;
-    jac[2][18] = t94;
-    jac[2][19] = t102;
-    jac[2][20] = t108;
-}
-
-/// block_residual_16: 134 operations.
-#[inline(never)]
-fn block_residual_16(
-    q: &[f64; N],
-    _t: f64,
-    _u: &[[f64; 3]; INPUTS],
-    phi: &mut [f64; N],
-) {
-    let q24 = q[24];
-    let q25 = q[25];
-    let q26 = q[26];
-    let q27 = q[27];
-    let q31 = q[31];
-    let q32 = q[32];
-    let q33 = q[33];
-    let q34 = q[34];
-    let t0 = q24 * q24;
-    let t1 = q25 * q25;
-    let t2 = q26 * q26;
-    let t3 = q27 * q27;
-    let t4 = t0 + t1 - (t2 + t3);
-    let t5 = t0 + t2 - (t1 + t3);
-    let t6 = q25 * q26;
-    let t7 = q24 * q27;
-    let t8 = t6 - t7;
-    let t9 = q25 * q27;
-    let t10 = q24 * q26;
-    let t11 = t6 + t7;
-    let t12 = q26 * q27;
-    let t13 = q24 * q25;
-    let t14 = t9 - t10;
-    let t15 = t12 + t13;
-    let t16 = q31 * q31;
-    let t17 = q32 * q32;
-    let t18 = q33 * q33;
-    let t19 = q34 * q34;
-    let t20 = t16 + t17;
-    let t21 = t20 - (t18 + t19);
-    let t22 = t16 + t18 - (t17 + t19);
-    let t23 = t16 + t19 - (t17 + t18);
-    let t24 = q32 * q33;
-    let t25 = q31 * q34;
-    let t26 = t24 - t25;
-    let t27 = q32 * q34;
-    let t28 = q31 * q33;
-    let t29 = t27 + t28;
-    let t30 = t24 + t25;
-    let t31 = q33 * q34;
-    let t32 = q31 * q32;
-    let t33 = t31 - t32;
-    let t34 = t27 - t28;
-    let t35 = t31 + t32;
-    let t36 = 1.7000666050132325 * t29
-        + (-0.5205369638785167 * t21 + 0.16105469711661508 * t26);
-    let t37 = 1.7000666050132325 * t33
-        + (-1.0410739277570333 * t30 + 0.08052734855830754 * t22);
-    let t38 = 0.8500333025066162 * t23
-        + (-1.0410739277570333 * t34 + 0.16105469711661508 * t35);
-    let t39 = -0.15288194975545125 * t4 + -1.976488916679243 * t8;
-    let t40 = -0.3057638995109025 * t11 + -0.9882444583396215 * t5;
-    let t41 = -0.3057638995109025 * t14 + -1.976488916679243 * t15;
-    // joint P2 row 1: b_i · a_j = 0
-    phi[16] = t38 * t41 + (t36 * t39 + t37 * t40);
-    // joint P2 row 2: c_i · a_j = 0
-    phi[17] = (0.5267289479701066 * (t0 + t3 - (t1 + t2))
-        + (1.680081401212581 * t14 + -0.2599094972885536 * t15)) * t38
-        + ((1.0534578959402132 * (t9 + t10)
-            + (0.8400407006062905 * t4 + -0.2599094972885536 * t8)) * t36
-            + (1.0534578959402132 * (t12 - t13)
-                + (1.680081401212581 * t11 + -0.1299547486442768 * t5)) * t37);
-    // joint P2 row 5: r_i · r_j = 0
-    phi[20] = t41
-        * (0.5267289479701066 * t23
-            + (1.680081401212581 * t34 + -0.2599094972885536 * t35))
-        + (t39
-            * (1.0534578959402132 * t29
-                + (0.8400407006062905 * t21 + -0.2599094972885536 * t26))
-            + t40
-                * (1.0534578959402132 * t33
-                    + (1.680081401212581 * t30 + -0.1299547486442768 * t22)));
-    // body rod2 normalisation: e0² + e1² + e2² + e3² − 1 = 0
-    phi[82] = t19 + (t18 + t20) - 1.0;
-}
-
-/// block_17: 1 operations.
-#[inline(never)]
-fn block_17(
-    q: &[f64; N],
-    _t: f64,
-    _u: &[[f64; 3]; INPUTS],
-    phi: &mut [f64; N],
-    jac: &mut [[f64; N]; N],
-) {
-    let q35 = q[35];
-    // joint U3 row 1: (P_j − P_i)_x = 0
-    phi[24] = q35 + 0.25881904510252085;
-    jac[2][21] = 1.0;
-}
-
-/// block_18: 1 operations.
-#[inline(never)]
-fn block_18(
-    q: &[f64; N],
-    _t: f64,
-    _u: &[[f64; 3]; INPUTS],
-    phi: &mut [f64; N],
-    jac: &mut [[f64; N]; N],
-) {
-    let q36 = q[36];
-    // joint U3 row 2: (P_j − P_i)_y = 0
-    phi[25] = q36 - 0.9659258262890683;
-    jac[2][22] = 1.0;
-}
-
-/// block_19: 0 operations.
-#[inline(never)]
-fn block_19(
-    q: &[f64; N],
-    _t: f64,
-    _u: &[[f64; 3]; INPUTS],
-    phi: &mut [f64; N],
-    jac: &mut [[f64; N]; N],
-) {
-    let q37 = q[37];
-    // joint U3 row 3: (P_j − P_i)_z = 0
-    phi[26] = q37;
-    jac[2][23] = 1.0;
-}
-
-/// block_20: 38 operations.
-#[inline(never)]
-fn block_20(
-    q: &[f64; N],
-    _t: f64,
-    _u: &[[f64; 3]; INPUTS],
-    phi: &mut [f64; N],
-    jac: &mut [[f64; N]; N],
-) {
-    let q0 = q[0];
-    let q3 = q[3];
-    let q4 = q[4];
-    let q5 = q[5];
-    let q6 = q[6];
-    let q42 = q[42];
-    // joint S3 row 1: (P_j − P_i)_x = 0
-    phi[33] = q0
-        + (0.12940952255126037 * (q3 * q3 + q4 * q4 - (q5 * q5 + q6 * q6))
-            + 0.9659258262890683 * (q4 * q5 - q3 * q6)) - q42;
-    jac[2][25] = 1.0;
-    jac[2][26] = 0.12940952255126037 * (q3 + q3) - 0.9659258262890683 * q6;
-    jac[2][27] = 0.12940952255126037 * (q4 + q4) + 0.9659258262890683 * q5;
-    jac[2][28] = 0.9659258262890683 * q4 - 0.12940952255126037 * (q5 + q5);
-    jac[2][29] = -(0.12940952255126037 * (q6 + q6)) - 0.9659258262890683 * q3;
-    jac[2][24] = -1.0;
-}
-
-/// block_21: 35 operations.
-#[inline(never)]
-fn block_21(
-    q: &[f64; N],
-    _t: f64,
-    _u: &[[f64; 3]; INPUTS],
-    phi: &mut [f64; N],
-    jac: &mut [[f64; N]; N],
-) {
-    let q1 = q[1];
-    let q3 = q[3];
-    let q4 = q[4];
-    let q5 = q[5];
-    let q6 = q[6];
-    let q43 = q[43];
-    // joint S3 row 2: (P_j − P_i)_y = 0
-    phi[34] = q1
-        + (0.25881904510252074 * (q4 * q5 + q3 * q6)
-            + 0.48296291314453416 * (q3 * q3 + q5 * q5 - (q4 * q4 + q6 * q6))) - q43;
-    jac[2][31] = 1.0;
-    jac[2][32] = 0.25881904510252074 * q6 + 0.48296291314453416 * (q3 + q3);
-    jac[2][33] = 0.25881904510252074 * q5 - 0.48296291314453416 * (q4 + q4);
-    jac[2][34] = 0.25881904510252074 * q4 + 0.48296291314453416 * (q5 + q5);
-    jac[2][35] = 0.25881904510252074 * q3 - 0.48296291314453416 * (q6 + q6);
-    jac[2][30] = -1.0;
-}
-
-/// block_22: 27 operations.
-#[inline(never)]
-fn block_22(
-    q: &[f64; N],
-    _t: f64,
-    _u: &[[f64; 3]; INPUTS],
-    phi: &mut [f64; N],
-    jac: &mut [[f64; N]; N],
-) {
-    let q2 = q[2];
-    let q3 = q[3];
-    let q4 = q[4];
-    let q5 = q[5];
-    let q6 = q[6];
-    let q44 = q[44];
-    // joint S3 row 3: (P_j − P_i)_z = 0
-    phi[35] = q2
-        + (0.25881904510252074 * (q4 * q6 - q3 * q5)
-            + 0.9659258262890683 * (q5 * q6 + q3 * q4)) - q44;
-    jac[2][37] = 1.0;
-    jac[2][38] = 0.9659258262890683 * q4 - 0.25881904510252074 * q5;
-    jac[2][39] = 0.9659258262890683 * q3 + 0.25881904510252074 * q6;
-    jac[2][40] = 0.9659258262890683 * q6 - 0.25881904510252074 * q3;
-    jac[2][41] = 0.9659258262890683 * q5 + 0.25881904510252074 * q4;
-    jac[2][36] = -1.0;
-}
-
-/// block_23: 235 operations.
-#[inline(never)]
-fn block_23(
-    q: &[f64; N],
-    _t: f64,
-    _u: &[[f64; 3]; INPUTS],
-    phi: &mut [f64; N],
-    jac: &mut [[f64; N]; N],
-) {
-    let q35 = q[35];
-    let q36 = q[36];
-    let q37 = q[37];
-    let q38 = q[38];
-    let q39 = q[39];
-    let q40 = q[40];
-    let q41 = q[41];
-    let q42 = q[42];
-    let q43 = q[43];
-    let q44 = q[44];
-    let t0 = q38 * q38;
-    let t1 = q39 * q39;
-    let t2 = q40 * q40;
-    let t3 = q41 * q41;
-    let t4 = t0 + t1;
-    let t5 = t4 - (t2 + t3);
-    let t6 = t0 + t2 - (t1 + t3);
-    let t7 = q39 * q40;
-    let t8 = q38 * q41;
-    let t9 = t7 - t8;
-    let t10 = q39 * q41;
-    let t11 = q38 * q40;
-    let t12 = t7 + t8;
-    let t13 = q40 * q41;
-    let t14 = q38 * q39;
-    let t15 = t10 - t11;
-    let t16 = t13 + t14;
-    let t17 = 1.0534578959402134 * (t10 + t11)
-        + (-0.5325644639715102 * t5 + 1.3250384252315741 * t9);
-    let t18 = 1.0534578959402134 * (t13 - t14)
-        + (-1.0651289279430205 * t12 + 0.6625192126157871 * t6);
-    let t19 = 0.5267289479701067 * (t0 + t3 - (t1 + t2))
-        + (-1.0651289279430205 * t15 + 1.3250384252315741 * t16);
-    let t20 = q42 - q35;
-    let t21 = q43 - q36;
-    let t22 = q44 - q37;
-    let t23 = 0.7794038311935788 * t5 + 1.2530437628762552 * t9;
-    let t24 = 1.5588076623871576 * t12 + 0.6265218814381276 * t6;
-    let t25 = 1.5588076623871576 * t15 + 1.2530437628762552 * t16;
-    let t26 = 1.0534578959402134 * q40;
-    let t27 = q38 + q38;
-    let t28 = 1.3250384252315741 * q41;
-    let t29 = t26 + (-0.5325644639715102 * t27 - t28);
-    let t30 = 1.0534578959402134 * q39;
-    let t31 = -1.0651289279430205 * q41;
-    let t32 = t31 + 0.6625192126157871 * t27 - t30;
-    let t33 = 1.0534578959402134 * q41;
-    let t34 = q39 + q39;
-    let t35 = 1.3250384252315741 * q40;
-    let t36 = t33 + (-0.5325644639715102 * t34 + t35);
-    let t37 = 1.0534578959402134 * q38;
-    let t38 = -1.0651289279430205 * q40;
-    let t39 = t38 - 0.6625192126157871 * t34 - t37;
-    let t40 = q40 + q40;
-    let t41 = 1.3250384252315741 * q39;
-    let t42 = t37 + (t41 - -0.5325644639715102 * t40);
-    let t43 = -1.0651289279430205 * q39;
-    let t44 = t33 + (t43 + 0.6625192126157871 * t40);
-    let t45 = q41 + q41;
-    let t46 = 1.3250384252315741 * q38;
-    let t47 = t30 + (-(-0.5325644639715102 * t45) - t46);
-    let t48 = -1.0651289279430205 * q38;
-    let t49 = t26 + (t48 - 0.6625192126157871 * t45);
-    let t50 = 1.5588076623871576 * q40;
-    let t51 = 1.2530437628762552 * q39;
-    let t52 = 1.2530437628762552 * q41;
-    let t53 = 1.5588076623871576 * q41;
-    let t54 = 1.2530437628762552 * q38;
-    let t55 = 1.2530437628762552 * q40;
-    let t56 = 1.5588076623871576 * q38;
-    let t57 = 1.5588076623871576 * q39;
-    // joint U3 row 4: a_i · a_j = 0
-    phi[27] = 0.7794038311935788 * t17 + 0.6265218814381276 * t18;
-    // joint P3 row 3: b_i · (P_j − P_i) = 0
-    phi[30] = t22 * t25 + (t20 * t23 + t21 * t24);
-    // joint P3 row 4: c_i · (P_j − P_i) = 0
-    phi[31] = t19 * t22 + (t17 * t20 + t18 * t21);
-    // body cylinder3 normalisation: e0² + e1² + e2² + e3² − 1 = 0
-    phi[83] = t3 + (t2 + t4) - 1.0;
-    // joint U3 row 4: a_i · a_j = 0
-    jac[2][42] = 0.7794038311935788 * t29 + 0.6265218814381276 * t32;
-    jac[2][43] = 0.7794038311935788 * t36 + 0.6265218814381276 * t39;
-    jac[2][44] = 0.7794038311935788 * t42 + 0.6265218814381276 * t44;
-    jac[2][45] = 0.7794038311935788 * t47 + 0.6265218814381276 * t49;
-    // joint P3 row 3: b_i · (P_j − P_i) = 0
-    jac[2][50] = -t23;
-    jac[2][51] = -t24;
-    jac[2][52] = -t25;
-    jac[2][46] = t22 * (t51 - t50)
-        + (t20 * (0.7794038311935788 * t27 - t52)
-            + t21 * (t53 + 0.6265218814381276 * t27));
-    jac[2][47] = t22 * (t53 + t54)
-        + (t20 * (0.7794038311935788 * t34 + t55)
-            + t21 * (t50 - 0.6265218814381276 * t34));
-    jac[2][48] = t22 * (t52 - t56)
-        + (t20 * (t51 - 0.7794038311935788 * t40)
-            + t21 * (t57 + 0.6265218814381276 * t40));
-    jac[2][49] = t22 * (t55 + t57)
-        + (t20 * (-(0.7794038311935788 * t45) - t54)
-            + t21 * (t56 - 0.6265218814381276 * t45));
-    jac[2][53] = t23;
-    jac[2][54] = t24;
-    jac[2][55] = t25;
-    // joint P3 row 4: c_i · (P_j − P_i) = 0
-    jac[2][60] = -t17;
-    jac[2][61] = -t18;
-    jac[2][62] = -t19;
-    jac[2][56] = t22 * (0.5267289479701067 * t27 + (t41 - t38))
-        + (t20 * t29 + t21 * t32);
-    jac[2][57] = t22 * (t31 + t46 - 0.5267289479701067 * t34) + (t20 * t36 + t21 * t39);
-    jac[2][58] = t22 * (t28 - t48 - 0.5267289479701067 * t40) + (t20 * t42 + t21 * t44);
-    jac[2][59] = t22 * (0.5267289479701067 * t45 + (t35 + t43))
-        + (t20 * t47 + t21 * t49);
-    jac[2][63] = t17;
-    jac[2][64] = t18;
-    jac[2][65] = t19;
-    // body cylinder3 normalisation: e0² + e1² + e2² + e3² − 1 = 0
-    jac[2][66] = t27;
-    jac[2][67] = t34;
-    jac[2][68] = t40;
-    jac[2][69] = t45;
-}
-
-/// block_residual_23: 77 operations.
-#[inline(never)]
-fn block_residual_23(
-    q: &[f64; N],
-    _t: f64,
-    _u: &[[f64; 3]; INPUTS],
-    phi: &mut [f64; N],
-) {
-    let q35 = q[35];
-    let q36 = q[36];
-    let q37 = q[37];
-    let q38 = q[38];
-    let q39 = q[39];
-    let q40 = q[40];
-    let q41 = q[41];
-    let q42 = q[42];
-    let q43 = q[43];
-    let q44 = q[44];
-    let t0 = q38 * q38;
-    let t1 = q39 * q39;
-    let t2 = q40 * q40;
-    let t3 = q41 * q41;
-    let t4 = t0 + t1;
-    let t5 = t4 - (t2 + t3);
-    let t6 = t0 + t2 - (t1 + t3);
-    let t7 = q39 * q40;
-    let t8 = q38 * q41;
-    let t9 = t7 - t8;
-    let t10 = q39 * q41;
-    let t11 = q38 * q40;
-    let t12 = t7 + t8;
-    let t13 = q40 * q41;
-    let t14 = q38 * q39;
-    let t15 = t10 - t11;
-    let t16 = t13 + t14;
-    let t17 = 1.0534578959402134 * (t10 + t11)
-        + (-0.5325644639715102 * t5 + 1.3250384252315741 * t9);
-    let t18 = 1.0534578959402134 * (t13 - t14)
-        + (-1.0651289279430205 * t12 + 0.6625192126157871 * t6);
-    let t19 = q42 - q35;
-    let t20 = q43 - q36;
-    let t21 = q44 - q37;
-    // joint U3 row 4: a_i · a_j = 0
-    phi[27] = 0.7794038311935788 * t17 + 0.6265218814381276 * t18;
-    // joint P3 row 3: b_i · (P_j − P_i) = 0
-    phi[30] = t21 * (1.5588076623871576 * t15 + 1.2530437628762552 * t16)
-        + (t19 * (0.7794038311935788 * t5 + 1.2530437628762552 * t9)
-            + t20 * (1.5588076623871576 * t12 + 0.6265218814381276 * t6));
-    // joint P3 row 4: c_i · (P_j − P_i) = 0
-    phi[31] = (0.5267289479701067 * (t0 + t3 - (t1 + t2))
-        + (-1.0651289279430205 * t15 + 1.3250384252315741 * t16)) * t21
-        + (t17 * t19 + t18 * t20);
-    // body cylinder3 normalisation: e0² + e1² + e2² + e3² − 1 = 0
-    phi[83] = t3 + (t2 + t4) - 1.0;
-}
-
-/// block_24: 478 operations.
-#[inline(never)]
-fn block_24(
-    q: &[f64; N],
-    _t: f64,
-    _u: &[[f64; 3]; INPUTS],
-    phi: &mut [f64; N],
-    jac: &mut [[f64; N]; N],
-) {
-    let q38 = q[38];
-    let q39 = q[39];
-    let q40 = q[40];
-    let q41 = q[41];
-    let q45 = q[45];
-    let q46 = q[46];
-    let q47 = q[47];
-    let q48 = q[48];
-    let t0 = q38 * q38;
-    let t1 = q39 * q39;
-    let t2 = q40 * q40;
-    let t3 = q41 * q41;
-    let t4 = t0 + t1 - (t2 + t3);
-    let t5 = t0 + t2 - (t1 + t3);
-    let t6 = q39 * q40;
-    let t7 = q38 * q41;
-    let t8 = t6 - t7;
-    let t9 = q39 * q41;
-    let t10 = q38 * q40;
-    let t11 = t6 + t7;
-    let t12 = q40 * q41;
-    let t13 = q38 * q39;
-    let t14 = t9 - t10;
-    let t15 = t12 + t13;
-    let t16 = 1.0534578959402134 * (t9 + t10)
-        + (-0.5325644639715102 * t4 + 1.3250384252315741 * t8);
-    let t17 = 1.0534578959402134 * (t12 - t13)
-        + (-1.0651289279430205 * t11 + 0.6625192126157871 * t5);
-    let t18 = 0.5267289479701067 * (t0 + t3 - (t1 + t2))
-        + (-1.0651289279430205 * t14 + 1.3250384252315741 * t15);
-    let t19 = q45 * q45;
-    let t20 = q46 * q46;
-    let t21 = q47 * q47;
-    let t22 = q48 * q48;
-    let t23 = t19 + t20;
-    let t24 = t23 - (t21 + t22);
-    let t25 = t19 + t21 - (t20 + t22);
-    let t26 = t19 + t22 - (t20 + t21);
-    let t27 = q46 * q47;
-    let t28 = q45 * q48;
-    let t29 = t27 - t28;
-    let t30 = q46 * q48;
-    let t31 = q45 * q47;
-    let t32 = t30 + t31;
-    let t33 = t27 + t28;
-    let t34 = q47 * q48;
-    let t35 = q45 * q46;
-    let t36 = t34 - t35;
-    let t37 = t30 - t31;
-    let t38 = t34 + t35;
-    let t39 = 1.7000666050132325 * t32
-        + (0.33000721149015694 * t24 + -0.8210691200969289 * t29);
-    let t40 = 1.7000666050132325 * t36
-        + (0.6600144229803139 * t33 + -0.41053456004846445 * t25);
-    let t41 = 0.8500333025066162 * t26
-        + (0.6600144229803139 * t37 + -0.8210691200969289 * t38);
-    let t42 = 0.7794038311935788 * t4 + 1.2530437628762552 * t8;
-    let t43 = 1.5588076623871576 * t11 + 0.6265218814381276 * t5;
-    let t44 = 1.5588076623871576 * t14 + 1.2530437628762552 * t15;
-    let t45 = 1.0534578959402134 * t32
-        + (-0.5325644639715102 * t24 + 1.3250384252315741 * t29);
-    let t46 = 1.0534578959402134 * t36
-        + (-1.0651289279430205 * t33 + 0.6625192126157871 * t25);
-    let t47 = 0.5267289479701067 * t26
-        + (-1.0651289279430205 * t37 + 1.3250384252315741 * t38);
-    let t48 = 1.0534578959402134 * q40;
-    let t49 = q38 + q38;
-    let t50 = 1.3250384252315741 * q41;
-    let t51 = 1.0534578959402134 * q39;
-    let t52 = -1.0651289279430205 * q41;
-    let t53 = 1.0534578959402134 * q41;
-    let t54 = q39 + q39;
-    let t55 = 1.3250384252315741 * q40;
-    let t56 = 1.0534578959402134 * q38;
-    let t57 = -1.0651289279430205 * q40;
-    let t58 = q40 + q40;
-    let t59 = 1.3250384252315741 * q39;
-    let t60 = -1.0651289279430205 * q39;
-    let t61 = q41 + q41;
-    let t62 = 1.3250384252315741 * q38;
-    let t63 = -1.0651289279430205 * q38;
-    let t64 = 1.5588076623871576 * q40;
-    let t65 = 1.2530437628762552 * q39;
-    let t66 = t65 - t64;
-    let t67 = 1.2530437628762552 * q41;
-    let t68 = 0.7794038311935788 * t49 - t67;
-    let t69 = 1.5588076623871576 * q41;
-    let t70 = t69 + 0.6265218814381276 * t49;
-    let t71 = 1.2530437628762552 * q38;
-    let t72 = t69 + t71;
-    let t73 = 1.2530437628762552 * q40;
-    let t74 = 0.7794038311935788 * t54 + t73;
-    let t75 = t64 - 0.6265218814381276 * t54;
-    let t76 = 1.5588076623871576 * q38;
-    let t77 = t67 - t76;
-    let t78 = t65 - 0.7794038311935788 * t58;
-    let t79 = 1.5588076623871576 * q39;
-    let t80 = t79 + 0.6265218814381276 * t58;
-    let t81 = t73 + t79;
-    let t82 = -(0.7794038311935788 * t61) - t71;
-    let t83 = t76 - 0.6265218814381276 * t61;
-    let t84 = q45 + q45;
-    let t85 = 0.6600144229803139 * q47;
-    let t86 = -0.8210691200969289 * q46;
-    let t87 = 0.8500333025066162 * t84 + (t86 - t85);
-    let t88 = 1.7000666050132325 * q47;
-    let t89 = -0.8210691200969289 * q48;
-    let t90 = t88 + (0.33000721149015694 * t84 - t89);
-    let t91 = 1.7000666050132325 * q46;
-    let t92 = 0.6600144229803139 * q48;
-    let t93 = t92 + -0.41053456004846445 * t84 - t91;
-    let t94 = q46 + q46;
-    let t95 = -0.8210691200969289 * q45;
-    let t96 = t92 + t95 - 0.8500333025066162 * t94;
-    let t97 = 1.7000666050132325 * q48;
-    let t98 = -0.8210691200969289 * q47;
-    let t99 = t97 + (0.33000721149015694 * t94 + t98);
-    let t100 = 1.7000666050132325 * q45;
-    let t101 = t85 - -0.41053456004846445 * t94 - t100;
-    let t102 = q47 + q47;
-    let t103 = 0.6600144229803139 * q45;
-    let t104 = t89 - t103 - 0.8500333025066162 * t102;
-    let t105 = t100 + (t86 - 0.33000721149015694 * t102);
-    let t106 = 0.6600144229803139 * q46;
-    let t107 = t97 + (t106 + -0.41053456004846445 * t102);
-    let t108 = q48 + q48;
-    let t109 = 0.8500333025066162 * t108 + (t98 + t106);
-    let t110 = t91 + (-(0.33000721149015694 * t108) - t95);
-    let t111 = t88 + (t103 - -0.41053456004846445 * t108);
-    let t112 = -1.0651289279430205 * q47;
-    let t113 = 1.3250384252315741 * q46;
-    let t114 = 1.0534578959402134 * q47;
-    let t115 = 1.3250384252315741 * q48;
-    let t116 = 1.0534578959402134 * q46;
-    let t117 = -1.0651289279430205 * q48;
-    let t118 = 1.3250384252315741 * q45;
-    let t119 = 1.0534578959402134 * q48;
-    let t120 = 1.3250384252315741 * q47;
-    let t121 = 1.0534578959402134 * q45;
-    let t122 = -1.0651289279430205 * q45;
-    let t123 = -1.0651289279430205 * q46;
-    // joint P3 row 1: b_i · a_j = 0
-    phi[28] = t41 * t44 + (t39 * t42 + t40 * t43);
-    // joint P3 row 2: c_i · a_j = 0
-    phi[29] = t18 * t41 + (t16 * t39 + t17 * t40);
-    // joint P3 row 5: r_i · r_j = 0
-    phi[32] = t44 * t47 + (t42 * t45 + t43 * t46);
-    // body rod3 normalisation: e0² + e1² + e2² + e3² − 1 = 0
-    phi[84] = t22 + (t21 + t23) - 1.0;
-    // joint P3 row 1: b_i · a_j = 0
-    jac[2][74] = t41 * t66 + (t39 * t68 + t40 * t70);
-    jac[2][75] = t41 * t72 + (t39 * t74 + t40 * t75);
-    jac[2][76] = t41 * t77 + (t39 * t78 + t40 * t80);
-    jac[2][77] = t41 * t81 + (t39 * t82 + t40 * t83);
-    jac[2][70] = t44 * t87 + (t42 * t90 + t43 * t93);
-    jac[2][71] = t44 * t96 + (t42 * t99 + t43 * t101);
-    jac[2][72] = t44 * t104 + (t42 * t105 + t43 * t107);
-    jac[2][73] = t44 * t109 + (t42 * t110 + t43 * t111);
-    // joint P3 row 2: c_i · a_j = 0
-    jac[2][82] = t41 * (0.5267289479701067 * t49 + (t59 - t57))
-        + (t39 * (t48 + (-0.5325644639715102 * t49 - t50))
-            + t40 * (t52 + 0.6625192126157871 * t49 - t51));
-    jac[2][83] = t41 * (t52 + t62 - 0.5267289479701067 * t54)
-        + (t39 * (t53 + (-0.5325644639715102 * t54 + t55))
-            + t40 * (t57 - 0.6625192126157871 * t54 - t56));
-    jac[2][84] = t41 * (t50 - t63 - 0.5267289479701067 * t58)
-        + (t39 * (t56 + (t59 - -0.5325644639715102 * t58))
-            + t40 * (t53 + (t60 + 0.6625192126157871 * t58)));
-    jac[2][85] = t41 * (0.5267289479701067 * t61 + (t55 + t60))
-        + (t39 * (t51 + (-(-0.5325644639715102 * t61) - t62))
-            + t40 * (t48 + (t63 - 0.6625192126157871 * t61)));
-    jac[2][78] = t18 * t87 + (t16 * t90 + t17 * t93);
-    jac[2][79] = t18 * t96 + (t16 * t99 + t17 * t101);
-    jac[2][80] = t18 * t104 + (t16 * t105 + t17 * t107);
-    jac[2][81] = t18 * t109 + (t16 * t110 + t17 * t111);
-    // joint P3 row 5: r_i · r_j = 0
-    jac[2][90] = t47 * t66 + (t45 * t68 + t46 * t70);
-    jac[3][0] = t47 * t72 + (t45 * t74 + t46 * t75);
-    jac[3][1] = t47 * t77 + (t45 * t78 + t46 * t80);
-    jac[3][2] = t47 * t81 + (t45 * t82 + t46 * t83);
-    jac[2][86] = t44 * (0.5267289479701067 * t84 + (t113 - t112))
-        + (t42 * (t114 + (-0.5325644639715102 * t84 - t115))
-            + t43 * (t117 + 0.6625192126157871 * t84 - t116));
-    jac[2][87] = t44 * (t117 + t118 - 0.5267289479701067 * t94)
-        + (t42 * (t119 + (-0.5325644639715102 * t94 + t120))
-            + t43 * (t112 - 0.6625192126157871 * t94 - t121));
-    jac[2][88] = t44 * (t115 - t122 - 0.5267289479701067 * t102)
-        + (t42 * (t121 + (t113 - -0.5325644639715102 * t102))
-            + t43 * (t119 + (t123 + 0.6625192126157871 * t102)));
-    jac[2][89] = t44 * (0.5267289479701067 * t108 + (t120 + t123))
-        + (t42 * (t116 + (-(-0.5325644639715102 * t108) - t118))
-            + t43 * (t114 + (t122 - 0.6625192126157871 * t108)));
-    // body rod3 normalisation: e0² + e1² + e2² + e3² − 1 = 0
-    jac[3][3] = t84;
-    jac[3][4] = t94;
-    jac[3][5] = t102;
-    jac[3][6] = t108;
-}
-
-/// block_residual_24: 134 operations.
-#[inline(never)]
-fn block_residual_24(
-    q: &[f64; N],
-    _t: f64,
-    _u: &[[f64; 3]; INPUTS],
-    phi: &mut [f64; N],
-) {
-    let q38 = q[38];
-    let q39 = q[39];
-    let q40 = q[40];
-    let q41 = q[41];
-    let q45 = q[45];
-    let q46 = q[46];
-    let q47 = q[47];
-    let q48 = q[48];
-    let t0 = q38 * q38;
-    let t1 = q39 * q39;
-    let t2 = q40 * q40;
-    let t3 = q41 * q41;
-    let t4 = t0 + t1 - (t2 + t3);
-    let t5 = t0 + t2 - (t1 + t3);
-    let t6 = q39 * q40;
-    let t7 = q38 * q41;
-    let t8 = t6 - t7;
-    let t9 = q39 * q41;
-    let t10 = q38 * q40;
-    let t11 = t6 + t7;
-    let t12 = q40 * q41;
-    let t13 = q38 * q39;
-    let t14 = t9 - t10;
-    let t15 = t12 + t13;
-    let t16 = q45 * q45;
-    let t17 = q46 * q46;
-    let t18 = q47 * q47;
-    let t19 = q48 * q48;
-    let t20 = t16 + t17;
-    let t21 = t20 - (t18 + t19);
-    let t22 = t16 + t18 - (t17 + t19);
-    let t23 = t16 + t19 - (t17 + t18);
-    let t24 = q46 * q47;
-    let t25 = q45 * q48;
-    let t26 = t24 - t25;
-    let t27 = q46 * q48;
-    let t28 = q45 * q47;
-    let t29 = t27 + t28;
-    let t30 = t24 + t25;
-    let t31 = q47 * q48;
-    let t32 = q45 * q46;
-    let t33 = t31 - t32;
-    let t34 = t27 - t28;
-    let t35 = t31 + t32;
-    let t36 = 1.7000666050132325 * t29
-        + (0.33000721149015694 * t21 + -0.8210691200969289 * t26);
-    let t37 = 1.7000666050132325 * t33
-        + (0.6600144229803139 * t30 + -0.41053456004846445 * t22);
-    let t38 = 0.8500333025066162 * t23
-        + (0.6600144229803139 * t34 + -0.8210691200969289 * t35);
-    let t39 = 0.7794038311935788 * t4 + 1.2530437628762552 * t8;
-    let t40 = 1.5588076623871576 * t11 + 0.6265218814381276 * t5;
-    let t41 = 1.5588076623871576 * t14 + 1.2530437628762552 * t15;
-    // joint P3 row 1: b_i · a_j = 0
-    phi[28] = t38 * t41 + (t36 * t39 + t37 * t40);
-    // joint P3 row 2: c_i · a_j = 0
-    phi[29] = (0.5267289479701067 * (t0 + t3 - (t1 + t2))
-        + (-1.0651289279430205 * t14 + 1.3250384252315741 * t15)) * t38
-        + ((1.0534578959402134 * (t9 + t10)
-            + (-0.5325644639715102 * t4 + 1.3250384252315741 * t8)) * t36
-            + (1.0534578959402134 * (t12 - t13)
-                + (-1.0651289279430205 * t11 + 0.6625192126157871 * t5)) * t37);
-    // joint P3 row 5: r_i · r_j = 0
-    phi[32] = t41
-        * (0.5267289479701067 * t23
-            + (-1.0651289279430205 * t34 + 1.3250384252315741 * t35))
-        + (t39
-            * (1.0534578959402134 * t29
-                + (-0.5325644639715102 * t21 + 1.3250384252315741 * t26))
-            + t40
-                * (1.0534578959402134 * t33
-                    + (-1.0651289279430205 * t30 + 0.6625192126157871 * t22)));
-    // body rod3 normalisation: e0² + e1² + e2² + e3² − 1 = 0
-    phi[84] = t19 + (t18 + t20) - 1.0;
-}
-
-/// block_25: 1 operations.
-#[inline(never)]
-fn block_25(
-    q: &[f64; N],
-    _t: f64,
-    _u: &[[f64; 3]; INPUTS],
-    phi: &mut [f64; N],
-    jac: &mut [[f64; N]; N],
-) {
-    let q49 = q[49];
-    // joint U4 row 1: (P_j − P_i)_x = 0
-    phi[36] = 0.7071067811865475 + q49;
-    jac[3][7] = 1.0;
-}
-
-/// block_26: 1 operations.
-#[inline(never)]
-fn block_26(
-    q: &[f64; N],
-    _t: f64,
-    _u: &[[f64; 3]; INPUTS],
-    phi: &mut [f64; N],
-    jac: &mut [[f64; N]; N],
-) {
-    let q50 = q[50];
-    // joint U4 row 2: (P_j − P_i)_y = 0
-    phi[37] = q50 - core::f64::consts::FRAC_1_SQRT_2;
-    jac[3][8] = 1.0;
-}
-
-/// block_27: 0 operations.
-#[inline(never)]
-fn block_27(
-    q: &[f64; N],
-    _t: f64,
-    _u: &[[f64; 3]; INPUTS],
-    phi: &mut [f64; N],
-    jac: &mut [[f64; N]; N],
-) {
-    let q51 = q[51];
-    // joint U4 row 3: (P_j − P_i)_z = 0
-    phi[38] = q51;
-    jac[3][9] = 1.0;
-}
-
-/// block_28: 38 operations.
-#[inline(never)]
-fn block_28(
-    q: &[f64; N],
-    _t: f64,
-    _u: &[[f64; 3]; INPUTS],
-    phi: &mut [f64; N],
-    jac: &mut [[f64; N]; N],
-) {
-    let q0 = q[0];
-    let q3 = q[3];
-    let q4 = q[4];
-    let q5 = q[5];
-    let q6 = q[6];
-    let q56 = q[56];
-    // joint S4 row 1: (P_j − P_i)_x = 0
-    phi[45] = q0
-        + (-0.4829629131445341 * (q3 * q3 + q4 * q4 - (q5 * q5 + q6 * q6))
-            + 0.258819045102521 * (q4 * q5 - q3 * q6)) - q56;
-    jac[3][11] = 1.0;
-    jac[3][12] = -0.4829629131445341 * (q3 + q3) - 0.258819045102521 * q6;
-    jac[3][13] = -0.4829629131445341 * (q4 + q4) + 0.258819045102521 * q5;
-    jac[3][14] = 0.258819045102521 * q4 - -0.4829629131445341 * (q5 + q5);
-    jac[3][15] = -(-0.4829629131445341 * (q6 + q6)) - 0.258819045102521 * q3;
-    jac[3][10] = -1.0;
-}
-
-/// block_29: 35 operations.
-#[inline(never)]
-fn block_29(
-    q: &[f64; N],
-    _t: f64,
-    _u: &[[f64; 3]; INPUTS],
-    phi: &mut [f64; N],
-    jac: &mut [[f64; N]; N],
-) {
-    let q1 = q[1];
-    let q3 = q[3];
-    let q4 = q[4];
-    let q5 = q[5];
-    let q6 = q[6];
-    let q57 = q[57];
-    // joint S4 row 2: (P_j − P_i)_y = 0
-    phi[46] = q1
-        + (-0.9659258262890682 * (q4 * q5 + q3 * q6)
-            + 0.1294095225512605 * (q3 * q3 + q5 * q5 - (q4 * q4 + q6 * q6))) - q57;
-    jac[3][17] = 1.0;
-    jac[3][18] = -0.9659258262890682 * q6 + 0.1294095225512605 * (q3 + q3);
-    jac[3][19] = -0.9659258262890682 * q5 - 0.1294095225512605 * (q4 + q4);
-    jac[3][20] = -0.9659258262890682 * q4 + 0.1294095225512605 * (q5 + q5);
-    jac[3][21] = -0.9659258262890682 * q3 - 0.1294095225512605 * (q6 + q6);
-    jac[3][16] = -1.0;
-}
-
-/// block_30: 27 operations.
-#[inline(never)]
-fn block_30(
-    q: &[f64; N],
-    _t: f64,
-    _u: &[[f64; 3]; INPUTS],
-    phi: &mut [f64; N],
-    jac: &mut [[f64; N]; N],
-) {
-    let q2 = q[2];
-    let q3 = q[3];
-    let q4 = q[4];
-    let q5 = q[5];
-    let q6 = q[6];
-    let q58 = q[58];
-    // joint S4 row 3: (P_j − P_i)_z = 0
-    phi[47] = q2
-        + (-0.9659258262890682 * (q4 * q6 - q3 * q5)
-            + 0.258819045102521 * (q5 * q6 + q3 * q4)) - q58;
-    jac[3][23] = 1.0;
-    jac[3][24] = 0.258819045102521 * q4 - -0.9659258262890682 * q5;
-    jac[3][25] = 0.258819045102521 * q3 + -0.9659258262890682 * q6;
-    jac[3][26] = 0.258819045102521 * q6 - -0.9659258262890682 * q3;
-    jac[3][27] = 0.258819045102521 * q5 + -0.9659258262890682 * q4;
-    jac[3][22] = -1.0;
 }
 
 /// block_31: 281 operations.
@@ -4497,132 +5087,6 @@ fn block_residual_32(
     phi[86] = t19 + (t18 + t20) - 1.0;
 }
 
-/// block_33: 1 operations.
-#[inline(never)]
-fn block_33(
-    q: &[f64; N],
-    _t: f64,
-    _u: &[[f64; 3]; INPUTS],
-    phi: &mut [f64; N],
-    jac: &mut [[f64; N]; N],
-) {
-    let q63 = q[63];
-    // joint U5 row 1: (P_j − P_i)_x = 0
-    phi[48] = q63 + 0.7071067811865477;
-    jac[3][84] = 1.0;
-}
-
-/// block_34: 1 operations.
-#[inline(never)]
-fn block_34(
-    q: &[f64; N],
-    _t: f64,
-    _u: &[[f64; 3]; INPUTS],
-    phi: &mut [f64; N],
-    jac: &mut [[f64; N]; N],
-) {
-    let q64 = q[64];
-    // joint U5 row 2: (P_j − P_i)_y = 0
-    phi[49] = 0.7071067811865475 + q64;
-    jac[3][85] = 1.0;
-}
-
-/// block_35: 0 operations.
-#[inline(never)]
-fn block_35(
-    q: &[f64; N],
-    _t: f64,
-    _u: &[[f64; 3]; INPUTS],
-    phi: &mut [f64; N],
-    jac: &mut [[f64; N]; N],
-) {
-    let q65 = q[65];
-    // joint U5 row 3: (P_j − P_i)_z = 0
-    phi[50] = q65;
-    jac[3][86] = 1.0;
-}
-
-/// block_36: 38 operations.
-#[inline(never)]
-fn block_36(
-    q: &[f64; N],
-    _t: f64,
-    _u: &[[f64; 3]; INPUTS],
-    phi: &mut [f64; N],
-    jac: &mut [[f64; N]; N],
-) {
-    let q0 = q[0];
-    let q3 = q[3];
-    let q4 = q[4];
-    let q5 = q[5];
-    let q6 = q[6];
-    let q70 = q[70];
-    // joint S5 row 1: (P_j − P_i)_x = 0
-    phi[57] = q0
-        + (-0.48296291314453416 * (q3 * q3 + q4 * q4 - (q5 * q5 + q6 * q6))
-            + -0.2588190451025208 * (q4 * q5 - q3 * q6)) - q70;
-    jac[3][88] = 1.0;
-    jac[3][89] = -0.48296291314453416 * (q3 + q3) - -0.2588190451025208 * q6;
-    jac[3][90] = -0.48296291314453416 * (q4 + q4) + -0.2588190451025208 * q5;
-    jac[4][0] = -0.2588190451025208 * q4 - -0.48296291314453416 * (q5 + q5);
-    jac[4][1] = -(-0.48296291314453416 * (q6 + q6)) - -0.2588190451025208 * q3;
-    jac[3][87] = -1.0;
-}
-
-/// block_37: 35 operations.
-#[inline(never)]
-fn block_37(
-    q: &[f64; N],
-    _t: f64,
-    _u: &[[f64; 3]; INPUTS],
-    phi: &mut [f64; N],
-    jac: &mut [[f64; N]; N],
-) {
-    let q1 = q[1];
-    let q3 = q[3];
-    let q4 = q[4];
-    let q5 = q[5];
-    let q6 = q[6];
-    let q71 = q[71];
-    // joint S5 row 2: (P_j − P_i)_y = 0
-    phi[58] = q1
-        + (-0.9659258262890683 * (q4 * q5 + q3 * q6)
-            + -0.1294095225512604 * (q3 * q3 + q5 * q5 - (q4 * q4 + q6 * q6))) - q71;
-    jac[4][3] = 1.0;
-    jac[4][4] = -0.9659258262890683 * q6 + -0.1294095225512604 * (q3 + q3);
-    jac[4][5] = -0.9659258262890683 * q5 - -0.1294095225512604 * (q4 + q4);
-    jac[4][6] = -0.9659258262890683 * q4 + -0.1294095225512604 * (q5 + q5);
-    jac[4][7] = -0.9659258262890683 * q3 - -0.1294095225512604 * (q6 + q6);
-    jac[4][2] = -1.0;
-}
-
-/// block_38: 27 operations.
-#[inline(never)]
-fn block_38(
-    q: &[f64; N],
-    _t: f64,
-    _u: &[[f64; 3]; INPUTS],
-    phi: &mut [f64; N],
-    jac: &mut [[f64; N]; N],
-) {
-    let q2 = q[2];
-    let q3 = q[3];
-    let q4 = q[4];
-    let q5 = q[5];
-    let q6 = q[6];
-    let q72 = q[72];
-    // joint S5 row 3: (P_j − P_i)_z = 0
-    phi[59] = q2
-        + (-0.9659258262890683 * (q4 * q6 - q3 * q5)
-            + -0.2588190451025208 * (q5 * q6 + q3 * q4)) - q72;
-    jac[4][9] = 1.0;
-    jac[4][10] = -0.2588190451025208 * q4 - -0.9659258262890683 * q5;
-    jac[4][11] = -0.2588190451025208 * q3 + -0.9659258262890683 * q6;
-    jac[4][12] = -0.2588190451025208 * q6 - -0.9659258262890683 * q3;
-    jac[4][13] = -0.2588190451025208 * q5 + -0.9659258262890683 * q4;
-    jac[4][8] = -1.0;
-}
-
 /// block_39: 267 operations.
 #[inline(never)]
 fn block_39(
@@ -5118,610 +5582,247 @@ fn block_residual_40(
     phi[88] = t19 + (t18 + t20) - 1.0;
 }
 
-/// block_41: 1 operations.
+/// Where `factor_block_shared_0` reads and writes for each of its blocks: the starts of its windows and the indices that do not move with them, one row per block.
+static FACTOR_BLOCK_SHARED_0_AT: [[usize; 4]; 12] = [
+    [70, 74, 84, 13],
+    [98, 106, 114, 17],
+    [147, 151, 161, 27],
+    [175, 183, 191, 31],
+    [224, 228, 238, 41],
+    [252, 260, 268, 45],
+    [301, 305, 315, 55],
+    [329, 337, 345, 59],
+    [378, 382, 392, 69],
+    [406, 414, 422, 73],
+    [455, 459, 469, 83],
+    [483, 491, 499, 87],
+];
+
+/// Factors the diagonal block alone (see `factor_block_k`) for the `m`th of blocks 7, 8, 15, 16, 23, 24, 31, 32, 39, 40, 47, 48 (one structure: the same code up to the places in `FACTOR_BLOCK_SHARED_0_AT`).
 #[inline(never)]
-fn block_41(
-    q: &[f64; N],
-    _t: f64,
-    _u: &[[f64; 3]; INPUTS],
-    phi: &mut [f64; N],
+fn factor_block_shared_0(
+    m: usize,
     jac: &mut [[f64; N]; N],
-) {
-    let q77 = q[77];
-    // joint U6 row 1: (P_j − P_i)_x = 0
-    phi[60] = q77 + 0.25881904510252063;
-    jac[4][70] = 1.0;
+    perm: &mut [usize; N],
+    ratio: f64,
+) -> Result<runtime::lu::PivotInfo, runtime::lu::Singular> {
+    let at = &FACTOR_BLOCK_SHARED_0_AT[m];
+    let jac = jac.as_flattened_mut();
+    let perm = &mut perm[at[3]..at[3] + 4];
+    let mut a = [
+        [jac[at[0]], jac[at[0] + 1], jac[at[0] + 2], jac[at[0] + 3]],
+        [jac[at[1]], jac[at[1] + 1], jac[at[1] + 2], jac[at[1] + 3]],
+        [jac[at[2]], jac[at[2] + 1], jac[at[2] + 2], jac[at[2] + 3]],
+        [jac[at[0] + 24], jac[at[0] + 25], jac[at[0] + 26], jac[at[0] + 27]],
+    ];
+    let mut p = [0; 4];
+    let info = runtime::lu::factor_with_ratio(&mut a, &mut p, ratio)?;
+    jac[at[0]] = a[0][0];
+    jac[at[0] + 1] = a[0][1];
+    jac[at[0] + 2] = a[0][2];
+    jac[at[0] + 3] = a[0][3];
+    jac[at[1]] = a[1][0];
+    jac[at[1] + 1] = a[1][1];
+    jac[at[1] + 2] = a[1][2];
+    jac[at[1] + 3] = a[1][3];
+    jac[at[2]] = a[2][0];
+    jac[at[2] + 1] = a[2][1];
+    jac[at[2] + 2] = a[2][2];
+    jac[at[2] + 3] = a[2][3];
+    jac[at[0] + 24] = a[3][0];
+    jac[at[0] + 25] = a[3][1];
+    jac[at[0] + 26] = a[3][2];
+    jac[at[0] + 27] = a[3][3];
+    perm[0] = p[0];
+    perm[1] = p[1];
+    perm[2] = p[2];
+    perm[3] = p[3];
+    Ok(info)
 }
 
-/// block_42: 1 operations.
+/// Where `solve_block_shared_0` reads and writes for each of its blocks: the starts of its windows and the indices that do not move with them, one row per block.
+static SOLVE_BLOCK_SHARED_0_AT: [[usize; 7]; 12] = [
+    [70, 74, 84, 13, 3, 6, 79],
+    [98, 106, 114, 17, 4, 5, 80],
+    [147, 151, 161, 27, 15, 18, 81],
+    [175, 183, 191, 31, 16, 17, 82],
+    [224, 228, 238, 41, 27, 30, 83],
+    [252, 260, 268, 45, 28, 29, 84],
+    [301, 305, 315, 55, 39, 42, 85],
+    [329, 337, 345, 59, 40, 41, 86],
+    [378, 382, 392, 69, 51, 54, 87],
+    [406, 414, 422, 73, 52, 53, 88],
+    [455, 459, 469, 83, 63, 66, 89],
+    [483, 491, 499, 87, 64, 65, 90],
+];
+
+/// Solves the diagonal block alone (see `solve_block_k`) for the `m`th of blocks 7, 8, 15, 16, 23, 24, 31, 32, 39, 40, 47, 48 (one structure: the same code up to the places in `SOLVE_BLOCK_SHARED_0_AT`).
 #[inline(never)]
-fn block_42(
-    q: &[f64; N],
-    _t: f64,
-    _u: &[[f64; 3]; INPUTS],
-    phi: &mut [f64; N],
+fn solve_block_shared_0(
+    m: usize,
+    lu: &[[f64; N]; N],
+    perm: &[usize; N],
+    rhs: &[f64; N],
+    x: &mut [f64],
+) {
+    let at = &SOLVE_BLOCK_SHARED_0_AT[m];
+    let lu = lu.as_flattened();
+    let perm = &perm[at[3]..at[3] + 4];
+    let a = [
+        [lu[at[0]], lu[at[0] + 1], lu[at[0] + 2], lu[at[0] + 3]],
+        [lu[at[1]], lu[at[1] + 1], lu[at[1] + 2], lu[at[1] + 3]],
+        [lu[at[2]], lu[at[2] + 1], lu[at[2] + 2], lu[at[2] + 3]],
+        [lu[at[0] + 24], lu[at[0] + 25], lu[at[0] + 26], lu[at[0] + 27]],
+    ];
+    let p = [perm[0], perm[1], perm[2], perm[3]];
+    let mut z = [rhs[at[4]], rhs[at[5]], rhs[at[4] + 4], rhs[at[6]]];
+    runtime::lu::solve(&a, &p, &mut z);
+    x[..4].copy_from_slice(&z);
+}
+
+/// Where `factor_blocks_shared_0` reads and writes for each of its blocks: the starts of its windows and the indices that do not move with them, one row per block.
+static FACTOR_BLOCKS_SHARED_0_AT: [[usize; 4]; 12] = [
+    [70, 74, 84, 13],
+    [98, 106, 114, 17],
+    [147, 151, 161, 27],
+    [175, 183, 191, 31],
+    [224, 228, 238, 41],
+    [252, 260, 268, 45],
+    [301, 305, 315, 55],
+    [329, 337, 345, 59],
+    [378, 382, 392, 69],
+    [406, 414, 422, 73],
+    [455, 459, 469, 83],
+    [483, 491, 499, 87],
+];
+
+/// Factors the diagonal block in place, its pivots returned (see `factor_blocks`) for the `m`th of blocks 7, 8, 15, 16, 23, 24, 31, 32, 39, 40, 47, 48 (one structure: the same code up to the places in `FACTOR_BLOCKS_SHARED_0_AT`).
+#[inline(never)]
+fn factor_blocks_shared_0(
+    m: usize,
     jac: &mut [[f64; N]; N],
-) {
-    let q78 = q[78];
-    // joint U6 row 2: (P_j − P_i)_y = 0
-    phi[61] = 0.9659258262890683 + q78;
-    jac[4][71] = 1.0;
+    perm: &mut [usize; N],
+) -> Option<runtime::lu::PivotInfo> {
+    let at = &FACTOR_BLOCKS_SHARED_0_AT[m];
+    let jac = jac.as_flattened_mut();
+    let perm = &mut perm[at[3]..at[3] + 4];
+    let mut a = [
+        [jac[at[0]], jac[at[0] + 1], jac[at[0] + 2], jac[at[0] + 3]],
+        [jac[at[1]], jac[at[1] + 1], jac[at[1] + 2], jac[at[1] + 3]],
+        [jac[at[2]], jac[at[2] + 1], jac[at[2] + 2], jac[at[2] + 3]],
+        [jac[at[0] + 24], jac[at[0] + 25], jac[at[0] + 26], jac[at[0] + 27]],
+    ];
+    let mut p = [0; 4];
+    let info = runtime::lu::factor_with_ratio(&mut a, &mut p, 0.0).ok()?;
+    jac[at[0]] = a[0][0];
+    jac[at[0] + 1] = a[0][1];
+    jac[at[0] + 2] = a[0][2];
+    jac[at[0] + 3] = a[0][3];
+    jac[at[1]] = a[1][0];
+    jac[at[1] + 1] = a[1][1];
+    jac[at[1] + 2] = a[1][2];
+    jac[at[1] + 3] = a[1][3];
+    jac[at[2]] = a[2][0];
+    jac[at[2] + 1] = a[2][1];
+    jac[at[2] + 2] = a[2][2];
+    jac[at[2] + 3] = a[2][3];
+    jac[at[0] + 24] = a[3][0];
+    jac[at[0] + 25] = a[3][1];
+    jac[at[0] + 26] = a[3][2];
+    jac[at[0] + 27] = a[3][3];
+    perm[0] = p[0];
+    perm[1] = p[1];
+    perm[2] = p[2];
+    perm[3] = p[3];
+    Some(info)
 }
 
-/// block_43: 0 operations.
+/// Where `solve_blocks_shared_0` reads and writes for each of its blocks: the starts of its windows and the indices that do not move with them, one row per block.
+static SOLVE_BLOCKS_SHARED_0_AT: [[usize; 5]; 6] = [
+    [70, 13, 3, 79, 7],
+    [147, 27, 15, 81, 21],
+    [224, 41, 27, 83, 35],
+    [301, 55, 39, 85, 49],
+    [378, 69, 51, 87, 63],
+    [455, 83, 63, 89, 77],
+];
+
+/// Solves for the block's unknowns, those of the blocks before it known (see `solve_blocks`) for the `m`th of blocks 7, 15, 23, 31, 39, 47 (one structure: the same code up to the places in `SOLVE_BLOCKS_SHARED_0_AT`).
 #[inline(never)]
-fn block_43(
-    q: &[f64; N],
-    _t: f64,
-    _u: &[[f64; 3]; INPUTS],
-    phi: &mut [f64; N],
-    jac: &mut [[f64; N]; N],
+fn solve_blocks_shared_0(
+    m: usize,
+    lu: &[[f64; N]; N],
+    perm: &[usize; N],
+    rhs: &[f64; N],
+    x: &mut [f64; N],
 ) {
-    let q79 = q[79];
-    // joint U6 row 3: (P_j − P_i)_z = 0
-    phi[62] = q79;
-    jac[4][72] = 1.0;
+    let at = &SOLVE_BLOCKS_SHARED_0_AT[m];
+    let lu = &lu.as_flattened()[at[0]..at[0] + 28];
+    let perm = &perm[at[1]..at[1] + 4];
+    let x = &mut x[at[4]..at[4] + 10];
+    let a = [
+        [lu[0], lu[1], lu[2], lu[3]],
+        [lu[4], lu[5], lu[6], lu[7]],
+        [lu[14], lu[15], lu[16], lu[17]],
+        [lu[24], lu[25], lu[26], lu[27]],
+    ];
+    let p = [perm[0], perm[1], perm[2], perm[3]];
+    let mut z = [
+        rhs[at[2]],
+        rhs[at[2] + 3] - lu[8] * x[0] - lu[9] * x[1] - lu[10] * x[2] - lu[11] * x[7]
+            - lu[12] * x[8] - lu[13] * x[9],
+        rhs[at[2] + 4] - lu[18] * x[0] - lu[19] * x[1] - lu[20] * x[2] - lu[21] * x[7]
+            - lu[22] * x[8] - lu[23] * x[9],
+        rhs[at[3]],
+    ];
+    runtime::lu::solve(&a, &p, &mut z);
+    x[3] = z[0];
+    x[4] = z[1];
+    x[5] = z[2];
+    x[6] = z[3];
 }
 
-/// block_44: 38 operations.
-#[inline(never)]
-fn block_44(
-    q: &[f64; N],
-    _t: f64,
-    _u: &[[f64; 3]; INPUTS],
-    phi: &mut [f64; N],
-    jac: &mut [[f64; N]; N],
-) {
-    let q0 = q[0];
-    let q3 = q[3];
-    let q4 = q[4];
-    let q5 = q[5];
-    let q6 = q[6];
-    let q84 = q[84];
-    // joint S6 row 1: (P_j − P_i)_x = 0
-    phi[69] = q0
-        + (0.12940952255126015 * (q3 * q3 + q4 * q4 - (q5 * q5 + q6 * q6))
-            + -0.9659258262890684 * (q4 * q5 - q3 * q6)) - q84;
-    jac[4][74] = 1.0;
-    jac[4][75] = 0.12940952255126015 * (q3 + q3) - -0.9659258262890684 * q6;
-    jac[4][76] = 0.12940952255126015 * (q4 + q4) + -0.9659258262890684 * q5;
-    jac[4][77] = -0.9659258262890684 * q4 - 0.12940952255126015 * (q5 + q5);
-    jac[4][78] = -(0.12940952255126015 * (q6 + q6)) - -0.9659258262890684 * q3;
-    jac[4][73] = -1.0;
-}
+/// Where `solve_blocks_shared_1` reads and writes for each of its blocks: the starts of its windows and the indices that do not move with them, one row per block.
+static SOLVE_BLOCKS_SHARED_1_AT: [[usize; 5]; 6] = [
+    [98, 17, 4, 80, 10],
+    [175, 31, 16, 82, 24],
+    [252, 45, 28, 84, 38],
+    [329, 59, 40, 86, 52],
+    [406, 73, 52, 88, 66],
+    [483, 87, 64, 90, 80],
+];
 
-/// block_45: 35 operations.
+/// Solves for the block's unknowns, those of the blocks before it known (see `solve_blocks`) for the `m`th of blocks 8, 16, 24, 32, 40, 48 (one structure: the same code up to the places in `SOLVE_BLOCKS_SHARED_1_AT`).
 #[inline(never)]
-fn block_45(
-    q: &[f64; N],
-    _t: f64,
-    _u: &[[f64; 3]; INPUTS],
-    phi: &mut [f64; N],
-    jac: &mut [[f64; N]; N],
+fn solve_blocks_shared_1(
+    m: usize,
+    lu: &[[f64; N]; N],
+    perm: &[usize; N],
+    rhs: &[f64; N],
+    x: &mut [f64; N],
 ) {
-    let q1 = q[1];
-    let q3 = q[3];
-    let q4 = q[4];
-    let q5 = q[5];
-    let q6 = q[6];
-    let q85 = q[85];
-    // joint S6 row 2: (P_j − P_i)_y = 0
-    phi[70] = q1
-        + (0.2588190451025203 * (q4 * q5 + q3 * q6)
-            + -0.4829629131445342 * (q3 * q3 + q5 * q5 - (q4 * q4 + q6 * q6))) - q85;
-    jac[4][80] = 1.0;
-    jac[4][81] = 0.2588190451025203 * q6 + -0.4829629131445342 * (q3 + q3);
-    jac[4][82] = 0.2588190451025203 * q5 - -0.4829629131445342 * (q4 + q4);
-    jac[4][83] = 0.2588190451025203 * q4 + -0.4829629131445342 * (q5 + q5);
-    jac[4][84] = 0.2588190451025203 * q3 - -0.4829629131445342 * (q6 + q6);
-    jac[4][79] = -1.0;
-}
-
-/// block_46: 27 operations.
-#[inline(never)]
-fn block_46(
-    q: &[f64; N],
-    _t: f64,
-    _u: &[[f64; 3]; INPUTS],
-    phi: &mut [f64; N],
-    jac: &mut [[f64; N]; N],
-) {
-    let q2 = q[2];
-    let q3 = q[3];
-    let q4 = q[4];
-    let q5 = q[5];
-    let q6 = q[6];
-    let q86 = q[86];
-    // joint S6 row 3: (P_j − P_i)_z = 0
-    phi[71] = q2
-        + (0.2588190451025203 * (q4 * q6 - q3 * q5)
-            + -0.9659258262890684 * (q5 * q6 + q3 * q4)) - q86;
-    jac[4][86] = 1.0;
-    jac[4][87] = -0.9659258262890684 * q4 - 0.2588190451025203 * q5;
-    jac[4][88] = -0.9659258262890684 * q3 + 0.2588190451025203 * q6;
-    jac[4][89] = -0.9659258262890684 * q6 - 0.2588190451025203 * q3;
-    jac[4][90] = -0.9659258262890684 * q5 + 0.2588190451025203 * q4;
-    jac[4][85] = -1.0;
-}
-
-/// block_47: 235 operations.
-#[inline(never)]
-fn block_47(
-    q: &[f64; N],
-    _t: f64,
-    _u: &[[f64; 3]; INPUTS],
-    phi: &mut [f64; N],
-    jac: &mut [[f64; N]; N],
-) {
-    let q77 = q[77];
-    let q78 = q[78];
-    let q79 = q[79];
-    let q80 = q[80];
-    let q81 = q[81];
-    let q82 = q[82];
-    let q83 = q[83];
-    let q84 = q[84];
-    let q85 = q[85];
-    let q86 = q[86];
-    let t0 = q80 * q80;
-    let t1 = q81 * q81;
-    let t2 = q82 * q82;
-    let t3 = q83 * q83;
-    let t4 = t0 + t1;
-    let t5 = t4 - (t2 + t3);
-    let t6 = t0 + t2 - (t1 + t3);
-    let t7 = q81 * q82;
-    let t8 = q80 * q83;
-    let t9 = t7 - t8;
-    let t10 = q81 * q83;
-    let t11 = q80 * q82;
-    let t12 = t7 + t8;
-    let t13 = q82 * q83;
-    let t14 = q80 * q81;
-    let t15 = t10 - t11;
-    let t16 = t13 + t14;
-    let t17 = 1.0534578959402132 * (t10 + t11)
-        + (-0.53256446397151 * t5 + -1.3250384252315748 * t9);
-    let t18 = 1.0534578959402132 * (t13 - t14)
-        + (-1.06512892794302 * t12 + -0.6625192126157874 * t6);
-    let t19 = 0.5267289479701066 * (t0 + t3 - (t1 + t2))
-        + (-1.06512892794302 * t15 + -1.3250384252315748 * t16);
-    let t20 = q84 - q77;
-    let t21 = q85 - q78;
-    let t22 = q86 - q79;
-    let t23 = -0.7794038311935793 * t5 + 1.2530437628762547 * t9;
-    let t24 = -1.5588076623871585 * t12 + 0.6265218814381274 * t6;
-    let t25 = -1.5588076623871585 * t15 + 1.2530437628762547 * t16;
-    let t26 = 1.0534578959402132 * q82;
-    let t27 = q80 + q80;
-    let t28 = -1.3250384252315748 * q83;
-    let t29 = t26 + (-0.53256446397151 * t27 - t28);
-    let t30 = 1.0534578959402132 * q81;
-    let t31 = -1.06512892794302 * q83;
-    let t32 = t31 + -0.6625192126157874 * t27 - t30;
-    let t33 = 1.0534578959402132 * q83;
-    let t34 = q81 + q81;
-    let t35 = -1.3250384252315748 * q82;
-    let t36 = t33 + (-0.53256446397151 * t34 + t35);
-    let t37 = 1.0534578959402132 * q80;
-    let t38 = -1.06512892794302 * q82;
-    let t39 = t38 - -0.6625192126157874 * t34 - t37;
-    let t40 = q82 + q82;
-    let t41 = -1.3250384252315748 * q81;
-    let t42 = t37 + (t41 - -0.53256446397151 * t40);
-    let t43 = -1.06512892794302 * q81;
-    let t44 = t33 + (t43 + -0.6625192126157874 * t40);
-    let t45 = q83 + q83;
-    let t46 = -1.3250384252315748 * q80;
-    let t47 = t30 + (-(-0.53256446397151 * t45) - t46);
-    let t48 = -1.06512892794302 * q80;
-    let t49 = t26 + (t48 - -0.6625192126157874 * t45);
-    let t50 = -1.5588076623871585 * q82;
-    let t51 = 1.2530437628762547 * q81;
-    let t52 = 1.2530437628762547 * q83;
-    let t53 = -1.5588076623871585 * q83;
-    let t54 = 1.2530437628762547 * q80;
-    let t55 = 1.2530437628762547 * q82;
-    let t56 = -1.5588076623871585 * q80;
-    let t57 = -1.5588076623871585 * q81;
-    // joint U6 row 4: a_i · a_j = 0
-    phi[63] = -0.7794038311935793 * t17 + 0.6265218814381274 * t18;
-    // joint P6 row 3: b_i · (P_j − P_i) = 0
-    phi[66] = t22 * t25 + (t20 * t23 + t21 * t24);
-    // joint P6 row 4: c_i · (P_j − P_i) = 0
-    phi[67] = t19 * t22 + (t17 * t20 + t18 * t21);
-    // body cylinder6 normalisation: e0² + e1² + e2² + e3² − 1 = 0
-    phi[89] = t3 + (t2 + t4) - 1.0;
-    // joint U6 row 4: a_i · a_j = 0
-    jac[5][0] = -0.7794038311935793 * t29 + 0.6265218814381274 * t32;
-    jac[5][1] = -0.7794038311935793 * t36 + 0.6265218814381274 * t39;
-    jac[5][2] = -0.7794038311935793 * t42 + 0.6265218814381274 * t44;
-    jac[5][3] = -0.7794038311935793 * t47 + 0.6265218814381274 * t49;
-    // joint P6 row 3: b_i · (P_j − P_i) = 0
-    jac[5][8] = -t23;
-    jac[5][9] = -t24;
-    jac[5][10] = -t25;
-    jac[5][4] = t22 * (t51 - t50)
-        + (t20 * (-0.7794038311935793 * t27 - t52)
-            + t21 * (t53 + 0.6265218814381274 * t27));
-    jac[5][5] = t22 * (t53 + t54)
-        + (t20 * (-0.7794038311935793 * t34 + t55)
-            + t21 * (t50 - 0.6265218814381274 * t34));
-    jac[5][6] = t22 * (t52 - t56)
-        + (t20 * (t51 - -0.7794038311935793 * t40)
-            + t21 * (t57 + 0.6265218814381274 * t40));
-    jac[5][7] = t22 * (t55 + t57)
-        + (t20 * (-(-0.7794038311935793 * t45) - t54)
-            + t21 * (t56 - 0.6265218814381274 * t45));
-    jac[5][11] = t23;
-    jac[5][12] = t24;
-    jac[5][13] = t25;
-    // joint P6 row 4: c_i · (P_j − P_i) = 0
-    jac[5][18] = -t17;
-    jac[5][19] = -t18;
-    jac[5][20] = -t19;
-    jac[5][14] = t22 * (0.5267289479701066 * t27 + (t41 - t38))
-        + (t20 * t29 + t21 * t32);
-    jac[5][15] = t22 * (t31 + t46 - 0.5267289479701066 * t34) + (t20 * t36 + t21 * t39);
-    jac[5][16] = t22 * (t28 - t48 - 0.5267289479701066 * t40) + (t20 * t42 + t21 * t44);
-    jac[5][17] = t22 * (0.5267289479701066 * t45 + (t35 + t43))
-        + (t20 * t47 + t21 * t49);
-    jac[5][21] = t17;
-    jac[5][22] = t18;
-    jac[5][23] = t19;
-    // body cylinder6 normalisation: e0² + e1² + e2² + e3² − 1 = 0
-    jac[5][24] = t27;
-    jac[5][25] = t34;
-    jac[5][26] = t40;
-    jac[5][27] = t45;
-}
-
-/// block_residual_47: 77 operations.
-#[inline(never)]
-fn block_residual_47(
-    q: &[f64; N],
-    _t: f64,
-    _u: &[[f64; 3]; INPUTS],
-    phi: &mut [f64; N],
-) {
-    let q77 = q[77];
-    let q78 = q[78];
-    let q79 = q[79];
-    let q80 = q[80];
-    let q81 = q[81];
-    let q82 = q[82];
-    let q83 = q[83];
-    let q84 = q[84];
-    let q85 = q[85];
-    let q86 = q[86];
-    let t0 = q80 * q80;
-    let t1 = q81 * q81;
-    let t2 = q82 * q82;
-    let t3 = q83 * q83;
-    let t4 = t0 + t1;
-    let t5 = t4 - (t2 + t3);
-    let t6 = t0 + t2 - (t1 + t3);
-    let t7 = q81 * q82;
-    let t8 = q80 * q83;
-    let t9 = t7 - t8;
-    let t10 = q81 * q83;
-    let t11 = q80 * q82;
-    let t12 = t7 + t8;
-    let t13 = q82 * q83;
-    let t14 = q80 * q81;
-    let t15 = t10 - t11;
-    let t16 = t13 + t14;
-    let t17 = 1.0534578959402132 * (t10 + t11)
-        + (-0.53256446397151 * t5 + -1.3250384252315748 * t9);
-    let t18 = 1.0534578959402132 * (t13 - t14)
-        + (-1.06512892794302 * t12 + -0.6625192126157874 * t6);
-    let t19 = q84 - q77;
-    let t20 = q85 - q78;
-    let t21 = q86 - q79;
-    // joint U6 row 4: a_i · a_j = 0
-    phi[63] = -0.7794038311935793 * t17 + 0.6265218814381274 * t18;
-    // joint P6 row 3: b_i · (P_j − P_i) = 0
-    phi[66] = t21 * (-1.5588076623871585 * t15 + 1.2530437628762547 * t16)
-        + (t19 * (-0.7794038311935793 * t5 + 1.2530437628762547 * t9)
-            + t20 * (-1.5588076623871585 * t12 + 0.6265218814381274 * t6));
-    // joint P6 row 4: c_i · (P_j − P_i) = 0
-    phi[67] = (0.5267289479701066 * (t0 + t3 - (t1 + t2))
-        + (-1.06512892794302 * t15 + -1.3250384252315748 * t16)) * t21
-        + (t17 * t19 + t18 * t20);
-    // body cylinder6 normalisation: e0² + e1² + e2² + e3² − 1 = 0
-    phi[89] = t3 + (t2 + t4) - 1.0;
-}
-
-/// block_48: 478 operations.
-#[inline(never)]
-fn block_48(
-    q: &[f64; N],
-    _t: f64,
-    _u: &[[f64; 3]; INPUTS],
-    phi: &mut [f64; N],
-    jac: &mut [[f64; N]; N],
-) {
-    let q80 = q[80];
-    let q81 = q[81];
-    let q82 = q[82];
-    let q83 = q[83];
-    let q87 = q[87];
-    let q88 = q[88];
-    let q89 = q[89];
-    let q90 = q[90];
-    let t0 = q80 * q80;
-    let t1 = q81 * q81;
-    let t2 = q82 * q82;
-    let t3 = q83 * q83;
-    let t4 = t0 + t1 - (t2 + t3);
-    let t5 = t0 + t2 - (t1 + t3);
-    let t6 = q81 * q82;
-    let t7 = q80 * q83;
-    let t8 = t6 - t7;
-    let t9 = q81 * q83;
-    let t10 = q80 * q82;
-    let t11 = t6 + t7;
-    let t12 = q82 * q83;
-    let t13 = q80 * q81;
-    let t14 = t9 - t10;
-    let t15 = t12 + t13;
-    let t16 = 1.0534578959402132 * (t9 + t10)
-        + (-0.53256446397151 * t4 + -1.3250384252315748 * t8);
-    let t17 = 1.0534578959402132 * (t12 - t13)
-        + (-1.06512892794302 * t11 + -0.6625192126157874 * t5);
-    let t18 = 0.5267289479701066 * (t0 + t3 - (t1 + t2))
-        + (-1.06512892794302 * t14 + -1.3250384252315748 * t15);
-    let t19 = q87 * q87;
-    let t20 = q88 * q88;
-    let t21 = q89 * q89;
-    let t22 = q90 * q90;
-    let t23 = t19 + t20;
-    let t24 = t23 - (t21 + t22);
-    let t25 = t19 + t21 - (t20 + t22);
-    let t26 = t19 + t22 - (t20 + t21);
-    let t27 = q88 * q89;
-    let t28 = q87 * q90;
-    let t29 = t27 - t28;
-    let t30 = q88 * q90;
-    let t31 = q87 * q89;
-    let t32 = t30 + t31;
-    let t33 = t27 + t28;
-    let t34 = q89 * q90;
-    let t35 = q87 * q88;
-    let t36 = t34 - t35;
-    let t37 = t30 - t31;
-    let t38 = t34 + t35;
-    let t39 = 1.7000666050132325 * t32
-        + (0.33000721149015655 * t24 + 0.8210691200969288 * t29);
-    let t40 = 1.7000666050132325 * t36
-        + (0.6600144229803131 * t33 + 0.4105345600484644 * t25);
-    let t41 = 0.8500333025066162 * t26
-        + (0.6600144229803131 * t37 + 0.8210691200969288 * t38);
-    let t42 = -0.7794038311935793 * t4 + 1.2530437628762547 * t8;
-    let t43 = -1.5588076623871585 * t11 + 0.6265218814381274 * t5;
-    let t44 = -1.5588076623871585 * t14 + 1.2530437628762547 * t15;
-    let t45 = 1.0534578959402132 * t32
-        + (-0.53256446397151 * t24 + -1.3250384252315748 * t29);
-    let t46 = 1.0534578959402132 * t36
-        + (-1.06512892794302 * t33 + -0.6625192126157874 * t25);
-    let t47 = 0.5267289479701066 * t26
-        + (-1.06512892794302 * t37 + -1.3250384252315748 * t38);
-    let t48 = 1.0534578959402132 * q82;
-    let t49 = q80 + q80;
-    let t50 = -1.3250384252315748 * q83;
-    let t51 = 1.0534578959402132 * q81;
-    let t52 = -1.06512892794302 * q83;
-    let t53 = 1.0534578959402132 * q83;
-    let t54 = q81 + q81;
-    let t55 = -1.3250384252315748 * q82;
-    let t56 = 1.0534578959402132 * q80;
-    let t57 = -1.06512892794302 * q82;
-    let t58 = q82 + q82;
-    let t59 = -1.3250384252315748 * q81;
-    let t60 = -1.06512892794302 * q81;
-    let t61 = q83 + q83;
-    let t62 = -1.3250384252315748 * q80;
-    let t63 = -1.06512892794302 * q80;
-    let t64 = -1.5588076623871585 * q82;
-    let t65 = 1.2530437628762547 * q81;
-    let t66 = t65 - t64;
-    let t67 = 1.2530437628762547 * q83;
-    let t68 = -0.7794038311935793 * t49 - t67;
-    let t69 = -1.5588076623871585 * q83;
-    let t70 = t69 + 0.6265218814381274 * t49;
-    let t71 = 1.2530437628762547 * q80;
-    let t72 = t69 + t71;
-    let t73 = 1.2530437628762547 * q82;
-    let t74 = -0.7794038311935793 * t54 + t73;
-    let t75 = t64 - 0.6265218814381274 * t54;
-    let t76 = -1.5588076623871585 * q80;
-    let t77 = t67 - t76;
-    let t78 = t65 - -0.7794038311935793 * t58;
-    let t79 = -1.5588076623871585 * q81;
-    let t80 = t79 + 0.6265218814381274 * t58;
-    let t81 = t73 + t79;
-    let t82 = -(-0.7794038311935793 * t61) - t71;
-    let t83 = t76 - 0.6265218814381274 * t61;
-    let t84 = q87 + q87;
-    let t85 = 0.6600144229803131 * q89;
-    let t86 = 0.8210691200969288 * q88;
-    let t87 = 0.8500333025066162 * t84 + (t86 - t85);
-    let t88 = 1.7000666050132325 * q89;
-    let t89 = 0.8210691200969288 * q90;
-    let t90 = t88 + (0.33000721149015655 * t84 - t89);
-    let t91 = 1.7000666050132325 * q88;
-    let t92 = 0.6600144229803131 * q90;
-    let t93 = t92 + 0.4105345600484644 * t84 - t91;
-    let t94 = q88 + q88;
-    let t95 = 0.8210691200969288 * q87;
-    let t96 = t92 + t95 - 0.8500333025066162 * t94;
-    let t97 = 1.7000666050132325 * q90;
-    let t98 = 0.8210691200969288 * q89;
-    let t99 = t97 + (0.33000721149015655 * t94 + t98);
-    let t100 = 1.7000666050132325 * q87;
-    let t101 = t85 - 0.4105345600484644 * t94 - t100;
-    let t102 = q89 + q89;
-    let t103 = 0.6600144229803131 * q87;
-    let t104 = t89 - t103 - 0.8500333025066162 * t102;
-    let t105 = t100 + (t86 - 0.33000721149015655 * t102);
-    let t106 = 0.6600144229803131 * q88;
-    let t107 = t97 + (t106 + 0.4105345600484644 * t102);
-    let t108 = q90 + q90;
-    let t109 = 0.8500333025066162 * t108 + (t98 + t106);
-    let t110 = t91 + (-(0.33000721149015655 * t108) - t95);
-    let t111 = t88 + (t103 - 0.4105345600484644 * t108);
-    let t112 = -1.06512892794302 * q89;
-    let t113 = -1.3250384252315748 * q88;
-    let t114 = 1.0534578959402132 * q89;
-    let t115 = -1.3250384252315748 * q90;
-    let t116 = 1.0534578959402132 * q88;
-    let t117 = -1.06512892794302 * q90;
-    let t118 = -1.3250384252315748 * q87;
-    let t119 = 1.0534578959402132 * q90;
-    let t120 = -1.3250384252315748 * q89;
-    let t121 = 1.0534578959402132 * q87;
-    let t122 = -1.06512892794302 * q87;
-    let t123 = -1.06512892794302 * q88;
-    // joint P6 row 1: b_i · a_j = 0
-    phi[64] = t41 * t44 + (t39 * t42 + t40 * t43);
-    // joint P6 row 2: c_i · a_j = 0
-    phi[65] = t18 * t41 + (t16 * t39 + t17 * t40);
-    // joint P6 row 5: r_i · r_j = 0
-    phi[68] = t44 * t47 + (t42 * t45 + t43 * t46);
-    // body rod6 normalisation: e0² + e1² + e2² + e3² − 1 = 0
-    phi[90] = t22 + (t21 + t23) - 1.0;
-    // joint P6 row 1: b_i · a_j = 0
-    jac[5][32] = t41 * t66 + (t39 * t68 + t40 * t70);
-    jac[5][33] = t41 * t72 + (t39 * t74 + t40 * t75);
-    jac[5][34] = t41 * t77 + (t39 * t78 + t40 * t80);
-    jac[5][35] = t41 * t81 + (t39 * t82 + t40 * t83);
-    jac[5][28] = t44 * t87 + (t42 * t90 + t43 * t93);
-    jac[5][29] = t44 * t96 + (t42 * t99 + t43 * t101);
-    jac[5][30] = t44 * t104 + (t42 * t105 + t43 * t107);
-    jac[5][31] = t44 * t109 + (t42 * t110 + t43 * t111);
-    // joint P6 row 2: c_i · a_j = 0
-    jac[5][40] = t41 * (0.5267289479701066 * t49 + (t59 - t57))
-        + (t39 * (t48 + (-0.53256446397151 * t49 - t50))
-            + t40 * (t52 + -0.6625192126157874 * t49 - t51));
-    jac[5][41] = t41 * (t52 + t62 - 0.5267289479701066 * t54)
-        + (t39 * (t53 + (-0.53256446397151 * t54 + t55))
-            + t40 * (t57 - -0.6625192126157874 * t54 - t56));
-    jac[5][42] = t41 * (t50 - t63 - 0.5267289479701066 * t58)
-        + (t39 * (t56 + (t59 - -0.53256446397151 * t58))
-            + t40 * (t53 + (t60 + -0.6625192126157874 * t58)));
-    jac[5][43] = t41 * (0.5267289479701066 * t61 + (t55 + t60))
-        + (t39 * (t51 + (-(-0.53256446397151 * t61) - t62))
-            + t40 * (t48 + (t63 - -0.6625192126157874 * t61)));
-    jac[5][36] = t18 * t87 + (t16 * t90 + t17 * t93);
-    jac[5][37] = t18 * t96 + (t16 * t99 + t17 * t101);
-    jac[5][38] = t18 * t104 + (t16 * t105 + t17 * t107);
-    jac[5][39] = t18 * t109 + (t16 * t110 + t17 * t111);
-    // joint P6 row 5: r_i · r_j = 0
-    jac[5][48] = t47 * t66 + (t45 * t68 + t46 * t70);
-    jac[5][49] = t47 * t72 + (t45 * t74 + t46 * t75);
-    jac[5][50] = t47 * t77 + (t45 * t78 + t46 * t80);
-    jac[5][51] = t47 * t81 + (t45 * t82 + t46 * t83);
-    jac[5][44] = t44 * (0.5267289479701066 * t84 + (t113 - t112))
-        + (t42 * (t114 + (-0.53256446397151 * t84 - t115))
-            + t43 * (t117 + -0.6625192126157874 * t84 - t116));
-    jac[5][45] = t44 * (t117 + t118 - 0.5267289479701066 * t94)
-        + (t42 * (t119 + (-0.53256446397151 * t94 + t120))
-            + t43 * (t112 - -0.6625192126157874 * t94 - t121));
-    jac[5][46] = t44 * (t115 - t122 - 0.5267289479701066 * t102)
-        + (t42 * (t121 + (t113 - -0.53256446397151 * t102))
-            + t43 * (t119 + (t123 + -0.6625192126157874 * t102)));
-    jac[5][47] = t44 * (0.5267289479701066 * t108 + (t120 + t123))
-        + (t42 * (t116 + (-(-0.53256446397151 * t108) - t118))
-            + t43 * (t114 + (t122 - -0.6625192126157874 * t108)));
-    // body rod6 normalisation: e0² + e1² + e2² + e3² − 1 = 0
-    jac[5][52] = t84;
-    jac[5][53] = t94;
-    jac[5][54] = t102;
-    jac[5][55] = t108;
-}
-
-/// block_residual_48: 134 operations.
-#[inline(never)]
-fn block_residual_48(
-    q: &[f64; N],
-    _t: f64,
-    _u: &[[f64; 3]; INPUTS],
-    phi: &mut [f64; N],
-) {
-    let q80 = q[80];
-    let q81 = q[81];
-    let q82 = q[82];
-    let q83 = q[83];
-    let q87 = q[87];
-    let q88 = q[88];
-    let q89 = q[89];
-    let q90 = q[90];
-    let t0 = q80 * q80;
-    let t1 = q81 * q81;
-    let t2 = q82 * q82;
-    let t3 = q83 * q83;
-    let t4 = t0 + t1 - (t2 + t3);
-    let t5 = t0 + t2 - (t1 + t3);
-    let t6 = q81 * q82;
-    let t7 = q80 * q83;
-    let t8 = t6 - t7;
-    let t9 = q81 * q83;
-    let t10 = q80 * q82;
-    let t11 = t6 + t7;
-    let t12 = q82 * q83;
-    let t13 = q80 * q81;
-    let t14 = t9 - t10;
-    let t15 = t12 + t13;
-    let t16 = q87 * q87;
-    let t17 = q88 * q88;
-    let t18 = q89 * q89;
-    let t19 = q90 * q90;
-    let t20 = t16 + t17;
-    let t21 = t20 - (t18 + t19);
-    let t22 = t16 + t18 - (t17 + t19);
-    let t23 = t16 + t19 - (t17 + t18);
-    let t24 = q88 * q89;
-    let t25 = q87 * q90;
-    let t26 = t24 - t25;
-    let t27 = q88 * q90;
-    let t28 = q87 * q89;
-    let t29 = t27 + t28;
-    let t30 = t24 + t25;
-    let t31 = q89 * q90;
-    let t32 = q87 * q88;
-    let t33 = t31 - t32;
-    let t34 = t27 - t28;
-    let t35 = t31 + t32;
-    let t36 = 1.7000666050132325 * t29
-        + (0.33000721149015655 * t21 + 0.8210691200969288 * t26);
-    let t37 = 1.7000666050132325 * t33
-        + (0.6600144229803131 * t30 + 0.4105345600484644 * t22);
-    let t38 = 0.8500333025066162 * t23
-        + (0.6600144229803131 * t34 + 0.8210691200969288 * t35);
-    let t39 = -0.7794038311935793 * t4 + 1.2530437628762547 * t8;
-    let t40 = -1.5588076623871585 * t11 + 0.6265218814381274 * t5;
-    let t41 = -1.5588076623871585 * t14 + 1.2530437628762547 * t15;
-    // joint P6 row 1: b_i · a_j = 0
-    phi[64] = t38 * t41 + (t36 * t39 + t37 * t40);
-    // joint P6 row 2: c_i · a_j = 0
-    phi[65] = (0.5267289479701066 * (t0 + t3 - (t1 + t2))
-        + (-1.06512892794302 * t14 + -1.3250384252315748 * t15)) * t38
-        + ((1.0534578959402132 * (t9 + t10)
-            + (-0.53256446397151 * t4 + -1.3250384252315748 * t8)) * t36
-            + (1.0534578959402132 * (t12 - t13)
-                + (-1.06512892794302 * t11 + -0.6625192126157874 * t5)) * t37);
-    // joint P6 row 5: r_i · r_j = 0
-    phi[68] = t41
-        * (0.5267289479701066 * t23
-            + (-1.06512892794302 * t34 + -1.3250384252315748 * t35))
-        + (t39
-            * (1.0534578959402132 * t29
-                + (-0.53256446397151 * t21 + -1.3250384252315748 * t26))
-            + t40
-                * (1.0534578959402132 * t33
-                    + (-1.06512892794302 * t30 + -0.6625192126157874 * t22)));
-    // body rod6 normalisation: e0² + e1² + e2² + e3² − 1 = 0
-    phi[90] = t19 + (t18 + t20) - 1.0;
+    let at = &SOLVE_BLOCKS_SHARED_1_AT[m];
+    let lu = &lu.as_flattened()[at[0]..at[0] + 28];
+    let perm = &perm[at[1]..at[1] + 4];
+    let x = &mut x[at[4]..at[4] + 11];
+    let a = [
+        [lu[0], lu[1], lu[2], lu[3]],
+        [lu[8], lu[9], lu[10], lu[11]],
+        [lu[16], lu[17], lu[18], lu[19]],
+        [lu[24], lu[25], lu[26], lu[27]],
+    ];
+    let p = [perm[0], perm[1], perm[2], perm[3]];
+    let mut z = [
+        rhs[at[2]] - lu[4] * x[0] - lu[5] * x[1] - lu[6] * x[2] - lu[7] * x[3],
+        rhs[at[2] + 1] - lu[12] * x[0] - lu[13] * x[1] - lu[14] * x[2] - lu[15] * x[3],
+        rhs[at[2] + 4] - lu[20] * x[0] - lu[21] * x[1] - lu[22] * x[2] - lu[23] * x[3],
+        rhs[at[3]],
+    ];
+    runtime::lu::solve(&a, &p, &mut z);
+    x[7] = z[0];
+    x[8] = z[1];
+    x[9] = z[2];
+    x[10] = z[3];
 }
 
 /// Factors blocks 0 to 48 in place (see `factor_blocks`); false when a pivot is 0 or an entry not finite.
@@ -5899,72 +6000,18 @@ fn factor_blocks_0(
         pivots.largest = pivots.largest.max(v);
     }
     {
-        let mut a = [
-            [jac[0][70], jac[0][71], jac[0][72], jac[0][73]],
-            [jac[0][74], jac[0][75], jac[0][76], jac[0][77]],
-            [jac[0][84], jac[0][85], jac[0][86], jac[0][87]],
-            [jac[1][3], jac[1][4], jac[1][5], jac[1][6]],
-        ];
-        let mut p = [0; 4];
-        let Ok(info) = runtime::lu::factor_with_ratio(&mut a, &mut p, 0.0) else {
+        let Some(info) = factor_blocks_shared_0(0, jac, perm) else {
             return false;
         };
         pivots.smallest = pivots.smallest.min(info.smallest);
         pivots.largest = pivots.largest.max(info.largest);
-        jac[0][70] = a[0][0];
-        jac[0][71] = a[0][1];
-        jac[0][72] = a[0][2];
-        jac[0][73] = a[0][3];
-        jac[0][74] = a[1][0];
-        jac[0][75] = a[1][1];
-        jac[0][76] = a[1][2];
-        jac[0][77] = a[1][3];
-        jac[0][84] = a[2][0];
-        jac[0][85] = a[2][1];
-        jac[0][86] = a[2][2];
-        jac[0][87] = a[2][3];
-        jac[1][3] = a[3][0];
-        jac[1][4] = a[3][1];
-        jac[1][5] = a[3][2];
-        jac[1][6] = a[3][3];
-        perm[13] = p[0];
-        perm[14] = p[1];
-        perm[15] = p[2];
-        perm[16] = p[3];
     }
     {
-        let mut a = [
-            [jac[1][7], jac[1][8], jac[1][9], jac[1][10]],
-            [jac[1][15], jac[1][16], jac[1][17], jac[1][18]],
-            [jac[1][23], jac[1][24], jac[1][25], jac[1][26]],
-            [jac[1][31], jac[1][32], jac[1][33], jac[1][34]],
-        ];
-        let mut p = [0; 4];
-        let Ok(info) = runtime::lu::factor_with_ratio(&mut a, &mut p, 0.0) else {
+        let Some(info) = factor_blocks_shared_0(1, jac, perm) else {
             return false;
         };
         pivots.smallest = pivots.smallest.min(info.smallest);
         pivots.largest = pivots.largest.max(info.largest);
-        jac[1][7] = a[0][0];
-        jac[1][8] = a[0][1];
-        jac[1][9] = a[0][2];
-        jac[1][10] = a[0][3];
-        jac[1][15] = a[1][0];
-        jac[1][16] = a[1][1];
-        jac[1][17] = a[1][2];
-        jac[1][18] = a[1][3];
-        jac[1][23] = a[2][0];
-        jac[1][24] = a[2][1];
-        jac[1][25] = a[2][2];
-        jac[1][26] = a[2][3];
-        jac[1][31] = a[3][0];
-        jac[1][32] = a[3][1];
-        jac[1][33] = a[3][2];
-        jac[1][34] = a[3][3];
-        perm[17] = p[0];
-        perm[18] = p[1];
-        perm[19] = p[2];
-        perm[20] = p[3];
     }
     {
         let v = jac[1][35].abs();
@@ -6015,72 +6062,18 @@ fn factor_blocks_0(
         pivots.largest = pivots.largest.max(v);
     }
     {
-        let mut a = [
-            [jac[1][56], jac[1][57], jac[1][58], jac[1][59]],
-            [jac[1][60], jac[1][61], jac[1][62], jac[1][63]],
-            [jac[1][70], jac[1][71], jac[1][72], jac[1][73]],
-            [jac[1][80], jac[1][81], jac[1][82], jac[1][83]],
-        ];
-        let mut p = [0; 4];
-        let Ok(info) = runtime::lu::factor_with_ratio(&mut a, &mut p, 0.0) else {
+        let Some(info) = factor_blocks_shared_0(2, jac, perm) else {
             return false;
         };
         pivots.smallest = pivots.smallest.min(info.smallest);
         pivots.largest = pivots.largest.max(info.largest);
-        jac[1][56] = a[0][0];
-        jac[1][57] = a[0][1];
-        jac[1][58] = a[0][2];
-        jac[1][59] = a[0][3];
-        jac[1][60] = a[1][0];
-        jac[1][61] = a[1][1];
-        jac[1][62] = a[1][2];
-        jac[1][63] = a[1][3];
-        jac[1][70] = a[2][0];
-        jac[1][71] = a[2][1];
-        jac[1][72] = a[2][2];
-        jac[1][73] = a[2][3];
-        jac[1][80] = a[3][0];
-        jac[1][81] = a[3][1];
-        jac[1][82] = a[3][2];
-        jac[1][83] = a[3][3];
-        perm[27] = p[0];
-        perm[28] = p[1];
-        perm[29] = p[2];
-        perm[30] = p[3];
     }
     {
-        let mut a = [
-            [jac[1][84], jac[1][85], jac[1][86], jac[1][87]],
-            [jac[2][1], jac[2][2], jac[2][3], jac[2][4]],
-            [jac[2][9], jac[2][10], jac[2][11], jac[2][12]],
-            [jac[2][17], jac[2][18], jac[2][19], jac[2][20]],
-        ];
-        let mut p = [0; 4];
-        let Ok(info) = runtime::lu::factor_with_ratio(&mut a, &mut p, 0.0) else {
+        let Some(info) = factor_blocks_shared_0(3, jac, perm) else {
             return false;
         };
         pivots.smallest = pivots.smallest.min(info.smallest);
         pivots.largest = pivots.largest.max(info.largest);
-        jac[1][84] = a[0][0];
-        jac[1][85] = a[0][1];
-        jac[1][86] = a[0][2];
-        jac[1][87] = a[0][3];
-        jac[2][1] = a[1][0];
-        jac[2][2] = a[1][1];
-        jac[2][3] = a[1][2];
-        jac[2][4] = a[1][3];
-        jac[2][9] = a[2][0];
-        jac[2][10] = a[2][1];
-        jac[2][11] = a[2][2];
-        jac[2][12] = a[2][3];
-        jac[2][17] = a[3][0];
-        jac[2][18] = a[3][1];
-        jac[2][19] = a[3][2];
-        jac[2][20] = a[3][3];
-        perm[31] = p[0];
-        perm[32] = p[1];
-        perm[33] = p[2];
-        perm[34] = p[3];
     }
     {
         let v = jac[2][21].abs();
@@ -6131,72 +6124,18 @@ fn factor_blocks_0(
         pivots.largest = pivots.largest.max(v);
     }
     {
-        let mut a = [
-            [jac[2][42], jac[2][43], jac[2][44], jac[2][45]],
-            [jac[2][46], jac[2][47], jac[2][48], jac[2][49]],
-            [jac[2][56], jac[2][57], jac[2][58], jac[2][59]],
-            [jac[2][66], jac[2][67], jac[2][68], jac[2][69]],
-        ];
-        let mut p = [0; 4];
-        let Ok(info) = runtime::lu::factor_with_ratio(&mut a, &mut p, 0.0) else {
+        let Some(info) = factor_blocks_shared_0(4, jac, perm) else {
             return false;
         };
         pivots.smallest = pivots.smallest.min(info.smallest);
         pivots.largest = pivots.largest.max(info.largest);
-        jac[2][42] = a[0][0];
-        jac[2][43] = a[0][1];
-        jac[2][44] = a[0][2];
-        jac[2][45] = a[0][3];
-        jac[2][46] = a[1][0];
-        jac[2][47] = a[1][1];
-        jac[2][48] = a[1][2];
-        jac[2][49] = a[1][3];
-        jac[2][56] = a[2][0];
-        jac[2][57] = a[2][1];
-        jac[2][58] = a[2][2];
-        jac[2][59] = a[2][3];
-        jac[2][66] = a[3][0];
-        jac[2][67] = a[3][1];
-        jac[2][68] = a[3][2];
-        jac[2][69] = a[3][3];
-        perm[41] = p[0];
-        perm[42] = p[1];
-        perm[43] = p[2];
-        perm[44] = p[3];
     }
     {
-        let mut a = [
-            [jac[2][70], jac[2][71], jac[2][72], jac[2][73]],
-            [jac[2][78], jac[2][79], jac[2][80], jac[2][81]],
-            [jac[2][86], jac[2][87], jac[2][88], jac[2][89]],
-            [jac[3][3], jac[3][4], jac[3][5], jac[3][6]],
-        ];
-        let mut p = [0; 4];
-        let Ok(info) = runtime::lu::factor_with_ratio(&mut a, &mut p, 0.0) else {
+        let Some(info) = factor_blocks_shared_0(5, jac, perm) else {
             return false;
         };
         pivots.smallest = pivots.smallest.min(info.smallest);
         pivots.largest = pivots.largest.max(info.largest);
-        jac[2][70] = a[0][0];
-        jac[2][71] = a[0][1];
-        jac[2][72] = a[0][2];
-        jac[2][73] = a[0][3];
-        jac[2][78] = a[1][0];
-        jac[2][79] = a[1][1];
-        jac[2][80] = a[1][2];
-        jac[2][81] = a[1][3];
-        jac[2][86] = a[2][0];
-        jac[2][87] = a[2][1];
-        jac[2][88] = a[2][2];
-        jac[2][89] = a[2][3];
-        jac[3][3] = a[3][0];
-        jac[3][4] = a[3][1];
-        jac[3][5] = a[3][2];
-        jac[3][6] = a[3][3];
-        perm[45] = p[0];
-        perm[46] = p[1];
-        perm[47] = p[2];
-        perm[48] = p[3];
     }
     {
         let v = jac[3][7].abs();
@@ -6247,72 +6186,18 @@ fn factor_blocks_0(
         pivots.largest = pivots.largest.max(v);
     }
     {
-        let mut a = [
-            [jac[3][28], jac[3][29], jac[3][30], jac[3][31]],
-            [jac[3][32], jac[3][33], jac[3][34], jac[3][35]],
-            [jac[3][42], jac[3][43], jac[3][44], jac[3][45]],
-            [jac[3][52], jac[3][53], jac[3][54], jac[3][55]],
-        ];
-        let mut p = [0; 4];
-        let Ok(info) = runtime::lu::factor_with_ratio(&mut a, &mut p, 0.0) else {
+        let Some(info) = factor_blocks_shared_0(6, jac, perm) else {
             return false;
         };
         pivots.smallest = pivots.smallest.min(info.smallest);
         pivots.largest = pivots.largest.max(info.largest);
-        jac[3][28] = a[0][0];
-        jac[3][29] = a[0][1];
-        jac[3][30] = a[0][2];
-        jac[3][31] = a[0][3];
-        jac[3][32] = a[1][0];
-        jac[3][33] = a[1][1];
-        jac[3][34] = a[1][2];
-        jac[3][35] = a[1][3];
-        jac[3][42] = a[2][0];
-        jac[3][43] = a[2][1];
-        jac[3][44] = a[2][2];
-        jac[3][45] = a[2][3];
-        jac[3][52] = a[3][0];
-        jac[3][53] = a[3][1];
-        jac[3][54] = a[3][2];
-        jac[3][55] = a[3][3];
-        perm[55] = p[0];
-        perm[56] = p[1];
-        perm[57] = p[2];
-        perm[58] = p[3];
     }
     {
-        let mut a = [
-            [jac[3][56], jac[3][57], jac[3][58], jac[3][59]],
-            [jac[3][64], jac[3][65], jac[3][66], jac[3][67]],
-            [jac[3][72], jac[3][73], jac[3][74], jac[3][75]],
-            [jac[3][80], jac[3][81], jac[3][82], jac[3][83]],
-        ];
-        let mut p = [0; 4];
-        let Ok(info) = runtime::lu::factor_with_ratio(&mut a, &mut p, 0.0) else {
+        let Some(info) = factor_blocks_shared_0(7, jac, perm) else {
             return false;
         };
         pivots.smallest = pivots.smallest.min(info.smallest);
         pivots.largest = pivots.largest.max(info.largest);
-        jac[3][56] = a[0][0];
-        jac[3][57] = a[0][1];
-        jac[3][58] = a[0][2];
-        jac[3][59] = a[0][3];
-        jac[3][64] = a[1][0];
-        jac[3][65] = a[1][1];
-        jac[3][66] = a[1][2];
-        jac[3][67] = a[1][3];
-        jac[3][72] = a[2][0];
-        jac[3][73] = a[2][1];
-        jac[3][74] = a[2][2];
-        jac[3][75] = a[2][3];
-        jac[3][80] = a[3][0];
-        jac[3][81] = a[3][1];
-        jac[3][82] = a[3][2];
-        jac[3][83] = a[3][3];
-        perm[59] = p[0];
-        perm[60] = p[1];
-        perm[61] = p[2];
-        perm[62] = p[3];
     }
     {
         let v = jac[3][84].abs();
@@ -6363,72 +6248,18 @@ fn factor_blocks_0(
         pivots.largest = pivots.largest.max(v);
     }
     {
-        let mut a = [
-            [jac[4][14], jac[4][15], jac[4][16], jac[4][17]],
-            [jac[4][18], jac[4][19], jac[4][20], jac[4][21]],
-            [jac[4][28], jac[4][29], jac[4][30], jac[4][31]],
-            [jac[4][38], jac[4][39], jac[4][40], jac[4][41]],
-        ];
-        let mut p = [0; 4];
-        let Ok(info) = runtime::lu::factor_with_ratio(&mut a, &mut p, 0.0) else {
+        let Some(info) = factor_blocks_shared_0(8, jac, perm) else {
             return false;
         };
         pivots.smallest = pivots.smallest.min(info.smallest);
         pivots.largest = pivots.largest.max(info.largest);
-        jac[4][14] = a[0][0];
-        jac[4][15] = a[0][1];
-        jac[4][16] = a[0][2];
-        jac[4][17] = a[0][3];
-        jac[4][18] = a[1][0];
-        jac[4][19] = a[1][1];
-        jac[4][20] = a[1][2];
-        jac[4][21] = a[1][3];
-        jac[4][28] = a[2][0];
-        jac[4][29] = a[2][1];
-        jac[4][30] = a[2][2];
-        jac[4][31] = a[2][3];
-        jac[4][38] = a[3][0];
-        jac[4][39] = a[3][1];
-        jac[4][40] = a[3][2];
-        jac[4][41] = a[3][3];
-        perm[69] = p[0];
-        perm[70] = p[1];
-        perm[71] = p[2];
-        perm[72] = p[3];
     }
     {
-        let mut a = [
-            [jac[4][42], jac[4][43], jac[4][44], jac[4][45]],
-            [jac[4][50], jac[4][51], jac[4][52], jac[4][53]],
-            [jac[4][58], jac[4][59], jac[4][60], jac[4][61]],
-            [jac[4][66], jac[4][67], jac[4][68], jac[4][69]],
-        ];
-        let mut p = [0; 4];
-        let Ok(info) = runtime::lu::factor_with_ratio(&mut a, &mut p, 0.0) else {
+        let Some(info) = factor_blocks_shared_0(9, jac, perm) else {
             return false;
         };
         pivots.smallest = pivots.smallest.min(info.smallest);
         pivots.largest = pivots.largest.max(info.largest);
-        jac[4][42] = a[0][0];
-        jac[4][43] = a[0][1];
-        jac[4][44] = a[0][2];
-        jac[4][45] = a[0][3];
-        jac[4][50] = a[1][0];
-        jac[4][51] = a[1][1];
-        jac[4][52] = a[1][2];
-        jac[4][53] = a[1][3];
-        jac[4][58] = a[2][0];
-        jac[4][59] = a[2][1];
-        jac[4][60] = a[2][2];
-        jac[4][61] = a[2][3];
-        jac[4][66] = a[3][0];
-        jac[4][67] = a[3][1];
-        jac[4][68] = a[3][2];
-        jac[4][69] = a[3][3];
-        perm[73] = p[0];
-        perm[74] = p[1];
-        perm[75] = p[2];
-        perm[76] = p[3];
     }
     {
         let v = jac[4][70].abs();
@@ -6479,72 +6310,18 @@ fn factor_blocks_0(
         pivots.largest = pivots.largest.max(v);
     }
     {
-        let mut a = [
-            [jac[5][0], jac[5][1], jac[5][2], jac[5][3]],
-            [jac[5][4], jac[5][5], jac[5][6], jac[5][7]],
-            [jac[5][14], jac[5][15], jac[5][16], jac[5][17]],
-            [jac[5][24], jac[5][25], jac[5][26], jac[5][27]],
-        ];
-        let mut p = [0; 4];
-        let Ok(info) = runtime::lu::factor_with_ratio(&mut a, &mut p, 0.0) else {
+        let Some(info) = factor_blocks_shared_0(10, jac, perm) else {
             return false;
         };
         pivots.smallest = pivots.smallest.min(info.smallest);
         pivots.largest = pivots.largest.max(info.largest);
-        jac[5][0] = a[0][0];
-        jac[5][1] = a[0][1];
-        jac[5][2] = a[0][2];
-        jac[5][3] = a[0][3];
-        jac[5][4] = a[1][0];
-        jac[5][5] = a[1][1];
-        jac[5][6] = a[1][2];
-        jac[5][7] = a[1][3];
-        jac[5][14] = a[2][0];
-        jac[5][15] = a[2][1];
-        jac[5][16] = a[2][2];
-        jac[5][17] = a[2][3];
-        jac[5][24] = a[3][0];
-        jac[5][25] = a[3][1];
-        jac[5][26] = a[3][2];
-        jac[5][27] = a[3][3];
-        perm[83] = p[0];
-        perm[84] = p[1];
-        perm[85] = p[2];
-        perm[86] = p[3];
     }
     {
-        let mut a = [
-            [jac[5][28], jac[5][29], jac[5][30], jac[5][31]],
-            [jac[5][36], jac[5][37], jac[5][38], jac[5][39]],
-            [jac[5][44], jac[5][45], jac[5][46], jac[5][47]],
-            [jac[5][52], jac[5][53], jac[5][54], jac[5][55]],
-        ];
-        let mut p = [0; 4];
-        let Ok(info) = runtime::lu::factor_with_ratio(&mut a, &mut p, 0.0) else {
+        let Some(info) = factor_blocks_shared_0(11, jac, perm) else {
             return false;
         };
         pivots.smallest = pivots.smallest.min(info.smallest);
         pivots.largest = pivots.largest.max(info.largest);
-        jac[5][28] = a[0][0];
-        jac[5][29] = a[0][1];
-        jac[5][30] = a[0][2];
-        jac[5][31] = a[0][3];
-        jac[5][36] = a[1][0];
-        jac[5][37] = a[1][1];
-        jac[5][38] = a[1][2];
-        jac[5][39] = a[1][3];
-        jac[5][44] = a[2][0];
-        jac[5][45] = a[2][1];
-        jac[5][46] = a[2][2];
-        jac[5][47] = a[2][3];
-        jac[5][52] = a[3][0];
-        jac[5][53] = a[3][1];
-        jac[5][54] = a[3][2];
-        jac[5][55] = a[3][3];
-        perm[87] = p[0];
-        perm[88] = p[1];
-        perm[89] = p[2];
-        perm[90] = p[3];
     }
     true
 }
@@ -6618,51 +6395,8 @@ fn solve_blocks_0(
         - lu[0][62] * x[5] - lu[0][63] * x[6]) / lu[0][58];
     x[16] = (rhs[11] - lu[0][65] * x[2] - lu[0][66] * x[3] - lu[0][67] * x[4]
         - lu[0][68] * x[5] - lu[0][69] * x[6]) / lu[0][64];
-    {
-        let a = [
-            [lu[0][70], lu[0][71], lu[0][72], lu[0][73]],
-            [lu[0][74], lu[0][75], lu[0][76], lu[0][77]],
-            [lu[0][84], lu[0][85], lu[0][86], lu[0][87]],
-            [lu[1][3], lu[1][4], lu[1][5], lu[1][6]],
-        ];
-        let p = [perm[13], perm[14], perm[15], perm[16]];
-        let mut z = [
-            rhs[3],
-            rhs[6] - lu[0][78] * x[7] - lu[0][79] * x[8] - lu[0][80] * x[9]
-                - lu[0][81] * x[14] - lu[0][82] * x[15] - lu[0][83] * x[16],
-            rhs[7] - lu[0][88] * x[7] - lu[0][89] * x[8] - lu[0][90] * x[9]
-                - lu[1][0] * x[14] - lu[1][1] * x[15] - lu[1][2] * x[16],
-            rhs[79],
-        ];
-        runtime::lu::solve(&a, &p, &mut z);
-        x[10] = z[0];
-        x[11] = z[1];
-        x[12] = z[2];
-        x[13] = z[3];
-    }
-    {
-        let a = [
-            [lu[1][7], lu[1][8], lu[1][9], lu[1][10]],
-            [lu[1][15], lu[1][16], lu[1][17], lu[1][18]],
-            [lu[1][23], lu[1][24], lu[1][25], lu[1][26]],
-            [lu[1][31], lu[1][32], lu[1][33], lu[1][34]],
-        ];
-        let p = [perm[17], perm[18], perm[19], perm[20]];
-        let mut z = [
-            rhs[4] - lu[1][11] * x[10] - lu[1][12] * x[11] - lu[1][13] * x[12]
-                - lu[1][14] * x[13],
-            rhs[5] - lu[1][19] * x[10] - lu[1][20] * x[11] - lu[1][21] * x[12]
-                - lu[1][22] * x[13],
-            rhs[8] - lu[1][27] * x[10] - lu[1][28] * x[11] - lu[1][29] * x[12]
-                - lu[1][30] * x[13],
-            rhs[80],
-        ];
-        runtime::lu::solve(&a, &p, &mut z);
-        x[17] = z[0];
-        x[18] = z[1];
-        x[19] = z[2];
-        x[20] = z[3];
-    }
+    solve_blocks_shared_0(0, lu, perm, rhs, x);
+    solve_blocks_shared_1(0, lu, perm, rhs, x);
     x[21] = (rhs[12]) / lu[1][35];
     x[22] = (rhs[13]) / lu[1][36];
     x[23] = (rhs[14]) / lu[1][37];
@@ -6672,51 +6406,8 @@ fn solve_blocks_0(
         - lu[1][48] * x[5] - lu[1][49] * x[6]) / lu[1][44];
     x[30] = (rhs[23] - lu[1][51] * x[2] - lu[1][52] * x[3] - lu[1][53] * x[4]
         - lu[1][54] * x[5] - lu[1][55] * x[6]) / lu[1][50];
-    {
-        let a = [
-            [lu[1][56], lu[1][57], lu[1][58], lu[1][59]],
-            [lu[1][60], lu[1][61], lu[1][62], lu[1][63]],
-            [lu[1][70], lu[1][71], lu[1][72], lu[1][73]],
-            [lu[1][80], lu[1][81], lu[1][82], lu[1][83]],
-        ];
-        let p = [perm[27], perm[28], perm[29], perm[30]];
-        let mut z = [
-            rhs[15],
-            rhs[18] - lu[1][64] * x[21] - lu[1][65] * x[22] - lu[1][66] * x[23]
-                - lu[1][67] * x[28] - lu[1][68] * x[29] - lu[1][69] * x[30],
-            rhs[19] - lu[1][74] * x[21] - lu[1][75] * x[22] - lu[1][76] * x[23]
-                - lu[1][77] * x[28] - lu[1][78] * x[29] - lu[1][79] * x[30],
-            rhs[81],
-        ];
-        runtime::lu::solve(&a, &p, &mut z);
-        x[24] = z[0];
-        x[25] = z[1];
-        x[26] = z[2];
-        x[27] = z[3];
-    }
-    {
-        let a = [
-            [lu[1][84], lu[1][85], lu[1][86], lu[1][87]],
-            [lu[2][1], lu[2][2], lu[2][3], lu[2][4]],
-            [lu[2][9], lu[2][10], lu[2][11], lu[2][12]],
-            [lu[2][17], lu[2][18], lu[2][19], lu[2][20]],
-        ];
-        let p = [perm[31], perm[32], perm[33], perm[34]];
-        let mut z = [
-            rhs[16] - lu[1][88] * x[24] - lu[1][89] * x[25] - lu[1][90] * x[26]
-                - lu[2][0] * x[27],
-            rhs[17] - lu[2][5] * x[24] - lu[2][6] * x[25] - lu[2][7] * x[26]
-                - lu[2][8] * x[27],
-            rhs[20] - lu[2][13] * x[24] - lu[2][14] * x[25] - lu[2][15] * x[26]
-                - lu[2][16] * x[27],
-            rhs[82],
-        ];
-        runtime::lu::solve(&a, &p, &mut z);
-        x[31] = z[0];
-        x[32] = z[1];
-        x[33] = z[2];
-        x[34] = z[3];
-    }
+    solve_blocks_shared_0(1, lu, perm, rhs, x);
+    solve_blocks_shared_1(1, lu, perm, rhs, x);
     x[35] = (rhs[24]) / lu[2][21];
     x[36] = (rhs[25]) / lu[2][22];
     x[37] = (rhs[26]) / lu[2][23];
@@ -6726,51 +6417,8 @@ fn solve_blocks_0(
         - lu[2][34] * x[5] - lu[2][35] * x[6]) / lu[2][30];
     x[44] = (rhs[35] - lu[2][37] * x[2] - lu[2][38] * x[3] - lu[2][39] * x[4]
         - lu[2][40] * x[5] - lu[2][41] * x[6]) / lu[2][36];
-    {
-        let a = [
-            [lu[2][42], lu[2][43], lu[2][44], lu[2][45]],
-            [lu[2][46], lu[2][47], lu[2][48], lu[2][49]],
-            [lu[2][56], lu[2][57], lu[2][58], lu[2][59]],
-            [lu[2][66], lu[2][67], lu[2][68], lu[2][69]],
-        ];
-        let p = [perm[41], perm[42], perm[43], perm[44]];
-        let mut z = [
-            rhs[27],
-            rhs[30] - lu[2][50] * x[35] - lu[2][51] * x[36] - lu[2][52] * x[37]
-                - lu[2][53] * x[42] - lu[2][54] * x[43] - lu[2][55] * x[44],
-            rhs[31] - lu[2][60] * x[35] - lu[2][61] * x[36] - lu[2][62] * x[37]
-                - lu[2][63] * x[42] - lu[2][64] * x[43] - lu[2][65] * x[44],
-            rhs[83],
-        ];
-        runtime::lu::solve(&a, &p, &mut z);
-        x[38] = z[0];
-        x[39] = z[1];
-        x[40] = z[2];
-        x[41] = z[3];
-    }
-    {
-        let a = [
-            [lu[2][70], lu[2][71], lu[2][72], lu[2][73]],
-            [lu[2][78], lu[2][79], lu[2][80], lu[2][81]],
-            [lu[2][86], lu[2][87], lu[2][88], lu[2][89]],
-            [lu[3][3], lu[3][4], lu[3][5], lu[3][6]],
-        ];
-        let p = [perm[45], perm[46], perm[47], perm[48]];
-        let mut z = [
-            rhs[28] - lu[2][74] * x[38] - lu[2][75] * x[39] - lu[2][76] * x[40]
-                - lu[2][77] * x[41],
-            rhs[29] - lu[2][82] * x[38] - lu[2][83] * x[39] - lu[2][84] * x[40]
-                - lu[2][85] * x[41],
-            rhs[32] - lu[2][90] * x[38] - lu[3][0] * x[39] - lu[3][1] * x[40]
-                - lu[3][2] * x[41],
-            rhs[84],
-        ];
-        runtime::lu::solve(&a, &p, &mut z);
-        x[45] = z[0];
-        x[46] = z[1];
-        x[47] = z[2];
-        x[48] = z[3];
-    }
+    solve_blocks_shared_0(2, lu, perm, rhs, x);
+    solve_blocks_shared_1(2, lu, perm, rhs, x);
     x[49] = (rhs[36]) / lu[3][7];
     x[50] = (rhs[37]) / lu[3][8];
     x[51] = (rhs[38]) / lu[3][9];
@@ -6780,51 +6428,8 @@ fn solve_blocks_0(
         - lu[3][20] * x[5] - lu[3][21] * x[6]) / lu[3][16];
     x[58] = (rhs[47] - lu[3][23] * x[2] - lu[3][24] * x[3] - lu[3][25] * x[4]
         - lu[3][26] * x[5] - lu[3][27] * x[6]) / lu[3][22];
-    {
-        let a = [
-            [lu[3][28], lu[3][29], lu[3][30], lu[3][31]],
-            [lu[3][32], lu[3][33], lu[3][34], lu[3][35]],
-            [lu[3][42], lu[3][43], lu[3][44], lu[3][45]],
-            [lu[3][52], lu[3][53], lu[3][54], lu[3][55]],
-        ];
-        let p = [perm[55], perm[56], perm[57], perm[58]];
-        let mut z = [
-            rhs[39],
-            rhs[42] - lu[3][36] * x[49] - lu[3][37] * x[50] - lu[3][38] * x[51]
-                - lu[3][39] * x[56] - lu[3][40] * x[57] - lu[3][41] * x[58],
-            rhs[43] - lu[3][46] * x[49] - lu[3][47] * x[50] - lu[3][48] * x[51]
-                - lu[3][49] * x[56] - lu[3][50] * x[57] - lu[3][51] * x[58],
-            rhs[85],
-        ];
-        runtime::lu::solve(&a, &p, &mut z);
-        x[52] = z[0];
-        x[53] = z[1];
-        x[54] = z[2];
-        x[55] = z[3];
-    }
-    {
-        let a = [
-            [lu[3][56], lu[3][57], lu[3][58], lu[3][59]],
-            [lu[3][64], lu[3][65], lu[3][66], lu[3][67]],
-            [lu[3][72], lu[3][73], lu[3][74], lu[3][75]],
-            [lu[3][80], lu[3][81], lu[3][82], lu[3][83]],
-        ];
-        let p = [perm[59], perm[60], perm[61], perm[62]];
-        let mut z = [
-            rhs[40] - lu[3][60] * x[52] - lu[3][61] * x[53] - lu[3][62] * x[54]
-                - lu[3][63] * x[55],
-            rhs[41] - lu[3][68] * x[52] - lu[3][69] * x[53] - lu[3][70] * x[54]
-                - lu[3][71] * x[55],
-            rhs[44] - lu[3][76] * x[52] - lu[3][77] * x[53] - lu[3][78] * x[54]
-                - lu[3][79] * x[55],
-            rhs[86],
-        ];
-        runtime::lu::solve(&a, &p, &mut z);
-        x[59] = z[0];
-        x[60] = z[1];
-        x[61] = z[2];
-        x[62] = z[3];
-    }
+    solve_blocks_shared_0(3, lu, perm, rhs, x);
+    solve_blocks_shared_1(3, lu, perm, rhs, x);
     x[63] = (rhs[48]) / lu[3][84];
     x[64] = (rhs[49]) / lu[3][85];
     x[65] = (rhs[50]) / lu[3][86];
@@ -6834,51 +6439,8 @@ fn solve_blocks_0(
         - lu[4][6] * x[5] - lu[4][7] * x[6]) / lu[4][2];
     x[72] = (rhs[59] - lu[4][9] * x[2] - lu[4][10] * x[3] - lu[4][11] * x[4]
         - lu[4][12] * x[5] - lu[4][13] * x[6]) / lu[4][8];
-    {
-        let a = [
-            [lu[4][14], lu[4][15], lu[4][16], lu[4][17]],
-            [lu[4][18], lu[4][19], lu[4][20], lu[4][21]],
-            [lu[4][28], lu[4][29], lu[4][30], lu[4][31]],
-            [lu[4][38], lu[4][39], lu[4][40], lu[4][41]],
-        ];
-        let p = [perm[69], perm[70], perm[71], perm[72]];
-        let mut z = [
-            rhs[51],
-            rhs[54] - lu[4][22] * x[63] - lu[4][23] * x[64] - lu[4][24] * x[65]
-                - lu[4][25] * x[70] - lu[4][26] * x[71] - lu[4][27] * x[72],
-            rhs[55] - lu[4][32] * x[63] - lu[4][33] * x[64] - lu[4][34] * x[65]
-                - lu[4][35] * x[70] - lu[4][36] * x[71] - lu[4][37] * x[72],
-            rhs[87],
-        ];
-        runtime::lu::solve(&a, &p, &mut z);
-        x[66] = z[0];
-        x[67] = z[1];
-        x[68] = z[2];
-        x[69] = z[3];
-    }
-    {
-        let a = [
-            [lu[4][42], lu[4][43], lu[4][44], lu[4][45]],
-            [lu[4][50], lu[4][51], lu[4][52], lu[4][53]],
-            [lu[4][58], lu[4][59], lu[4][60], lu[4][61]],
-            [lu[4][66], lu[4][67], lu[4][68], lu[4][69]],
-        ];
-        let p = [perm[73], perm[74], perm[75], perm[76]];
-        let mut z = [
-            rhs[52] - lu[4][46] * x[66] - lu[4][47] * x[67] - lu[4][48] * x[68]
-                - lu[4][49] * x[69],
-            rhs[53] - lu[4][54] * x[66] - lu[4][55] * x[67] - lu[4][56] * x[68]
-                - lu[4][57] * x[69],
-            rhs[56] - lu[4][62] * x[66] - lu[4][63] * x[67] - lu[4][64] * x[68]
-                - lu[4][65] * x[69],
-            rhs[88],
-        ];
-        runtime::lu::solve(&a, &p, &mut z);
-        x[73] = z[0];
-        x[74] = z[1];
-        x[75] = z[2];
-        x[76] = z[3];
-    }
+    solve_blocks_shared_0(4, lu, perm, rhs, x);
+    solve_blocks_shared_1(4, lu, perm, rhs, x);
     x[77] = (rhs[60]) / lu[4][70];
     x[78] = (rhs[61]) / lu[4][71];
     x[79] = (rhs[62]) / lu[4][72];
@@ -6888,51 +6450,8 @@ fn solve_blocks_0(
         - lu[4][83] * x[5] - lu[4][84] * x[6]) / lu[4][79];
     x[86] = (rhs[71] - lu[4][86] * x[2] - lu[4][87] * x[3] - lu[4][88] * x[4]
         - lu[4][89] * x[5] - lu[4][90] * x[6]) / lu[4][85];
-    {
-        let a = [
-            [lu[5][0], lu[5][1], lu[5][2], lu[5][3]],
-            [lu[5][4], lu[5][5], lu[5][6], lu[5][7]],
-            [lu[5][14], lu[5][15], lu[5][16], lu[5][17]],
-            [lu[5][24], lu[5][25], lu[5][26], lu[5][27]],
-        ];
-        let p = [perm[83], perm[84], perm[85], perm[86]];
-        let mut z = [
-            rhs[63],
-            rhs[66] - lu[5][8] * x[77] - lu[5][9] * x[78] - lu[5][10] * x[79]
-                - lu[5][11] * x[84] - lu[5][12] * x[85] - lu[5][13] * x[86],
-            rhs[67] - lu[5][18] * x[77] - lu[5][19] * x[78] - lu[5][20] * x[79]
-                - lu[5][21] * x[84] - lu[5][22] * x[85] - lu[5][23] * x[86],
-            rhs[89],
-        ];
-        runtime::lu::solve(&a, &p, &mut z);
-        x[80] = z[0];
-        x[81] = z[1];
-        x[82] = z[2];
-        x[83] = z[3];
-    }
-    {
-        let a = [
-            [lu[5][28], lu[5][29], lu[5][30], lu[5][31]],
-            [lu[5][36], lu[5][37], lu[5][38], lu[5][39]],
-            [lu[5][44], lu[5][45], lu[5][46], lu[5][47]],
-            [lu[5][52], lu[5][53], lu[5][54], lu[5][55]],
-        ];
-        let p = [perm[87], perm[88], perm[89], perm[90]];
-        let mut z = [
-            rhs[64] - lu[5][32] * x[80] - lu[5][33] * x[81] - lu[5][34] * x[82]
-                - lu[5][35] * x[83],
-            rhs[65] - lu[5][40] * x[80] - lu[5][41] * x[81] - lu[5][42] * x[82]
-                - lu[5][43] * x[83],
-            rhs[68] - lu[5][48] * x[80] - lu[5][49] * x[81] - lu[5][50] * x[82]
-                - lu[5][51] * x[83],
-            rhs[90],
-        ];
-        runtime::lu::solve(&a, &p, &mut z);
-        x[87] = z[0];
-        x[88] = z[1];
-        x[89] = z[2];
-        x[90] = z[3];
-    }
+    solve_blocks_shared_0(5, lu, perm, rhs, x);
+    solve_blocks_shared_1(5, lu, perm, rhs, x);
 }
 
 /// Factors Φ_q's diagonal blocks in place, each by LU with partial pivoting inside the
@@ -6956,7 +6475,7 @@ fn solve_blocks(lu: &[[f64; N]; N], perm: &[usize; N], b: &mut [f64; N]) {
     solve_blocks_0(lu, perm, &rhs, b);
 }
 
-/// Factors the diagonal block `b` (an implicit one of blocks 0 to 48) alone, as `factor_blocks` does, refusing it when its smallest |pivot| ≤ `ratio` · its largest.
+/// Factors the diagonal block `b` (an implicit one of blocks 0 to 0) alone, as `factor_blocks` does, refusing it when its smallest |pivot| ≤ `ratio` · its largest.
 fn factor_block_0(
     b: usize,
     jac: &mut [[f64; N]; N],
@@ -7082,378 +6601,6 @@ fn factor_block_0(
             perm[6] = p[6];
             Ok(info)
         }
-        7 => {
-            let mut a = [
-                [jac[0][70], jac[0][71], jac[0][72], jac[0][73]],
-                [jac[0][74], jac[0][75], jac[0][76], jac[0][77]],
-                [jac[0][84], jac[0][85], jac[0][86], jac[0][87]],
-                [jac[1][3], jac[1][4], jac[1][5], jac[1][6]],
-            ];
-            let mut p = [0; 4];
-            let info = runtime::lu::factor_with_ratio(&mut a, &mut p, ratio)?;
-            jac[0][70] = a[0][0];
-            jac[0][71] = a[0][1];
-            jac[0][72] = a[0][2];
-            jac[0][73] = a[0][3];
-            jac[0][74] = a[1][0];
-            jac[0][75] = a[1][1];
-            jac[0][76] = a[1][2];
-            jac[0][77] = a[1][3];
-            jac[0][84] = a[2][0];
-            jac[0][85] = a[2][1];
-            jac[0][86] = a[2][2];
-            jac[0][87] = a[2][3];
-            jac[1][3] = a[3][0];
-            jac[1][4] = a[3][1];
-            jac[1][5] = a[3][2];
-            jac[1][6] = a[3][3];
-            perm[13] = p[0];
-            perm[14] = p[1];
-            perm[15] = p[2];
-            perm[16] = p[3];
-            Ok(info)
-        }
-        8 => {
-            let mut a = [
-                [jac[1][7], jac[1][8], jac[1][9], jac[1][10]],
-                [jac[1][15], jac[1][16], jac[1][17], jac[1][18]],
-                [jac[1][23], jac[1][24], jac[1][25], jac[1][26]],
-                [jac[1][31], jac[1][32], jac[1][33], jac[1][34]],
-            ];
-            let mut p = [0; 4];
-            let info = runtime::lu::factor_with_ratio(&mut a, &mut p, ratio)?;
-            jac[1][7] = a[0][0];
-            jac[1][8] = a[0][1];
-            jac[1][9] = a[0][2];
-            jac[1][10] = a[0][3];
-            jac[1][15] = a[1][0];
-            jac[1][16] = a[1][1];
-            jac[1][17] = a[1][2];
-            jac[1][18] = a[1][3];
-            jac[1][23] = a[2][0];
-            jac[1][24] = a[2][1];
-            jac[1][25] = a[2][2];
-            jac[1][26] = a[2][3];
-            jac[1][31] = a[3][0];
-            jac[1][32] = a[3][1];
-            jac[1][33] = a[3][2];
-            jac[1][34] = a[3][3];
-            perm[17] = p[0];
-            perm[18] = p[1];
-            perm[19] = p[2];
-            perm[20] = p[3];
-            Ok(info)
-        }
-        15 => {
-            let mut a = [
-                [jac[1][56], jac[1][57], jac[1][58], jac[1][59]],
-                [jac[1][60], jac[1][61], jac[1][62], jac[1][63]],
-                [jac[1][70], jac[1][71], jac[1][72], jac[1][73]],
-                [jac[1][80], jac[1][81], jac[1][82], jac[1][83]],
-            ];
-            let mut p = [0; 4];
-            let info = runtime::lu::factor_with_ratio(&mut a, &mut p, ratio)?;
-            jac[1][56] = a[0][0];
-            jac[1][57] = a[0][1];
-            jac[1][58] = a[0][2];
-            jac[1][59] = a[0][3];
-            jac[1][60] = a[1][0];
-            jac[1][61] = a[1][1];
-            jac[1][62] = a[1][2];
-            jac[1][63] = a[1][3];
-            jac[1][70] = a[2][0];
-            jac[1][71] = a[2][1];
-            jac[1][72] = a[2][2];
-            jac[1][73] = a[2][3];
-            jac[1][80] = a[3][0];
-            jac[1][81] = a[3][1];
-            jac[1][82] = a[3][2];
-            jac[1][83] = a[3][3];
-            perm[27] = p[0];
-            perm[28] = p[1];
-            perm[29] = p[2];
-            perm[30] = p[3];
-            Ok(info)
-        }
-        16 => {
-            let mut a = [
-                [jac[1][84], jac[1][85], jac[1][86], jac[1][87]],
-                [jac[2][1], jac[2][2], jac[2][3], jac[2][4]],
-                [jac[2][9], jac[2][10], jac[2][11], jac[2][12]],
-                [jac[2][17], jac[2][18], jac[2][19], jac[2][20]],
-            ];
-            let mut p = [0; 4];
-            let info = runtime::lu::factor_with_ratio(&mut a, &mut p, ratio)?;
-            jac[1][84] = a[0][0];
-            jac[1][85] = a[0][1];
-            jac[1][86] = a[0][2];
-            jac[1][87] = a[0][3];
-            jac[2][1] = a[1][0];
-            jac[2][2] = a[1][1];
-            jac[2][3] = a[1][2];
-            jac[2][4] = a[1][3];
-            jac[2][9] = a[2][0];
-            jac[2][10] = a[2][1];
-            jac[2][11] = a[2][2];
-            jac[2][12] = a[2][3];
-            jac[2][17] = a[3][0];
-            jac[2][18] = a[3][1];
-            jac[2][19] = a[3][2];
-            jac[2][20] = a[3][3];
-            perm[31] = p[0];
-            perm[32] = p[1];
-            perm[33] = p[2];
-            perm[34] = p[3];
-            Ok(info)
-        }
-        23 => {
-            let mut a = [
-                [jac[2][42], jac[2][43], jac[2][44], jac[2][45]],
-                [jac[2][46], jac[2][47], jac[2][48], jac[2][49]],
-                [jac[2][56], jac[2][57], jac[2][58], jac[2][59]],
-                [jac[2][66], jac[2][67], jac[2][68], jac[2][69]],
-            ];
-            let mut p = [0; 4];
-            let info = runtime::lu::factor_with_ratio(&mut a, &mut p, ratio)?;
-            jac[2][42] = a[0][0];
-            jac[2][43] = a[0][1];
-            jac[2][44] = a[0][2];
-            jac[2][45] = a[0][3];
-            jac[2][46] = a[1][0];
-            jac[2][47] = a[1][1];
-            jac[2][48] = a[1][2];
-            jac[2][49] = a[1][3];
-            jac[2][56] = a[2][0];
-            jac[2][57] = a[2][1];
-            jac[2][58] = a[2][2];
-            jac[2][59] = a[2][3];
-            jac[2][66] = a[3][0];
-            jac[2][67] = a[3][1];
-            jac[2][68] = a[3][2];
-            jac[2][69] = a[3][3];
-            perm[41] = p[0];
-            perm[42] = p[1];
-            perm[43] = p[2];
-            perm[44] = p[3];
-            Ok(info)
-        }
-        24 => {
-            let mut a = [
-                [jac[2][70], jac[2][71], jac[2][72], jac[2][73]],
-                [jac[2][78], jac[2][79], jac[2][80], jac[2][81]],
-                [jac[2][86], jac[2][87], jac[2][88], jac[2][89]],
-                [jac[3][3], jac[3][4], jac[3][5], jac[3][6]],
-            ];
-            let mut p = [0; 4];
-            let info = runtime::lu::factor_with_ratio(&mut a, &mut p, ratio)?;
-            jac[2][70] = a[0][0];
-            jac[2][71] = a[0][1];
-            jac[2][72] = a[0][2];
-            jac[2][73] = a[0][3];
-            jac[2][78] = a[1][0];
-            jac[2][79] = a[1][1];
-            jac[2][80] = a[1][2];
-            jac[2][81] = a[1][3];
-            jac[2][86] = a[2][0];
-            jac[2][87] = a[2][1];
-            jac[2][88] = a[2][2];
-            jac[2][89] = a[2][3];
-            jac[3][3] = a[3][0];
-            jac[3][4] = a[3][1];
-            jac[3][5] = a[3][2];
-            jac[3][6] = a[3][3];
-            perm[45] = p[0];
-            perm[46] = p[1];
-            perm[47] = p[2];
-            perm[48] = p[3];
-            Ok(info)
-        }
-        31 => {
-            let mut a = [
-                [jac[3][28], jac[3][29], jac[3][30], jac[3][31]],
-                [jac[3][32], jac[3][33], jac[3][34], jac[3][35]],
-                [jac[3][42], jac[3][43], jac[3][44], jac[3][45]],
-                [jac[3][52], jac[3][53], jac[3][54], jac[3][55]],
-            ];
-            let mut p = [0; 4];
-            let info = runtime::lu::factor_with_ratio(&mut a, &mut p, ratio)?;
-            jac[3][28] = a[0][0];
-            jac[3][29] = a[0][1];
-            jac[3][30] = a[0][2];
-            jac[3][31] = a[0][3];
-            jac[3][32] = a[1][0];
-            jac[3][33] = a[1][1];
-            jac[3][34] = a[1][2];
-            jac[3][35] = a[1][3];
-            jac[3][42] = a[2][0];
-            jac[3][43] = a[2][1];
-            jac[3][44] = a[2][2];
-            jac[3][45] = a[2][3];
-            jac[3][52] = a[3][0];
-            jac[3][53] = a[3][1];
-            jac[3][54] = a[3][2];
-            jac[3][55] = a[3][3];
-            perm[55] = p[0];
-            perm[56] = p[1];
-            perm[57] = p[2];
-            perm[58] = p[3];
-            Ok(info)
-        }
-        32 => {
-            let mut a = [
-                [jac[3][56], jac[3][57], jac[3][58], jac[3][59]],
-                [jac[3][64], jac[3][65], jac[3][66], jac[3][67]],
-                [jac[3][72], jac[3][73], jac[3][74], jac[3][75]],
-                [jac[3][80], jac[3][81], jac[3][82], jac[3][83]],
-            ];
-            let mut p = [0; 4];
-            let info = runtime::lu::factor_with_ratio(&mut a, &mut p, ratio)?;
-            jac[3][56] = a[0][0];
-            jac[3][57] = a[0][1];
-            jac[3][58] = a[0][2];
-            jac[3][59] = a[0][3];
-            jac[3][64] = a[1][0];
-            jac[3][65] = a[1][1];
-            jac[3][66] = a[1][2];
-            jac[3][67] = a[1][3];
-            jac[3][72] = a[2][0];
-            jac[3][73] = a[2][1];
-            jac[3][74] = a[2][2];
-            jac[3][75] = a[2][3];
-            jac[3][80] = a[3][0];
-            jac[3][81] = a[3][1];
-            jac[3][82] = a[3][2];
-            jac[3][83] = a[3][3];
-            perm[59] = p[0];
-            perm[60] = p[1];
-            perm[61] = p[2];
-            perm[62] = p[3];
-            Ok(info)
-        }
-        39 => {
-            let mut a = [
-                [jac[4][14], jac[4][15], jac[4][16], jac[4][17]],
-                [jac[4][18], jac[4][19], jac[4][20], jac[4][21]],
-                [jac[4][28], jac[4][29], jac[4][30], jac[4][31]],
-                [jac[4][38], jac[4][39], jac[4][40], jac[4][41]],
-            ];
-            let mut p = [0; 4];
-            let info = runtime::lu::factor_with_ratio(&mut a, &mut p, ratio)?;
-            jac[4][14] = a[0][0];
-            jac[4][15] = a[0][1];
-            jac[4][16] = a[0][2];
-            jac[4][17] = a[0][3];
-            jac[4][18] = a[1][0];
-            jac[4][19] = a[1][1];
-            jac[4][20] = a[1][2];
-            jac[4][21] = a[1][3];
-            jac[4][28] = a[2][0];
-            jac[4][29] = a[2][1];
-            jac[4][30] = a[2][2];
-            jac[4][31] = a[2][3];
-            jac[4][38] = a[3][0];
-            jac[4][39] = a[3][1];
-            jac[4][40] = a[3][2];
-            jac[4][41] = a[3][3];
-            perm[69] = p[0];
-            perm[70] = p[1];
-            perm[71] = p[2];
-            perm[72] = p[3];
-            Ok(info)
-        }
-        40 => {
-            let mut a = [
-                [jac[4][42], jac[4][43], jac[4][44], jac[4][45]],
-                [jac[4][50], jac[4][51], jac[4][52], jac[4][53]],
-                [jac[4][58], jac[4][59], jac[4][60], jac[4][61]],
-                [jac[4][66], jac[4][67], jac[4][68], jac[4][69]],
-            ];
-            let mut p = [0; 4];
-            let info = runtime::lu::factor_with_ratio(&mut a, &mut p, ratio)?;
-            jac[4][42] = a[0][0];
-            jac[4][43] = a[0][1];
-            jac[4][44] = a[0][2];
-            jac[4][45] = a[0][3];
-            jac[4][50] = a[1][0];
-            jac[4][51] = a[1][1];
-            jac[4][52] = a[1][2];
-            jac[4][53] = a[1][3];
-            jac[4][58] = a[2][0];
-            jac[4][59] = a[2][1];
-            jac[4][60] = a[2][2];
-            jac[4][61] = a[2][3];
-            jac[4][66] = a[3][0];
-            jac[4][67] = a[3][1];
-            jac[4][68] = a[3][2];
-            jac[4][69] = a[3][3];
-            perm[73] = p[0];
-            perm[74] = p[1];
-            perm[75] = p[2];
-            perm[76] = p[3];
-            Ok(info)
-        }
-        47 => {
-            let mut a = [
-                [jac[5][0], jac[5][1], jac[5][2], jac[5][3]],
-                [jac[5][4], jac[5][5], jac[5][6], jac[5][7]],
-                [jac[5][14], jac[5][15], jac[5][16], jac[5][17]],
-                [jac[5][24], jac[5][25], jac[5][26], jac[5][27]],
-            ];
-            let mut p = [0; 4];
-            let info = runtime::lu::factor_with_ratio(&mut a, &mut p, ratio)?;
-            jac[5][0] = a[0][0];
-            jac[5][1] = a[0][1];
-            jac[5][2] = a[0][2];
-            jac[5][3] = a[0][3];
-            jac[5][4] = a[1][0];
-            jac[5][5] = a[1][1];
-            jac[5][6] = a[1][2];
-            jac[5][7] = a[1][3];
-            jac[5][14] = a[2][0];
-            jac[5][15] = a[2][1];
-            jac[5][16] = a[2][2];
-            jac[5][17] = a[2][3];
-            jac[5][24] = a[3][0];
-            jac[5][25] = a[3][1];
-            jac[5][26] = a[3][2];
-            jac[5][27] = a[3][3];
-            perm[83] = p[0];
-            perm[84] = p[1];
-            perm[85] = p[2];
-            perm[86] = p[3];
-            Ok(info)
-        }
-        48 => {
-            let mut a = [
-                [jac[5][28], jac[5][29], jac[5][30], jac[5][31]],
-                [jac[5][36], jac[5][37], jac[5][38], jac[5][39]],
-                [jac[5][44], jac[5][45], jac[5][46], jac[5][47]],
-                [jac[5][52], jac[5][53], jac[5][54], jac[5][55]],
-            ];
-            let mut p = [0; 4];
-            let info = runtime::lu::factor_with_ratio(&mut a, &mut p, ratio)?;
-            jac[5][28] = a[0][0];
-            jac[5][29] = a[0][1];
-            jac[5][30] = a[0][2];
-            jac[5][31] = a[0][3];
-            jac[5][36] = a[1][0];
-            jac[5][37] = a[1][1];
-            jac[5][38] = a[1][2];
-            jac[5][39] = a[1][3];
-            jac[5][44] = a[2][0];
-            jac[5][45] = a[2][1];
-            jac[5][46] = a[2][2];
-            jac[5][47] = a[2][3];
-            jac[5][52] = a[3][0];
-            jac[5][53] = a[3][1];
-            jac[5][54] = a[3][2];
-            jac[5][55] = a[3][3];
-            perm[87] = p[0];
-            perm[88] = p[1];
-            perm[89] = p[2];
-            perm[90] = p[3];
-            Ok(info)
-        }
         _ => {
             Err(runtime::lu::Singular::NonFinite {
                 column: 0,
@@ -7462,7 +6609,7 @@ fn factor_block_0(
     }
 }
 
-/// Solves the diagonal block `b` (an implicit one of blocks 0 to 48) alone with the factors of `factor_block_0`: the right-hand side by row from `rhs`, the solution in the order of the block's unknowns into `x`.
+/// Solves the diagonal block `b` (an implicit one of blocks 0 to 0) alone with the factors of `factor_block_0`: the right-hand side by row from `rhs`, the solution in the order of the block's unknowns into `x`.
 fn solve_block_0(
     b: usize,
     lu: &[[f64; N]; N],
@@ -7470,8 +6617,8 @@ fn solve_block_0(
     rhs: &[f64; N],
     x: &mut [f64],
 ) {
-    match b {
-        0 => {
+    if let 0 = b {
+        {
             let a = [
                 [lu[0][0], lu[0][1], lu[0][2], lu[0][3], lu[0][4], lu[0][5], lu[0][6]],
                 [
@@ -7534,2472 +6681,7 @@ fn solve_block_0(
             runtime::lu::solve(&a, &p, &mut z);
             x[..7].copy_from_slice(&z);
         }
-        7 => {
-            let a = [
-                [lu[0][70], lu[0][71], lu[0][72], lu[0][73]],
-                [lu[0][74], lu[0][75], lu[0][76], lu[0][77]],
-                [lu[0][84], lu[0][85], lu[0][86], lu[0][87]],
-                [lu[1][3], lu[1][4], lu[1][5], lu[1][6]],
-            ];
-            let p = [perm[13], perm[14], perm[15], perm[16]];
-            let mut z = [rhs[3], rhs[6], rhs[7], rhs[79]];
-            runtime::lu::solve(&a, &p, &mut z);
-            x[..4].copy_from_slice(&z);
-        }
-        8 => {
-            let a = [
-                [lu[1][7], lu[1][8], lu[1][9], lu[1][10]],
-                [lu[1][15], lu[1][16], lu[1][17], lu[1][18]],
-                [lu[1][23], lu[1][24], lu[1][25], lu[1][26]],
-                [lu[1][31], lu[1][32], lu[1][33], lu[1][34]],
-            ];
-            let p = [perm[17], perm[18], perm[19], perm[20]];
-            let mut z = [rhs[4], rhs[5], rhs[8], rhs[80]];
-            runtime::lu::solve(&a, &p, &mut z);
-            x[..4].copy_from_slice(&z);
-        }
-        15 => {
-            let a = [
-                [lu[1][56], lu[1][57], lu[1][58], lu[1][59]],
-                [lu[1][60], lu[1][61], lu[1][62], lu[1][63]],
-                [lu[1][70], lu[1][71], lu[1][72], lu[1][73]],
-                [lu[1][80], lu[1][81], lu[1][82], lu[1][83]],
-            ];
-            let p = [perm[27], perm[28], perm[29], perm[30]];
-            let mut z = [rhs[15], rhs[18], rhs[19], rhs[81]];
-            runtime::lu::solve(&a, &p, &mut z);
-            x[..4].copy_from_slice(&z);
-        }
-        16 => {
-            let a = [
-                [lu[1][84], lu[1][85], lu[1][86], lu[1][87]],
-                [lu[2][1], lu[2][2], lu[2][3], lu[2][4]],
-                [lu[2][9], lu[2][10], lu[2][11], lu[2][12]],
-                [lu[2][17], lu[2][18], lu[2][19], lu[2][20]],
-            ];
-            let p = [perm[31], perm[32], perm[33], perm[34]];
-            let mut z = [rhs[16], rhs[17], rhs[20], rhs[82]];
-            runtime::lu::solve(&a, &p, &mut z);
-            x[..4].copy_from_slice(&z);
-        }
-        23 => {
-            let a = [
-                [lu[2][42], lu[2][43], lu[2][44], lu[2][45]],
-                [lu[2][46], lu[2][47], lu[2][48], lu[2][49]],
-                [lu[2][56], lu[2][57], lu[2][58], lu[2][59]],
-                [lu[2][66], lu[2][67], lu[2][68], lu[2][69]],
-            ];
-            let p = [perm[41], perm[42], perm[43], perm[44]];
-            let mut z = [rhs[27], rhs[30], rhs[31], rhs[83]];
-            runtime::lu::solve(&a, &p, &mut z);
-            x[..4].copy_from_slice(&z);
-        }
-        24 => {
-            let a = [
-                [lu[2][70], lu[2][71], lu[2][72], lu[2][73]],
-                [lu[2][78], lu[2][79], lu[2][80], lu[2][81]],
-                [lu[2][86], lu[2][87], lu[2][88], lu[2][89]],
-                [lu[3][3], lu[3][4], lu[3][5], lu[3][6]],
-            ];
-            let p = [perm[45], perm[46], perm[47], perm[48]];
-            let mut z = [rhs[28], rhs[29], rhs[32], rhs[84]];
-            runtime::lu::solve(&a, &p, &mut z);
-            x[..4].copy_from_slice(&z);
-        }
-        31 => {
-            let a = [
-                [lu[3][28], lu[3][29], lu[3][30], lu[3][31]],
-                [lu[3][32], lu[3][33], lu[3][34], lu[3][35]],
-                [lu[3][42], lu[3][43], lu[3][44], lu[3][45]],
-                [lu[3][52], lu[3][53], lu[3][54], lu[3][55]],
-            ];
-            let p = [perm[55], perm[56], perm[57], perm[58]];
-            let mut z = [rhs[39], rhs[42], rhs[43], rhs[85]];
-            runtime::lu::solve(&a, &p, &mut z);
-            x[..4].copy_from_slice(&z);
-        }
-        32 => {
-            let a = [
-                [lu[3][56], lu[3][57], lu[3][58], lu[3][59]],
-                [lu[3][64], lu[3][65], lu[3][66], lu[3][67]],
-                [lu[3][72], lu[3][73], lu[3][74], lu[3][75]],
-                [lu[3][80], lu[3][81], lu[3][82], lu[3][83]],
-            ];
-            let p = [perm[59], perm[60], perm[61], perm[62]];
-            let mut z = [rhs[40], rhs[41], rhs[44], rhs[86]];
-            runtime::lu::solve(&a, &p, &mut z);
-            x[..4].copy_from_slice(&z);
-        }
-        39 => {
-            let a = [
-                [lu[4][14], lu[4][15], lu[4][16], lu[4][17]],
-                [lu[4][18], lu[4][19], lu[4][20], lu[4][21]],
-                [lu[4][28], lu[4][29], lu[4][30], lu[4][31]],
-                [lu[4][38], lu[4][39], lu[4][40], lu[4][41]],
-            ];
-            let p = [perm[69], perm[70], perm[71], perm[72]];
-            let mut z = [rhs[51], rhs[54], rhs[55], rhs[87]];
-            runtime::lu::solve(&a, &p, &mut z);
-            x[..4].copy_from_slice(&z);
-        }
-        40 => {
-            let a = [
-                [lu[4][42], lu[4][43], lu[4][44], lu[4][45]],
-                [lu[4][50], lu[4][51], lu[4][52], lu[4][53]],
-                [lu[4][58], lu[4][59], lu[4][60], lu[4][61]],
-                [lu[4][66], lu[4][67], lu[4][68], lu[4][69]],
-            ];
-            let p = [perm[73], perm[74], perm[75], perm[76]];
-            let mut z = [rhs[52], rhs[53], rhs[56], rhs[88]];
-            runtime::lu::solve(&a, &p, &mut z);
-            x[..4].copy_from_slice(&z);
-        }
-        47 => {
-            let a = [
-                [lu[5][0], lu[5][1], lu[5][2], lu[5][3]],
-                [lu[5][4], lu[5][5], lu[5][6], lu[5][7]],
-                [lu[5][14], lu[5][15], lu[5][16], lu[5][17]],
-                [lu[5][24], lu[5][25], lu[5][26], lu[5][27]],
-            ];
-            let p = [perm[83], perm[84], perm[85], perm[86]];
-            let mut z = [rhs[63], rhs[66], rhs[67], rhs[89]];
-            runtime::lu::solve(&a, &p, &mut z);
-            x[..4].copy_from_slice(&z);
-        }
-        48 => {
-            let a = [
-                [lu[5][28], lu[5][29], lu[5][30], lu[5][31]],
-                [lu[5][36], lu[5][37], lu[5][38], lu[5][39]],
-                [lu[5][44], lu[5][45], lu[5][46], lu[5][47]],
-                [lu[5][52], lu[5][53], lu[5][54], lu[5][55]],
-            ];
-            let p = [perm[87], perm[88], perm[89], perm[90]];
-            let mut z = [rhs[64], rhs[65], rhs[68], rhs[90]];
-            runtime::lu::solve(&a, &p, &mut z);
-            x[..4].copy_from_slice(&z);
-        }
-        _ => {}
     }
-}
-
-/// Velocity right-hand side ν = −Φ_t.
-///
-/// 18 operations, 0 shared subexpressions.
-pub fn velocity_rhs(_q: &[f64; N], _t: f64, inputs: &Inputs, nu: &mut [f64; N]) {
-    let u = inputs.to_array();
-    let [s0, sd0, _sdd0] = u[0];
-    let [s1, sd1, _sdd1] = u[1];
-    let [s2, sd2, _sdd2] = u[2];
-    let [s3, sd3, _sdd3] = u[3];
-    let [s4, sd4, _sdd4] = u[4];
-    let [s5, sd5, _sdd5] = u[5];
-    // joint U1 row 1: (P_j − P_i)_x = 0
-    nu[0] = 0.0;
-    // joint U1 row 2: (P_j − P_i)_y = 0
-    nu[1] = 0.0;
-    // joint U1 row 3: (P_j − P_i)_z = 0
-    nu[2] = 0.0;
-    // joint U1 row 4: a_i · a_j = 0
-    nu[3] = 0.0;
-    // joint P1 row 1: b_i · a_j = 0
-    nu[4] = 0.0;
-    // joint P1 row 2: c_i · a_j = 0
-    nu[5] = 0.0;
-    // joint P1 row 3: b_i · (P_j − P_i) = 0
-    nu[6] = 0.0;
-    // joint P1 row 4: c_i · (P_j − P_i) = 0
-    nu[7] = 0.0;
-    // joint P1 row 5: r_i · r_j = 0
-    nu[8] = 0.0;
-    // joint S1 row 1: (P_j − P_i)_x = 0
-    nu[9] = 0.0;
-    // joint S1 row 2: (P_j − P_i)_y = 0
-    nu[10] = 0.0;
-    // joint S1 row 3: (P_j − P_i)_z = 0
-    nu[11] = 0.0;
-    // joint U2 row 1: (P_j − P_i)_x = 0
-    nu[12] = 0.0;
-    // joint U2 row 2: (P_j − P_i)_y = 0
-    nu[13] = 0.0;
-    // joint U2 row 3: (P_j − P_i)_z = 0
-    nu[14] = 0.0;
-    // joint U2 row 4: a_i · a_j = 0
-    nu[15] = 0.0;
-    // joint P2 row 1: b_i · a_j = 0
-    nu[16] = 0.0;
-    // joint P2 row 2: c_i · a_j = 0
-    nu[17] = 0.0;
-    // joint P2 row 3: b_i · (P_j − P_i) = 0
-    nu[18] = 0.0;
-    // joint P2 row 4: c_i · (P_j − P_i) = 0
-    nu[19] = 0.0;
-    // joint P2 row 5: r_i · r_j = 0
-    nu[20] = 0.0;
-    // joint S2 row 1: (P_j − P_i)_x = 0
-    nu[21] = 0.0;
-    // joint S2 row 2: (P_j − P_i)_y = 0
-    nu[22] = 0.0;
-    // joint S2 row 3: (P_j − P_i)_z = 0
-    nu[23] = 0.0;
-    // joint U3 row 1: (P_j − P_i)_x = 0
-    nu[24] = 0.0;
-    // joint U3 row 2: (P_j − P_i)_y = 0
-    nu[25] = 0.0;
-    // joint U3 row 3: (P_j − P_i)_z = 0
-    nu[26] = 0.0;
-    // joint U3 row 4: a_i · a_j = 0
-    nu[27] = 0.0;
-    // joint P3 row 1: b_i · a_j = 0
-    nu[28] = 0.0;
-    // joint P3 row 2: c_i · a_j = 0
-    nu[29] = 0.0;
-    // joint P3 row 3: b_i · (P_j − P_i) = 0
-    nu[30] = 0.0;
-    // joint P3 row 4: c_i · (P_j − P_i) = 0
-    nu[31] = 0.0;
-    // joint P3 row 5: r_i · r_j = 0
-    nu[32] = 0.0;
-    // joint S3 row 1: (P_j − P_i)_x = 0
-    nu[33] = 0.0;
-    // joint S3 row 2: (P_j − P_i)_y = 0
-    nu[34] = 0.0;
-    // joint S3 row 3: (P_j − P_i)_z = 0
-    nu[35] = 0.0;
-    // joint U4 row 1: (P_j − P_i)_x = 0
-    nu[36] = 0.0;
-    // joint U4 row 2: (P_j − P_i)_y = 0
-    nu[37] = 0.0;
-    // joint U4 row 3: (P_j − P_i)_z = 0
-    nu[38] = 0.0;
-    // joint U4 row 4: a_i · a_j = 0
-    nu[39] = 0.0;
-    // joint P4 row 1: b_i · a_j = 0
-    nu[40] = 0.0;
-    // joint P4 row 2: c_i · a_j = 0
-    nu[41] = 0.0;
-    // joint P4 row 3: b_i · (P_j − P_i) = 0
-    nu[42] = 0.0;
-    // joint P4 row 4: c_i · (P_j − P_i) = 0
-    nu[43] = 0.0;
-    // joint P4 row 5: r_i · r_j = 0
-    nu[44] = 0.0;
-    // joint S4 row 1: (P_j − P_i)_x = 0
-    nu[45] = 0.0;
-    // joint S4 row 2: (P_j − P_i)_y = 0
-    nu[46] = 0.0;
-    // joint S4 row 3: (P_j − P_i)_z = 0
-    nu[47] = 0.0;
-    // joint U5 row 1: (P_j − P_i)_x = 0
-    nu[48] = 0.0;
-    // joint U5 row 2: (P_j − P_i)_y = 0
-    nu[49] = 0.0;
-    // joint U5 row 3: (P_j − P_i)_z = 0
-    nu[50] = 0.0;
-    // joint U5 row 4: a_i · a_j = 0
-    nu[51] = 0.0;
-    // joint P5 row 1: b_i · a_j = 0
-    nu[52] = 0.0;
-    // joint P5 row 2: c_i · a_j = 0
-    nu[53] = 0.0;
-    // joint P5 row 3: b_i · (P_j − P_i) = 0
-    nu[54] = 0.0;
-    // joint P5 row 4: c_i · (P_j − P_i) = 0
-    nu[55] = 0.0;
-    // joint P5 row 5: r_i · r_j = 0
-    nu[56] = 0.0;
-    // joint S5 row 1: (P_j − P_i)_x = 0
-    nu[57] = 0.0;
-    // joint S5 row 2: (P_j − P_i)_y = 0
-    nu[58] = 0.0;
-    // joint S5 row 3: (P_j − P_i)_z = 0
-    nu[59] = 0.0;
-    // joint U6 row 1: (P_j − P_i)_x = 0
-    nu[60] = 0.0;
-    // joint U6 row 2: (P_j − P_i)_y = 0
-    nu[61] = 0.0;
-    // joint U6 row 3: (P_j − P_i)_z = 0
-    nu[62] = 0.0;
-    // joint U6 row 4: a_i · a_j = 0
-    nu[63] = 0.0;
-    // joint P6 row 1: b_i · a_j = 0
-    nu[64] = 0.0;
-    // joint P6 row 2: c_i · a_j = 0
-    nu[65] = 0.0;
-    // joint P6 row 3: b_i · (P_j − P_i) = 0
-    nu[66] = 0.0;
-    // joint P6 row 4: c_i · (P_j − P_i) = 0
-    nu[67] = 0.0;
-    // joint P6 row 5: r_i · r_j = 0
-    nu[68] = 0.0;
-    // joint S6 row 1: (P_j − P_i)_x = 0
-    nu[69] = 0.0;
-    // joint S6 row 2: (P_j − P_i)_y = 0
-    nu[70] = 0.0;
-    // joint S6 row 3: (P_j − P_i)_z = 0
-    nu[71] = 0.0;
-    // driver leg1: (|S − U|² − s² − 2 s v0·a − |v0|²) / (2 L) = 0 (leg reduced), s = the input
-    nu[72] = 0.4250166512533081 * (s0 + s0) * sd0;
-    // driver leg2: (|S − U|² − s² − 2 s v0·a − |v0|²) / (2 L) = 0 (leg reduced), s = the input
-    nu[73] = 0.4250166512533081 * (s1 + s1) * sd1;
-    // driver leg3: (|S − U|² − s² − 2 s v0·a − |v0|²) / (2 L) = 0 (leg reduced), s = the input
-    nu[74] = 0.4250166512533081 * (s2 + s2) * sd2;
-    // driver leg4: (|S − U|² − s² − 2 s v0·a − |v0|²) / (2 L) = 0 (leg reduced), s = the input
-    nu[75] = 0.4250166512533081 * (s3 + s3) * sd3;
-    // driver leg5: (|S − U|² − s² − 2 s v0·a − |v0|²) / (2 L) = 0 (leg reduced), s = the input
-    nu[76] = 0.4250166512533081 * (s4 + s4) * sd4;
-    // driver leg6: (|S − U|² − s² − 2 s v0·a − |v0|²) / (2 L) = 0 (leg reduced), s = the input
-    nu[77] = 0.4250166512533081 * (s5 + s5) * sd5;
-    // body platform normalisation: e0² + e1² + e2² + e3² − 1 = 0
-    nu[78] = 0.0;
-    // body cylinder1 normalisation: e0² + e1² + e2² + e3² − 1 = 0
-    nu[79] = 0.0;
-    // body rod1 normalisation: e0² + e1² + e2² + e3² − 1 = 0
-    nu[80] = 0.0;
-    // body cylinder2 normalisation: e0² + e1² + e2² + e3² − 1 = 0
-    nu[81] = 0.0;
-    // body rod2 normalisation: e0² + e1² + e2² + e3² − 1 = 0
-    nu[82] = 0.0;
-    // body cylinder3 normalisation: e0² + e1² + e2² + e3² − 1 = 0
-    nu[83] = 0.0;
-    // body rod3 normalisation: e0² + e1² + e2² + e3² − 1 = 0
-    nu[84] = 0.0;
-    // body cylinder4 normalisation: e0² + e1² + e2² + e3² − 1 = 0
-    nu[85] = 0.0;
-    // body rod4 normalisation: e0² + e1² + e2² + e3² − 1 = 0
-    nu[86] = 0.0;
-    // body cylinder5 normalisation: e0² + e1² + e2² + e3² − 1 = 0
-    nu[87] = 0.0;
-    // body rod5 normalisation: e0² + e1² + e2² + e3² − 1 = 0
-    nu[88] = 0.0;
-    // body cylinder6 normalisation: e0² + e1² + e2² + e3² − 1 = 0
-    nu[89] = 0.0;
-    // body rod6 normalisation: e0² + e1² + e2² + e3² − 1 = 0
-    nu[90] = 0.0;
-}
-
-/// Acceleration right-hand side γ = −(Φ_q q̇)_q q̇ − 2Φ_qt q̇ − Φ_tt.
-///
-/// 3796 operations, 1272 shared subexpressions.
-///
-/// Split into 3 functions of at most about 1500 operations each.
-pub fn acceleration_rhs(
-    q: &[f64; N],
-    qd: &[f64; N],
-    t: f64,
-    inputs: &Inputs,
-    gamma: &mut [f64; N],
-) {
-    let u = inputs.to_array();
-    acceleration_rhs_0(q, qd, t, &u, gamma);
-    acceleration_rhs_1(q, qd, t, &u, gamma);
-    acceleration_rhs_2(q, qd, t, &u, gamma);
-}
-
-/// Part 0 of [`acceleration_rhs`]: 1470 operations.
-#[inline(never)]
-fn acceleration_rhs_0(
-    q: &[f64; N],
-    qd: &[f64; N],
-    _t: f64,
-    u: &[[f64; 3]; INPUTS],
-    gamma: &mut [f64; N],
-) {
-    let q0 = q[0];
-    let q1 = q[1];
-    let q2 = q[2];
-    let q3 = q[3];
-    let q4 = q[4];
-    let q5 = q[5];
-    let q6 = q[6];
-    let q7 = q[7];
-    let q8 = q[8];
-    let q9 = q[9];
-    let q10 = q[10];
-    let q11 = q[11];
-    let q12 = q[12];
-    let q13 = q[13];
-    let q14 = q[14];
-    let q15 = q[15];
-    let q16 = q[16];
-    let q17 = q[17];
-    let q18 = q[18];
-    let q19 = q[19];
-    let q20 = q[20];
-    let q21 = q[21];
-    let q22 = q[22];
-    let q23 = q[23];
-    let q24 = q[24];
-    let q25 = q[25];
-    let q26 = q[26];
-    let q27 = q[27];
-    let q28 = q[28];
-    let q29 = q[29];
-    let q30 = q[30];
-    let q31 = q[31];
-    let q32 = q[32];
-    let q33 = q[33];
-    let q34 = q[34];
-    let qd0 = qd[0];
-    let qd1 = qd[1];
-    let qd2 = qd[2];
-    let qd3 = qd[3];
-    let qd4 = qd[4];
-    let qd5 = qd[5];
-    let qd6 = qd[6];
-    let qd7 = qd[7];
-    let qd8 = qd[8];
-    let qd9 = qd[9];
-    let qd10 = qd[10];
-    let qd11 = qd[11];
-    let qd12 = qd[12];
-    let qd13 = qd[13];
-    let qd14 = qd[14];
-    let qd15 = qd[15];
-    let qd16 = qd[16];
-    let qd17 = qd[17];
-    let qd18 = qd[18];
-    let qd19 = qd[19];
-    let qd20 = qd[20];
-    let qd21 = qd[21];
-    let qd22 = qd[22];
-    let qd23 = qd[23];
-    let qd24 = qd[24];
-    let qd25 = qd[25];
-    let qd26 = qd[26];
-    let qd27 = qd[27];
-    let qd28 = qd[28];
-    let qd29 = qd[29];
-    let qd30 = qd[30];
-    let qd31 = qd[31];
-    let qd32 = qd[32];
-    let qd33 = qd[33];
-    let qd34 = qd[34];
-    let [s0, sd0, sdd0] = u[0];
-    let [s1, sd1, sdd1] = u[1];
-    let [s2, sd2, sdd2] = u[2];
-    let [s3, sd3, sdd3] = u[3];
-    let [s4, sd4, sdd4] = u[4];
-    let [s5, sd5, sdd5] = u[5];
-    let t0 = q10 * q10;
-    let t1 = q11 * q11;
-    let t2 = q12 * q12;
-    let t3 = q13 * q13;
-    let t4 = t0 + t1 - (t2 + t3);
-    let t5 = t0 + t2 - (t1 + t3);
-    let t6 = q11 * q12;
-    let t7 = q10 * q13;
-    let t8 = t6 - t7;
-    let t9 = q11 * q13;
-    let t10 = q10 * q12;
-    let t11 = t6 + t7;
-    let t12 = q12 * q13;
-    let t13 = q10 * q11;
-    let t14 = t9 - t10;
-    let t15 = t12 + t13;
-    let t16 = q17 * q17;
-    let t17 = q18 * q18;
-    let t18 = q19 * q19;
-    let t19 = q20 * q20;
-    let t20 = t16 + t17 - (t18 + t19);
-    let t21 = t16 + t18 - (t17 + t19);
-    let t22 = t16 + t19 - (t17 + t18);
-    let t23 = q18 * q19;
-    let t24 = q17 * q20;
-    let t25 = t23 - t24;
-    let t26 = q18 * q20;
-    let t27 = q17 * q19;
-    let t28 = t26 + t27;
-    let t29 = t23 + t24;
-    let t30 = q19 * q20;
-    let t31 = q17 * q18;
-    let t32 = t30 - t31;
-    let t33 = t26 - t27;
-    let t34 = t30 + t31;
-    let t35 = q14 - q7;
-    let t36 = q15 - q8;
-    let t37 = q16 - q9;
-    let t38 = 1.7000666050132325 * t28
-        + (-0.5205369638785167 * t20 + -0.16105469711661508 * t25);
-    let t39 = 1.7000666050132325 * t32
-        + (-1.0410739277570333 * t29 + -0.08052734855830754 * t21);
-    let t40 = 0.8500333025066162 * t22
-        + (-1.0410739277570333 * t33 + -0.16105469711661508 * t34);
-    let t41 = 0.15288194975545125 * t4 + -1.976488916679243 * t8;
-    let t42 = 0.3057638995109025 * t11 + -0.9882444583396215 * t5;
-    let t43 = 0.3057638995109025 * t14 + -1.976488916679243 * t15;
-    let t44 = q3 * q3;
-    let t45 = q4 * q4;
-    let t46 = q5 * q5;
-    let t47 = q6 * q6;
-    let t48 = t44 + t45 - (t46 + t47);
-    let t49 = t44 + t46 - (t45 + t47);
-    let t50 = q4 * q5;
-    let t51 = q3 * q6;
-    let t52 = t50 - t51;
-    let t53 = t50 + t51;
-    let t54 = q4 * q6 - q3 * q5;
-    let t55 = q5 * q6 + q3 * q4;
-    let t56 = 0.3535533905932738 * t48;
-    let t57 = core::f64::consts::FRAC_1_SQRT_2 * t53;
-    let t58 = core::f64::consts::FRAC_1_SQRT_2 * t54;
-    let t59 = q24 * q24;
-    let t60 = q25 * q25;
-    let t61 = q26 * q26;
-    let t62 = q27 * q27;
-    let t63 = t59 + t60 - (t61 + t62);
-    let t64 = t59 + t61 - (t60 + t62);
-    let t65 = q25 * q26;
-    let t66 = q24 * q27;
-    let t67 = t65 - t66;
-    let t68 = q25 * q27;
-    let t69 = q24 * q26;
-    let t70 = t65 + t66;
-    let t71 = q26 * q27;
-    let t72 = q24 * q25;
-    let t73 = t68 - t69;
-    let t74 = t71 + t72;
-    let t75 = q31 * q31;
-    let t76 = q32 * q32;
-    let t77 = q33 * q33;
-    let t78 = q34 * q34;
-    let t79 = t75 + t76 - (t77 + t78);
-    let t80 = t75 + t77 - (t76 + t78);
-    let t81 = t75 + t78 - (t76 + t77);
-    let t82 = q32 * q33;
-    let t83 = q31 * q34;
-    let t84 = t82 - t83;
-    let t85 = q32 * q34;
-    let t86 = q31 * q33;
-    let t87 = t85 + t86;
-    let t88 = t82 + t83;
-    let t89 = q33 * q34;
-    let t90 = q31 * q32;
-    let t91 = t89 - t90;
-    let t92 = t85 - t86;
-    let t93 = t89 + t90;
-    let t94 = q28 - q21;
-    let t95 = q29 - q22;
-    let t96 = q30 - q23;
-    let t97 = 1.7000666050132325 * t87
-        + (-0.5205369638785167 * t79 + 0.16105469711661508 * t84);
-    let t98 = 1.7000666050132325 * t91
-        + (-1.0410739277570333 * t88 + 0.08052734855830754 * t80);
-    let t99 = 0.8500333025066162 * t81
-        + (-1.0410739277570333 * t92 + 0.16105469711661508 * t93);
-    let t100 = -0.15288194975545125 * t63 + -1.976488916679243 * t67;
-    let t101 = -0.3057638995109025 * t70 + -0.9882444583396215 * t64;
-    let t102 = -0.3057638995109025 * t73 + -1.976488916679243 * t74;
-    let t103 = q13 * qd11 + q11 * qd13;
-    let t104 = q12 * qd10 + q10 * qd12;
-    let t105 = q10 * qd10;
-    let t106 = t105 + t105;
-    let t107 = q11 * qd11;
-    let t108 = t107 + t107;
-    let t109 = q12 * qd12;
-    let t110 = t109 + t109;
-    let t111 = q13 * qd13;
-    let t112 = t111 + t111;
-    let t113 = t106 + t108 - (t110 + t112);
-    let t114 = q12 * qd11 + q11 * qd12;
-    let t115 = q13 * qd10 + q10 * qd13;
-    let t116 = t114 - t115;
-    let t117 = 1.0534578959402132 * (t103 + t104)
-        + (0.8400407006062905 * t113 + 0.2599094972885536 * t116);
-    let t118 = q13 * qd12 + q12 * qd13;
-    let t119 = q11 * qd10 + q10 * qd11;
-    let t120 = t114 + t115;
-    let t121 = t106 + t110 - (t108 + t112);
-    let t122 = 1.0534578959402132 * (t118 - t119)
-        + (1.680081401212581 * t120 + 0.1299547486442768 * t121);
-    let t123 = qd11 * qd13;
-    let t124 = t123 + t123;
-    let t125 = qd10 * qd12;
-    let t126 = t125 + t125;
-    let t127 = qd10 * qd10;
-    let t128 = t127 + t127;
-    let t129 = qd11 * qd11;
-    let t130 = t129 + t129;
-    let t131 = t128 + t130;
-    let t132 = qd12 * qd12;
-    let t133 = t132 + t132;
-    let t134 = qd13 * qd13;
-    let t135 = t134 + t134;
-    let t136 = t131 - (t133 + t135);
-    let t137 = qd11 * qd12;
-    let t138 = t137 + t137;
-    let t139 = qd13 * qd10;
-    let t140 = t139 + t139;
-    let t141 = t138 - t140;
-    let t142 = 1.0534578959402132 * (t124 + t126)
-        + (0.8400407006062905 * t136 + 0.2599094972885536 * t141);
-    let t143 = qd13 * qd12;
-    let t144 = t143 + t143;
-    let t145 = qd11 * qd10;
-    let t146 = t145 + t145;
-    let t147 = t138 + t140;
-    let t148 = t128 + t133 - (t130 + t135);
-    let t149 = 1.0534578959402132 * (t144 - t146)
-        + (1.680081401212581 * t147 + 0.1299547486442768 * t148);
-    let t150 = q17 * qd17;
-    let t151 = t150 + t150;
-    let t152 = q20 * qd20;
-    let t153 = t152 + t152;
-    let t154 = q18 * qd18;
-    let t155 = t154 + t154;
-    let t156 = q19 * qd19;
-    let t157 = t156 + t156;
-    let t158 = t151 + t153 - (t155 + t157);
-    let t159 = q20 * qd18 + q18 * qd20;
-    let t160 = q19 * qd17 + q17 * qd19;
-    let t161 = t159 - t160;
-    let t162 = q20 * qd19 + q19 * qd20;
-    let t163 = q18 * qd17 + q17 * qd18;
-    let t164 = t162 + t163;
-    let t165 = 0.8500333025066162 * t158
-        + (-1.0410739277570333 * t161 + -0.16105469711661508 * t164);
-    let t166 = t103 - t104;
-    let t167 = t118 + t119;
-    let t168 = 0.3057638995109025 * t166 + -1.976488916679243 * t167;
-    let t169 = t159 + t160;
-    let t170 = t151 + t155 - (t153 + t157);
-    let t171 = q19 * qd18 + q18 * qd19;
-    let t172 = q20 * qd17 + q17 * qd20;
-    let t173 = t171 - t172;
-    let t174 = 1.7000666050132325 * t169
-        + (-0.5205369638785167 * t170 + -0.16105469711661508 * t173);
-    let t175 = 0.15288194975545125 * t113 + -1.976488916679243 * t116;
-    let t176 = t162 - t163;
-    let t177 = t171 + t172;
-    let t178 = t151 + t157 - (t153 + t155);
-    let t179 = 1.7000666050132325 * t176
-        + (-1.0410739277570333 * t177 + -0.08052734855830754 * t178);
-    let t180 = 0.3057638995109025 * t120 + -0.9882444583396215 * t121;
-    let t181 = qd17 * qd17;
-    let t182 = t181 + t181;
-    let t183 = qd20 * qd20;
-    let t184 = t183 + t183;
-    let t185 = qd18 * qd18;
-    let t186 = t185 + t185;
-    let t187 = qd19 * qd19;
-    let t188 = t187 + t187;
-    let t189 = t182 + t184 - (t186 + t188);
-    let t190 = qd20 * qd18;
-    let t191 = t190 + t190;
-    let t192 = qd17 * qd19;
-    let t193 = t192 + t192;
-    let t194 = t191 - t193;
-    let t195 = qd20 * qd19;
-    let t196 = t195 + t195;
-    let t197 = qd17 * qd18;
-    let t198 = t197 + t197;
-    let t199 = t196 + t198;
-    let t200 = 0.8500333025066162 * t189
-        + (-1.0410739277570333 * t194 + -0.16105469711661508 * t199);
-    let t201 = t165 * t168;
-    let t202 = t124 - t126;
-    let t203 = t144 + t146;
-    let t204 = 0.3057638995109025 * t202 + -1.976488916679243 * t203;
-    let t205 = t191 + t193;
-    let t206 = t182 + t186;
-    let t207 = t206 - (t184 + t188);
-    let t208 = qd18 * qd19;
-    let t209 = t208 + t208;
-    let t210 = qd17 * qd20;
-    let t211 = t210 + t210;
-    let t212 = t209 - t211;
-    let t213 = 1.7000666050132325 * t205
-        + (-0.5205369638785167 * t207 + -0.16105469711661508 * t212);
-    let t214 = t174 * t175;
-    let t215 = 0.15288194975545125 * t136 + -1.976488916679243 * t141;
-    let t216 = t196 - t198;
-    let t217 = t209 + t211;
-    let t218 = t182 + t188 - (t184 + t186);
-    let t219 = 1.7000666050132325 * t216
-        + (-1.0410739277570333 * t217 + -0.08052734855830754 * t218);
-    let t220 = t179 * t180;
-    let t221 = 0.3057638995109025 * t147 + -0.9882444583396215 * t148;
-    let t222 = 0.5267289479701066 * (t106 + t112 - (t108 + t110))
-        + (1.680081401212581 * t166 + 0.2599094972885536 * t167);
-    let t223 = 0.5267289479701066 * (t128 + t135 - (t130 + t133))
-        + (1.680081401212581 * t202 + 0.2599094972885536 * t203);
-    let t224 = t165 * t222;
-    let t225 = t117 * t174;
-    let t226 = t122 * t179;
-    let t227 = qd16 - qd9;
-    let t228 = qd14 - qd7;
-    let t229 = qd15 - qd8;
-    let t230 = t168 * t227;
-    let t231 = t175 * t228;
-    let t232 = t180 * t229;
-    let t233 = t222 * t227;
-    let t234 = t117 * t228;
-    let t235 = t122 * t229;
-    let t236 = t168
-        * (0.5267289479701066 * t158
-            + (1.680081401212581 * t161 + 0.2599094972885536 * t164));
-    let t237 = t175
-        * (1.0534578959402132 * t169
-            + (0.8400407006062905 * t170 + 0.2599094972885536 * t173));
-    let t238 = t180
-        * (1.0534578959402132 * t176
-            + (1.680081401212581 * t177 + 0.1299547486442768 * t178));
-    let t239 = q3 * qd3;
-    let t240 = t239 + t239;
-    let t241 = q4 * qd4;
-    let t242 = t241 + t241;
-    let t243 = q5 * qd5;
-    let t244 = t243 + t243;
-    let t245 = q6 * qd6;
-    let t246 = t245 + t245;
-    let t247 = t240 + t242 - (t244 + t246);
-    let t248 = 0.3535533905932738 * t247;
-    let t249 = q5 * qd4 + q4 * qd5;
-    let t250 = q6 * qd3 + q3 * qd6;
-    let t251 = t249 - t250;
-    let t252 = t248 + -0.7071067811865475 * t251 + qd0;
-    let t253 = qd3 * qd3;
-    let t254 = t253 + t253;
-    let t255 = qd4 * qd4;
-    let t256 = t255 + t255;
-    let t257 = t254 + t256;
-    let t258 = qd5 * qd5;
-    let t259 = t258 + t258;
-    let t260 = qd6 * qd6;
-    let t261 = t260 + t260;
-    let t262 = t257 - (t259 + t261);
-    let t263 = 0.3535533905932738 * t262;
-    let t264 = qd4 * qd5;
-    let t265 = t264 + t264;
-    let t266 = qd3 * qd6;
-    let t267 = t266 + t266;
-    let t268 = t265 - t267;
-    let t269 = t263 + -0.7071067811865475 * t268;
-    let t270 = t249 + t250;
-    let t271 = core::f64::consts::FRAC_1_SQRT_2 * t270;
-    let t272 = t240 + t244 - (t242 + t246);
-    let t273 = t271 + -0.35355339059327373 * t272 + qd1;
-    let t274 = t265 + t267;
-    let t275 = core::f64::consts::FRAC_1_SQRT_2 * t274;
-    let t276 = t254 + t259 - (t256 + t261);
-    let t277 = t275 + -0.35355339059327373 * t276;
-    let t278 = q6 * qd4 + q4 * qd6 - (q5 * qd3 + q3 * qd5);
-    let t279 = core::f64::consts::FRAC_1_SQRT_2 * t278;
-    let t280 = q6 * qd5 + q5 * qd6 + (q4 * qd3 + q3 * qd4);
-    let t281 = t279 + -0.7071067811865475 * t280 + qd2;
-    let t282 = qd4 * qd6;
-    let t283 = qd3 * qd5;
-    let t284 = t282 + t282 - (t283 + t283);
-    let t285 = core::f64::consts::FRAC_1_SQRT_2 * t284;
-    let t286 = qd5 * qd6;
-    let t287 = qd3 * qd4;
-    let t288 = t286 + t286 + (t287 + t287);
-    let t289 = t285 + -0.7071067811865475 * t288;
-    let t290 = q27 * qd25 + q25 * qd27;
-    let t291 = q26 * qd24 + q24 * qd26;
-    let t292 = q24 * qd24;
-    let t293 = t292 + t292;
-    let t294 = q25 * qd25;
-    let t295 = t294 + t294;
-    let t296 = q26 * qd26;
-    let t297 = t296 + t296;
-    let t298 = q27 * qd27;
-    let t299 = t298 + t298;
-    let t300 = t293 + t295 - (t297 + t299);
-    let t301 = q26 * qd25 + q25 * qd26;
-    let t302 = q27 * qd24 + q24 * qd27;
-    let t303 = t301 - t302;
-    let t304 = 1.0534578959402132 * (t290 + t291)
-        + (0.8400407006062905 * t300 + -0.2599094972885536 * t303);
-    let t305 = q27 * qd26 + q26 * qd27;
-    let t306 = q25 * qd24 + q24 * qd25;
-    let t307 = t301 + t302;
-    let t308 = t293 + t297 - (t295 + t299);
-    let t309 = 1.0534578959402132 * (t305 - t306)
-        + (1.680081401212581 * t307 + -0.1299547486442768 * t308);
-    let t310 = qd25 * qd27;
-    let t311 = t310 + t310;
-    let t312 = qd24 * qd26;
-    let t313 = t312 + t312;
-    let t314 = qd24 * qd24;
-    let t315 = t314 + t314;
-    let t316 = qd25 * qd25;
-    let t317 = t316 + t316;
-    let t318 = t315 + t317;
-    let t319 = qd26 * qd26;
-    let t320 = t319 + t319;
-    let t321 = qd27 * qd27;
-    let t322 = t321 + t321;
-    let t323 = t318 - (t320 + t322);
-    let t324 = qd25 * qd26;
-    let t325 = t324 + t324;
-    let t326 = qd27 * qd24;
-    let t327 = t326 + t326;
-    let t328 = t325 - t327;
-    let t329 = 1.0534578959402132 * (t311 + t313)
-        + (0.8400407006062905 * t323 + -0.2599094972885536 * t328);
-    let t330 = qd27 * qd26;
-    let t331 = t330 + t330;
-    let t332 = qd25 * qd24;
-    let t333 = t332 + t332;
-    let t334 = t325 + t327;
-    let t335 = t315 + t320 - (t317 + t322);
-    let t336 = 1.0534578959402132 * (t331 - t333)
-        + (1.680081401212581 * t334 + -0.1299547486442768 * t335);
-    let t337 = q31 * qd31;
-    let t338 = t337 + t337;
-    let t339 = q34 * qd34;
-    let t340 = t339 + t339;
-    let t341 = q32 * qd32;
-    let t342 = t341 + t341;
-    let t343 = q33 * qd33;
-    let t344 = t343 + t343;
-    let t345 = t338 + t340 - (t342 + t344);
-    let t346 = q34 * qd32 + q32 * qd34;
-    let t347 = q33 * qd31 + q31 * qd33;
-    let t348 = t346 - t347;
-    let t349 = q34 * qd33 + q33 * qd34;
-    let t350 = q32 * qd31 + q31 * qd32;
-    let t351 = t349 + t350;
-    let t352 = 0.8500333025066162 * t345
-        + (-1.0410739277570333 * t348 + 0.16105469711661508 * t351);
-    let t353 = t290 - t291;
-    let t354 = t305 + t306;
-    let t355 = -0.3057638995109025 * t353 + -1.976488916679243 * t354;
-    let t356 = t346 + t347;
-    let t357 = t338 + t342 - (t340 + t344);
-    let t358 = q33 * qd32 + q32 * qd33;
-    let t359 = q34 * qd31 + q31 * qd34;
-    let t360 = t358 - t359;
-    let t361 = 1.7000666050132325 * t356
-        + (-0.5205369638785167 * t357 + 0.16105469711661508 * t360);
-    let t362 = -0.15288194975545125 * t300 + -1.976488916679243 * t303;
-    let t363 = t349 - t350;
-    let t364 = t358 + t359;
-    let t365 = t338 + t344 - (t340 + t342);
-    let t366 = 1.7000666050132325 * t363
-        + (-1.0410739277570333 * t364 + 0.08052734855830754 * t365);
-    let t367 = -0.3057638995109025 * t307 + -0.9882444583396215 * t308;
-    let t368 = qd31 * qd31;
-    let t369 = t368 + t368;
-    let t370 = qd34 * qd34;
-    let t371 = t370 + t370;
-    let t372 = qd32 * qd32;
-    let t373 = t372 + t372;
-    let t374 = qd33 * qd33;
-    let t375 = t374 + t374;
-    let t376 = t369 + t371 - (t373 + t375);
-    let t377 = qd34 * qd32;
-    let t378 = t377 + t377;
-    let t379 = qd31 * qd33;
-    let t380 = t379 + t379;
-    let t381 = t378 - t380;
-    let t382 = qd34 * qd33;
-    let t383 = t382 + t382;
-    let t384 = qd31 * qd32;
-    let t385 = t384 + t384;
-    let t386 = t383 + t385;
-    let t387 = 0.8500333025066162 * t376
-        + (-1.0410739277570333 * t381 + 0.16105469711661508 * t386);
-    let t388 = t352 * t355;
-    let t389 = t311 - t313;
-    let t390 = t331 + t333;
-    let t391 = -0.3057638995109025 * t389 + -1.976488916679243 * t390;
-    let t392 = t378 + t380;
-    let t393 = t369 + t373;
-    let t394 = t393 - (t371 + t375);
-    let t395 = qd32 * qd33;
-    let t396 = t395 + t395;
-    let t397 = qd31 * qd34;
-    let t398 = t397 + t397;
-    let t399 = t396 - t398;
-    let t400 = 1.7000666050132325 * t392
-        + (-0.5205369638785167 * t394 + 0.16105469711661508 * t399);
-    let t401 = t361 * t362;
-    let t402 = -0.15288194975545125 * t323 + -1.976488916679243 * t328;
-    let t403 = t383 - t385;
-    let t404 = t396 + t398;
-    let t405 = t369 + t375 - (t371 + t373);
-    let t406 = 1.7000666050132325 * t403
-        + (-1.0410739277570333 * t404 + 0.08052734855830754 * t405);
-    let t407 = t366 * t367;
-    let t408 = -0.3057638995109025 * t334 + -0.9882444583396215 * t335;
-    let t409 = 0.5267289479701066 * (t293 + t299 - (t295 + t297))
-        + (1.680081401212581 * t353 + -0.2599094972885536 * t354);
-    let t410 = 0.5267289479701066 * (t315 + t322 - (t317 + t320))
-        + (1.680081401212581 * t389 + -0.2599094972885536 * t390);
-    let t411 = t352 * t409;
-    let t412 = t304 * t361;
-    let t413 = t309 * t366;
-    let t414 = qd30 - qd23;
-    let t415 = qd28 - qd21;
-    let t416 = qd29 - qd22;
-    let t417 = t355 * t414;
-    let t418 = t362 * t415;
-    let t419 = t367 * t416;
-    let t420 = t409 * t414;
-    let t421 = t304 * t415;
-    let t422 = t309 * t416;
-    let t423 = t355
-        * (0.5267289479701066 * t345
-            + (1.680081401212581 * t348 + -0.2599094972885536 * t351));
-    let t424 = t362
-        * (1.0534578959402132 * t356
-            + (0.8400407006062905 * t357 + -0.2599094972885536 * t360));
-    let t425 = t367
-        * (1.0534578959402132 * t363
-            + (1.680081401212581 * t364 + -0.1299547486442768 * t365));
-    let t426 = qd0 + (t248 + 0.7071067811865475 * t251);
-    let t427 = t263 + 0.7071067811865475 * t268;
-    let t428 = qd1 + (t271 + 0.35355339059327373 * t272);
-    let t429 = t275 + 0.35355339059327373 * t276;
-    let t430 = qd2 + (t279 + 0.7071067811865475 * t280);
-    let t431 = t285 + 0.7071067811865475 * t288;
-    let t432 = qd0 + (0.12940952255126037 * t247 + 0.9659258262890683 * t251);
-    let t433 = qd1 + (0.25881904510252074 * t270 + 0.48296291314453416 * t272);
-    let t434 = qd2 + (0.25881904510252074 * t278 + 0.9659258262890683 * t280);
-    let t435 = qd0 + (-0.4829629131445341 * t247 + 0.258819045102521 * t251);
-    let t436 = qd1 + (-0.9659258262890682 * t270 + 0.1294095225512605 * t272);
-    let t437 = qd2 + (-0.9659258262890682 * t278 + 0.258819045102521 * t280);
-    let t438 = qd0 + (-0.48296291314453416 * t247 + -0.2588190451025208 * t251);
-    let t439 = qd1 + (-0.9659258262890683 * t270 + -0.1294095225512604 * t272);
-    let t440 = qd2 + (-0.9659258262890683 * t278 + -0.2588190451025208 * t280);
-    let t441 = qd0 + (0.12940952255126015 * t247 + -0.9659258262890684 * t251);
-    let t442 = qd1 + (0.2588190451025203 * t270 + -0.4829629131445342 * t272);
-    let t443 = qd2 + (0.2588190451025203 * t278 + -0.9659258262890684 * t280);
-    let t444 = t281 * t281 + (t58 + -0.7071067811865475 * t55 + q2) * t289;
-    let t445 = t252 * t252
-        + (t56 + -0.7071067811865475 * t52 + q0 - 0.9659258262890683) * t269;
-    let t446 = t273 * t273
-        + (0.25881904510252074 + (t57 + -0.35355339059327373 * t49 + q1)) * t277;
-    let t447 = sd0 * sd0 + s0 * sdd0;
-    let t448 = t430 * t430 + (q2 + (t58 + 0.7071067811865475 * t55)) * t431;
-    let t449 = t426 * t426
-        + (q0 + (t56 + 0.7071067811865475 * t52) - 0.9659258262890683) * t427;
-    let t450 = t428 * t428
-        + (q1 + (t57 + 0.35355339059327373 * t49) - 0.25881904510252074) * t429;
-    let t451 = sd1 * sd1 + s1 * sdd1;
-    let t452 = t434 * t434
-        + (q2 + (0.25881904510252074 * t54 + 0.9659258262890683 * t55))
-            * (0.25881904510252074 * t284 + 0.9659258262890683 * t288);
-    let t453 = t432 * t432
-        + (0.25881904510252085
-            + (q0 + (0.12940952255126037 * t48 + 0.9659258262890683 * t52)))
-            * (0.12940952255126037 * t262 + 0.9659258262890683 * t268);
-    let t454 = t433 * t433
-        + (q1 + (0.25881904510252074 * t53 + 0.48296291314453416 * t49)
-            - 0.9659258262890683)
-            * (0.25881904510252074 * t274 + 0.48296291314453416 * t276);
-    let t455 = sd2 * sd2 + s2 * sdd2;
-    let t456 = t437 * t437
-        + (q2 + (-0.9659258262890682 * t54 + 0.258819045102521 * t55))
-            * (-0.9659258262890682 * t284 + 0.258819045102521 * t288);
-    let t457 = t435 * t435
-        + (0.7071067811865475
-            + (q0 + (-0.4829629131445341 * t48 + 0.258819045102521 * t52)))
-            * (-0.4829629131445341 * t262 + 0.258819045102521 * t268);
-    let t458 = t436 * t436
-        + (q1 + (-0.9659258262890682 * t53 + 0.1294095225512605 * t49)
-            - core::f64::consts::FRAC_1_SQRT_2)
-            * (-0.9659258262890682 * t274 + 0.1294095225512605 * t276);
-    let t459 = sd3 * sd3 + s3 * sdd3;
-    let t460 = t440 * t440
-        + (q2 + (-0.9659258262890683 * t54 + -0.2588190451025208 * t55))
-            * (-0.9659258262890683 * t284 + -0.2588190451025208 * t288);
-    let t461 = t438 * t438
-        + (0.7071067811865477
-            + (q0 + (-0.48296291314453416 * t48 + -0.2588190451025208 * t52)))
-            * (-0.48296291314453416 * t262 + -0.2588190451025208 * t268);
-    let t462 = t439 * t439
-        + (0.7071067811865475
-            + (q1 + (-0.9659258262890683 * t53 + -0.1294095225512604 * t49)))
-            * (-0.9659258262890683 * t274 + -0.1294095225512604 * t276);
-    let t463 = sd4 * sd4 + s4 * sdd4;
-    let t464 = t443 * t443
-        + (q2 + (0.2588190451025203 * t54 + -0.9659258262890684 * t55))
-            * (0.2588190451025203 * t284 + -0.9659258262890684 * t288);
-    let t465 = t441 * t441
-        + (0.25881904510252063
-            + (q0 + (0.12940952255126015 * t48 + -0.9659258262890684 * t52)))
-            * (0.12940952255126015 * t262 + -0.9659258262890684 * t268);
-    let t466 = t442 * t442
-        + (0.9659258262890683
-            + (q1 + (0.2588190451025203 * t53 + -0.4829629131445342 * t49)))
-            * (0.2588190451025203 * t274 + -0.4829629131445342 * t276);
-    let t467 = sd5 * sd5 + s5 * sdd5;
-    // driver leg1: (|S − U|² − s² − 2 s v0·a − |v0|²) / (2 L) = 0 (leg reduced), s = the input
-    gamma[72] = -(0.4250166512533081
-        * (t444 + t444 + (t445 + t445 + (t446 + t446)) - (t447 + t447)));
-    // driver leg2: (|S − U|² − s² − 2 s v0·a − |v0|²) / (2 L) = 0 (leg reduced), s = the input
-    gamma[73] = -(0.4250166512533081
-        * (t448 + t448 + (t449 + t449 + (t450 + t450)) - (t451 + t451)));
-    // driver leg3: (|S − U|² − s² − 2 s v0·a − |v0|²) / (2 L) = 0 (leg reduced), s = the input
-    gamma[74] = -(0.4250166512533081
-        * (t452 + t452 + (t453 + t453 + (t454 + t454)) - (t455 + t455)));
-    // driver leg4: (|S − U|² − s² − 2 s v0·a − |v0|²) / (2 L) = 0 (leg reduced), s = the input
-    gamma[75] = -(0.4250166512533081
-        * (t456 + t456 + (t457 + t457 + (t458 + t458)) - (t459 + t459)));
-    // driver leg5: (|S − U|² − s² − 2 s v0·a − |v0|²) / (2 L) = 0 (leg reduced), s = the input
-    gamma[76] = -(0.4250166512533081
-        * (t460 + t460 + (t461 + t461 + (t462 + t462)) - (t463 + t463)));
-    // driver leg6: (|S − U|² − s² − 2 s v0·a − |v0|²) / (2 L) = 0 (leg reduced), s = the input
-    gamma[77] = -(0.4250166512533081
-        * (t464 + t464 + (t465 + t465 + (t466 + t466)) - (t467 + t467)));
-    // body platform normalisation: e0² + e1² + e2² + e3² − 1 = 0
-    gamma[78] = -(t261 + (t257 + t259));
-    // joint U1 row 1: (P_j − P_i)_x = 0
-    gamma[0] = 0.0;
-    // joint U1 row 2: (P_j − P_i)_y = 0
-    gamma[1] = 0.0;
-    // joint U1 row 3: (P_j − P_i)_z = 0
-    gamma[2] = 0.0;
-    // joint U1 row 4: a_i · a_j = 0
-    gamma[3] = -(0.15288194975545125 * t142 + -0.9882444583396215 * t149);
-    // body cylinder1 normalisation: e0² + e1² + e2² + e3² − 1 = 0
-    gamma[79] = -(t135 + (t131 + t133));
-    // joint S1 row 1: (P_j − P_i)_x = 0
-    gamma[9] = -t269;
-    // joint S1 row 2: (P_j − P_i)_y = 0
-    gamma[10] = -t277;
-    // joint P1 row 3: b_i · (P_j − P_i) = 0
-    gamma[6] = -(t230 + (t230 + t37 * t204)
-        + (t231 + (t231 + t35 * t215) + (t232 + (t232 + t36 * t221))));
-    // joint P1 row 4: c_i · (P_j − P_i) = 0
-    gamma[7] = -(t233 + (t233 + t37 * t223)
-        + (t234 + (t234 + t35 * t142) + (t235 + (t235 + t36 * t149))));
-    // joint S1 row 3: (P_j − P_i)_z = 0
-    gamma[11] = -t289;
-    // joint P1 row 1: b_i · a_j = 0
-    gamma[4] = -(t201 + t43 * t200 + (t201 + t40 * t204)
-        + (t214 + t41 * t213 + (t214 + t38 * t215)
-            + (t220 + t42 * t219 + (t220 + t39 * t221))));
-    // joint P1 row 2: c_i · a_j = 0
-    gamma[5] = -(t224 + t40 * t223
-        + (t224
-            + (0.5267289479701066 * (t0 + t3 - (t1 + t2))
-                + (1.680081401212581 * t14 + 0.2599094972885536 * t15)) * t200)
-        + (t225 + t38 * t142
-            + (t225
-                + (1.0534578959402132 * (t9 + t10)
-                    + (0.8400407006062905 * t4 + 0.2599094972885536 * t8)) * t213)
-            + (t226 + t39 * t149
-                + (t226
-                    + (1.0534578959402132 * (t12 - t13)
-                        + (1.680081401212581 * t11 + 0.1299547486442768 * t5))
-                        * t219))));
-    // joint P1 row 5: r_i · r_j = 0
-    gamma[8] = -(t236
-        + (0.5267289479701066 * t22
-            + (1.680081401212581 * t33 + 0.2599094972885536 * t34)) * t204
-        + (t236
-            + t43
-                * (0.5267289479701066 * t189
-                    + (1.680081401212581 * t194 + 0.2599094972885536 * t199)))
-        + (t237
-            + (1.0534578959402132 * t28
-                + (0.8400407006062905 * t20 + 0.2599094972885536 * t25)) * t215
-            + (t237
-                + t41
-                    * (1.0534578959402132 * t205
-                        + (0.8400407006062905 * t207 + 0.2599094972885536 * t212)))
-            + (t238
-                + (1.0534578959402132 * t32
-                    + (1.680081401212581 * t29 + 0.1299547486442768 * t21)) * t221
-                + (t238
-                    + t42
-                        * (1.0534578959402132 * t216
-                            + (1.680081401212581 * t217
-                                + 0.1299547486442768 * t218))))));
-    // body rod1 normalisation: e0² + e1² + e2² + e3² − 1 = 0
-    gamma[80] = -(t184 + (t188 + t206));
-    // joint U2 row 1: (P_j − P_i)_x = 0
-    gamma[12] = 0.0;
-    // joint U2 row 2: (P_j − P_i)_y = 0
-    gamma[13] = 0.0;
-    // joint U2 row 3: (P_j − P_i)_z = 0
-    gamma[14] = 0.0;
-    // joint U2 row 4: a_i · a_j = 0
-    gamma[15] = -(-0.15288194975545125 * t329 + -0.9882444583396215 * t336);
-    // body cylinder2 normalisation: e0² + e1² + e2² + e3² − 1 = 0
-    gamma[81] = -(t322 + (t318 + t320));
-    // joint S2 row 1: (P_j − P_i)_x = 0
-    gamma[21] = -t427;
-    // joint S2 row 2: (P_j − P_i)_y = 0
-    gamma[22] = -t429;
-    // joint P2 row 3: b_i · (P_j − P_i) = 0
-    gamma[18] = -(t417 + (t417 + t96 * t391)
-        + (t418 + (t418 + t94 * t402) + (t419 + (t419 + t95 * t408))));
-    // joint P2 row 4: c_i · (P_j − P_i) = 0
-    gamma[19] = -(t420 + (t420 + t96 * t410)
-        + (t421 + (t421 + t94 * t329) + (t422 + (t422 + t95 * t336))));
-    // joint S2 row 3: (P_j − P_i)_z = 0
-    gamma[23] = -t431;
-    // joint P2 row 1: b_i · a_j = 0
-    gamma[16] = -(t388 + t102 * t387 + (t388 + t99 * t391)
-        + (t401 + t100 * t400 + (t401 + t97 * t402)
-            + (t407 + t101 * t406 + (t407 + t98 * t408))));
-    // joint P2 row 2: c_i · a_j = 0
-    gamma[17] = -(t411 + t99 * t410
-        + (t411
-            + (0.5267289479701066 * (t59 + t62 - (t60 + t61))
-                + (1.680081401212581 * t73 + -0.2599094972885536 * t74)) * t387)
-        + (t412 + t97 * t329
-            + (t412
-                + (1.0534578959402132 * (t68 + t69)
-                    + (0.8400407006062905 * t63 + -0.2599094972885536 * t67)) * t400)
-            + (t413 + t98 * t336
-                + (t413
-                    + (1.0534578959402132 * (t71 - t72)
-                        + (1.680081401212581 * t70 + -0.1299547486442768 * t64))
-                        * t406))));
-    // joint P2 row 5: r_i · r_j = 0
-    gamma[20] = -(t423
-        + (0.5267289479701066 * t81
-            + (1.680081401212581 * t92 + -0.2599094972885536 * t93)) * t391
-        + (t423
-            + t102
-                * (0.5267289479701066 * t376
-                    + (1.680081401212581 * t381 + -0.2599094972885536 * t386)))
-        + (t424
-            + (1.0534578959402132 * t87
-                + (0.8400407006062905 * t79 + -0.2599094972885536 * t84)) * t402
-            + (t424
-                + t100
-                    * (1.0534578959402132 * t392
-                        + (0.8400407006062905 * t394 + -0.2599094972885536 * t399)))
-            + (t425
-                + (1.0534578959402132 * t91
-                    + (1.680081401212581 * t88 + -0.1299547486442768 * t80)) * t408
-                + (t425
-                    + t101
-                        * (1.0534578959402132 * t403
-                            + (1.680081401212581 * t404
-                                + -0.1299547486442768 * t405))))));
-    // body rod2 normalisation: e0² + e1² + e2² + e3² − 1 = 0
-    gamma[82] = -(t371 + (t375 + t393));
-    // joint U3 row 1: (P_j − P_i)_x = 0
-    gamma[24] = 0.0;
-    // joint U3 row 2: (P_j − P_i)_y = 0
-    gamma[25] = 0.0;
-    // joint U3 row 3: (P_j − P_i)_z = 0
-    gamma[26] = 0.0;
-}
-
-/// Part 1 of [`acceleration_rhs`]: 1299 operations.
-#[inline(never)]
-fn acceleration_rhs_1(
-    q: &[f64; N],
-    qd: &[f64; N],
-    _t: f64,
-    _u: &[[f64; 3]; INPUTS],
-    gamma: &mut [f64; N],
-) {
-    let q35 = q[35];
-    let q36 = q[36];
-    let q37 = q[37];
-    let q38 = q[38];
-    let q39 = q[39];
-    let q40 = q[40];
-    let q41 = q[41];
-    let q42 = q[42];
-    let q43 = q[43];
-    let q44 = q[44];
-    let q45 = q[45];
-    let q46 = q[46];
-    let q47 = q[47];
-    let q48 = q[48];
-    let q49 = q[49];
-    let q50 = q[50];
-    let q51 = q[51];
-    let q52 = q[52];
-    let q53 = q[53];
-    let q54 = q[54];
-    let q55 = q[55];
-    let q56 = q[56];
-    let q57 = q[57];
-    let q58 = q[58];
-    let q59 = q[59];
-    let q60 = q[60];
-    let q61 = q[61];
-    let q62 = q[62];
-    let q63 = q[63];
-    let q64 = q[64];
-    let q65 = q[65];
-    let q66 = q[66];
-    let q67 = q[67];
-    let q68 = q[68];
-    let q69 = q[69];
-    let q70 = q[70];
-    let q71 = q[71];
-    let q72 = q[72];
-    let qd3 = qd[3];
-    let qd4 = qd[4];
-    let qd5 = qd[5];
-    let qd6 = qd[6];
-    let qd35 = qd[35];
-    let qd36 = qd[36];
-    let qd37 = qd[37];
-    let qd38 = qd[38];
-    let qd39 = qd[39];
-    let qd40 = qd[40];
-    let qd41 = qd[41];
-    let qd42 = qd[42];
-    let qd43 = qd[43];
-    let qd44 = qd[44];
-    let qd45 = qd[45];
-    let qd46 = qd[46];
-    let qd47 = qd[47];
-    let qd48 = qd[48];
-    let qd49 = qd[49];
-    let qd50 = qd[50];
-    let qd51 = qd[51];
-    let qd52 = qd[52];
-    let qd53 = qd[53];
-    let qd54 = qd[54];
-    let qd55 = qd[55];
-    let qd56 = qd[56];
-    let qd57 = qd[57];
-    let qd58 = qd[58];
-    let qd59 = qd[59];
-    let qd60 = qd[60];
-    let qd61 = qd[61];
-    let qd62 = qd[62];
-    let qd63 = qd[63];
-    let qd64 = qd[64];
-    let qd65 = qd[65];
-    let qd66 = qd[66];
-    let qd67 = qd[67];
-    let qd68 = qd[68];
-    let qd69 = qd[69];
-    let qd70 = qd[70];
-    let qd71 = qd[71];
-    let qd72 = qd[72];
-    let t0 = q38 * q38;
-    let t1 = q39 * q39;
-    let t2 = q40 * q40;
-    let t3 = q41 * q41;
-    let t4 = t0 + t1 - (t2 + t3);
-    let t5 = t0 + t2 - (t1 + t3);
-    let t6 = q39 * q40;
-    let t7 = q38 * q41;
-    let t8 = t6 - t7;
-    let t9 = q39 * q41;
-    let t10 = q38 * q40;
-    let t11 = t6 + t7;
-    let t12 = q40 * q41;
-    let t13 = q38 * q39;
-    let t14 = t9 - t10;
-    let t15 = t12 + t13;
-    let t16 = q45 * q45;
-    let t17 = q46 * q46;
-    let t18 = q47 * q47;
-    let t19 = q48 * q48;
-    let t20 = t16 + t17 - (t18 + t19);
-    let t21 = t16 + t18 - (t17 + t19);
-    let t22 = t16 + t19 - (t17 + t18);
-    let t23 = q46 * q47;
-    let t24 = q45 * q48;
-    let t25 = t23 - t24;
-    let t26 = q46 * q48;
-    let t27 = q45 * q47;
-    let t28 = t26 + t27;
-    let t29 = t23 + t24;
-    let t30 = q47 * q48;
-    let t31 = q45 * q46;
-    let t32 = t30 - t31;
-    let t33 = t26 - t27;
-    let t34 = t30 + t31;
-    let t35 = q42 - q35;
-    let t36 = q43 - q36;
-    let t37 = q44 - q37;
-    let t38 = 1.7000666050132325 * t28
-        + (0.33000721149015694 * t20 + -0.8210691200969289 * t25);
-    let t39 = 1.7000666050132325 * t32
-        + (0.6600144229803139 * t29 + -0.41053456004846445 * t21);
-    let t40 = 0.8500333025066162 * t22
-        + (0.6600144229803139 * t33 + -0.8210691200969289 * t34);
-    let t41 = 0.7794038311935788 * t4 + 1.2530437628762552 * t8;
-    let t42 = 1.5588076623871576 * t11 + 0.6265218814381276 * t5;
-    let t43 = 1.5588076623871576 * t14 + 1.2530437628762552 * t15;
-    let t44 = q52 * q52;
-    let t45 = q53 * q53;
-    let t46 = q54 * q54;
-    let t47 = q55 * q55;
-    let t48 = t44 + t45 - (t46 + t47);
-    let t49 = t44 + t46 - (t45 + t47);
-    let t50 = q53 * q54;
-    let t51 = q52 * q55;
-    let t52 = t50 - t51;
-    let t53 = q53 * q55;
-    let t54 = q52 * q54;
-    let t55 = t50 + t51;
-    let t56 = q54 * q55;
-    let t57 = q52 * q53;
-    let t58 = t53 - t54;
-    let t59 = t56 + t57;
-    let t60 = q59 * q59;
-    let t61 = q60 * q60;
-    let t62 = q61 * q61;
-    let t63 = q62 * q62;
-    let t64 = t60 + t61 - (t62 + t63);
-    let t65 = t60 + t62 - (t61 + t63);
-    let t66 = t60 + t63 - (t61 + t62);
-    let t67 = q60 * q61;
-    let t68 = q59 * q62;
-    let t69 = t67 - t68;
-    let t70 = q60 * q62;
-    let t71 = q59 * q61;
-    let t72 = t70 + t71;
-    let t73 = t67 + t68;
-    let t74 = q61 * q62;
-    let t75 = q59 * q60;
-    let t76 = t74 - t75;
-    let t77 = t70 - t71;
-    let t78 = t74 + t75;
-    let t79 = q56 - q49;
-    let t80 = q57 - q50;
-    let t81 = q58 - q51;
-    let t82 = 1.7000666050132325 * t72
-        + (0.1905297523883598 * t64 + -0.9821238172135439 * t69);
-    let t83 = 1.7000666050132325 * t76
-        + (0.3810595047767196 * t73 + -0.49106190860677196 * t65);
-    let t84 = 0.8500333025066162 * t66
-        + (0.3810595047767196 * t77 + -0.9821238172135439 * t78);
-    let t85 = 0.9322857809490301 * t48 + 0.7234451538029876 * t52;
-    let t86 = 1.8645715618980603 * t55 + 0.3617225769014938 * t49;
-    let t87 = 1.8645715618980603 * t58 + 0.7234451538029876 * t59;
-    let t88 = q70 - q63;
-    let t89 = q71 - q64;
-    let t90 = q72 - q65;
-    let t91 = qd3 * qd3;
-    let t92 = t91 + t91;
-    let t93 = qd4 * qd4;
-    let t94 = t93 + t93;
-    let t95 = qd5 * qd5;
-    let t96 = t95 + t95;
-    let t97 = qd6 * qd6;
-    let t98 = t97 + t97;
-    let t99 = t92 + t94 - (t96 + t98);
-    let t100 = qd4 * qd5;
-    let t101 = t100 + t100;
-    let t102 = qd3 * qd6;
-    let t103 = t102 + t102;
-    let t104 = t101 - t103;
-    let t105 = t101 + t103;
-    let t106 = t92 + t96 - (t94 + t98);
-    let t107 = qd4 * qd6;
-    let t108 = qd3 * qd5;
-    let t109 = t107 + t107 - (t108 + t108);
-    let t110 = qd5 * qd6;
-    let t111 = qd3 * qd4;
-    let t112 = t110 + t110 + (t111 + t111);
-    let t113 = q41 * qd39 + q39 * qd41;
-    let t114 = q40 * qd38 + q38 * qd40;
-    let t115 = q38 * qd38;
-    let t116 = t115 + t115;
-    let t117 = q39 * qd39;
-    let t118 = t117 + t117;
-    let t119 = q40 * qd40;
-    let t120 = t119 + t119;
-    let t121 = q41 * qd41;
-    let t122 = t121 + t121;
-    let t123 = t116 + t118 - (t120 + t122);
-    let t124 = q40 * qd39 + q39 * qd40;
-    let t125 = q41 * qd38 + q38 * qd41;
-    let t126 = t124 - t125;
-    let t127 = 1.0534578959402134 * (t113 + t114)
-        + (-0.5325644639715102 * t123 + 1.3250384252315741 * t126);
-    let t128 = q41 * qd40 + q40 * qd41;
-    let t129 = q39 * qd38 + q38 * qd39;
-    let t130 = t124 + t125;
-    let t131 = t116 + t120 - (t118 + t122);
-    let t132 = 1.0534578959402134 * (t128 - t129)
-        + (-1.0651289279430205 * t130 + 0.6625192126157871 * t131);
-    let t133 = qd39 * qd41;
-    let t134 = t133 + t133;
-    let t135 = qd38 * qd40;
-    let t136 = t135 + t135;
-    let t137 = qd38 * qd38;
-    let t138 = t137 + t137;
-    let t139 = qd39 * qd39;
-    let t140 = t139 + t139;
-    let t141 = t138 + t140;
-    let t142 = qd40 * qd40;
-    let t143 = t142 + t142;
-    let t144 = qd41 * qd41;
-    let t145 = t144 + t144;
-    let t146 = t141 - (t143 + t145);
-    let t147 = qd39 * qd40;
-    let t148 = t147 + t147;
-    let t149 = qd41 * qd38;
-    let t150 = t149 + t149;
-    let t151 = t148 - t150;
-    let t152 = 1.0534578959402134 * (t134 + t136)
-        + (-0.5325644639715102 * t146 + 1.3250384252315741 * t151);
-    let t153 = qd41 * qd40;
-    let t154 = t153 + t153;
-    let t155 = qd39 * qd38;
-    let t156 = t155 + t155;
-    let t157 = t148 + t150;
-    let t158 = t138 + t143 - (t140 + t145);
-    let t159 = 1.0534578959402134 * (t154 - t156)
-        + (-1.0651289279430205 * t157 + 0.6625192126157871 * t158);
-    let t160 = q45 * qd45;
-    let t161 = t160 + t160;
-    let t162 = q48 * qd48;
-    let t163 = t162 + t162;
-    let t164 = q46 * qd46;
-    let t165 = t164 + t164;
-    let t166 = q47 * qd47;
-    let t167 = t166 + t166;
-    let t168 = t161 + t163 - (t165 + t167);
-    let t169 = q48 * qd46 + q46 * qd48;
-    let t170 = q47 * qd45 + q45 * qd47;
-    let t171 = t169 - t170;
-    let t172 = q48 * qd47 + q47 * qd48;
-    let t173 = q46 * qd45 + q45 * qd46;
-    let t174 = t172 + t173;
-    let t175 = 0.8500333025066162 * t168
-        + (0.6600144229803139 * t171 + -0.8210691200969289 * t174);
-    let t176 = t113 - t114;
-    let t177 = t128 + t129;
-    let t178 = 1.5588076623871576 * t176 + 1.2530437628762552 * t177;
-    let t179 = t169 + t170;
-    let t180 = t161 + t165 - (t163 + t167);
-    let t181 = q47 * qd46 + q46 * qd47;
-    let t182 = q48 * qd45 + q45 * qd48;
-    let t183 = t181 - t182;
-    let t184 = 1.7000666050132325 * t179
-        + (0.33000721149015694 * t180 + -0.8210691200969289 * t183);
-    let t185 = 0.7794038311935788 * t123 + 1.2530437628762552 * t126;
-    let t186 = t172 - t173;
-    let t187 = t181 + t182;
-    let t188 = t161 + t167 - (t163 + t165);
-    let t189 = 1.7000666050132325 * t186
-        + (0.6600144229803139 * t187 + -0.41053456004846445 * t188);
-    let t190 = 1.5588076623871576 * t130 + 0.6265218814381276 * t131;
-    let t191 = qd45 * qd45;
-    let t192 = t191 + t191;
-    let t193 = qd48 * qd48;
-    let t194 = t193 + t193;
-    let t195 = qd46 * qd46;
-    let t196 = t195 + t195;
-    let t197 = qd47 * qd47;
-    let t198 = t197 + t197;
-    let t199 = t192 + t194 - (t196 + t198);
-    let t200 = qd48 * qd46;
-    let t201 = t200 + t200;
-    let t202 = qd45 * qd47;
-    let t203 = t202 + t202;
-    let t204 = t201 - t203;
-    let t205 = qd48 * qd47;
-    let t206 = t205 + t205;
-    let t207 = qd45 * qd46;
-    let t208 = t207 + t207;
-    let t209 = t206 + t208;
-    let t210 = 0.8500333025066162 * t199
-        + (0.6600144229803139 * t204 + -0.8210691200969289 * t209);
-    let t211 = t175 * t178;
-    let t212 = t134 - t136;
-    let t213 = t154 + t156;
-    let t214 = 1.5588076623871576 * t212 + 1.2530437628762552 * t213;
-    let t215 = t201 + t203;
-    let t216 = t192 + t196;
-    let t217 = t216 - (t194 + t198);
-    let t218 = qd46 * qd47;
-    let t219 = t218 + t218;
-    let t220 = qd45 * qd48;
-    let t221 = t220 + t220;
-    let t222 = t219 - t221;
-    let t223 = 1.7000666050132325 * t215
-        + (0.33000721149015694 * t217 + -0.8210691200969289 * t222);
-    let t224 = t184 * t185;
-    let t225 = 0.7794038311935788 * t146 + 1.2530437628762552 * t151;
-    let t226 = t206 - t208;
-    let t227 = t219 + t221;
-    let t228 = t192 + t198 - (t194 + t196);
-    let t229 = 1.7000666050132325 * t226
-        + (0.6600144229803139 * t227 + -0.41053456004846445 * t228);
-    let t230 = t189 * t190;
-    let t231 = 1.5588076623871576 * t157 + 0.6265218814381276 * t158;
-    let t232 = 0.5267289479701067 * (t116 + t122 - (t118 + t120))
-        + (-1.0651289279430205 * t176 + 1.3250384252315741 * t177);
-    let t233 = 0.5267289479701067 * (t138 + t145 - (t140 + t143))
-        + (-1.0651289279430205 * t212 + 1.3250384252315741 * t213);
-    let t234 = t175 * t232;
-    let t235 = t127 * t184;
-    let t236 = t132 * t189;
-    let t237 = qd44 - qd37;
-    let t238 = qd42 - qd35;
-    let t239 = qd43 - qd36;
-    let t240 = t178 * t237;
-    let t241 = t185 * t238;
-    let t242 = t190 * t239;
-    let t243 = t232 * t237;
-    let t244 = t127 * t238;
-    let t245 = t132 * t239;
-    let t246 = t178
-        * (0.5267289479701067 * t168
-            + (-1.0651289279430205 * t171 + 1.3250384252315741 * t174));
-    let t247 = t185
-        * (1.0534578959402134 * t179
-            + (-0.5325644639715102 * t180 + 1.3250384252315741 * t183));
-    let t248 = t190
-        * (1.0534578959402134 * t186
-            + (-1.0651289279430205 * t187 + 0.6625192126157871 * t188));
-    let t249 = q55 * qd53 + q53 * qd55;
-    let t250 = q54 * qd52 + q52 * qd54;
-    let t251 = q52 * qd52;
-    let t252 = t251 + t251;
-    let t253 = q53 * qd53;
-    let t254 = t253 + t253;
-    let t255 = q54 * qd54;
-    let t256 = t255 + t255;
-    let t257 = q55 * qd55;
-    let t258 = t257 + t257;
-    let t259 = t252 + t254 - (t256 + t258);
-    let t260 = q54 * qd53 + q53 * qd54;
-    let t261 = q55 * qd52 + q52 * qd55;
-    let t262 = t260 - t261;
-    let t263 = q55 * qd54 + q54 * qd55;
-    let t264 = q53 * qd52 + q52 * qd53;
-    let t265 = t260 + t261;
-    let t266 = t252 + t256 - (t254 + t258);
-    let t267 = qd53 * qd55;
-    let t268 = t267 + t267;
-    let t269 = qd52 * qd54;
-    let t270 = t269 + t269;
-    let t271 = 1.0534578959402134 * (t268 + t270);
-    let t272 = qd52 * qd52;
-    let t273 = t272 + t272;
-    let t274 = qd53 * qd53;
-    let t275 = t274 + t274;
-    let t276 = t273 + t275;
-    let t277 = qd54 * qd54;
-    let t278 = t277 + t277;
-    let t279 = qd55 * qd55;
-    let t280 = t279 + t279;
-    let t281 = t276 - (t278 + t280);
-    let t282 = qd53 * qd54;
-    let t283 = t282 + t282;
-    let t284 = qd55 * qd52;
-    let t285 = t284 + t284;
-    let t286 = t283 - t285;
-    let t287 = qd55 * qd54;
-    let t288 = t287 + t287;
-    let t289 = qd53 * qd52;
-    let t290 = t289 + t289;
-    let t291 = 1.0534578959402134 * (t288 - t290);
-    let t292 = t283 + t285;
-    let t293 = t273 + t278 - (t275 + t280);
-    let t294 = q59 * qd59;
-    let t295 = t294 + t294;
-    let t296 = q62 * qd62;
-    let t297 = t296 + t296;
-    let t298 = q60 * qd60;
-    let t299 = t298 + t298;
-    let t300 = q61 * qd61;
-    let t301 = t300 + t300;
-    let t302 = t295 + t297 - (t299 + t301);
-    let t303 = q62 * qd60 + q60 * qd62;
-    let t304 = q61 * qd59 + q59 * qd61;
-    let t305 = t303 - t304;
-    let t306 = q62 * qd61 + q61 * qd62;
-    let t307 = q60 * qd59 + q59 * qd60;
-    let t308 = t306 + t307;
-    let t309 = 0.8500333025066162 * t302
-        + (0.3810595047767196 * t305 + -0.9821238172135439 * t308);
-    let t310 = t249 - t250;
-    let t311 = t263 + t264;
-    let t312 = 1.8645715618980603 * t310 + 0.7234451538029876 * t311;
-    let t313 = t303 + t304;
-    let t314 = t295 + t299 - (t297 + t301);
-    let t315 = q61 * qd60 + q60 * qd61;
-    let t316 = q62 * qd59 + q59 * qd62;
-    let t317 = t315 - t316;
-    let t318 = 1.7000666050132325 * t313
-        + (0.1905297523883598 * t314 + -0.9821238172135439 * t317);
-    let t319 = 0.9322857809490301 * t259 + 0.7234451538029876 * t262;
-    let t320 = t306 - t307;
-    let t321 = t315 + t316;
-    let t322 = t295 + t301 - (t297 + t299);
-    let t323 = 1.7000666050132325 * t320
-        + (0.3810595047767196 * t321 + -0.49106190860677196 * t322);
-    let t324 = 1.8645715618980603 * t265 + 0.3617225769014938 * t266;
-    let t325 = qd59 * qd59;
-    let t326 = t325 + t325;
-    let t327 = qd62 * qd62;
-    let t328 = t327 + t327;
-    let t329 = qd60 * qd60;
-    let t330 = t329 + t329;
-    let t331 = qd61 * qd61;
-    let t332 = t331 + t331;
-    let t333 = t326 + t328 - (t330 + t332);
-    let t334 = qd62 * qd60;
-    let t335 = t334 + t334;
-    let t336 = qd59 * qd61;
-    let t337 = t336 + t336;
-    let t338 = t335 - t337;
-    let t339 = qd62 * qd61;
-    let t340 = t339 + t339;
-    let t341 = qd59 * qd60;
-    let t342 = t341 + t341;
-    let t343 = t340 + t342;
-    let t344 = 0.8500333025066162 * t333
-        + (0.3810595047767196 * t338 + -0.9821238172135439 * t343);
-    let t345 = t309 * t312;
-    let t346 = t268 - t270;
-    let t347 = t288 + t290;
-    let t348 = 1.8645715618980603 * t346 + 0.7234451538029876 * t347;
-    let t349 = t335 + t337;
-    let t350 = t326 + t330;
-    let t351 = t350 - (t328 + t332);
-    let t352 = qd60 * qd61;
-    let t353 = t352 + t352;
-    let t354 = qd59 * qd62;
-    let t355 = t354 + t354;
-    let t356 = t353 - t355;
-    let t357 = 1.7000666050132325 * t349
-        + (0.1905297523883598 * t351 + -0.9821238172135439 * t356);
-    let t358 = t318 * t319;
-    let t359 = 0.9322857809490301 * t281 + 0.7234451538029876 * t286;
-    let t360 = t340 - t342;
-    let t361 = t353 + t355;
-    let t362 = t326 + t332 - (t328 + t330);
-    let t363 = 1.7000666050132325 * t360
-        + (0.3810595047767196 * t361 + -0.49106190860677196 * t362);
-    let t364 = t323 * t324;
-    let t365 = 1.8645715618980603 * t292 + 0.3617225769014938 * t293;
-    let t366 = 0.5267289479701067 * (t252 + t258 - (t254 + t256))
-        + (-0.6149524732695605 * t310 + 1.5849479225201277 * t311);
-    let t367 = 1.0534578959402134 * (t249 + t250)
-        + (-0.30747623663478024 * t259 + 1.5849479225201277 * t262);
-    let t368 = 1.0534578959402134 * (t263 - t264)
-        + (-0.6149524732695605 * t265 + 0.7924739612600639 * t266);
-    let t369 = t309 * t366;
-    let t370 = 0.5267289479701067 * (t273 + t280 - (t275 + t278))
-        + (-0.6149524732695605 * t346 + 1.5849479225201277 * t347);
-    let t371 = t318 * t367;
-    let t372 = t271 + (-0.30747623663478024 * t281 + 1.5849479225201277 * t286);
-    let t373 = t323 * t368;
-    let t374 = t291 + (-0.6149524732695605 * t292 + 0.7924739612600639 * t293);
-    let t375 = qd58 - qd51;
-    let t376 = qd56 - qd49;
-    let t377 = qd57 - qd50;
-    let t378 = t312 * t375;
-    let t379 = t319 * t376;
-    let t380 = t324 * t377;
-    let t381 = t366 * t375;
-    let t382 = t367 * t376;
-    let t383 = t368 * t377;
-    let t384 = t312
-        * (0.5267289479701067 * t302
-            + (-0.6149524732695604 * t305 + 1.5849479225201275 * t308));
-    let t385 = t319
-        * (1.0534578959402134 * t313
-            + (-0.3074762366347802 * t314 + 1.5849479225201275 * t317));
-    let t386 = t324
-        * (1.0534578959402134 * t320
-            + (-0.6149524732695604 * t321 + 0.7924739612600638 * t322));
-    let t387 = q69 * qd67 + q67 * qd69;
-    let t388 = q68 * qd66 + q66 * qd68;
-    let t389 = q66 * qd66;
-    let t390 = t389 + t389;
-    let t391 = q67 * qd67;
-    let t392 = t391 + t391;
-    let t393 = q68 * qd68;
-    let t394 = t393 + t393;
-    let t395 = q69 * qd69;
-    let t396 = t395 + t395;
-    let t397 = t390 + t392 - (t394 + t396);
-    let t398 = q68 * qd67 + q67 * qd68;
-    let t399 = q69 * qd66 + q66 * qd69;
-    let t400 = t398 - t399;
-    let t401 = q69 * qd68 + q68 * qd69;
-    let t402 = q67 * qd66 + q66 * qd67;
-    let t403 = t398 + t399;
-    let t404 = t390 + t394 - (t392 + t396);
-    let t405 = qd67 * qd69;
-    let t406 = t405 + t405;
-    let t407 = qd66 * qd68;
-    let t408 = t407 + t407;
-    let t409 = 1.0534578959402134 * (t406 + t408);
-    let t410 = qd66 * qd66;
-    let t411 = t410 + t410;
-    let t412 = qd67 * qd67;
-    let t413 = t412 + t412;
-    let t414 = t411 + t413;
-    let t415 = qd68 * qd68;
-    let t416 = t415 + t415;
-    let t417 = qd69 * qd69;
-    let t418 = t417 + t417;
-    let t419 = t414 - (t416 + t418);
-    let t420 = qd67 * qd68;
-    let t421 = t420 + t420;
-    let t422 = qd69 * qd66;
-    let t423 = t422 + t422;
-    let t424 = t421 - t423;
-    let t425 = -1.5849479225201275 * t424;
-    let t426 = qd69 * qd68;
-    let t427 = t426 + t426;
-    let t428 = qd67 * qd66;
-    let t429 = t428 + t428;
-    let t430 = 1.0534578959402134 * (t427 - t429);
-    let t431 = t421 + t423;
-    let t432 = t411 + t416 - (t413 + t418);
-    let t433 = -0.7924739612600638 * t432;
-    let t434 = t387 - t388;
-    let t435 = t401 + t402;
-    let t436 = t406 - t408;
-    let t437 = t427 + t429;
-    let t438 = qd72 - qd65;
-    let t439 = qd70 - qd63;
-    let t440 = qd71 - qd64;
-    let t441 = (-1.8645715618980598 * t434 + 0.7234451538029879 * t435) * t438;
-    let t442 = (-0.9322857809490299 * t397 + 0.7234451538029879 * t400) * t439;
-    let t443 = (-1.8645715618980598 * t403 + 0.36172257690149395 * t404) * t440;
-    let t444 = (0.5267289479701067 * (t390 + t396 - (t392 + t394))
-        + (-1.5849479225201275 * t435 + -0.6149524732695607 * t434)) * t438;
-    let t445 = (1.0534578959402134 * (t387 + t388)
-        + (-1.5849479225201275 * t400 + -0.30747623663478035 * t397)) * t439;
-    let t446 = (1.0534578959402134 * (t401 - t402)
-        + (-0.7924739612600638 * t404 + -0.6149524732695607 * t403)) * t440;
-    // joint U3 row 4: a_i · a_j = 0
-    gamma[27] = -(0.7794038311935788 * t152 + 0.6265218814381276 * t159);
-    // body cylinder3 normalisation: e0² + e1² + e2² + e3² − 1 = 0
-    gamma[83] = -(t145 + (t141 + t143));
-    // joint S3 row 1: (P_j − P_i)_x = 0
-    gamma[33] = -(0.12940952255126037 * t99 + 0.9659258262890683 * t104);
-    // joint S3 row 2: (P_j − P_i)_y = 0
-    gamma[34] = -(0.25881904510252074 * t105 + 0.48296291314453416 * t106);
-    // joint P3 row 3: b_i · (P_j − P_i) = 0
-    gamma[30] = -(t240 + (t240 + t37 * t214)
-        + (t241 + (t241 + t35 * t225) + (t242 + (t242 + t36 * t231))));
-    // joint P3 row 4: c_i · (P_j − P_i) = 0
-    gamma[31] = -(t243 + (t243 + t37 * t233)
-        + (t244 + (t244 + t35 * t152) + (t245 + (t245 + t36 * t159))));
-    // joint S3 row 3: (P_j − P_i)_z = 0
-    gamma[35] = -(0.25881904510252074 * t109 + 0.9659258262890683 * t112);
-    // joint P3 row 1: b_i · a_j = 0
-    gamma[28] = -(t211 + t43 * t210 + (t211 + t40 * t214)
-        + (t224 + t41 * t223 + (t224 + t38 * t225)
-            + (t230 + t42 * t229 + (t230 + t39 * t231))));
-    // joint P3 row 2: c_i · a_j = 0
-    gamma[29] = -(t234 + t40 * t233
-        + (t234
-            + (0.5267289479701067 * (t0 + t3 - (t1 + t2))
-                + (-1.0651289279430205 * t14 + 1.3250384252315741 * t15)) * t210)
-        + (t235 + t38 * t152
-            + (t235
-                + (1.0534578959402134 * (t9 + t10)
-                    + (-0.5325644639715102 * t4 + 1.3250384252315741 * t8)) * t223)
-            + (t236 + t39 * t159
-                + (t236
-                    + (1.0534578959402134 * (t12 - t13)
-                        + (-1.0651289279430205 * t11 + 0.6625192126157871 * t5))
-                        * t229))));
-    // joint P3 row 5: r_i · r_j = 0
-    gamma[32] = -(t246
-        + (0.5267289479701067 * t22
-            + (-1.0651289279430205 * t33 + 1.3250384252315741 * t34)) * t214
-        + (t246
-            + t43
-                * (0.5267289479701067 * t199
-                    + (-1.0651289279430205 * t204 + 1.3250384252315741 * t209)))
-        + (t247
-            + (1.0534578959402134 * t28
-                + (-0.5325644639715102 * t20 + 1.3250384252315741 * t25)) * t225
-            + (t247
-                + t41
-                    * (1.0534578959402134 * t215
-                        + (-0.5325644639715102 * t217 + 1.3250384252315741 * t222)))
-            + (t248
-                + (1.0534578959402134 * t32
-                    + (-1.0651289279430205 * t29 + 0.6625192126157871 * t21)) * t231
-                + (t248
-                    + t42
-                        * (1.0534578959402134 * t226
-                            + (-1.0651289279430205 * t227
-                                + 0.6625192126157871 * t228))))));
-    // body rod3 normalisation: e0² + e1² + e2² + e3² − 1 = 0
-    gamma[84] = -(t194 + (t198 + t216));
-    // joint U4 row 1: (P_j − P_i)_x = 0
-    gamma[36] = 0.0;
-    // joint U4 row 2: (P_j − P_i)_y = 0
-    gamma[37] = 0.0;
-    // joint U4 row 3: (P_j − P_i)_z = 0
-    gamma[38] = 0.0;
-    // joint U4 row 4: a_i · a_j = 0
-    gamma[39] = -(0.9322857809490301
-        * (t271 + (-0.3074762366347802 * t281 + 1.5849479225201275 * t286))
-        + 0.3617225769014938
-            * (t291 + (-0.6149524732695604 * t292 + 0.7924739612600638 * t293)));
-    // body cylinder4 normalisation: e0² + e1² + e2² + e3² − 1 = 0
-    gamma[85] = -(t280 + (t276 + t278));
-    // joint S4 row 1: (P_j − P_i)_x = 0
-    gamma[45] = -(-0.4829629131445341 * t99 + 0.258819045102521 * t104);
-    // joint S4 row 2: (P_j − P_i)_y = 0
-    gamma[46] = -(-0.9659258262890682 * t105 + 0.1294095225512605 * t106);
-    // joint P4 row 3: b_i · (P_j − P_i) = 0
-    gamma[42] = -(t378 + (t378 + t81 * t348)
-        + (t379 + (t379 + t79 * t359) + (t380 + (t380 + t80 * t365))));
-    // joint P4 row 4: c_i · (P_j − P_i) = 0
-    gamma[43] = -(t381 + (t381 + t81 * t370)
-        + (t382 + (t382 + t79 * t372) + (t383 + (t383 + t80 * t374))));
-    // joint S4 row 3: (P_j − P_i)_z = 0
-    gamma[47] = -(-0.9659258262890682 * t109 + 0.258819045102521 * t112);
-    // joint P4 row 1: b_i · a_j = 0
-    gamma[40] = -(t345 + t87 * t344 + (t345 + t84 * t348)
-        + (t358 + t85 * t357 + (t358 + t82 * t359)
-            + (t364 + t86 * t363 + (t364 + t83 * t365))));
-    // joint P4 row 2: c_i · a_j = 0
-    gamma[41] = -(t369
-        + (0.5267289479701067 * (t44 + t47 - (t45 + t46))
-            + (-0.6149524732695605 * t58 + 1.5849479225201277 * t59)) * t344
-        + (t369 + t84 * t370)
-        + (t371
-            + (1.0534578959402134 * (t53 + t54)
-                + (-0.30747623663478024 * t48 + 1.5849479225201277 * t52)) * t357
-            + (t371 + t82 * t372)
-            + (t373
-                + (1.0534578959402134 * (t56 - t57)
-                    + (-0.6149524732695605 * t55 + 0.7924739612600639 * t49)) * t363
-                + (t373 + t83 * t374))));
-    // joint P4 row 5: r_i · r_j = 0
-    gamma[44] = -(t384
-        + (0.5267289479701067 * t66
-            + (-0.6149524732695604 * t77 + 1.5849479225201275 * t78)) * t348
-        + (t384
-            + t87
-                * (0.5267289479701067 * t333
-                    + (-0.6149524732695604 * t338 + 1.5849479225201275 * t343)))
-        + (t385
-            + (1.0534578959402134 * t72
-                + (-0.3074762366347802 * t64 + 1.5849479225201275 * t69)) * t359
-            + (t385
-                + t85
-                    * (1.0534578959402134 * t349
-                        + (-0.3074762366347802 * t351 + 1.5849479225201275 * t356)))
-            + (t386
-                + (1.0534578959402134 * t76
-                    + (-0.6149524732695604 * t73 + 0.7924739612600638 * t65)) * t365
-                + (t386
-                    + t86
-                        * (1.0534578959402134 * t360
-                            + (-0.6149524732695604 * t361
-                                + 0.7924739612600638 * t362))))));
-    // body rod4 normalisation: e0² + e1² + e2² + e3² − 1 = 0
-    gamma[86] = -(t328 + (t332 + t350));
-    // joint U5 row 1: (P_j − P_i)_x = 0
-    gamma[48] = 0.0;
-    // joint U5 row 2: (P_j − P_i)_y = 0
-    gamma[49] = 0.0;
-    // joint U5 row 3: (P_j − P_i)_z = 0
-    gamma[50] = 0.0;
-    // joint U5 row 4: a_i · a_j = 0
-    gamma[51] = -(-0.9322857809490299 * (t409 + (-0.3074762366347804 * t419 + t425))
-        + 0.36172257690149395 * (t430 + (-0.6149524732695608 * t431 + t433)));
-    // body cylinder5 normalisation: e0² + e1² + e2² + e3² − 1 = 0
-    gamma[87] = -(t418 + (t414 + t416));
-    // joint S5 row 1: (P_j − P_i)_x = 0
-    gamma[57] = -(-0.48296291314453416 * t99 + -0.2588190451025208 * t104);
-    // joint S5 row 2: (P_j − P_i)_y = 0
-    gamma[58] = -(-0.9659258262890683 * t105 + -0.1294095225512604 * t106);
-    // joint P5 row 3: b_i · (P_j − P_i) = 0
-    gamma[54] = -(t441
-        + (t441 + t90 * (-1.8645715618980598 * t436 + 0.7234451538029879 * t437))
-        + (t442 + (t442 + t88 * (-0.9322857809490299 * t419 + 0.7234451538029879 * t424))
-            + (t443
-                + (t443
-                    + t89
-                        * (-1.8645715618980598 * t431 + 0.36172257690149395 * t432)))));
-    // joint P5 row 4: c_i · (P_j − P_i) = 0
-    gamma[55] = -(t444
-        + (t444
-            + t90
-                * (0.5267289479701067 * (t411 + t418 - (t413 + t416))
-                    + (-1.5849479225201275 * t437 + -0.6149524732695607 * t436)))
-        + (t445 + (t445 + t88 * (t409 + (t425 + -0.30747623663478035 * t419)))
-            + (t446 + (t446 + t89 * (t430 + (t433 + -0.6149524732695607 * t431))))));
-    // joint S5 row 3: (P_j − P_i)_z = 0
-    gamma[59] = -(-0.9659258262890683 * t109 + -0.2588190451025208 * t112);
-}
-
-/// Part 2 of [`acceleration_rhs`]: 1027 operations.
-#[inline(never)]
-fn acceleration_rhs_2(
-    q: &[f64; N],
-    qd: &[f64; N],
-    _t: f64,
-    _u: &[[f64; 3]; INPUTS],
-    gamma: &mut [f64; N],
-) {
-    let q66 = q[66];
-    let q67 = q[67];
-    let q68 = q[68];
-    let q69 = q[69];
-    let q73 = q[73];
-    let q74 = q[74];
-    let q75 = q[75];
-    let q76 = q[76];
-    let q77 = q[77];
-    let q78 = q[78];
-    let q79 = q[79];
-    let q80 = q[80];
-    let q81 = q[81];
-    let q82 = q[82];
-    let q83 = q[83];
-    let q84 = q[84];
-    let q85 = q[85];
-    let q86 = q[86];
-    let q87 = q[87];
-    let q88 = q[88];
-    let q89 = q[89];
-    let q90 = q[90];
-    let qd3 = qd[3];
-    let qd4 = qd[4];
-    let qd5 = qd[5];
-    let qd6 = qd[6];
-    let qd66 = qd[66];
-    let qd67 = qd[67];
-    let qd68 = qd[68];
-    let qd69 = qd[69];
-    let qd73 = qd[73];
-    let qd74 = qd[74];
-    let qd75 = qd[75];
-    let qd76 = qd[76];
-    let qd77 = qd[77];
-    let qd78 = qd[78];
-    let qd79 = qd[79];
-    let qd80 = qd[80];
-    let qd81 = qd[81];
-    let qd82 = qd[82];
-    let qd83 = qd[83];
-    let qd84 = qd[84];
-    let qd85 = qd[85];
-    let qd86 = qd[86];
-    let qd87 = qd[87];
-    let qd88 = qd[88];
-    let qd89 = qd[89];
-    let qd90 = qd[90];
-    let t0 = q66 * q66;
-    let t1 = q67 * q67;
-    let t2 = q68 * q68;
-    let t3 = q69 * q69;
-    let t4 = t0 + t1 - (t2 + t3);
-    let t5 = t0 + t2 - (t1 + t3);
-    let t6 = q67 * q68;
-    let t7 = q66 * q69;
-    let t8 = t6 - t7;
-    let t9 = q67 * q69;
-    let t10 = q66 * q68;
-    let t11 = t6 + t7;
-    let t12 = q68 * q69;
-    let t13 = q66 * q67;
-    let t14 = t9 - t10;
-    let t15 = t12 + t13;
-    let t16 = q73 * q73;
-    let t17 = q74 * q74;
-    let t18 = q75 * q75;
-    let t19 = q76 * q76;
-    let t20 = t16 + t17 - (t18 + t19);
-    let t21 = t16 + t18 - (t17 + t19);
-    let t22 = t16 + t19 - (t17 + t18);
-    let t23 = q74 * q75;
-    let t24 = q73 * q76;
-    let t25 = t23 - t24;
-    let t26 = q74 * q76;
-    let t27 = q73 * q75;
-    let t28 = t26 + t27;
-    let t29 = t23 + t24;
-    let t30 = q75 * q76;
-    let t31 = q73 * q74;
-    let t32 = t30 - t31;
-    let t33 = t26 - t27;
-    let t34 = t30 + t31;
-    let t35 = 1.7000666050132325 * t28
-        + (0.19052975238835995 * t20 + 0.9821238172135439 * t25);
-    let t36 = 1.7000666050132325 * t32
-        + (0.3810595047767199 * t29 + 0.49106190860677196 * t21);
-    let t37 = 0.8500333025066162 * t22
-        + (0.3810595047767199 * t33 + 0.9821238172135439 * t34);
-    let t38 = -0.9322857809490299 * t4 + 0.7234451538029879 * t8;
-    let t39 = -1.8645715618980598 * t11 + 0.36172257690149395 * t5;
-    let t40 = -1.8645715618980598 * t14 + 0.7234451538029879 * t15;
-    let t41 = q80 * q80;
-    let t42 = q81 * q81;
-    let t43 = q82 * q82;
-    let t44 = q83 * q83;
-    let t45 = t41 + t42 - (t43 + t44);
-    let t46 = t41 + t43 - (t42 + t44);
-    let t47 = q81 * q82;
-    let t48 = q80 * q83;
-    let t49 = t47 - t48;
-    let t50 = q81 * q83;
-    let t51 = q80 * q82;
-    let t52 = t47 + t48;
-    let t53 = q82 * q83;
-    let t54 = q80 * q81;
-    let t55 = t50 - t51;
-    let t56 = t53 + t54;
-    let t57 = q87 * q87;
-    let t58 = q88 * q88;
-    let t59 = q89 * q89;
-    let t60 = q90 * q90;
-    let t61 = t57 + t58 - (t59 + t60);
-    let t62 = t57 + t59 - (t58 + t60);
-    let t63 = t57 + t60 - (t58 + t59);
-    let t64 = q88 * q89;
-    let t65 = q87 * q90;
-    let t66 = t64 - t65;
-    let t67 = q88 * q90;
-    let t68 = q87 * q89;
-    let t69 = t67 + t68;
-    let t70 = t64 + t65;
-    let t71 = q89 * q90;
-    let t72 = q87 * q88;
-    let t73 = t71 - t72;
-    let t74 = t67 - t68;
-    let t75 = t71 + t72;
-    let t76 = q84 - q77;
-    let t77 = q85 - q78;
-    let t78 = q86 - q79;
-    let t79 = 1.7000666050132325 * t69
-        + (0.33000721149015655 * t61 + 0.8210691200969288 * t66);
-    let t80 = 1.7000666050132325 * t73
-        + (0.6600144229803131 * t70 + 0.4105345600484644 * t62);
-    let t81 = 0.8500333025066162 * t63
-        + (0.6600144229803131 * t74 + 0.8210691200969288 * t75);
-    let t82 = -0.7794038311935793 * t45 + 1.2530437628762547 * t49;
-    let t83 = -1.5588076623871585 * t52 + 0.6265218814381274 * t46;
-    let t84 = -1.5588076623871585 * t55 + 1.2530437628762547 * t56;
-    let t85 = qd3 * qd3;
-    let t86 = t85 + t85;
-    let t87 = qd4 * qd4;
-    let t88 = t87 + t87;
-    let t89 = qd5 * qd5;
-    let t90 = t89 + t89;
-    let t91 = qd6 * qd6;
-    let t92 = t91 + t91;
-    let t93 = qd4 * qd5;
-    let t94 = t93 + t93;
-    let t95 = qd3 * qd6;
-    let t96 = t95 + t95;
-    let t97 = qd4 * qd6;
-    let t98 = qd3 * qd5;
-    let t99 = qd5 * qd6;
-    let t100 = qd3 * qd4;
-    let t101 = q69 * qd67 + q67 * qd69;
-    let t102 = q68 * qd66 + q66 * qd68;
-    let t103 = q66 * qd66;
-    let t104 = t103 + t103;
-    let t105 = q67 * qd67;
-    let t106 = t105 + t105;
-    let t107 = q68 * qd68;
-    let t108 = t107 + t107;
-    let t109 = q69 * qd69;
-    let t110 = t109 + t109;
-    let t111 = t104 + t106 - (t108 + t110);
-    let t112 = q68 * qd67 + q67 * qd68;
-    let t113 = q69 * qd66 + q66 * qd69;
-    let t114 = t112 - t113;
-    let t115 = q69 * qd68 + q68 * qd69;
-    let t116 = q67 * qd66 + q66 * qd67;
-    let t117 = t112 + t113;
-    let t118 = t104 + t108 - (t106 + t110);
-    let t119 = qd67 * qd69;
-    let t120 = t119 + t119;
-    let t121 = qd66 * qd68;
-    let t122 = t121 + t121;
-    let t123 = qd66 * qd66;
-    let t124 = t123 + t123;
-    let t125 = qd67 * qd67;
-    let t126 = t125 + t125;
-    let t127 = qd68 * qd68;
-    let t128 = t127 + t127;
-    let t129 = qd69 * qd69;
-    let t130 = t129 + t129;
-    let t131 = t124 + t126 - (t128 + t130);
-    let t132 = qd67 * qd68;
-    let t133 = t132 + t132;
-    let t134 = qd69 * qd66;
-    let t135 = t134 + t134;
-    let t136 = t133 - t135;
-    let t137 = qd69 * qd68;
-    let t138 = t137 + t137;
-    let t139 = qd67 * qd66;
-    let t140 = t139 + t139;
-    let t141 = t133 + t135;
-    let t142 = t124 + t128 - (t126 + t130);
-    let t143 = q73 * qd73;
-    let t144 = t143 + t143;
-    let t145 = q76 * qd76;
-    let t146 = t145 + t145;
-    let t147 = q74 * qd74;
-    let t148 = t147 + t147;
-    let t149 = q75 * qd75;
-    let t150 = t149 + t149;
-    let t151 = t144 + t146 - (t148 + t150);
-    let t152 = q76 * qd74 + q74 * qd76;
-    let t153 = q75 * qd73 + q73 * qd75;
-    let t154 = t152 - t153;
-    let t155 = q76 * qd75 + q75 * qd76;
-    let t156 = q74 * qd73 + q73 * qd74;
-    let t157 = t155 + t156;
-    let t158 = 0.8500333025066162 * t151
-        + (0.3810595047767199 * t154 + 0.9821238172135439 * t157);
-    let t159 = t101 - t102;
-    let t160 = t115 + t116;
-    let t161 = -1.8645715618980598 * t159 + 0.7234451538029879 * t160;
-    let t162 = t152 + t153;
-    let t163 = t144 + t148 - (t146 + t150);
-    let t164 = q75 * qd74 + q74 * qd75;
-    let t165 = q76 * qd73 + q73 * qd76;
-    let t166 = t164 - t165;
-    let t167 = 1.7000666050132325 * t162
-        + (0.19052975238835995 * t163 + 0.9821238172135439 * t166);
-    let t168 = -0.9322857809490299 * t111 + 0.7234451538029879 * t114;
-    let t169 = t155 - t156;
-    let t170 = t164 + t165;
-    let t171 = t144 + t150 - (t146 + t148);
-    let t172 = 1.7000666050132325 * t169
-        + (0.3810595047767199 * t170 + 0.49106190860677196 * t171);
-    let t173 = -1.8645715618980598 * t117 + 0.36172257690149395 * t118;
-    let t174 = qd73 * qd73;
-    let t175 = t174 + t174;
-    let t176 = qd76 * qd76;
-    let t177 = t176 + t176;
-    let t178 = qd74 * qd74;
-    let t179 = t178 + t178;
-    let t180 = qd75 * qd75;
-    let t181 = t180 + t180;
-    let t182 = t175 + t177 - (t179 + t181);
-    let t183 = qd76 * qd74;
-    let t184 = t183 + t183;
-    let t185 = qd73 * qd75;
-    let t186 = t185 + t185;
-    let t187 = t184 - t186;
-    let t188 = qd76 * qd75;
-    let t189 = t188 + t188;
-    let t190 = qd73 * qd74;
-    let t191 = t190 + t190;
-    let t192 = t189 + t191;
-    let t193 = 0.8500333025066162 * t182
-        + (0.3810595047767199 * t187 + 0.9821238172135439 * t192);
-    let t194 = t158 * t161;
-    let t195 = t120 - t122;
-    let t196 = t138 + t140;
-    let t197 = -1.8645715618980598 * t195 + 0.7234451538029879 * t196;
-    let t198 = t184 + t186;
-    let t199 = t175 + t179;
-    let t200 = t199 - (t177 + t181);
-    let t201 = qd74 * qd75;
-    let t202 = t201 + t201;
-    let t203 = qd73 * qd76;
-    let t204 = t203 + t203;
-    let t205 = t202 - t204;
-    let t206 = 1.7000666050132325 * t198
-        + (0.19052975238835995 * t200 + 0.9821238172135439 * t205);
-    let t207 = t167 * t168;
-    let t208 = -0.9322857809490299 * t131 + 0.7234451538029879 * t136;
-    let t209 = t189 - t191;
-    let t210 = t202 + t204;
-    let t211 = t175 + t181 - (t177 + t179);
-    let t212 = 1.7000666050132325 * t209
-        + (0.3810595047767199 * t210 + 0.49106190860677196 * t211);
-    let t213 = t172 * t173;
-    let t214 = -1.8645715618980598 * t141 + 0.36172257690149395 * t142;
-    let t215 = t158
-        * (0.5267289479701067 * (t104 + t110 - (t106 + t108))
-            + (-1.5849479225201275 * t160 + -0.6149524732695607 * t159));
-    let t216 = t167
-        * (1.0534578959402134 * (t101 + t102)
-            + (-1.5849479225201275 * t114 + -0.30747623663478035 * t111));
-    let t217 = t172
-        * (1.0534578959402134 * (t115 - t116)
-            + (-0.7924739612600638 * t118 + -0.6149524732695607 * t117));
-    let t218 = t161
-        * (0.5267289479701067 * t151
-            + (-0.6149524732695608 * t154 + -1.5849479225201275 * t157));
-    let t219 = t168
-        * (1.0534578959402134 * t162
-            + (-0.3074762366347804 * t163 + -1.5849479225201275 * t166));
-    let t220 = t173
-        * (1.0534578959402134 * t169
-            + (-0.6149524732695608 * t170 + -0.7924739612600638 * t171));
-    let t221 = q83 * qd81 + q81 * qd83;
-    let t222 = q82 * qd80 + q80 * qd82;
-    let t223 = q80 * qd80;
-    let t224 = t223 + t223;
-    let t225 = q81 * qd81;
-    let t226 = t225 + t225;
-    let t227 = q82 * qd82;
-    let t228 = t227 + t227;
-    let t229 = q83 * qd83;
-    let t230 = t229 + t229;
-    let t231 = t224 + t226 - (t228 + t230);
-    let t232 = q82 * qd81 + q81 * qd82;
-    let t233 = q83 * qd80 + q80 * qd83;
-    let t234 = t232 - t233;
-    let t235 = 1.0534578959402132 * (t221 + t222)
-        + (-0.53256446397151 * t231 + -1.3250384252315748 * t234);
-    let t236 = q83 * qd82 + q82 * qd83;
-    let t237 = q81 * qd80 + q80 * qd81;
-    let t238 = t232 + t233;
-    let t239 = t224 + t228 - (t226 + t230);
-    let t240 = 1.0534578959402132 * (t236 - t237)
-        + (-1.06512892794302 * t238 + -0.6625192126157874 * t239);
-    let t241 = qd81 * qd83;
-    let t242 = t241 + t241;
-    let t243 = qd80 * qd82;
-    let t244 = t243 + t243;
-    let t245 = qd80 * qd80;
-    let t246 = t245 + t245;
-    let t247 = qd81 * qd81;
-    let t248 = t247 + t247;
-    let t249 = t246 + t248;
-    let t250 = qd82 * qd82;
-    let t251 = t250 + t250;
-    let t252 = qd83 * qd83;
-    let t253 = t252 + t252;
-    let t254 = t249 - (t251 + t253);
-    let t255 = qd81 * qd82;
-    let t256 = t255 + t255;
-    let t257 = qd83 * qd80;
-    let t258 = t257 + t257;
-    let t259 = t256 - t258;
-    let t260 = 1.0534578959402132 * (t242 + t244)
-        + (-0.53256446397151 * t254 + -1.3250384252315748 * t259);
-    let t261 = qd83 * qd82;
-    let t262 = t261 + t261;
-    let t263 = qd81 * qd80;
-    let t264 = t263 + t263;
-    let t265 = t256 + t258;
-    let t266 = t246 + t251 - (t248 + t253);
-    let t267 = 1.0534578959402132 * (t262 - t264)
-        + (-1.06512892794302 * t265 + -0.6625192126157874 * t266);
-    let t268 = q87 * qd87;
-    let t269 = t268 + t268;
-    let t270 = q90 * qd90;
-    let t271 = t270 + t270;
-    let t272 = q88 * qd88;
-    let t273 = t272 + t272;
-    let t274 = q89 * qd89;
-    let t275 = t274 + t274;
-    let t276 = t269 + t271 - (t273 + t275);
-    let t277 = q90 * qd88 + q88 * qd90;
-    let t278 = q89 * qd87 + q87 * qd89;
-    let t279 = t277 - t278;
-    let t280 = q90 * qd89 + q89 * qd90;
-    let t281 = q88 * qd87 + q87 * qd88;
-    let t282 = t280 + t281;
-    let t283 = 0.8500333025066162 * t276
-        + (0.6600144229803131 * t279 + 0.8210691200969288 * t282);
-    let t284 = t221 - t222;
-    let t285 = t236 + t237;
-    let t286 = -1.5588076623871585 * t284 + 1.2530437628762547 * t285;
-    let t287 = t277 + t278;
-    let t288 = t269 + t273 - (t271 + t275);
-    let t289 = q89 * qd88 + q88 * qd89;
-    let t290 = q90 * qd87 + q87 * qd90;
-    let t291 = t289 - t290;
-    let t292 = 1.7000666050132325 * t287
-        + (0.33000721149015655 * t288 + 0.8210691200969288 * t291);
-    let t293 = -0.7794038311935793 * t231 + 1.2530437628762547 * t234;
-    let t294 = t280 - t281;
-    let t295 = t289 + t290;
-    let t296 = t269 + t275 - (t271 + t273);
-    let t297 = 1.7000666050132325 * t294
-        + (0.6600144229803131 * t295 + 0.4105345600484644 * t296);
-    let t298 = -1.5588076623871585 * t238 + 0.6265218814381274 * t239;
-    let t299 = qd87 * qd87;
-    let t300 = t299 + t299;
-    let t301 = qd90 * qd90;
-    let t302 = t301 + t301;
-    let t303 = qd88 * qd88;
-    let t304 = t303 + t303;
-    let t305 = qd89 * qd89;
-    let t306 = t305 + t305;
-    let t307 = t300 + t302 - (t304 + t306);
-    let t308 = qd90 * qd88;
-    let t309 = t308 + t308;
-    let t310 = qd87 * qd89;
-    let t311 = t310 + t310;
-    let t312 = t309 - t311;
-    let t313 = qd90 * qd89;
-    let t314 = t313 + t313;
-    let t315 = qd87 * qd88;
-    let t316 = t315 + t315;
-    let t317 = t314 + t316;
-    let t318 = 0.8500333025066162 * t307
-        + (0.6600144229803131 * t312 + 0.8210691200969288 * t317);
-    let t319 = t283 * t286;
-    let t320 = t242 - t244;
-    let t321 = t262 + t264;
-    let t322 = -1.5588076623871585 * t320 + 1.2530437628762547 * t321;
-    let t323 = t309 + t311;
-    let t324 = t300 + t304;
-    let t325 = t324 - (t302 + t306);
-    let t326 = qd88 * qd89;
-    let t327 = t326 + t326;
-    let t328 = qd87 * qd90;
-    let t329 = t328 + t328;
-    let t330 = t327 - t329;
-    let t331 = 1.7000666050132325 * t323
-        + (0.33000721149015655 * t325 + 0.8210691200969288 * t330);
-    let t332 = t292 * t293;
-    let t333 = -0.7794038311935793 * t254 + 1.2530437628762547 * t259;
-    let t334 = t314 - t316;
-    let t335 = t327 + t329;
-    let t336 = t300 + t306 - (t302 + t304);
-    let t337 = 1.7000666050132325 * t334
-        + (0.6600144229803131 * t335 + 0.4105345600484644 * t336);
-    let t338 = t297 * t298;
-    let t339 = -1.5588076623871585 * t265 + 0.6265218814381274 * t266;
-    let t340 = 0.5267289479701066 * (t224 + t230 - (t226 + t228))
-        + (-1.06512892794302 * t284 + -1.3250384252315748 * t285);
-    let t341 = 0.5267289479701066 * (t246 + t253 - (t248 + t251))
-        + (-1.06512892794302 * t320 + -1.3250384252315748 * t321);
-    let t342 = t283 * t340;
-    let t343 = t235 * t292;
-    let t344 = t240 * t297;
-    let t345 = qd86 - qd79;
-    let t346 = qd84 - qd77;
-    let t347 = qd85 - qd78;
-    let t348 = t286 * t345;
-    let t349 = t293 * t346;
-    let t350 = t298 * t347;
-    let t351 = t340 * t345;
-    let t352 = t235 * t346;
-    let t353 = t240 * t347;
-    let t354 = t286
-        * (0.5267289479701066 * t276
-            + (-1.06512892794302 * t279 + -1.3250384252315748 * t282));
-    let t355 = t293
-        * (1.0534578959402132 * t287
-            + (-0.53256446397151 * t288 + -1.3250384252315748 * t291));
-    let t356 = t298
-        * (1.0534578959402132 * t294
-            + (-1.06512892794302 * t295 + -0.6625192126157874 * t296));
-    // joint P5 row 1: b_i · a_j = 0
-    gamma[52] = -(t194 + t40 * t193 + (t194 + t37 * t197)
-        + (t207 + t38 * t206 + (t207 + t35 * t208)
-            + (t213 + t39 * t212 + (t213 + t36 * t214))));
-    // joint P5 row 2: c_i · a_j = 0
-    gamma[53] = -(t215
-        + (0.5267289479701067 * (t0 + t3 - (t1 + t2))
-            + (-1.5849479225201275 * t15 + -0.6149524732695607 * t14)) * t193
-        + (t215
-            + t37
-                * (0.5267289479701067 * (t124 + t130 - (t126 + t128))
-                    + (-1.5849479225201275 * t196 + -0.6149524732695607 * t195)))
-        + (t216
-            + (1.0534578959402134 * (t9 + t10)
-                + (-1.5849479225201275 * t8 + -0.30747623663478035 * t4)) * t206
-            + (t216
-                + t35
-                    * (1.0534578959402134 * (t120 + t122)
-                        + (-1.5849479225201275 * t136 + -0.30747623663478035 * t131)))
-            + (t217
-                + (1.0534578959402134 * (t12 - t13)
-                    + (-0.7924739612600638 * t5 + -0.6149524732695607 * t11)) * t212
-                + (t217
-                    + t36
-                        * (1.0534578959402134 * (t138 - t140)
-                            + (-0.7924739612600638 * t142
-                                + -0.6149524732695607 * t141))))));
-    // joint P5 row 5: r_i · r_j = 0
-    gamma[56] = -(t218
-        + (0.5267289479701067 * t22
-            + (-0.6149524732695608 * t33 + -1.5849479225201275 * t34)) * t197
-        + (t218
-            + t40
-                * (0.5267289479701067 * t182
-                    + (-0.6149524732695608 * t187 + -1.5849479225201275 * t192)))
-        + (t219
-            + (1.0534578959402134 * t28
-                + (-0.3074762366347804 * t20 + -1.5849479225201275 * t25)) * t208
-            + (t219
-                + t38
-                    * (1.0534578959402134 * t198
-                        + (-0.3074762366347804 * t200 + -1.5849479225201275 * t205)))
-            + (t220
-                + (1.0534578959402134 * t32
-                    + (-0.6149524732695608 * t29 + -0.7924739612600638 * t21)) * t214
-                + (t220
-                    + t39
-                        * (1.0534578959402134 * t209
-                            + (-0.6149524732695608 * t210
-                                + -0.7924739612600638 * t211))))));
-    // body rod5 normalisation: e0² + e1² + e2² + e3² − 1 = 0
-    gamma[88] = -(t177 + (t181 + t199));
-    // joint U6 row 1: (P_j − P_i)_x = 0
-    gamma[60] = 0.0;
-    // joint U6 row 2: (P_j − P_i)_y = 0
-    gamma[61] = 0.0;
-    // joint U6 row 3: (P_j − P_i)_z = 0
-    gamma[62] = 0.0;
-    // joint U6 row 4: a_i · a_j = 0
-    gamma[63] = -(-0.7794038311935793 * t260 + 0.6265218814381274 * t267);
-    // body cylinder6 normalisation: e0² + e1² + e2² + e3² − 1 = 0
-    gamma[89] = -(t253 + (t249 + t251));
-    // joint S6 row 1: (P_j − P_i)_x = 0
-    gamma[69] = -(0.12940952255126015 * (t86 + t88 - (t90 + t92))
-        + -0.9659258262890684 * (t94 - t96));
-    // joint S6 row 2: (P_j − P_i)_y = 0
-    gamma[70] = -(0.2588190451025203 * (t94 + t96)
-        + -0.4829629131445342 * (t86 + t90 - (t88 + t92)));
-    // joint P6 row 3: b_i · (P_j − P_i) = 0
-    gamma[66] = -(t348 + (t348 + t78 * t322)
-        + (t349 + (t349 + t76 * t333) + (t350 + (t350 + t77 * t339))));
-    // joint P6 row 4: c_i · (P_j − P_i) = 0
-    gamma[67] = -(t351 + (t351 + t78 * t341)
-        + (t352 + (t352 + t76 * t260) + (t353 + (t353 + t77 * t267))));
-    // joint S6 row 3: (P_j − P_i)_z = 0
-    gamma[71] = -(0.2588190451025203 * (t97 + t97 - (t98 + t98))
-        + -0.9659258262890684 * (t99 + t99 + (t100 + t100)));
-    // joint P6 row 1: b_i · a_j = 0
-    gamma[64] = -(t319 + t84 * t318 + (t319 + t81 * t322)
-        + (t332 + t82 * t331 + (t332 + t79 * t333)
-            + (t338 + t83 * t337 + (t338 + t80 * t339))));
-    // joint P6 row 2: c_i · a_j = 0
-    gamma[65] = -(t342 + t81 * t341
-        + (t342
-            + (0.5267289479701066 * (t41 + t44 - (t42 + t43))
-                + (-1.06512892794302 * t55 + -1.3250384252315748 * t56)) * t318)
-        + (t343 + t79 * t260
-            + (t343
-                + (1.0534578959402132 * (t50 + t51)
-                    + (-0.53256446397151 * t45 + -1.3250384252315748 * t49)) * t331)
-            + (t344 + t80 * t267
-                + (t344
-                    + (1.0534578959402132 * (t53 - t54)
-                        + (-1.06512892794302 * t52 + -0.6625192126157874 * t46))
-                        * t337))));
-    // joint P6 row 5: r_i · r_j = 0
-    gamma[68] = -(t354
-        + (0.5267289479701066 * t63
-            + (-1.06512892794302 * t74 + -1.3250384252315748 * t75)) * t322
-        + (t354
-            + t84
-                * (0.5267289479701066 * t307
-                    + (-1.06512892794302 * t312 + -1.3250384252315748 * t317)))
-        + (t355
-            + (1.0534578959402132 * t69
-                + (-0.53256446397151 * t61 + -1.3250384252315748 * t66)) * t333
-            + (t355
-                + t82
-                    * (1.0534578959402132 * t323
-                        + (-0.53256446397151 * t325 + -1.3250384252315748 * t330)))
-            + (t356
-                + (1.0534578959402132 * t73
-                    + (-1.06512892794302 * t70 + -0.6625192126157874 * t62)) * t339
-                + (t356
-                    + t83
-                        * (1.0534578959402132 * t334
-                            + (-1.06512892794302 * t335
-                                + -0.6625192126157874 * t336))))));
-    // body rod6 normalisation: e0² + e1² + e2² + e3² − 1 = 0
-    gamma[90] = -(t302 + (t306 + t324));
 }
 
 /// Rescales the unknown Euler parameters of each body so that |p| = 1 (the fixed
@@ -11805,7 +8487,19 @@ impl runtime::Mechanism<N> for Stewart {
         ratio: f64,
     ) -> Result<runtime::lu::PivotInfo, runtime::lu::Singular> {
         match b {
-            0..=48 => factor_block_0(b, jac, perm, ratio),
+            7 => factor_block_shared_0(0, jac, perm, ratio),
+            8 => factor_block_shared_0(1, jac, perm, ratio),
+            15 => factor_block_shared_0(2, jac, perm, ratio),
+            16 => factor_block_shared_0(3, jac, perm, ratio),
+            23 => factor_block_shared_0(4, jac, perm, ratio),
+            24 => factor_block_shared_0(5, jac, perm, ratio),
+            31 => factor_block_shared_0(6, jac, perm, ratio),
+            32 => factor_block_shared_0(7, jac, perm, ratio),
+            39 => factor_block_shared_0(8, jac, perm, ratio),
+            40 => factor_block_shared_0(9, jac, perm, ratio),
+            47 => factor_block_shared_0(10, jac, perm, ratio),
+            48 => factor_block_shared_0(11, jac, perm, ratio),
+            0..=0 => factor_block_0(b, jac, perm, ratio),
             _ => {
                 Err(runtime::lu::Singular::NonFinite {
                     column: 0,
@@ -11821,8 +8515,21 @@ impl runtime::Mechanism<N> for Stewart {
         rhs: &[f64; N],
         x: &mut [f64],
     ) {
-        if let 0..=48 = b {
-            solve_block_0(b, lu, perm, rhs, x)
+        match b {
+            7 => solve_block_shared_0(0, lu, perm, rhs, x),
+            8 => solve_block_shared_0(1, lu, perm, rhs, x),
+            15 => solve_block_shared_0(2, lu, perm, rhs, x),
+            16 => solve_block_shared_0(3, lu, perm, rhs, x),
+            23 => solve_block_shared_0(4, lu, perm, rhs, x),
+            24 => solve_block_shared_0(5, lu, perm, rhs, x),
+            31 => solve_block_shared_0(6, lu, perm, rhs, x),
+            32 => solve_block_shared_0(7, lu, perm, rhs, x),
+            39 => solve_block_shared_0(8, lu, perm, rhs, x),
+            40 => solve_block_shared_0(9, lu, perm, rhs, x),
+            47 => solve_block_shared_0(10, lu, perm, rhs, x),
+            48 => solve_block_shared_0(11, lu, perm, rhs, x),
+            0..=0 => solve_block_0(b, lu, perm, rhs, x),
+            _ => {}
         }
     }
     fn block_residual(
@@ -11838,71 +8545,71 @@ impl runtime::Mechanism<N> for Stewart {
         if jacobian {
             match b {
                 0 => block_0(q, t, &u, phi, jac),
-                1 => block_1(q, t, &u, phi, jac),
-                2 => block_2(q, t, &u, phi, jac),
-                3 => block_3(q, t, &u, phi, jac),
+                1 => block_shared_0(0, q, t, &u, phi, jac),
+                2 => block_shared_0(1, q, t, &u, phi, jac),
+                3 => block_shared_1(0, q, t, &u, phi, jac),
                 4 => block_4(q, t, &u, phi, jac),
                 5 => block_5(q, t, &u, phi, jac),
                 6 => block_6(q, t, &u, phi, jac),
-                7 => block_7(q, t, &u, phi, jac),
-                8 => block_8(q, t, &u, phi, jac),
-                9 => block_9(q, t, &u, phi, jac),
-                10 => block_10(q, t, &u, phi, jac),
-                11 => block_11(q, t, &u, phi, jac),
-                12 => block_12(q, t, &u, phi, jac),
-                13 => block_13(q, t, &u, phi, jac),
+                7 => block_shared_2(0, q, t, &u, phi, jac),
+                8 => block_shared_3(0, q, t, &u, phi, jac),
+                9 => block_shared_4(0, q, t, &u, phi, jac),
+                10 => block_shared_4(1, q, t, &u, phi, jac),
+                11 => block_shared_1(1, q, t, &u, phi, jac),
+                12 => block_shared_5(0, q, t, &u, phi, jac),
+                13 => block_shared_6(0, q, t, &u, phi, jac),
                 14 => block_14(q, t, &u, phi, jac),
-                15 => block_15(q, t, &u, phi, jac),
-                16 => block_16(q, t, &u, phi, jac),
-                17 => block_17(q, t, &u, phi, jac),
-                18 => block_18(q, t, &u, phi, jac),
-                19 => block_19(q, t, &u, phi, jac),
-                20 => block_20(q, t, &u, phi, jac),
-                21 => block_21(q, t, &u, phi, jac),
-                22 => block_22(q, t, &u, phi, jac),
-                23 => block_23(q, t, &u, phi, jac),
-                24 => block_24(q, t, &u, phi, jac),
-                25 => block_25(q, t, &u, phi, jac),
-                26 => block_26(q, t, &u, phi, jac),
-                27 => block_27(q, t, &u, phi, jac),
-                28 => block_28(q, t, &u, phi, jac),
-                29 => block_29(q, t, &u, phi, jac),
-                30 => block_30(q, t, &u, phi, jac),
+                15 => block_shared_2(1, q, t, &u, phi, jac),
+                16 => block_shared_3(1, q, t, &u, phi, jac),
+                17 => block_shared_0(2, q, t, &u, phi, jac),
+                18 => block_shared_4(2, q, t, &u, phi, jac),
+                19 => block_shared_1(2, q, t, &u, phi, jac),
+                20 => block_shared_5(1, q, t, &u, phi, jac),
+                21 => block_shared_6(1, q, t, &u, phi, jac),
+                22 => block_shared_7(0, q, t, &u, phi, jac),
+                23 => block_shared_2(2, q, t, &u, phi, jac),
+                24 => block_shared_3(2, q, t, &u, phi, jac),
+                25 => block_shared_4(3, q, t, &u, phi, jac),
+                26 => block_shared_0(3, q, t, &u, phi, jac),
+                27 => block_shared_1(3, q, t, &u, phi, jac),
+                28 => block_shared_5(2, q, t, &u, phi, jac),
+                29 => block_shared_6(2, q, t, &u, phi, jac),
+                30 => block_shared_7(1, q, t, &u, phi, jac),
                 31 => block_31(q, t, &u, phi, jac),
                 32 => block_32(q, t, &u, phi, jac),
-                33 => block_33(q, t, &u, phi, jac),
-                34 => block_34(q, t, &u, phi, jac),
-                35 => block_35(q, t, &u, phi, jac),
-                36 => block_36(q, t, &u, phi, jac),
-                37 => block_37(q, t, &u, phi, jac),
-                38 => block_38(q, t, &u, phi, jac),
+                33 => block_shared_0(4, q, t, &u, phi, jac),
+                34 => block_shared_4(4, q, t, &u, phi, jac),
+                35 => block_shared_1(4, q, t, &u, phi, jac),
+                36 => block_shared_5(3, q, t, &u, phi, jac),
+                37 => block_shared_6(3, q, t, &u, phi, jac),
+                38 => block_shared_7(2, q, t, &u, phi, jac),
                 39 => block_39(q, t, &u, phi, jac),
                 40 => block_40(q, t, &u, phi, jac),
-                41 => block_41(q, t, &u, phi, jac),
-                42 => block_42(q, t, &u, phi, jac),
-                43 => block_43(q, t, &u, phi, jac),
-                44 => block_44(q, t, &u, phi, jac),
-                45 => block_45(q, t, &u, phi, jac),
-                46 => block_46(q, t, &u, phi, jac),
-                47 => block_47(q, t, &u, phi, jac),
-                48 => block_48(q, t, &u, phi, jac),
+                41 => block_shared_0(5, q, t, &u, phi, jac),
+                42 => block_shared_4(5, q, t, &u, phi, jac),
+                43 => block_shared_1(5, q, t, &u, phi, jac),
+                44 => block_shared_5(4, q, t, &u, phi, jac),
+                45 => block_shared_6(4, q, t, &u, phi, jac),
+                46 => block_shared_7(3, q, t, &u, phi, jac),
+                47 => block_shared_2(3, q, t, &u, phi, jac),
+                48 => block_shared_3(3, q, t, &u, phi, jac),
                 _ => {}
             }
         } else {
             match b {
                 0 => block_residual_0(q, t, &u, phi),
-                7 => block_residual_7(q, t, &u, phi),
-                8 => block_residual_8(q, t, &u, phi),
-                15 => block_residual_15(q, t, &u, phi),
-                16 => block_residual_16(q, t, &u, phi),
-                23 => block_residual_23(q, t, &u, phi),
-                24 => block_residual_24(q, t, &u, phi),
+                7 => block_residual_shared_2(0, q, t, &u, phi),
+                8 => block_residual_shared_3(0, q, t, &u, phi),
+                15 => block_residual_shared_2(1, q, t, &u, phi),
+                16 => block_residual_shared_3(1, q, t, &u, phi),
+                23 => block_residual_shared_2(2, q, t, &u, phi),
+                24 => block_residual_shared_3(2, q, t, &u, phi),
                 31 => block_residual_31(q, t, &u, phi),
                 32 => block_residual_32(q, t, &u, phi),
                 39 => block_residual_39(q, t, &u, phi),
                 40 => block_residual_40(q, t, &u, phi),
-                47 => block_residual_47(q, t, &u, phi),
-                48 => block_residual_48(q, t, &u, phi),
+                47 => block_residual_shared_2(3, q, t, &u, phi),
+                48 => block_residual_shared_3(3, q, t, &u, phi),
                 _ => {}
             }
         }

@@ -49,8 +49,12 @@ pub(super) struct Plan {
 pub(super) struct Shared {
     /// `block_b`: Φ and Φ_q of the block's rows.
     pub(super) both: Sharing,
-    /// `block_residual_b`: Φ of the block's rows.
+    /// `block_residual_b`: Φ of the block's rows (`residual` calls them all).
     pub(super) alone: Sharing,
+    /// `block_velocity_b`: ν of the block's rows (`velocity_rhs` calls them all).
+    pub(super) nu: Sharing,
+    /// `block_acceleration_b`: γ of the block's rows (`acceleration_rhs` calls them all).
+    pub(super) gamma: Sharing,
     /// `rotation_b`: a rotation block's coefficients.
     pub(super) rotations: Sharing,
     /// The arms of `factor_block_k` (Newton's factors of one block).
@@ -253,7 +257,7 @@ impl Shared {
             .iter()
             .map(|block| {
                 let (both, alone) = block_outputs(sys, block, &entries);
-                (Some(both), (block.kind != Kind::ClosedForm).then_some(alone))
+                (Some(both), Some(alone))
             })
             .unzip();
         let mut closed = vec![None; blocks.blocks.len()];
@@ -267,7 +271,18 @@ impl Shared {
         let implicit: Vec<usize> =
             (0..m).filter(|&b| blocks.blocks[b].kind != Kind::ClosedForm).collect();
         let square: Vec<usize> = (0..m).filter(|&b| blocks.blocks[b].rows.len() > 1).collect();
+        let rows = |values: &[crate::expr::ExprId], array: Array| -> Vec<Option<Vec<Output>>> {
+            blocks
+                .blocks
+                .iter()
+                .map(|block| {
+                    Some(block.rows.iter().map(|&r| (array, r, Some(values[r]))).collect())
+                })
+                .collect()
+        };
         Shared {
+            nu: Sharing::of(&sys.pool, &rows(&sys.nu, Array::Nu)),
+            gamma: Sharing::of(&sys.pool, &rows(&sys.gamma, Array::Gamma)),
             both: Sharing::of(&sys.pool, &both),
             alone: Sharing::of(&sys.pool, &alone),
             rotations: Sharing::of(&sys.pool, &closed),
@@ -295,6 +310,8 @@ impl Shared {
     /// No sharing, for `blocks` blocks.
     fn none(blocks: usize) -> Shared {
         Shared {
+            nu: Sharing::none(blocks),
+            gamma: Sharing::none(blocks),
             both: Sharing::none(blocks),
             alone: Sharing::none(blocks),
             rotations: Sharing::none(blocks),
@@ -963,7 +980,7 @@ fn block_functions(
         if shared.both.shared(b).is_none() {
             emit(format!("block_{b}"), &all, &both[..], &zeros);
         }
-        if block.kind != Kind::ClosedForm && shared.alone.shared(b).is_none() {
+        if shared.alone.shared(b).is_none() {
             emit(format!("block_residual_{b}"), &phi, &alone[..], &[]);
         }
     }
@@ -1265,4 +1282,81 @@ fn unit_dispatch(
             quote::quote!(match b { #(#patterns => #bodies,)* _ => {} })
         }
     }
+}
+
+/// `residual`, `velocity_rhs` and `acceleration_rhs` of a module solved by Newton block by
+/// block, as calls of functions per block (`block_residual_b`, `block_velocity_b`,
+/// `block_acceleration_b`, or the function their structure shares, [`super::shared`]): the
+/// same expressions as the whole-system functions, row for row, so the same values, with
+/// the copies of one structure running one function.
+pub(super) fn vectors(rows: &Rows<'_>, plan: &Plan) -> Vec<syn::Item> {
+    let sys = rows.sys;
+    let n = sys.unknowns.len();
+    let inputs = rows.inputs();
+    let vec_ty = quote::quote!(&mut [f64; N]);
+    let mut items = Vec::new();
+    // (public function, block functions, array, sharing, values, reads q̇, doc).
+    type Vector<'s> = (&'s str, &'s str, &'s str, &'s Sharing, &'s [crate::expr::ExprId]);
+    let kinds: [(Vector<'_>, bool, String); 3] = [
+        (
+            ("residual", "block_residual", "phi", &plan.shared.alone, &sys.phi),
+            false,
+            format!(" Constraint residuals Φ(q, t), {n} rows, block by block."),
+        ),
+        (
+            ("velocity_rhs", "block_velocity", "nu", &plan.shared.nu, &sys.nu),
+            false,
+            " Velocity right-hand side ν = −Φ_t, block by block.".to_owned(),
+        ),
+        (
+            ("acceleration_rhs", "block_acceleration", "gamma", &plan.shared.gamma, &sys.gamma),
+            true,
+            " Acceleration right-hand side γ = −(Φ_q q̇)_q q̇ − 2Φ_qt q̇ − Φ_tt, block by block."
+                .to_owned(),
+        ),
+    ];
+    for ((public, name, array, sharing, values), qd, doc) in kinds {
+        let targets = [(array, vec_ty.clone())];
+        let sig = Signature { name: "", qd, qdd: false, public: false, targets: &targets, inputs };
+        if public != "residual" {
+            let what = format!("{} of the rows", if qd { "γ" } else { "ν" });
+            items.extend(sharing.items(name, &sig, &what));
+            for (b, block) in plan.blocks.blocks.iter().enumerate() {
+                if sharing.shared(b).is_some() {
+                    continue;
+                }
+                let outputs: Vec<_> = block
+                    .rows
+                    .iter()
+                    .map(|&r| (super::syntax::element(array, &[r]), values[r], Some(r)))
+                    .collect();
+                let f = super::function::function_with(&sys.pool, n, &outputs, true);
+                let arrays = [true];
+                let used = super::function::Used::of(&f, &arrays);
+                let fname = format!("{name}_{b}");
+                let doc = format!(" {fname}: {} operations.", f.ops);
+                let item = sig.item(&ident(&fname), &doc, &used, true);
+                items.push(super::syntax::item_fn(item, f.stmts));
+            }
+        }
+        let out = ident(array);
+        let rate = qd.then(|| quote::quote!(qd,));
+        let u = inputs.then(|| quote::quote!(&u,));
+        let calls = sharing.calls_all(name, &quote::quote!(q, #rate t, #u #out));
+        let public = ident(public);
+        let qd_param = qd.then(|| quote::quote!(qd: &[f64; N],));
+        let (param, gather) = if inputs {
+            (Some(quote::quote!(inputs: &Inputs,)), Some(quote::quote!(let u = inputs.to_array();)))
+        } else {
+            (None, None)
+        };
+        items.push(parse_quote! {
+            #[doc = #doc]
+            pub fn #public(q: &[f64; N], #qd_param t: f64, #param #out: &mut [f64; N]) {
+                #gather
+                #(#calls)*
+            }
+        });
+    }
+    items
 }

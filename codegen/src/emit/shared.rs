@@ -46,6 +46,10 @@ pub(super) enum Array {
     Jac,
     /// The coefficients of a rotation block, `k[i]`.
     K,
+    /// ν, `nu[r]`.
+    Nu,
+    /// γ, `gamma[r]`.
+    Gamma,
 }
 
 impl Array {
@@ -54,6 +58,8 @@ impl Array {
             Array::Phi => "phi",
             Array::Jac => "jac",
             Array::K => "k",
+            Array::Nu => "nu",
+            Array::Gamma => "gamma",
         }
     }
 }
@@ -98,8 +104,8 @@ pub(super) struct Sharing {
     number: Vec<Option<usize>>,
 }
 
-/// A copy of `outputs` in a pool of its own (see the module docs), or `None` when it reads
-/// q̇ or q̈ (no block function does).
+/// A copy of `outputs` in a pool of its own (see the module docs), q_k and q̇_k in one slot,
+/// or `None` when it reads q̈ (no block function does).
 fn canonical(pool: &ExprPool, outputs: &[Output]) -> Option<(Shape, ExprPool, Instance)> {
     let mut copy = ExprPool::new();
     let mut map: HashMap<ExprId, ExprId> = HashMap::new();
@@ -139,13 +145,14 @@ fn canonical(pool: &ExprPool, outputs: &[Output]) -> Option<(Shape, ExprPool, In
                     Node::Var(Var::Param(k))
                 }
                 Node::Var(Var::Q(k)) => Node::Var(Var::Q(slot(k, &mut q, &mut q_slot))),
+                Node::Var(Var::Qd(k)) => Node::Var(Var::Qd(slot(k, &mut q, &mut q_slot))),
                 Node::Var(Var::T) => Node::Var(Var::T),
                 Node::Var(Var::S(k)) => Node::Var(Var::S(slot(k, &mut inputs, &mut input_slot))),
                 Node::Var(Var::Sd(k)) => Node::Var(Var::Sd(slot(k, &mut inputs, &mut input_slot))),
                 Node::Var(Var::Sdd(k)) => {
                     Node::Var(Var::Sdd(slot(k, &mut inputs, &mut input_slot)))
                 }
-                Node::Var(Var::Qd(_) | Var::Qdd(_) | Var::Param(_)) => return None,
+                Node::Var(Var::Qdd(_) | Var::Param(_)) => return None,
                 Node::Neg(a) => Node::Neg(map[&a]),
                 Node::Add(a, b) => Node::Add(map[&a], map[&b]),
                 Node::Mul(a, b) => Node::Mul(map[&a], map[&b]),
@@ -393,7 +400,7 @@ impl Group {
         let u_values: Vec<&[usize]> = self.instances.iter().map(|x| x.inputs.as_slice()).collect();
         let u = indexing(&u_values, &mut table);
         let mut outputs = Vec::new();
-        for array in [Array::Phi, Array::Jac, Array::K] {
+        for array in [Array::Phi, Array::Jac, Array::K, Array::Nu, Array::Gamma] {
             let slots: Vec<usize> =
                 (0..self.outputs.len()).filter(|&o| self.outputs[o].0 == array).collect();
             if slots.is_empty() {
@@ -412,9 +419,22 @@ impl Group {
         if width > 0 {
             stmts.push(parse_quote!(let at = &#at_name[m];));
         }
-        for (k, &(c, w)) in q.windows.iter().enumerate() {
-            let (start, end, name) = (at(c, 0), at(c, w), ident(&format!("window{k}")));
-            stmts.push(parse_quote!(let #name = &q[#start..#end];));
+        // The windows of q and q̇ the code reads.
+        let mut read = std::collections::BTreeSet::new();
+        for node in pool.nodes() {
+            if let Node::Var(Var::Q(j) | Var::Qd(j)) = *node
+                && let Place::Window { w, .. } = q.places[j as usize]
+            {
+                let rate = matches!(node, Node::Var(Var::Qd(_)));
+                read.insert((rate, w));
+            }
+        }
+        for (rate, k) in read {
+            let (c, w) = q.windows[k];
+            let (start, end) = (at(c, 0), at(c, w));
+            let (array, name) = if rate { ("qd", "qd_window") } else { ("q", "window") };
+            let (array, name) = (ident(array), ident(&format!("{name}{k}")));
+            stmts.push(parse_quote!(let #name = &#array[#start..#end];));
         }
         // The outputs' targets; an array's window when every slot is in it, else whole.
         let mut targets: Vec<Option<Expr>> = vec![None; self.outputs.len()];
@@ -452,6 +472,7 @@ impl Group {
                 targets[o] = Some(parse_quote!(#a[#i]));
             }
         }
+        let places_q = &q.places;
         let read = |array: &str, k: usize| -> Expr {
             match array {
                 "c" => {
@@ -472,20 +493,25 @@ impl Group {
                         parse_quote!(u[#i])
                     }
                 },
-                _ => match q.places[k] {
-                    Place::Fixed(i) => {
-                        let i = index(i);
-                        parse_quote!(q[#i])
+                _ => {
+                    let (q, window) =
+                        if array == "qd" { ("qd", "qd_window") } else { ("q", "window") };
+                    let q = ident(q);
+                    match places_q[k] {
+                        Place::Fixed(i) => {
+                            let i = index(i);
+                            parse_quote!(#q[#i])
+                        }
+                        Place::Window { w, offset } => {
+                            let (i, name) = (index(offset), ident(&format!("{window}{w}")));
+                            parse_quote!(#name[#i])
+                        }
+                        Place::Column(c) => {
+                            let i = at(c, 0);
+                            parse_quote!(#q[#i])
+                        }
                     }
-                    Place::Window { w, offset } => {
-                        let (i, name) = (index(offset), ident(&format!("window{w}")));
-                        parse_quote!(#name[#i])
-                    }
-                    Place::Column(c) => {
-                        let i = at(c, 0);
-                        parse_quote!(q[#i])
-                    }
-                },
+                }
             }
         };
         if columns > 0 {
@@ -576,9 +602,12 @@ pub(super) type Build<'a> =
 /// Index-only code (the blocks' LU: gathers, scatters, row orders, substitutions) shared by
 /// blocks whose code is the same token for token once its indices are holes: there a
 /// token-stream key is sound, since every index goes through a hole and nothing else varies.
+/// Per array, the indices of one block's holes in order.
+type Holes = Vec<Vec<usize>>;
+
 pub(super) struct Gathers {
-    /// Per group: its blocks and, per block, per array, the indices of its holes in order.
-    groups: Vec<(Vec<usize>, Vec<Vec<Vec<usize>>>)>,
+    /// Per group: its blocks and, per block, its holes.
+    groups: Vec<(Vec<usize>, Vec<Holes>)>,
     of: Vec<Option<(usize, usize)>>,
     number: Vec<Option<usize>>,
 }
@@ -594,7 +623,7 @@ impl Gathers {
         build: &Build<'_>,
         also: Option<&Build<'_>>,
     ) -> Gathers {
-        let mut groups: Vec<(Vec<usize>, Vec<Vec<Vec<usize>>>)> = Vec::new();
+        let mut groups: Vec<(Vec<usize>, Vec<Holes>)> = Vec::new();
         let mut by_key: HashMap<String, usize> = HashMap::new();
         let mut of = vec![None; blocks];
         for &b in candidates {
