@@ -134,13 +134,16 @@ fn assemble(
     // Newton block by block emits every row's Jacobian entries in its `block_b` functions:
     // the whole Jacobian is then their calls (`from_blocks`), not two more copies of them.
     let by_blocks = layout.as_ref().filter(|plan| plan.newton);
-    if let Some(plan) = by_blocks {
-        // Φ, ν and γ block by block too, so that copies of one structure share their code.
+    // Φ, ν and γ block by block too when copies of one structure can share their code.
+    let by_vectors = by_blocks.filter(|plan| plan.shared.vectors);
+    if let Some(plan) = by_vectors {
         items.extend(blocks::vectors(&rows, plan));
+    } else {
+        items.extend(residual_and_jacobian(&rows, layout.is_none(), by_blocks.is_none()));
+    }
+    if let Some(plan) = by_blocks {
         let nnz = sys.jac.iter().map(Vec::len).sum::<usize>();
         items.extend(from_blocks::items(plan, nnz, !sys.inputs.is_empty()));
-    } else {
-        items.extend(residual_and_jacobian(&rows, layout.is_none(), true));
     }
     if let Some(plan) = &layout {
         items.extend(blocks::items(&rows, plan));
@@ -152,7 +155,7 @@ fn assemble(
     for (k, order) in orders.iter().enumerate() {
         items.extend(lu::emit(order, &structure, &constant, k));
     }
-    if by_blocks.is_none() {
+    if by_vectors.is_none() {
         items.extend(right_hand_sides(&rows));
     }
     items.push(normalize(sys));

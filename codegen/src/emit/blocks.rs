@@ -47,6 +47,9 @@ pub(super) struct Plan {
 
 /// The block functions grouped by structure, per kind of function.
 pub(super) struct Shared {
+    /// Whether `residual`, `velocity_rhs` and `acceleration_rhs` call functions per block
+    /// ([`vectors`]): when some of those are shared.
+    pub(super) vectors: bool,
     /// `block_b`: Φ and Φ_q of the block's rows.
     pub(super) both: Sharing,
     /// `block_residual_b`: Φ of the block's rows (`residual` calls them all).
@@ -271,6 +274,9 @@ impl Shared {
         let implicit: Vec<usize> =
             (0..m).filter(|&b| blocks.blocks[b].kind != Kind::ClosedForm).collect();
         let square: Vec<usize> = (0..m).filter(|&b| blocks.blocks[b].rows.len() > 1).collect();
+        // Φ, ν and γ go block by block only when some of their block functions are shared:
+        // else the whole-system functions stay (one straight-line function, the drivers'
+        // time functions computed once), and only the implicit blocks have `block_residual_b`.
         let rows = |values: &[crate::expr::ExprId], array: Array| -> Vec<Option<Vec<Output>>> {
             blocks
                 .blocks
@@ -280,11 +286,26 @@ impl Shared {
                 })
                 .collect()
         };
+        let nu = Sharing::of(&sys.pool, &rows(&sys.nu, Array::Nu));
+        let gamma = Sharing::of(&sys.pool, &rows(&sys.gamma, Array::Gamma));
+        let all = Sharing::of(&sys.pool, &alone);
+        let vectors = all.any() || nu.any() || gamma.any();
+        let alone = if vectors {
+            all
+        } else {
+            let implicit: Vec<_> = alone
+                .into_iter()
+                .zip(&blocks.blocks)
+                .map(|(outputs, block)| outputs.filter(|_| block.kind != Kind::ClosedForm))
+                .collect();
+            Sharing::of(&sys.pool, &implicit)
+        };
         Shared {
-            nu: Sharing::of(&sys.pool, &rows(&sys.nu, Array::Nu)),
-            gamma: Sharing::of(&sys.pool, &rows(&sys.gamma, Array::Gamma)),
+            vectors,
+            nu,
+            gamma,
             both: Sharing::of(&sys.pool, &both),
-            alone: Sharing::of(&sys.pool, &alone),
+            alone,
             rotations: Sharing::of(&sys.pool, &closed),
             // Newton's factor and solve of one block share alike: `factor_block_k` and
             // `solve_block_k` take the same blocks.
@@ -310,6 +331,7 @@ impl Shared {
     /// No sharing, for `blocks` blocks.
     fn none(blocks: usize) -> Shared {
         Shared {
+            vectors: false,
             nu: Sharing::none(blocks),
             gamma: Sharing::none(blocks),
             both: Sharing::none(blocks),
@@ -980,7 +1002,7 @@ fn block_functions(
         if shared.both.shared(b).is_none() {
             emit(format!("block_{b}"), &all, &both[..], &zeros);
         }
-        if shared.alone.shared(b).is_none() {
+        if (block.kind != Kind::ClosedForm || shared.vectors) && shared.alone.shared(b).is_none() {
             emit(format!("block_residual_{b}"), &phi, &alone[..], &[]);
         }
     }

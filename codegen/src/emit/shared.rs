@@ -26,8 +26,20 @@
 //!   `static …_AT: [[usize; A]; M]` (one bounds check per window, none per entry); any other
 //!   index is a column of that table of its own.
 //!
+//! What is shared, in a module solved by Newton block by block: the expression functions
+//! `block_b` (Φ and Φ_q of the block's rows), `block_residual_b`, `rotation_b` (the closed
+//! form's coefficients) and, when any of those is shared, `block_velocity_b` and
+//! `block_acceleration_b`, of which `residual`, `velocity_rhs` and `acceleration_rhs` are then
+//! made ([`Sharing`], keyed on the IR as above); and the LU code of the blocks, Newton's
+//! `factor_block`/`solve_block` arms and the parts of `factor_blocks`/`solve_blocks` for blocks
+//! of two rows or more ([`Gathers`], keyed on the code with its indices as holes: that code
+//! has no constants, and every index goes through a hole, so equal text is equal code).
+//! Calls pass the block's place `m` among the blocks of its structure as a literal; the whole
+//! Jacobian, Φ, ν and γ call each shared function in a loop over `m` (the blocks write apart).
+//!
 //! A structure with one block keeps today's function with immediates, so small or irregular
-//! mechanisms emit what they did.
+//! mechanisms emit what they did; with no structure shared by Φ, ν or γ, `residual`,
+//! `velocity_rhs` and `acceleration_rhs` stay whole-system functions.
 
 use std::collections::HashMap;
 
@@ -104,13 +116,65 @@ pub(super) struct Sharing {
     number: Vec<Option<usize>>,
 }
 
+/// A hash of the shape of the expression at `x`: its operations and the kinds of its leaves,
+/// not their values or indices, commutative operands in the order of their shapes.
+fn shape(pool: &ExprPool, x: ExprId, memo: &mut HashMap<ExprId, u64>) -> u64 {
+    use std::hash::{Hash, Hasher};
+    if let Some(&h) = memo.get(&x) {
+        return h;
+    }
+    let mut stack = vec![(x, false)];
+    while let Some((y, expanded)) = stack.pop() {
+        if memo.contains_key(&y) {
+            continue;
+        }
+        let children: Vec<ExprId> = pool[y].children().collect();
+        if !expanded && children.iter().any(|c| !memo.contains_key(c)) {
+            stack.push((y, true));
+            stack.extend(children.iter().map(|&c| (c, false)));
+            continue;
+        }
+        let mut hasher = std::collections::hash_map::DefaultHasher::new();
+        let mut kids: Vec<u64> = children.iter().map(|c| memo[c]).collect();
+        match pool[y] {
+            Node::Const(_) => 0u8.hash(&mut hasher),
+            Node::Var(Var::Q(_)) => 1u8.hash(&mut hasher),
+            Node::Var(Var::Qd(_)) => 2u8.hash(&mut hasher),
+            Node::Var(Var::Qdd(_)) => 3u8.hash(&mut hasher),
+            Node::Var(Var::T) => 4u8.hash(&mut hasher),
+            Node::Var(Var::S(_)) => 5u8.hash(&mut hasher),
+            Node::Var(Var::Sd(_)) => 6u8.hash(&mut hasher),
+            Node::Var(Var::Sdd(_)) => 7u8.hash(&mut hasher),
+            Node::Var(Var::Param(_)) => 8u8.hash(&mut hasher),
+            Node::Neg(_) => 9u8.hash(&mut hasher),
+            Node::Add(..) => {
+                kids.sort_unstable();
+                10u8.hash(&mut hasher);
+            }
+            Node::Mul(..) => {
+                kids.sort_unstable();
+                11u8.hash(&mut hasher);
+            }
+            Node::Sin(_) => 12u8.hash(&mut hasher),
+            Node::Cos(_) => 13u8.hash(&mut hasher),
+        }
+        kids.hash(&mut hasher);
+        memo.insert(y, hasher.finish());
+    }
+    memo[&x]
+}
+
 /// A copy of `outputs` in a pool of its own (see the module docs), q_k and q̇_k in one slot,
-/// or `None` when it reads q̈ (no block function does).
+/// or `None` when it reads q̈ (no block function does). Every use of a constant by a node is
+/// a parameter of its own (two constants equal in one block may differ in another), and the
+/// operands of a sum or a product are copied in the order of their shapes (the arena orders
+/// them by id, which depends on what came before the block): both exact, since addition and
+/// multiplication commute in floating point.
 fn canonical(pool: &ExprPool, outputs: &[Output]) -> Option<(Shape, ExprPool, Instance)> {
     let mut copy = ExprPool::new();
     let mut map: HashMap<ExprId, ExprId> = HashMap::new();
+    let mut shapes: HashMap<ExprId, u64> = HashMap::new();
     let mut constants: Vec<f64> = Vec::new();
-    let mut constant_slot: HashMap<u64, u32> = HashMap::new();
     let (mut q, mut q_slot) = (Vec::new(), HashMap::new());
     let (mut inputs, mut input_slot) = (Vec::new(), HashMap::new());
     let slot = |k: u32, all: &mut Vec<usize>, slots: &mut HashMap<u32, u32>| -> u32 {
@@ -119,30 +183,62 @@ fn canonical(pool: &ExprPool, outputs: &[Output]) -> Option<(Shape, ExprPool, In
             u32::try_from(all.len() - 1).expect("fewer than 2³² slots")
         })
     };
+    // The operands of `x` in canonical order.
+    let operands = |x: ExprId, shapes: &mut HashMap<ExprId, u64>| -> Vec<ExprId> {
+        let mut children: Vec<ExprId> = pool[x].children().collect();
+        if matches!(pool[x], Node::Add(..) | Node::Mul(..)) {
+            let keys: Vec<u64> = children.iter().map(|&c| shape(pool, c, shapes)).collect();
+            if keys[1] < keys[0] {
+                children.swap(0, 1);
+            }
+        }
+        children
+    };
     let mut roots = Vec::with_capacity(outputs.len());
     for &(array, _, value) in outputs {
         let Some(root) = value else {
             roots.push((array, None));
             continue;
         };
+        if let Node::Const(bits) = pool[root] {
+            // A constant output: a parameter of its own too.
+            constants.push(f64::from_bits(bits));
+            let k = u32::try_from(constants.len() - 1).expect("fewer than 2³² constants");
+            roots.push((array, Some(copy.node(Node::Var(Var::Param(k))))));
+            continue;
+        }
         let mut stack = vec![(root, false)];
         while let Some((x, expanded)) = stack.pop() {
             if map.contains_key(&x) {
                 continue;
             }
+            let children = operands(x, &mut shapes);
             if !expanded {
                 stack.push((x, true));
-                let children: Vec<ExprId> = pool[x].children().collect();
-                stack.extend(children.into_iter().rev().map(|c| (c, false)));
+                stack.extend(
+                    children
+                        .iter()
+                        .rev()
+                        .filter(|&&c| !matches!(pool[c], Node::Const(_)))
+                        .map(|&c| (c, false)),
+                );
                 continue;
             }
+            // A constant child: a parameter of its own.
+            let mut child = |c: ExprId| -> ExprId {
+                if let Node::Const(bits) = pool[c] {
+                    constants.push(f64::from_bits(bits));
+                    let k = u32::try_from(constants.len() - 1).expect("fewer than 2³² constants");
+                    copy.node(Node::Var(Var::Param(k)))
+                } else {
+                    map[&c]
+                }
+            };
             let node = match pool[x] {
-                Node::Const(bits) => {
-                    let k = *constant_slot.entry(bits).or_insert_with(|| {
-                        constants.push(f64::from_bits(bits));
-                        u32::try_from(constants.len() - 1).expect("fewer than 2³² constants")
-                    });
-                    Node::Var(Var::Param(k))
+                Node::Const(_) => {
+                    let c = child(x);
+                    map.insert(x, c);
+                    continue;
                 }
                 Node::Var(Var::Q(k)) => Node::Var(Var::Q(slot(k, &mut q, &mut q_slot))),
                 Node::Var(Var::Qd(k)) => Node::Var(Var::Qd(slot(k, &mut q, &mut q_slot))),
@@ -153,11 +249,11 @@ fn canonical(pool: &ExprPool, outputs: &[Output]) -> Option<(Shape, ExprPool, In
                     Node::Var(Var::Sdd(slot(k, &mut inputs, &mut input_slot)))
                 }
                 Node::Var(Var::Qdd(_) | Var::Param(_)) => return None,
-                Node::Neg(a) => Node::Neg(map[&a]),
-                Node::Add(a, b) => Node::Add(map[&a], map[&b]),
-                Node::Mul(a, b) => Node::Mul(map[&a], map[&b]),
-                Node::Sin(a) => Node::Sin(map[&a]),
-                Node::Cos(a) => Node::Cos(map[&a]),
+                Node::Neg(_) => Node::Neg(child(children[0])),
+                Node::Add(..) => Node::Add(child(children[0]), child(children[1])),
+                Node::Mul(..) => Node::Mul(child(children[0]), child(children[1])),
+                Node::Sin(_) => Node::Sin(child(children[0])),
+                Node::Cos(_) => Node::Cos(child(children[0])),
             };
             map.insert(x, copy.node(node));
         }
@@ -210,6 +306,11 @@ impl Sharing {
             })
             .collect();
         Sharing { groups, of, number }
+    }
+
+    /// Whether some blocks share a function.
+    pub(super) fn any(&self) -> bool {
+        self.number.iter().any(Option::is_some)
     }
 
     /// No sharing: every block its own function.
@@ -546,7 +647,9 @@ impl Group {
             " {what} of the `m`th of blocks {list} (one structure: the same code up to the constants in `{constants_name}` and the places in `{at_name}`): {ops} operations."
         );
         let mut item = sig.item(&ident(name), &doc, &used, true);
-        item.sig.inputs.insert(0, parse_quote!(m: usize));
+        // A function the same for all its blocks (nothing in the tables) ignores `m`.
+        let m = super::syntax::param("m", width > 0 || columns > 0);
+        item.sig.inputs.insert(0, parse_quote!(#m: usize));
         stmts.extend(f.stmts);
         stmts.extend(zeros);
         let mut items = Vec::new();
@@ -772,10 +875,11 @@ impl Gathers {
                 });
                 stmts.insert(0, quote::quote!(let at = &#at_name[m];));
             }
+            let m = super::syntax::param("m", width > 0);
             items.push(parse_quote! {
                 #[doc = #doc]
                 #[inline(never)]
-                fn #f(m: usize, #params) #output {
+                fn #f(#m: usize, #params) #output {
                     #(#stmts)*
                     #body
                 }
