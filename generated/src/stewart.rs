@@ -872,126 +872,995 @@ pub const INITIAL_INPUTS: Inputs = Inputs {
     },
 };
 
-/// Constraint residuals Φ(q, t), 91 rows, block by block.
-pub fn residual(q: &[f64; N], t: f64, inputs: &Inputs, phi: &mut [f64; N]) {
-    let u = inputs.to_array();
-    block_residual_0(q, t, &u, phi);
-    for m in 0..12 {
-        block_residual_shared_0(m, q, t, &u, phi);
-    }
-    for m in 0..6 {
-        block_residual_shared_1(m, q, t, &u, phi);
-    }
-    for m in 0..6 {
-        block_residual_shared_2(m, q, t, &u, phi);
-    }
-    for m in 0..6 {
-        block_residual_shared_3(m, q, t, &u, phi);
-    }
-    for m in 0..6 {
-        block_residual_shared_4(m, q, t, &u, phi);
-    }
-    for m in 0..4 {
-        block_residual_shared_5(m, q, t, &u, phi);
-    }
-    for m in 0..4 {
-        block_residual_shared_6(m, q, t, &u, phi);
-    }
-    block_residual_31(q, t, &u, phi);
-    for m in 0..2 {
-        block_residual_shared_7(m, q, t, &u, phi);
-    }
-    block_residual_39(q, t, &u, phi);
-}
-
-/// Where `block_velocity_shared_0` reads and writes for each of its blocks: the starts of its windows and the indices that do not move with them, one row per block.
-static BLOCK_VELOCITY_SHARED_0_AT: [[usize; 1]; 36] = [
-    [0],
-    [1],
-    [2],
-    [9],
-    [10],
-    [11],
-    [12],
-    [13],
-    [14],
-    [21],
-    [22],
-    [23],
-    [24],
-    [25],
-    [26],
-    [33],
-    [34],
-    [35],
-    [36],
-    [37],
-    [38],
-    [45],
-    [46],
-    [47],
-    [48],
-    [49],
-    [50],
-    [57],
-    [58],
-    [59],
-    [60],
-    [61],
-    [62],
-    [69],
-    [70],
-    [71],
+/// The constants of `rows_residual_shared_0` that differ between its blocks, one row per block.
+static ROWS_RESIDUAL_SHARED_0_C: [[f64; 17]; 4] = [
+    [
+        1.680081401212581,
+        0.1299547486442768,
+        1.0534578959402132,
+        -0.9882444583396215,
+        0.8400407006062905,
+        0.2599094972885536,
+        1.0534578959402132,
+        0.15288194975545125,
+        -1.976488916679243,
+        0.3057638995109025,
+        0.3057638995109025,
+        -0.9882444583396215,
+        0.15288194975545125,
+        -1.976488916679243,
+        0.2599094972885536,
+        1.680081401212581,
+        0.5267289479701066,
+    ],
+    [
+        1.680081401212581,
+        -0.1299547486442768,
+        1.0534578959402132,
+        -0.9882444583396215,
+        0.8400407006062905,
+        -0.2599094972885536,
+        1.0534578959402132,
+        -0.15288194975545125,
+        -1.976488916679243,
+        -0.3057638995109025,
+        -0.3057638995109025,
+        -0.9882444583396215,
+        -0.15288194975545125,
+        -1.976488916679243,
+        -0.2599094972885536,
+        1.680081401212581,
+        0.5267289479701066,
+    ],
+    [
+        -1.0651289279430205,
+        0.6625192126157871,
+        1.0534578959402134,
+        0.6265218814381276,
+        -0.5325644639715102,
+        1.3250384252315741,
+        1.0534578959402134,
+        0.7794038311935788,
+        1.2530437628762552,
+        1.5588076623871576,
+        1.5588076623871576,
+        0.6265218814381276,
+        0.7794038311935788,
+        1.2530437628762552,
+        1.3250384252315741,
+        -1.0651289279430205,
+        0.5267289479701067,
+    ],
+    [
+        -1.06512892794302,
+        -0.6625192126157874,
+        1.0534578959402132,
+        0.6265218814381274,
+        -0.53256446397151,
+        -1.3250384252315748,
+        1.0534578959402132,
+        -0.7794038311935793,
+        1.2530437628762547,
+        -1.5588076623871585,
+        -1.5588076623871585,
+        0.6265218814381274,
+        -0.7794038311935793,
+        1.2530437628762547,
+        -1.3250384252315748,
+        -1.06512892794302,
+        0.5267289479701066,
+    ],
 ];
 
-/// ν of the rows of the `m`th of blocks 1, 2, 3, 4, 5, 6, 9, 10, 11, 12, 13, 14, 17, 18, 19, 20, 21, 22, 25, 26, 27, 28, 29, 30, 33, 34, 35, 36, 37, 38, 41, 42, 43, 44, 45, 46 (one structure: the same code up to the constants in `BLOCK_VELOCITY_SHARED_0_C` and the places in `BLOCK_VELOCITY_SHARED_0_AT`): 0 operations.
+/// Where `rows_residual_shared_0` reads and writes for each of its blocks: the starts of its windows and the indices that do not move with them, one row per block.
+static ROWS_RESIDUAL_SHARED_0_AT: [[usize; 3]; 4] = [
+    [7, 3, 79],
+    [21, 15, 81],
+    [35, 27, 83],
+    [77, 63, 89],
+];
+
+/// Φ of the rows of a run of blocks of the `m`th of blocks 1, 3, 5, 11 (one structure: the same code up to the constants in `ROWS_RESIDUAL_SHARED_0_C` and the places in `ROWS_RESIDUAL_SHARED_0_AT`): 77 operations.
 #[inline(never)]
-fn block_velocity_shared_0(
+fn rows_residual_shared_0(
     m: usize,
-    _q: &[f64; N],
+    q: &[f64; N],
     _t: f64,
     _u: &[[f64; 3]; INPUTS],
-    nu: &mut [f64; N],
+    phi: &mut [f64; N],
 ) {
-    let at = &BLOCK_VELOCITY_SHARED_0_AT[m];
-    nu[at[0]] = 0.0;
+    let at = &ROWS_RESIDUAL_SHARED_0_AT[m];
+    let window0 = &q[at[0]..at[0] + 10];
+    let c = &ROWS_RESIDUAL_SHARED_0_C[m];
+    let q0 = window0[4];
+    let q1 = window0[5];
+    let q2 = window0[3];
+    let q3 = window0[6];
+    let q4 = window0[2];
+    let q5 = window0[9];
+    let q6 = window0[1];
+    let q7 = window0[8];
+    let q8 = window0[0];
+    let q9 = window0[7];
+    let c0 = c[0];
+    let c1 = c[1];
+    let c2 = c[2];
+    let c3 = c[3];
+    let c4 = c[4];
+    let c5 = c[5];
+    let c6 = c[6];
+    let c7 = c[7];
+    let c8 = c[8];
+    let c9 = c[9];
+    let c10 = c[10];
+    let c11 = c[11];
+    let c12 = c[12];
+    let c13 = c[13];
+    let c14 = c[14];
+    let c15 = c[15];
+    let c16 = c[16];
+    let t0 = q0 * q1;
+    let t1 = q2 * q3;
+    let t2 = t0 + t1;
+    let t3 = q0 * q0;
+    let t4 = q3 * q3;
+    let t5 = q2 * q2;
+    let t6 = q1 * q1;
+    let t7 = t5 + t6 - (t3 + t4);
+    let t8 = q2 * q0;
+    let t9 = q1 * q3;
+    let t10 = c0 * t2 + c1 * t7 + c2 * (t9 - t8);
+    let t11 = t5 + t3;
+    let t12 = t11 - (t6 + t4);
+    let t13 = t0 - t1;
+    let t14 = q0 * q3;
+    let t15 = q2 * q1;
+    let t16 = c4 * t12 + c5 * t13 + c6 * (t14 + t15);
+    let t17 = t9 + t8;
+    let t18 = t14 - t15;
+    let t19 = q5 - q4;
+    let t20 = q7 - q6;
+    let t21 = q9 - q8;
+    phi[at[1]] = t10 * c3 + c7 * t16;
+    phi[at[1] + 3] = (c8 * t17 + c9 * t18) * t19
+        + ((c10 * t2 + c11 * t7) * t20 + (c12 * t12 + c13 * t13) * t21);
+    phi[at[1] + 4] = t19 * (c14 * t17 + c15 * t18 + c16 * (t5 + t4 - (t3 + t6)))
+        + (t16 * t21 + t10 * t20);
+    phi[at[2]] = t4 + (t6 + t11) - 1.0;
 }
 
-/// Where `block_velocity_shared_1` reads and writes for each of its blocks: the starts of its windows and the indices that do not move with them, one row per block.
-static BLOCK_VELOCITY_SHARED_1_AT: [[usize; 3]; 12] = [
+/// The constants of `rows_residual_shared_1` that differ between its blocks, one row per block.
+static ROWS_RESIDUAL_SHARED_1_C: [[f64; 38]; 3] = [
+    [
+        -1.976488916679243,
+        0.3057638995109025,
+        -0.16105469711661508,
+        -1.0410739277570333,
+        -1.0410739277570333,
+        -0.08052734855830754,
+        0.3057638995109025,
+        -0.9882444583396215,
+        0.15288194975545125,
+        -1.976488916679243,
+        -0.5205369638785167,
+        -0.16105469711661508,
+        0.8400407006062905,
+        0.2599094972885536,
+        1.0534578959402132,
+        1.680081401212581,
+        0.1299547486442768,
+        1.0534578959402132,
+        0.2599094972885536,
+        1.680081401212581,
+        0.5267289479701066,
+        0.2599094972885536,
+        1.680081401212581,
+        0.5267289479701066,
+        1.680081401212581,
+        0.1299547486442768,
+        1.0534578959402132,
+        0.8400407006062905,
+        0.2599094972885536,
+        1.0534578959402132,
+        -0.9659258262890683,
+        -0.25881904510252074,
+        0.3535533905932738,
+        0.7071067811865475,
+        core::f64::consts::FRAC_1_SQRT_2,
+        0.35355339059327373,
+        0.7071067811865475,
+        core::f64::consts::FRAC_1_SQRT_2,
+    ],
+    [
+        -1.976488916679243,
+        -0.3057638995109025,
+        0.16105469711661508,
+        -1.0410739277570333,
+        -1.0410739277570333,
+        0.08052734855830754,
+        -0.3057638995109025,
+        -0.9882444583396215,
+        -0.15288194975545125,
+        -1.976488916679243,
+        -0.5205369638785167,
+        0.16105469711661508,
+        0.8400407006062905,
+        -0.2599094972885536,
+        1.0534578959402132,
+        1.680081401212581,
+        -0.1299547486442768,
+        1.0534578959402132,
+        -0.2599094972885536,
+        1.680081401212581,
+        0.5267289479701066,
+        -0.2599094972885536,
+        1.680081401212581,
+        0.5267289479701066,
+        1.680081401212581,
+        -0.1299547486442768,
+        1.0534578959402132,
+        0.8400407006062905,
+        -0.2599094972885536,
+        1.0534578959402132,
+        0.25881904510252085,
+        -0.9659258262890683,
+        0.12940952255126037,
+        0.9659258262890683,
+        0.25881904510252074,
+        0.48296291314453416,
+        0.9659258262890683,
+        0.25881904510252074,
+    ],
+    [
+        1.2530437628762552,
+        1.5588076623871576,
+        -0.8210691200969289,
+        0.6600144229803139,
+        0.6600144229803139,
+        -0.41053456004846445,
+        1.5588076623871576,
+        0.6265218814381276,
+        0.7794038311935788,
+        1.2530437628762552,
+        0.33000721149015694,
+        -0.8210691200969289,
+        -0.5325644639715102,
+        1.3250384252315741,
+        1.0534578959402134,
+        -1.0651289279430205,
+        0.6625192126157871,
+        1.0534578959402134,
+        1.3250384252315741,
+        -1.0651289279430205,
+        0.5267289479701067,
+        1.3250384252315741,
+        -1.0651289279430205,
+        0.5267289479701067,
+        -1.0651289279430205,
+        0.6625192126157871,
+        1.0534578959402134,
+        -0.5325644639715102,
+        1.3250384252315741,
+        1.0534578959402134,
+        0.7071067811865475,
+        -core::f64::consts::FRAC_1_SQRT_2,
+        -0.4829629131445341,
+        0.258819045102521,
+        -0.9659258262890682,
+        0.1294095225512605,
+        0.258819045102521,
+        -0.9659258262890682,
+    ],
+];
+
+/// Where `rows_residual_shared_1` reads and writes for each of its blocks: the starts of its windows and the indices that do not move with them, one row per block.
+static ROWS_RESIDUAL_SHARED_1_AT: [[usize; 3]; 3] = [
+    [10, 4, 80],
+    [24, 16, 82],
+    [38, 28, 84],
+];
+
+/// Φ of the rows of a run of blocks of the `m`th of blocks 2, 4, 6 (one structure: the same code up to the constants in `ROWS_RESIDUAL_SHARED_1_C` and the places in `ROWS_RESIDUAL_SHARED_1_AT`): 178 operations.
+#[inline(never)]
+fn rows_residual_shared_1(
+    m: usize,
+    q: &[f64; N],
+    _t: f64,
+    _u: &[[f64; 3]; INPUTS],
+    phi: &mut [f64; N],
+) {
+    let at = &ROWS_RESIDUAL_SHARED_1_AT[m];
+    let window0 = &q[at[0]..at[0] + 21];
+    let c = &ROWS_RESIDUAL_SHARED_1_C[m];
+    let q0 = window0[2];
+    let q1 = window0[3];
+    let q2 = window0[0];
+    let q3 = window0[1];
+    let q4 = window0[9];
+    let q5 = window0[10];
+    let q6 = window0[7];
+    let q7 = window0[8];
+    let q8 = window0[11];
+    let q9 = window0[12];
+    let q10 = window0[13];
+    let q11 = q[5];
+    let q12 = q[6];
+    let q13 = q[3];
+    let q14 = q[4];
+    let q15 = q[0];
+    let q16 = window0[18];
+    let q17 = q[1];
+    let q18 = window0[19];
+    let q19 = q[2];
+    let q20 = window0[20];
+    let c0 = c[0];
+    let c1 = c[1];
+    let c2 = c[2];
+    let c3 = c[3];
+    let c5 = c[4];
+    let c6 = c[5];
+    let c8 = c[6];
+    let c9 = c[7];
+    let c10 = c[8];
+    let c11 = c[9];
+    let c12 = c[10];
+    let c13 = c[11];
+    let c15 = c[12];
+    let c16 = c[13];
+    let c17 = c[14];
+    let c18 = c[15];
+    let c19 = c[16];
+    let c20 = c[17];
+    let c21 = c[18];
+    let c22 = c[19];
+    let c23 = c[20];
+    let c24 = c[21];
+    let c25 = c[22];
+    let c26 = c[23];
+    let c27 = c[24];
+    let c28 = c[25];
+    let c29 = c[26];
+    let c30 = c[27];
+    let c31 = c[28];
+    let c32 = c[29];
+    let c34 = c[30];
+    let c35 = c[31];
+    let c36 = c[32];
+    let c37 = c[33];
+    let c38 = c[34];
+    let c39 = c[35];
+    let c40 = c[36];
+    let c41 = c[37];
+    let t0 = q0 * q1;
+    let t1 = q2 * q3;
+    let t2 = t0 + t1;
+    let t3 = q2 * q0;
+    let t4 = q3 * q1;
+    let t5 = t4 - t3;
+    let t6 = c0 * t2 + c1 * t5;
+    let t7 = q4 * q5;
+    let t8 = q6 * q7;
+    let t9 = t7 + t8;
+    let t10 = q6 * q4;
+    let t11 = q7 * q5;
+    let t12 = t11 - t10;
+    let t13 = q7 * q7;
+    let t14 = q4 * q4;
+    let t15 = q6 * q6;
+    let t16 = q5 * q5;
+    let t17 = t15 + t16 - (t13 + t14);
+    let t18 = c2 * t9 + c3 * t12 + 0.8500333025066162 * t17;
+    let t19 = q7 * q4;
+    let t20 = q6 * q5;
+    let t21 = t19 + t20;
+    let t22 = t15 + t14 - (t13 + t16);
+    let t23 = t7 - t8;
+    let t24 = c5 * t21 + c6 * t22 + 1.7000666050132325 * t23;
+    let t25 = q3 * q0;
+    let t26 = q2 * q1;
+    let t27 = t25 + t26;
+    let t28 = q3 * q3;
+    let t29 = q1 * q1;
+    let t30 = q2 * q2;
+    let t31 = q0 * q0;
+    let t32 = t30 + t31 - (t28 + t29);
+    let t33 = c8 * t27 + c9 * t32;
+    let t34 = t30 + t28 - (t31 + t29);
+    let t35 = t25 - t26;
+    let t36 = c10 * t34 + c11 * t35;
+    let t37 = t15 + t13;
+    let t38 = t37 - (t14 + t16);
+    let t39 = t19 - t20;
+    let t40 = t11 + t10;
+    let t41 = c12 * t38 + c13 * t39 + 1.7000666050132325 * t40;
+    let t42 = q11 * q11;
+    let t43 = q12 * q12;
+    let t44 = q13 * q13;
+    let t45 = q14 * q14;
+    let t46 = q13 * q12;
+    let t47 = q14 * q11;
+    phi[at[1]] = t6 * t18 + (t24 * t33 + t36 * t41);
+    phi[at[1] + 1] = (c15 * t34 + c16 * t35 + c17 * (t4 + t3)) * t41
+        + (c18 * t27 + c19 * t32 + c20 * (t0 - t1)) * t24
+        + (c21 * t2 + c22 * t5 + c23 * (t30 + t29 - (t28 + t31))) * t18;
+    phi[at[1] + 4] = t6 * (c24 * t9 + c25 * t12 + c26 * t17)
+        + ((c27 * t21 + c28 * t22 + c29 * t23) * t33
+            + t36 * (c30 * t38 + c31 * t39 + c32 * t40));
+    phi[at[2]] = t16 + (t14 + t37) - 1.0;
+    phi[at[1] + 8] = c34 + q8;
+    phi[at[1] + 9] = c35 + q9;
+    phi[at[1] + 10] = q10;
+    phi[at[1] + 17] = c36 * (t44 + t45 - (t42 + t43)) + c37 * (t47 - t46) + q15 - q16;
+    phi[at[1] + 18] = c38 * (t47 + t46) + c39 * (t44 + t42 - (t45 + t43)) + q17 - q18;
+    phi[at[1] + 19] = c40 * (q11 * q12 + q13 * q14) + c41 * (q14 * q12 - q13 * q11) + q19
+        - q20;
+}
+
+/// The constants of `rows_residual_shared_2` that differ between its blocks, one row per block.
+static ROWS_RESIDUAL_SHARED_2_C: [[f64; 32]; 2] = [
+    [
+        0.7234451538029876,
+        1.8645715618980603,
+        -0.9821238172135439,
+        0.3810595047767196,
+        0.3810595047767196,
+        -0.49106190860677196,
+        1.8645715618980603,
+        0.3617225769014938,
+        0.9322857809490301,
+        0.7234451538029876,
+        0.1905297523883598,
+        -0.9821238172135439,
+        -0.30747623663478024,
+        1.5849479225201277,
+        -0.6149524732695605,
+        0.7924739612600639,
+        1.5849479225201277,
+        -0.6149524732695605,
+        1.5849479225201275,
+        -0.6149524732695604,
+        -0.6149524732695604,
+        0.7924739612600638,
+        -0.3074762366347802,
+        1.5849479225201275,
+        0.7071067811865477,
+        0.7071067811865475,
+        -0.48296291314453416,
+        -0.2588190451025208,
+        -0.9659258262890683,
+        -0.1294095225512604,
+        -0.2588190451025208,
+        -0.9659258262890683,
+    ],
+    [
+        0.7234451538029879,
+        -1.8645715618980598,
+        0.9821238172135439,
+        0.3810595047767199,
+        0.3810595047767199,
+        0.49106190860677196,
+        -1.8645715618980598,
+        0.36172257690149395,
+        -0.9322857809490299,
+        0.7234451538029879,
+        0.19052975238835995,
+        0.9821238172135439,
+        -0.30747623663478035,
+        -1.5849479225201275,
+        -0.6149524732695607,
+        -0.7924739612600638,
+        -1.5849479225201275,
+        -0.6149524732695607,
+        -1.5849479225201275,
+        -0.6149524732695608,
+        -0.6149524732695608,
+        -0.7924739612600638,
+        -0.3074762366347804,
+        -1.5849479225201275,
+        0.25881904510252063,
+        0.9659258262890683,
+        0.12940952255126015,
+        -0.9659258262890684,
+        0.2588190451025203,
+        -0.4829629131445342,
+        -0.9659258262890684,
+        0.2588190451025203,
+    ],
+];
+
+/// Where `rows_residual_shared_2` reads and writes for each of its blocks: the starts of its windows and the indices that do not move with them, one row per block.
+static ROWS_RESIDUAL_SHARED_2_AT: [[usize; 3]; 2] = [[52, 40, 86], [66, 52, 88]];
+
+/// Φ of the rows of a run of blocks of the `m`th of blocks 8, 10 (one structure: the same code up to the constants in `ROWS_RESIDUAL_SHARED_2_C` and the places in `ROWS_RESIDUAL_SHARED_2_AT`): 178 operations.
+#[inline(never)]
+fn rows_residual_shared_2(
+    m: usize,
+    q: &[f64; N],
+    _t: f64,
+    _u: &[[f64; 3]; INPUTS],
+    phi: &mut [f64; N],
+) {
+    let at = &ROWS_RESIDUAL_SHARED_2_AT[m];
+    let window0 = &q[at[0]..at[0] + 21];
+    let c = &ROWS_RESIDUAL_SHARED_2_C[m];
+    let q0 = window0[2];
+    let q1 = window0[3];
+    let q2 = window0[0];
+    let q3 = window0[1];
+    let q4 = window0[9];
+    let q5 = window0[10];
+    let q6 = window0[7];
+    let q7 = window0[8];
+    let q8 = window0[11];
+    let q9 = window0[12];
+    let q10 = window0[13];
+    let q11 = q[5];
+    let q12 = q[6];
+    let q13 = q[3];
+    let q14 = q[4];
+    let q15 = q[0];
+    let q16 = window0[18];
+    let q17 = q[1];
+    let q18 = window0[19];
+    let q19 = q[2];
+    let q20 = window0[20];
+    let c0 = c[0];
+    let c1 = c[1];
+    let c2 = c[2];
+    let c3 = c[3];
+    let c5 = c[4];
+    let c6 = c[5];
+    let c8 = c[6];
+    let c9 = c[7];
+    let c10 = c[8];
+    let c11 = c[9];
+    let c12 = c[10];
+    let c13 = c[11];
+    let c15 = c[12];
+    let c16 = c[13];
+    let c18 = c[14];
+    let c19 = c[15];
+    let c21 = c[16];
+    let c22 = c[17];
+    let c24 = c[18];
+    let c25 = c[19];
+    let c27 = c[20];
+    let c28 = c[21];
+    let c30 = c[22];
+    let c31 = c[23];
+    let c34 = c[24];
+    let c35 = c[25];
+    let c36 = c[26];
+    let c37 = c[27];
+    let c38 = c[28];
+    let c39 = c[29];
+    let c40 = c[30];
+    let c41 = c[31];
+    let t0 = q0 * q1;
+    let t1 = q2 * q3;
+    let t2 = t0 + t1;
+    let t3 = q2 * q0;
+    let t4 = q3 * q1;
+    let t5 = t4 - t3;
+    let t6 = c0 * t2 + c1 * t5;
+    let t7 = q4 * q5;
+    let t8 = q6 * q7;
+    let t9 = t7 + t8;
+    let t10 = q6 * q4;
+    let t11 = q7 * q5;
+    let t12 = t11 - t10;
+    let t13 = q7 * q7;
+    let t14 = q4 * q4;
+    let t15 = q6 * q6;
+    let t16 = q5 * q5;
+    let t17 = t15 + t16 - (t13 + t14);
+    let t18 = c2 * t9 + c3 * t12 + 0.8500333025066162 * t17;
+    let t19 = q7 * q4;
+    let t20 = q6 * q5;
+    let t21 = t19 + t20;
+    let t22 = t15 + t14 - (t13 + t16);
+    let t23 = t7 - t8;
+    let t24 = c5 * t21 + c6 * t22 + 1.7000666050132325 * t23;
+    let t25 = q3 * q0;
+    let t26 = q2 * q1;
+    let t27 = t25 + t26;
+    let t28 = q3 * q3;
+    let t29 = q1 * q1;
+    let t30 = q2 * q2;
+    let t31 = q0 * q0;
+    let t32 = t30 + t31 - (t28 + t29);
+    let t33 = c8 * t27 + c9 * t32;
+    let t34 = t30 + t28 - (t31 + t29);
+    let t35 = t25 - t26;
+    let t36 = c10 * t34 + c11 * t35;
+    let t37 = t15 + t13;
+    let t38 = t37 - (t14 + t16);
+    let t39 = t19 - t20;
+    let t40 = t11 + t10;
+    let t41 = c12 * t38 + c13 * t39 + 1.7000666050132325 * t40;
+    let t42 = q11 * q11;
+    let t43 = q12 * q12;
+    let t44 = q13 * q13;
+    let t45 = q14 * q14;
+    let t46 = q13 * q12;
+    let t47 = q14 * q11;
+    phi[at[1]] = t6 * t18 + (t24 * t33 + t36 * t41);
+    phi[at[1] + 1] = t41 * (c15 * t34 + c16 * t35 + 1.0534578959402134 * (t4 + t3))
+        + t24 * (c18 * t27 + c19 * t32 + 1.0534578959402134 * (t0 - t1))
+        + t18 * (c21 * t2 + c22 * t5 + 0.5267289479701067 * (t30 + t29 - (t28 + t31)));
+    phi[at[1] + 4] = t6 * (c24 * t9 + c25 * t12 + 0.5267289479701067 * t17)
+        + ((c27 * t21 + c28 * t22 + 1.0534578959402134 * t23) * t33
+            + t36 * (c30 * t38 + c31 * t39 + 1.0534578959402134 * t40));
+    phi[at[2]] = t16 + (t14 + t37) - 1.0;
+    phi[at[1] + 8] = c34 + q8;
+    phi[at[1] + 9] = c35 + q9;
+    phi[at[1] + 10] = q10;
+    phi[at[1] + 17] = c36 * (t44 + t45 - (t42 + t43)) + c37 * (t47 - t46) + q15 - q16;
+    phi[at[1] + 18] = c38 * (t47 + t46) + c39 * (t44 + t42 - (t45 + t43)) + q17 - q18;
+    phi[at[1] + 19] = c40 * (q11 * q12 + q13 * q14) + c41 * (q14 * q12 - q13 * q11) + q19
+        - q20;
+}
+
+/// rows_residual_0: 170 operations.
+#[inline(never)]
+fn rows_residual_0(q: &[f64; N], _t: f64, u: &[[f64; 3]; INPUTS], phi: &mut [f64; N]) {
+    let q0 = q[0];
+    let q1 = q[1];
+    let q2 = q[2];
+    let q3 = q[3];
+    let q4 = q[4];
+    let q5 = q[5];
+    let q6 = q[6];
+    let q7 = q[7];
+    let q8 = q[8];
+    let q9 = q[9];
+    let q14 = q[14];
+    let q15 = q[15];
+    let q16 = q[16];
+    let [s0, _sd0, _sdd0] = u[0];
+    let [s1, _sd1, _sdd1] = u[1];
+    let [s2, _sd2, _sdd2] = u[2];
+    let [s3, _sd3, _sdd3] = u[3];
+    let [s4, _sd4, _sdd4] = u[4];
+    let [s5, _sd5, _sdd5] = u[5];
+    let t0 = q3 * q3;
+    let t1 = q4 * q4;
+    let t2 = q5 * q5;
+    let t3 = q6 * q6;
+    let t4 = t0 + t1;
+    let t5 = t4 - (t2 + t3);
+    let t6 = t0 + t2 - (t1 + t3);
+    let t7 = q4 * q5;
+    let t8 = q3 * q6;
+    let t9 = t7 - t8;
+    let t10 = t7 + t8;
+    let t11 = q4 * q6 - q3 * q5;
+    let t12 = q5 * q6 + q3 * q4;
+    let t13 = 0.3535533905932738 * t5;
+    let t14 = core::f64::consts::FRAC_1_SQRT_2 * t10;
+    let t15 = core::f64::consts::FRAC_1_SQRT_2 * t11;
+    let t16 = t13 + -0.7071067811865475 * t9 + q0;
+    let t17 = t14 + -0.35355339059327373 * t6 + q1;
+    let t18 = t15 + -0.7071067811865475 * t12 + q2;
+    let t19 = q2 + (t15 + 0.7071067811865475 * t12);
+    let t20 = q2 + (0.25881904510252074 * t11 + 0.9659258262890683 * t12);
+    let t21 = q2 + (-0.9659258262890682 * t11 + 0.258819045102521 * t12);
+    let t22 = q2 + (-0.9659258262890683 * t11 + -0.2588190451025208 * t12);
+    let t23 = q2 + (0.2588190451025203 * t11 + -0.9659258262890684 * t12);
+    let t24 = t16 - 0.9659258262890683;
+    let t25 = 0.25881904510252074 + t17;
+    let t26 = q0 + (t13 + 0.7071067811865475 * t9) - 0.9659258262890683;
+    let t27 = q1 + (t14 + 0.35355339059327373 * t6) - 0.25881904510252074;
+    let t28 = 0.25881904510252085
+        + (q0 + (0.12940952255126037 * t5 + 0.9659258262890683 * t9));
+    let t29 = q1 + (0.25881904510252074 * t10 + 0.48296291314453416 * t6)
+        - 0.9659258262890683;
+    let t30 = 0.7071067811865475
+        + (q0 + (-0.4829629131445341 * t5 + 0.258819045102521 * t9));
+    let t31 = q1 + (-0.9659258262890682 * t10 + 0.1294095225512605 * t6)
+        - core::f64::consts::FRAC_1_SQRT_2;
+    let t32 = 0.7071067811865477
+        + (q0 + (-0.48296291314453416 * t5 + -0.2588190451025208 * t9));
+    let t33 = 0.7071067811865475
+        + (q1 + (-0.9659258262890683 * t10 + -0.1294095225512604 * t6));
+    let t34 = 0.25881904510252063
+        + (q0 + (0.12940952255126015 * t5 + -0.9659258262890684 * t9));
+    let t35 = 0.9659258262890683
+        + (q1 + (0.2588190451025203 * t10 + -0.4829629131445342 * t6));
+    // driver leg1: (|S − U|² − s² − 2 s v0·a − |v0|²) / (2 L) = 0 (leg reduced), s = the input
+    phi[72] = 0.4250166512533081 * (t18 * t18 + (t24 * t24 + t25 * t25) - s0 * s0);
+    // driver leg2: (|S − U|² − s² − 2 s v0·a − |v0|²) / (2 L) = 0 (leg reduced), s = the input
+    phi[73] = 0.4250166512533081 * (t19 * t19 + (t26 * t26 + t27 * t27) - s1 * s1);
+    // driver leg3: (|S − U|² − s² − 2 s v0·a − |v0|²) / (2 L) = 0 (leg reduced), s = the input
+    phi[74] = 0.4250166512533081 * (t20 * t20 + (t28 * t28 + t29 * t29) - s2 * s2);
+    // driver leg4: (|S − U|² − s² − 2 s v0·a − |v0|²) / (2 L) = 0 (leg reduced), s = the input
+    phi[75] = 0.4250166512533081 * (t21 * t21 + (t30 * t30 + t31 * t31) - s3 * s3);
+    // driver leg5: (|S − U|² − s² − 2 s v0·a − |v0|²) / (2 L) = 0 (leg reduced), s = the input
+    phi[76] = 0.4250166512533081 * (t22 * t22 + (t32 * t32 + t33 * t33) - s4 * s4);
+    // driver leg6: (|S − U|² − s² − 2 s v0·a − |v0|²) / (2 L) = 0 (leg reduced), s = the input
+    phi[77] = 0.4250166512533081 * (t23 * t23 + (t34 * t34 + t35 * t35) - s5 * s5);
+    // body platform normalisation: e0² + e1² + e2² + e3² − 1 = 0
+    phi[78] = t3 + (t2 + t4) - 1.0;
+    // joint U1 row 1: (P_j − P_i)_x = 0
+    phi[0] = q7 - 0.9659258262890683;
+    // joint U1 row 2: (P_j − P_i)_y = 0
+    phi[1] = q8 + 0.25881904510252074;
+    // joint U1 row 3: (P_j − P_i)_z = 0
+    phi[2] = q9;
+    // joint S1 row 1: (P_j − P_i)_x = 0
+    phi[9] = t16 - q14;
+    // joint S1 row 2: (P_j − P_i)_y = 0
+    phi[10] = t17 - q15;
+    // joint S1 row 3: (P_j − P_i)_z = 0
+    phi[11] = t18 - q16;
+}
+
+/// rows_residual_7: 85 operations.
+#[inline(never)]
+fn rows_residual_7(q: &[f64; N], _t: f64, _u: &[[f64; 3]; INPUTS], phi: &mut [f64; N]) {
+    let q49 = q[49];
+    let q50 = q[50];
+    let q51 = q[51];
+    let q52 = q[52];
+    let q53 = q[53];
+    let q54 = q[54];
+    let q55 = q[55];
+    let q56 = q[56];
+    let q57 = q[57];
+    let q58 = q[58];
+    let t0 = q52 * q52;
+    let t1 = q53 * q53;
+    let t2 = q54 * q54;
+    let t3 = q55 * q55;
+    let t4 = t0 + t1;
+    let t5 = t4 - (t2 + t3);
+    let t6 = t0 + t2 - (t1 + t3);
+    let t7 = q53 * q54;
+    let t8 = q52 * q55;
+    let t9 = t7 - t8;
+    let t10 = q53 * q55;
+    let t11 = q52 * q54;
+    let t12 = t7 + t8;
+    let t13 = q54 * q55;
+    let t14 = q52 * q53;
+    let t15 = t10 - t11;
+    let t16 = t13 + t14;
+    let t17 = 1.0534578959402134 * (t10 + t11);
+    let t18 = 1.0534578959402134 * (t13 - t14);
+    let t19 = q56 - q49;
+    let t20 = q57 - q50;
+    let t21 = q58 - q51;
+    // joint U4 row 4: a_i · a_j = 0
+    phi[39] = 0.9322857809490301
+        * (t17 + (-0.3074762366347802 * t5 + 1.5849479225201275 * t9))
+        + 0.3617225769014938
+            * (t18 + (-0.6149524732695604 * t12 + 0.7924739612600638 * t6));
+    // joint P4 row 3: b_i · (P_j − P_i) = 0
+    phi[42] = t21 * (1.8645715618980603 * t15 + 0.7234451538029876 * t16)
+        + (t19 * (0.9322857809490301 * t5 + 0.7234451538029876 * t9)
+            + t20 * (1.8645715618980603 * t12 + 0.3617225769014938 * t6));
+    // joint P4 row 4: c_i · (P_j − P_i) = 0
+    phi[43] = t21
+        * (0.5267289479701067 * (t0 + t3 - (t1 + t2))
+            + (-0.6149524732695605 * t15 + 1.5849479225201277 * t16))
+        + (t19 * (t17 + (-0.30747623663478024 * t5 + 1.5849479225201277 * t9))
+            + t20 * (t18 + (-0.6149524732695605 * t12 + 0.7924739612600639 * t6)));
+    // body cylinder4 normalisation: e0² + e1² + e2² + e3² − 1 = 0
+    phi[85] = t3 + (t2 + t4) - 1.0;
+}
+
+/// rows_residual_9: 83 operations.
+#[inline(never)]
+fn rows_residual_9(q: &[f64; N], _t: f64, _u: &[[f64; 3]; INPUTS], phi: &mut [f64; N]) {
+    let q63 = q[63];
+    let q64 = q[64];
+    let q65 = q[65];
+    let q66 = q[66];
+    let q67 = q[67];
+    let q68 = q[68];
+    let q69 = q[69];
+    let q70 = q[70];
+    let q71 = q[71];
+    let q72 = q[72];
+    let t0 = q66 * q66;
+    let t1 = q67 * q67;
+    let t2 = q68 * q68;
+    let t3 = q69 * q69;
+    let t4 = t0 + t1;
+    let t5 = t4 - (t2 + t3);
+    let t6 = t0 + t2 - (t1 + t3);
+    let t7 = q67 * q68;
+    let t8 = q66 * q69;
+    let t9 = t7 - t8;
+    let t10 = q67 * q69;
+    let t11 = q66 * q68;
+    let t12 = t7 + t8;
+    let t13 = q68 * q69;
+    let t14 = q66 * q67;
+    let t15 = t10 - t11;
+    let t16 = t13 + t14;
+    let t17 = -1.5849479225201275 * t9;
+    let t18 = 1.0534578959402134 * (t10 + t11);
+    let t19 = -0.7924739612600638 * t6;
+    let t20 = 1.0534578959402134 * (t13 - t14);
+    let t21 = q70 - q63;
+    let t22 = q71 - q64;
+    let t23 = q72 - q65;
+    // joint U5 row 4: a_i · a_j = 0
+    phi[51] = -0.9322857809490299 * (t18 + (-0.3074762366347804 * t5 + t17))
+        + 0.36172257690149395 * (t20 + (-0.6149524732695608 * t12 + t19));
+    // joint P5 row 3: b_i · (P_j − P_i) = 0
+    phi[54] = t23 * (-1.8645715618980598 * t15 + 0.7234451538029879 * t16)
+        + (t21 * (-0.9322857809490299 * t5 + 0.7234451538029879 * t9)
+            + t22 * (-1.8645715618980598 * t12 + 0.36172257690149395 * t6));
+    // joint P5 row 4: c_i · (P_j − P_i) = 0
+    phi[55] = t23
+        * (0.5267289479701067 * (t0 + t3 - (t1 + t2))
+            + (-1.5849479225201275 * t16 + -0.6149524732695607 * t15))
+        + (t21 * (t18 + (t17 + -0.30747623663478035 * t5))
+            + t22 * (t20 + (t19 + -0.6149524732695607 * t12)));
+    // body cylinder5 normalisation: e0² + e1² + e2² + e3² − 1 = 0
+    phi[87] = t3 + (t2 + t4) - 1.0;
+}
+
+/// rows_residual_12: 134 operations.
+#[inline(never)]
+fn rows_residual_12(q: &[f64; N], _t: f64, _u: &[[f64; 3]; INPUTS], phi: &mut [f64; N]) {
+    let q80 = q[80];
+    let q81 = q[81];
+    let q82 = q[82];
+    let q83 = q[83];
+    let q87 = q[87];
+    let q88 = q[88];
+    let q89 = q[89];
+    let q90 = q[90];
+    let t0 = q80 * q80;
+    let t1 = q81 * q81;
+    let t2 = q82 * q82;
+    let t3 = q83 * q83;
+    let t4 = t0 + t1 - (t2 + t3);
+    let t5 = t0 + t2 - (t1 + t3);
+    let t6 = q81 * q82;
+    let t7 = q80 * q83;
+    let t8 = t6 - t7;
+    let t9 = q81 * q83;
+    let t10 = q80 * q82;
+    let t11 = t6 + t7;
+    let t12 = q82 * q83;
+    let t13 = q80 * q81;
+    let t14 = t9 - t10;
+    let t15 = t12 + t13;
+    let t16 = q87 * q87;
+    let t17 = q88 * q88;
+    let t18 = q89 * q89;
+    let t19 = q90 * q90;
+    let t20 = t16 + t17;
+    let t21 = t20 - (t18 + t19);
+    let t22 = t16 + t18 - (t17 + t19);
+    let t23 = t16 + t19 - (t17 + t18);
+    let t24 = q88 * q89;
+    let t25 = q87 * q90;
+    let t26 = t24 - t25;
+    let t27 = q88 * q90;
+    let t28 = q87 * q89;
+    let t29 = t27 + t28;
+    let t30 = t24 + t25;
+    let t31 = q89 * q90;
+    let t32 = q87 * q88;
+    let t33 = t31 - t32;
+    let t34 = t27 - t28;
+    let t35 = t31 + t32;
+    let t36 = 1.7000666050132325 * t29
+        + (0.33000721149015655 * t21 + 0.8210691200969288 * t26);
+    let t37 = 1.7000666050132325 * t33
+        + (0.6600144229803131 * t30 + 0.4105345600484644 * t22);
+    let t38 = 0.8500333025066162 * t23
+        + (0.6600144229803131 * t34 + 0.8210691200969288 * t35);
+    let t39 = -0.7794038311935793 * t4 + 1.2530437628762547 * t8;
+    let t40 = -1.5588076623871585 * t11 + 0.6265218814381274 * t5;
+    let t41 = -1.5588076623871585 * t14 + 1.2530437628762547 * t15;
+    // joint P6 row 1: b_i · a_j = 0
+    phi[64] = t38 * t41 + (t36 * t39 + t37 * t40);
+    // joint P6 row 2: c_i · a_j = 0
+    phi[65] = (0.5267289479701066 * (t0 + t3 - (t1 + t2))
+        + (-1.06512892794302 * t14 + -1.3250384252315748 * t15)) * t38
+        + ((1.0534578959402132 * (t9 + t10)
+            + (-0.53256446397151 * t4 + -1.3250384252315748 * t8)) * t36
+            + (1.0534578959402132 * (t12 - t13)
+                + (-1.06512892794302 * t11 + -0.6625192126157874 * t5)) * t37);
+    // joint P6 row 5: r_i · r_j = 0
+    phi[68] = t41
+        * (0.5267289479701066 * t23
+            + (-1.06512892794302 * t34 + -1.3250384252315748 * t35))
+        + (t39
+            * (1.0534578959402132 * t29
+                + (-0.53256446397151 * t21 + -1.3250384252315748 * t26))
+            + t40
+                * (1.0534578959402132 * t33
+                    + (-1.06512892794302 * t30 + -0.6625192126157874 * t22)));
+    // body rod6 normalisation: e0² + e1² + e2² + e3² − 1 = 0
+    phi[90] = t19 + (t18 + t20) - 1.0;
+}
+
+/// Constraint residuals Φ(q, t), 91 rows, by runs of blocks.
+pub fn residual(q: &[f64; N], t: f64, inputs: &Inputs, phi: &mut [f64; N]) {
+    let u = inputs.to_array();
+    rows_residual_0(q, t, &u, phi);
+    for m in 0..4 {
+        rows_residual_shared_0(m, q, t, &u, phi);
+    }
+    for m in 0..3 {
+        rows_residual_shared_1(m, q, t, &u, phi);
+    }
+    rows_residual_7(q, t, &u, phi);
+    for m in 0..2 {
+        rows_residual_shared_2(m, q, t, &u, phi);
+    }
+    rows_residual_9(q, t, &u, phi);
+    rows_residual_12(q, t, &u, phi);
+}
+
+/// Where `rows_velocity_shared_0` reads and writes for each of its blocks: the starts of its windows and the indices that do not move with them, one row per block.
+static ROWS_VELOCITY_SHARED_0_AT: [[usize; 3]; 7] = [
     [3, 6, 79],
-    [4, 5, 80],
     [15, 18, 81],
-    [16, 17, 82],
     [27, 30, 83],
-    [28, 29, 84],
     [39, 42, 85],
-    [40, 41, 86],
     [51, 54, 87],
-    [52, 53, 88],
     [63, 66, 89],
     [64, 65, 90],
 ];
 
-/// ν of the rows of the `m`th of blocks 7, 8, 15, 16, 23, 24, 31, 32, 39, 40, 47, 48 (one structure: the same code up to the constants in `BLOCK_VELOCITY_SHARED_1_C` and the places in `BLOCK_VELOCITY_SHARED_1_AT`): 0 operations.
+/// ν of the rows of a run of blocks of the `m`th of blocks 1, 3, 5, 7, 9, 11, 12 (one structure: the same code up to the constants in `ROWS_VELOCITY_SHARED_0_C` and the places in `ROWS_VELOCITY_SHARED_0_AT`): 0 operations.
 #[inline(never)]
-fn block_velocity_shared_1(
+fn rows_velocity_shared_0(
     m: usize,
     _q: &[f64; N],
     _t: f64,
     _u: &[[f64; 3]; INPUTS],
     nu: &mut [f64; N],
 ) {
-    let at = &BLOCK_VELOCITY_SHARED_1_AT[m];
+    let at = &ROWS_VELOCITY_SHARED_0_AT[m];
     nu[at[0]] = 0.0;
     nu[at[1]] = 0.0;
     nu[at[0] + 4] = 0.0;
     nu[at[2]] = 0.0;
 }
 
-/// block_velocity_0: 18 operations.
+/// Where `rows_velocity_shared_1` reads and writes for each of its blocks: the starts of its windows and the indices that do not move with them, one row per block.
+static ROWS_VELOCITY_SHARED_1_AT: [[usize; 2]; 5] = [
+    [4, 80],
+    [16, 82],
+    [28, 84],
+    [40, 86],
+    [52, 88],
+];
+
+/// ν of the rows of a run of blocks of the `m`th of blocks 2, 4, 6, 8, 10 (one structure: the same code up to the constants in `ROWS_VELOCITY_SHARED_1_C` and the places in `ROWS_VELOCITY_SHARED_1_AT`): 0 operations.
 #[inline(never)]
-fn block_velocity_0(_q: &[f64; N], _t: f64, u: &[[f64; 3]; INPUTS], nu: &mut [f64; N]) {
+fn rows_velocity_shared_1(
+    m: usize,
+    _q: &[f64; N],
+    _t: f64,
+    _u: &[[f64; 3]; INPUTS],
+    nu: &mut [f64; N],
+) {
+    let at = &ROWS_VELOCITY_SHARED_1_AT[m];
+    nu[at[0]] = 0.0;
+    nu[at[0] + 1] = 0.0;
+    nu[at[0] + 4] = 0.0;
+    nu[at[1]] = 0.0;
+    nu[at[0] + 8] = 0.0;
+    nu[at[0] + 9] = 0.0;
+    nu[at[0] + 10] = 0.0;
+    nu[at[0] + 17] = 0.0;
+    nu[at[0] + 18] = 0.0;
+    nu[at[0] + 19] = 0.0;
+}
+
+/// rows_velocity_0: 18 operations.
+#[inline(never)]
+fn rows_velocity_0(_q: &[f64; N], _t: f64, u: &[[f64; 3]; INPUTS], nu: &mut [f64; N]) {
     let [s0, sd0, _sdd0] = u[0];
     let [s1, sd1, _sdd1] = u[1];
     let [s2, sd2, _sdd2] = u[2];
@@ -1012,199 +1881,34 @@ fn block_velocity_0(_q: &[f64; N], _t: f64, u: &[[f64; 3]; INPUTS], nu: &mut [f6
     nu[77] = 0.4250166512533081 * (s5 + s5) * sd5;
     // body platform normalisation: e0² + e1² + e2² + e3² − 1 = 0
     nu[78] = 0.0;
+    // joint U1 row 1: (P_j − P_i)_x = 0
+    nu[0] = 0.0;
+    // joint U1 row 2: (P_j − P_i)_y = 0
+    nu[1] = 0.0;
+    // joint U1 row 3: (P_j − P_i)_z = 0
+    nu[2] = 0.0;
+    // joint S1 row 1: (P_j − P_i)_x = 0
+    nu[9] = 0.0;
+    // joint S1 row 2: (P_j − P_i)_y = 0
+    nu[10] = 0.0;
+    // joint S1 row 3: (P_j − P_i)_z = 0
+    nu[11] = 0.0;
 }
 
-/// Velocity right-hand side ν = −Φ_t, block by block.
+/// Velocity right-hand side ν = −Φ_t, by runs of blocks.
 pub fn velocity_rhs(q: &[f64; N], t: f64, inputs: &Inputs, nu: &mut [f64; N]) {
     let u = inputs.to_array();
-    block_velocity_0(q, t, &u, nu);
-    for m in 0..36 {
-        block_velocity_shared_0(m, q, t, &u, nu);
+    rows_velocity_0(q, t, &u, nu);
+    for m in 0..7 {
+        rows_velocity_shared_0(m, q, t, &u, nu);
     }
-    for m in 0..12 {
-        block_velocity_shared_1(m, q, t, &u, nu);
+    for m in 0..5 {
+        rows_velocity_shared_1(m, q, t, &u, nu);
     }
 }
 
-/// Where `block_acceleration_shared_0` reads and writes for each of its blocks: the starts of its windows and the indices that do not move with them, one row per block.
-static BLOCK_ACCELERATION_SHARED_0_AT: [[usize; 1]; 18] = [
-    [0],
-    [1],
-    [2],
-    [12],
-    [13],
-    [14],
-    [24],
-    [25],
-    [26],
-    [36],
-    [37],
-    [38],
-    [48],
-    [49],
-    [50],
-    [60],
-    [61],
-    [62],
-];
-
-/// γ of the rows of the `m`th of blocks 1, 2, 3, 9, 10, 11, 17, 18, 19, 25, 26, 27, 33, 34, 35, 41, 42, 43 (one structure: the same code up to the constants in `BLOCK_ACCELERATION_SHARED_0_C` and the places in `BLOCK_ACCELERATION_SHARED_0_AT`): 0 operations.
-#[inline(never)]
-fn block_acceleration_shared_0(
-    m: usize,
-    _q: &[f64; N],
-    _qd: &[f64; N],
-    _t: f64,
-    _u: &[[f64; 3]; INPUTS],
-    gamma: &mut [f64; N],
-) {
-    let at = &BLOCK_ACCELERATION_SHARED_0_AT[m];
-    gamma[at[0]] = 0.0;
-}
-
-/// The constants of `block_acceleration_shared_1` that differ between its blocks, one row per block.
-static BLOCK_ACCELERATION_SHARED_1_C: [[f64; 2]; 6] = [
-    [-0.7071067811865475, 0.3535533905932738],
-    [0.7071067811865475, 0.3535533905932738],
-    [0.9659258262890683, 0.12940952255126037],
-    [0.258819045102521, -0.4829629131445341],
-    [-0.2588190451025208, -0.48296291314453416],
-    [-0.9659258262890684, 0.12940952255126015],
-];
-
-/// Where `block_acceleration_shared_1` reads and writes for each of its blocks: the starts of its windows and the indices that do not move with them, one row per block.
-static BLOCK_ACCELERATION_SHARED_1_AT: [[usize; 1]; 6] = [
-    [9],
-    [21],
-    [33],
-    [45],
-    [57],
-    [69],
-];
-
-/// γ of the rows of the `m`th of blocks 4, 12, 20, 28, 36, 44 (one structure: the same code up to the constants in `BLOCK_ACCELERATION_SHARED_1_C` and the places in `BLOCK_ACCELERATION_SHARED_1_AT`): 22 operations.
-#[inline(never)]
-fn block_acceleration_shared_1(
-    m: usize,
-    _q: &[f64; N],
-    qd: &[f64; N],
-    _t: f64,
-    _u: &[[f64; 3]; INPUTS],
-    gamma: &mut [f64; N],
-) {
-    let at = &BLOCK_ACCELERATION_SHARED_1_AT[m];
-    let c = &BLOCK_ACCELERATION_SHARED_1_C[m];
-    let qd0 = qd[3];
-    let qd1 = qd[6];
-    let qd2 = qd[4];
-    let qd3 = qd[5];
-    let c0 = c[0];
-    let c1 = c[1];
-    let t0 = qd0 * qd1;
-    let t1 = qd2 * qd3;
-    let t2 = qd3 * qd3;
-    let t3 = qd1 * qd1;
-    let t4 = qd0 * qd0;
-    let t5 = qd2 * qd2;
-    gamma[at[0]] = -(c0 * (t1 + t1 - (t0 + t0))
-        + c1 * (t4 + t4 + (t5 + t5) - (t2 + t2 + (t3 + t3))));
-}
-
-/// The constants of `block_acceleration_shared_2` that differ between its blocks, one row per block.
-static BLOCK_ACCELERATION_SHARED_2_C: [[f64; 2]; 6] = [
-    [-0.35355339059327373, core::f64::consts::FRAC_1_SQRT_2],
-    [0.35355339059327373, core::f64::consts::FRAC_1_SQRT_2],
-    [0.48296291314453416, 0.25881904510252074],
-    [0.1294095225512605, -0.9659258262890682],
-    [-0.1294095225512604, -0.9659258262890683],
-    [-0.4829629131445342, 0.2588190451025203],
-];
-
-/// Where `block_acceleration_shared_2` reads and writes for each of its blocks: the starts of its windows and the indices that do not move with them, one row per block.
-static BLOCK_ACCELERATION_SHARED_2_AT: [[usize; 1]; 6] = [
-    [10],
-    [22],
-    [34],
-    [46],
-    [58],
-    [70],
-];
-
-/// γ of the rows of the `m`th of blocks 5, 13, 21, 29, 37, 45 (one structure: the same code up to the constants in `BLOCK_ACCELERATION_SHARED_2_C` and the places in `BLOCK_ACCELERATION_SHARED_2_AT`): 21 operations.
-#[inline(never)]
-fn block_acceleration_shared_2(
-    m: usize,
-    _q: &[f64; N],
-    qd: &[f64; N],
-    _t: f64,
-    _u: &[[f64; 3]; INPUTS],
-    gamma: &mut [f64; N],
-) {
-    let at = &BLOCK_ACCELERATION_SHARED_2_AT[m];
-    let c = &BLOCK_ACCELERATION_SHARED_2_C[m];
-    let qd0 = qd[4];
-    let qd1 = qd[6];
-    let qd2 = qd[3];
-    let qd3 = qd[5];
-    let c0 = c[0];
-    let c1 = c[1];
-    let t0 = qd0 * qd0;
-    let t1 = qd1 * qd1;
-    let t2 = qd2 * qd2;
-    let t3 = qd3 * qd3;
-    let t4 = qd0 * qd3;
-    let t5 = qd2 * qd1;
-    gamma[at[0]] = -(c0 * (t2 + t2 + (t3 + t3) - (t0 + t0 + (t1 + t1)))
-        + c1 * (t4 + t4 + (t5 + t5)));
-}
-
-/// The constants of `block_acceleration_shared_3` that differ between its blocks, one row per block.
-static BLOCK_ACCELERATION_SHARED_3_C: [[f64; 2]; 6] = [
-    [core::f64::consts::FRAC_1_SQRT_2, -0.7071067811865475],
-    [core::f64::consts::FRAC_1_SQRT_2, 0.7071067811865475],
-    [0.25881904510252074, 0.9659258262890683],
-    [-0.9659258262890682, 0.258819045102521],
-    [-0.9659258262890683, -0.2588190451025208],
-    [0.2588190451025203, -0.9659258262890684],
-];
-
-/// Where `block_acceleration_shared_3` reads and writes for each of its blocks: the starts of its windows and the indices that do not move with them, one row per block.
-static BLOCK_ACCELERATION_SHARED_3_AT: [[usize; 1]; 6] = [
-    [11],
-    [23],
-    [35],
-    [47],
-    [59],
-    [71],
-];
-
-/// γ of the rows of the `m`th of blocks 6, 14, 22, 30, 38, 46 (one structure: the same code up to the constants in `BLOCK_ACCELERATION_SHARED_3_C` and the places in `BLOCK_ACCELERATION_SHARED_3_AT`): 15 operations.
-#[inline(never)]
-fn block_acceleration_shared_3(
-    m: usize,
-    _q: &[f64; N],
-    qd: &[f64; N],
-    _t: f64,
-    _u: &[[f64; 3]; INPUTS],
-    gamma: &mut [f64; N],
-) {
-    let at = &BLOCK_ACCELERATION_SHARED_3_AT[m];
-    let c = &BLOCK_ACCELERATION_SHARED_3_C[m];
-    let qd0 = qd[3];
-    let qd1 = qd[5];
-    let qd2 = qd[4];
-    let qd3 = qd[6];
-    let c0 = c[0];
-    let c1 = c[1];
-    let t0 = qd0 * qd1;
-    let t1 = qd2 * qd3;
-    let t2 = qd1 * qd3;
-    let t3 = qd0 * qd2;
-    gamma[at[0]] = -(c0 * (t1 + t1 - (t0 + t0)) + c1 * (t2 + t2 + (t3 + t3)));
-}
-
-/// The constants of `block_acceleration_shared_4` that differ between its blocks, one row per block.
-static BLOCK_ACCELERATION_SHARED_4_C: [[f64; 32]; 4] = [
+/// The constants of `rows_acceleration_shared_0` that differ between its blocks, one row per block.
+static ROWS_ACCELERATION_SHARED_0_C: [[f64; 32]; 4] = [
     [
         0.1299547486442768,
         1.680081401212581,
@@ -1343,17 +2047,17 @@ static BLOCK_ACCELERATION_SHARED_4_C: [[f64; 32]; 4] = [
     ],
 ];
 
-/// Where `block_acceleration_shared_4` reads and writes for each of its blocks: the starts of its windows and the indices that do not move with them, one row per block.
-static BLOCK_ACCELERATION_SHARED_4_AT: [[usize; 3]; 4] = [
+/// Where `rows_acceleration_shared_0` reads and writes for each of its blocks: the starts of its windows and the indices that do not move with them, one row per block.
+static ROWS_ACCELERATION_SHARED_0_AT: [[usize; 3]; 4] = [
     [7, 3, 79],
     [21, 15, 81],
     [35, 27, 83],
     [77, 63, 89],
 ];
 
-/// γ of the rows of the `m`th of blocks 7, 15, 23, 47 (one structure: the same code up to the constants in `BLOCK_ACCELERATION_SHARED_4_C` and the places in `BLOCK_ACCELERATION_SHARED_4_AT`): 185 operations.
+/// γ of the rows of a run of blocks of the `m`th of blocks 1, 3, 5, 11 (one structure: the same code up to the constants in `ROWS_ACCELERATION_SHARED_0_C` and the places in `ROWS_ACCELERATION_SHARED_0_AT`): 185 operations.
 #[inline(never)]
-fn block_acceleration_shared_4(
+fn rows_acceleration_shared_0(
     m: usize,
     q: &[f64; N],
     qd: &[f64; N],
@@ -1361,10 +2065,10 @@ fn block_acceleration_shared_4(
     _u: &[[f64; 3]; INPUTS],
     gamma: &mut [f64; N],
 ) {
-    let at = &BLOCK_ACCELERATION_SHARED_4_AT[m];
+    let at = &ROWS_ACCELERATION_SHARED_0_AT[m];
     let window0 = &q[at[0]..at[0] + 10];
     let qd_window0 = &qd[at[0]..at[0] + 10];
-    let c = &BLOCK_ACCELERATION_SHARED_4_C[m];
+    let c = &ROWS_ACCELERATION_SHARED_0_C[m];
     let q0 = window0[4];
     let q1 = window0[6];
     let q2 = window0[3];
@@ -1488,8 +2192,8 @@ fn block_acceleration_shared_4(
     gamma[at[2]] = -(t7 + t20 + t3);
 }
 
-/// The constants of `block_acceleration_shared_5` that differ between its blocks, one row per block.
-static BLOCK_ACCELERATION_SHARED_5_C: [[f64; 90]; 4] = [
+/// The constants of `rows_acceleration_shared_1` that differ between its blocks, one row per block.
+static ROWS_ACCELERATION_SHARED_1_C: [[f64; 96]; 3] = [
     [
         -1.0410739277570333,
         -0.08052734855830754,
@@ -1581,6 +2285,12 @@ static BLOCK_ACCELERATION_SHARED_5_C: [[f64; 90]; 4] = [
         1.680081401212581,
         0.2599094972885536,
         0.5267289479701066,
+        0.7071067811865475,
+        0.3535533905932738,
+        0.35355339059327373,
+        core::f64::consts::FRAC_1_SQRT_2,
+        core::f64::consts::FRAC_1_SQRT_2,
+        0.7071067811865475,
     ],
     [
         -1.0410739277570333,
@@ -1673,6 +2383,12 @@ static BLOCK_ACCELERATION_SHARED_5_C: [[f64; 90]; 4] = [
         1.680081401212581,
         -0.2599094972885536,
         0.5267289479701066,
+        0.9659258262890683,
+        0.12940952255126037,
+        0.48296291314453416,
+        0.25881904510252074,
+        0.25881904510252074,
+        0.9659258262890683,
     ],
     [
         0.6600144229803139,
@@ -1765,112 +2481,25 @@ static BLOCK_ACCELERATION_SHARED_5_C: [[f64; 90]; 4] = [
         -1.0651289279430205,
         1.3250384252315741,
         0.5267289479701067,
-    ],
-    [
-        0.6600144229803131,
-        0.4105345600484644,
-        -1.5588076623871585,
-        0.6265218814381274,
-        0.4105345600484644,
-        0.6600144229803131,
-        -1.5588076623871585,
-        0.6265218814381274,
-        0.6265218814381274,
-        -1.5588076623871585,
-        0.6600144229803131,
-        0.4105345600484644,
-        1.2530437628762547,
-        -0.7794038311935793,
-        0.33000721149015655,
-        0.8210691200969288,
-        -0.7794038311935793,
-        1.2530437628762547,
-        0.33000721149015655,
-        0.8210691200969288,
-        -0.7794038311935793,
-        1.2530437628762547,
-        0.8210691200969288,
-        0.33000721149015655,
-        -1.5588076623871585,
-        1.2530437628762547,
-        0.8210691200969288,
-        0.6600144229803131,
-        1.2530437628762547,
-        -1.5588076623871585,
-        0.8210691200969288,
-        0.6600144229803131,
-        1.2530437628762547,
-        -1.5588076623871585,
-        0.6600144229803131,
-        0.8210691200969288,
-        -0.53256446397151,
-        -1.3250384252315748,
-        1.0534578959402132,
-        -1.3250384252315748,
-        -0.53256446397151,
-        1.0534578959402132,
-        -0.53256446397151,
-        -1.3250384252315748,
-        1.0534578959402132,
-        1.0534578959402132,
-        -1.06512892794302,
-        -0.6625192126157874,
-        -0.6625192126157874,
-        -1.06512892794302,
-        1.0534578959402132,
-        -1.06512892794302,
-        -0.6625192126157874,
-        1.0534578959402132,
-        -1.3250384252315748,
-        -1.06512892794302,
-        0.5267289479701066,
-        -1.06512892794302,
-        -1.3250384252315748,
-        0.5267289479701066,
-        -1.3250384252315748,
-        -1.06512892794302,
-        0.5267289479701066,
-        1.0534578959402132,
-        -1.06512892794302,
-        -0.6625192126157874,
-        -0.6625192126157874,
-        -1.06512892794302,
-        1.0534578959402132,
-        -1.06512892794302,
-        -0.6625192126157874,
-        1.0534578959402132,
-        -0.53256446397151,
-        -1.3250384252315748,
-        1.0534578959402132,
-        -0.53256446397151,
-        -1.3250384252315748,
-        1.0534578959402132,
-        -1.3250384252315748,
-        -0.53256446397151,
-        1.0534578959402132,
-        -1.3250384252315748,
-        -1.06512892794302,
-        0.5267289479701066,
-        -1.3250384252315748,
-        -1.06512892794302,
-        0.5267289479701066,
-        -1.06512892794302,
-        -1.3250384252315748,
-        0.5267289479701066,
+        0.258819045102521,
+        -0.4829629131445341,
+        0.1294095225512605,
+        -0.9659258262890682,
+        -0.9659258262890682,
+        0.258819045102521,
     ],
 ];
 
-/// Where `block_acceleration_shared_5` reads and writes for each of its blocks: the starts of its windows and the indices that do not move with them, one row per block.
-static BLOCK_ACCELERATION_SHARED_5_AT: [[usize; 3]; 4] = [
+/// Where `rows_acceleration_shared_1` reads and writes for each of its blocks: the starts of its windows and the indices that do not move with them, one row per block.
+static ROWS_ACCELERATION_SHARED_1_AT: [[usize; 3]; 3] = [
     [10, 4, 80],
     [24, 16, 82],
     [38, 28, 84],
-    [80, 64, 90],
 ];
 
-/// γ of the rows of the `m`th of blocks 8, 16, 24, 48 (one structure: the same code up to the constants in `BLOCK_ACCELERATION_SHARED_5_C` and the places in `BLOCK_ACCELERATION_SHARED_5_AT`): 466 operations.
+/// γ of the rows of a run of blocks of the `m`th of blocks 2, 4, 6 (one structure: the same code up to the constants in `ROWS_ACCELERATION_SHARED_1_C` and the places in `ROWS_ACCELERATION_SHARED_1_AT`): 512 operations.
 #[inline(never)]
-fn block_acceleration_shared_5(
+fn rows_acceleration_shared_1(
     m: usize,
     q: &[f64; N],
     qd: &[f64; N],
@@ -1878,10 +2507,10 @@ fn block_acceleration_shared_5(
     _u: &[[f64; 3]; INPUTS],
     gamma: &mut [f64; N],
 ) {
-    let at = &BLOCK_ACCELERATION_SHARED_5_AT[m];
+    let at = &ROWS_ACCELERATION_SHARED_1_AT[m];
     let window0 = &q[at[0]..at[0] + 11];
     let qd_window0 = &qd[at[0]..at[0] + 11];
-    let c = &BLOCK_ACCELERATION_SHARED_5_C[m];
+    let c = &ROWS_ACCELERATION_SHARED_1_C[m];
     let q0 = window0[7];
     let q1 = window0[8];
     let q2 = window0[9];
@@ -1898,6 +2527,10 @@ fn block_acceleration_shared_5(
     let qd5 = qd_window0[2];
     let qd6 = qd_window0[0];
     let qd7 = qd_window0[3];
+    let qd8 = qd[3];
+    let qd9 = qd[6];
+    let qd10 = qd[4];
+    let qd11 = qd[5];
     let c1 = c[0];
     let c2 = c[1];
     let c3 = c[2];
@@ -1988,6 +2621,12 @@ fn block_acceleration_shared_5(
     let c96 = c[87];
     let c97 = c[88];
     let c98 = c[89];
+    let c102 = c[90];
+    let c103 = c[91];
+    let c104 = c[92];
+    let c105 = c[93];
+    let c106 = c[94];
+    let c107 = c[95];
     let t0 = qd0 * q1 + qd1 * q0;
     let t1 = qd2 * q3 + qd3 * q2;
     let t2 = t1 - t0;
@@ -2149,6 +2788,22 @@ fn block_acceleration_shared_5(
     let t158 = (t2 * c72 + (c73 * t5 + t14 * c74)) * t28;
     let t159 = t97 * (t98 * c84 + t99 * c85 + c86 * t102);
     let t160 = t138 * (c93 * t139 + t140 * c94 + t141 * c95);
+    let t161 = qd8 * qd9;
+    let t162 = t161 + t161;
+    let t163 = qd10 * qd11;
+    let t164 = t163 + t163;
+    let t165 = qd11 * qd11;
+    let t166 = t165 + t165;
+    let t167 = qd9 * qd9;
+    let t168 = t167 + t167;
+    let t169 = qd8 * qd8;
+    let t170 = t169 + t169;
+    let t171 = qd10 * qd10;
+    let t172 = t171 + t171;
+    let t173 = qd8 * qd11;
+    let t174 = qd10 * qd9;
+    let t175 = qd11 * qd9;
+    let t176 = qd8 * qd10;
     gamma[at[1]] = -(t29 + t49 * t58 + (t73 * t85 + t29)
         + (t88 * t94 + t104 + (t107 * t116 + t104))
         + (t127 * t131 + t143 + (t143 + t150 * t154)));
@@ -2166,10 +2821,17 @@ fn block_acceleration_shared_5(
         + (t127 * (c90 * t128 + c91 * t129 + c92 * t130) + t160
             + (t160 + t150 * (c96 * t151 + c97 * t152 + c98 * t153))));
     gamma[at[2]] = -(t37 + t109 + t31);
+    gamma[at[1] + 8] = 0.0;
+    gamma[at[1] + 9] = 0.0;
+    gamma[at[1] + 10] = 0.0;
+    gamma[at[1] + 17] = -(c102 * (t164 - t162) + c103 * (t170 + t172 - (t166 + t168)));
+    gamma[at[1] + 18] = -(c104 * (t170 + t166 - (t172 + t168)) + c105 * (t164 + t162));
+    gamma[at[1] + 19] = -(c106 * (t174 + t174 - (t173 + t173))
+        + c107 * (t175 + t175 + (t176 + t176)));
 }
 
-/// The constants of `block_acceleration_shared_6` that differ between its blocks, one row per block.
-static BLOCK_ACCELERATION_SHARED_6_C: [[f64; 72]; 2] = [
+/// The constants of `rows_acceleration_shared_2` that differ between its blocks, one row per block.
+static ROWS_ACCELERATION_SHARED_2_C: [[f64; 78]; 2] = [
     [
         0.3810595047767196,
         -0.49106190860677196,
@@ -2243,6 +2905,12 @@ static BLOCK_ACCELERATION_SHARED_6_C: [[f64; 72]; 2] = [
         -0.6149524732695604,
         -0.6149524732695604,
         1.5849479225201275,
+        -0.2588190451025208,
+        -0.48296291314453416,
+        -0.1294095225512604,
+        -0.9659258262890683,
+        -0.9659258262890683,
+        -0.2588190451025208,
     ],
     [
         0.3810595047767199,
@@ -2317,15 +2985,21 @@ static BLOCK_ACCELERATION_SHARED_6_C: [[f64; 72]; 2] = [
         -0.6149524732695608,
         -0.6149524732695608,
         -1.5849479225201275,
+        -0.9659258262890684,
+        0.12940952255126015,
+        -0.4829629131445342,
+        0.2588190451025203,
+        0.2588190451025203,
+        -0.9659258262890684,
     ],
 ];
 
-/// Where `block_acceleration_shared_6` reads and writes for each of its blocks: the starts of its windows and the indices that do not move with them, one row per block.
-static BLOCK_ACCELERATION_SHARED_6_AT: [[usize; 3]; 2] = [[52, 40, 86], [66, 52, 88]];
+/// Where `rows_acceleration_shared_2` reads and writes for each of its blocks: the starts of its windows and the indices that do not move with them, one row per block.
+static ROWS_ACCELERATION_SHARED_2_AT: [[usize; 3]; 2] = [[52, 40, 86], [66, 52, 88]];
 
-/// γ of the rows of the `m`th of blocks 32, 40 (one structure: the same code up to the constants in `BLOCK_ACCELERATION_SHARED_6_C` and the places in `BLOCK_ACCELERATION_SHARED_6_AT`): 466 operations.
+/// γ of the rows of a run of blocks of the `m`th of blocks 8, 10 (one structure: the same code up to the constants in `ROWS_ACCELERATION_SHARED_2_C` and the places in `ROWS_ACCELERATION_SHARED_2_AT`): 512 operations.
 #[inline(never)]
-fn block_acceleration_shared_6(
+fn rows_acceleration_shared_2(
     m: usize,
     q: &[f64; N],
     qd: &[f64; N],
@@ -2333,10 +3007,10 @@ fn block_acceleration_shared_6(
     _u: &[[f64; 3]; INPUTS],
     gamma: &mut [f64; N],
 ) {
-    let at = &BLOCK_ACCELERATION_SHARED_6_AT[m];
+    let at = &ROWS_ACCELERATION_SHARED_2_AT[m];
     let window0 = &q[at[0]..at[0] + 11];
     let qd_window0 = &qd[at[0]..at[0] + 11];
-    let c = &BLOCK_ACCELERATION_SHARED_6_C[m];
+    let c = &ROWS_ACCELERATION_SHARED_2_C[m];
     let q0 = window0[7];
     let q1 = window0[8];
     let q2 = window0[9];
@@ -2353,6 +3027,10 @@ fn block_acceleration_shared_6(
     let qd5 = qd_window0[2];
     let qd6 = qd_window0[0];
     let qd7 = qd_window0[3];
+    let qd8 = qd[3];
+    let qd9 = qd[6];
+    let qd10 = qd[4];
+    let qd11 = qd[5];
     let c1 = c[0];
     let c2 = c[1];
     let c3 = c[2];
@@ -2425,6 +3103,12 @@ fn block_acceleration_shared_6(
     let c94 = c[69];
     let c96 = c[70];
     let c97 = c[71];
+    let c102 = c[72];
+    let c103 = c[73];
+    let c104 = c[74];
+    let c105 = c[75];
+    let c106 = c[76];
+    let c107 = c[77];
     let t0 = qd0 * q1 + qd1 * q0;
     let t1 = qd2 * q3 + qd3 * q2;
     let t2 = t1 - t0;
@@ -2587,6 +3271,22 @@ fn block_acceleration_shared_6(
     let t158 = (t2 * 1.0534578959402134 + (c73 * t5 + t14 * c74)) * t28;
     let t159 = t97 * (t98 * c84 + t99 * c85 + 1.0534578959402134 * t102);
     let t160 = t138 * (c93 * t139 + t140 * c94 + t141 * 0.5267289479701067);
+    let t161 = qd8 * qd9;
+    let t162 = t161 + t161;
+    let t163 = qd10 * qd11;
+    let t164 = t163 + t163;
+    let t165 = qd11 * qd11;
+    let t166 = t165 + t165;
+    let t167 = qd9 * qd9;
+    let t168 = t167 + t167;
+    let t169 = qd8 * qd8;
+    let t170 = t169 + t169;
+    let t171 = qd10 * qd10;
+    let t172 = t171 + t171;
+    let t173 = qd8 * qd11;
+    let t174 = qd10 * qd9;
+    let t175 = qd11 * qd9;
+    let t176 = qd8 * qd10;
     gamma[at[1]] = -(t29 + t49 * t58 + (t73 * t85 + t29)
         + (t88 * t94 + t104 + (t107 * t116 + t104))
         + (t127 * t131 + t143 + (t143 + t150 * t154)));
@@ -2610,11 +3310,18 @@ fn block_acceleration_shared_6(
         + (t127 * (c90 * t128 + c91 * t129 + 0.5267289479701067 * t130) + t160
             + (t160 + t150 * (c96 * t151 + c97 * t152 + 0.5267289479701067 * t153))));
     gamma[at[2]] = -(t37 + t109 + t31);
+    gamma[at[1] + 8] = 0.0;
+    gamma[at[1] + 9] = 0.0;
+    gamma[at[1] + 10] = 0.0;
+    gamma[at[1] + 17] = -(c102 * (t164 - t162) + c103 * (t170 + t172 - (t166 + t168)));
+    gamma[at[1] + 18] = -(c104 * (t170 + t166 - (t172 + t168)) + c105 * (t164 + t162));
+    gamma[at[1] + 19] = -(c106 * (t174 + t174 - (t173 + t173))
+        + c107 * (t175 + t175 + (t176 + t176)));
 }
 
-/// block_acceleration_0: 434 operations.
+/// rows_acceleration_0: 437 operations.
 #[inline(never)]
-fn block_acceleration_0(
+fn rows_acceleration_0(
     q: &[f64; N],
     qd: &[f64; N],
     _t: f64,
@@ -2686,130 +3393,142 @@ fn block_acceleration_0(
     let t42 = qd3 * qd6;
     let t43 = t42 + t42;
     let t44 = t41 - t43;
-    let t45 = t25 + t26;
-    let t46 = core::f64::consts::FRAC_1_SQRT_2 * t45;
-    let t47 = t16 + t20 - (t18 + t22);
-    let t48 = t46 + -0.35355339059327373 * t47 + qd1;
-    let t49 = t41 + t43;
-    let t50 = core::f64::consts::FRAC_1_SQRT_2 * t49;
-    let t51 = t30 + t35 - (t32 + t37);
-    let t52 = q6 * qd4 + q4 * qd6 - (q5 * qd3 + q3 * qd5);
-    let t53 = core::f64::consts::FRAC_1_SQRT_2 * t52;
-    let t54 = q6 * qd5 + q5 * qd6 + (q4 * qd3 + q3 * qd4);
-    let t55 = t53 + -0.7071067811865475 * t54 + qd2;
-    let t56 = qd4 * qd6;
-    let t57 = qd3 * qd5;
-    let t58 = t56 + t56 - (t57 + t57);
-    let t59 = core::f64::consts::FRAC_1_SQRT_2 * t58;
-    let t60 = qd5 * qd6;
-    let t61 = qd3 * qd4;
-    let t62 = t60 + t60 + (t61 + t61);
-    let t63 = qd0 + (t24 + 0.7071067811865475 * t27);
-    let t64 = qd1 + (t46 + 0.35355339059327373 * t47);
-    let t65 = qd2 + (t53 + 0.7071067811865475 * t54);
-    let t66 = qd0 + (0.12940952255126037 * t23 + 0.9659258262890683 * t27);
-    let t67 = qd1 + (0.25881904510252074 * t45 + 0.48296291314453416 * t47);
-    let t68 = qd2 + (0.25881904510252074 * t52 + 0.9659258262890683 * t54);
-    let t69 = qd0 + (-0.4829629131445341 * t23 + 0.258819045102521 * t27);
-    let t70 = qd1 + (-0.9659258262890682 * t45 + 0.1294095225512605 * t47);
-    let t71 = qd2 + (-0.9659258262890682 * t52 + 0.258819045102521 * t54);
-    let t72 = qd0 + (-0.48296291314453416 * t23 + -0.2588190451025208 * t27);
-    let t73 = qd1 + (-0.9659258262890683 * t45 + -0.1294095225512604 * t47);
-    let t74 = qd2 + (-0.9659258262890683 * t52 + -0.2588190451025208 * t54);
-    let t75 = qd0 + (0.12940952255126015 * t23 + -0.9659258262890684 * t27);
-    let t76 = qd1 + (0.2588190451025203 * t45 + -0.4829629131445342 * t47);
-    let t77 = qd2 + (0.2588190451025203 * t52 + -0.9659258262890684 * t54);
-    let t78 = t55 * t55
-        + (t14 + -0.7071067811865475 * t11 + q2) * (t59 + -0.7071067811865475 * t62);
-    let t79 = t28 * t28
-        + (t12 + -0.7071067811865475 * t8 + q0 - 0.9659258262890683)
-            * (t39 + -0.7071067811865475 * t44);
-    let t80 = t48 * t48
-        + (0.25881904510252074 + (t13 + -0.35355339059327373 * t5 + q1))
-            * (t50 + -0.35355339059327373 * t51);
-    let t81 = sd0 * sd0 + s0 * sdd0;
-    let t82 = t65 * t65
-        + (q2 + (t14 + 0.7071067811865475 * t11)) * (t59 + 0.7071067811865475 * t62);
-    let t83 = t63 * t63
+    let t45 = t39 + -0.7071067811865475 * t44;
+    let t46 = t25 + t26;
+    let t47 = core::f64::consts::FRAC_1_SQRT_2 * t46;
+    let t48 = t16 + t20 - (t18 + t22);
+    let t49 = t47 + -0.35355339059327373 * t48 + qd1;
+    let t50 = t41 + t43;
+    let t51 = core::f64::consts::FRAC_1_SQRT_2 * t50;
+    let t52 = t30 + t35 - (t32 + t37);
+    let t53 = t51 + -0.35355339059327373 * t52;
+    let t54 = q6 * qd4 + q4 * qd6 - (q5 * qd3 + q3 * qd5);
+    let t55 = core::f64::consts::FRAC_1_SQRT_2 * t54;
+    let t56 = q6 * qd5 + q5 * qd6 + (q4 * qd3 + q3 * qd4);
+    let t57 = t55 + -0.7071067811865475 * t56 + qd2;
+    let t58 = qd4 * qd6;
+    let t59 = qd3 * qd5;
+    let t60 = t58 + t58 - (t59 + t59);
+    let t61 = core::f64::consts::FRAC_1_SQRT_2 * t60;
+    let t62 = qd5 * qd6;
+    let t63 = qd3 * qd4;
+    let t64 = t62 + t62 + (t63 + t63);
+    let t65 = t61 + -0.7071067811865475 * t64;
+    let t66 = qd0 + (t24 + 0.7071067811865475 * t27);
+    let t67 = qd1 + (t47 + 0.35355339059327373 * t48);
+    let t68 = qd2 + (t55 + 0.7071067811865475 * t56);
+    let t69 = qd0 + (0.12940952255126037 * t23 + 0.9659258262890683 * t27);
+    let t70 = qd1 + (0.25881904510252074 * t46 + 0.48296291314453416 * t48);
+    let t71 = qd2 + (0.25881904510252074 * t54 + 0.9659258262890683 * t56);
+    let t72 = qd0 + (-0.4829629131445341 * t23 + 0.258819045102521 * t27);
+    let t73 = qd1 + (-0.9659258262890682 * t46 + 0.1294095225512605 * t48);
+    let t74 = qd2 + (-0.9659258262890682 * t54 + 0.258819045102521 * t56);
+    let t75 = qd0 + (-0.48296291314453416 * t23 + -0.2588190451025208 * t27);
+    let t76 = qd1 + (-0.9659258262890683 * t46 + -0.1294095225512604 * t48);
+    let t77 = qd2 + (-0.9659258262890683 * t54 + -0.2588190451025208 * t56);
+    let t78 = qd0 + (0.12940952255126015 * t23 + -0.9659258262890684 * t27);
+    let t79 = qd1 + (0.2588190451025203 * t46 + -0.4829629131445342 * t48);
+    let t80 = qd2 + (0.2588190451025203 * t54 + -0.9659258262890684 * t56);
+    let t81 = t57 * t57 + (t14 + -0.7071067811865475 * t11 + q2) * t65;
+    let t82 = t28 * t28
+        + (t12 + -0.7071067811865475 * t8 + q0 - 0.9659258262890683) * t45;
+    let t83 = t49 * t49
+        + (0.25881904510252074 + (t13 + -0.35355339059327373 * t5 + q1)) * t53;
+    let t84 = sd0 * sd0 + s0 * sdd0;
+    let t85 = t68 * t68
+        + (q2 + (t14 + 0.7071067811865475 * t11)) * (t61 + 0.7071067811865475 * t64);
+    let t86 = t66 * t66
         + (q0 + (t12 + 0.7071067811865475 * t8) - 0.9659258262890683)
             * (t39 + 0.7071067811865475 * t44);
-    let t84 = t64 * t64
+    let t87 = t67 * t67
         + (q1 + (t13 + 0.35355339059327373 * t5) - 0.25881904510252074)
-            * (t50 + 0.35355339059327373 * t51);
-    let t85 = sd1 * sd1 + s1 * sdd1;
-    let t86 = t68 * t68
+            * (t51 + 0.35355339059327373 * t52);
+    let t88 = sd1 * sd1 + s1 * sdd1;
+    let t89 = t71 * t71
         + (q2 + (0.25881904510252074 * t10 + 0.9659258262890683 * t11))
-            * (0.25881904510252074 * t58 + 0.9659258262890683 * t62);
-    let t87 = t66 * t66
+            * (0.25881904510252074 * t60 + 0.9659258262890683 * t64);
+    let t90 = t69 * t69
         + (0.25881904510252085
             + (q0 + (0.12940952255126037 * t4 + 0.9659258262890683 * t8)))
             * (0.12940952255126037 * t38 + 0.9659258262890683 * t44);
-    let t88 = t67 * t67
+    let t91 = t70 * t70
         + (q1 + (0.25881904510252074 * t9 + 0.48296291314453416 * t5)
             - 0.9659258262890683)
-            * (0.25881904510252074 * t49 + 0.48296291314453416 * t51);
-    let t89 = sd2 * sd2 + s2 * sdd2;
-    let t90 = t71 * t71
+            * (0.25881904510252074 * t50 + 0.48296291314453416 * t52);
+    let t92 = sd2 * sd2 + s2 * sdd2;
+    let t93 = t74 * t74
         + (q2 + (-0.9659258262890682 * t10 + 0.258819045102521 * t11))
-            * (-0.9659258262890682 * t58 + 0.258819045102521 * t62);
-    let t91 = t69 * t69
+            * (-0.9659258262890682 * t60 + 0.258819045102521 * t64);
+    let t94 = t72 * t72
         + (0.7071067811865475
             + (q0 + (-0.4829629131445341 * t4 + 0.258819045102521 * t8)))
             * (-0.4829629131445341 * t38 + 0.258819045102521 * t44);
-    let t92 = t70 * t70
+    let t95 = t73 * t73
         + (q1 + (-0.9659258262890682 * t9 + 0.1294095225512605 * t5)
             - core::f64::consts::FRAC_1_SQRT_2)
-            * (-0.9659258262890682 * t49 + 0.1294095225512605 * t51);
-    let t93 = sd3 * sd3 + s3 * sdd3;
-    let t94 = t74 * t74
+            * (-0.9659258262890682 * t50 + 0.1294095225512605 * t52);
+    let t96 = sd3 * sd3 + s3 * sdd3;
+    let t97 = t77 * t77
         + (q2 + (-0.9659258262890683 * t10 + -0.2588190451025208 * t11))
-            * (-0.9659258262890683 * t58 + -0.2588190451025208 * t62);
-    let t95 = t72 * t72
+            * (-0.9659258262890683 * t60 + -0.2588190451025208 * t64);
+    let t98 = t75 * t75
         + (0.7071067811865477
             + (q0 + (-0.48296291314453416 * t4 + -0.2588190451025208 * t8)))
             * (-0.48296291314453416 * t38 + -0.2588190451025208 * t44);
-    let t96 = t73 * t73
+    let t99 = t76 * t76
         + (0.7071067811865475
             + (q1 + (-0.9659258262890683 * t9 + -0.1294095225512604 * t5)))
-            * (-0.9659258262890683 * t49 + -0.1294095225512604 * t51);
-    let t97 = sd4 * sd4 + s4 * sdd4;
-    let t98 = t77 * t77
+            * (-0.9659258262890683 * t50 + -0.1294095225512604 * t52);
+    let t100 = sd4 * sd4 + s4 * sdd4;
+    let t101 = t80 * t80
         + (q2 + (0.2588190451025203 * t10 + -0.9659258262890684 * t11))
-            * (0.2588190451025203 * t58 + -0.9659258262890684 * t62);
-    let t99 = t75 * t75
+            * (0.2588190451025203 * t60 + -0.9659258262890684 * t64);
+    let t102 = t78 * t78
         + (0.25881904510252063
             + (q0 + (0.12940952255126015 * t4 + -0.9659258262890684 * t8)))
             * (0.12940952255126015 * t38 + -0.9659258262890684 * t44);
-    let t100 = t76 * t76
+    let t103 = t79 * t79
         + (0.9659258262890683
             + (q1 + (0.2588190451025203 * t9 + -0.4829629131445342 * t5)))
-            * (0.2588190451025203 * t49 + -0.4829629131445342 * t51);
-    let t101 = sd5 * sd5 + s5 * sdd5;
+            * (0.2588190451025203 * t50 + -0.4829629131445342 * t52);
+    let t104 = sd5 * sd5 + s5 * sdd5;
     // driver leg1: (|S − U|² − s² − 2 s v0·a − |v0|²) / (2 L) = 0 (leg reduced), s = the input
     gamma[72] = -(0.4250166512533081
-        * (t78 + t78 + (t79 + t79 + (t80 + t80)) - (t81 + t81)));
+        * (t81 + t81 + (t82 + t82 + (t83 + t83)) - (t84 + t84)));
     // driver leg2: (|S − U|² − s² − 2 s v0·a − |v0|²) / (2 L) = 0 (leg reduced), s = the input
     gamma[73] = -(0.4250166512533081
-        * (t82 + t82 + (t83 + t83 + (t84 + t84)) - (t85 + t85)));
+        * (t85 + t85 + (t86 + t86 + (t87 + t87)) - (t88 + t88)));
     // driver leg3: (|S − U|² − s² − 2 s v0·a − |v0|²) / (2 L) = 0 (leg reduced), s = the input
     gamma[74] = -(0.4250166512533081
-        * (t86 + t86 + (t87 + t87 + (t88 + t88)) - (t89 + t89)));
+        * (t89 + t89 + (t90 + t90 + (t91 + t91)) - (t92 + t92)));
     // driver leg4: (|S − U|² − s² − 2 s v0·a − |v0|²) / (2 L) = 0 (leg reduced), s = the input
     gamma[75] = -(0.4250166512533081
-        * (t90 + t90 + (t91 + t91 + (t92 + t92)) - (t93 + t93)));
+        * (t93 + t93 + (t94 + t94 + (t95 + t95)) - (t96 + t96)));
     // driver leg5: (|S − U|² − s² − 2 s v0·a − |v0|²) / (2 L) = 0 (leg reduced), s = the input
     gamma[76] = -(0.4250166512533081
-        * (t94 + t94 + (t95 + t95 + (t96 + t96)) - (t97 + t97)));
+        * (t97 + t97 + (t98 + t98 + (t99 + t99)) - (t100 + t100)));
     // driver leg6: (|S − U|² − s² − 2 s v0·a − |v0|²) / (2 L) = 0 (leg reduced), s = the input
     gamma[77] = -(0.4250166512533081
-        * (t98 + t98 + (t99 + t99 + (t100 + t100)) - (t101 + t101)));
+        * (t101 + t101 + (t102 + t102 + (t103 + t103)) - (t104 + t104)));
     // body platform normalisation: e0² + e1² + e2² + e3² − 1 = 0
     gamma[78] = -(t37 + (t33 + t35));
+    // joint U1 row 1: (P_j − P_i)_x = 0
+    gamma[0] = 0.0;
+    // joint U1 row 2: (P_j − P_i)_y = 0
+    gamma[1] = 0.0;
+    // joint U1 row 3: (P_j − P_i)_z = 0
+    gamma[2] = 0.0;
+    // joint S1 row 1: (P_j − P_i)_x = 0
+    gamma[9] = -t45;
+    // joint S1 row 2: (P_j − P_i)_y = 0
+    gamma[10] = -t53;
+    // joint S1 row 3: (P_j − P_i)_z = 0
+    gamma[11] = -t65;
 }
 
-/// block_acceleration_31: 193 operations.
+/// rows_acceleration_7: 193 operations.
 #[inline(never)]
-fn block_acceleration_31(
+fn rows_acceleration_7(
     q: &[f64; N],
     qd: &[f64; N],
     _t: f64,
@@ -2930,9 +3649,9 @@ fn block_acceleration_31(
     gamma[85] = -(t34 + (t30 + t32));
 }
 
-/// block_acceleration_39: 191 operations.
+/// rows_acceleration_9: 191 operations.
 #[inline(never)]
-fn block_acceleration_39(
+fn rows_acceleration_9(
     q: &[f64; N],
     qd: &[f64; N],
     _t: f64,
@@ -3047,7 +3766,266 @@ fn block_acceleration_39(
     gamma[87] = -(t34 + (t30 + t32));
 }
 
-/// Acceleration right-hand side γ = −(Φ_q q̇)_q q̇ − 2Φ_qt q̇ − Φ_tt, block by block.
+/// rows_acceleration_12: 466 operations.
+#[inline(never)]
+fn rows_acceleration_12(
+    q: &[f64; N],
+    qd: &[f64; N],
+    _t: f64,
+    _u: &[[f64; 3]; INPUTS],
+    gamma: &mut [f64; N],
+) {
+    let q80 = q[80];
+    let q81 = q[81];
+    let q82 = q[82];
+    let q83 = q[83];
+    let q87 = q[87];
+    let q88 = q[88];
+    let q89 = q[89];
+    let q90 = q[90];
+    let qd80 = qd[80];
+    let qd81 = qd[81];
+    let qd82 = qd[82];
+    let qd83 = qd[83];
+    let qd87 = qd[87];
+    let qd88 = qd[88];
+    let qd89 = qd[89];
+    let qd90 = qd[90];
+    let t0 = q80 * q80;
+    let t1 = q81 * q81;
+    let t2 = q82 * q82;
+    let t3 = q83 * q83;
+    let t4 = t0 + t1 - (t2 + t3);
+    let t5 = t0 + t2 - (t1 + t3);
+    let t6 = q81 * q82;
+    let t7 = q80 * q83;
+    let t8 = t6 - t7;
+    let t9 = q81 * q83;
+    let t10 = q80 * q82;
+    let t11 = t6 + t7;
+    let t12 = q82 * q83;
+    let t13 = q80 * q81;
+    let t14 = t9 - t10;
+    let t15 = t12 + t13;
+    let t16 = q87 * q87;
+    let t17 = q88 * q88;
+    let t18 = q89 * q89;
+    let t19 = q90 * q90;
+    let t20 = t16 + t17 - (t18 + t19);
+    let t21 = t16 + t18 - (t17 + t19);
+    let t22 = t16 + t19 - (t17 + t18);
+    let t23 = q88 * q89;
+    let t24 = q87 * q90;
+    let t25 = t23 - t24;
+    let t26 = q88 * q90;
+    let t27 = q87 * q89;
+    let t28 = t26 + t27;
+    let t29 = t23 + t24;
+    let t30 = q89 * q90;
+    let t31 = q87 * q88;
+    let t32 = t30 - t31;
+    let t33 = t26 - t27;
+    let t34 = t30 + t31;
+    let t35 = 1.7000666050132325 * t28
+        + (0.33000721149015655 * t20 + 0.8210691200969288 * t25);
+    let t36 = 1.7000666050132325 * t32
+        + (0.6600144229803131 * t29 + 0.4105345600484644 * t21);
+    let t37 = 0.8500333025066162 * t22
+        + (0.6600144229803131 * t33 + 0.8210691200969288 * t34);
+    let t38 = -0.7794038311935793 * t4 + 1.2530437628762547 * t8;
+    let t39 = -1.5588076623871585 * t11 + 0.6265218814381274 * t5;
+    let t40 = -1.5588076623871585 * t14 + 1.2530437628762547 * t15;
+    let t41 = q83 * qd81 + q81 * qd83;
+    let t42 = q82 * qd80 + q80 * qd82;
+    let t43 = q80 * qd80;
+    let t44 = t43 + t43;
+    let t45 = q81 * qd81;
+    let t46 = t45 + t45;
+    let t47 = q82 * qd82;
+    let t48 = t47 + t47;
+    let t49 = q83 * qd83;
+    let t50 = t49 + t49;
+    let t51 = t44 + t46 - (t48 + t50);
+    let t52 = q82 * qd81 + q81 * qd82;
+    let t53 = q83 * qd80 + q80 * qd83;
+    let t54 = t52 - t53;
+    let t55 = q83 * qd82 + q82 * qd83;
+    let t56 = q81 * qd80 + q80 * qd81;
+    let t57 = t52 + t53;
+    let t58 = t44 + t48 - (t46 + t50);
+    let t59 = qd81 * qd83;
+    let t60 = t59 + t59;
+    let t61 = qd80 * qd82;
+    let t62 = t61 + t61;
+    let t63 = qd80 * qd80;
+    let t64 = t63 + t63;
+    let t65 = qd81 * qd81;
+    let t66 = t65 + t65;
+    let t67 = qd82 * qd82;
+    let t68 = t67 + t67;
+    let t69 = qd83 * qd83;
+    let t70 = t69 + t69;
+    let t71 = t64 + t66 - (t68 + t70);
+    let t72 = qd81 * qd82;
+    let t73 = t72 + t72;
+    let t74 = qd83 * qd80;
+    let t75 = t74 + t74;
+    let t76 = t73 - t75;
+    let t77 = qd83 * qd82;
+    let t78 = t77 + t77;
+    let t79 = qd81 * qd80;
+    let t80 = t79 + t79;
+    let t81 = t73 + t75;
+    let t82 = t64 + t68 - (t66 + t70);
+    let t83 = q87 * qd87;
+    let t84 = t83 + t83;
+    let t85 = q90 * qd90;
+    let t86 = t85 + t85;
+    let t87 = q88 * qd88;
+    let t88 = t87 + t87;
+    let t89 = q89 * qd89;
+    let t90 = t89 + t89;
+    let t91 = t84 + t86 - (t88 + t90);
+    let t92 = q90 * qd88 + q88 * qd90;
+    let t93 = q89 * qd87 + q87 * qd89;
+    let t94 = t92 - t93;
+    let t95 = q90 * qd89 + q89 * qd90;
+    let t96 = q88 * qd87 + q87 * qd88;
+    let t97 = t95 + t96;
+    let t98 = 0.8500333025066162 * t91
+        + (0.6600144229803131 * t94 + 0.8210691200969288 * t97);
+    let t99 = t41 - t42;
+    let t100 = t55 + t56;
+    let t101 = -1.5588076623871585 * t99 + 1.2530437628762547 * t100;
+    let t102 = t92 + t93;
+    let t103 = t84 + t88 - (t86 + t90);
+    let t104 = q89 * qd88 + q88 * qd89;
+    let t105 = q90 * qd87 + q87 * qd90;
+    let t106 = t104 - t105;
+    let t107 = 1.7000666050132325 * t102
+        + (0.33000721149015655 * t103 + 0.8210691200969288 * t106);
+    let t108 = -0.7794038311935793 * t51 + 1.2530437628762547 * t54;
+    let t109 = t95 - t96;
+    let t110 = t104 + t105;
+    let t111 = t84 + t90 - (t86 + t88);
+    let t112 = 1.7000666050132325 * t109
+        + (0.6600144229803131 * t110 + 0.4105345600484644 * t111);
+    let t113 = -1.5588076623871585 * t57 + 0.6265218814381274 * t58;
+    let t114 = qd87 * qd87;
+    let t115 = t114 + t114;
+    let t116 = qd90 * qd90;
+    let t117 = t116 + t116;
+    let t118 = qd88 * qd88;
+    let t119 = t118 + t118;
+    let t120 = qd89 * qd89;
+    let t121 = t120 + t120;
+    let t122 = t115 + t117 - (t119 + t121);
+    let t123 = qd90 * qd88;
+    let t124 = t123 + t123;
+    let t125 = qd87 * qd89;
+    let t126 = t125 + t125;
+    let t127 = t124 - t126;
+    let t128 = qd90 * qd89;
+    let t129 = t128 + t128;
+    let t130 = qd87 * qd88;
+    let t131 = t130 + t130;
+    let t132 = t129 + t131;
+    let t133 = 0.8500333025066162 * t122
+        + (0.6600144229803131 * t127 + 0.8210691200969288 * t132);
+    let t134 = t98 * t101;
+    let t135 = t60 - t62;
+    let t136 = t78 + t80;
+    let t137 = -1.5588076623871585 * t135 + 1.2530437628762547 * t136;
+    let t138 = t124 + t126;
+    let t139 = t115 + t119;
+    let t140 = t139 - (t117 + t121);
+    let t141 = qd88 * qd89;
+    let t142 = t141 + t141;
+    let t143 = qd87 * qd90;
+    let t144 = t143 + t143;
+    let t145 = t142 - t144;
+    let t146 = 1.7000666050132325 * t138
+        + (0.33000721149015655 * t140 + 0.8210691200969288 * t145);
+    let t147 = t107 * t108;
+    let t148 = -0.7794038311935793 * t71 + 1.2530437628762547 * t76;
+    let t149 = t129 - t131;
+    let t150 = t142 + t144;
+    let t151 = t115 + t121 - (t117 + t119);
+    let t152 = 1.7000666050132325 * t149
+        + (0.6600144229803131 * t150 + 0.4105345600484644 * t151);
+    let t153 = t112 * t113;
+    let t154 = -1.5588076623871585 * t81 + 0.6265218814381274 * t82;
+    let t155 = t98
+        * (0.5267289479701066 * (t44 + t50 - (t46 + t48))
+            + (-1.06512892794302 * t99 + -1.3250384252315748 * t100));
+    let t156 = (1.0534578959402132 * (t41 + t42)
+        + (-0.53256446397151 * t51 + -1.3250384252315748 * t54)) * t107;
+    let t157 = (1.0534578959402132 * (t55 - t56)
+        + (-1.06512892794302 * t57 + -0.6625192126157874 * t58)) * t112;
+    let t158 = t101
+        * (0.5267289479701066 * t91
+            + (-1.06512892794302 * t94 + -1.3250384252315748 * t97));
+    let t159 = t108
+        * (1.0534578959402132 * t102
+            + (-0.53256446397151 * t103 + -1.3250384252315748 * t106));
+    let t160 = t113
+        * (1.0534578959402132 * t109
+            + (-1.06512892794302 * t110 + -0.6625192126157874 * t111));
+    // joint P6 row 1: b_i · a_j = 0
+    gamma[64] = -(t134 + t40 * t133 + (t134 + t37 * t137)
+        + (t147 + t38 * t146 + (t147 + t35 * t148)
+            + (t153 + t39 * t152 + (t153 + t36 * t154))));
+    // joint P6 row 2: c_i · a_j = 0
+    gamma[65] = -(t155
+        + t37
+            * (0.5267289479701066 * (t64 + t70 - (t66 + t68))
+                + (-1.06512892794302 * t135 + -1.3250384252315748 * t136))
+        + (t155
+            + (0.5267289479701066 * (t0 + t3 - (t1 + t2))
+                + (-1.06512892794302 * t14 + -1.3250384252315748 * t15)) * t133)
+        + (t156
+            + t35
+                * (1.0534578959402132 * (t60 + t62)
+                    + (-0.53256446397151 * t71 + -1.3250384252315748 * t76))
+            + (t156
+                + (1.0534578959402132 * (t9 + t10)
+                    + (-0.53256446397151 * t4 + -1.3250384252315748 * t8)) * t146)
+            + (t157
+                + t36
+                    * (1.0534578959402132 * (t78 - t80)
+                        + (-1.06512892794302 * t81 + -0.6625192126157874 * t82))
+                + (t157
+                    + (1.0534578959402132 * (t12 - t13)
+                        + (-1.06512892794302 * t11 + -0.6625192126157874 * t5))
+                        * t152))));
+    // joint P6 row 5: r_i · r_j = 0
+    gamma[68] = -(t158
+        + (0.5267289479701066 * t22
+            + (-1.06512892794302 * t33 + -1.3250384252315748 * t34)) * t137
+        + (t158
+            + t40
+                * (0.5267289479701066 * t122
+                    + (-1.06512892794302 * t127 + -1.3250384252315748 * t132)))
+        + (t159
+            + (1.0534578959402132 * t28
+                + (-0.53256446397151 * t20 + -1.3250384252315748 * t25)) * t148
+            + (t159
+                + t38
+                    * (1.0534578959402132 * t138
+                        + (-0.53256446397151 * t140 + -1.3250384252315748 * t145)))
+            + (t160
+                + (1.0534578959402132 * t32
+                    + (-1.06512892794302 * t29 + -0.6625192126157874 * t21)) * t154
+                + (t160
+                    + t39
+                        * (1.0534578959402132 * t149
+                            + (-1.06512892794302 * t150
+                                + -0.6625192126157874 * t151))))));
+    // body rod6 normalisation: e0² + e1² + e2² + e3² − 1 = 0
+    gamma[90] = -(t117 + (t121 + t139));
+}
+
+/// Acceleration right-hand side γ = −(Φ_q q̇)_q q̇ − 2Φ_qt q̇ − Φ_tt, by runs of blocks.
 pub fn acceleration_rhs(
     q: &[f64; N],
     qd: &[f64; N],
@@ -3056,30 +4034,19 @@ pub fn acceleration_rhs(
     gamma: &mut [f64; N],
 ) {
     let u = inputs.to_array();
-    block_acceleration_0(q, qd, t, &u, gamma);
-    for m in 0..18 {
-        block_acceleration_shared_0(m, q, qd, t, &u, gamma);
-    }
-    for m in 0..6 {
-        block_acceleration_shared_1(m, q, qd, t, &u, gamma);
-    }
-    for m in 0..6 {
-        block_acceleration_shared_2(m, q, qd, t, &u, gamma);
-    }
-    for m in 0..6 {
-        block_acceleration_shared_3(m, q, qd, t, &u, gamma);
-    }
+    rows_acceleration_0(q, qd, t, &u, gamma);
     for m in 0..4 {
-        block_acceleration_shared_4(m, q, qd, t, &u, gamma);
+        rows_acceleration_shared_0(m, q, qd, t, &u, gamma);
     }
-    for m in 0..4 {
-        block_acceleration_shared_5(m, q, qd, t, &u, gamma);
+    for m in 0..3 {
+        rows_acceleration_shared_1(m, q, qd, t, &u, gamma);
     }
-    block_acceleration_31(q, qd, t, &u, gamma);
+    rows_acceleration_7(q, qd, t, &u, gamma);
     for m in 0..2 {
-        block_acceleration_shared_6(m, q, qd, t, &u, gamma);
+        rows_acceleration_shared_2(m, q, qd, t, &u, gamma);
     }
-    block_acceleration_39(q, qd, t, &u, gamma);
+    rows_acceleration_9(q, qd, t, &u, gamma);
+    rows_acceleration_12(q, qd, t, &u, gamma);
 }
 
 /// Jacobian Φ_q, row-major: `jac[i][j] = ∂Φ_i/∂q_j`; the 508 structurally non-zero entries are written, the others set to 0.
@@ -4941,207 +5908,7 @@ fn block_shared_6(
 }
 
 /// The constants of `block_residual_shared_0` that differ between its blocks, one row per block.
-static BLOCK_RESIDUAL_SHARED_0_C: [[f64; 1]; 12] = [
-    [-0.9659258262890683],
-    [0.25881904510252074],
-    [-0.9659258262890683],
-    [-0.25881904510252074],
-    [0.25881904510252085],
-    [-0.9659258262890683],
-    [0.7071067811865475],
-    [-core::f64::consts::FRAC_1_SQRT_2],
-    [0.7071067811865477],
-    [0.7071067811865475],
-    [0.25881904510252063],
-    [0.9659258262890683],
-];
-
-/// Where `block_residual_shared_0` reads and writes for each of its blocks: the starts of its windows and the indices that do not move with them, one row per block.
-static BLOCK_RESIDUAL_SHARED_0_AT: [[usize; 2]; 12] = [
-    [7, 0],
-    [8, 1],
-    [21, 12],
-    [22, 13],
-    [35, 24],
-    [36, 25],
-    [49, 36],
-    [50, 37],
-    [63, 48],
-    [64, 49],
-    [77, 60],
-    [78, 61],
-];
-
-/// Φ of the rows of the `m`th of blocks 1, 2, 9, 10, 17, 18, 25, 26, 33, 34, 41, 42 (one structure: the same code up to the constants in `BLOCK_RESIDUAL_SHARED_0_C` and the places in `BLOCK_RESIDUAL_SHARED_0_AT`): 1 operations.
-#[inline(never)]
-fn block_residual_shared_0(
-    m: usize,
-    q: &[f64; N],
-    _t: f64,
-    _u: &[[f64; 3]; INPUTS],
-    phi: &mut [f64; N],
-) {
-    let at = &BLOCK_RESIDUAL_SHARED_0_AT[m];
-    let c = &BLOCK_RESIDUAL_SHARED_0_C[m];
-    let q0 = q[at[0]];
-    let c0 = c[0];
-    phi[at[1]] = c0 + q0;
-}
-
-/// Where `block_residual_shared_1` reads and writes for each of its blocks: the starts of its windows and the indices that do not move with them, one row per block.
-static BLOCK_RESIDUAL_SHARED_1_AT: [[usize; 2]; 6] = [
-    [9, 2],
-    [23, 14],
-    [37, 26],
-    [51, 38],
-    [65, 50],
-    [79, 62],
-];
-
-/// Φ of the rows of the `m`th of blocks 3, 11, 19, 27, 35, 43 (one structure: the same code up to the constants in `BLOCK_RESIDUAL_SHARED_1_C` and the places in `BLOCK_RESIDUAL_SHARED_1_AT`): 0 operations.
-#[inline(never)]
-fn block_residual_shared_1(
-    m: usize,
-    q: &[f64; N],
-    _t: f64,
-    _u: &[[f64; 3]; INPUTS],
-    phi: &mut [f64; N],
-) {
-    let at = &BLOCK_RESIDUAL_SHARED_1_AT[m];
-    let q0 = q[at[0]];
-    phi[at[1]] = q0;
-}
-
-/// The constants of `block_residual_shared_2` that differ between its blocks, one row per block.
-static BLOCK_RESIDUAL_SHARED_2_C: [[f64; 2]; 6] = [
-    [0.3535533905932738, -0.7071067811865475],
-    [0.3535533905932738, 0.7071067811865475],
-    [0.12940952255126037, 0.9659258262890683],
-    [-0.4829629131445341, 0.258819045102521],
-    [-0.48296291314453416, -0.2588190451025208],
-    [0.12940952255126015, -0.9659258262890684],
-];
-
-/// Where `block_residual_shared_2` reads and writes for each of its blocks: the starts of its windows and the indices that do not move with them, one row per block.
-static BLOCK_RESIDUAL_SHARED_2_AT: [[usize; 2]; 6] = [
-    [14, 9],
-    [28, 21],
-    [42, 33],
-    [56, 45],
-    [70, 57],
-    [84, 69],
-];
-
-/// Φ of the rows of the `m`th of blocks 4, 12, 20, 28, 36, 44 (one structure: the same code up to the constants in `BLOCK_RESIDUAL_SHARED_2_C` and the places in `BLOCK_RESIDUAL_SHARED_2_AT`): 18 operations.
-#[inline(never)]
-fn block_residual_shared_2(
-    m: usize,
-    q: &[f64; N],
-    _t: f64,
-    _u: &[[f64; 3]; INPUTS],
-    phi: &mut [f64; N],
-) {
-    let at = &BLOCK_RESIDUAL_SHARED_2_AT[m];
-    let c = &BLOCK_RESIDUAL_SHARED_2_C[m];
-    let q0 = q[5];
-    let q1 = q[6];
-    let q2 = q[3];
-    let q3 = q[4];
-    let q4 = q[0];
-    let q5 = q[at[0]];
-    let c0 = c[0];
-    let c1 = c[1];
-    phi[at[1]] = c0 * (q2 * q2 + q3 * q3 - (q0 * q0 + q1 * q1))
-        + c1 * (q3 * q0 - q2 * q1) + q4 - q5;
-}
-
-/// The constants of `block_residual_shared_3` that differ between its blocks, one row per block.
-static BLOCK_RESIDUAL_SHARED_3_C: [[f64; 2]; 6] = [
-    [core::f64::consts::FRAC_1_SQRT_2, -0.35355339059327373],
-    [core::f64::consts::FRAC_1_SQRT_2, 0.35355339059327373],
-    [0.25881904510252074, 0.48296291314453416],
-    [-0.9659258262890682, 0.1294095225512605],
-    [-0.9659258262890683, -0.1294095225512604],
-    [0.2588190451025203, -0.4829629131445342],
-];
-
-/// Where `block_residual_shared_3` reads and writes for each of its blocks: the starts of its windows and the indices that do not move with them, one row per block.
-static BLOCK_RESIDUAL_SHARED_3_AT: [[usize; 2]; 6] = [
-    [15, 10],
-    [29, 22],
-    [43, 34],
-    [57, 46],
-    [71, 58],
-    [85, 70],
-];
-
-/// Φ of the rows of the `m`th of blocks 5, 13, 21, 29, 37, 45 (one structure: the same code up to the constants in `BLOCK_RESIDUAL_SHARED_3_C` and the places in `BLOCK_RESIDUAL_SHARED_3_AT`): 17 operations.
-#[inline(never)]
-fn block_residual_shared_3(
-    m: usize,
-    q: &[f64; N],
-    _t: f64,
-    _u: &[[f64; 3]; INPUTS],
-    phi: &mut [f64; N],
-) {
-    let at = &BLOCK_RESIDUAL_SHARED_3_AT[m];
-    let c = &BLOCK_RESIDUAL_SHARED_3_C[m];
-    let q0 = q[4];
-    let q1 = q[5];
-    let q2 = q[3];
-    let q3 = q[6];
-    let q4 = q[1];
-    let q5 = q[at[0]];
-    let c0 = c[0];
-    let c1 = c[1];
-    phi[at[1]] = c0 * (q0 * q1 + q2 * q3)
-        + c1 * (q2 * q2 + q1 * q1 - (q0 * q0 + q3 * q3)) + q4 - q5;
-}
-
-/// The constants of `block_residual_shared_4` that differ between its blocks, one row per block.
-static BLOCK_RESIDUAL_SHARED_4_C: [[f64; 2]; 6] = [
-    [-0.7071067811865475, core::f64::consts::FRAC_1_SQRT_2],
-    [0.7071067811865475, core::f64::consts::FRAC_1_SQRT_2],
-    [0.9659258262890683, 0.25881904510252074],
-    [0.258819045102521, -0.9659258262890682],
-    [-0.2588190451025208, -0.9659258262890683],
-    [-0.9659258262890684, 0.2588190451025203],
-];
-
-/// Where `block_residual_shared_4` reads and writes for each of its blocks: the starts of its windows and the indices that do not move with them, one row per block.
-static BLOCK_RESIDUAL_SHARED_4_AT: [[usize; 2]; 6] = [
-    [16, 11],
-    [30, 23],
-    [44, 35],
-    [58, 47],
-    [72, 59],
-    [86, 71],
-];
-
-/// Φ of the rows of the `m`th of blocks 6, 14, 22, 30, 38, 46 (one structure: the same code up to the constants in `BLOCK_RESIDUAL_SHARED_4_C` and the places in `BLOCK_RESIDUAL_SHARED_4_AT`): 13 operations.
-#[inline(never)]
-fn block_residual_shared_4(
-    m: usize,
-    q: &[f64; N],
-    _t: f64,
-    _u: &[[f64; 3]; INPUTS],
-    phi: &mut [f64; N],
-) {
-    let at = &BLOCK_RESIDUAL_SHARED_4_AT[m];
-    let c = &BLOCK_RESIDUAL_SHARED_4_C[m];
-    let q0 = q[5];
-    let q1 = q[6];
-    let q2 = q[3];
-    let q3 = q[4];
-    let q4 = q[2];
-    let q5 = q[at[0]];
-    let c0 = c[0];
-    let c1 = c[1];
-    phi[at[1]] = c0 * (q0 * q1 + q2 * q3) + c1 * (q3 * q1 - q2 * q0) + q4 - q5;
-}
-
-/// The constants of `block_residual_shared_5` that differ between its blocks, one row per block.
-static BLOCK_RESIDUAL_SHARED_5_C: [[f64; 17]; 4] = [
+static BLOCK_RESIDUAL_SHARED_0_C: [[f64; 17]; 4] = [
     [
         1.680081401212581,
         0.1299547486442768,
@@ -5220,26 +5987,26 @@ static BLOCK_RESIDUAL_SHARED_5_C: [[f64; 17]; 4] = [
     ],
 ];
 
-/// Where `block_residual_shared_5` reads and writes for each of its blocks: the starts of its windows and the indices that do not move with them, one row per block.
-static BLOCK_RESIDUAL_SHARED_5_AT: [[usize; 3]; 4] = [
+/// Where `block_residual_shared_0` reads and writes for each of its blocks: the starts of its windows and the indices that do not move with them, one row per block.
+static BLOCK_RESIDUAL_SHARED_0_AT: [[usize; 3]; 4] = [
     [7, 3, 79],
     [21, 15, 81],
     [35, 27, 83],
     [77, 63, 89],
 ];
 
-/// Φ of the rows of the `m`th of blocks 7, 15, 23, 47 (one structure: the same code up to the constants in `BLOCK_RESIDUAL_SHARED_5_C` and the places in `BLOCK_RESIDUAL_SHARED_5_AT`): 77 operations.
+/// Φ of the rows of the `m`th of blocks 7, 15, 23, 47 (one structure: the same code up to the constants in `BLOCK_RESIDUAL_SHARED_0_C` and the places in `BLOCK_RESIDUAL_SHARED_0_AT`): 77 operations.
 #[inline(never)]
-fn block_residual_shared_5(
+fn block_residual_shared_0(
     m: usize,
     q: &[f64; N],
     _t: f64,
     _u: &[[f64; 3]; INPUTS],
     phi: &mut [f64; N],
 ) {
-    let at = &BLOCK_RESIDUAL_SHARED_5_AT[m];
+    let at = &BLOCK_RESIDUAL_SHARED_0_AT[m];
     let window0 = &q[at[0]..at[0] + 10];
-    let c = &BLOCK_RESIDUAL_SHARED_5_C[m];
+    let c = &BLOCK_RESIDUAL_SHARED_0_C[m];
     let q0 = window0[4];
     let q1 = window0[5];
     let q2 = window0[3];
@@ -5297,8 +6064,8 @@ fn block_residual_shared_5(
     phi[at[2]] = t4 + (t6 + t11) - 1.0;
 }
 
-/// The constants of `block_residual_shared_6` that differ between its blocks, one row per block.
-static BLOCK_RESIDUAL_SHARED_6_C: [[f64; 30]; 4] = [
+/// The constants of `block_residual_shared_1` that differ between its blocks, one row per block.
+static BLOCK_RESIDUAL_SHARED_1_C: [[f64; 30]; 4] = [
     [
         -1.976488916679243,
         0.3057638995109025,
@@ -5429,26 +6196,26 @@ static BLOCK_RESIDUAL_SHARED_6_C: [[f64; 30]; 4] = [
     ],
 ];
 
-/// Where `block_residual_shared_6` reads and writes for each of its blocks: the starts of its windows and the indices that do not move with them, one row per block.
-static BLOCK_RESIDUAL_SHARED_6_AT: [[usize; 3]; 4] = [
+/// Where `block_residual_shared_1` reads and writes for each of its blocks: the starts of its windows and the indices that do not move with them, one row per block.
+static BLOCK_RESIDUAL_SHARED_1_AT: [[usize; 3]; 4] = [
     [10, 4, 80],
     [24, 16, 82],
     [38, 28, 84],
     [80, 64, 90],
 ];
 
-/// Φ of the rows of the `m`th of blocks 8, 16, 24, 48 (one structure: the same code up to the constants in `BLOCK_RESIDUAL_SHARED_6_C` and the places in `BLOCK_RESIDUAL_SHARED_6_AT`): 134 operations.
+/// Φ of the rows of the `m`th of blocks 8, 16, 24, 48 (one structure: the same code up to the constants in `BLOCK_RESIDUAL_SHARED_1_C` and the places in `BLOCK_RESIDUAL_SHARED_1_AT`): 134 operations.
 #[inline(never)]
-fn block_residual_shared_6(
+fn block_residual_shared_1(
     m: usize,
     q: &[f64; N],
     _t: f64,
     _u: &[[f64; 3]; INPUTS],
     phi: &mut [f64; N],
 ) {
-    let at = &BLOCK_RESIDUAL_SHARED_6_AT[m];
+    let at = &BLOCK_RESIDUAL_SHARED_1_AT[m];
     let window0 = &q[at[0]..at[0] + 11];
-    let c = &BLOCK_RESIDUAL_SHARED_6_C[m];
+    let c = &BLOCK_RESIDUAL_SHARED_1_C[m];
     let q0 = window0[2];
     let q1 = window0[3];
     let q2 = window0[0];
@@ -5539,8 +6306,8 @@ fn block_residual_shared_6(
     phi[at[2]] = t16 + (t14 + t37) - 1.0;
 }
 
-/// The constants of `block_residual_shared_7` that differ between its blocks, one row per block.
-static BLOCK_RESIDUAL_SHARED_7_C: [[f64; 24]; 2] = [
+/// The constants of `block_residual_shared_2` that differ between its blocks, one row per block.
+static BLOCK_RESIDUAL_SHARED_2_C: [[f64; 24]; 2] = [
     [
         0.7234451538029876,
         1.8645715618980603,
@@ -5595,21 +6362,21 @@ static BLOCK_RESIDUAL_SHARED_7_C: [[f64; 24]; 2] = [
     ],
 ];
 
-/// Where `block_residual_shared_7` reads and writes for each of its blocks: the starts of its windows and the indices that do not move with them, one row per block.
-static BLOCK_RESIDUAL_SHARED_7_AT: [[usize; 3]; 2] = [[52, 40, 86], [66, 52, 88]];
+/// Where `block_residual_shared_2` reads and writes for each of its blocks: the starts of its windows and the indices that do not move with them, one row per block.
+static BLOCK_RESIDUAL_SHARED_2_AT: [[usize; 3]; 2] = [[52, 40, 86], [66, 52, 88]];
 
-/// Φ of the rows of the `m`th of blocks 32, 40 (one structure: the same code up to the constants in `BLOCK_RESIDUAL_SHARED_7_C` and the places in `BLOCK_RESIDUAL_SHARED_7_AT`): 134 operations.
+/// Φ of the rows of the `m`th of blocks 32, 40 (one structure: the same code up to the constants in `BLOCK_RESIDUAL_SHARED_2_C` and the places in `BLOCK_RESIDUAL_SHARED_2_AT`): 134 operations.
 #[inline(never)]
-fn block_residual_shared_7(
+fn block_residual_shared_2(
     m: usize,
     q: &[f64; N],
     _t: f64,
     _u: &[[f64; 3]; INPUTS],
     phi: &mut [f64; N],
 ) {
-    let at = &BLOCK_RESIDUAL_SHARED_7_AT[m];
+    let at = &BLOCK_RESIDUAL_SHARED_2_AT[m];
     let window0 = &q[at[0]..at[0] + 11];
-    let c = &BLOCK_RESIDUAL_SHARED_7_C[m];
+    let c = &BLOCK_RESIDUAL_SHARED_2_C[m];
     let q0 = window0[2];
     let q1 = window0[3];
     let q2 = window0[0];
@@ -9895,18 +10662,18 @@ impl runtime::Mechanism<N> for Stewart {
         } else {
             match b {
                 0 => block_residual_0(q, t, &u, phi),
-                7 => block_residual_shared_5(0, q, t, &u, phi),
-                8 => block_residual_shared_6(0, q, t, &u, phi),
-                15 => block_residual_shared_5(1, q, t, &u, phi),
-                16 => block_residual_shared_6(1, q, t, &u, phi),
-                23 => block_residual_shared_5(2, q, t, &u, phi),
-                24 => block_residual_shared_6(2, q, t, &u, phi),
+                7 => block_residual_shared_0(0, q, t, &u, phi),
+                8 => block_residual_shared_1(0, q, t, &u, phi),
+                15 => block_residual_shared_0(1, q, t, &u, phi),
+                16 => block_residual_shared_1(1, q, t, &u, phi),
+                23 => block_residual_shared_0(2, q, t, &u, phi),
+                24 => block_residual_shared_1(2, q, t, &u, phi),
                 31 => block_residual_31(q, t, &u, phi),
-                32 => block_residual_shared_7(0, q, t, &u, phi),
+                32 => block_residual_shared_2(0, q, t, &u, phi),
                 39 => block_residual_39(q, t, &u, phi),
-                40 => block_residual_shared_7(1, q, t, &u, phi),
-                47 => block_residual_shared_5(3, q, t, &u, phi),
-                48 => block_residual_shared_6(3, q, t, &u, phi),
+                40 => block_residual_shared_2(1, q, t, &u, phi),
+                47 => block_residual_shared_0(3, q, t, &u, phi),
+                48 => block_residual_shared_1(3, q, t, &u, phi),
                 _ => {}
             }
         }

@@ -52,11 +52,16 @@ pub(super) struct Shared {
     pub(super) vectors: bool,
     /// `block_b`: Φ and Φ_q of the block's rows.
     pub(super) both: Sharing,
-    /// `block_residual_b`: Φ of the block's rows (`residual` calls them all).
+    /// `block_residual_b`: Φ of the block's rows.
     pub(super) alone: Sharing,
-    /// `block_velocity_b`: ν of the block's rows (`velocity_rhs` calls them all).
+    /// The runs of blocks Φ, ν and γ go by with [`Shared::vectors`]: an implicit or rotation
+    /// block and the affine blocks after it.
+    pub(super) runs: Vec<Vec<usize>>,
+    /// `rows_residual_k`: Φ of the rows of run k (`residual` calls them all).
+    pub(super) phi: Sharing,
+    /// `rows_velocity_k`: ν of the rows of run k (`velocity_rhs` calls them all).
     pub(super) nu: Sharing,
-    /// `block_acceleration_b`: γ of the block's rows (`acceleration_rhs` calls them all).
+    /// `rows_acceleration_k`: γ of the rows of run k (`acceleration_rhs` calls them all).
     pub(super) gamma: Sharing,
     /// `rotation_b`: a rotation block's coefficients.
     pub(super) rotations: Sharing,
@@ -274,34 +279,40 @@ impl Shared {
         let implicit: Vec<usize> =
             (0..m).filter(|&b| blocks.blocks[b].kind != Kind::ClosedForm).collect();
         let square: Vec<usize> = (0..m).filter(|&b| blocks.blocks[b].rows.len() > 1).collect();
-        // Φ, ν and γ go block by block only when some of their block functions are shared:
-        // else the whole-system functions stay (one straight-line function, the drivers'
-        // time functions computed once), and only the implicit blocks have `block_residual_b`.
+        // Φ, ν and γ go by runs of blocks (an implicit or rotation block and the affine blocks
+        // after it: a body's orientation and its position, whose rows share most of their
+        // terms) only when some of those runs share their functions: else the whole-system
+        // functions stay (one straight-line function, the drivers' time functions computed
+        // once).
+        let mut runs: Vec<Vec<usize>> = Vec::new();
+        for (b, block) in blocks.blocks.iter().enumerate() {
+            match runs.last_mut() {
+                Some(run) if block.kind == Kind::ClosedForm => run.push(b),
+                _ => runs.push(vec![b]),
+            }
+        }
         let rows = |values: &[crate::expr::ExprId], array: Array| -> Vec<Option<Vec<Output>>> {
-            blocks
-                .blocks
-                .iter()
-                .map(|block| {
-                    Some(block.rows.iter().map(|&r| (array, r, Some(values[r]))).collect())
+            runs.iter()
+                .map(|run| {
+                    let rows = run.iter().flat_map(|&b| &blocks.blocks[b].rows);
+                    Some(rows.map(|&r| (array, r, Some(values[r]))).collect())
                 })
                 .collect()
         };
+        let phi = Sharing::of(&sys.pool, &rows(&sys.phi, Array::Phi));
         let nu = Sharing::of(&sys.pool, &rows(&sys.nu, Array::Nu));
         let gamma = Sharing::of(&sys.pool, &rows(&sys.gamma, Array::Gamma));
-        let all = Sharing::of(&sys.pool, &alone);
-        let vectors = all.any() || nu.any() || gamma.any();
-        let alone = if vectors {
-            all
-        } else {
-            let implicit: Vec<_> = alone
-                .into_iter()
-                .zip(&blocks.blocks)
-                .map(|(outputs, block)| outputs.filter(|_| block.kind != Kind::ClosedForm))
-                .collect();
-            Sharing::of(&sys.pool, &implicit)
-        };
+        let vectors = phi.any() || nu.any() || gamma.any();
+        let alone: Vec<_> = alone
+            .into_iter()
+            .zip(&blocks.blocks)
+            .map(|(outputs, block)| outputs.filter(|_| block.kind != Kind::ClosedForm))
+            .collect();
+        let alone = Sharing::of(&sys.pool, &alone);
         Shared {
             vectors,
+            runs,
+            phi,
             nu,
             gamma,
             both: Sharing::of(&sys.pool, &both),
@@ -332,6 +343,8 @@ impl Shared {
     fn none(blocks: usize) -> Shared {
         Shared {
             vectors: false,
+            runs: Vec::new(),
+            phi: Sharing::none(0),
             nu: Sharing::none(blocks),
             gamma: Sharing::none(blocks),
             both: Sharing::none(blocks),
@@ -1002,7 +1015,7 @@ fn block_functions(
         if shared.both.shared(b).is_none() {
             emit(format!("block_{b}"), &all, &both[..], &zeros);
         }
-        if (block.kind != Kind::ClosedForm || shared.vectors) && shared.alone.shared(b).is_none() {
+        if block.kind != Kind::ClosedForm && shared.alone.shared(b).is_none() {
             emit(format!("block_residual_{b}"), &phi, &alone[..], &[]);
         }
     }
@@ -1321,35 +1334,39 @@ pub(super) fn vectors(rows: &Rows<'_>, plan: &Plan) -> Vec<syn::Item> {
     type Vector<'s> = (&'s str, &'s str, &'s str, &'s Sharing, &'s [crate::expr::ExprId]);
     let kinds: [(Vector<'_>, bool, String); 3] = [
         (
-            ("residual", "block_residual", "phi", &plan.shared.alone, &sys.phi),
+            ("residual", "rows_residual", "phi", &plan.shared.phi, &sys.phi),
             false,
-            format!(" Constraint residuals Φ(q, t), {n} rows, block by block."),
+            format!(" Constraint residuals Φ(q, t), {n} rows, by runs of blocks."),
         ),
         (
-            ("velocity_rhs", "block_velocity", "nu", &plan.shared.nu, &sys.nu),
+            ("velocity_rhs", "rows_velocity", "nu", &plan.shared.nu, &sys.nu),
             false,
-            " Velocity right-hand side ν = −Φ_t, block by block.".to_owned(),
+            " Velocity right-hand side ν = −Φ_t, by runs of blocks.".to_owned(),
         ),
         (
-            ("acceleration_rhs", "block_acceleration", "gamma", &plan.shared.gamma, &sys.gamma),
+            ("acceleration_rhs", "rows_acceleration", "gamma", &plan.shared.gamma, &sys.gamma),
             true,
-            " Acceleration right-hand side γ = −(Φ_q q̇)_q q̇ − 2Φ_qt q̇ − Φ_tt, block by block."
+            " Acceleration right-hand side γ = −(Φ_q q̇)_q q̇ − 2Φ_qt q̇ − Φ_tt, by runs of blocks."
                 .to_owned(),
         ),
     ];
     for ((public, name, array, sharing, values), qd, doc) in kinds {
         let targets = [(array, vec_ty.clone())];
         let sig = Signature { name: "", qd, qdd: false, public: false, targets: &targets, inputs };
-        if public != "residual" {
-            let what = format!("{} of the rows", if qd { "γ" } else { "ν" });
-            items.extend(sharing.items(name, &sig, &what));
-            for (b, block) in plan.blocks.blocks.iter().enumerate() {
+        {
+            let what = match array {
+                "phi" => "Φ of the rows of a run of blocks",
+                "nu" => "ν of the rows of a run of blocks",
+                _ => "γ of the rows of a run of blocks",
+            };
+            items.extend(sharing.items(name, &sig, what));
+            for (b, run) in plan.shared.runs.iter().enumerate() {
                 if sharing.shared(b).is_some() {
                     continue;
                 }
-                let outputs: Vec<_> = block
-                    .rows
+                let outputs: Vec<_> = run
                     .iter()
+                    .flat_map(|&k| &plan.blocks.blocks[k].rows)
                     .map(|&r| (super::syntax::element(array, &[r]), values[r], Some(r)))
                     .collect();
                 let f = super::function::function_with(&sys.pool, n, &outputs, true);
