@@ -28,9 +28,10 @@
 //!
 //! What is shared, in a module solved by Newton block by block: the expression functions
 //! `block_b` (Φ and Φ_q of the block's rows), `block_residual_b`, `rotation_b` (the closed
-//! form's coefficients) and, when any of those is shared, `block_velocity_b` and
-//! `block_acceleration_b`, of which `residual`, `velocity_rhs` and `acceleration_rhs` are then
-//! made ([`Sharing`], keyed on the IR as above); and the LU code of the blocks, Newton's
+//! form's coefficients) and `rows_residual_k`, `rows_velocity_k` and `rows_acceleration_k`
+//! (Φ, ν and γ of a run of blocks: an implicit or rotation block and the affine blocks after
+//! it), of which `residual`, `velocity_rhs` and `acceleration_rhs` are made when some runs
+//! share them ([`Sharing`], keyed on the IR as above); and the LU code of the blocks, Newton's
 //! `factor_block`/`solve_block` arms and the parts of `factor_blocks`/`solve_blocks` for blocks
 //! of two rows or more ([`Gathers`], keyed on the code with its indices as holes: that code
 //! has no constants, and every index goes through a hole, so equal text is equal code).
