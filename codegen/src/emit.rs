@@ -26,6 +26,7 @@ mod outputs;
 mod redundant;
 pub mod scalar;
 mod syntax;
+mod time;
 
 pub use function::CHUNK_OPS;
 pub use scalar::Scalar;
@@ -149,6 +150,11 @@ fn assemble(
         items.extend(lu::emit(order, &structure, &constant, k));
     }
     items.extend(right_hand_sides(&rows));
+    // The time terms, for static orders over the whole system (`time`).
+    let timed = if orders.is_empty() { None } else { time::items(&rows) };
+    if let Some((functions, _)) = &timed {
+        items.extend(functions.iter().cloned());
+    }
     items.push(normalize(sys));
     items.push(expand(sys, &moving));
     items.extend(outputs::accessors(&rows, &named));
@@ -158,6 +164,7 @@ fn assemble(
     } else {
         structured_items(orders.len(), !sys.inputs.is_empty())
     };
+    structured.extend(timed.into_iter().flat_map(|(_, impls)| impls));
     structured.extend(redundant::impl_items(sys, !sys.inputs.is_empty()));
     if sys.inputs.is_empty() {
         items.extend(mechanism_type(mech, structured));
