@@ -257,14 +257,15 @@ pub fn solve_with_chord<R: Real, M: Mechanism<N, R>, const N: usize>(
         mechanism.residual(q, t, phi);
         let before = max_abs(phi);
         if before <= options.tolerance {
-            for p in phi.iter_mut() {
-                *p = -*p;
-            }
+            // Φ_q⁻¹ Φ rather than Φ_q⁻¹ (−Φ): negation is exact and the solve's rounding
+            // symmetric, so subtracting it is the same step, bit for bit, for one pass less.
             factors.solve(mechanism, jac, phi);
-            if phi.iter().all(|d| d.is_finite()) {
-                chord = Some(Chord { start: *q, before, step: max_abs(phi) });
+            // max |Δ_k| is NaN or infinite exactly when some Δ_k is.
+            let step = max_abs(phi);
+            if step.is_finite() {
+                chord = Some(Chord { start: *q, before, step });
                 for (qi, d) in q.iter_mut().zip(phi.iter()) {
-                    *qi += *d;
+                    *qi -= *d;
                 }
             }
         }
@@ -364,17 +365,17 @@ fn iterate<R: Real, M: Mechanism<N, R>, const N: usize>(
             Status::NonFinite => return Err(NewtonError::NonFinite { iteration: iterations }),
         }
         factor(mechanism, q, t, jac, factors, options, iterations)?;
-        for p in phi.iter_mut() {
-            *p = -*p;
-        }
+        // Δ = −Φ_q⁻¹ Φ, subtracted (see the chord step in `solve_with_chord`).
         factors.solve(mechanism, jac, phi);
-        if phi.iter().any(|d| !d.is_finite()) {
+        // max |Δ_k| is NaN or infinite exactly when some Δ_k is.
+        let size = max_abs(phi);
+        if !size.is_finite() {
             return Err(NewtonError::NonFinite { iteration: iterations });
         }
         for (qi, d) in q.iter_mut().zip(phi.iter()) {
-            *qi += *d;
+            *qi -= *d;
         }
-        last = Some(Step { before: residual, size: max_abs(phi) });
+        last = Some(Step { before: residual, size });
         iterations += 1;
         normalized = false;
     }
