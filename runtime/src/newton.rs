@@ -179,6 +179,19 @@ pub(crate) fn max_abs<R: Real>(x: &[R]) -> R {
     if nan { R::NAN } else { m }
 }
 
+/// Whether every x_i is finite.
+///
+/// Branch-free and inlined, so that the compiler can vectorise it: it runs after each of the
+/// velocity and acceleration solves.
+#[inline]
+pub(crate) fn all_finite<R: Real>(x: &[R]) -> bool {
+    let mut finite = true;
+    for &v in x {
+        finite &= v.is_finite();
+    }
+    finite
+}
+
 /// Solves Φ(q, t) = 0 for q by Newton's method, starting from `q`.
 ///
 /// A step Δ that brings max |Φ_i| from r₀ down to r₁ ≤ tolerance ends the iteration only when

@@ -605,7 +605,7 @@ impl<M: Mechanism<N, R>, const N: usize, R: Real, J: BorrowMut<[[R; N]; N]>> Sol
             m.velocity_rhs(&self.q, self.t, &mut self.qd);
             self.factors.solve(m, self.jac.borrow(), &mut self.qd);
         });
-        if !newton::max_abs(&self.qd).is_finite() {
+        if !newton::all_finite(&self.qd) {
             return Err(SolveError::NonFinite);
         }
         self.known = Known::Velocity;
@@ -613,7 +613,7 @@ impl<M: Mechanism<N, R>, const N: usize, R: Real, J: BorrowMut<[[R; N]; N]>> Sol
             m.acceleration_rhs(&self.q, &self.qd, self.t, &mut self.qdd);
             self.factors.solve(m, self.jac.borrow(), &mut self.qdd);
         });
-        if !newton::max_abs(&self.qdd).is_finite() {
+        if !newton::all_finite(&self.qdd) {
             return Err(SolveError::NonFinite);
         }
         self.known = Known::Acceleration;
@@ -626,8 +626,7 @@ impl<M: Mechanism<N, R>, const N: usize, R: Real, J: BorrowMut<[[R; N]; N]>> Sol
     /// it through the row that holds it), so checking the solution alone catches both.
     fn solve_scratch(&mut self) -> Result<(), SolveError> {
         in_force!(self, m => self.factors.solve(m, self.jac.borrow(), &mut self.scratch));
-        // Branch-free, so that it vectorises: NaN or infinite exactly when some entry is.
-        if !newton::max_abs(&self.scratch).is_finite() {
+        if !newton::all_finite(&self.scratch) {
             return Err(SolveError::NonFinite);
         }
         Ok(())
