@@ -493,6 +493,27 @@ pub fn normalize(q: &mut [f64; N]) {
     }
 }
 
+/// [`normalize`], returning whether it moved a coordinate by more than
+/// `runtime::newton::ROUND_OFF_MOVE` ulps of itself.
+pub fn normalize_moved(q: &mut [f64; N]) -> bool {
+    let bound = <f64 as runtime::Real>::from_f64(runtime::newton::ROUND_OFF_MOVE)
+        * <f64 as runtime::Real>::EPSILON;
+    let mut within = true;
+    {
+        let free = q[0] * q[0] + q[1] * q[1];
+        if free > 0.0 {
+            let scale = runtime::math::sqrt(1.0 / free);
+            let before = q[0];
+            q[0] *= scale;
+            within &= (q[0] - before).abs() <= bound * before.abs();
+            let before = q[1];
+            q[1] *= scale;
+            within &= (q[1] - before).abs() <= bound * before.abs();
+        }
+    }
+    !within
+}
+
 /// Full coordinates of every moving body (in [`BODY_NAMES`] order): `out[b][0]` is
 /// `[x, y, z, e0, e1, e2, e3]`, `out[b][1]` its rates and `out[b][2]` its
 /// accelerations, with fixed and driven coordinates filled in.
@@ -772,5 +793,8 @@ impl runtime::Mechanism<N> for RotationAboutY {
             Some(terms) => acceleration_rhs_at(q, qd, t, terms, gamma),
             None => acceleration_rhs(q, qd, t, gamma),
         }
+    }
+    fn normalize_moved(&self, q: &mut [f64; N]) -> bool {
+        normalize_moved(q)
     }
 }

@@ -41,6 +41,18 @@ pub trait Mechanism<const N: usize, R: Real = f64> {
     /// The default does nothing.
     fn normalize(&self, _q: &mut [R; N]) {}
 
+    /// [`Mechanism::normalize`], returning whether it moved q by more than round-off, that is
+    /// some coordinate by more than [`ROUND_OFF_MOVE`](crate::newton::ROUND_OFF_MOVE) ulps of
+    /// itself ([`newton::moved_by_round_off`](crate::newton::moved_by_round_off)); the solvers
+    /// then evaluate Φ and Φ_q again.
+    /// The default compares a copy of q with the normalised q; generated code tests only the
+    /// coordinates it rescales, as it rescales them (the others do not move).
+    fn normalize_moved(&self, q: &mut [R; N]) -> bool {
+        let before = *q;
+        self.normalize(q);
+        !crate::newton::moved_by_round_off(&before, q)
+    }
+
     /// The block-lower-triangular form of Φ_q, when the mechanism's solver factors it block by
     /// block ([`blocks`](crate::blocks)); the default, `None`, means it does not.
     ///
@@ -380,6 +392,9 @@ impl<M: Mechanism<N, R>, const N: usize, R: Real> Mechanism<N, R> for Timed<'_, 
     }
     fn normalize(&self, q: &mut [R; N]) {
         self.mechanism.normalize(q);
+    }
+    fn normalize_moved(&self, q: &mut [R; N]) -> bool {
+        self.mechanism.normalize_moved(q)
     }
     fn residual_jacobian_blocks(&self, q: &[R; N], t: R, phi: &mut [R; N], jac: &mut [[R; N]; N]) {
         self.mechanism.residual_jacobian_blocks(q, t, phi, jac);

@@ -3,7 +3,7 @@
 //! Each iteration evaluates Φ and Φ_q at q, stops if max |Φ_i| ≤ tolerance, and otherwise
 //! factors Φ_q ([`Factors`]: the mechanism's static pivot orders, else dense LU), solves
 //! Φ_q Δ = −Φ and sets q ← q + Δ.
-//! Once converged, [`Mechanism::normalize`] projects q and, if that moved q by more than
+//! Once converged, [`Mechanism::normalize_moved`] projects q and, if that moved q by more than
 //! round-off ([`moved_by_round_off`]), Φ and Φ_q are evaluated again, so the reported residual
 //! and the factored Jacobian left in the caller's storage belong to the final q (the velocity
 //! and acceleration solves reuse that factorisation).
@@ -363,10 +363,8 @@ fn iterate<R: Real, M: Mechanism<N, R>, const N: usize>(
         match verdict {
             Status::Converged => {
                 if !normalized {
-                    let before = *q;
-                    mechanism.normalize(q);
                     normalized = true;
-                    if !moved_by_round_off(&before, q) {
+                    if mechanism.normalize_moved(q) {
                         continue;
                     }
                 }

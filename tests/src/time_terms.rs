@@ -1,7 +1,8 @@
 //! The time terms of generated modules (`runtime::Mechanism::TIME_TERMS`): the R-S-S-R's
 //! against its driver law's closed form, every module's `_at` functions against the plain ones
 //! they stand in for, and a solver that reads them against one that does not, over the
-//! R-S-S-R's revolution.
+//! R-S-S-R's revolution; and the generated `normalize_moved` against `normalize` and the
+//! runtime's round-off test.
 
 use runtime::lu::PivotInfo;
 use runtime::{Mechanism, NewtonOptions, Solver};
@@ -141,4 +142,33 @@ fn rssr_revolution_with_time_terms_is_bit_identical_to_the_plain_functions() {
     // The terms are the nodes the plain functions compute, so every evaluation, and so every
     // step, is the same to the bit.
     assert!(revolution(Rssr) == revolution(Plain(Rssr)));
+}
+
+#[test]
+fn normalize_moved_rescales_as_normalize_and_reports_moves_beyond_round_off() {
+    use generated::rssr::{Q0, Rssr, normalize, normalize_moved};
+    // The crank's, the coupler's and the rocker's Euler parameters (e2 of the coupler is fixed
+    // at 0), at values of norm 1 exactly.
+    let euler = [(3, 0.5), (4, 0.5), (5, 0.5), (6, 0.5), (10, 1.0), (11, 0.0), (12, 0.0)];
+    let euler = euler.into_iter().chain([(16, 0.5), (17, 0.5), (18, 0.5), (19, 0.5)]);
+    let euler: Vec<(usize, f64)> = euler.collect();
+    let mut seen = [false; 2];
+    for k in 0..40 {
+        // Each body's |p| off 1 by about k/4 ulps: below about 3.5 ε a rescaling moves each
+        // parameter by at most 4 ulps of itself (newton::ROUND_OFF_MOVE), above it not.
+        let mut q = Q0;
+        for &(i, v) in &euler {
+            q[i] = v * (1.0 + 0.25 * f64::from(k) * f64::EPSILON);
+        }
+        let (mut by_normalize, mut moved) = (q, q);
+        normalize(&mut by_normalize);
+        let expected = !runtime::newton::moved_by_round_off(&q, &by_normalize);
+        assert_eq!(normalize_moved(&mut moved), expected, "k = {k}");
+        assert_eq!(moved.map(f64::to_bits), by_normalize.map(f64::to_bits), "k = {k}");
+        let mut through_trait = q;
+        assert_eq!(Rssr.normalize_moved(&mut through_trait), expected);
+        seen[usize::from(expected)] = true;
+    }
+    // Both verdicts occur, so the comparison above tested each.
+    assert_eq!(seen, [true, true]);
 }
