@@ -522,8 +522,7 @@ fn normalize_moved(sys: &Symbolic) -> syn::Item {
         /// [`normalize`], returning whether it moved a coordinate by more than
         /// `runtime::newton::ROUND_OFF_MOVE` ulps of itself.
         pub fn normalize_moved(q: &mut [f64; N]) -> bool {
-            let bound = <f64 as runtime::Real>::from_f64(runtime::newton::ROUND_OFF_MOVE)
-                * <f64 as runtime::Real>::EPSILON;
+            let bound = runtime::newton::round_off_move_bound::<f64>();
             let mut within = true;
             #(#stmts)*
             !within

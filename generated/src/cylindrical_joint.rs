@@ -440,8 +440,7 @@ pub fn normalize(q: &mut [f64; N]) {
 /// [`normalize`], returning whether it moved a coordinate by more than
 /// `runtime::newton::ROUND_OFF_MOVE` ulps of itself.
 pub fn normalize_moved(q: &mut [f64; N]) -> bool {
-    let bound = <f64 as runtime::Real>::from_f64(runtime::newton::ROUND_OFF_MOVE)
-        * <f64 as runtime::Real>::EPSILON;
+    let bound = runtime::newton::round_off_move_bound::<f64>();
     let mut within = true;
     {
         let free = q[2] * q[2] + q[3] * q[3] + q[4] * q[4];

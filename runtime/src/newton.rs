@@ -401,13 +401,22 @@ fn iterate<R: Real, M: Mechanism<N, R>, const N: usize>(
 /// evaluating them again would only repeat that rounding error.
 #[must_use]
 pub fn moved_by_round_off<R: Real, const N: usize>(before: &[R; N], after: &[R; N]) -> bool {
-    let bound = R::from_f64(ROUND_OFF_MOVE) * R::EPSILON;
+    let bound = round_off_move_bound::<R>();
     // Branch-free, so that the compiler vectorises it: it runs once per time step.
     let mut within = true;
     for (&b, &a) in before.iter().zip(after) {
         within &= (a - b).abs() <= bound * b.abs();
     }
     within
+}
+
+/// [`ROUND_OFF_MOVE`] ε in the type `R`: the largest move of a coordinate x, relative to |x|,
+/// that [`moved_by_round_off`] counts as round-off (generated `normalize_moved` functions use it
+/// too).
+#[inline]
+#[must_use]
+pub fn round_off_move_bound<R: Real>() -> R {
+    R::from_f64(ROUND_OFF_MOVE) * R::EPSILON
 }
 
 /// A projection that moves each coordinate by at most this many units of its own last place
