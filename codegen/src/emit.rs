@@ -27,6 +27,7 @@ mod redundant;
 pub mod scalar;
 mod shared;
 mod syntax;
+mod time;
 
 pub use function::CHUNK_OPS;
 pub use scalar::Scalar;
@@ -158,7 +159,13 @@ fn assemble(
     if by_vectors.is_none() {
         items.extend(right_hand_sides(&rows));
     }
+    // The time terms, for static orders over the whole system (`time`).
+    let timed = if orders.is_empty() { None } else { time::items(&rows) };
+    if let Some((functions, _)) = &timed {
+        items.extend(functions.iter().cloned());
+    }
     items.push(normalize(sys));
+    items.push(normalize_moved(sys));
     items.push(expand(sys, &moving));
     items.extend(outputs::accessors(&rows, &named));
     items.extend(redundant::items(sys, &rows));
@@ -167,6 +174,12 @@ fn assemble(
     } else {
         structured_items(orders.len(), !sys.inputs.is_empty())
     };
+    structured.extend(timed.into_iter().flat_map(|(_, impls)| impls));
+    structured.push(parse_quote! {
+        fn normalize_moved(&self, q: &mut [f64; N]) -> bool {
+            normalize_moved(q)
+        }
+    });
     structured.extend(redundant::impl_items(sys, !sys.inputs.is_empty()));
     if sys.inputs.is_empty() {
         items.extend(mechanism_type(mech, structured));
@@ -467,6 +480,63 @@ fn right_hand_sides(rows: &Rows<'_>) -> Vec<syn::Item> {
         &rows.vector(0, "gamma", &sys.gamma),
     ));
     items
+}
+
+/// `normalize_moved`: `normalize`, telling whether it moved a coordinate by more than
+/// `runtime::newton::ROUND_OFF_MOVE` ulps of itself (`runtime::Mechanism::normalize_moved`),
+/// by the test of `runtime::newton::moved_by_round_off` on each coordinate it rescales, as it
+/// rescales it: no copy of q, no pass over the coordinates it does not touch.
+fn normalize_moved(sys: &Symbolic) -> syn::Item {
+    let mut stmts: Vec<syn::Stmt> = Vec::new();
+    for c in &sys.coords {
+        let free: Vec<Literal> = c[3..]
+            .iter()
+            .filter_map(|s| if let Source::Unknown(k) = *s { Some(index(k)) } else { None })
+            .collect();
+        if free.is_empty() {
+            continue;
+        }
+        let fixed: f64 =
+            c[3..].iter().map(|s| if let Source::Fixed(v) = *s { v * v } else { 0.0 }).sum();
+        let target = literal_signed(1.0 - fixed);
+        // As `normalize` computes it.
+        let squares = free
+            .iter()
+            .map(|k| -> Expr { parse_quote!(q[#k] * q[#k]) })
+            .reduce(|a, b| binary(a, syn::BinOp::Add(Default::default()), b))
+            .expect("at least one free parameter");
+        stmts.push(parse_quote! {
+            {
+                let free = #squares;
+                if free > 0.0 {
+                    let scale = runtime::math::sqrt(#target / free);
+                    #(
+                        let before = q[#free];
+                        q[#free] *= scale;
+                        within &= (q[#free] - before).abs() <= bound * before.abs();
+                    )*
+                }
+            }
+        });
+    }
+    if stmts.is_empty() {
+        return parse_quote! {
+            /// [`normalize`], which moves nothing here: returns false.
+            pub fn normalize_moved(_q: &mut [f64; N]) -> bool {
+                false
+            }
+        };
+    }
+    parse_quote! {
+        /// [`normalize`], returning whether it moved a coordinate by more than
+        /// `runtime::newton::ROUND_OFF_MOVE` ulps of itself.
+        pub fn normalize_moved(q: &mut [f64; N]) -> bool {
+            let bound = runtime::newton::round_off_move_bound::<f64>();
+            let mut within = true;
+            #(#stmts)*
+            !within
+        }
+    }
 }
 
 /// `normalize`: each body's unknown Euler parameters rescaled so that |p| = 1.

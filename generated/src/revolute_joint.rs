@@ -712,6 +712,202 @@ pub fn acceleration_rhs(q: &[f64; N], qd: &[f64; N], t: f64, gamma: &mut [f64; N
     gamma[6] = -(t14 + (t10 + (t8 + t12)));
 }
 
+/// The number of time terms: the sines and cosines of functions of t alone that Φ, Φ_q, ν and γ read, computed by [`time_terms`].
+pub const TIME_TERMS: usize = 2;
+
+/// The time terms at t, computed once per time for the `_at` functions, which read them instead of computing them again.
+///
+/// 3 operations.
+pub fn time_terms(t: f64, terms: &mut [f64; TIME_TERMS]) {
+    let t0 = f64::from_bits(4602890488355133325) * t;
+    let (t1, t2) = runtime::math::sin_cos(t0);
+    terms[0] = t1;
+    terms[1] = t2;
+}
+
+/// [`residual`] reading the time terms at t from `terms` ([`time_terms`]): the same values, bit for bit.
+///
+/// 40 operations, 6 shared subexpressions.
+pub fn residual_at(
+    q: &[f64; N],
+    _t: f64,
+    terms: &[f64; TIME_TERMS],
+    phi: &mut [f64; N],
+) {
+    let [q0, q1, q2, q3, q4, q5, q6] = *q;
+    let t0 = q3 * q3;
+    let t1 = q4 * q4;
+    let t2 = q5 * q5;
+    let t3 = q6 * q6;
+    let t4 = q4 * q5;
+    let t5 = q3 * q6;
+    // joint hinge row 1: (P_j − P_i)_x = 0
+    phi[0] = q0 - 2.0 * (t4 - t5);
+    // joint hinge row 2: (P_j − P_i)_y = 0
+    phi[1] = q1 - (t0 + t2 - (t1 + t3));
+    // joint hinge row 3: (P_j − P_i)_z = 0
+    phi[2] = q2 - 2.0 * (q5 * q6 + q3 * q4);
+    // joint hinge row 4: b_i · a_j = 0
+    phi[3] = -(2.0 * (t4 + t5));
+    // joint hinge row 5: c_i · a_j = 0
+    phi[4] = -(2.0 * (q4 * q6 - q3 * q5));
+    // driver drive_rx: e1 cos(s/2) − e0 sin(s/2) = 0, s = 1.047 t
+    phi[5] = q4 * terms[1] - q3 * terms[0];
+    // body bar normalisation: e0² + e1² + e2² + e3² − 1 = 0
+    phi[6] = t3 + (t2 + (t0 + t1)) - 1.0;
+}
+
+/// [`residual_jacobian_structural`] reading the time terms at t from `terms` ([`time_terms`]): the same values, bit for bit.
+///
+/// 55 operations, 17 shared subexpressions.
+fn residual_jacobian_structural_at(
+    q: &[f64; N],
+    _t: f64,
+    terms: &[f64; TIME_TERMS],
+    phi: &mut [f64; N],
+    jac: &mut [[f64; N]; N],
+) {
+    let [q0, q1, q2, q3, q4, q5, q6] = *q;
+    let t0 = q3 * q3;
+    let t1 = q4 * q4;
+    let t2 = q5 * q5;
+    let t3 = q6 * q6;
+    let t4 = q4 * q5;
+    let t5 = q3 * q6;
+    let t6 = 2.0 * q6;
+    let t7 = -t6;
+    let t8 = 2.0 * q5;
+    let t9 = -t8;
+    let t10 = -(2.0 * q4);
+    let t11 = 2.0 * q3;
+    let t12 = -t11;
+    let t13 = q3 + q3;
+    let t14 = q4 + q4;
+    let t15 = q5 + q5;
+    let t16 = q6 + q6;
+    // joint hinge row 1: (P_j − P_i)_x = 0
+    phi[0] = q0 - 2.0 * (t4 - t5);
+    // joint hinge row 2: (P_j − P_i)_y = 0
+    phi[1] = q1 - (t0 + t2 - (t1 + t3));
+    // joint hinge row 3: (P_j − P_i)_z = 0
+    phi[2] = q2 - 2.0 * (q5 * q6 + q3 * q4);
+    // joint hinge row 4: b_i · a_j = 0
+    phi[3] = -(2.0 * (t4 + t5));
+    // joint hinge row 5: c_i · a_j = 0
+    phi[4] = -(2.0 * (q4 * q6 - q3 * q5));
+    // driver drive_rx: e1 cos(s/2) − e0 sin(s/2) = 0, s = 1.047 t
+    phi[5] = q4 * terms[1] - q3 * terms[0];
+    // body bar normalisation: e0² + e1² + e2² + e3² − 1 = 0
+    phi[6] = t3 + (t2 + (t0 + t1)) - 1.0;
+    // joint hinge row 1: (P_j − P_i)_x = 0
+    jac[0][3] = t6;
+    jac[0][4] = t9;
+    jac[0][5] = t10;
+    jac[0][6] = t11;
+    // joint hinge row 2: (P_j − P_i)_y = 0
+    jac[1][3] = -t13;
+    jac[1][4] = t14;
+    jac[1][5] = -t15;
+    jac[1][6] = t16;
+    // joint hinge row 3: (P_j − P_i)_z = 0
+    jac[2][3] = t10;
+    jac[2][4] = t12;
+    jac[2][5] = t7;
+    jac[2][6] = t9;
+    // joint hinge row 4: b_i · a_j = 0
+    jac[3][3] = t7;
+    jac[3][4] = t9;
+    jac[3][5] = t10;
+    jac[3][6] = t12;
+    // joint hinge row 5: c_i · a_j = 0
+    jac[4][3] = t8;
+    jac[4][4] = t7;
+    jac[4][5] = t11;
+    jac[4][6] = t10;
+    // driver drive_rx: e1 cos(s/2) − e0 sin(s/2) = 0, s = 1.047 t
+    jac[5][3] = -terms[0];
+    jac[5][4] = terms[1];
+    // body bar normalisation: e0² + e1² + e2² + e3² − 1 = 0
+    jac[6][3] = t13;
+    jac[6][4] = t14;
+    jac[6][5] = t15;
+    jac[6][6] = t16;
+}
+
+/// [`velocity_rhs`] reading the time terms at t from `terms` ([`time_terms`]): the same values, bit for bit.
+///
+/// 8 operations, 0 shared subexpressions.
+pub fn velocity_rhs_at(
+    q: &[f64; N],
+    _t: f64,
+    terms: &[f64; TIME_TERMS],
+    nu: &mut [f64; N],
+) {
+    let [_q0, _q1, _q2, q3, q4, _q5, _q6] = *q;
+    // joint hinge row 1: (P_j − P_i)_x = 0
+    nu[0] = 0.0;
+    // joint hinge row 2: (P_j − P_i)_y = 0
+    nu[1] = 0.0;
+    // joint hinge row 3: (P_j − P_i)_z = 0
+    nu[2] = 0.0;
+    // joint hinge row 4: b_i · a_j = 0
+    nu[3] = 0.0;
+    // joint hinge row 5: c_i · a_j = 0
+    nu[4] = 0.0;
+    // driver drive_rx: e1 cos(s/2) − e0 sin(s/2) = 0, s = 1.047 t
+    nu[5] = -(-(q4 * (f64::from_bits(4602890488355133325) * terms[0]))
+        - q3 * (f64::from_bits(4602890488355133325) * terms[1]));
+    // body bar normalisation: e0² + e1² + e2² + e3² − 1 = 0
+    nu[6] = 0.0;
+}
+
+/// [`acceleration_rhs`] reading the time terms at t from `terms` ([`time_terms`]): the same values, bit for bit.
+///
+/// 56 operations, 18 shared subexpressions.
+pub fn acceleration_rhs_at(
+    q: &[f64; N],
+    qd: &[f64; N],
+    _t: f64,
+    terms: &[f64; TIME_TERMS],
+    gamma: &mut [f64; N],
+) {
+    let [_q0, _q1, _q2, q3, q4, _q5, _q6] = *q;
+    let [_qd0, _qd1, _qd2, qd3, qd4, qd5, qd6] = *qd;
+    let t0 = qd4 * qd5;
+    let t1 = t0 + t0;
+    let t2 = qd3 * qd6;
+    let t3 = t2 + t2;
+    let t4 = qd3 * qd3;
+    let t5 = t4 + t4;
+    let t6 = qd5 * qd5;
+    let t7 = t6 + t6;
+    let t8 = qd4 * qd4;
+    let t9 = t8 + t8;
+    let t10 = qd6 * qd6;
+    let t11 = t10 + t10;
+    let t12 = qd5 * qd6;
+    let t13 = qd4 * qd3;
+    let t14 = qd4 * qd6;
+    let t15 = qd5 * qd3;
+    let t16 = qd4 * (f64::from_bits(4602890488355133325) * terms[0]);
+    let t17 = qd3 * (f64::from_bits(4602890488355133325) * terms[1]);
+    // joint hinge row 1: (P_j − P_i)_x = 0
+    gamma[0] = 2.0 * (t1 - t3);
+    // joint hinge row 2: (P_j − P_i)_y = 0
+    gamma[1] = t5 + t7 - (t9 + t11);
+    // joint hinge row 3: (P_j − P_i)_z = 0
+    gamma[2] = 2.0 * (t12 + t12 + (t13 + t13));
+    // joint hinge row 4: b_i · a_j = 0
+    gamma[3] = 2.0 * (t1 + t3);
+    // joint hinge row 5: c_i · a_j = 0
+    gamma[4] = 2.0 * (t14 + t14 - (t15 + t15));
+    // driver drive_rx: e1 cos(s/2) − e0 sin(s/2) = 0, s = 1.047 t
+    gamma[5] = -(-(t16 + q4 * (0.27405224999999994 * terms[1])) - t16
+        - (t17 + (t17 - q3 * (0.27405224999999994 * terms[0]))));
+    // body bar normalisation: e0² + e1² + e2² + e3² − 1 = 0
+    gamma[6] = -(t11 + (t7 + (t5 + t9)));
+}
+
 /// Rescales the unknown Euler parameters of each body so that |p| = 1 (the fixed
 /// ones keep their values).
 pub fn normalize(q: &mut [f64; N]) {
@@ -725,6 +921,32 @@ pub fn normalize(q: &mut [f64; N]) {
             q[6] *= scale;
         }
     }
+}
+
+/// [`normalize`], returning whether it moved a coordinate by more than
+/// `runtime::newton::ROUND_OFF_MOVE` ulps of itself.
+pub fn normalize_moved(q: &mut [f64; N]) -> bool {
+    let bound = runtime::newton::round_off_move_bound::<f64>();
+    let mut within = true;
+    {
+        let free = q[3] * q[3] + q[4] * q[4] + q[5] * q[5] + q[6] * q[6];
+        if free > 0.0 {
+            let scale = runtime::math::sqrt(1.0 / free);
+            let before = q[3];
+            q[3] *= scale;
+            within &= (q[3] - before).abs() <= bound * before.abs();
+            let before = q[4];
+            q[4] *= scale;
+            within &= (q[4] - before).abs() <= bound * before.abs();
+            let before = q[5];
+            q[5] *= scale;
+            within &= (q[5] - before).abs() <= bound * before.abs();
+            let before = q[6];
+            q[6] *= scale;
+            within &= (q[6] - before).abs() <= bound * before.abs();
+        }
+    }
+    !within
 }
 
 /// Full coordinates of every moving body (in [`BODY_NAMES`] order): `out[b][0]` is
@@ -922,5 +1144,52 @@ impl runtime::Mechanism<N> for RevoluteJoint {
             1 => solve_1(lu, b),
             _ => {}
         }
+    }
+    const TIME_TERMS: usize = TIME_TERMS;
+    fn time_terms(&self, t: f64, terms: &mut [f64]) {
+        if let Some(terms) = terms.first_chunk_mut() {
+            time_terms(t, terms);
+        }
+    }
+    fn residual_at(&self, q: &[f64; N], t: f64, terms: &[f64], phi: &mut [f64; N]) {
+        match terms.first_chunk() {
+            Some(terms) => residual_at(q, t, terms, phi),
+            None => residual(q, t, phi),
+        }
+    }
+    fn residual_jacobian_structural_at(
+        &self,
+        q: &[f64; N],
+        t: f64,
+        terms: &[f64],
+        phi: &mut [f64; N],
+        jac: &mut [[f64; N]; N],
+    ) {
+        match terms.first_chunk() {
+            Some(terms) => residual_jacobian_structural_at(q, t, terms, phi, jac),
+            None => residual_jacobian_structural(q, t, phi, jac),
+        }
+    }
+    fn velocity_rhs_at(&self, q: &[f64; N], t: f64, terms: &[f64], nu: &mut [f64; N]) {
+        match terms.first_chunk() {
+            Some(terms) => velocity_rhs_at(q, t, terms, nu),
+            None => velocity_rhs(q, t, nu),
+        }
+    }
+    fn acceleration_rhs_at(
+        &self,
+        q: &[f64; N],
+        qd: &[f64; N],
+        t: f64,
+        terms: &[f64],
+        gamma: &mut [f64; N],
+    ) {
+        match terms.first_chunk() {
+            Some(terms) => acceleration_rhs_at(q, qd, t, terms, gamma),
+            None => acceleration_rhs(q, qd, t, gamma),
+        }
+    }
+    fn normalize_moved(&self, q: &mut [f64; N]) -> bool {
+        normalize_moved(q)
     }
 }

@@ -388,6 +388,98 @@ pub fn acceleration_rhs(q: &[f64; N], qd: &[f64; N], t: f64, gamma: &mut [f64; N
     gamma[1] = -(t5 + t5 + (t6 + t6));
 }
 
+/// The number of time terms: the sines and cosines of functions of t alone that Φ, Φ_q, ν and γ read, computed by [`time_terms`].
+pub const TIME_TERMS: usize = 2;
+
+/// The time terms at t, computed once per time for the `_at` functions, which read them instead of computing them again.
+///
+/// 3 operations.
+pub fn time_terms(t: f64, terms: &mut [f64; TIME_TERMS]) {
+    let t0 = f64::from_bits(4602890488355133325) * t;
+    let (t1, t2) = runtime::math::sin_cos(t0);
+    terms[0] = t1;
+    terms[1] = t2;
+}
+
+/// [`residual`] reading the time terms at t from `terms` ([`time_terms`]): the same values, bit for bit.
+///
+/// 8 operations, 0 shared subexpressions.
+pub fn residual_at(
+    q: &[f64; N],
+    _t: f64,
+    terms: &[f64; TIME_TERMS],
+    phi: &mut [f64; N],
+) {
+    let [q0, q1] = *q;
+    // driver drive_rx: e1 cos(s/2) − e0 sin(s/2) = 0, s = 1.047 t
+    phi[0] = q1 * terms[1] - terms[0] * q0;
+    // body block normalisation: e0² + e1² + e2² + e3² − 1 = 0
+    phi[1] = q0 * q0 + q1 * q1 - 1.0;
+}
+
+/// [`residual_jacobian_structural`] reading the time terms at t from `terms` ([`time_terms`]): the same values, bit for bit.
+///
+/// 11 operations, 0 shared subexpressions.
+fn residual_jacobian_structural_at(
+    q: &[f64; N],
+    _t: f64,
+    terms: &[f64; TIME_TERMS],
+    phi: &mut [f64; N],
+    jac: &mut [[f64; N]; N],
+) {
+    let [q0, q1] = *q;
+    // driver drive_rx: e1 cos(s/2) − e0 sin(s/2) = 0, s = 1.047 t
+    phi[0] = q1 * terms[1] - terms[0] * q0;
+    // body block normalisation: e0² + e1² + e2² + e3² − 1 = 0
+    phi[1] = q0 * q0 + q1 * q1 - 1.0;
+    // driver drive_rx: e1 cos(s/2) − e0 sin(s/2) = 0, s = 1.047 t
+    jac[0][0] = -terms[0];
+    jac[0][1] = terms[1];
+    // body block normalisation: e0² + e1² + e2² + e3² − 1 = 0
+    jac[1][0] = q0 + q0;
+    jac[1][1] = q1 + q1;
+}
+
+/// [`velocity_rhs`] reading the time terms at t from `terms` ([`time_terms`]): the same values, bit for bit.
+///
+/// 8 operations, 0 shared subexpressions.
+pub fn velocity_rhs_at(
+    q: &[f64; N],
+    _t: f64,
+    terms: &[f64; TIME_TERMS],
+    nu: &mut [f64; N],
+) {
+    let [q0, q1] = *q;
+    // driver drive_rx: e1 cos(s/2) − e0 sin(s/2) = 0, s = 1.047 t
+    nu[0] = -(-(q1 * (f64::from_bits(4602890488355133325) * terms[0]))
+        - q0 * (f64::from_bits(4602890488355133325) * terms[1]));
+    // body block normalisation: e0² + e1² + e2² + e3² − 1 = 0
+    nu[1] = 0.0;
+}
+
+/// [`acceleration_rhs`] reading the time terms at t from `terms` ([`time_terms`]): the same values, bit for bit.
+///
+/// 24 operations, 4 shared subexpressions.
+pub fn acceleration_rhs_at(
+    q: &[f64; N],
+    qd: &[f64; N],
+    _t: f64,
+    terms: &[f64; TIME_TERMS],
+    gamma: &mut [f64; N],
+) {
+    let [q0, q1] = *q;
+    let [qd0, qd1] = *qd;
+    let t0 = f64::from_bits(4602890488355133325) * terms[0] * qd1;
+    let t1 = f64::from_bits(4602890488355133325) * terms[1] * qd0;
+    let t2 = qd0 * qd0;
+    let t3 = qd1 * qd1;
+    // driver drive_rx: e1 cos(s/2) − e0 sin(s/2) = 0, s = 1.047 t
+    gamma[0] = -(-(t0 + q1 * (0.27405224999999994 * terms[1])) - t0
+        - (t1 + (t1 - q0 * (0.27405224999999994 * terms[0]))));
+    // body block normalisation: e0² + e1² + e2² + e3² − 1 = 0
+    gamma[1] = -(t2 + t2 + (t3 + t3));
+}
+
 /// Rescales the unknown Euler parameters of each body so that |p| = 1 (the fixed
 /// ones keep their values).
 pub fn normalize(q: &mut [f64; N]) {
@@ -399,6 +491,26 @@ pub fn normalize(q: &mut [f64; N]) {
             q[1] *= scale;
         }
     }
+}
+
+/// [`normalize`], returning whether it moved a coordinate by more than
+/// `runtime::newton::ROUND_OFF_MOVE` ulps of itself.
+pub fn normalize_moved(q: &mut [f64; N]) -> bool {
+    let bound = runtime::newton::round_off_move_bound::<f64>();
+    let mut within = true;
+    {
+        let free = q[0] * q[0] + q[1] * q[1];
+        if free > 0.0 {
+            let scale = runtime::math::sqrt(1.0 / free);
+            let before = q[0];
+            q[0] *= scale;
+            within &= (q[0] - before).abs() <= bound * before.abs();
+            let before = q[1];
+            q[1] *= scale;
+            within &= (q[1] - before).abs() <= bound * before.abs();
+        }
+    }
+    !within
 }
 
 /// Full coordinates of every moving body (in [`BODY_NAMES`] order): `out[b][0]` is
@@ -619,5 +731,52 @@ impl runtime::Mechanism<N> for RotationAboutX {
             1 => solve_1(lu, b),
             _ => {}
         }
+    }
+    const TIME_TERMS: usize = TIME_TERMS;
+    fn time_terms(&self, t: f64, terms: &mut [f64]) {
+        if let Some(terms) = terms.first_chunk_mut() {
+            time_terms(t, terms);
+        }
+    }
+    fn residual_at(&self, q: &[f64; N], t: f64, terms: &[f64], phi: &mut [f64; N]) {
+        match terms.first_chunk() {
+            Some(terms) => residual_at(q, t, terms, phi),
+            None => residual(q, t, phi),
+        }
+    }
+    fn residual_jacobian_structural_at(
+        &self,
+        q: &[f64; N],
+        t: f64,
+        terms: &[f64],
+        phi: &mut [f64; N],
+        jac: &mut [[f64; N]; N],
+    ) {
+        match terms.first_chunk() {
+            Some(terms) => residual_jacobian_structural_at(q, t, terms, phi, jac),
+            None => residual_jacobian_structural(q, t, phi, jac),
+        }
+    }
+    fn velocity_rhs_at(&self, q: &[f64; N], t: f64, terms: &[f64], nu: &mut [f64; N]) {
+        match terms.first_chunk() {
+            Some(terms) => velocity_rhs_at(q, t, terms, nu),
+            None => velocity_rhs(q, t, nu),
+        }
+    }
+    fn acceleration_rhs_at(
+        &self,
+        q: &[f64; N],
+        qd: &[f64; N],
+        t: f64,
+        terms: &[f64],
+        gamma: &mut [f64; N],
+    ) {
+        match terms.first_chunk() {
+            Some(terms) => acceleration_rhs_at(q, qd, t, terms, gamma),
+            None => acceleration_rhs(q, qd, t, gamma),
+        }
+    }
+    fn normalize_moved(&self, q: &mut [f64; N]) -> bool {
+        normalize_moved(q)
     }
 }

@@ -1678,6 +1678,463 @@ pub fn acceleration_rhs(q: &[f64; N], qd: &[f64; N], t: f64, gamma: &mut [f64; N
     gamma[19] = -(t34 + (t30 + t32));
 }
 
+/// The number of time terms: the sines and cosines of functions of t alone that Φ, Φ_q, ν and γ read, computed by [`time_terms`].
+pub const TIME_TERMS: usize = 2;
+
+/// The time terms at t, computed once per time for the `_at` functions, which read them instead of computing them again.
+///
+/// 3 operations.
+pub fn time_terms(t: f64, terms: &mut [f64; TIME_TERMS]) {
+    let t0 = 73.3 * t;
+    let (t1, t2) = runtime::math::sin_cos(t0);
+    terms[0] = t1;
+    terms[1] = t2;
+}
+
+/// [`residual`] reading the time terms at t from `terms` ([`time_terms`]): the same values, bit for bit.
+///
+/// 138 operations, 24 shared subexpressions.
+pub fn residual_at(
+    q: &[f64; N],
+    _t: f64,
+    terms: &[f64; TIME_TERMS],
+    phi: &mut [f64; N],
+) {
+    let [q0, q1, q2, q3, q4, q5, q6, q7, q8, q9, q10, q11, q12, q13, q14, q15, q16, q17,
+    q18, q19] = *q;
+    let t0 = q3 * q3;
+    let t1 = q4 * q4;
+    let t2 = q5 * q5;
+    let t3 = q6 * q6;
+    let t4 = q4 * q5 - q3 * q6;
+    let t5 = q5 * q6;
+    let t6 = q3 * q4;
+    let t7 = t5 + t6;
+    let t8 = q10 * q10;
+    let t9 = q11 * q11;
+    let t10 = q12 * q12;
+    let t11 = q16 * q16;
+    let t12 = q17 * q17;
+    let t13 = q18 * q18;
+    let t14 = q19 * q19;
+    let t15 = t11 + t12;
+    let t16 = q17 * q18;
+    let t17 = q16 * q19;
+    let t18 = t16 - t17;
+    let t19 = q17 * q19;
+    let t20 = q16 * q18;
+    let t21 = t19 + t20;
+    let t22 = q18 * q19;
+    let t23 = q16 * q17;
+    // joint A row 1: (P_j − P_i)_x = 0
+    phi[0] = q7 - (0.13134 * t4 + 0.2 * (q4 * q6 + q3 * q5) + q0);
+    // joint A row 2: (P_j − P_i)_y = 0
+    phi[1] = q8 - (0.06567 * (t0 + t2 - (t1 + t3)) + 0.2 * (t5 - t6) + q1);
+    // joint A row 3: (P_j − P_i)_z = 0
+    phi[2] = q9 - (0.13134 * t7 + 0.1 * (t0 + t3 - (t1 + t2)) + q2);
+    // joint B row 1: (P_j − P_i)_x = 0
+    phi[3] = 0.2 * t21 + (0.0475 * (t15 - (t13 + t14)) + -0.03714 * t18) + q13
+        - (q7 - 0.9624 * (q10 * q12));
+    // joint B row 2: (P_j − P_i)_y = 0
+    phi[4] = 0.2 * (t22 - t23)
+        + (0.095 * (t16 + t17) + -0.01857 * (t11 + t13 - (t12 + t14))) + q14
+        - (q8 + 0.4812 * (t8 - (t9 + t10)));
+    // joint B row 3: (P_j − P_i)_z = 0
+    phi[5] = 0.1 * (t11 + t14 - (t12 + t13))
+        + (0.095 * (t19 - t20) + -0.03714 * (t22 + t23)) + q15
+        - (q9 + 0.9624 * (q10 * q11));
+    // joint O2 row 1: (P_j − P_i)_x = 0
+    phi[6] = q0;
+    // joint O2 row 2: (P_j − P_i)_y = 0
+    phi[7] = 0.06567 + q1;
+    // joint O2 row 3: (P_j − P_i)_z = 0
+    phi[8] = q2;
+    // joint O2 row 4: b_i · a_j = 0
+    phi[9] = 2.0 * t4;
+    // joint O2 row 5: c_i · a_j = 0
+    phi[10] = 2.0 * t7;
+    // joint O4 row 1: (P_j − P_i)_x = 0
+    phi[11] = -0.0475 - q13;
+    // joint O4 row 2: (P_j − P_i)_y = 0
+    phi[12] = 0.49977 - q14;
+    // joint O4 row 3: (P_j − P_i)_z = 0
+    phi[13] = -q15;
+    // joint O4 row 4: b_i · a_j = 0
+    phi[14] = -(2.0 * t18);
+    // joint O4 row 5: c_i · a_j = 0
+    phi[15] = -(2.0 * t21);
+    // driver motor: e2 cos(s/2) − e0 sin(s/2) = 0, s = 146.6 t
+    phi[16] = q5 * terms[1] - q3 * terms[0];
+    // body crank normalisation: e0² + e1² + e2² + e3² − 1 = 0
+    phi[17] = t3 + (t2 + (t0 + t1)) - 1.0;
+    // body coupler normalisation: e0² + e1² + e2² + e3² − 1 = 0
+    phi[18] = t10 + (t8 + t9) - 1.0;
+    // body rocker normalisation: e0² + e1² + e2² + e3² − 1 = 0
+    phi[19] = t14 + (t13 + t15) - 1.0;
+}
+
+/// [`residual_jacobian_structural`] reading the time terms at t from `terms` ([`time_terms`]): the same values, bit for bit.
+///
+/// 281 operations, 64 shared subexpressions.
+fn residual_jacobian_structural_at(
+    q: &[f64; N],
+    _t: f64,
+    terms: &[f64; TIME_TERMS],
+    phi: &mut [f64; N],
+    jac: &mut [[f64; N]; N],
+) {
+    let [q0, q1, q2, q3, q4, q5, q6, q7, q8, q9, q10, q11, q12, q13, q14, q15, q16, q17,
+    q18, q19] = *q;
+    let t0 = q3 * q3;
+    let t1 = q4 * q4;
+    let t2 = q5 * q5;
+    let t3 = q6 * q6;
+    let t4 = q4 * q5 - q3 * q6;
+    let t5 = q5 * q6;
+    let t6 = q3 * q4;
+    let t7 = t5 + t6;
+    let t8 = q10 * q10;
+    let t9 = q11 * q11;
+    let t10 = q12 * q12;
+    let t11 = q16 * q16;
+    let t12 = q17 * q17;
+    let t13 = q18 * q18;
+    let t14 = q19 * q19;
+    let t15 = t11 + t12;
+    let t16 = q17 * q18;
+    let t17 = q16 * q19;
+    let t18 = t16 - t17;
+    let t19 = q17 * q19;
+    let t20 = q16 * q18;
+    let t21 = t19 + t20;
+    let t22 = q18 * q19;
+    let t23 = q16 * q17;
+    let t24 = 0.13134 * q6;
+    let t25 = 0.2 * q5;
+    let t26 = 0.13134 * q5;
+    let t27 = 0.2 * q6;
+    let t28 = 0.13134 * q4;
+    let t29 = 0.2 * q3;
+    let t30 = 0.13134 * q3;
+    let t31 = 0.2 * q4;
+    let t32 = q3 + q3;
+    let t33 = q4 + q4;
+    let t34 = q5 + q5;
+    let t35 = q6 + q6;
+    let t36 = 0.9624 * q10;
+    let t37 = 0.2 * q18;
+    let t38 = q16 + q16;
+    let t39 = -0.03714 * q19;
+    let t40 = 0.2 * q19;
+    let t41 = q17 + q17;
+    let t42 = -0.03714 * q18;
+    let t43 = 0.2 * q16;
+    let t44 = q18 + q18;
+    let t45 = -0.03714 * q17;
+    let t46 = 0.2 * q17;
+    let t47 = q19 + q19;
+    let t48 = -0.03714 * q16;
+    let t49 = q10 + q10;
+    let t50 = q11 + q11;
+    let t51 = q12 + q12;
+    let t52 = 0.095 * q19;
+    let t53 = 0.095 * q18;
+    let t54 = 0.095 * q17;
+    let t55 = 0.095 * q16;
+    let t56 = 2.0 * q6;
+    let t57 = 2.0 * q5;
+    let t58 = 2.0 * q4;
+    let t59 = 2.0 * q3;
+    let t60 = 2.0 * q19;
+    let t61 = -(2.0 * q18);
+    let t62 = -(2.0 * q17);
+    let t63 = 2.0 * q16;
+    // joint A row 1: (P_j − P_i)_x = 0
+    phi[0] = q7 - (0.13134 * t4 + 0.2 * (q4 * q6 + q3 * q5) + q0);
+    // joint A row 2: (P_j − P_i)_y = 0
+    phi[1] = q8 - (0.06567 * (t0 + t2 - (t1 + t3)) + 0.2 * (t5 - t6) + q1);
+    // joint A row 3: (P_j − P_i)_z = 0
+    phi[2] = q9 - (0.13134 * t7 + 0.1 * (t0 + t3 - (t1 + t2)) + q2);
+    // joint B row 1: (P_j − P_i)_x = 0
+    phi[3] = 0.2 * t21 + (0.0475 * (t15 - (t13 + t14)) + -0.03714 * t18) + q13
+        - (q7 - 0.9624 * (q10 * q12));
+    // joint B row 2: (P_j − P_i)_y = 0
+    phi[4] = 0.2 * (t22 - t23)
+        + (0.095 * (t16 + t17) + -0.01857 * (t11 + t13 - (t12 + t14))) + q14
+        - (q8 + 0.4812 * (t8 - (t9 + t10)));
+    // joint B row 3: (P_j − P_i)_z = 0
+    phi[5] = 0.1 * (t11 + t14 - (t12 + t13))
+        + (0.095 * (t19 - t20) + -0.03714 * (t22 + t23)) + q15
+        - (q9 + 0.9624 * (q10 * q11));
+    // joint O2 row 1: (P_j − P_i)_x = 0
+    phi[6] = q0;
+    // joint O2 row 2: (P_j − P_i)_y = 0
+    phi[7] = 0.06567 + q1;
+    // joint O2 row 3: (P_j − P_i)_z = 0
+    phi[8] = q2;
+    // joint O2 row 4: b_i · a_j = 0
+    phi[9] = 2.0 * t4;
+    // joint O2 row 5: c_i · a_j = 0
+    phi[10] = 2.0 * t7;
+    // joint O4 row 1: (P_j − P_i)_x = 0
+    phi[11] = -0.0475 - q13;
+    // joint O4 row 2: (P_j − P_i)_y = 0
+    phi[12] = 0.49977 - q14;
+    // joint O4 row 3: (P_j − P_i)_z = 0
+    phi[13] = -q15;
+    // joint O4 row 4: b_i · a_j = 0
+    phi[14] = -(2.0 * t18);
+    // joint O4 row 5: c_i · a_j = 0
+    phi[15] = -(2.0 * t21);
+    // driver motor: e2 cos(s/2) − e0 sin(s/2) = 0, s = 146.6 t
+    phi[16] = q5 * terms[1] - q3 * terms[0];
+    // body crank normalisation: e0² + e1² + e2² + e3² − 1 = 0
+    phi[17] = t3 + (t2 + (t0 + t1)) - 1.0;
+    // body coupler normalisation: e0² + e1² + e2² + e3² − 1 = 0
+    phi[18] = t10 + (t8 + t9) - 1.0;
+    // body rocker normalisation: e0² + e1² + e2² + e3² − 1 = 0
+    phi[19] = t14 + (t13 + t15) - 1.0;
+    // joint A row 1: (P_j − P_i)_x = 0
+    jac[0][3] = -(t25 - t24);
+    jac[0][4] = -(t26 + t27);
+    jac[0][5] = -(t28 + t29);
+    jac[0][6] = -(t31 - t30);
+    // joint A row 2: (P_j − P_i)_y = 0
+    jac[1][3] = -(0.06567 * t32 - t31);
+    jac[1][4] = -(-(0.06567 * t33) - t29);
+    jac[1][5] = -(t27 + 0.06567 * t34);
+    jac[1][6] = -(t25 - 0.06567 * t35);
+    // joint A row 3: (P_j − P_i)_z = 0
+    jac[2][3] = -(t28 + 0.1 * t32);
+    jac[2][4] = -(t30 - 0.1 * t33);
+    jac[2][5] = -(t24 - 0.1 * t34);
+    jac[2][6] = -(t26 + 0.1 * t35);
+    // joint B row 1: (P_j − P_i)_x = 0
+    jac[3][10] = 0.9624 * q12;
+    jac[3][12] = t36;
+    jac[3][16] = t37 + (0.0475 * t38 - t39);
+    jac[3][17] = t40 + (0.0475 * t41 + t42);
+    jac[3][18] = t43 + (t45 - 0.0475 * t44);
+    jac[3][19] = t46 + (-(0.0475 * t47) - t48);
+    // joint B row 2: (P_j − P_i)_y = 0
+    jac[4][10] = -(0.4812 * t49);
+    jac[4][11] = 0.4812 * t50;
+    jac[4][12] = 0.4812 * t51;
+    jac[4][16] = t52 + -0.01857 * t38 - t46;
+    jac[4][17] = t53 - -0.01857 * t41 - t43;
+    jac[4][18] = t40 + (t54 + -0.01857 * t44);
+    jac[4][19] = t37 + (t55 - -0.01857 * t47);
+    // joint B row 3: (P_j − P_i)_z = 0
+    jac[5][10] = -(0.9624 * q11);
+    jac[5][11] = -t36;
+    jac[5][16] = 0.1 * t38 + (t45 - t53);
+    jac[5][17] = t48 + t52 - 0.1 * t41;
+    jac[5][18] = t39 - t55 - 0.1 * t44;
+    jac[5][19] = 0.1 * t47 + (t42 + t54);
+    // joint O2 row 4: b_i · a_j = 0
+    jac[9][3] = -t56;
+    jac[9][4] = t57;
+    jac[9][5] = t58;
+    jac[9][6] = -t59;
+    // joint O2 row 5: c_i · a_j = 0
+    jac[10][3] = t58;
+    jac[10][4] = t59;
+    jac[10][5] = t56;
+    jac[10][6] = t57;
+    // joint O4 row 4: b_i · a_j = 0
+    jac[14][16] = t60;
+    jac[14][17] = t61;
+    jac[14][18] = t62;
+    jac[14][19] = t63;
+    // joint O4 row 5: c_i · a_j = 0
+    jac[15][16] = t61;
+    jac[15][17] = -t60;
+    jac[15][18] = -t63;
+    jac[15][19] = t62;
+    // driver motor: e2 cos(s/2) − e0 sin(s/2) = 0, s = 146.6 t
+    jac[16][3] = -terms[0];
+    jac[16][5] = terms[1];
+    // body crank normalisation: e0² + e1² + e2² + e3² − 1 = 0
+    jac[17][3] = t32;
+    jac[17][4] = t33;
+    jac[17][5] = t34;
+    jac[17][6] = t35;
+    // body coupler normalisation: e0² + e1² + e2² + e3² − 1 = 0
+    jac[18][10] = t49;
+    jac[18][11] = t50;
+    jac[18][12] = t51;
+    // body rocker normalisation: e0² + e1² + e2² + e3² − 1 = 0
+    jac[19][16] = t38;
+    jac[19][17] = t41;
+    jac[19][18] = t44;
+    jac[19][19] = t47;
+}
+
+/// [`velocity_rhs`] reading the time terms at t from `terms` ([`time_terms`]): the same values, bit for bit.
+///
+/// 8 operations, 0 shared subexpressions.
+pub fn velocity_rhs_at(
+    q: &[f64; N],
+    _t: f64,
+    terms: &[f64; TIME_TERMS],
+    nu: &mut [f64; N],
+) {
+    let [_q0, _q1, _q2, q3, _q4, q5, _q6, _q7, _q8, _q9, _q10, _q11, _q12, _q13, _q14,
+    _q15, _q16, _q17, _q18, _q19] = *q;
+    // joint A row 1: (P_j − P_i)_x = 0
+    nu[0] = 0.0;
+    // joint A row 2: (P_j − P_i)_y = 0
+    nu[1] = 0.0;
+    // joint A row 3: (P_j − P_i)_z = 0
+    nu[2] = 0.0;
+    // joint B row 1: (P_j − P_i)_x = 0
+    nu[3] = 0.0;
+    // joint B row 2: (P_j − P_i)_y = 0
+    nu[4] = 0.0;
+    // joint B row 3: (P_j − P_i)_z = 0
+    nu[5] = 0.0;
+    // joint O2 row 1: (P_j − P_i)_x = 0
+    nu[6] = 0.0;
+    // joint O2 row 2: (P_j − P_i)_y = 0
+    nu[7] = 0.0;
+    // joint O2 row 3: (P_j − P_i)_z = 0
+    nu[8] = 0.0;
+    // joint O2 row 4: b_i · a_j = 0
+    nu[9] = 0.0;
+    // joint O2 row 5: c_i · a_j = 0
+    nu[10] = 0.0;
+    // joint O4 row 1: (P_j − P_i)_x = 0
+    nu[11] = 0.0;
+    // joint O4 row 2: (P_j − P_i)_y = 0
+    nu[12] = 0.0;
+    // joint O4 row 3: (P_j − P_i)_z = 0
+    nu[13] = 0.0;
+    // joint O4 row 4: b_i · a_j = 0
+    nu[14] = 0.0;
+    // joint O4 row 5: c_i · a_j = 0
+    nu[15] = 0.0;
+    // driver motor: e2 cos(s/2) − e0 sin(s/2) = 0, s = 146.6 t
+    nu[16] = -(-(q5 * (73.3 * terms[0])) - q3 * (73.3 * terms[1]));
+    // body crank normalisation: e0² + e1² + e2² + e3² − 1 = 0
+    nu[17] = 0.0;
+    // body coupler normalisation: e0² + e1² + e2² + e3² − 1 = 0
+    nu[18] = 0.0;
+    // body rocker normalisation: e0² + e1² + e2² + e3² − 1 = 0
+    nu[19] = 0.0;
+}
+
+/// [`acceleration_rhs`] reading the time terms at t from `terms` ([`time_terms`]): the same values, bit for bit.
+///
+/// 157 operations, 51 shared subexpressions.
+pub fn acceleration_rhs_at(
+    q: &[f64; N],
+    qd: &[f64; N],
+    _t: f64,
+    terms: &[f64; TIME_TERMS],
+    gamma: &mut [f64; N],
+) {
+    let [_q0, _q1, _q2, q3, _q4, q5, _q6, _q7, _q8, _q9, _q10, _q11, _q12, _q13, _q14,
+    _q15, _q16, _q17, _q18, _q19] = *q;
+    let [_qd0, _qd1, _qd2, qd3, qd4, qd5, qd6, _qd7, _qd8, _qd9, qd10, qd11, qd12, _qd13,
+    _qd14, _qd15, qd16, qd17, qd18, qd19] = *qd;
+    let t0 = qd4 * qd5;
+    let t1 = qd3 * qd6;
+    let t2 = t0 + t0 - (t1 + t1);
+    let t3 = qd4 * qd6;
+    let t4 = qd5 * qd3;
+    let t5 = qd3 * qd3;
+    let t6 = t5 + t5;
+    let t7 = qd5 * qd5;
+    let t8 = t7 + t7;
+    let t9 = qd4 * qd4;
+    let t10 = t9 + t9;
+    let t11 = qd6 * qd6;
+    let t12 = t11 + t11;
+    let t13 = qd5 * qd6;
+    let t14 = t13 + t13;
+    let t15 = qd4 * qd3;
+    let t16 = t15 + t15;
+    let t17 = t14 + t16;
+    let t18 = qd17 * qd19;
+    let t19 = t18 + t18;
+    let t20 = qd16 * qd18;
+    let t21 = t20 + t20;
+    let t22 = t19 + t21;
+    let t23 = qd16 * qd16;
+    let t24 = t23 + t23;
+    let t25 = qd17 * qd17;
+    let t26 = t25 + t25;
+    let t27 = t24 + t26;
+    let t28 = qd18 * qd18;
+    let t29 = t28 + t28;
+    let t30 = qd19 * qd19;
+    let t31 = t30 + t30;
+    let t32 = qd17 * qd18;
+    let t33 = t32 + t32;
+    let t34 = qd19 * qd16;
+    let t35 = t34 + t34;
+    let t36 = t33 - t35;
+    let t37 = qd10 * qd12;
+    let t38 = qd19 * qd18;
+    let t39 = t38 + t38;
+    let t40 = qd17 * qd16;
+    let t41 = t40 + t40;
+    let t42 = qd10 * qd10;
+    let t43 = t42 + t42;
+    let t44 = qd11 * qd11;
+    let t45 = t44 + t44;
+    let t46 = qd12 * qd12;
+    let t47 = t46 + t46;
+    let t48 = qd10 * qd11;
+    let t49 = qd5 * (73.3 * terms[0]);
+    let t50 = qd3 * (73.3 * terms[1]);
+    // joint A row 1: (P_j − P_i)_x = 0
+    gamma[0] = 0.13134 * t2 + 0.2 * (t3 + t3 + (t4 + t4));
+    // joint A row 2: (P_j − P_i)_y = 0
+    gamma[1] = 0.06567 * (t6 + t8 - (t10 + t12)) + 0.2 * (t14 - t16);
+    // joint A row 3: (P_j − P_i)_z = 0
+    gamma[2] = 0.13134 * t17 + 0.1 * (t6 + t12 - (t8 + t10));
+    // joint B row 1: (P_j − P_i)_x = 0
+    gamma[3] = -(0.2 * t22 + (0.0475 * (t27 - (t29 + t31)) + -0.03714 * t36)
+        + 0.9624 * (t37 + t37));
+    // joint B row 2: (P_j − P_i)_y = 0
+    gamma[4] = -(0.2 * (t39 - t41)
+        + (0.095 * (t33 + t35) + -0.01857 * (t24 + t29 - (t26 + t31)))
+        - 0.4812 * (t43 - (t45 + t47)));
+    // joint B row 3: (P_j − P_i)_z = 0
+    gamma[5] = -(0.1 * (t24 + t31 - (t26 + t29))
+        + (0.095 * (t19 - t21) + -0.03714 * (t39 + t41)) - 0.9624 * (t48 + t48));
+    // joint O2 row 1: (P_j − P_i)_x = 0
+    gamma[6] = 0.0;
+    // joint O2 row 2: (P_j − P_i)_y = 0
+    gamma[7] = 0.0;
+    // joint O2 row 3: (P_j − P_i)_z = 0
+    gamma[8] = 0.0;
+    // joint O2 row 4: b_i · a_j = 0
+    gamma[9] = -(2.0 * t2);
+    // joint O2 row 5: c_i · a_j = 0
+    gamma[10] = -(2.0 * t17);
+    // joint O4 row 1: (P_j − P_i)_x = 0
+    gamma[11] = 0.0;
+    // joint O4 row 2: (P_j − P_i)_y = 0
+    gamma[12] = 0.0;
+    // joint O4 row 3: (P_j − P_i)_z = 0
+    gamma[13] = 0.0;
+    // joint O4 row 4: b_i · a_j = 0
+    gamma[14] = 2.0 * t36;
+    // joint O4 row 5: c_i · a_j = 0
+    gamma[15] = 2.0 * t22;
+    // driver motor: e2 cos(s/2) − e0 sin(s/2) = 0, s = 146.6 t
+    gamma[16] = -(-(t49 + q5 * (5372.889999999999 * terms[1])) - t49
+        - (t50 + (t50 - q3 * (5372.889999999999 * terms[0]))));
+    // body crank normalisation: e0² + e1² + e2² + e3² − 1 = 0
+    gamma[17] = -(t12 + (t8 + (t6 + t10)));
+    // body coupler normalisation: e0² + e1² + e2² + e3² − 1 = 0
+    gamma[18] = -(t47 + (t43 + t45));
+    // body rocker normalisation: e0² + e1² + e2² + e3² − 1 = 0
+    gamma[19] = -(t31 + (t27 + t29));
+}
+
 /// Rescales the unknown Euler parameters of each body so that |p| = 1 (the fixed
 /// ones keep their values).
 pub fn normalize(q: &mut [f64; N]) {
@@ -1710,6 +2167,65 @@ pub fn normalize(q: &mut [f64; N]) {
             q[19] *= scale;
         }
     }
+}
+
+/// [`normalize`], returning whether it moved a coordinate by more than
+/// `runtime::newton::ROUND_OFF_MOVE` ulps of itself.
+pub fn normalize_moved(q: &mut [f64; N]) -> bool {
+    let bound = runtime::newton::round_off_move_bound::<f64>();
+    let mut within = true;
+    {
+        let free = q[3] * q[3] + q[4] * q[4] + q[5] * q[5] + q[6] * q[6];
+        if free > 0.0 {
+            let scale = runtime::math::sqrt(1.0 / free);
+            let before = q[3];
+            q[3] *= scale;
+            within &= (q[3] - before).abs() <= bound * before.abs();
+            let before = q[4];
+            q[4] *= scale;
+            within &= (q[4] - before).abs() <= bound * before.abs();
+            let before = q[5];
+            q[5] *= scale;
+            within &= (q[5] - before).abs() <= bound * before.abs();
+            let before = q[6];
+            q[6] *= scale;
+            within &= (q[6] - before).abs() <= bound * before.abs();
+        }
+    }
+    {
+        let free = q[10] * q[10] + q[11] * q[11] + q[12] * q[12];
+        if free > 0.0 {
+            let scale = runtime::math::sqrt(1.0 / free);
+            let before = q[10];
+            q[10] *= scale;
+            within &= (q[10] - before).abs() <= bound * before.abs();
+            let before = q[11];
+            q[11] *= scale;
+            within &= (q[11] - before).abs() <= bound * before.abs();
+            let before = q[12];
+            q[12] *= scale;
+            within &= (q[12] - before).abs() <= bound * before.abs();
+        }
+    }
+    {
+        let free = q[16] * q[16] + q[17] * q[17] + q[18] * q[18] + q[19] * q[19];
+        if free > 0.0 {
+            let scale = runtime::math::sqrt(1.0 / free);
+            let before = q[16];
+            q[16] *= scale;
+            within &= (q[16] - before).abs() <= bound * before.abs();
+            let before = q[17];
+            q[17] *= scale;
+            within &= (q[17] - before).abs() <= bound * before.abs();
+            let before = q[18];
+            q[18] *= scale;
+            within &= (q[18] - before).abs() <= bound * before.abs();
+            let before = q[19];
+            q[19] *= scale;
+            within &= (q[19] - before).abs() <= bound * before.abs();
+        }
+    }
+    !within
 }
 
 /// Full coordinates of every moving body (in [`BODY_NAMES`] order): `out[b][0]` is
@@ -2024,5 +2540,52 @@ impl runtime::Mechanism<N> for Rssr {
             1 => solve_1(lu, b),
             _ => {}
         }
+    }
+    const TIME_TERMS: usize = TIME_TERMS;
+    fn time_terms(&self, t: f64, terms: &mut [f64]) {
+        if let Some(terms) = terms.first_chunk_mut() {
+            time_terms(t, terms);
+        }
+    }
+    fn residual_at(&self, q: &[f64; N], t: f64, terms: &[f64], phi: &mut [f64; N]) {
+        match terms.first_chunk() {
+            Some(terms) => residual_at(q, t, terms, phi),
+            None => residual(q, t, phi),
+        }
+    }
+    fn residual_jacobian_structural_at(
+        &self,
+        q: &[f64; N],
+        t: f64,
+        terms: &[f64],
+        phi: &mut [f64; N],
+        jac: &mut [[f64; N]; N],
+    ) {
+        match terms.first_chunk() {
+            Some(terms) => residual_jacobian_structural_at(q, t, terms, phi, jac),
+            None => residual_jacobian_structural(q, t, phi, jac),
+        }
+    }
+    fn velocity_rhs_at(&self, q: &[f64; N], t: f64, terms: &[f64], nu: &mut [f64; N]) {
+        match terms.first_chunk() {
+            Some(terms) => velocity_rhs_at(q, t, terms, nu),
+            None => velocity_rhs(q, t, nu),
+        }
+    }
+    fn acceleration_rhs_at(
+        &self,
+        q: &[f64; N],
+        qd: &[f64; N],
+        t: f64,
+        terms: &[f64],
+        gamma: &mut [f64; N],
+    ) {
+        match terms.first_chunk() {
+            Some(terms) => acceleration_rhs_at(q, qd, t, terms, gamma),
+            None => acceleration_rhs(q, qd, t, gamma),
+        }
+    }
+    fn normalize_moved(&self, q: &mut [f64; N]) -> bool {
+        normalize_moved(q)
     }
 }

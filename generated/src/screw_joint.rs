@@ -730,6 +730,203 @@ pub fn acceleration_rhs(q: &[f64; N], qd: &[f64; N], t: f64, gamma: &mut [f64; N
     gamma[6] = -(t23 + (t19 + t21));
 }
 
+/// The number of time terms: the sines and cosines of functions of t alone that Φ, Φ_q, ν and γ read, computed by [`time_terms`].
+pub const TIME_TERMS: usize = 2;
+
+/// The time terms at t, computed once per time for the `_at` functions, which read them instead of computing them again.
+///
+/// 3 operations.
+pub fn time_terms(t: f64, terms: &mut [f64; TIME_TERMS]) {
+    let t0 = f64::from_bits(4602890488355133325) * t;
+    let (t1, t2) = runtime::math::sin_cos(t0);
+    terms[0] = t1;
+    terms[1] = t2;
+}
+
+/// [`residual`] reading the time terms at t from `terms` ([`time_terms`]): the same values, bit for bit.
+///
+/// 38 operations, 6 shared subexpressions.
+pub fn residual_at(
+    q: &[f64; N],
+    _t: f64,
+    terms: &[f64; TIME_TERMS],
+    phi: &mut [f64; N],
+) {
+    let [q0, q1, q2, q3, q4, q5, q6] = *q;
+    let t0 = q5 * q5;
+    let t1 = q6 * q6;
+    let t2 = q3 * q3 + q4 * q4;
+    let t3 = 2.0 * (q1 - 2.0);
+    let (t4, t5) = runtime::math::sin_cos(t3);
+    // joint screw row 1: b_i · a_j = 0
+    phi[0] = 2.0 * (q4 * q5 - q3 * q6);
+    // joint screw row 2: c_i · a_j = 0
+    phi[1] = -(2.0 * (q5 * q6 + q3 * q4));
+    // joint screw row 3: b_i · (P_j − P_i) = 0
+    phi[2] = q0;
+    // joint screw row 4: c_i · (P_j − P_i) = 0
+    phi[3] = -q2;
+    // joint screw row 5: r_i · r_j sin θ − (r_i × r_j) · a_i cos θ = 0, θ = θ0 + 2π ((P_j − P_i) · a_i − d0) / lead
+    phi[4] = (t2 - (t0 + t1)) * t4 + 2.0 * (q4 * q6 - q3 * q5) * t5;
+    // driver drive_ry: e2 cos(s/2) − e0 sin(s/2) = 0, s = 1.047 t
+    phi[5] = q5 * terms[1] - q3 * terms[0];
+    // body nut normalisation: e0² + e1² + e2² + e3² − 1 = 0
+    phi[6] = t1 + (t0 + t2) - 1.0;
+}
+
+/// [`residual_jacobian_structural`] reading the time terms at t from `terms` ([`time_terms`]): the same values, bit for bit.
+///
+/// 73 operations, 18 shared subexpressions.
+fn residual_jacobian_structural_at(
+    q: &[f64; N],
+    _t: f64,
+    terms: &[f64; TIME_TERMS],
+    phi: &mut [f64; N],
+    jac: &mut [[f64; N]; N],
+) {
+    let [q0, q1, q2, q3, q4, q5, q6] = *q;
+    let t0 = q5 * q5;
+    let t1 = q6 * q6;
+    let t2 = q3 * q3 + q4 * q4;
+    let t3 = t2 - (t0 + t1);
+    let t4 = 2.0 * (q4 * q6 - q3 * q5);
+    let t5 = 2.0 * (q1 - 2.0);
+    let (t6, t7) = runtime::math::sin_cos(t5);
+    let t8 = 2.0 * q6;
+    let t9 = -t8;
+    let t10 = 2.0 * q5;
+    let t11 = 2.0 * q4;
+    let t12 = 2.0 * q3;
+    let t13 = -t12;
+    let t14 = q3 + q3;
+    let t15 = q4 + q4;
+    let t16 = q5 + q5;
+    let t17 = q6 + q6;
+    // joint screw row 1: b_i · a_j = 0
+    phi[0] = 2.0 * (q4 * q5 - q3 * q6);
+    // joint screw row 2: c_i · a_j = 0
+    phi[1] = -(2.0 * (q5 * q6 + q3 * q4));
+    // joint screw row 3: b_i · (P_j − P_i) = 0
+    phi[2] = q0;
+    // joint screw row 4: c_i · (P_j − P_i) = 0
+    phi[3] = -q2;
+    // joint screw row 5: r_i · r_j sin θ − (r_i × r_j) · a_i cos θ = 0, θ = θ0 + 2π ((P_j − P_i) · a_i − d0) / lead
+    phi[4] = t3 * t6 + t4 * t7;
+    // driver drive_ry: e2 cos(s/2) − e0 sin(s/2) = 0, s = 1.047 t
+    phi[5] = q5 * terms[1] - q3 * terms[0];
+    // body nut normalisation: e0² + e1² + e2² + e3² − 1 = 0
+    phi[6] = t1 + (t0 + t2) - 1.0;
+    // joint screw row 1: b_i · a_j = 0
+    jac[0][3] = t9;
+    jac[0][4] = t10;
+    jac[0][5] = t11;
+    jac[0][6] = t13;
+    // joint screw row 2: c_i · a_j = 0
+    jac[1][3] = -t11;
+    jac[1][4] = t13;
+    jac[1][5] = t9;
+    jac[1][6] = -t10;
+    // joint screw row 5: r_i · r_j sin θ − (r_i × r_j) · a_i cos θ = 0, θ = θ0 + 2π ((P_j − P_i) · a_i − d0) / lead
+    jac[4][1] = t3 * (2.0 * t7) - t4 * (2.0 * t6);
+    jac[4][3] = t6 * t14 - t7 * t10;
+    jac[4][4] = t6 * t15 + t7 * t8;
+    jac[4][5] = -(t6 * t16) - t7 * t12;
+    jac[4][6] = t7 * t11 - t6 * t17;
+    // driver drive_ry: e2 cos(s/2) − e0 sin(s/2) = 0, s = 1.047 t
+    jac[5][3] = -terms[0];
+    jac[5][5] = terms[1];
+    // body nut normalisation: e0² + e1² + e2² + e3² − 1 = 0
+    jac[6][3] = t14;
+    jac[6][4] = t15;
+    jac[6][5] = t16;
+    jac[6][6] = t17;
+}
+
+/// [`velocity_rhs`] reading the time terms at t from `terms` ([`time_terms`]): the same values, bit for bit.
+///
+/// 8 operations, 0 shared subexpressions.
+pub fn velocity_rhs_at(
+    q: &[f64; N],
+    _t: f64,
+    terms: &[f64; TIME_TERMS],
+    nu: &mut [f64; N],
+) {
+    let [_q0, _q1, _q2, q3, _q4, q5, _q6] = *q;
+    // joint screw row 1: b_i · a_j = 0
+    nu[0] = 0.0;
+    // joint screw row 2: c_i · a_j = 0
+    nu[1] = 0.0;
+    // joint screw row 3: b_i · (P_j − P_i) = 0
+    nu[2] = 0.0;
+    // joint screw row 4: c_i · (P_j − P_i) = 0
+    nu[3] = 0.0;
+    // joint screw row 5: r_i · r_j sin θ − (r_i × r_j) · a_i cos θ = 0, θ = θ0 + 2π ((P_j − P_i) · a_i − d0) / lead
+    nu[4] = 0.0;
+    // driver drive_ry: e2 cos(s/2) − e0 sin(s/2) = 0, s = 1.047 t
+    nu[5] = -(-(q5 * (f64::from_bits(4602890488355133325) * terms[0]))
+        - q3 * (f64::from_bits(4602890488355133325) * terms[1]));
+    // body nut normalisation: e0² + e1² + e2² + e3² − 1 = 0
+    nu[6] = 0.0;
+}
+
+/// [`acceleration_rhs`] reading the time terms at t from `terms` ([`time_terms`]): the same values, bit for bit.
+///
+/// 114 operations, 27 shared subexpressions.
+pub fn acceleration_rhs_at(
+    q: &[f64; N],
+    qd: &[f64; N],
+    _t: f64,
+    terms: &[f64; TIME_TERMS],
+    gamma: &mut [f64; N],
+) {
+    let [_q0, q1, _q2, q3, q4, q5, q6] = *q;
+    let [_qd0, qd1, _qd2, qd3, qd4, qd5, qd6] = *qd;
+    let t0 = 2.0 * (q1 - 2.0);
+    let (t1, t2) = runtime::math::sin_cos(t0);
+    let t3 = qd4 * qd5;
+    let t4 = qd3 * qd6;
+    let t5 = qd5 * qd6;
+    let t6 = qd4 * qd3;
+    let t7 = q3 * qd3;
+    let t8 = q4 * qd4;
+    let t9 = q5 * qd5;
+    let t10 = q6 * qd6;
+    let t11 = 2.0 * qd1;
+    let t12 = t2 * t11;
+    let t13 = t1 * t11;
+    let t14 = qd3 * qd3;
+    let t15 = qd4 * qd4;
+    let t16 = t14 + t14 + (t15 + t15);
+    let t17 = qd5 * qd5;
+    let t18 = t17 + t17;
+    let t19 = qd6 * qd6;
+    let t20 = t19 + t19;
+    let t21 = (t7 + t7 + (t8 + t8) - (t9 + t9 + (t10 + t10))) * t12;
+    let t22 = qd4 * qd6;
+    let t23 = qd5 * qd3;
+    let t24 = 2.0 * (q6 * qd4 + q4 * qd6 - (q5 * qd3 + q3 * qd5)) * t13;
+    let t25 = qd5 * (f64::from_bits(4602890488355133325) * terms[0]);
+    let t26 = qd3 * (f64::from_bits(4602890488355133325) * terms[1]);
+    // joint screw row 1: b_i · a_j = 0
+    gamma[0] = -(2.0 * (t3 + t3 - (t4 + t4)));
+    // joint screw row 2: c_i · a_j = 0
+    gamma[1] = 2.0 * (t5 + t5 + (t6 + t6));
+    // joint screw row 3: b_i · (P_j − P_i) = 0
+    gamma[2] = 0.0;
+    // joint screw row 4: c_i · (P_j − P_i) = 0
+    gamma[3] = 0.0;
+    // joint screw row 5: r_i · r_j sin θ − (r_i × r_j) · a_i cos θ = 0, θ = θ0 + 2π ((P_j − P_i) · a_i − d0) / lead
+    gamma[4] = -(t21 + t1 * (t16 - (t18 + t20))
+        + (t21 - (q3 * q3 + q4 * q4 - (q5 * q5 + q6 * q6)) * (t11 * t13))
+        + (t2 * (2.0 * (t22 + t22 - (t23 + t23))) - t24
+            - (t24 + 2.0 * (q4 * q6 - q3 * q5) * (t11 * t12))));
+    // driver drive_ry: e2 cos(s/2) − e0 sin(s/2) = 0, s = 1.047 t
+    gamma[5] = -(-(t25 + q5 * (0.27405224999999994 * terms[1])) - t25
+        - (t26 + (t26 - q3 * (0.27405224999999994 * terms[0]))));
+    // body nut normalisation: e0² + e1² + e2² + e3² − 1 = 0
+    gamma[6] = -(t20 + (t16 + t18));
+}
+
 /// Rescales the unknown Euler parameters of each body so that |p| = 1 (the fixed
 /// ones keep their values).
 pub fn normalize(q: &mut [f64; N]) {
@@ -743,6 +940,32 @@ pub fn normalize(q: &mut [f64; N]) {
             q[6] *= scale;
         }
     }
+}
+
+/// [`normalize`], returning whether it moved a coordinate by more than
+/// `runtime::newton::ROUND_OFF_MOVE` ulps of itself.
+pub fn normalize_moved(q: &mut [f64; N]) -> bool {
+    let bound = runtime::newton::round_off_move_bound::<f64>();
+    let mut within = true;
+    {
+        let free = q[3] * q[3] + q[4] * q[4] + q[5] * q[5] + q[6] * q[6];
+        if free > 0.0 {
+            let scale = runtime::math::sqrt(1.0 / free);
+            let before = q[3];
+            q[3] *= scale;
+            within &= (q[3] - before).abs() <= bound * before.abs();
+            let before = q[4];
+            q[4] *= scale;
+            within &= (q[4] - before).abs() <= bound * before.abs();
+            let before = q[5];
+            q[5] *= scale;
+            within &= (q[5] - before).abs() <= bound * before.abs();
+            let before = q[6];
+            q[6] *= scale;
+            within &= (q[6] - before).abs() <= bound * before.abs();
+        }
+    }
+    !within
 }
 
 /// Full coordinates of every moving body (in [`BODY_NAMES`] order): `out[b][0]` is
@@ -1008,5 +1231,52 @@ impl runtime::Mechanism<N> for ScrewJoint {
             1 => solve_1(lu, b),
             _ => {}
         }
+    }
+    const TIME_TERMS: usize = TIME_TERMS;
+    fn time_terms(&self, t: f64, terms: &mut [f64]) {
+        if let Some(terms) = terms.first_chunk_mut() {
+            time_terms(t, terms);
+        }
+    }
+    fn residual_at(&self, q: &[f64; N], t: f64, terms: &[f64], phi: &mut [f64; N]) {
+        match terms.first_chunk() {
+            Some(terms) => residual_at(q, t, terms, phi),
+            None => residual(q, t, phi),
+        }
+    }
+    fn residual_jacobian_structural_at(
+        &self,
+        q: &[f64; N],
+        t: f64,
+        terms: &[f64],
+        phi: &mut [f64; N],
+        jac: &mut [[f64; N]; N],
+    ) {
+        match terms.first_chunk() {
+            Some(terms) => residual_jacobian_structural_at(q, t, terms, phi, jac),
+            None => residual_jacobian_structural(q, t, phi, jac),
+        }
+    }
+    fn velocity_rhs_at(&self, q: &[f64; N], t: f64, terms: &[f64], nu: &mut [f64; N]) {
+        match terms.first_chunk() {
+            Some(terms) => velocity_rhs_at(q, t, terms, nu),
+            None => velocity_rhs(q, t, nu),
+        }
+    }
+    fn acceleration_rhs_at(
+        &self,
+        q: &[f64; N],
+        qd: &[f64; N],
+        t: f64,
+        terms: &[f64],
+        gamma: &mut [f64; N],
+    ) {
+        match terms.first_chunk() {
+            Some(terms) => acceleration_rhs_at(q, qd, t, terms, gamma),
+            None => acceleration_rhs(q, qd, t, gamma),
+        }
+    }
+    fn normalize_moved(&self, q: &mut [f64; N]) -> bool {
+        normalize_moved(q)
     }
 }

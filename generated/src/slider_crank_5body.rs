@@ -3776,6 +3776,956 @@ pub fn acceleration_rhs(q: &[f64; N], qd: &[f64; N], t: f64, gamma: &mut [f64; N
     gamma[27] = -(t181 + (t177 + t179));
 }
 
+/// The number of time terms: the sines and cosines of functions of t alone that Φ, Φ_q, ν and γ read, computed by [`time_terms`].
+pub const TIME_TERMS: usize = 2;
+
+/// The time terms at t, computed once per time for the `_at` functions, which read them instead of computing them again.
+///
+/// 5 operations.
+pub fn time_terms(t: f64, terms: &mut [f64; TIME_TERMS]) {
+    let t0 = 0.5 * (1.52 + -6.2831852 * t);
+    let (t1, t2) = runtime::math::sin_cos(t0);
+    terms[0] = t1;
+    terms[1] = t2;
+}
+
+/// [`residual`] reading the time terms at t from `terms` ([`time_terms`]): the same values, bit for bit.
+///
+/// 249 operations, 63 shared subexpressions.
+pub fn residual_at(
+    q: &[f64; N],
+    _t: f64,
+    terms: &[f64; TIME_TERMS],
+    phi: &mut [f64; N],
+) {
+    let [q0, q1, q2, q3, q4, q5, q6, q7, q8, q9, q10, q11, q12, q13, q14, q15, q16, q17,
+    q18, q19, q20, q21, q22, q23, q24, q25, q26, q27] = *q;
+    let t0 = q3 * q3;
+    let t1 = q4 * q4;
+    let t2 = q5 * q5;
+    let t3 = q6 * q6;
+    let t4 = q4 * q5 - q3 * q6;
+    let t5 = q10 * q10;
+    let t6 = q11 * q11;
+    let t7 = q12 * q12;
+    let t8 = q13 * q13;
+    let t9 = t5 + t6;
+    let t10 = t9 - (t7 + t8);
+    let t11 = q11 * q13;
+    let t12 = q10 * q12;
+    let t13 = q11 * q12 + q10 * q13;
+    let t14 = t11 - t12;
+    let t15 = q17 * q17;
+    let t16 = q18 * q18;
+    let t17 = q19 * q19;
+    let t18 = q20 * q20;
+    let t19 = t15 + t16;
+    let t20 = t15 + t17 - (t16 + t18);
+    let t21 = t15 + t18 - (t16 + t17);
+    let t22 = q18 * q19;
+    let t23 = q17 * q20;
+    let t24 = t22 - t23;
+    let t25 = 2.0 * t24;
+    let t26 = q18 * q20;
+    let t27 = q17 * q19;
+    let t28 = t26 + t27;
+    let t29 = 2.0 * t28;
+    let t30 = q19 * q20;
+    let t31 = q17 * q18;
+    let t32 = t30 - t31;
+    let t33 = 2.0 * t32;
+    let t34 = t30 + t31;
+    let t35 = 2.0 * t34;
+    let t36 = 1.783831760903418 * t24 + -0.9044027027780329 * t28;
+    let t37 = 0.891915880451709 * t20 + -0.9044027027780329 * t32;
+    let t38 = 1.783831760903418 * t34 + -0.45220135138901646 * t21;
+    let t39 = q24 * q24;
+    let t40 = q25 * q25;
+    let t41 = q26 * q26;
+    let t42 = q27 * q27;
+    let t43 = t39 + t40;
+    let t44 = t43 - (t41 + t42);
+    let t45 = q25 * q26;
+    let t46 = q24 * q27;
+    let t47 = 2.0 * (t45 - t46);
+    let t48 = q25 * q27;
+    let t49 = q24 * q26;
+    let t50 = 2.0 * (t48 + t49);
+    let t51 = t45 + t46;
+    let t52 = 2.0 * t51;
+    let t53 = q26 * q27;
+    let t54 = q24 * q25;
+    let t55 = t48 - t49;
+    let t56 = 2.0 * t55;
+    let t57 = 2.0 * (t53 + t54);
+    let t58 = 0.4 * t44 + q21 - (q14 + 0.2 * (t19 - (t17 + t18)));
+    let t59 = 0.8 * t51 + q22 - (q15 + 0.4 * (t22 + t23));
+    let t60 = 0.8 * t55 + q23 - (q16 + 0.4 * (t26 - t27));
+    let t61 = -q21;
+    let t62 = 0.2 + t61;
+    // joint B row 1: (P_j − P_i)_x = 0
+    phi[0] = -0.15 * t10 + q7 - (0.16 * t4 + q0);
+    // joint B row 2: (P_j − P_i)_y = 0
+    phi[1] = -0.3 * t13 + q8 - (0.08 * (t0 + t2 - (t1 + t3)) + q1);
+    // joint B row 3: (P_j − P_i)_z = 0
+    phi[2] = -0.3 * t14 + q9 - (0.16 * (q5 * q6 + q3 * q4) + q2);
+    // joint A row 1: (P_j − P_i)_x = 0
+    phi[3] = -q0;
+    // joint A row 2: (P_j − P_i)_y = 0
+    phi[4] = 0.1 - q1;
+    // joint A row 3: (P_j − P_i)_z = 0
+    phi[5] = 0.12 - q2;
+    // joint A row 4: b_i · a_j = 0
+    phi[6] = 2.0 * t4;
+    // joint A row 5: c_i · a_j = 0
+    phi[7] = 2.0 * (q4 * q6 + q3 * q5);
+    // joint C_revolute row 1: (P_j − P_i)_x = 0
+    phi[8] = q14 - (q7 + 0.15 * t10);
+    // joint C_revolute row 2: (P_j − P_i)_y = 0
+    phi[9] = q15 - (q8 + 0.3 * t13);
+    // joint C_revolute row 3: (P_j − P_i)_z = 0
+    phi[10] = q16 - (q9 + 0.3 * t14);
+    // joint C_revolute row 4: b_i · a_j = 0
+    phi[11] = 2.0 * t14 * t38 + (t10 * t36 + 2.0 * t13 * t37);
+    // joint C_revolute row 5: c_i · a_j = 0
+    phi[12] = -(2.0 * (t11 + t12) * t36) - 2.0 * (q12 * q13 - q10 * q11) * t37
+        - (t5 + t8 - (t6 + t7)) * t38;
+    // joint C_cylindrical row 1: b_i · a_j = 0
+    phi[13] = t35 * t56 + (t25 * t44 + t20 * t52);
+    // joint C_cylindrical row 2: c_i · a_j = 0
+    phi[14] = t21 * t56 + (t29 * t44 + t33 * t52);
+    // joint C_cylindrical row 3: b_i · (P_j − P_i) = 0
+    phi[15] = t35 * t60 + (t25 * t58 + t20 * t59);
+    // joint C_cylindrical row 4: c_i · (P_j − P_i) = 0
+    phi[16] = t21 * t60 + (t29 * t58 + t33 * t59);
+    // joint D row 1: b_i · a_j = 0
+    phi[17] = t47;
+    // joint D row 2: c_i · a_j = 0
+    phi[18] = t50;
+    // joint D row 3: b_i · (P_j − P_i) = 0
+    phi[19] = t47 * t62 - (t39 + t41 - (t40 + t42)) * q22 - t57 * q23;
+    // joint D row 4: c_i · (P_j − P_i) = 0
+    phi[20] = t50 * t62 - 2.0 * (t53 - t54) * q22 - (t39 + t42 - (t40 + t41)) * q23;
+    // joint D row 5: r_i · r_j = 0
+    phi[21] = t57;
+    // constraint same_x: x_i − x_j − 0.0 = 0
+    phi[22] = q14 + t61;
+    // driver motor: e1 cos(s/2) − e0 sin(s/2) = 0, s = 1.52 − 6.2831852 t
+    phi[23] = q4 * terms[1] - q3 * terms[0];
+    // body crank normalisation: e0² + e1² + e2² + e3² − 1 = 0
+    phi[24] = t3 + (t2 + (t0 + t1)) - 1.0;
+    // body rod normalisation: e0² + e1² + e2² + e3² − 1 = 0
+    phi[25] = t8 + (t7 + t9) - 1.0;
+    // body cylinder normalisation: e0² + e1² + e2² + e3² − 1 = 0
+    phi[26] = t18 + (t17 + t19) - 1.0;
+    // body slider normalisation: e0² + e1² + e2² + e3² − 1 = 0
+    phi[27] = t42 + (t41 + t43) - 1.0;
+}
+
+/// [`residual_jacobian_structural`] reading the time terms at t from `terms` ([`time_terms`]): the same values, bit for bit.
+///
+/// 786 operations, 167 shared subexpressions.
+fn residual_jacobian_structural_at(
+    q: &[f64; N],
+    _t: f64,
+    terms: &[f64; TIME_TERMS],
+    phi: &mut [f64; N],
+    jac: &mut [[f64; N]; N],
+) {
+    let [q0, q1, q2, q3, q4, q5, q6, q7, q8, q9, q10, q11, q12, q13, q14, q15, q16, q17,
+    q18, q19, q20, q21, q22, q23, q24, q25, q26, q27] = *q;
+    let t0 = q3 * q3;
+    let t1 = q4 * q4;
+    let t2 = q5 * q5;
+    let t3 = q6 * q6;
+    let t4 = q4 * q5 - q3 * q6;
+    let t5 = q10 * q10;
+    let t6 = q11 * q11;
+    let t7 = q12 * q12;
+    let t8 = q13 * q13;
+    let t9 = t5 + t6;
+    let t10 = t9 - (t7 + t8);
+    let t11 = t5 + t8 - (t6 + t7);
+    let t12 = q11 * q13;
+    let t13 = q10 * q12;
+    let t14 = 2.0 * (t12 + t13);
+    let t15 = q11 * q12 + q10 * q13;
+    let t16 = 2.0 * t15;
+    let t17 = 2.0 * (q12 * q13 - q10 * q11);
+    let t18 = t12 - t13;
+    let t19 = 2.0 * t18;
+    let t20 = q17 * q17;
+    let t21 = q18 * q18;
+    let t22 = q19 * q19;
+    let t23 = q20 * q20;
+    let t24 = t20 + t21;
+    let t25 = t20 + t22 - (t21 + t23);
+    let t26 = t20 + t23 - (t21 + t22);
+    let t27 = q18 * q19;
+    let t28 = q17 * q20;
+    let t29 = t27 - t28;
+    let t30 = 2.0 * t29;
+    let t31 = q18 * q20;
+    let t32 = q17 * q19;
+    let t33 = t31 + t32;
+    let t34 = 2.0 * t33;
+    let t35 = q19 * q20;
+    let t36 = q17 * q18;
+    let t37 = t35 - t36;
+    let t38 = 2.0 * t37;
+    let t39 = t35 + t36;
+    let t40 = 2.0 * t39;
+    let t41 = 1.783831760903418 * t29 + -0.9044027027780329 * t33;
+    let t42 = 0.891915880451709 * t25 + -0.9044027027780329 * t37;
+    let t43 = 1.783831760903418 * t39 + -0.45220135138901646 * t26;
+    let t44 = q24 * q24;
+    let t45 = q25 * q25;
+    let t46 = q26 * q26;
+    let t47 = q27 * q27;
+    let t48 = t44 + t45;
+    let t49 = t48 - (t46 + t47);
+    let t50 = t44 + t46 - (t45 + t47);
+    let t51 = t44 + t47 - (t45 + t46);
+    let t52 = q25 * q26;
+    let t53 = q24 * q27;
+    let t54 = 2.0 * (t52 - t53);
+    let t55 = q25 * q27;
+    let t56 = q24 * q26;
+    let t57 = 2.0 * (t55 + t56);
+    let t58 = t52 + t53;
+    let t59 = 2.0 * t58;
+    let t60 = q26 * q27;
+    let t61 = q24 * q25;
+    let t62 = 2.0 * (t60 - t61);
+    let t63 = t55 - t56;
+    let t64 = 2.0 * t63;
+    let t65 = 2.0 * (t60 + t61);
+    let t66 = 0.4 * t49 + q21 - (q14 + 0.2 * (t24 - (t22 + t23)));
+    let t67 = 0.8 * t58 + q22 - (q15 + 0.4 * (t27 + t28));
+    let t68 = 0.8 * t63 + q23 - (q16 + 0.4 * (t31 - t32));
+    let t69 = -q21;
+    let t70 = 0.2 + t69;
+    let t71 = 0.16 * q6;
+    let t72 = -(0.16 * q5);
+    let t73 = -(0.16 * q4);
+    let t74 = 0.16 * q3;
+    let t75 = q10 + q10;
+    let t76 = q11 + q11;
+    let t77 = q12 + q12;
+    let t78 = q13 + q13;
+    let t79 = q3 + q3;
+    let t80 = q4 + q4;
+    let t81 = q5 + q5;
+    let t82 = q6 + q6;
+    let t83 = -0.3 * q13;
+    let t84 = -0.3 * q12;
+    let t85 = -0.3 * q11;
+    let t86 = -0.3 * q10;
+    let t87 = 2.0 * q6;
+    let t88 = 2.0 * q5;
+    let t89 = 2.0 * q4;
+    let t90 = 2.0 * q3;
+    let t91 = -(0.3 * q13);
+    let t92 = 0.3 * q12;
+    let t93 = -(0.3 * q11);
+    let t94 = 0.3 * q10;
+    let t95 = 2.0 * q12;
+    let t96 = 2.0 * q13;
+    let t97 = t42 * t96;
+    let t98 = t42 * t95;
+    let t99 = 2.0 * q10;
+    let t100 = 2.0 * q11;
+    let t101 = t42 * t100;
+    let t102 = t42 * t99;
+    let t103 = 1.783831760903418 * q18;
+    let t104 = q17 + q17;
+    let t105 = t103 + -0.45220135138901646 * t104;
+    let t106 = 1.783831760903418 * q20;
+    let t107 = -0.9044027027780329 * q19;
+    let t108 = t107 - t106;
+    let t109 = -0.9044027027780329 * q18;
+    let t110 = 0.891915880451709 * t104 - t109;
+    let t111 = 1.783831760903418 * q17;
+    let t112 = q18 + q18;
+    let t113 = t111 - -0.45220135138901646 * t112;
+    let t114 = 1.783831760903418 * q19;
+    let t115 = -0.9044027027780329 * q20;
+    let t116 = t114 + t115;
+    let t117 = -0.9044027027780329 * q17;
+    let t118 = -(0.891915880451709 * t112) - t117;
+    let t119 = q19 + q19;
+    let t120 = t106 - -0.45220135138901646 * t119;
+    let t121 = t103 + t117;
+    let t122 = t115 + 0.891915880451709 * t119;
+    let t123 = q20 + q20;
+    let t124 = t114 + -0.45220135138901646 * t123;
+    let t125 = t109 - t111;
+    let t126 = t107 - 0.891915880451709 * t123;
+    let t127 = 2.0 * q18;
+    let t128 = 2.0 * q20;
+    let t129 = t49 * t128;
+    let t130 = 2.0 * q17;
+    let t131 = 2.0 * q19;
+    let t132 = t49 * t131;
+    let t133 = t49 * t127;
+    let t134 = t49 * t130;
+    let t135 = 2.0 * q26;
+    let t136 = q24 + q24;
+    let t137 = 2.0 * q27;
+    let t138 = q25 + q25;
+    let t139 = 2.0 * q24;
+    let t140 = q26 + q26;
+    let t141 = 2.0 * q25;
+    let t142 = q27 + q27;
+    let t143 = 0.4 * q19;
+    let t144 = 0.2 * t104;
+    let t145 = t66 * t128;
+    let t146 = 0.4 * q20;
+    let t147 = 0.2 * t112;
+    let t148 = t66 * t131;
+    let t149 = 0.4 * q17;
+    let t150 = 0.2 * t119;
+    let t151 = t66 * t127;
+    let t152 = 0.4 * q18;
+    let t153 = 0.2 * t123;
+    let t154 = t66 * t130;
+    let t155 = 0.8 * q26;
+    let t156 = 0.4 * t136;
+    let t157 = 0.8 * q27;
+    let t158 = 0.4 * t138;
+    let t159 = 0.8 * q24;
+    let t160 = 0.4 * t140;
+    let t161 = 0.8 * q25;
+    let t162 = 0.4 * t142;
+    let t163 = t70 * t137;
+    let t164 = t70 * t135;
+    let t165 = t70 * t141;
+    let t166 = t70 * t139;
+    // joint B row 1: (P_j − P_i)_x = 0
+    phi[0] = -0.15 * t10 + q7 - (0.16 * t4 + q0);
+    // joint B row 2: (P_j − P_i)_y = 0
+    phi[1] = -0.3 * t15 + q8 - (0.08 * (t0 + t2 - (t1 + t3)) + q1);
+    // joint B row 3: (P_j − P_i)_z = 0
+    phi[2] = -0.3 * t18 + q9 - (0.16 * (q5 * q6 + q3 * q4) + q2);
+    // joint A row 1: (P_j − P_i)_x = 0
+    phi[3] = -q0;
+    // joint A row 2: (P_j − P_i)_y = 0
+    phi[4] = 0.1 - q1;
+    // joint A row 3: (P_j − P_i)_z = 0
+    phi[5] = 0.12 - q2;
+    // joint A row 4: b_i · a_j = 0
+    phi[6] = 2.0 * t4;
+    // joint A row 5: c_i · a_j = 0
+    phi[7] = 2.0 * (q4 * q6 + q3 * q5);
+    // joint C_revolute row 1: (P_j − P_i)_x = 0
+    phi[8] = q14 - (q7 + 0.15 * t10);
+    // joint C_revolute row 2: (P_j − P_i)_y = 0
+    phi[9] = q15 - (q8 + 0.3 * t15);
+    // joint C_revolute row 3: (P_j − P_i)_z = 0
+    phi[10] = q16 - (q9 + 0.3 * t18);
+    // joint C_revolute row 4: b_i · a_j = 0
+    phi[11] = t19 * t43 + (t10 * t41 + t16 * t42);
+    // joint C_revolute row 5: c_i · a_j = 0
+    phi[12] = -(t14 * t41) - t17 * t42 - t11 * t43;
+    // joint C_cylindrical row 1: b_i · a_j = 0
+    phi[13] = t40 * t64 + (t30 * t49 + t25 * t59);
+    // joint C_cylindrical row 2: c_i · a_j = 0
+    phi[14] = t26 * t64 + (t34 * t49 + t38 * t59);
+    // joint C_cylindrical row 3: b_i · (P_j − P_i) = 0
+    phi[15] = t40 * t68 + (t30 * t66 + t25 * t67);
+    // joint C_cylindrical row 4: c_i · (P_j − P_i) = 0
+    phi[16] = t26 * t68 + (t34 * t66 + t38 * t67);
+    // joint D row 1: b_i · a_j = 0
+    phi[17] = t54;
+    // joint D row 2: c_i · a_j = 0
+    phi[18] = t57;
+    // joint D row 3: b_i · (P_j − P_i) = 0
+    phi[19] = t54 * t70 - t50 * q22 - t65 * q23;
+    // joint D row 4: c_i · (P_j − P_i) = 0
+    phi[20] = t57 * t70 - t62 * q22 - t51 * q23;
+    // joint D row 5: r_i · r_j = 0
+    phi[21] = t65;
+    // constraint same_x: x_i − x_j − 0.0 = 0
+    phi[22] = q14 + t69;
+    // driver motor: e1 cos(s/2) − e0 sin(s/2) = 0, s = 1.52 − 6.2831852 t
+    phi[23] = q4 * terms[1] - q3 * terms[0];
+    // body crank normalisation: e0² + e1² + e2² + e3² − 1 = 0
+    phi[24] = t3 + (t2 + (t0 + t1)) - 1.0;
+    // body rod normalisation: e0² + e1² + e2² + e3² − 1 = 0
+    phi[25] = t8 + (t7 + t9) - 1.0;
+    // body cylinder normalisation: e0² + e1² + e2² + e3² − 1 = 0
+    phi[26] = t23 + (t22 + t24) - 1.0;
+    // body slider normalisation: e0² + e1² + e2² + e3² − 1 = 0
+    phi[27] = t47 + (t46 + t48) - 1.0;
+    // joint B row 1: (P_j − P_i)_x = 0
+    jac[0][3] = t71;
+    jac[0][4] = t72;
+    jac[0][5] = t73;
+    jac[0][6] = t74;
+    jac[0][10] = -0.15 * t75;
+    jac[0][11] = -0.15 * t76;
+    jac[0][12] = -(-0.15 * t77);
+    jac[0][13] = -(-0.15 * t78);
+    // joint B row 2: (P_j − P_i)_y = 0
+    jac[1][3] = -(0.08 * t79);
+    jac[1][4] = 0.08 * t80;
+    jac[1][5] = -(0.08 * t81);
+    jac[1][6] = 0.08 * t82;
+    jac[1][10] = t83;
+    jac[1][11] = t84;
+    jac[1][12] = t85;
+    jac[1][13] = t86;
+    // joint B row 3: (P_j − P_i)_z = 0
+    jac[2][3] = t73;
+    jac[2][4] = -t74;
+    jac[2][5] = -t71;
+    jac[2][6] = t72;
+    jac[2][10] = -t84;
+    jac[2][11] = t83;
+    jac[2][12] = -t86;
+    jac[2][13] = t85;
+    // joint A row 4: b_i · a_j = 0
+    jac[6][3] = -t87;
+    jac[6][4] = t88;
+    jac[6][5] = t89;
+    jac[6][6] = -t90;
+    // joint A row 5: c_i · a_j = 0
+    jac[7][3] = t88;
+    jac[7][4] = t87;
+    jac[7][5] = t90;
+    jac[7][6] = t89;
+    // joint C_revolute row 1: (P_j − P_i)_x = 0
+    jac[8][10] = -(0.15 * t75);
+    jac[8][11] = -(0.15 * t76);
+    jac[8][12] = 0.15 * t77;
+    jac[8][13] = 0.15 * t78;
+    // joint C_revolute row 2: (P_j − P_i)_y = 0
+    jac[9][10] = t91;
+    jac[9][11] = -t92;
+    jac[9][12] = t93;
+    jac[9][13] = -t94;
+    // joint C_revolute row 3: (P_j − P_i)_z = 0
+    jac[10][10] = t92;
+    jac[10][11] = t91;
+    jac[10][12] = t94;
+    jac[10][13] = t93;
+    // joint C_revolute row 4: b_i · a_j = 0
+    jac[11][10] = t41 * t75 + t97 - t43 * t95;
+    jac[11][11] = t43 * t96 + (t41 * t76 + t98);
+    jac[11][12] = t101 - t41 * t77 - t43 * t99;
+    jac[11][13] = t43 * t100 + (t102 - t41 * t78);
+    jac[11][17] = t19 * t105 + (t10 * t108 + t16 * t110);
+    jac[11][18] = t19 * t113 + (t10 * t116 + t16 * t118);
+    jac[11][19] = t19 * t120 + (t10 * t121 + t16 * t122);
+    jac[11][20] = t19 * t124 + (t10 * t125 + t16 * t126);
+    // joint C_revolute row 5: c_i · a_j = 0
+    jac[12][10] = t101 - t41 * t95 - t43 * t75;
+    jac[12][11] = t43 * t76 + (t102 - t41 * t96);
+    jac[12][12] = t43 * t77 + (-(t41 * t99) - t97);
+    jac[12][13] = -(t41 * t100) - t98 - t43 * t78;
+    jac[12][17] = -(t14 * t108) - t17 * t110 - t11 * t105;
+    jac[12][18] = -(t14 * t116) - t17 * t118 - t11 * t113;
+    jac[12][19] = -(t14 * t121) - t17 * t122 - t11 * t120;
+    jac[12][20] = -(t14 * t125) - t17 * t126 - t11 * t124;
+    // joint C_cylindrical row 1: b_i · a_j = 0
+    jac[13][17] = t64 * t127 + (t59 * t104 - t129);
+    jac[13][18] = t64 * t130 + (t132 - t59 * t112);
+    jac[13][19] = t64 * t128 + (t133 + t59 * t119);
+    jac[13][20] = t64 * t131 + (-t134 - t59 * t123);
+    jac[13][24] = t30 * t136 + t25 * t137 - t40 * t135;
+    jac[13][25] = t40 * t137 + (t30 * t138 + t25 * t135);
+    jac[13][26] = t25 * t141 - t30 * t140 - t40 * t139;
+    jac[13][27] = t40 * t141 + (t25 * t139 - t30 * t142);
+    // joint C_cylindrical row 2: c_i · a_j = 0
+    jac[14][17] = t64 * t104 + (t132 - t59 * t127);
+    jac[14][18] = t129 - t59 * t130 - t64 * t112;
+    jac[14][19] = t134 + t59 * t128 - t64 * t119;
+    jac[14][20] = t64 * t123 + (t133 + t59 * t131);
+    jac[14][24] = t34 * t136 + t38 * t137 - t26 * t135;
+    jac[14][25] = t26 * t137 + (t34 * t138 + t38 * t135);
+    jac[14][26] = t38 * t141 - t34 * t140 - t26 * t139;
+    jac[14][27] = t26 * t141 + (t38 * t139 - t34 * t142);
+    // joint C_cylindrical row 3: b_i · (P_j − P_i) = 0
+    jac[15][14] = -t30;
+    jac[15][15] = -t25;
+    jac[15][16] = -t40;
+    jac[15][17] = t68 * t127 + t40 * t143
+        + (-t145 - t30 * t144 + (t67 * t104 - t25 * t146));
+    jac[15][18] = t68 * t130 - t40 * t146
+        + (t148 - t30 * t147 + (-(t67 * t112) - t25 * t143));
+    jac[15][19] = t68 * t128 + t40 * t149
+        + (t151 + t30 * t150 + (t67 * t119 - t25 * t152));
+    jac[15][20] = t68 * t131 - t40 * t152
+        + (t30 * t153 - t154 + (-(t67 * t123) - t25 * t149));
+    jac[15][21] = t30;
+    jac[15][22] = t25;
+    jac[15][23] = t40;
+    jac[15][24] = t30 * t156 + t25 * t157 - t40 * t155;
+    jac[15][25] = t40 * t157 + (t30 * t158 + t25 * t155);
+    jac[15][26] = t25 * t161 - t30 * t160 - t40 * t159;
+    jac[15][27] = t40 * t161 + (t25 * t159 - t30 * t162);
+    // joint C_cylindrical row 4: c_i · (P_j − P_i) = 0
+    jac[16][14] = -t34;
+    jac[16][15] = -t38;
+    jac[16][16] = -t26;
+    jac[16][17] = t68 * t104 + t26 * t143
+        + (t148 - t34 * t144 + (-(t67 * t127) - t38 * t146));
+    jac[16][18] = -(t68 * t112) - t26 * t146
+        + (t145 - t34 * t147 + (-(t67 * t130) - t38 * t143));
+    jac[16][19] = t26 * t149 - t68 * t119
+        + (t154 + t34 * t150 + (t67 * t128 - t38 * t152));
+    jac[16][20] = t68 * t123 - t26 * t152
+        + (t151 + t34 * t153 + (t67 * t131 - t38 * t149));
+    jac[16][21] = t34;
+    jac[16][22] = t38;
+    jac[16][23] = t26;
+    jac[16][24] = t34 * t156 + t38 * t157 - t26 * t155;
+    jac[16][25] = t26 * t157 + (t34 * t158 + t38 * t155);
+    jac[16][26] = t38 * t161 - t34 * t160 - t26 * t159;
+    jac[16][27] = t26 * t161 + (t38 * t159 - t34 * t162);
+    // joint D row 1: b_i · a_j = 0
+    jac[17][24] = -t137;
+    jac[17][25] = t135;
+    jac[17][26] = t141;
+    jac[17][27] = -t139;
+    // joint D row 2: c_i · a_j = 0
+    jac[18][24] = t135;
+    jac[18][25] = t137;
+    jac[18][26] = t139;
+    jac[18][27] = t141;
+    // joint D row 3: b_i · (P_j − P_i) = 0
+    jac[19][21] = -t54;
+    jac[19][22] = -t50;
+    jac[19][23] = -t65;
+    jac[19][24] = -t163 - q22 * t136 - q23 * t141;
+    jac[19][25] = t164 + q22 * t138 - q23 * t139;
+    jac[19][26] = t165 - q22 * t140 - q23 * t137;
+    jac[19][27] = q22 * t142 - t166 - q23 * t135;
+    // joint D row 4: c_i · (P_j − P_i) = 0
+    jac[20][21] = -t57;
+    jac[20][22] = -t62;
+    jac[20][23] = -t51;
+    jac[20][24] = t164 + q22 * t141 - q23 * t136;
+    jac[20][25] = q23 * t138 + (t163 + q22 * t139);
+    jac[20][26] = q23 * t140 + (t166 - q22 * t137);
+    jac[20][27] = t165 - q22 * t135 - q23 * t142;
+    // joint D row 5: r_i · r_j = 0
+    jac[21][24] = t141;
+    jac[21][25] = t139;
+    jac[21][26] = t137;
+    jac[21][27] = t135;
+    // driver motor: e1 cos(s/2) − e0 sin(s/2) = 0, s = 1.52 − 6.2831852 t
+    jac[23][3] = -terms[0];
+    jac[23][4] = terms[1];
+    // body crank normalisation: e0² + e1² + e2² + e3² − 1 = 0
+    jac[24][3] = t79;
+    jac[24][4] = t80;
+    jac[24][5] = t81;
+    jac[24][6] = t82;
+    // body rod normalisation: e0² + e1² + e2² + e3² − 1 = 0
+    jac[25][10] = t75;
+    jac[25][11] = t76;
+    jac[25][12] = t77;
+    jac[25][13] = t78;
+    // body cylinder normalisation: e0² + e1² + e2² + e3² − 1 = 0
+    jac[26][17] = t104;
+    jac[26][18] = t112;
+    jac[26][19] = t119;
+    jac[26][20] = t123;
+    // body slider normalisation: e0² + e1² + e2² + e3² − 1 = 0
+    jac[27][24] = t136;
+    jac[27][25] = t138;
+    jac[27][26] = t140;
+    jac[27][27] = t142;
+}
+
+/// [`velocity_rhs`] reading the time terms at t from `terms` ([`time_terms`]): the same values, bit for bit.
+///
+/// 8 operations, 0 shared subexpressions.
+pub fn velocity_rhs_at(
+    q: &[f64; N],
+    _t: f64,
+    terms: &[f64; TIME_TERMS],
+    nu: &mut [f64; N],
+) {
+    let [_q0, _q1, _q2, q3, q4, _q5, _q6, _q7, _q8, _q9, _q10, _q11, _q12, _q13, _q14,
+    _q15, _q16, _q17, _q18, _q19, _q20, _q21, _q22, _q23, _q24, _q25, _q26, _q27] = *q;
+    // joint B row 1: (P_j − P_i)_x = 0
+    nu[0] = 0.0;
+    // joint B row 2: (P_j − P_i)_y = 0
+    nu[1] = 0.0;
+    // joint B row 3: (P_j − P_i)_z = 0
+    nu[2] = 0.0;
+    // joint A row 1: (P_j − P_i)_x = 0
+    nu[3] = 0.0;
+    // joint A row 2: (P_j − P_i)_y = 0
+    nu[4] = 0.0;
+    // joint A row 3: (P_j − P_i)_z = 0
+    nu[5] = 0.0;
+    // joint A row 4: b_i · a_j = 0
+    nu[6] = 0.0;
+    // joint A row 5: c_i · a_j = 0
+    nu[7] = 0.0;
+    // joint C_revolute row 1: (P_j − P_i)_x = 0
+    nu[8] = 0.0;
+    // joint C_revolute row 2: (P_j − P_i)_y = 0
+    nu[9] = 0.0;
+    // joint C_revolute row 3: (P_j − P_i)_z = 0
+    nu[10] = 0.0;
+    // joint C_revolute row 4: b_i · a_j = 0
+    nu[11] = 0.0;
+    // joint C_revolute row 5: c_i · a_j = 0
+    nu[12] = 0.0;
+    // joint C_cylindrical row 1: b_i · a_j = 0
+    nu[13] = 0.0;
+    // joint C_cylindrical row 2: c_i · a_j = 0
+    nu[14] = 0.0;
+    // joint C_cylindrical row 3: b_i · (P_j − P_i) = 0
+    nu[15] = 0.0;
+    // joint C_cylindrical row 4: c_i · (P_j − P_i) = 0
+    nu[16] = 0.0;
+    // joint D row 1: b_i · a_j = 0
+    nu[17] = 0.0;
+    // joint D row 2: c_i · a_j = 0
+    nu[18] = 0.0;
+    // joint D row 3: b_i · (P_j − P_i) = 0
+    nu[19] = 0.0;
+    // joint D row 4: c_i · (P_j − P_i) = 0
+    nu[20] = 0.0;
+    // joint D row 5: r_i · r_j = 0
+    nu[21] = 0.0;
+    // constraint same_x: x_i − x_j − 0.0 = 0
+    nu[22] = 0.0;
+    // driver motor: e1 cos(s/2) − e0 sin(s/2) = 0, s = 1.52 − 6.2831852 t
+    nu[23] = -(-(q4 * (-f64::from_bits(4614256656431372362) * terms[0]))
+        - q3 * (-f64::from_bits(4614256656431372362) * terms[1]));
+    // body crank normalisation: e0² + e1² + e2² + e3² − 1 = 0
+    nu[24] = 0.0;
+    // body rod normalisation: e0² + e1² + e2² + e3² − 1 = 0
+    nu[25] = 0.0;
+    // body cylinder normalisation: e0² + e1² + e2² + e3² − 1 = 0
+    nu[26] = 0.0;
+    // body slider normalisation: e0² + e1² + e2² + e3² − 1 = 0
+    nu[27] = 0.0;
+}
+
+/// [`acceleration_rhs`] reading the time terms at t from `terms` ([`time_terms`]): the same values, bit for bit.
+///
+/// 684 operations, 224 shared subexpressions.
+pub fn acceleration_rhs_at(
+    q: &[f64; N],
+    qd: &[f64; N],
+    _t: f64,
+    terms: &[f64; TIME_TERMS],
+    gamma: &mut [f64; N],
+) {
+    let [_q0, _q1, _q2, q3, q4, _q5, _q6, _q7, _q8, _q9, q10, q11, q12, q13, q14, q15,
+    q16, q17, q18, q19, q20, q21, q22, q23, q24, q25, q26, q27] = *q;
+    let [_qd0, _qd1, _qd2, qd3, qd4, qd5, qd6, _qd7, _qd8, _qd9, qd10, qd11, qd12, qd13,
+    qd14, qd15, qd16, qd17, qd18, qd19, qd20, qd21, qd22, qd23, qd24, qd25, qd26, qd27,
+    ] = *qd;
+    let t0 = q10 * q10;
+    let t1 = q11 * q11;
+    let t2 = q12 * q12;
+    let t3 = q13 * q13;
+    let t4 = q11 * q13;
+    let t5 = q10 * q12;
+    let t6 = q17 * q17;
+    let t7 = q18 * q18;
+    let t8 = q19 * q19;
+    let t9 = q20 * q20;
+    let t10 = t6 + t8 - (t7 + t9);
+    let t11 = t6 + t9 - (t7 + t8);
+    let t12 = q18 * q19;
+    let t13 = q17 * q20;
+    let t14 = t12 - t13;
+    let t15 = 2.0 * t14;
+    let t16 = q18 * q20;
+    let t17 = q17 * q19;
+    let t18 = t16 + t17;
+    let t19 = 2.0 * t18;
+    let t20 = q19 * q20;
+    let t21 = q17 * q18;
+    let t22 = t20 - t21;
+    let t23 = 2.0 * t22;
+    let t24 = t20 + t21;
+    let t25 = 2.0 * t24;
+    let t26 = 1.783831760903418 * t14 + -0.9044027027780329 * t18;
+    let t27 = 0.891915880451709 * t10 + -0.9044027027780329 * t22;
+    let t28 = 1.783831760903418 * t24 + -0.45220135138901646 * t11;
+    let t29 = q24 * q24 + q25 * q25 - (q26 * q26 + q27 * q27);
+    let t30 = q25 * q26 + q24 * q27;
+    let t31 = 2.0 * t30;
+    let t32 = q25 * q27 - q24 * q26;
+    let t33 = 2.0 * t32;
+    let t34 = 0.4 * t29 + q21 - (q14 + 0.2 * (t6 + t7 - (t8 + t9)));
+    let t35 = 0.8 * t30 + q22 - (q15 + 0.4 * (t12 + t13));
+    let t36 = 0.8 * t32 + q23 - (q16 + 0.4 * (t16 - t17));
+    let t37 = 0.2 - q21;
+    let t38 = q10 * qd10;
+    let t39 = t38 + t38;
+    let t40 = q11 * qd11;
+    let t41 = t40 + t40;
+    let t42 = q12 * qd12;
+    let t43 = t42 + t42;
+    let t44 = q13 * qd13;
+    let t45 = t44 + t44;
+    let t46 = qd10 * qd10;
+    let t47 = t46 + t46;
+    let t48 = qd11 * qd11;
+    let t49 = t48 + t48;
+    let t50 = t47 + t49;
+    let t51 = qd12 * qd12;
+    let t52 = t51 + t51;
+    let t53 = qd13 * qd13;
+    let t54 = t53 + t53;
+    let t55 = t50 - (t52 + t54);
+    let t56 = qd4 * qd5;
+    let t57 = qd3 * qd6;
+    let t58 = t56 + t56 - (t57 + t57);
+    let t59 = qd11 * qd12;
+    let t60 = qd10 * qd13;
+    let t61 = t59 + t59 + (t60 + t60);
+    let t62 = qd3 * qd3;
+    let t63 = t62 + t62;
+    let t64 = qd5 * qd5;
+    let t65 = t64 + t64;
+    let t66 = qd4 * qd4;
+    let t67 = t66 + t66;
+    let t68 = qd6 * qd6;
+    let t69 = t68 + t68;
+    let t70 = q13 * qd11 + q11 * qd13;
+    let t71 = q12 * qd10 + q10 * qd12;
+    let t72 = qd11 * qd13;
+    let t73 = t72 + t72;
+    let t74 = qd10 * qd12;
+    let t75 = t74 + t74;
+    let t76 = t73 - t75;
+    let t77 = qd5 * qd6;
+    let t78 = qd4 * qd3;
+    let t79 = qd4 * qd6;
+    let t80 = qd5 * qd3;
+    let t81 = q20 * qd19 + q19 * qd20;
+    let t82 = q18 * qd17 + q17 * qd18;
+    let t83 = t81 + t82;
+    let t84 = q17 * qd17;
+    let t85 = t84 + t84;
+    let t86 = q20 * qd20;
+    let t87 = t86 + t86;
+    let t88 = q18 * qd18;
+    let t89 = t88 + t88;
+    let t90 = q19 * qd19;
+    let t91 = t90 + t90;
+    let t92 = t85 + t87 - (t89 + t91);
+    let t93 = 1.783831760903418 * t83 + -0.45220135138901646 * t92;
+    let t94 = q19 * qd18 + q18 * qd19;
+    let t95 = q20 * qd17 + q17 * qd20;
+    let t96 = t94 - t95;
+    let t97 = q20 * qd18 + q18 * qd20;
+    let t98 = q19 * qd17 + q17 * qd19;
+    let t99 = t97 + t98;
+    let t100 = 1.783831760903418 * t96 + -0.9044027027780329 * t99;
+    let t101 = t85 + t91 - (t87 + t89);
+    let t102 = t81 - t82;
+    let t103 = 0.891915880451709 * t101 + -0.9044027027780329 * t102;
+    let t104 = 2.0 * (t70 - t71) * t93;
+    let t105 = qd19 * qd20;
+    let t106 = t105 + t105;
+    let t107 = qd17 * qd18;
+    let t108 = t107 + t107;
+    let t109 = t106 + t108;
+    let t110 = qd17 * qd17;
+    let t111 = t110 + t110;
+    let t112 = qd20 * qd20;
+    let t113 = t112 + t112;
+    let t114 = qd18 * qd18;
+    let t115 = t114 + t114;
+    let t116 = qd19 * qd19;
+    let t117 = t116 + t116;
+    let t118 = t111 + t113 - (t115 + t117);
+    let t119 = 1.783831760903418 * t109 + -0.45220135138901646 * t118;
+    let t120 = (t39 + t41 - (t43 + t45)) * t100;
+    let t121 = qd19 * qd18;
+    let t122 = t121 + t121;
+    let t123 = qd20 * qd17;
+    let t124 = t123 + t123;
+    let t125 = t122 - t124;
+    let t126 = qd20 * qd18;
+    let t127 = t126 + t126;
+    let t128 = qd19 * qd17;
+    let t129 = t128 + t128;
+    let t130 = t127 + t129;
+    let t131 = 1.783831760903418 * t125 + -0.9044027027780329 * t130;
+    let t132 = 2.0 * (q12 * qd11 + q11 * qd12 + (q13 * qd10 + q10 * qd13)) * t103;
+    let t133 = t111 + t117 - (t113 + t115);
+    let t134 = t106 - t108;
+    let t135 = 0.891915880451709 * t133 + -0.9044027027780329 * t134;
+    let t136 = t93 * (t39 + t45 - (t41 + t43));
+    let t137 = t100 * (2.0 * (t70 + t71));
+    let t138 = qd12 * qd13;
+    let t139 = qd10 * qd11;
+    let t140 = t103 * (2.0 * (q13 * qd12 + q12 * qd13 - (q11 * qd10 + q10 * qd11)));
+    let t141 = 2.0 * t83;
+    let t142 = q27 * qd25 + q25 * qd27;
+    let t143 = q26 * qd24 + q24 * qd26;
+    let t144 = t142 - t143;
+    let t145 = 2.0 * t144;
+    let t146 = 2.0 * t96;
+    let t147 = q24 * qd24;
+    let t148 = t147 + t147;
+    let t149 = q25 * qd25;
+    let t150 = t149 + t149;
+    let t151 = q26 * qd26;
+    let t152 = t151 + t151;
+    let t153 = q27 * qd27;
+    let t154 = t153 + t153;
+    let t155 = t148 + t150 - (t152 + t154);
+    let t156 = q26 * qd25 + q25 * qd26;
+    let t157 = q27 * qd24 + q24 * qd27;
+    let t158 = t156 + t157;
+    let t159 = 2.0 * t158;
+    let t160 = 2.0 * t109;
+    let t161 = t141 * t145;
+    let t162 = qd25 * qd27;
+    let t163 = t162 + t162;
+    let t164 = qd24 * qd26;
+    let t165 = t164 + t164;
+    let t166 = t163 - t165;
+    let t167 = 2.0 * t166;
+    let t168 = 2.0 * t125;
+    let t169 = t146 * t155;
+    let t170 = qd24 * qd24;
+    let t171 = t170 + t170;
+    let t172 = qd25 * qd25;
+    let t173 = t172 + t172;
+    let t174 = t171 + t173;
+    let t175 = qd26 * qd26;
+    let t176 = t175 + t175;
+    let t177 = qd27 * qd27;
+    let t178 = t177 + t177;
+    let t179 = t174 - (t176 + t178);
+    let t180 = t101 * t159;
+    let t181 = qd25 * qd26;
+    let t182 = t181 + t181;
+    let t183 = qd27 * qd24;
+    let t184 = t183 + t183;
+    let t185 = t182 + t184;
+    let t186 = 2.0 * t185;
+    let t187 = 2.0 * t99;
+    let t188 = 2.0 * t102;
+    let t189 = t92 * t145;
+    let t190 = 2.0 * t130;
+    let t191 = t155 * t187;
+    let t192 = 2.0 * t134;
+    let t193 = t159 * t188;
+    let t194 = 0.8 * t144 + qd23 - (qd16 + 0.4 * (t97 - t98));
+    let t195 = 0.4 * t155 + qd21 - (qd14 + 0.2 * (t85 + t89 - (t87 + t91)));
+    let t196 = 0.8 * t158 + qd22 - (qd15 + 0.4 * (t94 + t95));
+    let t197 = t141 * t194;
+    let t198 = 0.8 * t166 - 0.4 * (t127 - t129);
+    let t199 = t146 * t195;
+    let t200 = t111 + t115;
+    let t201 = 0.4 * t179 - 0.2 * (t200 - (t113 + t117));
+    let t202 = t101 * t196;
+    let t203 = 0.8 * t185 - 0.4 * (t122 + t124);
+    let t204 = t92 * t194;
+    let t205 = t187 * t195;
+    let t206 = t188 * t196;
+    let t207 = 2.0 * (t182 - t184);
+    let t208 = 2.0 * (t163 + t165);
+    let t209 = q27 * qd26 + q26 * qd27;
+    let t210 = q25 * qd24 + q24 * qd25;
+    let t211 = qd27 * qd26;
+    let t212 = t211 + t211;
+    let t213 = qd25 * qd24;
+    let t214 = t213 + t213;
+    let t215 = 2.0 * (t212 + t214);
+    let t216 = qd23 * (2.0 * (t209 + t210));
+    let t217 = -(qd21 * (2.0 * (t156 - t157)));
+    let t218 = qd22 * (t148 + t152 - (t150 + t154));
+    let t219 = qd23 * (t148 + t154 - (t150 + t152));
+    let t220 = -(qd21 * (2.0 * (t142 + t143)));
+    let t221 = qd22 * (2.0 * (t209 - t210));
+    let t222 = qd4 * (-f64::from_bits(4614256656431372362) * terms[0]);
+    let t223 = qd3 * (-f64::from_bits(4614256656431372362) * terms[1]);
+    // joint B row 1: (P_j − P_i)_x = 0
+    gamma[0] = -(-0.15 * t55 - 0.16 * t58);
+    // joint B row 2: (P_j − P_i)_y = 0
+    gamma[1] = -(-0.3 * t61 - 0.08 * (t63 + t65 - (t67 + t69)));
+    // joint B row 3: (P_j − P_i)_z = 0
+    gamma[2] = -(-0.3 * t76 - 0.16 * (t77 + t77 + (t78 + t78)));
+    // joint A row 1: (P_j − P_i)_x = 0
+    gamma[3] = 0.0;
+    // joint A row 2: (P_j − P_i)_y = 0
+    gamma[4] = 0.0;
+    // joint A row 3: (P_j − P_i)_z = 0
+    gamma[5] = 0.0;
+    // joint A row 4: b_i · a_j = 0
+    gamma[6] = -(2.0 * t58);
+    // joint A row 5: c_i · a_j = 0
+    gamma[7] = -(2.0 * (t79 + t79 + (t80 + t80)));
+    // joint C_revolute row 1: (P_j − P_i)_x = 0
+    gamma[8] = 0.15 * t55;
+    // joint C_revolute row 2: (P_j − P_i)_y = 0
+    gamma[9] = 0.3 * t61;
+    // joint C_revolute row 3: (P_j − P_i)_z = 0
+    gamma[10] = 0.3 * t76;
+    // joint C_revolute row 4: b_i · a_j = 0
+    gamma[11] = -(t104 + t28 * (2.0 * t76) + (t104 + 2.0 * (t4 - t5) * t119)
+        + (t120 + t26 * t55 + (t120 + (t0 + t1 - (t2 + t3)) * t131)
+            + (t132 + t27 * (2.0 * t61)
+                + (t132 + 2.0 * (q11 * q12 + q10 * q13) * t135))));
+    // joint C_revolute row 5: c_i · a_j = 0
+    gamma[12] = -(-(t137 + t26 * (2.0 * (t73 + t75)) + (t137 + 2.0 * (t4 + t5) * t131))
+        - (t140 + t27 * (2.0 * (t138 + t138 - (t139 + t139)))
+            + (t140 + 2.0 * (q12 * q13 - q10 * q11) * t135))
+        - (t136 + t28 * (t47 + t54 - (t49 + t52))
+            + (t136 + (t0 + t3 - (t1 + t2)) * t119)));
+    // joint C_cylindrical row 1: b_i · a_j = 0
+    gamma[13] = -(t161 + t33 * t160 + (t161 + t25 * t167)
+        + (t169 + t29 * t168 + (t169 + t15 * t179)
+            + (t180 + t31 * t133 + (t180 + t10 * t186))));
+    // joint C_cylindrical row 2: c_i · a_j = 0
+    gamma[14] = -(t189 + t33 * t118 + (t189 + t11 * t167)
+        + (t191 + t29 * t190 + (t191 + t19 * t179)
+            + (t193 + t31 * t192 + (t193 + t23 * t186))));
+    // joint C_cylindrical row 3: b_i · (P_j − P_i) = 0
+    gamma[15] = -(t197 + t36 * t160 + (t197 + t25 * t198)
+        + (t199 + t34 * t168 + (t199 + t15 * t201)
+            + (t202 + t35 * t133 + (t202 + t10 * t203))));
+    // joint C_cylindrical row 4: c_i · (P_j − P_i) = 0
+    gamma[16] = -(t204 + t36 * t118 + (t204 + t11 * t198)
+        + (t205 + t34 * t190 + (t205 + t19 * t201)
+            + (t206 + t35 * t192 + (t206 + t23 * t203))));
+    // joint D row 1: b_i · a_j = 0
+    gamma[17] = -t207;
+    // joint D row 2: c_i · a_j = 0
+    gamma[18] = -t208;
+    // joint D row 3: b_i · (P_j − P_i) = 0
+    gamma[19] = -(t217 + (t217 + t37 * t207)
+        - (t218 + (t218 + q22 * (t171 + t176 - (t173 + t178))))
+        - (t216 + (t216 + q23 * t215)));
+    // joint D row 4: c_i · (P_j − P_i) = 0
+    gamma[20] = -(t220 + (t220 + t37 * t208)
+        - (t221 + (t221 + q22 * (2.0 * (t212 - t214))))
+        - (t219 + (t219 + q23 * (t171 + t178 - (t173 + t176)))));
+    // joint D row 5: r_i · r_j = 0
+    gamma[21] = -t215;
+    // constraint same_x: x_i − x_j − 0.0 = 0
+    gamma[22] = 0.0;
+    // driver motor: e1 cos(s/2) − e0 sin(s/2) = 0, s = 1.52 − 6.2831852 t
+    gamma[23] = -(-(t222 + q4 * (9.86960406437476 * terms[1])) - t222
+        - (t223 + (t223 - q3 * (9.86960406437476 * terms[0]))));
+    // body crank normalisation: e0² + e1² + e2² + e3² − 1 = 0
+    gamma[24] = -(t69 + (t65 + (t63 + t67)));
+    // body rod normalisation: e0² + e1² + e2² + e3² − 1 = 0
+    gamma[25] = -(t54 + (t50 + t52));
+    // body cylinder normalisation: e0² + e1² + e2² + e3² − 1 = 0
+    gamma[26] = -(t113 + (t117 + t200));
+    // body slider normalisation: e0² + e1² + e2² + e3² − 1 = 0
+    gamma[27] = -(t178 + (t174 + t176));
+}
+
 /// Rescales the unknown Euler parameters of each body so that |p| = 1 (the fixed
 /// ones keep their values).
 pub fn normalize(q: &mut [f64; N]) {
@@ -3819,6 +4769,86 @@ pub fn normalize(q: &mut [f64; N]) {
             q[27] *= scale;
         }
     }
+}
+
+/// [`normalize`], returning whether it moved a coordinate by more than
+/// `runtime::newton::ROUND_OFF_MOVE` ulps of itself.
+pub fn normalize_moved(q: &mut [f64; N]) -> bool {
+    let bound = runtime::newton::round_off_move_bound::<f64>();
+    let mut within = true;
+    {
+        let free = q[3] * q[3] + q[4] * q[4] + q[5] * q[5] + q[6] * q[6];
+        if free > 0.0 {
+            let scale = runtime::math::sqrt(1.0 / free);
+            let before = q[3];
+            q[3] *= scale;
+            within &= (q[3] - before).abs() <= bound * before.abs();
+            let before = q[4];
+            q[4] *= scale;
+            within &= (q[4] - before).abs() <= bound * before.abs();
+            let before = q[5];
+            q[5] *= scale;
+            within &= (q[5] - before).abs() <= bound * before.abs();
+            let before = q[6];
+            q[6] *= scale;
+            within &= (q[6] - before).abs() <= bound * before.abs();
+        }
+    }
+    {
+        let free = q[10] * q[10] + q[11] * q[11] + q[12] * q[12] + q[13] * q[13];
+        if free > 0.0 {
+            let scale = runtime::math::sqrt(1.0 / free);
+            let before = q[10];
+            q[10] *= scale;
+            within &= (q[10] - before).abs() <= bound * before.abs();
+            let before = q[11];
+            q[11] *= scale;
+            within &= (q[11] - before).abs() <= bound * before.abs();
+            let before = q[12];
+            q[12] *= scale;
+            within &= (q[12] - before).abs() <= bound * before.abs();
+            let before = q[13];
+            q[13] *= scale;
+            within &= (q[13] - before).abs() <= bound * before.abs();
+        }
+    }
+    {
+        let free = q[17] * q[17] + q[18] * q[18] + q[19] * q[19] + q[20] * q[20];
+        if free > 0.0 {
+            let scale = runtime::math::sqrt(1.0 / free);
+            let before = q[17];
+            q[17] *= scale;
+            within &= (q[17] - before).abs() <= bound * before.abs();
+            let before = q[18];
+            q[18] *= scale;
+            within &= (q[18] - before).abs() <= bound * before.abs();
+            let before = q[19];
+            q[19] *= scale;
+            within &= (q[19] - before).abs() <= bound * before.abs();
+            let before = q[20];
+            q[20] *= scale;
+            within &= (q[20] - before).abs() <= bound * before.abs();
+        }
+    }
+    {
+        let free = q[24] * q[24] + q[25] * q[25] + q[26] * q[26] + q[27] * q[27];
+        if free > 0.0 {
+            let scale = runtime::math::sqrt(1.0 / free);
+            let before = q[24];
+            q[24] *= scale;
+            within &= (q[24] - before).abs() <= bound * before.abs();
+            let before = q[25];
+            q[25] *= scale;
+            within &= (q[25] - before).abs() <= bound * before.abs();
+            let before = q[26];
+            q[26] *= scale;
+            within &= (q[26] - before).abs() <= bound * before.abs();
+            let before = q[27];
+            q[27] *= scale;
+            within &= (q[27] - before).abs() <= bound * before.abs();
+        }
+    }
+    !within
 }
 
 /// Full coordinates of every moving body (in [`BODY_NAMES`] order): `out[b][0]` is
@@ -4274,5 +5304,52 @@ impl runtime::Mechanism<N> for SliderCrank5body {
             2 => solve_2(lu, b),
             _ => {}
         }
+    }
+    const TIME_TERMS: usize = TIME_TERMS;
+    fn time_terms(&self, t: f64, terms: &mut [f64]) {
+        if let Some(terms) = terms.first_chunk_mut() {
+            time_terms(t, terms);
+        }
+    }
+    fn residual_at(&self, q: &[f64; N], t: f64, terms: &[f64], phi: &mut [f64; N]) {
+        match terms.first_chunk() {
+            Some(terms) => residual_at(q, t, terms, phi),
+            None => residual(q, t, phi),
+        }
+    }
+    fn residual_jacobian_structural_at(
+        &self,
+        q: &[f64; N],
+        t: f64,
+        terms: &[f64],
+        phi: &mut [f64; N],
+        jac: &mut [[f64; N]; N],
+    ) {
+        match terms.first_chunk() {
+            Some(terms) => residual_jacobian_structural_at(q, t, terms, phi, jac),
+            None => residual_jacobian_structural(q, t, phi, jac),
+        }
+    }
+    fn velocity_rhs_at(&self, q: &[f64; N], t: f64, terms: &[f64], nu: &mut [f64; N]) {
+        match terms.first_chunk() {
+            Some(terms) => velocity_rhs_at(q, t, terms, nu),
+            None => velocity_rhs(q, t, nu),
+        }
+    }
+    fn acceleration_rhs_at(
+        &self,
+        q: &[f64; N],
+        qd: &[f64; N],
+        t: f64,
+        terms: &[f64],
+        gamma: &mut [f64; N],
+    ) {
+        match terms.first_chunk() {
+            Some(terms) => acceleration_rhs_at(q, qd, t, terms, gamma),
+            None => acceleration_rhs(q, qd, t, gamma),
+        }
+    }
+    fn normalize_moved(&self, q: &mut [f64; N]) -> bool {
+        normalize_moved(q)
     }
 }

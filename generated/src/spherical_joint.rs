@@ -492,6 +492,137 @@ pub fn acceleration_rhs(q: &[f64; N], qd: &[f64; N], t: f64, gamma: &mut [f64; N
     gamma[4] = -(t4 + t6);
 }
 
+/// The number of time terms: the sines and cosines of functions of t alone that Φ, Φ_q, ν and γ read, computed by [`time_terms`].
+pub const TIME_TERMS: usize = 2;
+
+/// The time terms at t, computed once per time for the `_at` functions, which read them instead of computing them again.
+///
+/// 3 operations.
+pub fn time_terms(t: f64, terms: &mut [f64; TIME_TERMS]) {
+    let t0 = f64::from_bits(4602890488355133325) * t;
+    let (t1, t2) = runtime::math::sin_cos(t0);
+    terms[0] = t1;
+    terms[1] = t2;
+}
+
+/// [`residual`] reading the time terms at t from `terms` ([`time_terms`]): the same values, bit for bit.
+///
+/// 15 operations, 2 shared subexpressions.
+pub fn residual_at(
+    q: &[f64; N],
+    _t: f64,
+    terms: &[f64; TIME_TERMS],
+    phi: &mut [f64; N],
+) {
+    let [q0, q1, q2, q3, q4] = *q;
+    let t0 = q3 * q3;
+    let t1 = q4 * q4;
+    // joint ball row 1: (P_j − P_i)_x = 0
+    phi[0] = q0 - (t0 - t1);
+    // joint ball row 2: (P_j − P_i)_y = 0
+    phi[1] = q1;
+    // joint ball row 3: (P_j − P_i)_z = 0
+    phi[2] = 2.0 * (q3 * q4) + q2;
+    // driver drive_ry: e2 cos(s/2) − e0 sin(s/2) = 0, s = 1.047 t
+    phi[3] = q4 * terms[1] - q3 * terms[0];
+    // body bar normalisation: e0² + e1² + e2² + e3² − 1 = 0
+    phi[4] = t0 + t1 - 1.0;
+}
+
+/// [`residual_jacobian_structural`] reading the time terms at t from `terms` ([`time_terms`]): the same values, bit for bit.
+///
+/// 21 operations, 4 shared subexpressions.
+fn residual_jacobian_structural_at(
+    q: &[f64; N],
+    _t: f64,
+    terms: &[f64; TIME_TERMS],
+    phi: &mut [f64; N],
+    jac: &mut [[f64; N]; N],
+) {
+    let [q0, q1, q2, q3, q4] = *q;
+    let t0 = q3 * q3;
+    let t1 = q4 * q4;
+    let t2 = q3 + q3;
+    let t3 = q4 + q4;
+    // joint ball row 1: (P_j − P_i)_x = 0
+    phi[0] = q0 - (t0 - t1);
+    // joint ball row 2: (P_j − P_i)_y = 0
+    phi[1] = q1;
+    // joint ball row 3: (P_j − P_i)_z = 0
+    phi[2] = 2.0 * (q3 * q4) + q2;
+    // driver drive_ry: e2 cos(s/2) − e0 sin(s/2) = 0, s = 1.047 t
+    phi[3] = q4 * terms[1] - q3 * terms[0];
+    // body bar normalisation: e0² + e1² + e2² + e3² − 1 = 0
+    phi[4] = t0 + t1 - 1.0;
+    // joint ball row 1: (P_j − P_i)_x = 0
+    jac[0][3] = -t2;
+    jac[0][4] = t3;
+    // joint ball row 3: (P_j − P_i)_z = 0
+    jac[2][3] = 2.0 * q4;
+    jac[2][4] = 2.0 * q3;
+    // driver drive_ry: e2 cos(s/2) − e0 sin(s/2) = 0, s = 1.047 t
+    jac[3][3] = -terms[0];
+    jac[3][4] = terms[1];
+    // body bar normalisation: e0² + e1² + e2² + e3² − 1 = 0
+    jac[4][3] = t2;
+    jac[4][4] = t3;
+}
+
+/// [`velocity_rhs`] reading the time terms at t from `terms` ([`time_terms`]): the same values, bit for bit.
+///
+/// 8 operations, 0 shared subexpressions.
+pub fn velocity_rhs_at(
+    q: &[f64; N],
+    _t: f64,
+    terms: &[f64; TIME_TERMS],
+    nu: &mut [f64; N],
+) {
+    let [_q0, _q1, _q2, q3, q4] = *q;
+    // joint ball row 1: (P_j − P_i)_x = 0
+    nu[0] = 0.0;
+    // joint ball row 2: (P_j − P_i)_y = 0
+    nu[1] = 0.0;
+    // joint ball row 3: (P_j − P_i)_z = 0
+    nu[2] = 0.0;
+    // driver drive_ry: e2 cos(s/2) − e0 sin(s/2) = 0, s = 1.047 t
+    nu[3] = -(-(q4 * (f64::from_bits(4602890488355133325) * terms[0]))
+        - q3 * (f64::from_bits(4602890488355133325) * terms[1]));
+    // body bar normalisation: e0² + e1² + e2² + e3² − 1 = 0
+    nu[4] = 0.0;
+}
+
+/// [`acceleration_rhs`] reading the time terms at t from `terms` ([`time_terms`]): the same values, bit for bit.
+///
+/// 30 operations, 7 shared subexpressions.
+pub fn acceleration_rhs_at(
+    q: &[f64; N],
+    qd: &[f64; N],
+    _t: f64,
+    terms: &[f64; TIME_TERMS],
+    gamma: &mut [f64; N],
+) {
+    let [_q0, _q1, _q2, q3, q4] = *q;
+    let [_qd0, _qd1, _qd2, qd3, qd4] = *qd;
+    let t0 = qd3 * qd3;
+    let t1 = t0 + t0;
+    let t2 = qd4 * qd4;
+    let t3 = t2 + t2;
+    let t4 = qd3 * qd4;
+    let t5 = qd4 * (f64::from_bits(4602890488355133325) * terms[0]);
+    let t6 = qd3 * (f64::from_bits(4602890488355133325) * terms[1]);
+    // joint ball row 1: (P_j − P_i)_x = 0
+    gamma[0] = t1 - t3;
+    // joint ball row 2: (P_j − P_i)_y = 0
+    gamma[1] = 0.0;
+    // joint ball row 3: (P_j − P_i)_z = 0
+    gamma[2] = -(2.0 * (t4 + t4));
+    // driver drive_ry: e2 cos(s/2) − e0 sin(s/2) = 0, s = 1.047 t
+    gamma[3] = -(-(t5 + q4 * (0.27405224999999994 * terms[1])) - t5
+        - (t6 + (t6 - q3 * (0.27405224999999994 * terms[0]))));
+    // body bar normalisation: e0² + e1² + e2² + e3² − 1 = 0
+    gamma[4] = -(t1 + t3);
+}
+
 /// Rescales the unknown Euler parameters of each body so that |p| = 1 (the fixed
 /// ones keep their values).
 pub fn normalize(q: &mut [f64; N]) {
@@ -503,6 +634,26 @@ pub fn normalize(q: &mut [f64; N]) {
             q[4] *= scale;
         }
     }
+}
+
+/// [`normalize`], returning whether it moved a coordinate by more than
+/// `runtime::newton::ROUND_OFF_MOVE` ulps of itself.
+pub fn normalize_moved(q: &mut [f64; N]) -> bool {
+    let bound = runtime::newton::round_off_move_bound::<f64>();
+    let mut within = true;
+    {
+        let free = q[3] * q[3] + q[4] * q[4];
+        if free > 0.0 {
+            let scale = runtime::math::sqrt(1.0 / free);
+            let before = q[3];
+            q[3] *= scale;
+            within &= (q[3] - before).abs() <= bound * before.abs();
+            let before = q[4];
+            q[4] *= scale;
+            within &= (q[4] - before).abs() <= bound * before.abs();
+        }
+    }
+    !within
 }
 
 /// Full coordinates of every moving body (in [`BODY_NAMES`] order): `out[b][0]` is
@@ -723,5 +874,52 @@ impl runtime::Mechanism<N> for SphericalJoint {
             1 => solve_1(lu, b),
             _ => {}
         }
+    }
+    const TIME_TERMS: usize = TIME_TERMS;
+    fn time_terms(&self, t: f64, terms: &mut [f64]) {
+        if let Some(terms) = terms.first_chunk_mut() {
+            time_terms(t, terms);
+        }
+    }
+    fn residual_at(&self, q: &[f64; N], t: f64, terms: &[f64], phi: &mut [f64; N]) {
+        match terms.first_chunk() {
+            Some(terms) => residual_at(q, t, terms, phi),
+            None => residual(q, t, phi),
+        }
+    }
+    fn residual_jacobian_structural_at(
+        &self,
+        q: &[f64; N],
+        t: f64,
+        terms: &[f64],
+        phi: &mut [f64; N],
+        jac: &mut [[f64; N]; N],
+    ) {
+        match terms.first_chunk() {
+            Some(terms) => residual_jacobian_structural_at(q, t, terms, phi, jac),
+            None => residual_jacobian_structural(q, t, phi, jac),
+        }
+    }
+    fn velocity_rhs_at(&self, q: &[f64; N], t: f64, terms: &[f64], nu: &mut [f64; N]) {
+        match terms.first_chunk() {
+            Some(terms) => velocity_rhs_at(q, t, terms, nu),
+            None => velocity_rhs(q, t, nu),
+        }
+    }
+    fn acceleration_rhs_at(
+        &self,
+        q: &[f64; N],
+        qd: &[f64; N],
+        t: f64,
+        terms: &[f64],
+        gamma: &mut [f64; N],
+    ) {
+        match terms.first_chunk() {
+            Some(terms) => acceleration_rhs_at(q, qd, t, terms, gamma),
+            None => acceleration_rhs(q, qd, t, gamma),
+        }
+    }
+    fn normalize_moved(&self, q: &mut [f64; N]) -> bool {
+        normalize_moved(q)
     }
 }

@@ -299,6 +299,23 @@ pub fn normalize(q: &mut [f64; N]) {
     }
 }
 
+/// [`normalize`], returning whether it moved a coordinate by more than
+/// `runtime::newton::ROUND_OFF_MOVE` ulps of itself.
+pub fn normalize_moved(q: &mut [f64; N]) -> bool {
+    let bound = runtime::newton::round_off_move_bound::<f64>();
+    let mut within = true;
+    {
+        let free = q[0] * q[0];
+        if free > 0.0 {
+            let scale = runtime::math::sqrt(1.0 / free);
+            let before = q[0];
+            q[0] *= scale;
+            within &= (q[0] - before).abs() <= bound * before.abs();
+        }
+    }
+    !within
+}
+
 /// Full coordinates of every moving body (in [`BODY_NAMES`] order): `out[b][0]` is
 /// `[x, y, z, e0, e1, e2, e3]`, `out[b][1]` its rates and `out[b][2]` its
 /// accelerations, with fixed and driven coordinates filled in.
@@ -499,5 +516,8 @@ impl runtime::Mechanism<N> for StaticBody {
         if order == 0 {
             solve_0(lu, b);
         }
+    }
+    fn normalize_moved(&self, q: &mut [f64; N]) -> bool {
+        normalize_moved(q)
     }
 }

@@ -8883,6 +8883,248 @@ pub fn normalize(q: &mut [f64; N]) {
     }
 }
 
+/// [`normalize`], returning whether it moved a coordinate by more than
+/// `runtime::newton::ROUND_OFF_MOVE` ulps of itself.
+pub fn normalize_moved(q: &mut [f64; N]) -> bool {
+    let bound = runtime::newton::round_off_move_bound::<f64>();
+    let mut within = true;
+    {
+        let free = q[3] * q[3] + q[4] * q[4] + q[5] * q[5] + q[6] * q[6];
+        if free > 0.0 {
+            let scale = runtime::math::sqrt(1.0 / free);
+            let before = q[3];
+            q[3] *= scale;
+            within &= (q[3] - before).abs() <= bound * before.abs();
+            let before = q[4];
+            q[4] *= scale;
+            within &= (q[4] - before).abs() <= bound * before.abs();
+            let before = q[5];
+            q[5] *= scale;
+            within &= (q[5] - before).abs() <= bound * before.abs();
+            let before = q[6];
+            q[6] *= scale;
+            within &= (q[6] - before).abs() <= bound * before.abs();
+        }
+    }
+    {
+        let free = q[10] * q[10] + q[11] * q[11] + q[12] * q[12] + q[13] * q[13];
+        if free > 0.0 {
+            let scale = runtime::math::sqrt(1.0 / free);
+            let before = q[10];
+            q[10] *= scale;
+            within &= (q[10] - before).abs() <= bound * before.abs();
+            let before = q[11];
+            q[11] *= scale;
+            within &= (q[11] - before).abs() <= bound * before.abs();
+            let before = q[12];
+            q[12] *= scale;
+            within &= (q[12] - before).abs() <= bound * before.abs();
+            let before = q[13];
+            q[13] *= scale;
+            within &= (q[13] - before).abs() <= bound * before.abs();
+        }
+    }
+    {
+        let free = q[17] * q[17] + q[18] * q[18] + q[19] * q[19] + q[20] * q[20];
+        if free > 0.0 {
+            let scale = runtime::math::sqrt(1.0 / free);
+            let before = q[17];
+            q[17] *= scale;
+            within &= (q[17] - before).abs() <= bound * before.abs();
+            let before = q[18];
+            q[18] *= scale;
+            within &= (q[18] - before).abs() <= bound * before.abs();
+            let before = q[19];
+            q[19] *= scale;
+            within &= (q[19] - before).abs() <= bound * before.abs();
+            let before = q[20];
+            q[20] *= scale;
+            within &= (q[20] - before).abs() <= bound * before.abs();
+        }
+    }
+    {
+        let free = q[24] * q[24] + q[25] * q[25] + q[26] * q[26] + q[27] * q[27];
+        if free > 0.0 {
+            let scale = runtime::math::sqrt(1.0 / free);
+            let before = q[24];
+            q[24] *= scale;
+            within &= (q[24] - before).abs() <= bound * before.abs();
+            let before = q[25];
+            q[25] *= scale;
+            within &= (q[25] - before).abs() <= bound * before.abs();
+            let before = q[26];
+            q[26] *= scale;
+            within &= (q[26] - before).abs() <= bound * before.abs();
+            let before = q[27];
+            q[27] *= scale;
+            within &= (q[27] - before).abs() <= bound * before.abs();
+        }
+    }
+    {
+        let free = q[31] * q[31] + q[32] * q[32] + q[33] * q[33] + q[34] * q[34];
+        if free > 0.0 {
+            let scale = runtime::math::sqrt(1.0 / free);
+            let before = q[31];
+            q[31] *= scale;
+            within &= (q[31] - before).abs() <= bound * before.abs();
+            let before = q[32];
+            q[32] *= scale;
+            within &= (q[32] - before).abs() <= bound * before.abs();
+            let before = q[33];
+            q[33] *= scale;
+            within &= (q[33] - before).abs() <= bound * before.abs();
+            let before = q[34];
+            q[34] *= scale;
+            within &= (q[34] - before).abs() <= bound * before.abs();
+        }
+    }
+    {
+        let free = q[38] * q[38] + q[39] * q[39] + q[40] * q[40] + q[41] * q[41];
+        if free > 0.0 {
+            let scale = runtime::math::sqrt(1.0 / free);
+            let before = q[38];
+            q[38] *= scale;
+            within &= (q[38] - before).abs() <= bound * before.abs();
+            let before = q[39];
+            q[39] *= scale;
+            within &= (q[39] - before).abs() <= bound * before.abs();
+            let before = q[40];
+            q[40] *= scale;
+            within &= (q[40] - before).abs() <= bound * before.abs();
+            let before = q[41];
+            q[41] *= scale;
+            within &= (q[41] - before).abs() <= bound * before.abs();
+        }
+    }
+    {
+        let free = q[45] * q[45] + q[46] * q[46] + q[47] * q[47] + q[48] * q[48];
+        if free > 0.0 {
+            let scale = runtime::math::sqrt(1.0 / free);
+            let before = q[45];
+            q[45] *= scale;
+            within &= (q[45] - before).abs() <= bound * before.abs();
+            let before = q[46];
+            q[46] *= scale;
+            within &= (q[46] - before).abs() <= bound * before.abs();
+            let before = q[47];
+            q[47] *= scale;
+            within &= (q[47] - before).abs() <= bound * before.abs();
+            let before = q[48];
+            q[48] *= scale;
+            within &= (q[48] - before).abs() <= bound * before.abs();
+        }
+    }
+    {
+        let free = q[52] * q[52] + q[53] * q[53] + q[54] * q[54] + q[55] * q[55];
+        if free > 0.0 {
+            let scale = runtime::math::sqrt(1.0 / free);
+            let before = q[52];
+            q[52] *= scale;
+            within &= (q[52] - before).abs() <= bound * before.abs();
+            let before = q[53];
+            q[53] *= scale;
+            within &= (q[53] - before).abs() <= bound * before.abs();
+            let before = q[54];
+            q[54] *= scale;
+            within &= (q[54] - before).abs() <= bound * before.abs();
+            let before = q[55];
+            q[55] *= scale;
+            within &= (q[55] - before).abs() <= bound * before.abs();
+        }
+    }
+    {
+        let free = q[59] * q[59] + q[60] * q[60] + q[61] * q[61] + q[62] * q[62];
+        if free > 0.0 {
+            let scale = runtime::math::sqrt(1.0 / free);
+            let before = q[59];
+            q[59] *= scale;
+            within &= (q[59] - before).abs() <= bound * before.abs();
+            let before = q[60];
+            q[60] *= scale;
+            within &= (q[60] - before).abs() <= bound * before.abs();
+            let before = q[61];
+            q[61] *= scale;
+            within &= (q[61] - before).abs() <= bound * before.abs();
+            let before = q[62];
+            q[62] *= scale;
+            within &= (q[62] - before).abs() <= bound * before.abs();
+        }
+    }
+    {
+        let free = q[66] * q[66] + q[67] * q[67] + q[68] * q[68] + q[69] * q[69];
+        if free > 0.0 {
+            let scale = runtime::math::sqrt(1.0 / free);
+            let before = q[66];
+            q[66] *= scale;
+            within &= (q[66] - before).abs() <= bound * before.abs();
+            let before = q[67];
+            q[67] *= scale;
+            within &= (q[67] - before).abs() <= bound * before.abs();
+            let before = q[68];
+            q[68] *= scale;
+            within &= (q[68] - before).abs() <= bound * before.abs();
+            let before = q[69];
+            q[69] *= scale;
+            within &= (q[69] - before).abs() <= bound * before.abs();
+        }
+    }
+    {
+        let free = q[73] * q[73] + q[74] * q[74] + q[75] * q[75] + q[76] * q[76];
+        if free > 0.0 {
+            let scale = runtime::math::sqrt(1.0 / free);
+            let before = q[73];
+            q[73] *= scale;
+            within &= (q[73] - before).abs() <= bound * before.abs();
+            let before = q[74];
+            q[74] *= scale;
+            within &= (q[74] - before).abs() <= bound * before.abs();
+            let before = q[75];
+            q[75] *= scale;
+            within &= (q[75] - before).abs() <= bound * before.abs();
+            let before = q[76];
+            q[76] *= scale;
+            within &= (q[76] - before).abs() <= bound * before.abs();
+        }
+    }
+    {
+        let free = q[80] * q[80] + q[81] * q[81] + q[82] * q[82] + q[83] * q[83];
+        if free > 0.0 {
+            let scale = runtime::math::sqrt(1.0 / free);
+            let before = q[80];
+            q[80] *= scale;
+            within &= (q[80] - before).abs() <= bound * before.abs();
+            let before = q[81];
+            q[81] *= scale;
+            within &= (q[81] - before).abs() <= bound * before.abs();
+            let before = q[82];
+            q[82] *= scale;
+            within &= (q[82] - before).abs() <= bound * before.abs();
+            let before = q[83];
+            q[83] *= scale;
+            within &= (q[83] - before).abs() <= bound * before.abs();
+        }
+    }
+    {
+        let free = q[87] * q[87] + q[88] * q[88] + q[89] * q[89] + q[90] * q[90];
+        if free > 0.0 {
+            let scale = runtime::math::sqrt(1.0 / free);
+            let before = q[87];
+            q[87] *= scale;
+            within &= (q[87] - before).abs() <= bound * before.abs();
+            let before = q[88];
+            q[88] *= scale;
+            within &= (q[88] - before).abs() <= bound * before.abs();
+            let before = q[89];
+            q[89] *= scale;
+            within &= (q[89] - before).abs() <= bound * before.abs();
+            let before = q[90];
+            q[90] *= scale;
+            within &= (q[90] - before).abs() <= bound * before.abs();
+        }
+    }
+    !within
+}
+
 /// Full coordinates of every moving body (in [`BODY_NAMES`] order) at the inputs
 /// `inputs`: `out[b][0]` is `[x, y, z, e0, e1, e2, e3]`, `out[b][1]` its rates and
 /// `out[b][2]` its accelerations, with fixed and driven coordinates filled in.
@@ -10677,5 +10919,8 @@ impl runtime::Mechanism<N> for Stewart {
                 _ => {}
             }
         }
+    }
+    fn normalize_moved(&self, q: &mut [f64; N]) -> bool {
+        normalize_moved(q)
     }
 }

@@ -1560,6 +1560,32 @@ pub fn normalize(q: &mut [f64; N]) {
     }
 }
 
+/// [`normalize`], returning whether it moved a coordinate by more than
+/// `runtime::newton::ROUND_OFF_MOVE` ulps of itself.
+pub fn normalize_moved(q: &mut [f64; N]) -> bool {
+    let bound = runtime::newton::round_off_move_bound::<f64>();
+    let mut within = true;
+    {
+        let free = q[3] * q[3] + q[4] * q[4] + q[5] * q[5] + q[6] * q[6];
+        if free > 0.0 {
+            let scale = runtime::math::sqrt(1.0 / free);
+            let before = q[3];
+            q[3] *= scale;
+            within &= (q[3] - before).abs() <= bound * before.abs();
+            let before = q[4];
+            q[4] *= scale;
+            within &= (q[4] - before).abs() <= bound * before.abs();
+            let before = q[5];
+            q[5] *= scale;
+            within &= (q[5] - before).abs() <= bound * before.abs();
+            let before = q[6];
+            q[6] *= scale;
+            within &= (q[6] - before).abs() <= bound * before.abs();
+        }
+    }
+    !within
+}
+
 /// Full coordinates of every moving body (in [`BODY_NAMES`] order) at the inputs
 /// `inputs`: `out[b][0]` is `[x, y, z, e0, e1, e2, e3]`, `out[b][1]` its rates and
 /// `out[b][2]` its accelerations, with fixed and driven coordinates filled in.
@@ -1799,5 +1825,8 @@ impl runtime::Mechanism<N> for StewartPlatform {
         if order == 0 {
             solve_0(lu, b);
         }
+    }
+    fn normalize_moved(&self, q: &mut [f64; N]) -> bool {
+        normalize_moved(q)
     }
 }

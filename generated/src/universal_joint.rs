@@ -576,6 +576,163 @@ pub fn acceleration_rhs(q: &[f64; N], qd: &[f64; N], t: f64, gamma: &mut [f64; N
     gamma[5] = -(t7 + (t5 + t9));
 }
 
+/// The number of time terms: the sines and cosines of functions of t alone that Φ, Φ_q, ν and γ read, computed by [`time_terms`].
+pub const TIME_TERMS: usize = 2;
+
+/// The time terms at t, computed once per time for the `_at` functions, which read them instead of computing them again.
+///
+/// 3 operations.
+pub fn time_terms(t: f64, terms: &mut [f64; TIME_TERMS]) {
+    let t0 = f64::from_bits(4602890488355133325) * t;
+    let (t1, t2) = runtime::math::sin_cos(t0);
+    terms[0] = t1;
+    terms[1] = t2;
+}
+
+/// [`residual`] reading the time terms at t from `terms` ([`time_terms`]): the same values, bit for bit.
+///
+/// 25 operations, 3 shared subexpressions.
+pub fn residual_at(
+    q: &[f64; N],
+    _t: f64,
+    terms: &[f64; TIME_TERMS],
+    phi: &mut [f64; N],
+) {
+    let [q0, q1, q2, q3, q4, q5] = *q;
+    let t0 = q3 * q3;
+    let t1 = q4 * q4;
+    let t2 = q5 * q5;
+    // joint cross row 1: (P_j − P_i)_x = 0
+    phi[0] = q0 - 2.0 * (q4 * q5);
+    // joint cross row 2: (P_j − P_i)_y = 0
+    phi[1] = q1 - (t0 + t2 - t1);
+    // joint cross row 3: (P_j − P_i)_z = 0
+    phi[2] = q2 - 2.0 * (q3 * q4);
+    // joint cross row 4: a_i · a_j = 0
+    phi[3] = 2.0 * (q3 * q5);
+    // driver drive_rx: e1 cos(s/2) − e0 sin(s/2) = 0, s = 1.047 t
+    phi[4] = q4 * terms[1] - q3 * terms[0];
+    // body bar normalisation: e0² + e1² + e2² + e3² − 1 = 0
+    phi[5] = t2 + (t0 + t1) - 1.0;
+}
+
+/// [`residual_jacobian_structural`] reading the time terms at t from `terms` ([`time_terms`]): the same values, bit for bit.
+///
+/// 37 operations, 9 shared subexpressions.
+fn residual_jacobian_structural_at(
+    q: &[f64; N],
+    _t: f64,
+    terms: &[f64; TIME_TERMS],
+    phi: &mut [f64; N],
+    jac: &mut [[f64; N]; N],
+) {
+    let [q0, q1, q2, q3, q4, q5] = *q;
+    let t0 = q3 * q3;
+    let t1 = q4 * q4;
+    let t2 = q5 * q5;
+    let t3 = 2.0 * q5;
+    let t4 = -(2.0 * q4);
+    let t5 = q3 + q3;
+    let t6 = q4 + q4;
+    let t7 = q5 + q5;
+    let t8 = 2.0 * q3;
+    // joint cross row 1: (P_j − P_i)_x = 0
+    phi[0] = q0 - 2.0 * (q4 * q5);
+    // joint cross row 2: (P_j − P_i)_y = 0
+    phi[1] = q1 - (t0 + t2 - t1);
+    // joint cross row 3: (P_j − P_i)_z = 0
+    phi[2] = q2 - 2.0 * (q3 * q4);
+    // joint cross row 4: a_i · a_j = 0
+    phi[3] = 2.0 * (q3 * q5);
+    // driver drive_rx: e1 cos(s/2) − e0 sin(s/2) = 0, s = 1.047 t
+    phi[4] = q4 * terms[1] - q3 * terms[0];
+    // body bar normalisation: e0² + e1² + e2² + e3² − 1 = 0
+    phi[5] = t2 + (t0 + t1) - 1.0;
+    // joint cross row 1: (P_j − P_i)_x = 0
+    jac[0][4] = -t3;
+    jac[0][5] = t4;
+    // joint cross row 2: (P_j − P_i)_y = 0
+    jac[1][3] = -t5;
+    jac[1][4] = t6;
+    jac[1][5] = -t7;
+    // joint cross row 3: (P_j − P_i)_z = 0
+    jac[2][3] = t4;
+    jac[2][4] = -t8;
+    // joint cross row 4: a_i · a_j = 0
+    jac[3][3] = t3;
+    jac[3][5] = t8;
+    // driver drive_rx: e1 cos(s/2) − e0 sin(s/2) = 0, s = 1.047 t
+    jac[4][3] = -terms[0];
+    jac[4][4] = terms[1];
+    // body bar normalisation: e0² + e1² + e2² + e3² − 1 = 0
+    jac[5][3] = t5;
+    jac[5][4] = t6;
+    jac[5][5] = t7;
+}
+
+/// [`velocity_rhs`] reading the time terms at t from `terms` ([`time_terms`]): the same values, bit for bit.
+///
+/// 8 operations, 0 shared subexpressions.
+pub fn velocity_rhs_at(
+    q: &[f64; N],
+    _t: f64,
+    terms: &[f64; TIME_TERMS],
+    nu: &mut [f64; N],
+) {
+    let [_q0, _q1, _q2, q3, q4, _q5] = *q;
+    // joint cross row 1: (P_j − P_i)_x = 0
+    nu[0] = 0.0;
+    // joint cross row 2: (P_j − P_i)_y = 0
+    nu[1] = 0.0;
+    // joint cross row 3: (P_j − P_i)_z = 0
+    nu[2] = 0.0;
+    // joint cross row 4: a_i · a_j = 0
+    nu[3] = 0.0;
+    // driver drive_rx: e1 cos(s/2) − e0 sin(s/2) = 0, s = 1.047 t
+    nu[4] = -(-(q4 * (f64::from_bits(4602890488355133325) * terms[0]))
+        - q3 * (f64::from_bits(4602890488355133325) * terms[1]));
+    // body bar normalisation: e0² + e1² + e2² + e3² − 1 = 0
+    nu[5] = 0.0;
+}
+
+/// [`acceleration_rhs`] reading the time terms at t from `terms` ([`time_terms`]): the same values, bit for bit.
+///
+/// 40 operations, 11 shared subexpressions.
+pub fn acceleration_rhs_at(
+    q: &[f64; N],
+    qd: &[f64; N],
+    _t: f64,
+    terms: &[f64; TIME_TERMS],
+    gamma: &mut [f64; N],
+) {
+    let [_q0, _q1, _q2, q3, q4, _q5] = *q;
+    let [_qd0, _qd1, _qd2, qd3, qd4, qd5] = *qd;
+    let t0 = qd4 * qd5;
+    let t1 = qd3 * qd3;
+    let t2 = t1 + t1;
+    let t3 = qd5 * qd5;
+    let t4 = t3 + t3;
+    let t5 = qd4 * qd4;
+    let t6 = t5 + t5;
+    let t7 = qd4 * qd3;
+    let t8 = qd5 * qd3;
+    let t9 = qd4 * (f64::from_bits(4602890488355133325) * terms[0]);
+    let t10 = qd3 * (f64::from_bits(4602890488355133325) * terms[1]);
+    // joint cross row 1: (P_j − P_i)_x = 0
+    gamma[0] = 2.0 * (t0 + t0);
+    // joint cross row 2: (P_j − P_i)_y = 0
+    gamma[1] = t2 + t4 - t6;
+    // joint cross row 3: (P_j − P_i)_z = 0
+    gamma[2] = 2.0 * (t7 + t7);
+    // joint cross row 4: a_i · a_j = 0
+    gamma[3] = -(2.0 * (t8 + t8));
+    // driver drive_rx: e1 cos(s/2) − e0 sin(s/2) = 0, s = 1.047 t
+    gamma[4] = -(-(t9 + q4 * (0.27405224999999994 * terms[1])) - t9
+        - (t10 + (t10 - q3 * (0.27405224999999994 * terms[0]))));
+    // body bar normalisation: e0² + e1² + e2² + e3² − 1 = 0
+    gamma[5] = -(t4 + (t2 + t6));
+}
+
 /// Rescales the unknown Euler parameters of each body so that |p| = 1 (the fixed
 /// ones keep their values).
 pub fn normalize(q: &mut [f64; N]) {
@@ -588,6 +745,29 @@ pub fn normalize(q: &mut [f64; N]) {
             q[5] *= scale;
         }
     }
+}
+
+/// [`normalize`], returning whether it moved a coordinate by more than
+/// `runtime::newton::ROUND_OFF_MOVE` ulps of itself.
+pub fn normalize_moved(q: &mut [f64; N]) -> bool {
+    let bound = runtime::newton::round_off_move_bound::<f64>();
+    let mut within = true;
+    {
+        let free = q[3] * q[3] + q[4] * q[4] + q[5] * q[5];
+        if free > 0.0 {
+            let scale = runtime::math::sqrt(1.0 / free);
+            let before = q[3];
+            q[3] *= scale;
+            within &= (q[3] - before).abs() <= bound * before.abs();
+            let before = q[4];
+            q[4] *= scale;
+            within &= (q[4] - before).abs() <= bound * before.abs();
+            let before = q[5];
+            q[5] *= scale;
+            within &= (q[5] - before).abs() <= bound * before.abs();
+        }
+    }
+    !within
 }
 
 /// Full coordinates of every moving body (in [`BODY_NAMES`] order): `out[b][0]` is
@@ -785,5 +965,52 @@ impl runtime::Mechanism<N> for UniversalJoint {
             1 => solve_1(lu, b),
             _ => {}
         }
+    }
+    const TIME_TERMS: usize = TIME_TERMS;
+    fn time_terms(&self, t: f64, terms: &mut [f64]) {
+        if let Some(terms) = terms.first_chunk_mut() {
+            time_terms(t, terms);
+        }
+    }
+    fn residual_at(&self, q: &[f64; N], t: f64, terms: &[f64], phi: &mut [f64; N]) {
+        match terms.first_chunk() {
+            Some(terms) => residual_at(q, t, terms, phi),
+            None => residual(q, t, phi),
+        }
+    }
+    fn residual_jacobian_structural_at(
+        &self,
+        q: &[f64; N],
+        t: f64,
+        terms: &[f64],
+        phi: &mut [f64; N],
+        jac: &mut [[f64; N]; N],
+    ) {
+        match terms.first_chunk() {
+            Some(terms) => residual_jacobian_structural_at(q, t, terms, phi, jac),
+            None => residual_jacobian_structural(q, t, phi, jac),
+        }
+    }
+    fn velocity_rhs_at(&self, q: &[f64; N], t: f64, terms: &[f64], nu: &mut [f64; N]) {
+        match terms.first_chunk() {
+            Some(terms) => velocity_rhs_at(q, t, terms, nu),
+            None => velocity_rhs(q, t, nu),
+        }
+    }
+    fn acceleration_rhs_at(
+        &self,
+        q: &[f64; N],
+        qd: &[f64; N],
+        t: f64,
+        terms: &[f64],
+        gamma: &mut [f64; N],
+    ) {
+        match terms.first_chunk() {
+            Some(terms) => acceleration_rhs_at(q, qd, t, terms, gamma),
+            None => acceleration_rhs(q, qd, t, gamma),
+        }
+    }
+    fn normalize_moved(&self, q: &mut [f64; N]) -> bool {
+        normalize_moved(q)
     }
 }

@@ -400,6 +400,9 @@ impl<M: Mechanism<N, R>, const N: usize, R: Real> Mechanism<N, R> for DenseOnly<
     fn normalize(&self, q: &mut [R; N]) {
         self.0.normalize(q);
     }
+    fn normalize_moved(&self, q: &mut [R; N]) -> bool {
+        self.0.normalize_moved(q)
+    }
     const LEFT_OUT: usize = M::LEFT_OUT;
     fn left_out_residual_jacobian(&self, q: &[R; N], t: R, phi: &mut [R], jac: &mut [[R; N]]) {
         self.0.left_out_residual_jacobian(q, t, phi, jac);

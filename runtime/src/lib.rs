@@ -141,7 +141,7 @@ pub mod step;
 #[cfg(test)]
 mod fixtures;
 
-pub use mechanism::Mechanism;
+pub use mechanism::{MAX_TIME_TERMS, Mechanism};
 pub use newton::{NewtonError, NewtonOptions, NewtonReport};
 pub use outputs::{Outcome, Status};
 pub use real::Real;

@@ -41,6 +41,18 @@ pub trait Mechanism<const N: usize, R: Real = f64> {
     /// The default does nothing.
     fn normalize(&self, _q: &mut [R; N]) {}
 
+    /// [`Mechanism::normalize`], returning whether it moved q by more than round-off, that is
+    /// some coordinate by more than [`ROUND_OFF_MOVE`](crate::newton::ROUND_OFF_MOVE) ulps of
+    /// itself ([`newton::moved_by_round_off`](crate::newton::moved_by_round_off)); the solvers
+    /// then evaluate Φ and Φ_q again.
+    /// The default compares a copy of q with the normalised q; generated code tests only the
+    /// coordinates it rescales, as it rescales them (the others do not move).
+    fn normalize_moved(&self, q: &mut [R; N]) -> bool {
+        let before = *q;
+        self.normalize(q);
+        !crate::newton::moved_by_round_off(&before, q)
+    }
+
     /// The block-lower-triangular form of Φ_q, when the mechanism's solver factors it block by
     /// block ([`blocks`](crate::blocks)); the default, `None`, means it does not.
     ///
@@ -261,5 +273,226 @@ pub trait Mechanism<const N: usize, R: Real = f64> {
     /// [`Mechanism::left_out_residual_jacobian`]).
     fn left_out_acceleration_rhs(&self, q: &[R; N], qd: &[R; N], t: R, gamma: &mut [R]) {
         let _ = (q, qd, t, gamma);
+    }
+
+    /// How many values [`Mechanism::time_terms`] writes: terms of Φ, Φ_q, ν and γ that depend
+    /// on t alone (the sines and cosines of driver laws), which [`Solver`](crate::Solver)
+    /// computes once per position and passes to [`Mechanism::residual_at`],
+    /// [`Mechanism::residual_jacobian_structural_at`], [`Mechanism::velocity_rhs_at`] and
+    /// [`Mechanism::acceleration_rhs_at`] at that time, instead of each of them computing the
+    /// terms again.
+    /// The default, 0, means none; the solvers use at most
+    /// [`MAX_TIME_TERMS`](crate::MAX_TIME_TERMS) and call the plain methods for a
+    /// mechanism with more.
+    const TIME_TERMS: usize = 0;
+
+    /// Writes the time terms at t into the first [`Mechanism::TIME_TERMS`] entries of `terms`,
+    /// which has at least that many. They may depend on t and the mechanism's own state (not
+    /// on q): a solver computes them again after [`Solver::mechanism_mut`](crate::Solver::mechanism_mut).
+    /// The default writes nothing.
+    fn time_terms(&self, t: R, terms: &mut [R]) {
+        let _ = (t, terms);
+    }
+
+    /// [`Mechanism::residual`] with `terms` the time terms at the same t
+    /// ([`Mechanism::time_terms`]); the same values, bit for bit.
+    /// The default calls [`Mechanism::residual`].
+    fn residual_at(&self, q: &[R; N], t: R, terms: &[R], phi: &mut [R; N]) {
+        let _ = terms;
+        self.residual(q, t, phi);
+    }
+
+    /// [`Mechanism::residual_jacobian_structural`] with `terms` the time terms at the same t
+    /// (see [`Mechanism::residual_at`]).
+    /// The default calls [`Mechanism::residual_jacobian_structural`].
+    fn residual_jacobian_structural_at(
+        &self,
+        q: &[R; N],
+        t: R,
+        terms: &[R],
+        phi: &mut [R; N],
+        jac: &mut [[R; N]; N],
+    ) {
+        let _ = terms;
+        self.residual_jacobian_structural(q, t, phi, jac);
+    }
+
+    /// [`Mechanism::velocity_rhs`] with `terms` the time terms at the same t
+    /// (see [`Mechanism::residual_at`]).
+    /// The default calls [`Mechanism::velocity_rhs`].
+    fn velocity_rhs_at(&self, q: &[R; N], t: R, terms: &[R], nu: &mut [R; N]) {
+        let _ = terms;
+        self.velocity_rhs(q, t, nu);
+    }
+
+    /// [`Mechanism::acceleration_rhs`] with `terms` the time terms at the same t
+    /// (see [`Mechanism::residual_at`]).
+    /// The default calls [`Mechanism::acceleration_rhs`].
+    fn acceleration_rhs_at(&self, q: &[R; N], qd: &[R; N], t: R, terms: &[R], gamma: &mut [R; N]) {
+        let _ = terms;
+        self.acceleration_rhs(q, qd, t, gamma);
+    }
+}
+
+/// The most time terms ([`Mechanism::TIME_TERMS`]) the solvers keep; a mechanism with more is
+/// evaluated by its plain methods.
+pub const MAX_TIME_TERMS: usize = 16;
+
+/// A mechanism whose time terms ([`Mechanism::TIME_TERMS`]) at `t` are at hand: its
+/// evaluations at `t` read them ([`Mechanism::residual_at`] and the like), those at any other
+/// time (or without terms) call the plain methods. Everything else is the mechanism's own.
+pub(crate) struct Timed<'a, M, R> {
+    /// The mechanism.
+    pub(crate) mechanism: &'a M,
+    /// The time of `terms`.
+    pub(crate) t: R,
+    /// The time terms at `t`, or `None`.
+    pub(crate) terms: Option<&'a [R]>,
+}
+
+impl<M, R: Real> Timed<'_, M, R> {
+    /// The terms, when they belong to `t`.
+    #[inline]
+    fn at(&self, t: R) -> Option<&[R]> {
+        self.terms.filter(|_| t == self.t)
+    }
+}
+
+impl<M: Mechanism<N, R>, const N: usize, R: Real> Mechanism<N, R> for Timed<'_, M, R> {
+    const BLOCKS: Option<&'static crate::blocks::Layout> = M::BLOCKS;
+    const BLOCK_NEWTON: bool = M::BLOCK_NEWTON;
+    const PACKED_BLOCKS: Option<&'static [usize]> = M::PACKED_BLOCKS;
+    const PIVOT_ORDERS: usize = M::PIVOT_ORDERS;
+    const LEFT_OUT: usize = M::LEFT_OUT;
+    const TIME_TERMS: usize = M::TIME_TERMS;
+
+    fn residual(&self, q: &[R; N], t: R, phi: &mut [R; N]) {
+        match self.at(t) {
+            Some(terms) => self.mechanism.residual_at(q, t, terms, phi),
+            None => self.mechanism.residual(q, t, phi),
+        }
+    }
+    fn jacobian(&self, q: &[R; N], t: R, jac: &mut [[R; N]; N]) {
+        self.mechanism.jacobian(q, t, jac);
+    }
+    fn residual_jacobian(&self, q: &[R; N], t: R, phi: &mut [R; N], jac: &mut [[R; N]; N]) {
+        self.mechanism.residual_jacobian(q, t, phi, jac);
+    }
+    fn velocity_rhs(&self, q: &[R; N], t: R, nu: &mut [R; N]) {
+        match self.at(t) {
+            Some(terms) => self.mechanism.velocity_rhs_at(q, t, terms, nu),
+            None => self.mechanism.velocity_rhs(q, t, nu),
+        }
+    }
+    fn acceleration_rhs(&self, q: &[R; N], qd: &[R; N], t: R, gamma: &mut [R; N]) {
+        match self.at(t) {
+            Some(terms) => self.mechanism.acceleration_rhs_at(q, qd, t, terms, gamma),
+            None => self.mechanism.acceleration_rhs(q, qd, t, gamma),
+        }
+    }
+    fn normalize(&self, q: &mut [R; N]) {
+        self.mechanism.normalize(q);
+    }
+    fn normalize_moved(&self, q: &mut [R; N]) -> bool {
+        self.mechanism.normalize_moved(q)
+    }
+    fn residual_jacobian_blocks(&self, q: &[R; N], t: R, phi: &mut [R; N], jac: &mut [[R; N]; N]) {
+        self.mechanism.residual_jacobian_blocks(q, t, phi, jac);
+    }
+    fn factor_blocks(
+        &self,
+        jac: &mut [[R; N]; N],
+        perm: &mut [usize; N],
+    ) -> Option<crate::lu::PivotInfo<R>> {
+        self.mechanism.factor_blocks(jac, perm)
+    }
+    fn solve_blocks(&self, lu: &[[R; N]; N], perm: &[usize; N], b: &mut [R; N]) {
+        self.mechanism.solve_blocks(lu, perm, b);
+    }
+    fn block_residual(
+        &self,
+        b: usize,
+        jacobian: bool,
+        q: &[R; N],
+        t: R,
+        phi: &mut [R; N],
+        jac: &mut [[R; N]; N],
+    ) {
+        self.mechanism.block_residual(b, jacobian, q, t, phi, jac);
+    }
+    fn closed_form_block(&self, b: usize, q: &mut [R; N], t: R) -> bool {
+        self.mechanism.closed_form_block(b, q, t)
+    }
+    fn factor_block(
+        &self,
+        b: usize,
+        jac: &mut [[R; N]; N],
+        perm: &mut [usize; N],
+        ratio: R,
+    ) -> Result<crate::lu::PivotInfo<R>, crate::lu::Singular<R>> {
+        self.mechanism.factor_block(b, jac, perm, ratio)
+    }
+    fn solve_block(
+        &self,
+        b: usize,
+        lu: &[[R; N]; N],
+        perm: &[usize; N],
+        rhs: &[R; N],
+        x: &mut [R],
+    ) {
+        self.mechanism.solve_block(b, lu, perm, rhs, x);
+    }
+    fn residual_jacobian_structural(
+        &self,
+        q: &[R; N],
+        t: R,
+        phi: &mut [R; N],
+        jac: &mut [[R; N]; N],
+    ) {
+        match self.at(t) {
+            Some(terms) => self.mechanism.residual_jacobian_structural_at(q, t, terms, phi, jac),
+            None => self.mechanism.residual_jacobian_structural(q, t, phi, jac),
+        }
+    }
+    fn factor_structured(
+        &self,
+        order: usize,
+        jac: &mut [[R; N]; N],
+    ) -> Option<crate::lu::PivotInfo<R>> {
+        self.mechanism.factor_structured(order, jac)
+    }
+    fn solve_structured(&self, order: usize, lu: &[[R; N]; N], b: &mut [R; N]) {
+        self.mechanism.solve_structured(order, lu, b);
+    }
+    fn left_out_residual_jacobian(&self, q: &[R; N], t: R, phi: &mut [R], jac: &mut [[R; N]]) {
+        self.mechanism.left_out_residual_jacobian(q, t, phi, jac);
+    }
+    fn left_out_velocity_rhs(&self, q: &[R; N], t: R, nu: &mut [R]) {
+        self.mechanism.left_out_velocity_rhs(q, t, nu);
+    }
+    fn left_out_acceleration_rhs(&self, q: &[R; N], qd: &[R; N], t: R, gamma: &mut [R]) {
+        self.mechanism.left_out_acceleration_rhs(q, qd, t, gamma);
+    }
+    fn time_terms(&self, t: R, terms: &mut [R]) {
+        self.mechanism.time_terms(t, terms);
+    }
+    fn residual_at(&self, q: &[R; N], t: R, terms: &[R], phi: &mut [R; N]) {
+        self.mechanism.residual_at(q, t, terms, phi);
+    }
+    fn residual_jacobian_structural_at(
+        &self,
+        q: &[R; N],
+        t: R,
+        terms: &[R],
+        phi: &mut [R; N],
+        jac: &mut [[R; N]; N],
+    ) {
+        self.mechanism.residual_jacobian_structural_at(q, t, terms, phi, jac);
+    }
+    fn velocity_rhs_at(&self, q: &[R; N], t: R, terms: &[R], nu: &mut [R; N]) {
+        self.mechanism.velocity_rhs_at(q, t, terms, nu);
+    }
+    fn acceleration_rhs_at(&self, q: &[R; N], qd: &[R; N], t: R, terms: &[R], gamma: &mut [R; N]) {
+        self.mechanism.acceleration_rhs_at(q, qd, t, terms, gamma);
     }
 }

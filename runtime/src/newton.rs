@@ -3,7 +3,7 @@
 //! Each iteration evaluates Φ and Φ_q at q, stops if max |Φ_i| ≤ tolerance, and otherwise
 //! factors Φ_q ([`Factors`]: the mechanism's static pivot orders, else dense LU), solves
 //! Φ_q Δ = −Φ and sets q ← q + Δ.
-//! Once converged, [`Mechanism::normalize`] projects q and, if that moved q by more than
+//! Once converged, [`Mechanism::normalize_moved`] projects q and, if that moved q by more than
 //! round-off ([`moved_by_round_off`]), Φ and Φ_q are evaluated again, so the reported residual
 //! and the factored Jacobian left in the caller's storage belong to the final q (the velocity
 //! and acceleration solves reuse that factorisation).
@@ -179,6 +179,19 @@ pub(crate) fn max_abs<R: Real>(x: &[R]) -> R {
     if nan { R::NAN } else { m }
 }
 
+/// Whether every x_i is finite.
+///
+/// Branch-free and inlined, so that the compiler can vectorise it: it runs after each of the
+/// velocity and acceleration solves.
+#[inline]
+pub(crate) fn all_finite<R: Real>(x: &[R]) -> bool {
+    let mut finite = true;
+    for &v in x {
+        finite &= v.is_finite();
+    }
+    finite
+}
+
 /// Solves Φ(q, t) = 0 for q by Newton's method, starting from `q`.
 ///
 /// A step Δ that brings max |Φ_i| from r₀ down to r₁ ≤ tolerance ends the iteration only when
@@ -257,14 +270,15 @@ pub fn solve_with_chord<R: Real, M: Mechanism<N, R>, const N: usize>(
         mechanism.residual(q, t, phi);
         let before = max_abs(phi);
         if before <= options.tolerance {
-            for p in phi.iter_mut() {
-                *p = -*p;
-            }
+            // Φ_q⁻¹ Φ rather than Φ_q⁻¹ (−Φ): negation is exact and the solve's rounding
+            // symmetric, so subtracting it is the same step, bit for bit, for one pass less.
             factors.solve(mechanism, jac, phi);
-            if phi.iter().all(|d| d.is_finite()) {
-                chord = Some(Chord { start: *q, before, step: max_abs(phi) });
+            // max |Δ_k| is NaN or infinite exactly when some Δ_k is.
+            let step = max_abs(phi);
+            if step.is_finite() {
+                chord = Some(Chord { start: *q, before, step });
                 for (qi, d) in q.iter_mut().zip(phi.iter()) {
-                    *qi += *d;
+                    *qi -= *d;
                 }
             }
         }
@@ -349,10 +363,8 @@ fn iterate<R: Real, M: Mechanism<N, R>, const N: usize>(
         match verdict {
             Status::Converged => {
                 if !normalized {
-                    let before = *q;
-                    mechanism.normalize(q);
                     normalized = true;
-                    if !moved_by_round_off(&before, q) {
+                    if mechanism.normalize_moved(q) {
                         continue;
                     }
                 }
@@ -364,17 +376,17 @@ fn iterate<R: Real, M: Mechanism<N, R>, const N: usize>(
             Status::NonFinite => return Err(NewtonError::NonFinite { iteration: iterations }),
         }
         factor(mechanism, q, t, jac, factors, options, iterations)?;
-        for p in phi.iter_mut() {
-            *p = -*p;
-        }
+        // Δ = −Φ_q⁻¹ Φ, subtracted (see the chord step in `solve_with_chord`).
         factors.solve(mechanism, jac, phi);
-        if phi.iter().any(|d| !d.is_finite()) {
+        // max |Δ_k| is NaN or infinite exactly when some Δ_k is.
+        let size = max_abs(phi);
+        if !size.is_finite() {
             return Err(NewtonError::NonFinite { iteration: iterations });
         }
         for (qi, d) in q.iter_mut().zip(phi.iter()) {
-            *qi += *d;
+            *qi -= *d;
         }
-        last = Some(Step { before: residual, size: max_abs(phi) });
+        last = Some(Step { before: residual, size });
         iterations += 1;
         normalized = false;
     }
@@ -389,13 +401,22 @@ fn iterate<R: Real, M: Mechanism<N, R>, const N: usize>(
 /// evaluating them again would only repeat that rounding error.
 #[must_use]
 pub fn moved_by_round_off<R: Real, const N: usize>(before: &[R; N], after: &[R; N]) -> bool {
-    let bound = R::from_f64(ROUND_OFF_MOVE) * R::EPSILON;
+    let bound = round_off_move_bound::<R>();
     // Branch-free, so that the compiler vectorises it: it runs once per time step.
     let mut within = true;
     for (&b, &a) in before.iter().zip(after) {
         within &= (a - b).abs() <= bound * b.abs();
     }
     within
+}
+
+/// [`ROUND_OFF_MOVE`] ε in the type `R`: the largest move of a coordinate x, relative to |x|,
+/// that [`moved_by_round_off`] counts as round-off (generated `normalize_moved` functions use it
+/// too).
+#[inline]
+#[must_use]
+pub fn round_off_move_bound<R: Real>() -> R {
+    R::from_f64(ROUND_OFF_MOVE) * R::EPSILON
 }
 
 /// A projection that moves each coordinate by at most this many units of its own last place

@@ -35,6 +35,7 @@ use core::fmt;
 
 use crate::factors::{BlockCounts, FactorCounts, Factors};
 use crate::lu::{PivotInfo, Singular};
+use crate::mechanism::{MAX_TIME_TERMS, Timed};
 use crate::newton::{self, NewtonError, NewtonOptions, NewtonReport};
 use crate::rows::{self, Selection, Swapped};
 use crate::step::{self, Coordinates, Groups, Rejection, Sample, Stepper, Stop, Suspect, Trouble};
@@ -124,6 +125,13 @@ pub struct Solver<M, const N: usize, R = f64, J = [[R; N]; N]> {
     /// The largest pivot ratio of the rows in force since they were chosen (0 before a first
     /// position): a fall below [`rows::RESELECT_DROP`] of it chooses the rows again.
     baseline: R,
+    /// The mechanism's time terms ([`Mechanism::TIME_TERMS`]) at `terms_t`, computed once per
+    /// position for its evaluations at that time.
+    terms: [R; MAX_TIME_TERMS],
+    /// The time of `terms`.
+    terms_t: R,
+    /// `terms` holds the time terms at `terms_t` of the mechanism as it is.
+    terms_valid: bool,
 }
 
 /// A point accepted by the step control: everything [`Solver::position`] reads or changes.
@@ -255,6 +263,9 @@ impl<M, const N: usize, R: Real, J> Solver<M, N, R, J> {
             groups: Groups::Each,
             selection: Selection::KEPT,
             baseline: R::ZERO,
+            terms: [R::ZERO; MAX_TIME_TERMS],
+            terms_t: R::ZERO,
+            terms_valid: false,
         }
     }
 
@@ -360,6 +371,11 @@ macro_rules! in_force {
     ($s:expr, $m:ident => $body:expr) => {
         if M::LEFT_OUT > 0 && $s.selection.is_swapped() {
             let $m = &Swapped { mechanism: &$s.mechanism, selection: &$s.selection };
+            $body
+        } else if M::TIME_TERMS > 0 && M::TIME_TERMS <= MAX_TIME_TERMS {
+            // Evaluations at the time of the terms read them instead of computing them again.
+            let terms = $s.terms_valid.then(|| &$s.terms[..M::TIME_TERMS]);
+            let $m = &Timed { mechanism: &$s.mechanism, t: $s.terms_t, terms };
             $body
         } else {
             let $m = &$s.mechanism;
@@ -467,15 +483,12 @@ impl<M: Mechanism<N, R>, const N: usize, R: Real, J: BorrowMut<[[R; N]; N]>> Sol
     /// in force; the solver's state other than q and the factors is left to the caller.
     fn newton(&mut self, t: R) -> Result<NewtonReport<R>, NewtonError<R>> {
         if self.predictor && self.known >= Known::Velocity {
-            let h = t - self.t;
-            let half = R::from_f64(0.5);
-            let half_h2 = if self.known == Known::Acceleration { half * h * h } else { R::ZERO };
-            for ((q, &qd), &qdd) in self.q.iter_mut().zip(&self.qd).zip(&self.qdd) {
-                *q += h * qd + half_h2 * qdd;
-            }
-            if self.known == Known::Acceleration {
-                self.extrapolate_acceleration(h);
-            }
+            self.predict(t - self.t);
+        }
+        if M::TIME_TERMS > 0 && M::TIME_TERMS <= MAX_TIME_TERMS {
+            self.mechanism.time_terms(t, &mut self.terms[..M::TIME_TERMS]);
+            self.terms_t = t;
+            self.terms_valid = true;
         }
         // With the predictor, the factors of the last position correct the prediction first.
         let chord = self.predictor && self.factored;
@@ -509,35 +522,31 @@ impl<M: Mechanism<N, R>, const N: usize, R: Real, J: BorrowMut<[[R; N]; N]>> Sol
         }
     }
 
-    /// Adds to the predictor the terms h³/6 b + h⁴/12 c of q̈(t + τ) ≈ q̈ + b τ + c τ², the
-    /// polynomial through the accelerations solved at the current and the last two positions
-    /// (a line through two when only one is known), integrated twice over the step h.
-    ///
-    /// A history whose times coincide with the current one's is not used.
-    fn extrapolate_acceleration(&mut self, h: R) {
-        let Some((t1, a1)) = self.history.get(0) else { return };
-        let tau1 = t1 - self.t;
-        if tau1 == R::ZERO {
+    /// Moves q by the predictor over the step h (see the module docs): q + h q̇ alone when q̈
+    /// was not solved at the current position, else q + h q̇ + c₀ q̈ + c₁ q̈₁ + c₂ q̈₂ with the
+    /// weights of [`acceleration_weights`] for the history q̈₁, q̈₂ at hand, in one pass.
+    fn predict(&mut self, h: R) {
+        if self.known != Known::Acceleration {
+            for (q, &qd) in self.q.iter_mut().zip(&self.qd) {
+                *q += h * qd;
+            }
             return;
         }
-        let (h3, h4) = (h * h * h / R::from_f64(6.0), h * h * h * h / R::from_f64(12.0));
-        match self.history.get(1) {
-            Some((t2, a2)) if t2 != t1 && t2 != self.t => {
-                // Divided differences of q̈ at τ = 0, τ1, τ2 (times relative to the current one).
-                let tau2 = t2 - self.t;
-                let (r01, r12, r02) = (R::ONE / -tau1, R::ONE / (tau1 - tau2), R::ONE / -tau2);
-                for (((q, &a0), &a1), &a2) in self.q.iter_mut().zip(&self.qdd).zip(a1).zip(a2) {
-                    let f01 = (a0 - a1) * r01;
-                    let f012 = (f01 - (a1 - a2) * r12) * r02;
-                    *q += h3 * (f01 - f012 * tau1) + h4 * f012;
-                }
-            }
-            _ => {
-                let r01 = R::ONE / -tau1;
-                for ((q, &a0), &a1) in self.q.iter_mut().zip(&self.qdd).zip(a1) {
-                    *q += h3 * (a0 - a1) * r01;
-                }
-            }
+        // A history entry that is missing or unusable gets the weight 0; q̈ then stands in for
+        // it so that the pass stays the same (q̈ is finite: it was solved and checked).
+        let (tau1, a1) = match self.history.get(0) {
+            Some((t1, a1)) => (t1 - self.t, a1),
+            None => (R::ZERO, &self.qdd),
+        };
+        let (tau2, a2) = match self.history.get(1) {
+            Some((t2, a2)) => (t2 - self.t, a2),
+            None => (tau1, &self.qdd),
+        };
+        let [c0, c1, c2] = acceleration_weights(h, tau1, tau2);
+        for ((((q, &qd), &a0), &a1), &a2) in
+            self.q.iter_mut().zip(&self.qd).zip(&self.qdd).zip(a1).zip(a2)
+        {
+            *q += h * qd + c0 * a0 + c1 * a1 + c2 * a2;
         }
     }
 
@@ -596,7 +605,7 @@ impl<M: Mechanism<N, R>, const N: usize, R: Real, J: BorrowMut<[[R; N]; N]>> Sol
             m.velocity_rhs(&self.q, self.t, &mut self.qd);
             self.factors.solve(m, self.jac.borrow(), &mut self.qd);
         });
-        if self.qd.iter().any(|v| !v.is_finite()) {
+        if !newton::all_finite(&self.qd) {
             return Err(SolveError::NonFinite);
         }
         self.known = Known::Velocity;
@@ -604,7 +613,7 @@ impl<M: Mechanism<N, R>, const N: usize, R: Real, J: BorrowMut<[[R; N]; N]>> Sol
             m.acceleration_rhs(&self.q, &self.qd, self.t, &mut self.qdd);
             self.factors.solve(m, self.jac.borrow(), &mut self.qdd);
         });
-        if self.qdd.iter().any(|v| !v.is_finite()) {
+        if !newton::all_finite(&self.qdd) {
             return Err(SolveError::NonFinite);
         }
         self.known = Known::Acceleration;
@@ -617,11 +626,41 @@ impl<M: Mechanism<N, R>, const N: usize, R: Real, J: BorrowMut<[[R; N]; N]>> Sol
     /// it through the row that holds it), so checking the solution alone catches both.
     fn solve_scratch(&mut self) -> Result<(), SolveError> {
         in_force!(self, m => self.factors.solve(m, self.jac.borrow(), &mut self.scratch));
-        if self.scratch.iter().any(|v| !v.is_finite()) {
+        if !newton::all_finite(&self.scratch) {
             return Err(SolveError::NonFinite);
         }
         Ok(())
     }
+}
+
+/// The weights [c₀, c₁, c₂] of the accelerations q̈ at τ = 0 (the current position), τ₁ and
+/// τ₂ (the two before it, times relative to the current one) in the predictor's
+/// q(h) ≈ q + h q̇ + c₀ q̈ + c₁ q̈(τ₁) + c₂ q̈(τ₂).
+///
+/// With q̈(τ) ≈ q̈ + b τ + c τ², the parabola through the three accelerations, the predictor
+/// is q + h q̇ + h²/2 q̈ + h³/6 b + h⁴/12 c; b and c are linear in the three accelerations
+/// through the divided differences f₀₁ = (q̈ − q̈₁)/(0 − τ₁) and
+/// f₀₁₂ = (f₀₁ − (q̈₁ − q̈₂)/(τ₁ − τ₂))/(0 − τ₂) (b = f₀₁ − τ₁ f₀₁₂, c = f₀₁₂), so the whole
+/// predictor is one linear combination whose weights are computed once per step.
+/// With τ₂ equal to τ₁ or 0 (no usable second entry) the line through two accelerations is
+/// used (c = 0, c₂ = 0); with τ₁ = 0 (no usable history) q̈ alone (c₀ = h²/2, c₁ = c₂ = 0).
+fn acceleration_weights<R: Real>(h: R, tau1: R, tau2: R) -> [R; 3] {
+    let h2 = R::from_f64(0.5) * h * h;
+    if tau1 == R::ZERO {
+        return [h2, R::ZERO, R::ZERO];
+    }
+    let h3 = h * h * h / R::from_f64(6.0);
+    let r01 = R::ONE / -tau1;
+    if tau2 == tau1 || tau2 == R::ZERO {
+        // h³/6 f₀₁ with f₀₁ = r₀₁ (q̈ − q̈₁).
+        return [h2 + h3 * r01, -(h3 * r01), R::ZERO];
+    }
+    // h³/6 b + h⁴/12 c = h³/6 f₀₁ + (h⁴/12 − h³/6 τ₁) f₀₁₂, with
+    // f₀₁₂ = r₀₂ (r₀₁ q̈ − (r₀₁ + r₁₂) q̈₁ + r₁₂ q̈₂).
+    let h4 = h * h * h * h / R::from_f64(12.0);
+    let (r12, r02) = (R::ONE / (tau1 - tau2), R::ONE / -tau2);
+    let w = (h4 - h3 * tau1) * r02;
+    [h2 + (h3 + w) * r01, -(h3 * r01 + w * (r01 + r12)), w * r12]
 }
 
 /// What [`Solver::advance_to`] did to reach the requested time.

@@ -53,3 +53,5 @@ mod stewart;
 mod stewart_legs;
 #[cfg(test)]
 mod structured_lu;
+#[cfg(test)]
+mod time_terms;

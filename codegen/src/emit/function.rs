@@ -20,16 +20,22 @@ struct Body<'p> {
     pool: &'p ExprPool,
     /// Temporary name of each shared node, by node index.
     temp: std::collections::HashMap<usize, Ident>,
+    /// Nodes computed elsewhere and read as these expressions (the time terms, see
+    /// [`function_reading`]): leaves of this body.
+    given: &'p Given,
     stmts: Vec<syn::Stmt>,
     ops: usize,
 }
+
+/// Nodes a function reads instead of computing them, by node index (see [`function_reading`]).
+pub(super) type Given = std::collections::HashMap<usize, Expr>;
 
 impl<'p> Body<'p> {
     /// Plans the temporaries for `roots`: every operation node reachable more than once.
     ///
     /// Works on the reachable nodes alone (maps, not arrays over the arena), so that the many
     /// small functions of a large system each cost what they use.
-    fn new(pool: &'p ExprPool, roots: &[ExprId]) -> Self {
+    fn new(pool: &'p ExprPool, roots: &[ExprId], given: &'p Given) -> Self {
         use std::collections::{BTreeMap, HashMap};
         let mut uses: HashMap<usize, usize> = HashMap::new();
         let mut stack: Vec<ExprId> = roots.to_vec();
@@ -39,7 +45,7 @@ impl<'p> Body<'p> {
         let mut live: Vec<usize> = Vec::new();
         let mut seen = std::collections::HashSet::new();
         while let Some(x) = stack.pop() {
-            if !seen.insert(x.index()) {
+            if !seen.insert(x.index()) || given.contains_key(&x.index()) {
                 continue;
             }
             live.push(x.index());
@@ -66,7 +72,7 @@ impl<'p> Body<'p> {
                 pair.insert(c, (a, s, c));
             }
         }
-        let mut body = Self { pool, temp: HashMap::new(), stmts: Vec::new(), ops: 0 };
+        let mut body = Self { pool, temp: HashMap::new(), given, stmts: Vec::new(), ops: 0 };
         let mut count = 0;
         for &k in &live {
             let leaf = matches!(pool.nodes()[k], Node::Const(_) | Node::Var(_));
@@ -103,6 +109,9 @@ impl<'p> Body<'p> {
     fn render(&self, id: ExprId) -> (Expr, Prec) {
         if let Some(name) = self.temp.get(&id.index()) {
             return (path(name.clone()), Prec::Atom);
+        }
+        if let Some(e) = self.given.get(&id.index()) {
+            return (e.clone(), Prec::Atom);
         }
         let at_least = |e: (Expr, Prec), p: Prec| if e.1 >= p { e.0 } else { paren(e.0) };
         match self.pool[id] {
@@ -183,13 +192,18 @@ fn destructure_inputs(used: &InputUse) -> Vec<syn::Stmt> {
 }
 
 /// Which symbols the expressions reachable from `roots` use: (q, q̇, q̈, t, inputs).
-fn symbols(pool: &ExprPool, roots: &[ExprId], n: usize) -> ([Vec<bool>; 3], bool, InputUse) {
+fn symbols(
+    pool: &ExprPool,
+    roots: &[ExprId],
+    n: usize,
+    given: &Given,
+) -> ([Vec<bool>; 3], bool, InputUse) {
     let (mut q, mut qd, mut qdd, mut t) = (vec![false; n], vec![false; n], vec![false; n], false);
     let mut inputs = InputUse::new();
     let mut seen = std::collections::BTreeSet::new();
     let mut stack = roots.to_vec();
     while let Some(x) = stack.pop() {
-        if !seen.insert(x) {
+        if !seen.insert(x) || given.contains_key(&x.index()) {
             continue;
         }
         match pool[x] {
@@ -247,7 +261,7 @@ pub(super) fn function(pool: &ExprPool, n: usize, outputs: &Targets) -> Function
 /// `part`: a part of a split function uses few of them.
 pub(super) fn function_with(pool: &ExprPool, n: usize, outputs: &Targets, part: bool) -> Function {
     let reads = if part { Reads::OneByOne } else { Reads::Destructured };
-    function_reading(pool, n, outputs, &reads)
+    function_reading(pool, n, outputs, &reads, &Given::new())
 }
 
 /// How a function reads the entries of q, q̇ and q̈ it uses, the inputs and the parameters
@@ -262,16 +276,19 @@ pub(super) enum Reads<'a> {
     With(&'a dyn Fn(&str, usize) -> Expr),
 }
 
-/// [`function_with`], reading the symbols as `reads` says.
+/// [`function_with`], reading the symbols as `reads` says and the nodes of `given` as the
+/// expressions given for them (such as `terms[0]`) instead of computing them: what they alone
+/// need is neither computed nor read.
 pub(super) fn function_reading(
     pool: &ExprPool,
     n: usize,
     outputs: &Targets,
     reads: &Reads<'_>,
+    given: &Given,
 ) -> Function {
     let roots: Vec<ExprId> = outputs.iter().map(|(_, e, _)| *e).collect();
-    let ([q, qd, qdd], t, inputs) = symbols(pool, &roots, n);
-    let body = Body::new(pool, &roots);
+    let ([q, qd, qdd], t, inputs) = symbols(pool, &roots, n, given);
+    let body = Body::new(pool, &roots, given);
     let mut stmts = Vec::new();
     let any = |v: &[bool]| v.iter().any(|&u| u);
     let (uses_q, uses_qd, uses_qdd) = (any(&q), any(&qd), any(&qdd));
@@ -556,4 +573,58 @@ pub(super) fn emit_function(
     let main = sig.item(&name, &doc, &used, false);
     items.insert(0, item_fn(main, calls));
     items
+}
+
+/// Whether the expressions reachable from `roots` read a node of `given`.
+fn reads_given(pool: &ExprPool, roots: &[ExprId], given: &Given) -> bool {
+    let mut seen = std::collections::HashSet::new();
+    let mut stack = roots.to_vec();
+    while let Some(x) = stack.pop() {
+        if given.contains_key(&x.index()) {
+            return true;
+        }
+        if seen.insert(x.index()) {
+            stack.extend(pool[x].children());
+        }
+    }
+    false
+}
+
+/// The function `sig.name` writing `outputs` after `prefix` as [`emit_function`] does, reading
+/// the nodes of `given` from a parameter `terms: &[f64; TIME_TERMS]` after `t` (the time
+/// terms, see `emit::time`); `None` when it would be split into helpers, or for a module with
+/// inputs, which this does not cover.
+pub(super) fn emit_function_given(
+    pool: &ExprPool,
+    n: usize,
+    sig: &Signature<'_>,
+    doc: &dyn Fn(usize, usize) -> String,
+    prefix: Vec<syn::Stmt>,
+    outputs: &[Output],
+    given: &Given,
+) -> Option<syn::Item> {
+    if sig.inputs || chunks(pool, outputs).len() > 1 {
+        return None;
+    }
+    let out: Vec<(Expr, ExprId, Option<usize>)> =
+        outputs.iter().map(|o| (o.target.clone(), o.value, o.row)).collect();
+    let f = function_reading(pool, n, &out, &Reads::Destructured, given);
+    let mut written = vec![false; sig.targets.len()];
+    for o in outputs {
+        written[o.array] = true;
+    }
+    // The prefix (zeroing an array) writes every target it names; assume all.
+    if !prefix.is_empty() {
+        written.fill(true);
+    }
+    let mut item =
+        sig.item(&ident(sig.name), &doc(f.ops, f.shared), &Used::of(&f, &written), false);
+    let roots: Vec<ExprId> = outputs.iter().map(|o| o.value).collect();
+    let terms = param("terms", reads_given(pool, &roots, given));
+    // After q, q̇ and q̈ as the signature has them, and t.
+    let at = 2 + usize::from(sig.qd) + usize::from(sig.qdd);
+    item.sig.inputs.insert(at, parse_quote!(#terms: &[f64; TIME_TERMS]));
+    let mut stmts = prefix;
+    stmts.extend(f.stmts);
+    Some(item_fn(item, stmts))
 }

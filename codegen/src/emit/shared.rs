@@ -632,6 +632,7 @@ impl Group {
             self.instances[0].q.len(),
             &values,
             &Reads::With(&read),
+            &super::function::Given::new(),
         );
         let zeros = self.outputs.iter().zip(&targets).filter(|((_, v), _)| v.is_none()).map(
             |(_, target)| -> syn::Stmt {

@@ -46,6 +46,9 @@ where
     /// drivers, see [`Driven`]). The solver's state stays as it is: call
     /// [`Solver::advance_with`] or [`Solver::position`] next.
     pub const fn mechanism_mut(&mut self) -> &mut M {
+        // The time terms may depend on the mechanism's state: computed again at the next
+        // position.
+        self.terms_valid = false;
         &mut self.mechanism
     }
 
@@ -80,11 +83,13 @@ where
             return Err(InputsError::NonFinite { input: K, derivative: 0 });
         }
         self.mechanism.segment_mut().aim(t, *inputs);
+        self.terms_valid = false;
         let result = self.advance_to(t);
         // The segment now starts where the solver stands: at `t` after a success, at the last
         // accepted sub-step (with the inputs it was solved for) after a stop.
         let reached = self.t;
         self.mechanism.segment_mut().settle(reached);
+        self.terms_valid = false;
         result.map_err(InputsError::Stop)
     }
 }

@@ -441,3 +441,178 @@ fn the_condition_estimate_does_not_depend_on_units() {
     let report = solver.advance_to(0.0).unwrap();
     assert_eq!(report.condition, 2.0);
 }
+
+/// q(t) = 1 + 2t − 3t² + 5t³ − 7t⁴ and its derivatives: a quartic, which the predictor with
+/// the parabola through three accelerations reproduces exactly (its q̈ is a parabola).
+fn quartic(t: f64) -> [f64; 3] {
+    let q = 1.0 + t * (2.0 + t * (-3.0 + t * (5.0 - 7.0 * t)));
+    let qd = 2.0 + t * (-6.0 + t * (15.0 - 28.0 * t));
+    let qdd = -6.0 + t * (30.0 - 84.0 * t);
+    [q, qd, qdd]
+}
+
+#[test]
+fn acceleration_weights_reproduce_polynomial_motion() {
+    // Uneven times: the current one at 0.3, the two before at 0.27 and 0.22, a step of 0.04.
+    let (t0, t1, t2, h) = (0.3, 0.27, 0.22, 0.04);
+    let [q, qd, a0] = quartic(t0);
+    let (a1, a2) = (quartic(t1)[2], quartic(t2)[2]);
+    let [c0, c1, c2] = acceleration_weights(h, t1 - t0, t2 - t0);
+    let predicted = q + h * qd + c0 * a0 + c1 * a1 + c2 * a2;
+    // Exact in exact arithmetic; the terms are of order 1, so a few ulps of 1 remain.
+    assert_relative_eq!(predicted, quartic(t0 + h)[0], max_relative = 1e-14);
+
+    // The line through two accelerations is exact for a cubic, q̈ alone for a parabola.
+    let cubic = |t: f64| [t * t * t - t, 3.0 * t * t - 1.0, 6.0 * t];
+    let [c0, c1, c2] = acceleration_weights(h, t1 - t0, t1 - t0);
+    assert_eq!(c2, 0.0);
+    let [q, qd, a0] = cubic(t0);
+    let predicted = q + h * qd + c0 * a0 + c1 * cubic(t1)[2];
+    // As above: terms of order 1, round-off of a few ulps.
+    assert_relative_eq!(predicted, cubic(t0 + h)[0], max_relative = 1e-14);
+    assert_eq!(acceleration_weights(h, 0.0, 0.0), [0.5 * h * h, 0.0, 0.0]);
+    // A second entry at the current time is unusable: the line through two again.
+    assert_eq!(acceleration_weights(h, t1 - t0, 0.0), acceleration_weights(h, t1 - t0, t1 - t0));
+}
+
+/// Φ(q, t) = q − p(t) with p the quartic above: the solver must follow p exactly.
+struct Quartic;
+
+impl Mechanism<1> for Quartic {
+    fn residual(&self, q: &[f64; 1], t: f64, phi: &mut [f64; 1]) {
+        phi[0] = q[0] - quartic(t)[0];
+    }
+    fn jacobian(&self, _q: &[f64; 1], _t: f64, jac: &mut [[f64; 1]; 1]) {
+        jac[0][0] = 1.0;
+    }
+    fn velocity_rhs(&self, _q: &[f64; 1], t: f64, nu: &mut [f64; 1]) {
+        nu[0] = quartic(t)[1];
+    }
+    fn acceleration_rhs(&self, _q: &[f64; 1], _qd: &[f64; 1], t: f64, gamma: &mut [f64; 1]) {
+        gamma[0] = quartic(t)[2];
+    }
+}
+
+#[test]
+fn predictor_lands_on_a_quartic_motion_without_newton() {
+    // Newton allowed no step (no chord step either): a position succeeds only where the
+    // prediction alone meets the tolerance. From the fourth time on, the parabola through three
+    // accelerations makes the prediction exact up to round-off, on steps of uneven size.
+    let mut solver = Solver::new(Quartic, [quartic(0.1)[0]]);
+    solver.set_predictor(true);
+    solver.set_options(NewtonOptions { tolerance: 1e-13, ..NewtonOptions::DEFAULT });
+    let mut t = 0.1;
+    for k in 0..12 {
+        if k == 3 {
+            // Three accelerations are known from here on (those at the last three times).
+            solver.set_options(NewtonOptions { max_iterations: 0, ..*solver.options() });
+        }
+        let report = solver.position(t).unwrap();
+        if k >= 3 {
+            assert_eq!(report.iterations, 0);
+        }
+        solver.velocity().unwrap();
+        solver.acceleration().unwrap();
+        // Values of order 1: 1e-13 is a few hundred ulps, far below the O(h⁵) ≈ 1e-7 of a
+        // truncated predictor, so only an exact one meets it.
+        assert_relative_eq!(solver.q()[0], quartic(t)[0], max_relative = 1e-13);
+        t += if k % 2 == 0 { 0.03 } else { 0.05 };
+    }
+}
+
+/// x = sin t (Φ = x − sin t) with the time terms [sin t, cos t], counting how often the terms
+/// are computed and how often a plain evaluation computes them again.
+#[derive(Default)]
+struct TimedSlider {
+    terms_computed: core::cell::Cell<u32>,
+    plain: core::cell::Cell<u32>,
+}
+
+impl TimedSlider {
+    fn count(&self, counter: &core::cell::Cell<u32>) {
+        counter.set(counter.get() + 1);
+    }
+}
+
+impl Mechanism<1> for TimedSlider {
+    const TIME_TERMS: usize = 2;
+    // One static order, so that the solvers evaluate Φ and Φ_q by
+    // `residual_jacobian_structural`, as generated modules with time terms do.
+    const PIVOT_ORDERS: usize = 1;
+    fn factor_structured(&self, order: usize, jac: &mut [[f64; 1]; 1]) -> Option<PivotInfo> {
+        let pivot = jac[0][0].abs();
+        (order == 0).then_some(PivotInfo { smallest: pivot, largest: pivot })
+    }
+    fn solve_structured(&self, _order: usize, lu: &[[f64; 1]; 1], b: &mut [f64; 1]) {
+        b[0] /= lu[0][0];
+    }
+    fn time_terms(&self, t: f64, terms: &mut [f64]) {
+        self.count(&self.terms_computed);
+        terms[..2].copy_from_slice(&[t.sin(), t.cos()]);
+    }
+    fn residual(&self, q: &[f64; 1], t: f64, phi: &mut [f64; 1]) {
+        self.count(&self.plain);
+        phi[0] = q[0] - t.sin();
+    }
+    fn residual_at(&self, q: &[f64; 1], _t: f64, terms: &[f64], phi: &mut [f64; 1]) {
+        phi[0] = q[0] - terms[0];
+    }
+    fn jacobian(&self, _q: &[f64; 1], _t: f64, jac: &mut [[f64; 1]; 1]) {
+        jac[0][0] = 1.0;
+    }
+    fn residual_jacobian_structural_at(
+        &self,
+        q: &[f64; 1],
+        t: f64,
+        terms: &[f64],
+        phi: &mut [f64; 1],
+        jac: &mut [[f64; 1]; 1],
+    ) {
+        self.residual_at(q, t, terms, phi);
+        self.jacobian(q, t, jac);
+    }
+    fn velocity_rhs(&self, _q: &[f64; 1], t: f64, nu: &mut [f64; 1]) {
+        self.count(&self.plain);
+        nu[0] = t.cos();
+    }
+    fn velocity_rhs_at(&self, _q: &[f64; 1], _t: f64, terms: &[f64], nu: &mut [f64; 1]) {
+        nu[0] = terms[1];
+    }
+    fn acceleration_rhs(&self, _q: &[f64; 1], _qd: &[f64; 1], t: f64, gamma: &mut [f64; 1]) {
+        self.count(&self.plain);
+        gamma[0] = -t.sin();
+    }
+    fn acceleration_rhs_at(
+        &self,
+        _q: &[f64; 1],
+        _qd: &[f64; 1],
+        _t: f64,
+        terms: &[f64],
+        gamma: &mut [f64; 1],
+    ) {
+        gamma[0] = -terms[0];
+    }
+}
+
+#[test]
+fn time_terms_are_computed_once_per_position_and_read_by_every_evaluation_at_its_time() {
+    let mut solver = Solver::new(TimedSlider::default(), [0.0]);
+    solver.set_predictor(true);
+    for k in 0..=20 {
+        let t = 0.05 * f64::from(k);
+        solver.position(t).unwrap();
+        solver.velocity().unwrap();
+        solver.acceleration().unwrap();
+        // Φ is linear in x: Newton (or the chord step) lands within round-off of sin t.
+        assert_relative_eq!(solver.q()[0], t.sin(), epsilon = 1e-15);
+        assert_relative_eq!(solver.qd()[0], t.cos(), epsilon = 1e-15);
+        assert_relative_eq!(solver.qdd()[0], -t.sin(), epsilon = 1e-15);
+        assert_eq!(solver.mechanism().terms_computed.get(), k + 1);
+    }
+    assert_eq!(solver.mechanism().plain.get(), 0);
+    // After the mechanism may have changed, the terms are not trusted until the next position.
+    let _ = solver.mechanism_mut();
+    solver.velocity().unwrap();
+    assert_eq!(solver.mechanism().plain.get(), 1);
+    assert_relative_eq!(solver.qd()[0], 1.0f64.cos(), epsilon = 1e-15);
+}

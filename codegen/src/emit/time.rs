@@ -1,0 +1,185 @@
+//! The time terms of a module: the sines and cosines of functions of t alone (a driver law's
+//! angle) that Φ, Φ_q, ν and γ read, computed once per time by `time_terms` and read by the
+//! `_at` variants of `residual`, `residual_jacobian_structural`, `velocity_rhs` and
+//! `acceleration_rhs` (`runtime::Mechanism::TIME_TERMS`), which a solver calls at the time of
+//! the terms instead of the plain functions, each of which computes them again.
+//!
+//! The terms are the very nodes the plain functions would compute, so the variants give the
+//! same values bit for bit. Emitted for modules with static pivot orders and without inputs
+//! (whose terms would depend on the inputs as well), when no function would be split into
+//! helpers ([`super::CHUNK_OPS`]) and there are at most `runtime::MAX_TIME_TERMS` terms.
+
+use std::collections::BTreeSet;
+
+use syn::parse_quote;
+
+use super::Rows;
+use super::function::{Given, Output, Signature, emit_function_given, function};
+use super::syntax::{element, index, item_fn, param};
+use crate::expr::{ExprId, ExprPool, Node, Var};
+
+/// The most time terms a module gets: `runtime::MAX_TIME_TERMS`.
+const MAX_TERMS: usize = 16;
+
+/// Whether `id` depends on nothing but t and constants (memoised in `memo` by node index).
+fn time_only(
+    pool: &ExprPool,
+    id: ExprId,
+    memo: &mut std::collections::HashMap<usize, bool>,
+) -> bool {
+    if let Some(&known) = memo.get(&id.index()) {
+        return known;
+    }
+    let only = match pool[id] {
+        Node::Const(_) | Node::Var(Var::T) => true,
+        Node::Var(_) => false,
+        node => node.children().into_iter().all(|c| time_only(pool, c, memo)),
+    };
+    memo.insert(id.index(), only);
+    only
+}
+
+/// The sines and cosines of functions of t alone reachable from `roots`, in arena order.
+fn terms(pool: &ExprPool, roots: &[ExprId]) -> Vec<ExprId> {
+    let mut memo = std::collections::HashMap::new();
+    let mut found = BTreeSet::new();
+    let mut seen = std::collections::HashSet::new();
+    let mut stack = roots.to_vec();
+    while let Some(x) = stack.pop() {
+        if !seen.insert(x.index()) {
+            continue;
+        }
+        match pool[x] {
+            Node::Sin(a) | Node::Cos(a) if time_only(pool, a, &mut memo) => {
+                found.insert(x);
+            }
+            node => stack.extend(node.children()),
+        }
+    }
+    found.into_iter().collect()
+}
+
+/// The module's time-term items (`TIME_TERMS`, `time_terms` and the four `_at` functions) and
+/// the `runtime::Mechanism` impl items that call them, or `None` when the module has no time
+/// terms or is not covered (see the module docs).
+pub(super) fn items(rows: &Rows<'_>) -> Option<(Vec<syn::Item>, Vec<syn::ImplItem>)> {
+    let sys = rows.sys;
+    if rows.inputs() {
+        return None;
+    }
+    let pool = &sys.pool;
+    let n = sys.unknowns.len();
+    let vec_ty = quote::quote!(&mut [f64; N]);
+    let mat_ty = quote::quote!(&mut [[f64; N]; N]);
+    let mut structural = rows.vector(0, "phi", &sys.phi);
+    structural.extend(rows.jacobian(1, true));
+    let phi_targets = [("phi", vec_ty.clone())];
+    let both_targets = [("phi", vec_ty.clone()), ("jac", mat_ty)];
+    let nu_targets = [("nu", vec_ty.clone())];
+    let gamma_targets = [("gamma", vec_ty)];
+    // `residual_jacobian_structural` is not public: only the impl calls it, and its variant.
+    let sig = |name, qd, targets| Signature {
+        name,
+        qd,
+        qdd: false,
+        public: name != "residual_jacobian_structural_at",
+        targets,
+        inputs: false,
+    };
+    let functions: [(Signature<'_>, &str, Vec<Output>); 4] = [
+        (sig("residual_at", false, &phi_targets), "residual", rows.vector(0, "phi", &sys.phi)),
+        (
+            sig("residual_jacobian_structural_at", false, &both_targets),
+            "residual_jacobian_structural",
+            structural,
+        ),
+        (sig("velocity_rhs_at", false, &nu_targets), "velocity_rhs", rows.vector(0, "nu", &sys.nu)),
+        (
+            sig("acceleration_rhs_at", true, &gamma_targets),
+            "acceleration_rhs",
+            rows.vector(0, "gamma", &sys.gamma),
+        ),
+    ];
+    let roots: Vec<ExprId> =
+        functions.iter().flat_map(|(_, _, outputs)| outputs.iter().map(|o| o.value)).collect();
+    let found = terms(pool, &roots);
+    if found.is_empty() || found.len() > MAX_TERMS {
+        return None;
+    }
+    let given: Given =
+        found.iter().enumerate().map(|(k, id)| (id.index(), element("terms", &[k]))).collect();
+
+    let count = index(found.len());
+    let const_doc = " The number of time terms: the sines and cosines of functions of t alone that Φ, Φ_q, ν and γ read, computed by [`time_terms`].";
+    let mut items: Vec<syn::Item> = vec![parse_quote! {
+        #[doc = #const_doc]
+        pub const TIME_TERMS: usize = #count;
+    }];
+    let outputs: Vec<_> =
+        found.iter().enumerate().map(|(k, &id)| (element("terms", &[k]), id, None)).collect();
+    let f = function(pool, n, &outputs);
+    let t = param("t", f.uses_t);
+    let doc = format!(
+        " The time terms at t, computed once per time for the `_at` functions, which read them instead of computing them again.\n\n {} operations.",
+        f.ops
+    );
+    let item: syn::ItemFn = parse_quote! {
+        #[doc = #doc]
+        pub fn time_terms(#t: f64, terms: &mut [f64; TIME_TERMS]) {}
+    };
+    items.push(item_fn(item, f.stmts));
+    for (sig, plain, outputs) in &functions {
+        let what = format!(
+            " [`{plain}`] reading the time terms at t from `terms` ([`time_terms`]): the same values, bit for bit."
+        );
+        let doc =
+            |ops, shared| format!("{what}\n\n {ops} operations, {shared} shared subexpressions.");
+        items.push(emit_function_given(pool, n, sig, &doc, Vec::new(), outputs, &given)?);
+    }
+
+    let impls: Vec<syn::ImplItem> = vec![
+        parse_quote!(
+            const TIME_TERMS: usize = TIME_TERMS;
+        ),
+        parse_quote! {
+            fn time_terms(&self, t: f64, terms: &mut [f64]) {
+                if let Some(terms) = terms.first_chunk_mut() {
+                    time_terms(t, terms);
+                }
+            }
+        },
+        parse_quote! {
+            fn residual_at(&self, q: &[f64; N], t: f64, terms: &[f64], phi: &mut [f64; N]) {
+                match terms.first_chunk() {
+                    Some(terms) => residual_at(q, t, terms, phi),
+                    None => residual(q, t, phi),
+                }
+            }
+        },
+        parse_quote! {
+            fn residual_jacobian_structural_at(&self, q: &[f64; N], t: f64, terms: &[f64], phi: &mut [f64; N], jac: &mut [[f64; N]; N]) {
+                match terms.first_chunk() {
+                    Some(terms) => residual_jacobian_structural_at(q, t, terms, phi, jac),
+                    None => residual_jacobian_structural(q, t, phi, jac),
+                }
+            }
+        },
+        parse_quote! {
+            fn velocity_rhs_at(&self, q: &[f64; N], t: f64, terms: &[f64], nu: &mut [f64; N]) {
+                match terms.first_chunk() {
+                    Some(terms) => velocity_rhs_at(q, t, terms, nu),
+                    None => velocity_rhs(q, t, nu),
+                }
+            }
+        },
+        parse_quote! {
+            fn acceleration_rhs_at(&self, q: &[f64; N], qd: &[f64; N], t: f64, terms: &[f64], gamma: &mut [f64; N]) {
+                match terms.first_chunk() {
+                    Some(terms) => acceleration_rhs_at(q, qd, t, terms, gamma),
+                    None => acceleration_rhs(q, qd, t, gamma),
+                }
+            }
+        },
+    ];
+    Some((items, impls))
+}
