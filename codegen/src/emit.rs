@@ -162,6 +162,7 @@ fn assemble(
     // The time terms, for static orders over the whole system (`time`).
     let timed = if orders.is_empty() { None } else { time::items(&rows) };
     if let Some((functions, _)) = &timed {
+        time::delegate(&mut items, functions);
         items.extend(functions.iter().cloned());
     }
     items.push(normalize(sys));

@@ -219,31 +219,11 @@ pub mod unknown {
 
 /// Constraint residuals Φ(q, t), 7 rows.
 ///
-/// 43 operations, 9 shared subexpressions.
+/// Computes the time terms at t ([`time_terms`]) and calls [`residual_at`].
 pub fn residual(q: &[f64; N], t: f64, phi: &mut [f64; N]) {
-    let [q0, q1, q2, q3, q4, q5, q6] = *q;
-    let t0 = q3 * q3;
-    let t1 = q4 * q4;
-    let t2 = q5 * q5;
-    let t3 = q6 * q6;
-    let t4 = q4 * q5;
-    let t5 = q3 * q6;
-    let t6 = f64::from_bits(4602890488355133325) * t;
-    let (t7, t8) = runtime::math::sin_cos(t6);
-    // joint hinge row 1: (P_j − P_i)_x = 0
-    phi[0] = q0 - 2.0 * (t4 - t5);
-    // joint hinge row 2: (P_j − P_i)_y = 0
-    phi[1] = q1 - (t0 + t2 - (t1 + t3));
-    // joint hinge row 3: (P_j − P_i)_z = 0
-    phi[2] = q2 - 2.0 * (q5 * q6 + q3 * q4);
-    // joint hinge row 4: b_i · a_j = 0
-    phi[3] = -(2.0 * (t4 + t5));
-    // joint hinge row 5: c_i · a_j = 0
-    phi[4] = -(2.0 * (q4 * q6 - q3 * q5));
-    // driver drive_rx: e1 cos(s/2) − e0 sin(s/2) = 0, s = 1.047 t
-    phi[5] = q4 * t8 - q3 * t7;
-    // body bar normalisation: e0² + e1² + e2² + e3² − 1 = 0
-    phi[6] = t3 + (t2 + (t0 + t1)) - 1.0;
+    let mut terms = [0.0; TIME_TERMS];
+    time_terms(t, &mut terms);
+    residual_at(q, t, &terms, phi)
 }
 
 /// Jacobian Φ_q, row-major: `jac[i][j] = ∂Φ_i/∂q_j`; the 29 structurally non-zero entries are written, the others set to 0.
@@ -387,80 +367,16 @@ pub fn residual_jacobian(
 
 /// Φ and the 26 entries of Φ_q that depend on q or t, the others of `jac` left as they were: what the `factor_k` functions read (3 of the 29 structurally non-zero entries are constants, which they know).
 ///
-/// 58 operations, 20 shared subexpressions.
+/// Computes the time terms at t ([`time_terms`]) and calls [`residual_jacobian_structural_at`].
 fn residual_jacobian_structural(
     q: &[f64; N],
     t: f64,
     phi: &mut [f64; N],
     jac: &mut [[f64; N]; N],
 ) {
-    let [q0, q1, q2, q3, q4, q5, q6] = *q;
-    let t0 = q3 * q3;
-    let t1 = q4 * q4;
-    let t2 = q5 * q5;
-    let t3 = q6 * q6;
-    let t4 = q4 * q5;
-    let t5 = q3 * q6;
-    let t6 = f64::from_bits(4602890488355133325) * t;
-    let (t7, t8) = runtime::math::sin_cos(t6);
-    let t9 = 2.0 * q6;
-    let t10 = -t9;
-    let t11 = 2.0 * q5;
-    let t12 = -t11;
-    let t13 = -(2.0 * q4);
-    let t14 = 2.0 * q3;
-    let t15 = -t14;
-    let t16 = q3 + q3;
-    let t17 = q4 + q4;
-    let t18 = q5 + q5;
-    let t19 = q6 + q6;
-    // joint hinge row 1: (P_j − P_i)_x = 0
-    phi[0] = q0 - 2.0 * (t4 - t5);
-    // joint hinge row 2: (P_j − P_i)_y = 0
-    phi[1] = q1 - (t0 + t2 - (t1 + t3));
-    // joint hinge row 3: (P_j − P_i)_z = 0
-    phi[2] = q2 - 2.0 * (q5 * q6 + q3 * q4);
-    // joint hinge row 4: b_i · a_j = 0
-    phi[3] = -(2.0 * (t4 + t5));
-    // joint hinge row 5: c_i · a_j = 0
-    phi[4] = -(2.0 * (q4 * q6 - q3 * q5));
-    // driver drive_rx: e1 cos(s/2) − e0 sin(s/2) = 0, s = 1.047 t
-    phi[5] = q4 * t8 - q3 * t7;
-    // body bar normalisation: e0² + e1² + e2² + e3² − 1 = 0
-    phi[6] = t3 + (t2 + (t0 + t1)) - 1.0;
-    // joint hinge row 1: (P_j − P_i)_x = 0
-    jac[0][3] = t9;
-    jac[0][4] = t12;
-    jac[0][5] = t13;
-    jac[0][6] = t14;
-    // joint hinge row 2: (P_j − P_i)_y = 0
-    jac[1][3] = -t16;
-    jac[1][4] = t17;
-    jac[1][5] = -t18;
-    jac[1][6] = t19;
-    // joint hinge row 3: (P_j − P_i)_z = 0
-    jac[2][3] = t13;
-    jac[2][4] = t15;
-    jac[2][5] = t10;
-    jac[2][6] = t12;
-    // joint hinge row 4: b_i · a_j = 0
-    jac[3][3] = t10;
-    jac[3][4] = t12;
-    jac[3][5] = t13;
-    jac[3][6] = t15;
-    // joint hinge row 5: c_i · a_j = 0
-    jac[4][3] = t11;
-    jac[4][4] = t10;
-    jac[4][5] = t14;
-    jac[4][6] = t13;
-    // driver drive_rx: e1 cos(s/2) − e0 sin(s/2) = 0, s = 1.047 t
-    jac[5][3] = -t7;
-    jac[5][4] = t8;
-    // body bar normalisation: e0² + e1² + e2² + e3² − 1 = 0
-    jac[6][3] = t16;
-    jac[6][4] = t17;
-    jac[6][5] = t18;
-    jac[6][6] = t19;
+    let mut terms = [0.0; TIME_TERMS];
+    time_terms(t, &mut terms);
+    residual_jacobian_structural_at(q, t, &terms, phi, jac)
 }
 
 /// Factors Φ_q in place with static pivot order 0: step k pivots on row `[0, 1, 2, 5, 6, 4, 3][k]` and column `[0, 1, 2, 4, 3, 5, 6][k]`.
@@ -647,69 +563,20 @@ fn solve_1(lu: &[[f64; N]; N], b: &mut [f64; N]) {
 
 /// Velocity right-hand side ν = −Φ_t.
 ///
-/// 11 operations, 3 shared subexpressions.
+/// Computes the time terms at t ([`time_terms`]) and calls [`velocity_rhs_at`].
 pub fn velocity_rhs(q: &[f64; N], t: f64, nu: &mut [f64; N]) {
-    let [_q0, _q1, _q2, q3, q4, _q5, _q6] = *q;
-    let t0 = f64::from_bits(4602890488355133325) * t;
-    let (t1, t2) = runtime::math::sin_cos(t0);
-    // joint hinge row 1: (P_j − P_i)_x = 0
-    nu[0] = 0.0;
-    // joint hinge row 2: (P_j − P_i)_y = 0
-    nu[1] = 0.0;
-    // joint hinge row 3: (P_j − P_i)_z = 0
-    nu[2] = 0.0;
-    // joint hinge row 4: b_i · a_j = 0
-    nu[3] = 0.0;
-    // joint hinge row 5: c_i · a_j = 0
-    nu[4] = 0.0;
-    // driver drive_rx: e1 cos(s/2) − e0 sin(s/2) = 0, s = 1.047 t
-    nu[5] = -(-(q4 * (f64::from_bits(4602890488355133325) * t1))
-        - q3 * (f64::from_bits(4602890488355133325) * t2));
-    // body bar normalisation: e0² + e1² + e2² + e3² − 1 = 0
-    nu[6] = 0.0;
+    let mut terms = [0.0; TIME_TERMS];
+    time_terms(t, &mut terms);
+    velocity_rhs_at(q, t, &terms, nu)
 }
 
 /// Acceleration right-hand side γ = −(Φ_q q̇)_q q̇ − 2Φ_qt q̇ − Φ_tt.
 ///
-/// 59 operations, 21 shared subexpressions.
+/// Computes the time terms at t ([`time_terms`]) and calls [`acceleration_rhs_at`].
 pub fn acceleration_rhs(q: &[f64; N], qd: &[f64; N], t: f64, gamma: &mut [f64; N]) {
-    let [_q0, _q1, _q2, q3, q4, _q5, _q6] = *q;
-    let [_qd0, _qd1, _qd2, qd3, qd4, qd5, qd6] = *qd;
-    let t0 = f64::from_bits(4602890488355133325) * t;
-    let (t1, t2) = runtime::math::sin_cos(t0);
-    let t3 = qd4 * qd5;
-    let t4 = t3 + t3;
-    let t5 = qd3 * qd6;
-    let t6 = t5 + t5;
-    let t7 = qd3 * qd3;
-    let t8 = t7 + t7;
-    let t9 = qd5 * qd5;
-    let t10 = t9 + t9;
-    let t11 = qd4 * qd4;
-    let t12 = t11 + t11;
-    let t13 = qd6 * qd6;
-    let t14 = t13 + t13;
-    let t15 = qd5 * qd6;
-    let t16 = qd4 * qd3;
-    let t17 = qd4 * qd6;
-    let t18 = qd5 * qd3;
-    let t19 = qd4 * (f64::from_bits(4602890488355133325) * t1);
-    let t20 = qd3 * (f64::from_bits(4602890488355133325) * t2);
-    // joint hinge row 1: (P_j − P_i)_x = 0
-    gamma[0] = 2.0 * (t4 - t6);
-    // joint hinge row 2: (P_j − P_i)_y = 0
-    gamma[1] = t8 + t10 - (t12 + t14);
-    // joint hinge row 3: (P_j − P_i)_z = 0
-    gamma[2] = 2.0 * (t15 + t15 + (t16 + t16));
-    // joint hinge row 4: b_i · a_j = 0
-    gamma[3] = 2.0 * (t4 + t6);
-    // joint hinge row 5: c_i · a_j = 0
-    gamma[4] = 2.0 * (t17 + t17 - (t18 + t18));
-    // driver drive_rx: e1 cos(s/2) − e0 sin(s/2) = 0, s = 1.047 t
-    gamma[5] = -(-(t19 + q4 * (0.27405224999999994 * t2)) - t19
-        - (t20 + (t20 - q3 * (0.27405224999999994 * t1))));
-    // body bar normalisation: e0² + e1² + e2² + e3² − 1 = 0
-    gamma[6] = -(t14 + (t10 + (t8 + t12)));
+    let mut terms = [0.0; TIME_TERMS];
+    time_terms(t, &mut terms);
+    acceleration_rhs_at(q, qd, t, &terms, gamma)
 }
 
 /// The number of time terms: the sines and cosines of functions of t alone that Φ, Φ_q, ν and γ read, computed by [`time_terms`].

@@ -193,15 +193,11 @@ pub mod unknown {
 
 /// Constraint residuals Φ(q, t), 2 rows.
 ///
-/// 11 operations, 3 shared subexpressions.
+/// Computes the time terms at t ([`time_terms`]) and calls [`residual_at`].
 pub fn residual(q: &[f64; N], t: f64, phi: &mut [f64; N]) {
-    let [q0, q1] = *q;
-    let t0 = f64::from_bits(4602890488355133325) * t;
-    let (t1, t2) = runtime::math::sin_cos(t0);
-    // driver drive_ry: e2 cos(s/2) − e0 sin(s/2) = 0, s = 1.047 t
-    phi[0] = q1 * t2 - t1 * q0;
-    // body block normalisation: e0² + e1² + e2² + e3² − 1 = 0
-    phi[1] = q0 * q0 + q1 * q1 - 1.0;
+    let mut terms = [0.0; TIME_TERMS];
+    time_terms(t, &mut terms);
+    residual_at(q, t, &terms, phi)
 }
 
 /// Jacobian Φ_q, row-major: `jac[i][j] = ∂Φ_i/∂q_j`; the 4 structurally non-zero entries are written, the others set to 0.
@@ -247,26 +243,16 @@ pub fn residual_jacobian(
 
 /// Φ and the 4 entries of Φ_q that depend on q or t, the others of `jac` left as they were: what the `factor_k` functions read (0 of the 4 structurally non-zero entries are constants, which they know).
 ///
-/// 14 operations, 3 shared subexpressions.
+/// Computes the time terms at t ([`time_terms`]) and calls [`residual_jacobian_structural_at`].
 fn residual_jacobian_structural(
     q: &[f64; N],
     t: f64,
     phi: &mut [f64; N],
     jac: &mut [[f64; N]; N],
 ) {
-    let [q0, q1] = *q;
-    let t0 = f64::from_bits(4602890488355133325) * t;
-    let (t1, t2) = runtime::math::sin_cos(t0);
-    // driver drive_ry: e2 cos(s/2) − e0 sin(s/2) = 0, s = 1.047 t
-    phi[0] = q1 * t2 - t1 * q0;
-    // body block normalisation: e0² + e1² + e2² + e3² − 1 = 0
-    phi[1] = q0 * q0 + q1 * q1 - 1.0;
-    // driver drive_ry: e2 cos(s/2) − e0 sin(s/2) = 0, s = 1.047 t
-    jac[0][0] = -t1;
-    jac[0][1] = t2;
-    // body block normalisation: e0² + e1² + e2² + e3² − 1 = 0
-    jac[1][0] = q0 + q0;
-    jac[1][1] = q1 + q1;
+    let mut terms = [0.0; TIME_TERMS];
+    time_terms(t, &mut terms);
+    residual_jacobian_structural_at(q, t, &terms, phi, jac)
 }
 
 /// Factors Φ_q in place with static pivot order 0: step k pivots on row `[1, 0][k]` and column `[0, 1][k]`.
@@ -357,35 +343,20 @@ fn solve_1(lu: &[[f64; N]; N], b: &mut [f64; N]) {
 
 /// Velocity right-hand side ν = −Φ_t.
 ///
-/// 11 operations, 3 shared subexpressions.
+/// Computes the time terms at t ([`time_terms`]) and calls [`velocity_rhs_at`].
 pub fn velocity_rhs(q: &[f64; N], t: f64, nu: &mut [f64; N]) {
-    let [q0, q1] = *q;
-    let t0 = f64::from_bits(4602890488355133325) * t;
-    let (t1, t2) = runtime::math::sin_cos(t0);
-    // driver drive_ry: e2 cos(s/2) − e0 sin(s/2) = 0, s = 1.047 t
-    nu[0] = -(-(q1 * (f64::from_bits(4602890488355133325) * t1))
-        - q0 * (f64::from_bits(4602890488355133325) * t2));
-    // body block normalisation: e0² + e1² + e2² + e3² − 1 = 0
-    nu[1] = 0.0;
+    let mut terms = [0.0; TIME_TERMS];
+    time_terms(t, &mut terms);
+    velocity_rhs_at(q, t, &terms, nu)
 }
 
 /// Acceleration right-hand side γ = −(Φ_q q̇)_q q̇ − 2Φ_qt q̇ − Φ_tt.
 ///
-/// 27 operations, 7 shared subexpressions.
+/// Computes the time terms at t ([`time_terms`]) and calls [`acceleration_rhs_at`].
 pub fn acceleration_rhs(q: &[f64; N], qd: &[f64; N], t: f64, gamma: &mut [f64; N]) {
-    let [q0, q1] = *q;
-    let [qd0, qd1] = *qd;
-    let t0 = f64::from_bits(4602890488355133325) * t;
-    let (t1, t2) = runtime::math::sin_cos(t0);
-    let t3 = f64::from_bits(4602890488355133325) * t1 * qd1;
-    let t4 = f64::from_bits(4602890488355133325) * t2 * qd0;
-    let t5 = qd0 * qd0;
-    let t6 = qd1 * qd1;
-    // driver drive_ry: e2 cos(s/2) − e0 sin(s/2) = 0, s = 1.047 t
-    gamma[0] = -(-(t3 + q1 * (0.27405224999999994 * t2)) - t3
-        - (t4 + (t4 - q0 * (0.27405224999999994 * t1))));
-    // body block normalisation: e0² + e1² + e2² + e3² − 1 = 0
-    gamma[1] = -(t5 + t5 + (t6 + t6));
+    let mut terms = [0.0; TIME_TERMS];
+    time_terms(t, &mut terms);
+    acceleration_rhs_at(q, qd, t, &terms, gamma)
 }
 
 /// The number of time terms: the sines and cosines of functions of t alone that Φ, Φ_q, ν and γ read, computed by [`time_terms`].

@@ -307,81 +307,11 @@ pub mod unknown {
 
 /// Constraint residuals Φ(q, t), 20 rows.
 ///
-/// 141 operations, 27 shared subexpressions.
+/// Computes the time terms at t ([`time_terms`]) and calls [`residual_at`].
 pub fn residual(q: &[f64; N], t: f64, phi: &mut [f64; N]) {
-    let [q0, q1, q2, q3, q4, q5, q6, q7, q8, q9, q10, q11, q12, q13, q14, q15, q16, q17,
-    q18, q19] = *q;
-    let t0 = q3 * q3;
-    let t1 = q4 * q4;
-    let t2 = q5 * q5;
-    let t3 = q6 * q6;
-    let t4 = q4 * q5 - q3 * q6;
-    let t5 = q5 * q6;
-    let t6 = q3 * q4;
-    let t7 = t5 + t6;
-    let t8 = q10 * q10;
-    let t9 = q11 * q11;
-    let t10 = q12 * q12;
-    let t11 = q16 * q16;
-    let t12 = q17 * q17;
-    let t13 = q18 * q18;
-    let t14 = q19 * q19;
-    let t15 = t11 + t12;
-    let t16 = q17 * q18;
-    let t17 = q16 * q19;
-    let t18 = t16 - t17;
-    let t19 = q17 * q19;
-    let t20 = q16 * q18;
-    let t21 = t19 + t20;
-    let t22 = q18 * q19;
-    let t23 = q16 * q17;
-    let t24 = 73.3 * t;
-    let (t25, t26) = runtime::math::sin_cos(t24);
-    // joint A row 1: (P_j − P_i)_x = 0
-    phi[0] = q7 - (0.13134 * t4 + 0.2 * (q4 * q6 + q3 * q5) + q0);
-    // joint A row 2: (P_j − P_i)_y = 0
-    phi[1] = q8 - (0.06567 * (t0 + t2 - (t1 + t3)) + 0.2 * (t5 - t6) + q1);
-    // joint A row 3: (P_j − P_i)_z = 0
-    phi[2] = q9 - (0.13134 * t7 + 0.1 * (t0 + t3 - (t1 + t2)) + q2);
-    // joint B row 1: (P_j − P_i)_x = 0
-    phi[3] = 0.2 * t21 + (0.0475 * (t15 - (t13 + t14)) + -0.03714 * t18) + q13
-        - (q7 - 0.9624 * (q10 * q12));
-    // joint B row 2: (P_j − P_i)_y = 0
-    phi[4] = 0.2 * (t22 - t23)
-        + (0.095 * (t16 + t17) + -0.01857 * (t11 + t13 - (t12 + t14))) + q14
-        - (q8 + 0.4812 * (t8 - (t9 + t10)));
-    // joint B row 3: (P_j − P_i)_z = 0
-    phi[5] = 0.1 * (t11 + t14 - (t12 + t13))
-        + (0.095 * (t19 - t20) + -0.03714 * (t22 + t23)) + q15
-        - (q9 + 0.9624 * (q10 * q11));
-    // joint O2 row 1: (P_j − P_i)_x = 0
-    phi[6] = q0;
-    // joint O2 row 2: (P_j − P_i)_y = 0
-    phi[7] = 0.06567 + q1;
-    // joint O2 row 3: (P_j − P_i)_z = 0
-    phi[8] = q2;
-    // joint O2 row 4: b_i · a_j = 0
-    phi[9] = 2.0 * t4;
-    // joint O2 row 5: c_i · a_j = 0
-    phi[10] = 2.0 * t7;
-    // joint O4 row 1: (P_j − P_i)_x = 0
-    phi[11] = -0.0475 - q13;
-    // joint O4 row 2: (P_j − P_i)_y = 0
-    phi[12] = 0.49977 - q14;
-    // joint O4 row 3: (P_j − P_i)_z = 0
-    phi[13] = -q15;
-    // joint O4 row 4: b_i · a_j = 0
-    phi[14] = -(2.0 * t18);
-    // joint O4 row 5: c_i · a_j = 0
-    phi[15] = -(2.0 * t21);
-    // driver motor: e2 cos(s/2) − e0 sin(s/2) = 0, s = 146.6 t
-    phi[16] = q5 * t26 - q3 * t25;
-    // body crank normalisation: e0² + e1² + e2² + e3² − 1 = 0
-    phi[17] = t3 + (t2 + (t0 + t1)) - 1.0;
-    // body coupler normalisation: e0² + e1² + e2² + e3² − 1 = 0
-    phi[18] = t10 + (t8 + t9) - 1.0;
-    // body rocker normalisation: e0² + e1² + e2² + e3² − 1 = 0
-    phi[19] = t14 + (t13 + t15) - 1.0;
+    let mut terms = [0.0; TIME_TERMS];
+    time_terms(t, &mut terms);
+    residual_at(q, t, &terms, phi)
 }
 
 /// Jacobian Φ_q, row-major: `jac[i][j] = ∂Φ_i/∂q_j`; the 78 structurally non-zero entries are written, the others set to 0.
@@ -758,200 +688,16 @@ pub fn residual_jacobian(
 
 /// Φ and the 60 entries of Φ_q that depend on q or t, the others of `jac` left as they were: what the `factor_k` functions read (18 of the 78 structurally non-zero entries are constants, which they know).
 ///
-/// 284 operations, 67 shared subexpressions.
+/// Computes the time terms at t ([`time_terms`]) and calls [`residual_jacobian_structural_at`].
 fn residual_jacobian_structural(
     q: &[f64; N],
     t: f64,
     phi: &mut [f64; N],
     jac: &mut [[f64; N]; N],
 ) {
-    let [q0, q1, q2, q3, q4, q5, q6, q7, q8, q9, q10, q11, q12, q13, q14, q15, q16, q17,
-    q18, q19] = *q;
-    let t0 = q3 * q3;
-    let t1 = q4 * q4;
-    let t2 = q5 * q5;
-    let t3 = q6 * q6;
-    let t4 = q4 * q5 - q3 * q6;
-    let t5 = q5 * q6;
-    let t6 = q3 * q4;
-    let t7 = t5 + t6;
-    let t8 = q10 * q10;
-    let t9 = q11 * q11;
-    let t10 = q12 * q12;
-    let t11 = q16 * q16;
-    let t12 = q17 * q17;
-    let t13 = q18 * q18;
-    let t14 = q19 * q19;
-    let t15 = t11 + t12;
-    let t16 = q17 * q18;
-    let t17 = q16 * q19;
-    let t18 = t16 - t17;
-    let t19 = q17 * q19;
-    let t20 = q16 * q18;
-    let t21 = t19 + t20;
-    let t22 = q18 * q19;
-    let t23 = q16 * q17;
-    let t24 = 73.3 * t;
-    let (t25, t26) = runtime::math::sin_cos(t24);
-    let t27 = 0.13134 * q6;
-    let t28 = 0.2 * q5;
-    let t29 = 0.13134 * q5;
-    let t30 = 0.2 * q6;
-    let t31 = 0.13134 * q4;
-    let t32 = 0.2 * q3;
-    let t33 = 0.13134 * q3;
-    let t34 = 0.2 * q4;
-    let t35 = q3 + q3;
-    let t36 = q4 + q4;
-    let t37 = q5 + q5;
-    let t38 = q6 + q6;
-    let t39 = 0.9624 * q10;
-    let t40 = 0.2 * q18;
-    let t41 = q16 + q16;
-    let t42 = -0.03714 * q19;
-    let t43 = 0.2 * q19;
-    let t44 = q17 + q17;
-    let t45 = -0.03714 * q18;
-    let t46 = 0.2 * q16;
-    let t47 = q18 + q18;
-    let t48 = -0.03714 * q17;
-    let t49 = 0.2 * q17;
-    let t50 = q19 + q19;
-    let t51 = -0.03714 * q16;
-    let t52 = q10 + q10;
-    let t53 = q11 + q11;
-    let t54 = q12 + q12;
-    let t55 = 0.095 * q19;
-    let t56 = 0.095 * q18;
-    let t57 = 0.095 * q17;
-    let t58 = 0.095 * q16;
-    let t59 = 2.0 * q6;
-    let t60 = 2.0 * q5;
-    let t61 = 2.0 * q4;
-    let t62 = 2.0 * q3;
-    let t63 = 2.0 * q19;
-    let t64 = -(2.0 * q18);
-    let t65 = -(2.0 * q17);
-    let t66 = 2.0 * q16;
-    // joint A row 1: (P_j − P_i)_x = 0
-    phi[0] = q7 - (0.13134 * t4 + 0.2 * (q4 * q6 + q3 * q5) + q0);
-    // joint A row 2: (P_j − P_i)_y = 0
-    phi[1] = q8 - (0.06567 * (t0 + t2 - (t1 + t3)) + 0.2 * (t5 - t6) + q1);
-    // joint A row 3: (P_j − P_i)_z = 0
-    phi[2] = q9 - (0.13134 * t7 + 0.1 * (t0 + t3 - (t1 + t2)) + q2);
-    // joint B row 1: (P_j − P_i)_x = 0
-    phi[3] = 0.2 * t21 + (0.0475 * (t15 - (t13 + t14)) + -0.03714 * t18) + q13
-        - (q7 - 0.9624 * (q10 * q12));
-    // joint B row 2: (P_j − P_i)_y = 0
-    phi[4] = 0.2 * (t22 - t23)
-        + (0.095 * (t16 + t17) + -0.01857 * (t11 + t13 - (t12 + t14))) + q14
-        - (q8 + 0.4812 * (t8 - (t9 + t10)));
-    // joint B row 3: (P_j − P_i)_z = 0
-    phi[5] = 0.1 * (t11 + t14 - (t12 + t13))
-        + (0.095 * (t19 - t20) + -0.03714 * (t22 + t23)) + q15
-        - (q9 + 0.9624 * (q10 * q11));
-    // joint O2 row 1: (P_j − P_i)_x = 0
-    phi[6] = q0;
-    // joint O2 row 2: (P_j − P_i)_y = 0
-    phi[7] = 0.06567 + q1;
-    // joint O2 row 3: (P_j − P_i)_z = 0
-    phi[8] = q2;
-    // joint O2 row 4: b_i · a_j = 0
-    phi[9] = 2.0 * t4;
-    // joint O2 row 5: c_i · a_j = 0
-    phi[10] = 2.0 * t7;
-    // joint O4 row 1: (P_j − P_i)_x = 0
-    phi[11] = -0.0475 - q13;
-    // joint O4 row 2: (P_j − P_i)_y = 0
-    phi[12] = 0.49977 - q14;
-    // joint O4 row 3: (P_j − P_i)_z = 0
-    phi[13] = -q15;
-    // joint O4 row 4: b_i · a_j = 0
-    phi[14] = -(2.0 * t18);
-    // joint O4 row 5: c_i · a_j = 0
-    phi[15] = -(2.0 * t21);
-    // driver motor: e2 cos(s/2) − e0 sin(s/2) = 0, s = 146.6 t
-    phi[16] = q5 * t26 - q3 * t25;
-    // body crank normalisation: e0² + e1² + e2² + e3² − 1 = 0
-    phi[17] = t3 + (t2 + (t0 + t1)) - 1.0;
-    // body coupler normalisation: e0² + e1² + e2² + e3² − 1 = 0
-    phi[18] = t10 + (t8 + t9) - 1.0;
-    // body rocker normalisation: e0² + e1² + e2² + e3² − 1 = 0
-    phi[19] = t14 + (t13 + t15) - 1.0;
-    // joint A row 1: (P_j − P_i)_x = 0
-    jac[0][3] = -(t28 - t27);
-    jac[0][4] = -(t29 + t30);
-    jac[0][5] = -(t31 + t32);
-    jac[0][6] = -(t34 - t33);
-    // joint A row 2: (P_j − P_i)_y = 0
-    jac[1][3] = -(0.06567 * t35 - t34);
-    jac[1][4] = -(-(0.06567 * t36) - t32);
-    jac[1][5] = -(t30 + 0.06567 * t37);
-    jac[1][6] = -(t28 - 0.06567 * t38);
-    // joint A row 3: (P_j − P_i)_z = 0
-    jac[2][3] = -(t31 + 0.1 * t35);
-    jac[2][4] = -(t33 - 0.1 * t36);
-    jac[2][5] = -(t27 - 0.1 * t37);
-    jac[2][6] = -(t29 + 0.1 * t38);
-    // joint B row 1: (P_j − P_i)_x = 0
-    jac[3][10] = 0.9624 * q12;
-    jac[3][12] = t39;
-    jac[3][16] = t40 + (0.0475 * t41 - t42);
-    jac[3][17] = t43 + (0.0475 * t44 + t45);
-    jac[3][18] = t46 + (t48 - 0.0475 * t47);
-    jac[3][19] = t49 + (-(0.0475 * t50) - t51);
-    // joint B row 2: (P_j − P_i)_y = 0
-    jac[4][10] = -(0.4812 * t52);
-    jac[4][11] = 0.4812 * t53;
-    jac[4][12] = 0.4812 * t54;
-    jac[4][16] = t55 + -0.01857 * t41 - t49;
-    jac[4][17] = t56 - -0.01857 * t44 - t46;
-    jac[4][18] = t43 + (t57 + -0.01857 * t47);
-    jac[4][19] = t40 + (t58 - -0.01857 * t50);
-    // joint B row 3: (P_j − P_i)_z = 0
-    jac[5][10] = -(0.9624 * q11);
-    jac[5][11] = -t39;
-    jac[5][16] = 0.1 * t41 + (t48 - t56);
-    jac[5][17] = t51 + t55 - 0.1 * t44;
-    jac[5][18] = t42 - t58 - 0.1 * t47;
-    jac[5][19] = 0.1 * t50 + (t45 + t57);
-    // joint O2 row 4: b_i · a_j = 0
-    jac[9][3] = -t59;
-    jac[9][4] = t60;
-    jac[9][5] = t61;
-    jac[9][6] = -t62;
-    // joint O2 row 5: c_i · a_j = 0
-    jac[10][3] = t61;
-    jac[10][4] = t62;
-    jac[10][5] = t59;
-    jac[10][6] = t60;
-    // joint O4 row 4: b_i · a_j = 0
-    jac[14][16] = t63;
-    jac[14][17] = t64;
-    jac[14][18] = t65;
-    jac[14][19] = t66;
-    // joint O4 row 5: c_i · a_j = 0
-    jac[15][16] = t64;
-    jac[15][17] = -t63;
-    jac[15][18] = -t66;
-    jac[15][19] = t65;
-    // driver motor: e2 cos(s/2) − e0 sin(s/2) = 0, s = 146.6 t
-    jac[16][3] = -t25;
-    jac[16][5] = t26;
-    // body crank normalisation: e0² + e1² + e2² + e3² − 1 = 0
-    jac[17][3] = t35;
-    jac[17][4] = t36;
-    jac[17][5] = t37;
-    jac[17][6] = t38;
-    // body coupler normalisation: e0² + e1² + e2² + e3² − 1 = 0
-    jac[18][10] = t52;
-    jac[18][11] = t53;
-    jac[18][12] = t54;
-    // body rocker normalisation: e0² + e1² + e2² + e3² − 1 = 0
-    jac[19][16] = t41;
-    jac[19][17] = t44;
-    jac[19][18] = t47;
-    jac[19][19] = t50;
+    let mut terms = [0.0; TIME_TERMS];
+    time_terms(t, &mut terms);
+    residual_jacobian_structural_at(q, t, &terms, phi, jac)
 }
 
 /// Factors Φ_q in place with static pivot order 0: step k pivots on row `[6, 7, 8, 11, 12, 13, 0, 1, 2, 16, 18, 17, 10, 9, 5, 3, 19, 4, 15, 14][k]` and column `[0, 1, 2, 13, 14, 15, 7, 8, 9, 5, 10, 3, 4, 6, 11, 12, 16, 17, 18, 19][k]`.
@@ -1522,160 +1268,20 @@ fn solve_1(lu: &[[f64; N]; N], b: &mut [f64; N]) {
 
 /// Velocity right-hand side ν = −Φ_t.
 ///
-/// 11 operations, 3 shared subexpressions.
+/// Computes the time terms at t ([`time_terms`]) and calls [`velocity_rhs_at`].
 pub fn velocity_rhs(q: &[f64; N], t: f64, nu: &mut [f64; N]) {
-    let [_q0, _q1, _q2, q3, _q4, q5, _q6, _q7, _q8, _q9, _q10, _q11, _q12, _q13, _q14,
-    _q15, _q16, _q17, _q18, _q19] = *q;
-    let t0 = 73.3 * t;
-    let (t1, t2) = runtime::math::sin_cos(t0);
-    // joint A row 1: (P_j − P_i)_x = 0
-    nu[0] = 0.0;
-    // joint A row 2: (P_j − P_i)_y = 0
-    nu[1] = 0.0;
-    // joint A row 3: (P_j − P_i)_z = 0
-    nu[2] = 0.0;
-    // joint B row 1: (P_j − P_i)_x = 0
-    nu[3] = 0.0;
-    // joint B row 2: (P_j − P_i)_y = 0
-    nu[4] = 0.0;
-    // joint B row 3: (P_j − P_i)_z = 0
-    nu[5] = 0.0;
-    // joint O2 row 1: (P_j − P_i)_x = 0
-    nu[6] = 0.0;
-    // joint O2 row 2: (P_j − P_i)_y = 0
-    nu[7] = 0.0;
-    // joint O2 row 3: (P_j − P_i)_z = 0
-    nu[8] = 0.0;
-    // joint O2 row 4: b_i · a_j = 0
-    nu[9] = 0.0;
-    // joint O2 row 5: c_i · a_j = 0
-    nu[10] = 0.0;
-    // joint O4 row 1: (P_j − P_i)_x = 0
-    nu[11] = 0.0;
-    // joint O4 row 2: (P_j − P_i)_y = 0
-    nu[12] = 0.0;
-    // joint O4 row 3: (P_j − P_i)_z = 0
-    nu[13] = 0.0;
-    // joint O4 row 4: b_i · a_j = 0
-    nu[14] = 0.0;
-    // joint O4 row 5: c_i · a_j = 0
-    nu[15] = 0.0;
-    // driver motor: e2 cos(s/2) − e0 sin(s/2) = 0, s = 146.6 t
-    nu[16] = -(-(q5 * (73.3 * t1)) - q3 * (73.3 * t2));
-    // body crank normalisation: e0² + e1² + e2² + e3² − 1 = 0
-    nu[17] = 0.0;
-    // body coupler normalisation: e0² + e1² + e2² + e3² − 1 = 0
-    nu[18] = 0.0;
-    // body rocker normalisation: e0² + e1² + e2² + e3² − 1 = 0
-    nu[19] = 0.0;
+    let mut terms = [0.0; TIME_TERMS];
+    time_terms(t, &mut terms);
+    velocity_rhs_at(q, t, &terms, nu)
 }
 
 /// Acceleration right-hand side γ = −(Φ_q q̇)_q q̇ − 2Φ_qt q̇ − Φ_tt.
 ///
-/// 160 operations, 54 shared subexpressions.
+/// Computes the time terms at t ([`time_terms`]) and calls [`acceleration_rhs_at`].
 pub fn acceleration_rhs(q: &[f64; N], qd: &[f64; N], t: f64, gamma: &mut [f64; N]) {
-    let [_q0, _q1, _q2, q3, _q4, q5, _q6, _q7, _q8, _q9, _q10, _q11, _q12, _q13, _q14,
-    _q15, _q16, _q17, _q18, _q19] = *q;
-    let [_qd0, _qd1, _qd2, qd3, qd4, qd5, qd6, _qd7, _qd8, _qd9, qd10, qd11, qd12, _qd13,
-    _qd14, _qd15, qd16, qd17, qd18, qd19] = *qd;
-    let t0 = 73.3 * t;
-    let (t1, t2) = runtime::math::sin_cos(t0);
-    let t3 = qd4 * qd5;
-    let t4 = qd3 * qd6;
-    let t5 = t3 + t3 - (t4 + t4);
-    let t6 = qd4 * qd6;
-    let t7 = qd5 * qd3;
-    let t8 = qd3 * qd3;
-    let t9 = t8 + t8;
-    let t10 = qd5 * qd5;
-    let t11 = t10 + t10;
-    let t12 = qd4 * qd4;
-    let t13 = t12 + t12;
-    let t14 = qd6 * qd6;
-    let t15 = t14 + t14;
-    let t16 = qd5 * qd6;
-    let t17 = t16 + t16;
-    let t18 = qd4 * qd3;
-    let t19 = t18 + t18;
-    let t20 = t17 + t19;
-    let t21 = qd17 * qd19;
-    let t22 = t21 + t21;
-    let t23 = qd16 * qd18;
-    let t24 = t23 + t23;
-    let t25 = t22 + t24;
-    let t26 = qd16 * qd16;
-    let t27 = t26 + t26;
-    let t28 = qd17 * qd17;
-    let t29 = t28 + t28;
-    let t30 = t27 + t29;
-    let t31 = qd18 * qd18;
-    let t32 = t31 + t31;
-    let t33 = qd19 * qd19;
-    let t34 = t33 + t33;
-    let t35 = qd17 * qd18;
-    let t36 = t35 + t35;
-    let t37 = qd19 * qd16;
-    let t38 = t37 + t37;
-    let t39 = t36 - t38;
-    let t40 = qd10 * qd12;
-    let t41 = qd19 * qd18;
-    let t42 = t41 + t41;
-    let t43 = qd17 * qd16;
-    let t44 = t43 + t43;
-    let t45 = qd10 * qd10;
-    let t46 = t45 + t45;
-    let t47 = qd11 * qd11;
-    let t48 = t47 + t47;
-    let t49 = qd12 * qd12;
-    let t50 = t49 + t49;
-    let t51 = qd10 * qd11;
-    let t52 = qd5 * (73.3 * t1);
-    let t53 = qd3 * (73.3 * t2);
-    // joint A row 1: (P_j − P_i)_x = 0
-    gamma[0] = 0.13134 * t5 + 0.2 * (t6 + t6 + (t7 + t7));
-    // joint A row 2: (P_j − P_i)_y = 0
-    gamma[1] = 0.06567 * (t9 + t11 - (t13 + t15)) + 0.2 * (t17 - t19);
-    // joint A row 3: (P_j − P_i)_z = 0
-    gamma[2] = 0.13134 * t20 + 0.1 * (t9 + t15 - (t11 + t13));
-    // joint B row 1: (P_j − P_i)_x = 0
-    gamma[3] = -(0.2 * t25 + (0.0475 * (t30 - (t32 + t34)) + -0.03714 * t39)
-        + 0.9624 * (t40 + t40));
-    // joint B row 2: (P_j − P_i)_y = 0
-    gamma[4] = -(0.2 * (t42 - t44)
-        + (0.095 * (t36 + t38) + -0.01857 * (t27 + t32 - (t29 + t34)))
-        - 0.4812 * (t46 - (t48 + t50)));
-    // joint B row 3: (P_j − P_i)_z = 0
-    gamma[5] = -(0.1 * (t27 + t34 - (t29 + t32))
-        + (0.095 * (t22 - t24) + -0.03714 * (t42 + t44)) - 0.9624 * (t51 + t51));
-    // joint O2 row 1: (P_j − P_i)_x = 0
-    gamma[6] = 0.0;
-    // joint O2 row 2: (P_j − P_i)_y = 0
-    gamma[7] = 0.0;
-    // joint O2 row 3: (P_j − P_i)_z = 0
-    gamma[8] = 0.0;
-    // joint O2 row 4: b_i · a_j = 0
-    gamma[9] = -(2.0 * t5);
-    // joint O2 row 5: c_i · a_j = 0
-    gamma[10] = -(2.0 * t20);
-    // joint O4 row 1: (P_j − P_i)_x = 0
-    gamma[11] = 0.0;
-    // joint O4 row 2: (P_j − P_i)_y = 0
-    gamma[12] = 0.0;
-    // joint O4 row 3: (P_j − P_i)_z = 0
-    gamma[13] = 0.0;
-    // joint O4 row 4: b_i · a_j = 0
-    gamma[14] = 2.0 * t39;
-    // joint O4 row 5: c_i · a_j = 0
-    gamma[15] = 2.0 * t25;
-    // driver motor: e2 cos(s/2) − e0 sin(s/2) = 0, s = 146.6 t
-    gamma[16] = -(-(t52 + q5 * (5372.889999999999 * t2)) - t52
-        - (t53 + (t53 - q3 * (5372.889999999999 * t1))));
-    // body crank normalisation: e0² + e1² + e2² + e3² − 1 = 0
-    gamma[17] = -(t15 + (t11 + (t9 + t13)));
-    // body coupler normalisation: e0² + e1² + e2² + e3² − 1 = 0
-    gamma[18] = -(t50 + (t46 + t48));
-    // body rocker normalisation: e0² + e1² + e2² + e3² − 1 = 0
-    gamma[19] = -(t34 + (t30 + t32));
+    let mut terms = [0.0; TIME_TERMS];
+    time_terms(t, &mut terms);
+    acceleration_rhs_at(q, qd, t, &terms, gamma)
 }
 
 /// The number of time terms: the sines and cosines of functions of t alone that Φ, Φ_q, ν and γ read, computed by [`time_terms`].

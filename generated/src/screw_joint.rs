@@ -230,30 +230,11 @@ pub mod unknown {
 
 /// Constraint residuals Φ(q, t), 7 rows.
 ///
-/// 41 operations, 9 shared subexpressions.
+/// Computes the time terms at t ([`time_terms`]) and calls [`residual_at`].
 pub fn residual(q: &[f64; N], t: f64, phi: &mut [f64; N]) {
-    let [q0, q1, q2, q3, q4, q5, q6] = *q;
-    let t0 = q5 * q5;
-    let t1 = q6 * q6;
-    let t2 = q3 * q3 + q4 * q4;
-    let t3 = 2.0 * (q1 - 2.0);
-    let (t4, t5) = runtime::math::sin_cos(t3);
-    let t6 = f64::from_bits(4602890488355133325) * t;
-    let (t7, t8) = runtime::math::sin_cos(t6);
-    // joint screw row 1: b_i · a_j = 0
-    phi[0] = 2.0 * (q4 * q5 - q3 * q6);
-    // joint screw row 2: c_i · a_j = 0
-    phi[1] = -(2.0 * (q5 * q6 + q3 * q4));
-    // joint screw row 3: b_i · (P_j − P_i) = 0
-    phi[2] = q0;
-    // joint screw row 4: c_i · (P_j − P_i) = 0
-    phi[3] = -q2;
-    // joint screw row 5: r_i · r_j sin θ − (r_i × r_j) · a_i cos θ = 0, θ = θ0 + 2π ((P_j − P_i) · a_i − d0) / lead
-    phi[4] = (t2 - (t0 + t1)) * t4 + 2.0 * (q4 * q6 - q3 * q5) * t5;
-    // driver drive_ry: e2 cos(s/2) − e0 sin(s/2) = 0, s = 1.047 t
-    phi[5] = q5 * t8 - q3 * t7;
-    // body nut normalisation: e0² + e1² + e2² + e3² − 1 = 0
-    phi[6] = t1 + (t0 + t2) - 1.0;
+    let mut terms = [0.0; TIME_TERMS];
+    time_terms(t, &mut terms);
+    residual_at(q, t, &terms, phi)
 }
 
 /// Jacobian Φ_q, row-major: `jac[i][j] = ∂Φ_i/∂q_j`; the 21 structurally non-zero entries are written, the others set to 0.
@@ -383,71 +364,16 @@ pub fn residual_jacobian(
 
 /// Φ and the 19 entries of Φ_q that depend on q or t, the others of `jac` left as they were: what the `factor_k` functions read (2 of the 21 structurally non-zero entries are constants, which they know).
 ///
-/// 76 operations, 21 shared subexpressions.
+/// Computes the time terms at t ([`time_terms`]) and calls [`residual_jacobian_structural_at`].
 fn residual_jacobian_structural(
     q: &[f64; N],
     t: f64,
     phi: &mut [f64; N],
     jac: &mut [[f64; N]; N],
 ) {
-    let [q0, q1, q2, q3, q4, q5, q6] = *q;
-    let t0 = q5 * q5;
-    let t1 = q6 * q6;
-    let t2 = q3 * q3 + q4 * q4;
-    let t3 = t2 - (t0 + t1);
-    let t4 = 2.0 * (q4 * q6 - q3 * q5);
-    let t5 = 2.0 * (q1 - 2.0);
-    let (t6, t7) = runtime::math::sin_cos(t5);
-    let t8 = f64::from_bits(4602890488355133325) * t;
-    let (t9, t10) = runtime::math::sin_cos(t8);
-    let t11 = 2.0 * q6;
-    let t12 = -t11;
-    let t13 = 2.0 * q5;
-    let t14 = 2.0 * q4;
-    let t15 = 2.0 * q3;
-    let t16 = -t15;
-    let t17 = q3 + q3;
-    let t18 = q4 + q4;
-    let t19 = q5 + q5;
-    let t20 = q6 + q6;
-    // joint screw row 1: b_i · a_j = 0
-    phi[0] = 2.0 * (q4 * q5 - q3 * q6);
-    // joint screw row 2: c_i · a_j = 0
-    phi[1] = -(2.0 * (q5 * q6 + q3 * q4));
-    // joint screw row 3: b_i · (P_j − P_i) = 0
-    phi[2] = q0;
-    // joint screw row 4: c_i · (P_j − P_i) = 0
-    phi[3] = -q2;
-    // joint screw row 5: r_i · r_j sin θ − (r_i × r_j) · a_i cos θ = 0, θ = θ0 + 2π ((P_j − P_i) · a_i − d0) / lead
-    phi[4] = t3 * t6 + t4 * t7;
-    // driver drive_ry: e2 cos(s/2) − e0 sin(s/2) = 0, s = 1.047 t
-    phi[5] = q5 * t10 - q3 * t9;
-    // body nut normalisation: e0² + e1² + e2² + e3² − 1 = 0
-    phi[6] = t1 + (t0 + t2) - 1.0;
-    // joint screw row 1: b_i · a_j = 0
-    jac[0][3] = t12;
-    jac[0][4] = t13;
-    jac[0][5] = t14;
-    jac[0][6] = t16;
-    // joint screw row 2: c_i · a_j = 0
-    jac[1][3] = -t14;
-    jac[1][4] = t16;
-    jac[1][5] = t12;
-    jac[1][6] = -t13;
-    // joint screw row 5: r_i · r_j sin θ − (r_i × r_j) · a_i cos θ = 0, θ = θ0 + 2π ((P_j − P_i) · a_i − d0) / lead
-    jac[4][1] = t3 * (2.0 * t7) - t4 * (2.0 * t6);
-    jac[4][3] = t6 * t17 - t7 * t13;
-    jac[4][4] = t6 * t18 + t7 * t11;
-    jac[4][5] = -(t6 * t19) - t7 * t15;
-    jac[4][6] = t7 * t14 - t6 * t20;
-    // driver drive_ry: e2 cos(s/2) − e0 sin(s/2) = 0, s = 1.047 t
-    jac[5][3] = -t9;
-    jac[5][5] = t10;
-    // body nut normalisation: e0² + e1² + e2² + e3² − 1 = 0
-    jac[6][3] = t17;
-    jac[6][4] = t18;
-    jac[6][5] = t19;
-    jac[6][6] = t20;
+    let mut terms = [0.0; TIME_TERMS];
+    time_terms(t, &mut terms);
+    residual_jacobian_structural_at(q, t, &terms, phi, jac)
 }
 
 /// Factors Φ_q in place with static pivot order 0: step k pivots on row `[2, 4, 3, 5, 6, 1, 0][k]` and column `[0, 1, 2, 5, 3, 4, 6][k]`.
@@ -654,80 +580,20 @@ fn solve_1(lu: &[[f64; N]; N], b: &mut [f64; N]) {
 
 /// Velocity right-hand side ν = −Φ_t.
 ///
-/// 11 operations, 3 shared subexpressions.
+/// Computes the time terms at t ([`time_terms`]) and calls [`velocity_rhs_at`].
 pub fn velocity_rhs(q: &[f64; N], t: f64, nu: &mut [f64; N]) {
-    let [_q0, _q1, _q2, q3, _q4, q5, _q6] = *q;
-    let t0 = f64::from_bits(4602890488355133325) * t;
-    let (t1, t2) = runtime::math::sin_cos(t0);
-    // joint screw row 1: b_i · a_j = 0
-    nu[0] = 0.0;
-    // joint screw row 2: c_i · a_j = 0
-    nu[1] = 0.0;
-    // joint screw row 3: b_i · (P_j − P_i) = 0
-    nu[2] = 0.0;
-    // joint screw row 4: c_i · (P_j − P_i) = 0
-    nu[3] = 0.0;
-    // joint screw row 5: r_i · r_j sin θ − (r_i × r_j) · a_i cos θ = 0, θ = θ0 + 2π ((P_j − P_i) · a_i − d0) / lead
-    nu[4] = 0.0;
-    // driver drive_ry: e2 cos(s/2) − e0 sin(s/2) = 0, s = 1.047 t
-    nu[5] = -(-(q5 * (f64::from_bits(4602890488355133325) * t1))
-        - q3 * (f64::from_bits(4602890488355133325) * t2));
-    // body nut normalisation: e0² + e1² + e2² + e3² − 1 = 0
-    nu[6] = 0.0;
+    let mut terms = [0.0; TIME_TERMS];
+    time_terms(t, &mut terms);
+    velocity_rhs_at(q, t, &terms, nu)
 }
 
 /// Acceleration right-hand side γ = −(Φ_q q̇)_q q̇ − 2Φ_qt q̇ − Φ_tt.
 ///
-/// 117 operations, 30 shared subexpressions.
+/// Computes the time terms at t ([`time_terms`]) and calls [`acceleration_rhs_at`].
 pub fn acceleration_rhs(q: &[f64; N], qd: &[f64; N], t: f64, gamma: &mut [f64; N]) {
-    let [_q0, q1, _q2, q3, q4, q5, q6] = *q;
-    let [_qd0, qd1, _qd2, qd3, qd4, qd5, qd6] = *qd;
-    let t0 = 2.0 * (q1 - 2.0);
-    let (t1, t2) = runtime::math::sin_cos(t0);
-    let t3 = f64::from_bits(4602890488355133325) * t;
-    let (t4, t5) = runtime::math::sin_cos(t3);
-    let t6 = qd4 * qd5;
-    let t7 = qd3 * qd6;
-    let t8 = qd5 * qd6;
-    let t9 = qd4 * qd3;
-    let t10 = q3 * qd3;
-    let t11 = q4 * qd4;
-    let t12 = q5 * qd5;
-    let t13 = q6 * qd6;
-    let t14 = 2.0 * qd1;
-    let t15 = t2 * t14;
-    let t16 = t1 * t14;
-    let t17 = qd3 * qd3;
-    let t18 = qd4 * qd4;
-    let t19 = t17 + t17 + (t18 + t18);
-    let t20 = qd5 * qd5;
-    let t21 = t20 + t20;
-    let t22 = qd6 * qd6;
-    let t23 = t22 + t22;
-    let t24 = (t10 + t10 + (t11 + t11) - (t12 + t12 + (t13 + t13))) * t15;
-    let t25 = qd4 * qd6;
-    let t26 = qd5 * qd3;
-    let t27 = 2.0 * (q6 * qd4 + q4 * qd6 - (q5 * qd3 + q3 * qd5)) * t16;
-    let t28 = qd5 * (f64::from_bits(4602890488355133325) * t4);
-    let t29 = qd3 * (f64::from_bits(4602890488355133325) * t5);
-    // joint screw row 1: b_i · a_j = 0
-    gamma[0] = -(2.0 * (t6 + t6 - (t7 + t7)));
-    // joint screw row 2: c_i · a_j = 0
-    gamma[1] = 2.0 * (t8 + t8 + (t9 + t9));
-    // joint screw row 3: b_i · (P_j − P_i) = 0
-    gamma[2] = 0.0;
-    // joint screw row 4: c_i · (P_j − P_i) = 0
-    gamma[3] = 0.0;
-    // joint screw row 5: r_i · r_j sin θ − (r_i × r_j) · a_i cos θ = 0, θ = θ0 + 2π ((P_j − P_i) · a_i − d0) / lead
-    gamma[4] = -(t24 + t1 * (t19 - (t21 + t23))
-        + (t24 - (q3 * q3 + q4 * q4 - (q5 * q5 + q6 * q6)) * (t14 * t16))
-        + (t2 * (2.0 * (t25 + t25 - (t26 + t26))) - t27
-            - (t27 + 2.0 * (q4 * q6 - q3 * q5) * (t14 * t15))));
-    // driver drive_ry: e2 cos(s/2) − e0 sin(s/2) = 0, s = 1.047 t
-    gamma[5] = -(-(t28 + q5 * (0.27405224999999994 * t5)) - t28
-        - (t29 + (t29 - q3 * (0.27405224999999994 * t4))));
-    // body nut normalisation: e0² + e1² + e2² + e3² − 1 = 0
-    gamma[6] = -(t23 + (t19 + t21));
+    let mut terms = [0.0; TIME_TERMS];
+    time_terms(t, &mut terms);
+    acceleration_rhs_at(q, qd, t, &terms, gamma)
 }
 
 /// The number of time terms: the sines and cosines of functions of t alone that Φ, Φ_q, ν and γ read, computed by [`time_terms`].

@@ -208,23 +208,11 @@ pub mod unknown {
 
 /// Constraint residuals Φ(q, t), 5 rows.
 ///
-/// 18 operations, 5 shared subexpressions.
+/// Computes the time terms at t ([`time_terms`]) and calls [`residual_at`].
 pub fn residual(q: &[f64; N], t: f64, phi: &mut [f64; N]) {
-    let [q0, q1, q2, q3, q4] = *q;
-    let t0 = q3 * q3;
-    let t1 = q4 * q4;
-    let t2 = f64::from_bits(4602890488355133325) * t;
-    let (t3, t4) = runtime::math::sin_cos(t2);
-    // joint ball row 1: (P_j − P_i)_x = 0
-    phi[0] = q0 - (t0 - t1);
-    // joint ball row 2: (P_j − P_i)_y = 0
-    phi[1] = q1;
-    // joint ball row 3: (P_j − P_i)_z = 0
-    phi[2] = 2.0 * (q3 * q4) + q2;
-    // driver drive_ry: e2 cos(s/2) − e0 sin(s/2) = 0, s = 1.047 t
-    phi[3] = q4 * t4 - q3 * t3;
-    // body bar normalisation: e0² + e1² + e2² + e3² − 1 = 0
-    phi[4] = t0 + t1 - 1.0;
+    let mut terms = [0.0; TIME_TERMS];
+    time_terms(t, &mut terms);
+    residual_at(q, t, &terms, phi)
 }
 
 /// Jacobian Φ_q, row-major: `jac[i][j] = ∂Φ_i/∂q_j`; the 11 structurally non-zero entries are written, the others set to 0.
@@ -302,42 +290,16 @@ pub fn residual_jacobian(
 
 /// Φ and the 8 entries of Φ_q that depend on q or t, the others of `jac` left as they were: what the `factor_k` functions read (3 of the 11 structurally non-zero entries are constants, which they know).
 ///
-/// 24 operations, 7 shared subexpressions.
+/// Computes the time terms at t ([`time_terms`]) and calls [`residual_jacobian_structural_at`].
 fn residual_jacobian_structural(
     q: &[f64; N],
     t: f64,
     phi: &mut [f64; N],
     jac: &mut [[f64; N]; N],
 ) {
-    let [q0, q1, q2, q3, q4] = *q;
-    let t0 = q3 * q3;
-    let t1 = q4 * q4;
-    let t2 = f64::from_bits(4602890488355133325) * t;
-    let (t3, t4) = runtime::math::sin_cos(t2);
-    let t5 = q3 + q3;
-    let t6 = q4 + q4;
-    // joint ball row 1: (P_j − P_i)_x = 0
-    phi[0] = q0 - (t0 - t1);
-    // joint ball row 2: (P_j − P_i)_y = 0
-    phi[1] = q1;
-    // joint ball row 3: (P_j − P_i)_z = 0
-    phi[2] = 2.0 * (q3 * q4) + q2;
-    // driver drive_ry: e2 cos(s/2) − e0 sin(s/2) = 0, s = 1.047 t
-    phi[3] = q4 * t4 - q3 * t3;
-    // body bar normalisation: e0² + e1² + e2² + e3² − 1 = 0
-    phi[4] = t0 + t1 - 1.0;
-    // joint ball row 1: (P_j − P_i)_x = 0
-    jac[0][3] = -t5;
-    jac[0][4] = t6;
-    // joint ball row 3: (P_j − P_i)_z = 0
-    jac[2][3] = 2.0 * q4;
-    jac[2][4] = 2.0 * q3;
-    // driver drive_ry: e2 cos(s/2) − e0 sin(s/2) = 0, s = 1.047 t
-    jac[3][3] = -t3;
-    jac[3][4] = t4;
-    // body bar normalisation: e0² + e1² + e2² + e3² − 1 = 0
-    jac[4][3] = t5;
-    jac[4][4] = t6;
+    let mut terms = [0.0; TIME_TERMS];
+    time_terms(t, &mut terms);
+    residual_jacobian_structural_at(q, t, &terms, phi, jac)
 }
 
 /// Factors Φ_q in place with static pivot order 0: step k pivots on row `[0, 1, 2, 4, 3][k]` and column `[0, 1, 2, 3, 4][k]`.
@@ -446,50 +408,20 @@ fn solve_1(lu: &[[f64; N]; N], b: &mut [f64; N]) {
 
 /// Velocity right-hand side ν = −Φ_t.
 ///
-/// 11 operations, 3 shared subexpressions.
+/// Computes the time terms at t ([`time_terms`]) and calls [`velocity_rhs_at`].
 pub fn velocity_rhs(q: &[f64; N], t: f64, nu: &mut [f64; N]) {
-    let [_q0, _q1, _q2, q3, q4] = *q;
-    let t0 = f64::from_bits(4602890488355133325) * t;
-    let (t1, t2) = runtime::math::sin_cos(t0);
-    // joint ball row 1: (P_j − P_i)_x = 0
-    nu[0] = 0.0;
-    // joint ball row 2: (P_j − P_i)_y = 0
-    nu[1] = 0.0;
-    // joint ball row 3: (P_j − P_i)_z = 0
-    nu[2] = 0.0;
-    // driver drive_ry: e2 cos(s/2) − e0 sin(s/2) = 0, s = 1.047 t
-    nu[3] = -(-(q4 * (f64::from_bits(4602890488355133325) * t1))
-        - q3 * (f64::from_bits(4602890488355133325) * t2));
-    // body bar normalisation: e0² + e1² + e2² + e3² − 1 = 0
-    nu[4] = 0.0;
+    let mut terms = [0.0; TIME_TERMS];
+    time_terms(t, &mut terms);
+    velocity_rhs_at(q, t, &terms, nu)
 }
 
 /// Acceleration right-hand side γ = −(Φ_q q̇)_q q̇ − 2Φ_qt q̇ − Φ_tt.
 ///
-/// 33 operations, 10 shared subexpressions.
+/// Computes the time terms at t ([`time_terms`]) and calls [`acceleration_rhs_at`].
 pub fn acceleration_rhs(q: &[f64; N], qd: &[f64; N], t: f64, gamma: &mut [f64; N]) {
-    let [_q0, _q1, _q2, q3, q4] = *q;
-    let [_qd0, _qd1, _qd2, qd3, qd4] = *qd;
-    let t0 = f64::from_bits(4602890488355133325) * t;
-    let (t1, t2) = runtime::math::sin_cos(t0);
-    let t3 = qd3 * qd3;
-    let t4 = t3 + t3;
-    let t5 = qd4 * qd4;
-    let t6 = t5 + t5;
-    let t7 = qd3 * qd4;
-    let t8 = qd4 * (f64::from_bits(4602890488355133325) * t1);
-    let t9 = qd3 * (f64::from_bits(4602890488355133325) * t2);
-    // joint ball row 1: (P_j − P_i)_x = 0
-    gamma[0] = t4 - t6;
-    // joint ball row 2: (P_j − P_i)_y = 0
-    gamma[1] = 0.0;
-    // joint ball row 3: (P_j − P_i)_z = 0
-    gamma[2] = -(2.0 * (t7 + t7));
-    // driver drive_ry: e2 cos(s/2) − e0 sin(s/2) = 0, s = 1.047 t
-    gamma[3] = -(-(t8 + q4 * (0.27405224999999994 * t2)) - t8
-        - (t9 + (t9 - q3 * (0.27405224999999994 * t1))));
-    // body bar normalisation: e0² + e1² + e2² + e3² − 1 = 0
-    gamma[4] = -(t4 + t6);
+    let mut terms = [0.0; TIME_TERMS];
+    time_terms(t, &mut terms);
+    acceleration_rhs_at(q, qd, t, &terms, gamma)
 }
 
 /// The number of time terms: the sines and cosines of functions of t alone that Φ, Φ_q, ν and γ read, computed by [`time_terms`].

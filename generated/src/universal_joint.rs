@@ -215,26 +215,11 @@ pub mod unknown {
 
 /// Constraint residuals Φ(q, t), 6 rows.
 ///
-/// 28 operations, 6 shared subexpressions.
+/// Computes the time terms at t ([`time_terms`]) and calls [`residual_at`].
 pub fn residual(q: &[f64; N], t: f64, phi: &mut [f64; N]) {
-    let [q0, q1, q2, q3, q4, q5] = *q;
-    let t0 = q3 * q3;
-    let t1 = q4 * q4;
-    let t2 = q5 * q5;
-    let t3 = f64::from_bits(4602890488355133325) * t;
-    let (t4, t5) = runtime::math::sin_cos(t3);
-    // joint cross row 1: (P_j − P_i)_x = 0
-    phi[0] = q0 - 2.0 * (q4 * q5);
-    // joint cross row 2: (P_j − P_i)_y = 0
-    phi[1] = q1 - (t0 + t2 - t1);
-    // joint cross row 3: (P_j − P_i)_z = 0
-    phi[2] = q2 - 2.0 * (q3 * q4);
-    // joint cross row 4: a_i · a_j = 0
-    phi[3] = 2.0 * (q3 * q5);
-    // driver drive_rx: e1 cos(s/2) − e0 sin(s/2) = 0, s = 1.047 t
-    phi[4] = q4 * t5 - q3 * t4;
-    // body bar normalisation: e0² + e1² + e2² + e3² − 1 = 0
-    phi[5] = t2 + (t0 + t1) - 1.0;
+    let mut terms = [0.0; TIME_TERMS];
+    time_terms(t, &mut terms);
+    residual_at(q, t, &terms, phi)
 }
 
 /// Jacobian Φ_q, row-major: `jac[i][j] = ∂Φ_i/∂q_j`; the 17 structurally non-zero entries are written, the others set to 0.
@@ -337,57 +322,16 @@ pub fn residual_jacobian(
 
 /// Φ and the 14 entries of Φ_q that depend on q or t, the others of `jac` left as they were: what the `factor_k` functions read (3 of the 17 structurally non-zero entries are constants, which they know).
 ///
-/// 40 operations, 12 shared subexpressions.
+/// Computes the time terms at t ([`time_terms`]) and calls [`residual_jacobian_structural_at`].
 fn residual_jacobian_structural(
     q: &[f64; N],
     t: f64,
     phi: &mut [f64; N],
     jac: &mut [[f64; N]; N],
 ) {
-    let [q0, q1, q2, q3, q4, q5] = *q;
-    let t0 = q3 * q3;
-    let t1 = q4 * q4;
-    let t2 = q5 * q5;
-    let t3 = f64::from_bits(4602890488355133325) * t;
-    let (t4, t5) = runtime::math::sin_cos(t3);
-    let t6 = 2.0 * q5;
-    let t7 = -(2.0 * q4);
-    let t8 = q3 + q3;
-    let t9 = q4 + q4;
-    let t10 = q5 + q5;
-    let t11 = 2.0 * q3;
-    // joint cross row 1: (P_j − P_i)_x = 0
-    phi[0] = q0 - 2.0 * (q4 * q5);
-    // joint cross row 2: (P_j − P_i)_y = 0
-    phi[1] = q1 - (t0 + t2 - t1);
-    // joint cross row 3: (P_j − P_i)_z = 0
-    phi[2] = q2 - 2.0 * (q3 * q4);
-    // joint cross row 4: a_i · a_j = 0
-    phi[3] = 2.0 * (q3 * q5);
-    // driver drive_rx: e1 cos(s/2) − e0 sin(s/2) = 0, s = 1.047 t
-    phi[4] = q4 * t5 - q3 * t4;
-    // body bar normalisation: e0² + e1² + e2² + e3² − 1 = 0
-    phi[5] = t2 + (t0 + t1) - 1.0;
-    // joint cross row 1: (P_j − P_i)_x = 0
-    jac[0][4] = -t6;
-    jac[0][5] = t7;
-    // joint cross row 2: (P_j − P_i)_y = 0
-    jac[1][3] = -t8;
-    jac[1][4] = t9;
-    jac[1][5] = -t10;
-    // joint cross row 3: (P_j − P_i)_z = 0
-    jac[2][3] = t7;
-    jac[2][4] = -t11;
-    // joint cross row 4: a_i · a_j = 0
-    jac[3][3] = t6;
-    jac[3][5] = t11;
-    // driver drive_rx: e1 cos(s/2) − e0 sin(s/2) = 0, s = 1.047 t
-    jac[4][3] = -t4;
-    jac[4][4] = t5;
-    // body bar normalisation: e0² + e1² + e2² + e3² − 1 = 0
-    jac[5][3] = t8;
-    jac[5][4] = t9;
-    jac[5][5] = t10;
+    let mut terms = [0.0; TIME_TERMS];
+    time_terms(t, &mut terms);
+    residual_jacobian_structural_at(q, t, &terms, phi, jac)
 }
 
 /// Factors Φ_q in place with static pivot order 0: step k pivots on row `[0, 1, 2, 4, 5, 3][k]` and column `[0, 1, 2, 4, 3, 5][k]`.
@@ -522,58 +466,20 @@ fn solve_1(lu: &[[f64; N]; N], b: &mut [f64; N]) {
 
 /// Velocity right-hand side ν = −Φ_t.
 ///
-/// 11 operations, 3 shared subexpressions.
+/// Computes the time terms at t ([`time_terms`]) and calls [`velocity_rhs_at`].
 pub fn velocity_rhs(q: &[f64; N], t: f64, nu: &mut [f64; N]) {
-    let [_q0, _q1, _q2, q3, q4, _q5] = *q;
-    let t0 = f64::from_bits(4602890488355133325) * t;
-    let (t1, t2) = runtime::math::sin_cos(t0);
-    // joint cross row 1: (P_j − P_i)_x = 0
-    nu[0] = 0.0;
-    // joint cross row 2: (P_j − P_i)_y = 0
-    nu[1] = 0.0;
-    // joint cross row 3: (P_j − P_i)_z = 0
-    nu[2] = 0.0;
-    // joint cross row 4: a_i · a_j = 0
-    nu[3] = 0.0;
-    // driver drive_rx: e1 cos(s/2) − e0 sin(s/2) = 0, s = 1.047 t
-    nu[4] = -(-(q4 * (f64::from_bits(4602890488355133325) * t1))
-        - q3 * (f64::from_bits(4602890488355133325) * t2));
-    // body bar normalisation: e0² + e1² + e2² + e3² − 1 = 0
-    nu[5] = 0.0;
+    let mut terms = [0.0; TIME_TERMS];
+    time_terms(t, &mut terms);
+    velocity_rhs_at(q, t, &terms, nu)
 }
 
 /// Acceleration right-hand side γ = −(Φ_q q̇)_q q̇ − 2Φ_qt q̇ − Φ_tt.
 ///
-/// 43 operations, 14 shared subexpressions.
+/// Computes the time terms at t ([`time_terms`]) and calls [`acceleration_rhs_at`].
 pub fn acceleration_rhs(q: &[f64; N], qd: &[f64; N], t: f64, gamma: &mut [f64; N]) {
-    let [_q0, _q1, _q2, q3, q4, _q5] = *q;
-    let [_qd0, _qd1, _qd2, qd3, qd4, qd5] = *qd;
-    let t0 = f64::from_bits(4602890488355133325) * t;
-    let (t1, t2) = runtime::math::sin_cos(t0);
-    let t3 = qd4 * qd5;
-    let t4 = qd3 * qd3;
-    let t5 = t4 + t4;
-    let t6 = qd5 * qd5;
-    let t7 = t6 + t6;
-    let t8 = qd4 * qd4;
-    let t9 = t8 + t8;
-    let t10 = qd4 * qd3;
-    let t11 = qd5 * qd3;
-    let t12 = qd4 * (f64::from_bits(4602890488355133325) * t1);
-    let t13 = qd3 * (f64::from_bits(4602890488355133325) * t2);
-    // joint cross row 1: (P_j − P_i)_x = 0
-    gamma[0] = 2.0 * (t3 + t3);
-    // joint cross row 2: (P_j − P_i)_y = 0
-    gamma[1] = t5 + t7 - t9;
-    // joint cross row 3: (P_j − P_i)_z = 0
-    gamma[2] = 2.0 * (t10 + t10);
-    // joint cross row 4: a_i · a_j = 0
-    gamma[3] = -(2.0 * (t11 + t11));
-    // driver drive_rx: e1 cos(s/2) − e0 sin(s/2) = 0, s = 1.047 t
-    gamma[4] = -(-(t12 + q4 * (0.27405224999999994 * t2)) - t12
-        - (t13 + (t13 - q3 * (0.27405224999999994 * t1))));
-    // body bar normalisation: e0² + e1² + e2² + e3² − 1 = 0
-    gamma[5] = -(t7 + (t5 + t9));
+    let mut terms = [0.0; TIME_TERMS];
+    time_terms(t, &mut terms);
+    acceleration_rhs_at(q, qd, t, &terms, gamma)
 }
 
 /// The number of time terms: the sines and cosines of functions of t alone that Φ, Φ_q, ν and γ read, computed by [`time_terms`].

@@ -2,7 +2,8 @@
 //! angle) that Φ, Φ_q, ν and γ read, computed once per time by `time_terms` and read by the
 //! `_at` variants of `residual`, `residual_jacobian_structural`, `velocity_rhs` and
 //! `acceleration_rhs` (`runtime::Mechanism::TIME_TERMS`), which a solver calls at the time of
-//! the terms instead of the plain functions, each of which computes them again.
+//! the terms. The plain functions compute the terms and call their variant ([`delegate`]), so
+//! each function's arithmetic is emitted once.
 //!
 //! The terms are the very nodes the plain functions would compute, so the variants give the
 //! same values bit for bit. Emitted for modules with static pivot orders and without inputs
@@ -15,7 +16,7 @@ use syn::parse_quote;
 
 use super::Rows;
 use super::function::{Given, Output, Signature, emit_function_given, function};
-use super::syntax::{element, index, item_fn, param};
+use super::syntax::{element, ident, index, item_fn, param};
 use crate::expr::{ExprId, ExprPool, Node, Var};
 
 /// The most time terms a module gets: `runtime::MAX_TIME_TERMS`.
@@ -182,4 +183,71 @@ pub(super) fn items(rows: &Rows<'_>) -> Option<(Vec<syn::Item>, Vec<syn::ImplIte
         },
     ];
     Some((items, impls))
+}
+
+/// The plain functions that have an `_at` variant.
+const PLAIN: [&str; 4] =
+    ["residual", "residual_jacobian_structural", "velocity_rhs", "acceleration_rhs"];
+
+/// Rewrites each plain function of `items` that has an `_at` variant among `variants` into a
+/// call of it after [`time_terms`] (emitted by [`items`]), so that a module carries each
+/// function's arithmetic once: `residual(q, t, phi)` computes the terms at t and calls
+/// `residual_at(q, t, &terms, phi)`, which gives the values the plain function computed, bit
+/// for bit (the terms are the nodes it computed).
+pub(super) fn delegate(items: &mut [syn::Item], variants: &[syn::Item]) {
+    let names: BTreeSet<String> = variants
+        .iter()
+        .filter_map(|item| match item {
+            syn::Item::Fn(f) => Some(f.sig.ident.to_string()),
+            _ => None,
+        })
+        .collect();
+    for item in items {
+        let syn::Item::Fn(f) = item else { continue };
+        let plain = f.sig.ident.to_string();
+        let at = format!("{plain}_at");
+        if !PLAIN.contains(&plain.as_str()) || !names.contains(&at) {
+            continue;
+        }
+        let mut args: Vec<syn::Expr> = Vec::new();
+        for input in &mut f.sig.inputs {
+            let syn::FnArg::Typed(typed) = input else { continue };
+            let syn::Pat::Ident(pat) = typed.pat.as_mut() else { continue };
+            if pat.ident == "_t" {
+                // The plain function reads t now: the time terms are computed from it.
+                pat.ident = ident("t");
+            }
+            args.push(super::syntax::path(pat.ident.clone()));
+            if pat.ident == "t" {
+                args.push(parse_quote!(&terms));
+            }
+        }
+        let callee = ident(&at);
+        // The count of operations in the docs becomes the call's description.
+        let link = format!(" Computes the time terms at t ([`time_terms`]) and calls [`{at}`].");
+        for attr in &mut f.attrs {
+            if let syn::Meta::NameValue(meta) = &mut attr.meta
+                && meta.path.is_ident("doc")
+                && let syn::Expr::Lit(syn::ExprLit { lit: syn::Lit::Str(text), .. }) = &meta.value
+                && text.value().contains(" operations")
+            {
+                let doc: Vec<String> = text
+                    .value()
+                    .split('\n')
+                    .map(
+                        |line| {
+                            if line.contains(" operations") { link.clone() } else { line.into() }
+                        },
+                    )
+                    .collect();
+                let doc = doc.join("\n");
+                meta.value = parse_quote!(#doc);
+            }
+        }
+        *f.block = parse_quote!({
+            let mut terms = [0.0; TIME_TERMS];
+            time_terms(t, &mut terms);
+            #callee(#(#args),*)
+        });
+    }
 }
