@@ -483,12 +483,11 @@ fn right_hand_sides(rows: &Rows<'_>) -> Vec<syn::Item> {
     items
 }
 
-/// `normalize_moved`: `normalize`, telling whether it moved a coordinate by more than
-/// `runtime::newton::ROUND_OFF_MOVE` ulps of itself (`runtime::Mechanism::normalize_moved`),
-/// by the test of `runtime::newton::moved_by_round_off` on each coordinate it rescales, as it
-/// rescales it: no copy of q, no pass over the coordinates it does not touch.
-fn normalize_moved(sys: &Symbolic) -> syn::Item {
-    let mut stmts: Vec<syn::Stmt> = Vec::new();
+/// The bodies' unknown Euler parameters, as `normalize` and `normalize_moved` rescale them:
+/// for each body with some, their indices, the target 1 − Σ (fixed parameters)² of their
+/// squares, and the sum of their squares from the first one (0 + x = x exactly for x = q² ≥ 0).
+fn euler_groups(sys: &Symbolic) -> Vec<(Vec<Literal>, Expr, Expr)> {
+    let mut groups = Vec::new();
     for c in &sys.coords {
         let free: Vec<Literal> = c[3..]
             .iter()
@@ -499,27 +498,39 @@ fn normalize_moved(sys: &Symbolic) -> syn::Item {
         }
         let fixed: f64 =
             c[3..].iter().map(|s| if let Source::Fixed(v) = *s { v * v } else { 0.0 }).sum();
-        let target = literal_signed(1.0 - fixed);
-        // As `normalize` computes it.
         let squares = free
             .iter()
             .map(|k| -> Expr { parse_quote!(q[#k] * q[#k]) })
             .reduce(|a, b| binary(a, syn::BinOp::Add(Default::default()), b))
             .expect("at least one free parameter");
-        stmts.push(parse_quote! {
-            {
-                let free = #squares;
-                if free > 0.0 {
-                    let scale = runtime::math::sqrt(#target / free);
-                    #(
-                        let before = q[#free];
-                        q[#free] *= scale;
-                        within &= (q[#free] - before).abs() <= bound * before.abs();
-                    )*
+        groups.push((free, literal_signed(1.0 - fixed), squares));
+    }
+    groups
+}
+
+/// `normalize_moved`: `normalize`, telling whether it moved a coordinate by more than
+/// `runtime::newton::ROUND_OFF_MOVE` ulps of itself (`runtime::Mechanism::normalize_moved`),
+/// by the test of `runtime::newton::moved_by_round_off` on each coordinate it rescales, as it
+/// rescales it: no copy of q, no pass over the coordinates it does not touch.
+fn normalize_moved(sys: &Symbolic) -> syn::Item {
+    let stmts: Vec<syn::Stmt> = euler_groups(sys)
+        .into_iter()
+        .map(|(free, target, squares)| {
+            parse_quote! {
+                {
+                    let free = #squares;
+                    if free > 0.0 {
+                        let scale = runtime::math::sqrt(#target / free);
+                        #(
+                            let before = q[#free];
+                            q[#free] *= scale;
+                            within &= (q[#free] - before).abs() <= bound * before.abs();
+                        )*
+                    }
                 }
             }
-        });
-    }
+        })
+        .collect();
     if stmts.is_empty() {
         return parse_quote! {
             /// [`normalize`], which moves nothing here: returns false.
@@ -542,34 +553,20 @@ fn normalize_moved(sys: &Symbolic) -> syn::Item {
 
 /// `normalize`: each body's unknown Euler parameters rescaled so that |p| = 1.
 fn normalize(sys: &Symbolic) -> syn::Item {
-    let mut stmts: Vec<syn::Stmt> = Vec::new();
-    for c in &sys.coords {
-        let free: Vec<Literal> = c[3..]
-            .iter()
-            .filter_map(|s| if let Source::Unknown(k) = *s { Some(index(k)) } else { None })
-            .collect();
-        if free.is_empty() {
-            continue;
-        }
-        let fixed: f64 =
-            c[3..].iter().map(|s| if let Source::Fixed(v) = *s { v * v } else { 0.0 }).sum();
-        let target = literal_signed(1.0 - fixed);
-        // The sum of squares from the first one: 0 + x = x exactly for x = q² ≥ 0.
-        let squares = free
-            .iter()
-            .map(|k| -> Expr { parse_quote!(q[#k] * q[#k]) })
-            .reduce(|a, b| binary(a, syn::BinOp::Add(Default::default()), b))
-            .expect("at least one free parameter");
-        stmts.push(parse_quote! {
-            {
-                let free = #squares;
-                if free > 0.0 {
-                    let scale = runtime::math::sqrt(#target / free);
-                    #(q[#free] *= scale;)*
+    let stmts: Vec<syn::Stmt> = euler_groups(sys)
+        .into_iter()
+        .map(|(free, target, squares)| {
+            parse_quote! {
+                {
+                    let free = #squares;
+                    if free > 0.0 {
+                        let scale = runtime::math::sqrt(#target / free);
+                        #(q[#free] *= scale;)*
+                    }
                 }
             }
-        });
-    }
+        })
+        .collect();
     let qn = param("q", !stmts.is_empty());
     parse_quote! {
         /// Rescales the unknown Euler parameters of each body so that |p| = 1 (the fixed
