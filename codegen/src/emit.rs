@@ -421,10 +421,31 @@ fn residual_and_jacobian(rows: &Rows<'_>, structural: bool, whole: bool) -> Vec<
         inputs: rows.inputs(),
     };
     let what = "Φ and Φ_q at once (see [`residual`] and [`jacobian`]).";
-    items.extend(rows.emit(&sig, what, vec![zero_jac], &both));
     if !structural {
+        items.extend(rows.emit(&sig, what, vec![zero_jac], &both));
         return items;
     }
+    // With static orders, the constant entries of Φ_q and then `residual_jacobian_structural`,
+    // so that the arithmetic of Φ and Φ_q is emitted once.
+    let constants = rows.jacobian(1, false).into_iter().filter_map(|o| {
+        let (target, value) = (o.target, literal_signed(sys.pool.as_const(o.value)?));
+        Some::<syn::Stmt>(parse_quote!(#target = #value;))
+    });
+    let constants: Vec<syn::Stmt> = constants.collect();
+    let inputs = rows.inputs().then(|| quote::quote!(inputs,));
+    let doc = format!(
+        " {what}\n\n The {} constant entries of Φ_q, then `residual_jacobian_structural` for Φ and the others.",
+        constants.len()
+    );
+    let input_param = rows.inputs().then(|| quote::quote!(inputs: &Inputs,));
+    items.push(parse_quote! {
+        #[doc = #doc]
+        pub fn residual_jacobian(q: &[f64; N], t: f64, #input_param phi: &mut [f64; N], jac: &mut [[f64; N]; N]) {
+            #zero_jac
+            #(#constants)*
+            residual_jacobian_structural(q, t, #inputs phi, jac);
+        }
+    });
 
     // Φ and the entries of Φ_q that vary: the constant ones are literals in `factor_k`.
     let mut varying = rows.vector(0, "phi", &sys.phi);

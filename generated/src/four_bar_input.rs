@@ -700,309 +700,34 @@ pub fn jacobian(q: &[f64; N], _t: f64, inputs: &Inputs, jac: &mut [[f64; N]; N])
 
 /// Φ and Φ_q at once (see [`residual`] and [`jacobian`]).
 ///
-/// 391 operations, 99 shared subexpressions.
+/// The 18 constant entries of Φ_q, then `residual_jacobian_structural` for Φ and the others.
 pub fn residual_jacobian(
     q: &[f64; N],
-    _t: f64,
+    t: f64,
     inputs: &Inputs,
     phi: &mut [f64; N],
     jac: &mut [[f64; N]; N],
 ) {
-    let u = inputs.to_array();
     *jac = [[0.0; N]; N];
-    let [q0, q1, q2, q3, q4, q5, q6, q7, q8, q9, q10, q11, q12, q13, q14, q15, q16, q17,
-    q18, q19, q20] = *q;
-    let [s0, _sd0, _sdd0] = u[0];
-    let t0 = q3 * q3;
-    let t1 = q4 * q4;
-    let t2 = q5 * q5;
-    let t3 = q6 * q6;
-    let t4 = t0 + t1;
-    let t5 = t4 - (t2 + t3);
-    let t6 = t0 + t3 - (t1 + t2);
-    let t7 = q4 * q6;
-    let t8 = q3 * q5;
-    let t9 = 2.0 * (t7 + t8);
-    let t10 = 2.0 * (q4 * q5 + q3 * q6);
-    let t11 = 2.0 * (q5 * q6 - q3 * q4);
-    let t12 = q10 * q10;
-    let t13 = q11 * q11;
-    let t14 = q12 * q12;
-    let t15 = q13 * q13;
-    let t16 = t12 + t13;
-    let t17 = t16 - (t14 + t15);
-    let t18 = t12 + t14 - (t13 + t15);
-    let t19 = q11 * q12;
-    let t20 = q10 * q13;
-    let t21 = t19 - t20;
-    let t22 = t19 + t20;
-    let t23 = q11 * q13 - q10 * q12;
-    let t24 = q12 * q13 + q10 * q11;
-    let t25 = -0.8267972847077844 * t17 + 1.1249999999997065 * t21;
-    let t26 = -1.6535945694155687 * t22 + 0.5624999999998532 * t18;
-    let t27 = -1.6535945694155687 * t23 + 1.1249999999997065 * t24;
-    let t28 = q17 * q17;
-    let t29 = q18 * q18;
-    let t30 = q19 * q19;
-    let t31 = q20 * q20;
-    let t32 = t28 + t29;
-    let t33 = t32 - (t30 + t31);
-    let t34 = q18 * q19;
-    let t35 = q17 * q20;
-    let t36 = q18 * q20;
-    let t37 = q17 * q19;
-    let t38 = t34 + t35;
-    let t39 = q19 * q20;
-    let t40 = q17 * q18;
-    let t41 = t36 - t37;
-    let (t42, t43) = runtime::math::sin_cos(s0);
-    let t44 = 2.0 * q5;
-    let t45 = 2.0 * q6;
-    let t46 = 2.0 * q3;
-    let t47 = 2.0 * q4;
-    let t48 = -t47;
-    let t49 = -t46;
-    let t50 = q3 + q3;
-    let t51 = q4 + q4;
-    let t52 = q5 + q5;
-    let t53 = q6 + q6;
-    let t54 = q10 + q10;
-    let t55 = q11 + q11;
-    let t56 = q12 + q12;
-    let t57 = q13 + q13;
-    let t58 = -t45;
-    let t59 = 2.0 * q13;
-    let t60 = 2.0 * q12;
-    let t61 = 2.0 * q11;
-    let t62 = 2.0 * q10;
-    let t63 = -1.6535945694155687 * q12;
-    let t64 = 1.1249999999997065 * q11;
-    let t65 = 1.1249999999997065 * q13;
-    let t66 = -1.6535945694155687 * q13;
-    let t67 = 1.1249999999997065 * q10;
-    let t68 = 1.1249999999997065 * q12;
-    let t69 = -1.6535945694155687 * q10;
-    let t70 = -1.6535945694155687 * q11;
-    let t71 = 4.960783708246 * q13;
-    let t72 = 4.960783708246 * q12;
-    let t73 = 4.960783708246 * q11;
-    let t74 = 4.960783708246 * q10;
-    let t75 = q17 + q17;
-    let t76 = 4.960783708246 * q20;
-    let t77 = q18 + q18;
-    let t78 = 4.960783708246 * q19;
-    let t79 = q19 + q19;
-    let t80 = 4.960783708246 * q18;
-    let t81 = q20 + q20;
-    let t82 = 4.960783708246 * q17;
-    let t83 = 5.375 * q13;
-    let t84 = 5.375 * q12;
-    let t85 = 5.375 * q11;
-    let t86 = 5.375 * q10;
-    let t87 = 5.375 * q20;
-    let t88 = 5.375 * q19;
-    let t89 = 5.375 * q18;
-    let t90 = 5.375 * q17;
-    let t91 = 6.0 * q20;
-    let t92 = 6.0 * q19;
-    let t93 = 6.0 * q18;
-    let t94 = 6.0 * q17;
-    let t95 = 2.0 * q19;
-    let t96 = 2.0 * q20;
-    let t97 = 2.0 * q17;
-    let t98 = 2.0 * q18;
-    // joint O2 row 1: (P_j − P_i)_x = 0
-    phi[0] = q0;
-    // joint O2 row 2: (P_j − P_i)_y = 0
-    phi[1] = q1;
-    // joint O2 row 3: (P_j − P_i)_z = 0
-    phi[2] = q2;
-    // joint O2 row 4: b_i · a_j = 0
-    phi[3] = t9;
-    // joint O2 row 5: c_i · a_j = 0
-    phi[4] = t11;
-    // joint A row 1: (P_j − P_i)_x = 0
-    phi[5] = t17 + q7 - (t5 + q0);
-    // joint A row 2: (P_j − P_i)_y = 0
-    phi[6] = 2.0 * t22 + q8 - (t10 + q1);
-    // joint A row 3: (P_j − P_i)_z = 0
-    phi[7] = 2.0 * t23 + q9 - (2.0 * (t7 - t8) + q2);
-    // joint A row 4: a_i · a_j = 0
-    phi[8] = t6 * t27 + (t9 * t25 + t11 * t26);
-    // joint B row 1: (P_j − P_i)_x = 0
-    phi[9] = 2.6875 * t33 + 4.960783708246 * (t34 - t35) + q14
-        - (q7 + (2.6875 * t17 + 4.960783708246 * t21));
-    // joint B row 2: (P_j − P_i)_y = 0
-    phi[10] = 5.375 * t38 + 2.480391854123 * (t28 + t30 - (t29 + t31)) + q15
-        - (q8 + (5.375 * t22 + 2.480391854123 * t18));
-    // joint B row 3: (P_j − P_i)_z = 0
-    phi[11] = 5.375 * t41 + 4.960783708246 * (t39 + t40) + q16
-        - (q9 + (5.375 * t23 + 4.960783708246 * t24));
-    // joint O4 row 1: (P_j − P_i)_x = 0
-    phi[12] = q14 + 3.0 * t33 - 3.0;
-    // joint O4 row 2: (P_j − P_i)_y = 0
-    phi[13] = q15 + 6.0 * t38;
-    // joint O4 row 3: (P_j − P_i)_z = 0
-    phi[14] = q16 + 6.0 * t41;
-    // joint O4 row 4: b_i · a_j = 0
-    phi[15] = 2.0 * (t36 + t37);
-    // joint O4 row 5: c_i · a_j = 0
-    phi[16] = 2.0 * (t39 - t40);
-    // driver crank: r_i · r_j sin s − (r_i × r_j) · a_i cos s = 0, s = the input
-    phi[17] = t5 * t42 - t10 * t43;
-    // body crank normalisation: e0² + e1² + e2² + e3² − 1 = 0
-    phi[18] = t3 + (t2 + t4) - 1.0;
-    // body coupler normalisation: e0² + e1² + e2² + e3² − 1 = 0
-    phi[19] = t15 + (t14 + t16) - 1.0;
-    // body rocker normalisation: e0² + e1² + e2² + e3² − 1 = 0
-    phi[20] = t31 + (t30 + t32) - 1.0;
-    // joint O2 row 1: (P_j − P_i)_x = 0
     jac[0][0] = 1.0;
-    // joint O2 row 2: (P_j − P_i)_y = 0
     jac[1][1] = 1.0;
-    // joint O2 row 3: (P_j − P_i)_z = 0
     jac[2][2] = 1.0;
-    // joint O2 row 4: b_i · a_j = 0
-    jac[3][3] = t44;
-    jac[3][4] = t45;
-    jac[3][5] = t46;
-    jac[3][6] = t47;
-    // joint O2 row 5: c_i · a_j = 0
-    jac[4][3] = t48;
-    jac[4][4] = t49;
-    jac[4][5] = t45;
-    jac[4][6] = t44;
-    // joint A row 1: (P_j − P_i)_x = 0
     jac[5][0] = -1.0;
-    jac[5][3] = -t50;
-    jac[5][4] = -t51;
-    jac[5][5] = t52;
-    jac[5][6] = t53;
     jac[5][7] = 1.0;
-    jac[5][10] = t54;
-    jac[5][11] = t55;
-    jac[5][12] = -t56;
-    jac[5][13] = -t57;
-    // joint A row 2: (P_j − P_i)_y = 0
     jac[6][1] = -1.0;
-    jac[6][3] = t58;
-    jac[6][4] = -t44;
-    jac[6][5] = t48;
-    jac[6][6] = t49;
     jac[6][8] = 1.0;
-    jac[6][10] = t59;
-    jac[6][11] = t60;
-    jac[6][12] = t61;
-    jac[6][13] = t62;
-    // joint A row 3: (P_j − P_i)_z = 0
     jac[7][2] = -1.0;
-    jac[7][3] = t44;
-    jac[7][4] = t58;
-    jac[7][5] = t46;
-    jac[7][6] = t48;
     jac[7][9] = 1.0;
-    jac[7][10] = -t60;
-    jac[7][11] = t59;
-    jac[7][12] = -t62;
-    jac[7][13] = t61;
-    // joint A row 4: a_i · a_j = 0
-    jac[8][3] = t27 * t50 + (t25 * t44 - t26 * t47);
-    jac[8][4] = t25 * t45 - t26 * t46 - t27 * t51;
-    jac[8][5] = t25 * t46 + t26 * t45 - t27 * t52;
-    jac[8][6] = t27 * t53 + (t25 * t47 + t26 * t44);
-    jac[8][10] = t6 * (t64 - t63)
-        + (t9 * (-0.8267972847077844 * t54 - t65)
-            + t11 * (t66 + 0.5624999999998532 * t54));
-    jac[8][11] = t6 * (t66 + t67)
-        + (t9 * (-0.8267972847077844 * t55 + t68)
-            + t11 * (t63 - 0.5624999999998532 * t55));
-    jac[8][12] = t6 * (t65 - t69)
-        + (t9 * (t64 - -0.8267972847077844 * t56)
-            + t11 * (t70 + 0.5624999999998532 * t56));
-    jac[8][13] = t6 * (t68 + t70)
-        + (t9 * (-(-0.8267972847077844 * t57) - t67)
-            + t11 * (t69 - 0.5624999999998532 * t57));
-    // joint B row 1: (P_j − P_i)_x = 0
     jac[9][7] = -1.0;
-    jac[9][10] = -(2.6875 * t54 - t71);
-    jac[9][11] = -(2.6875 * t55 + t72);
-    jac[9][12] = -(t73 - 2.6875 * t56);
-    jac[9][13] = -(-(2.6875 * t57) - t74);
     jac[9][14] = 1.0;
-    jac[9][17] = 2.6875 * t75 - t76;
-    jac[9][18] = 2.6875 * t77 + t78;
-    jac[9][19] = t80 - 2.6875 * t79;
-    jac[9][20] = -(2.6875 * t81) - t82;
-    // joint B row 2: (P_j − P_i)_y = 0
     jac[10][8] = -1.0;
-    jac[10][10] = -(t83 + 2.480391854123 * t54);
-    jac[10][11] = -(t84 - 2.480391854123 * t55);
-    jac[10][12] = -(t85 + 2.480391854123 * t56);
-    jac[10][13] = -(t86 - 2.480391854123 * t57);
     jac[10][15] = 1.0;
-    jac[10][17] = t87 + 2.480391854123 * t75;
-    jac[10][18] = t88 - 2.480391854123 * t77;
-    jac[10][19] = t89 + 2.480391854123 * t79;
-    jac[10][20] = t90 - 2.480391854123 * t81;
-    // joint B row 3: (P_j − P_i)_z = 0
     jac[11][9] = -1.0;
-    jac[11][10] = -(t73 - t84);
-    jac[11][11] = -(t74 + t83);
-    jac[11][12] = -(t71 - t86);
-    jac[11][13] = -(t72 + t85);
     jac[11][16] = 1.0;
-    jac[11][17] = t80 - t88;
-    jac[11][18] = t82 + t87;
-    jac[11][19] = t76 - t90;
-    jac[11][20] = t78 + t89;
-    // joint O4 row 1: (P_j − P_i)_x = 0
     jac[12][14] = 1.0;
-    jac[12][17] = 3.0 * t75;
-    jac[12][18] = 3.0 * t77;
-    jac[12][19] = -(3.0 * t79);
-    jac[12][20] = -(3.0 * t81);
-    // joint O4 row 2: (P_j − P_i)_y = 0
     jac[13][15] = 1.0;
-    jac[13][17] = t91;
-    jac[13][18] = t92;
-    jac[13][19] = t93;
-    jac[13][20] = t94;
-    // joint O4 row 3: (P_j − P_i)_z = 0
     jac[14][16] = 1.0;
-    jac[14][17] = -t92;
-    jac[14][18] = t91;
-    jac[14][19] = -t94;
-    jac[14][20] = t93;
-    // joint O4 row 4: b_i · a_j = 0
-    jac[15][17] = t95;
-    jac[15][18] = t96;
-    jac[15][19] = t97;
-    jac[15][20] = t98;
-    // joint O4 row 5: c_i · a_j = 0
-    jac[16][17] = -t98;
-    jac[16][18] = -t97;
-    jac[16][19] = t96;
-    jac[16][20] = t95;
-    // driver crank: r_i · r_j sin s − (r_i × r_j) · a_i cos s = 0, s = the input
-    jac[17][3] = t42 * t50 - t43 * t45;
-    jac[17][4] = t42 * t51 - t43 * t44;
-    jac[17][5] = -(t42 * t52) - t43 * t47;
-    jac[17][6] = -(t42 * t53) - t43 * t46;
-    // body crank normalisation: e0² + e1² + e2² + e3² − 1 = 0
-    jac[18][3] = t50;
-    jac[18][4] = t51;
-    jac[18][5] = t52;
-    jac[18][6] = t53;
-    // body coupler normalisation: e0² + e1² + e2² + e3² − 1 = 0
-    jac[19][10] = t54;
-    jac[19][11] = t55;
-    jac[19][12] = t56;
-    jac[19][13] = t57;
-    // body rocker normalisation: e0² + e1² + e2² + e3² − 1 = 0
-    jac[20][17] = t75;
-    jac[20][18] = t77;
-    jac[20][19] = t79;
-    jac[20][20] = t81;
+    residual_jacobian_structural(q, t, inputs, phi, jac);
 }
 
 /// Φ and the 100 entries of Φ_q that depend on q or t, the others of `jac` left as they were: what the `factor_k` functions read (18 of the 118 structurally non-zero entries are constants, which they know).

@@ -275,57 +275,17 @@ pub fn jacobian(q: &[f64; N], _t: f64, jac: &mut [[f64; N]; N]) {
 
 /// Φ and Φ_q at once (see [`residual`] and [`jacobian`]).
 ///
-/// 35 operations, 6 shared subexpressions.
+/// The 2 constant entries of Φ_q, then `residual_jacobian_structural` for Φ and the others.
 pub fn residual_jacobian(
     q: &[f64; N],
-    _t: f64,
+    t: f64,
     phi: &mut [f64; N],
     jac: &mut [[f64; N]; N],
 ) {
     *jac = [[0.0; N]; N];
-    let [q0, q1, q2, q3, q4, q5] = *q;
-    let t0 = 2.0 * q5;
-    let t1 = -t0;
-    let t2 = 2.0 * q4;
-    let t3 = 2.0 * q3;
-    let t4 = 2.0 * q2;
-    let t5 = -t4;
-    // joint slide row 1: b_i · a_j = 0
-    phi[0] = 2.0 * (q3 * q4 - q2 * q5);
-    // joint slide row 2: c_i · a_j = 0
-    phi[1] = -(2.0 * (q4 * q5 + q2 * q3));
-    // joint slide row 3: b_i · (P_j − P_i) = 0
-    phi[2] = q0;
-    // joint slide row 4: c_i · (P_j − P_i) = 0
-    phi[3] = -q1;
-    // joint slide row 5: r_i · r_j = 0
-    phi[4] = 2.0 * (q3 * q5 + q2 * q4);
-    // body slider normalisation: e0² + e1² + e2² + e3² − 1 = 0
-    phi[5] = q5 * q5 + (q4 * q4 + (q2 * q2 + q3 * q3)) - 1.0;
-    // joint slide row 1: b_i · a_j = 0
-    jac[0][2] = t1;
-    jac[0][3] = t2;
-    jac[0][4] = t3;
-    jac[0][5] = t5;
-    // joint slide row 2: c_i · a_j = 0
-    jac[1][2] = -t3;
-    jac[1][3] = t5;
-    jac[1][4] = t1;
-    jac[1][5] = -t2;
-    // joint slide row 3: b_i · (P_j − P_i) = 0
     jac[2][0] = 1.0;
-    // joint slide row 4: c_i · (P_j − P_i) = 0
     jac[3][1] = -1.0;
-    // joint slide row 5: r_i · r_j = 0
-    jac[4][2] = t2;
-    jac[4][3] = t0;
-    jac[4][4] = t4;
-    jac[4][5] = t3;
-    // body slider normalisation: e0² + e1² + e2² + e3² − 1 = 0
-    jac[5][2] = q2 + q2;
-    jac[5][3] = q3 + q3;
-    jac[5][4] = q4 + q4;
-    jac[5][5] = q5 + q5;
+    residual_jacobian_structural(q, t, phi, jac);
 }
 
 /// Φ and the 16 entries of Φ_q that depend on q or t, the others of `jac` left as they were: what the `factor_k` functions read (2 of the 18 structurally non-zero entries are constants, which they know).

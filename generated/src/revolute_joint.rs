@@ -285,7 +285,7 @@ pub fn jacobian(q: &[f64; N], t: f64, jac: &mut [[f64; N]; N]) {
 
 /// Φ and Φ_q at once (see [`residual`] and [`jacobian`]).
 ///
-/// 58 operations, 20 shared subexpressions.
+/// The 3 constant entries of Φ_q, then `residual_jacobian_structural` for Φ and the others.
 pub fn residual_jacobian(
     q: &[f64; N],
     t: f64,
@@ -293,76 +293,10 @@ pub fn residual_jacobian(
     jac: &mut [[f64; N]; N],
 ) {
     *jac = [[0.0; N]; N];
-    let [q0, q1, q2, q3, q4, q5, q6] = *q;
-    let t0 = q3 * q3;
-    let t1 = q4 * q4;
-    let t2 = q5 * q5;
-    let t3 = q6 * q6;
-    let t4 = q4 * q5;
-    let t5 = q3 * q6;
-    let t6 = f64::from_bits(4602890488355133325) * t;
-    let (t7, t8) = runtime::math::sin_cos(t6);
-    let t9 = 2.0 * q6;
-    let t10 = -t9;
-    let t11 = 2.0 * q5;
-    let t12 = -t11;
-    let t13 = -(2.0 * q4);
-    let t14 = 2.0 * q3;
-    let t15 = -t14;
-    let t16 = q3 + q3;
-    let t17 = q4 + q4;
-    let t18 = q5 + q5;
-    let t19 = q6 + q6;
-    // joint hinge row 1: (P_j − P_i)_x = 0
-    phi[0] = q0 - 2.0 * (t4 - t5);
-    // joint hinge row 2: (P_j − P_i)_y = 0
-    phi[1] = q1 - (t0 + t2 - (t1 + t3));
-    // joint hinge row 3: (P_j − P_i)_z = 0
-    phi[2] = q2 - 2.0 * (q5 * q6 + q3 * q4);
-    // joint hinge row 4: b_i · a_j = 0
-    phi[3] = -(2.0 * (t4 + t5));
-    // joint hinge row 5: c_i · a_j = 0
-    phi[4] = -(2.0 * (q4 * q6 - q3 * q5));
-    // driver drive_rx: e1 cos(s/2) − e0 sin(s/2) = 0, s = 1.047 t
-    phi[5] = q4 * t8 - q3 * t7;
-    // body bar normalisation: e0² + e1² + e2² + e3² − 1 = 0
-    phi[6] = t3 + (t2 + (t0 + t1)) - 1.0;
-    // joint hinge row 1: (P_j − P_i)_x = 0
     jac[0][0] = 1.0;
-    jac[0][3] = t9;
-    jac[0][4] = t12;
-    jac[0][5] = t13;
-    jac[0][6] = t14;
-    // joint hinge row 2: (P_j − P_i)_y = 0
     jac[1][1] = 1.0;
-    jac[1][3] = -t16;
-    jac[1][4] = t17;
-    jac[1][5] = -t18;
-    jac[1][6] = t19;
-    // joint hinge row 3: (P_j − P_i)_z = 0
     jac[2][2] = 1.0;
-    jac[2][3] = t13;
-    jac[2][4] = t15;
-    jac[2][5] = t10;
-    jac[2][6] = t12;
-    // joint hinge row 4: b_i · a_j = 0
-    jac[3][3] = t10;
-    jac[3][4] = t12;
-    jac[3][5] = t13;
-    jac[3][6] = t15;
-    // joint hinge row 5: c_i · a_j = 0
-    jac[4][3] = t11;
-    jac[4][4] = t10;
-    jac[4][5] = t14;
-    jac[4][6] = t13;
-    // driver drive_rx: e1 cos(s/2) − e0 sin(s/2) = 0, s = 1.047 t
-    jac[5][3] = -t7;
-    jac[5][4] = t8;
-    // body bar normalisation: e0² + e1² + e2² + e3² − 1 = 0
-    jac[6][3] = t16;
-    jac[6][4] = t17;
-    jac[6][5] = t18;
-    jac[6][6] = t19;
+    residual_jacobian_structural(q, t, phi, jac);
 }
 
 /// Φ and the 26 entries of Φ_q that depend on q or t, the others of `jac` left as they were: what the `factor_k` functions read (3 of the 29 structurally non-zero entries are constants, which they know).

@@ -218,7 +218,7 @@ pub fn jacobian(q: &[f64; N], t: f64, jac: &mut [[f64; N]; N]) {
 
 /// Φ and Φ_q at once (see [`residual`] and [`jacobian`]).
 ///
-/// 14 operations, 3 shared subexpressions.
+/// The 0 constant entries of Φ_q, then `residual_jacobian_structural` for Φ and the others.
 pub fn residual_jacobian(
     q: &[f64; N],
     t: f64,
@@ -226,19 +226,7 @@ pub fn residual_jacobian(
     jac: &mut [[f64; N]; N],
 ) {
     *jac = [[0.0; N]; N];
-    let [q0, q1] = *q;
-    let t0 = f64::from_bits(4602890488355133325) * t;
-    let (t1, t2) = runtime::math::sin_cos(t0);
-    // driver drive_rx: e1 cos(s/2) − e0 sin(s/2) = 0, s = 1.047 t
-    phi[0] = q1 * t2 - t1 * q0;
-    // body block normalisation: e0² + e1² + e2² + e3² − 1 = 0
-    phi[1] = q0 * q0 + q1 * q1 - 1.0;
-    // driver drive_rx: e1 cos(s/2) − e0 sin(s/2) = 0, s = 1.047 t
-    jac[0][0] = -t1;
-    jac[0][1] = t2;
-    // body block normalisation: e0² + e1² + e2² + e3² − 1 = 0
-    jac[1][0] = q0 + q0;
-    jac[1][1] = q1 + q1;
+    residual_jacobian_structural(q, t, phi, jac);
 }
 
 /// Φ and the 4 entries of Φ_q that depend on q or t, the others of `jac` left as they were: what the `factor_k` functions read (0 of the 4 structurally non-zero entries are constants, which they know).

@@ -465,7 +465,7 @@ pub fn jacobian(q: &[f64; N], t: f64, jac: &mut [[f64; N]; N]) {
 
 /// Φ and Φ_q at once (see [`residual`] and [`jacobian`]).
 ///
-/// 284 operations, 67 shared subexpressions.
+/// The 18 constant entries of Φ_q, then `residual_jacobian_structural` for Φ and the others.
 pub fn residual_jacobian(
     q: &[f64; N],
     t: f64,
@@ -473,217 +473,25 @@ pub fn residual_jacobian(
     jac: &mut [[f64; N]; N],
 ) {
     *jac = [[0.0; N]; N];
-    let [q0, q1, q2, q3, q4, q5, q6, q7, q8, q9, q10, q11, q12, q13, q14, q15, q16, q17,
-    q18, q19] = *q;
-    let t0 = q3 * q3;
-    let t1 = q4 * q4;
-    let t2 = q5 * q5;
-    let t3 = q6 * q6;
-    let t4 = q4 * q5 - q3 * q6;
-    let t5 = q5 * q6;
-    let t6 = q3 * q4;
-    let t7 = t5 + t6;
-    let t8 = q10 * q10;
-    let t9 = q11 * q11;
-    let t10 = q12 * q12;
-    let t11 = q16 * q16;
-    let t12 = q17 * q17;
-    let t13 = q18 * q18;
-    let t14 = q19 * q19;
-    let t15 = t11 + t12;
-    let t16 = q17 * q18;
-    let t17 = q16 * q19;
-    let t18 = t16 - t17;
-    let t19 = q17 * q19;
-    let t20 = q16 * q18;
-    let t21 = t19 + t20;
-    let t22 = q18 * q19;
-    let t23 = q16 * q17;
-    let t24 = 73.3 * t;
-    let (t25, t26) = runtime::math::sin_cos(t24);
-    let t27 = 0.13134 * q6;
-    let t28 = 0.2 * q5;
-    let t29 = 0.13134 * q5;
-    let t30 = 0.2 * q6;
-    let t31 = 0.13134 * q4;
-    let t32 = 0.2 * q3;
-    let t33 = 0.13134 * q3;
-    let t34 = 0.2 * q4;
-    let t35 = q3 + q3;
-    let t36 = q4 + q4;
-    let t37 = q5 + q5;
-    let t38 = q6 + q6;
-    let t39 = 0.9624 * q10;
-    let t40 = 0.2 * q18;
-    let t41 = q16 + q16;
-    let t42 = -0.03714 * q19;
-    let t43 = 0.2 * q19;
-    let t44 = q17 + q17;
-    let t45 = -0.03714 * q18;
-    let t46 = 0.2 * q16;
-    let t47 = q18 + q18;
-    let t48 = -0.03714 * q17;
-    let t49 = 0.2 * q17;
-    let t50 = q19 + q19;
-    let t51 = -0.03714 * q16;
-    let t52 = q10 + q10;
-    let t53 = q11 + q11;
-    let t54 = q12 + q12;
-    let t55 = 0.095 * q19;
-    let t56 = 0.095 * q18;
-    let t57 = 0.095 * q17;
-    let t58 = 0.095 * q16;
-    let t59 = 2.0 * q6;
-    let t60 = 2.0 * q5;
-    let t61 = 2.0 * q4;
-    let t62 = 2.0 * q3;
-    let t63 = 2.0 * q19;
-    let t64 = -(2.0 * q18);
-    let t65 = -(2.0 * q17);
-    let t66 = 2.0 * q16;
-    // joint A row 1: (P_j − P_i)_x = 0
-    phi[0] = q7 - (0.13134 * t4 + 0.2 * (q4 * q6 + q3 * q5) + q0);
-    // joint A row 2: (P_j − P_i)_y = 0
-    phi[1] = q8 - (0.06567 * (t0 + t2 - (t1 + t3)) + 0.2 * (t5 - t6) + q1);
-    // joint A row 3: (P_j − P_i)_z = 0
-    phi[2] = q9 - (0.13134 * t7 + 0.1 * (t0 + t3 - (t1 + t2)) + q2);
-    // joint B row 1: (P_j − P_i)_x = 0
-    phi[3] = 0.2 * t21 + (0.0475 * (t15 - (t13 + t14)) + -0.03714 * t18) + q13
-        - (q7 - 0.9624 * (q10 * q12));
-    // joint B row 2: (P_j − P_i)_y = 0
-    phi[4] = 0.2 * (t22 - t23)
-        + (0.095 * (t16 + t17) + -0.01857 * (t11 + t13 - (t12 + t14))) + q14
-        - (q8 + 0.4812 * (t8 - (t9 + t10)));
-    // joint B row 3: (P_j − P_i)_z = 0
-    phi[5] = 0.1 * (t11 + t14 - (t12 + t13))
-        + (0.095 * (t19 - t20) + -0.03714 * (t22 + t23)) + q15
-        - (q9 + 0.9624 * (q10 * q11));
-    // joint O2 row 1: (P_j − P_i)_x = 0
-    phi[6] = q0;
-    // joint O2 row 2: (P_j − P_i)_y = 0
-    phi[7] = 0.06567 + q1;
-    // joint O2 row 3: (P_j − P_i)_z = 0
-    phi[8] = q2;
-    // joint O2 row 4: b_i · a_j = 0
-    phi[9] = 2.0 * t4;
-    // joint O2 row 5: c_i · a_j = 0
-    phi[10] = 2.0 * t7;
-    // joint O4 row 1: (P_j − P_i)_x = 0
-    phi[11] = -0.0475 - q13;
-    // joint O4 row 2: (P_j − P_i)_y = 0
-    phi[12] = 0.49977 - q14;
-    // joint O4 row 3: (P_j − P_i)_z = 0
-    phi[13] = -q15;
-    // joint O4 row 4: b_i · a_j = 0
-    phi[14] = -(2.0 * t18);
-    // joint O4 row 5: c_i · a_j = 0
-    phi[15] = -(2.0 * t21);
-    // driver motor: e2 cos(s/2) − e0 sin(s/2) = 0, s = 146.6 t
-    phi[16] = q5 * t26 - q3 * t25;
-    // body crank normalisation: e0² + e1² + e2² + e3² − 1 = 0
-    phi[17] = t3 + (t2 + (t0 + t1)) - 1.0;
-    // body coupler normalisation: e0² + e1² + e2² + e3² − 1 = 0
-    phi[18] = t10 + (t8 + t9) - 1.0;
-    // body rocker normalisation: e0² + e1² + e2² + e3² − 1 = 0
-    phi[19] = t14 + (t13 + t15) - 1.0;
-    // joint A row 1: (P_j − P_i)_x = 0
     jac[0][0] = -1.0;
-    jac[0][3] = -(t28 - t27);
-    jac[0][4] = -(t29 + t30);
-    jac[0][5] = -(t31 + t32);
-    jac[0][6] = -(t34 - t33);
     jac[0][7] = 1.0;
-    // joint A row 2: (P_j − P_i)_y = 0
     jac[1][1] = -1.0;
-    jac[1][3] = -(0.06567 * t35 - t34);
-    jac[1][4] = -(-(0.06567 * t36) - t32);
-    jac[1][5] = -(t30 + 0.06567 * t37);
-    jac[1][6] = -(t28 - 0.06567 * t38);
     jac[1][8] = 1.0;
-    // joint A row 3: (P_j − P_i)_z = 0
     jac[2][2] = -1.0;
-    jac[2][3] = -(t31 + 0.1 * t35);
-    jac[2][4] = -(t33 - 0.1 * t36);
-    jac[2][5] = -(t27 - 0.1 * t37);
-    jac[2][6] = -(t29 + 0.1 * t38);
     jac[2][9] = 1.0;
-    // joint B row 1: (P_j − P_i)_x = 0
     jac[3][7] = -1.0;
-    jac[3][10] = 0.9624 * q12;
-    jac[3][12] = t39;
     jac[3][13] = 1.0;
-    jac[3][16] = t40 + (0.0475 * t41 - t42);
-    jac[3][17] = t43 + (0.0475 * t44 + t45);
-    jac[3][18] = t46 + (t48 - 0.0475 * t47);
-    jac[3][19] = t49 + (-(0.0475 * t50) - t51);
-    // joint B row 2: (P_j − P_i)_y = 0
     jac[4][8] = -1.0;
-    jac[4][10] = -(0.4812 * t52);
-    jac[4][11] = 0.4812 * t53;
-    jac[4][12] = 0.4812 * t54;
     jac[4][14] = 1.0;
-    jac[4][16] = t55 + -0.01857 * t41 - t49;
-    jac[4][17] = t56 - -0.01857 * t44 - t46;
-    jac[4][18] = t43 + (t57 + -0.01857 * t47);
-    jac[4][19] = t40 + (t58 - -0.01857 * t50);
-    // joint B row 3: (P_j − P_i)_z = 0
     jac[5][9] = -1.0;
-    jac[5][10] = -(0.9624 * q11);
-    jac[5][11] = -t39;
     jac[5][15] = 1.0;
-    jac[5][16] = 0.1 * t41 + (t48 - t56);
-    jac[5][17] = t51 + t55 - 0.1 * t44;
-    jac[5][18] = t42 - t58 - 0.1 * t47;
-    jac[5][19] = 0.1 * t50 + (t45 + t57);
-    // joint O2 row 1: (P_j − P_i)_x = 0
     jac[6][0] = 1.0;
-    // joint O2 row 2: (P_j − P_i)_y = 0
     jac[7][1] = 1.0;
-    // joint O2 row 3: (P_j − P_i)_z = 0
     jac[8][2] = 1.0;
-    // joint O2 row 4: b_i · a_j = 0
-    jac[9][3] = -t59;
-    jac[9][4] = t60;
-    jac[9][5] = t61;
-    jac[9][6] = -t62;
-    // joint O2 row 5: c_i · a_j = 0
-    jac[10][3] = t61;
-    jac[10][4] = t62;
-    jac[10][5] = t59;
-    jac[10][6] = t60;
-    // joint O4 row 1: (P_j − P_i)_x = 0
     jac[11][13] = -1.0;
-    // joint O4 row 2: (P_j − P_i)_y = 0
     jac[12][14] = -1.0;
-    // joint O4 row 3: (P_j − P_i)_z = 0
     jac[13][15] = -1.0;
-    // joint O4 row 4: b_i · a_j = 0
-    jac[14][16] = t63;
-    jac[14][17] = t64;
-    jac[14][18] = t65;
-    jac[14][19] = t66;
-    // joint O4 row 5: c_i · a_j = 0
-    jac[15][16] = t64;
-    jac[15][17] = -t63;
-    jac[15][18] = -t66;
-    jac[15][19] = t65;
-    // driver motor: e2 cos(s/2) − e0 sin(s/2) = 0, s = 146.6 t
-    jac[16][3] = -t25;
-    jac[16][5] = t26;
-    // body crank normalisation: e0² + e1² + e2² + e3² − 1 = 0
-    jac[17][3] = t35;
-    jac[17][4] = t36;
-    jac[17][5] = t37;
-    jac[17][6] = t38;
-    // body coupler normalisation: e0² + e1² + e2² + e3² − 1 = 0
-    jac[18][10] = t52;
-    jac[18][11] = t53;
-    jac[18][12] = t54;
-    // body rocker normalisation: e0² + e1² + e2² + e3² − 1 = 0
-    jac[19][16] = t41;
-    jac[19][17] = t44;
-    jac[19][18] = t47;
-    jac[19][19] = t50;
+    residual_jacobian_structural(q, t, phi, jac);
 }
 
 /// Φ and the 60 entries of Φ_q that depend on q or t, the others of `jac` left as they were: what the `factor_k` functions read (18 of the 78 structurally non-zero entries are constants, which they know).

@@ -290,7 +290,7 @@ pub fn jacobian(q: &[f64; N], t: f64, jac: &mut [[f64; N]; N]) {
 
 /// Φ and Φ_q at once (see [`residual`] and [`jacobian`]).
 ///
-/// 76 operations, 21 shared subexpressions.
+/// The 2 constant entries of Φ_q, then `residual_jacobian_structural` for Φ and the others.
 pub fn residual_jacobian(
     q: &[f64; N],
     t: f64,
@@ -298,68 +298,9 @@ pub fn residual_jacobian(
     jac: &mut [[f64; N]; N],
 ) {
     *jac = [[0.0; N]; N];
-    let [q0, q1, q2, q3, q4, q5, q6] = *q;
-    let t0 = q5 * q5;
-    let t1 = q6 * q6;
-    let t2 = q3 * q3 + q4 * q4;
-    let t3 = t2 - (t0 + t1);
-    let t4 = 2.0 * (q4 * q6 - q3 * q5);
-    let t5 = 2.0 * (q1 - 2.0);
-    let (t6, t7) = runtime::math::sin_cos(t5);
-    let t8 = f64::from_bits(4602890488355133325) * t;
-    let (t9, t10) = runtime::math::sin_cos(t8);
-    let t11 = 2.0 * q6;
-    let t12 = -t11;
-    let t13 = 2.0 * q5;
-    let t14 = 2.0 * q4;
-    let t15 = 2.0 * q3;
-    let t16 = -t15;
-    let t17 = q3 + q3;
-    let t18 = q4 + q4;
-    let t19 = q5 + q5;
-    let t20 = q6 + q6;
-    // joint screw row 1: b_i · a_j = 0
-    phi[0] = 2.0 * (q4 * q5 - q3 * q6);
-    // joint screw row 2: c_i · a_j = 0
-    phi[1] = -(2.0 * (q5 * q6 + q3 * q4));
-    // joint screw row 3: b_i · (P_j − P_i) = 0
-    phi[2] = q0;
-    // joint screw row 4: c_i · (P_j − P_i) = 0
-    phi[3] = -q2;
-    // joint screw row 5: r_i · r_j sin θ − (r_i × r_j) · a_i cos θ = 0, θ = θ0 + 2π ((P_j − P_i) · a_i − d0) / lead
-    phi[4] = t3 * t6 + t4 * t7;
-    // driver drive_ry: e2 cos(s/2) − e0 sin(s/2) = 0, s = 1.047 t
-    phi[5] = q5 * t10 - q3 * t9;
-    // body nut normalisation: e0² + e1² + e2² + e3² − 1 = 0
-    phi[6] = t1 + (t0 + t2) - 1.0;
-    // joint screw row 1: b_i · a_j = 0
-    jac[0][3] = t12;
-    jac[0][4] = t13;
-    jac[0][5] = t14;
-    jac[0][6] = t16;
-    // joint screw row 2: c_i · a_j = 0
-    jac[1][3] = -t14;
-    jac[1][4] = t16;
-    jac[1][5] = t12;
-    jac[1][6] = -t13;
-    // joint screw row 3: b_i · (P_j − P_i) = 0
     jac[2][0] = 1.0;
-    // joint screw row 4: c_i · (P_j − P_i) = 0
     jac[3][2] = -1.0;
-    // joint screw row 5: r_i · r_j sin θ − (r_i × r_j) · a_i cos θ = 0, θ = θ0 + 2π ((P_j − P_i) · a_i − d0) / lead
-    jac[4][1] = t3 * (2.0 * t7) - t4 * (2.0 * t6);
-    jac[4][3] = t6 * t17 - t7 * t13;
-    jac[4][4] = t6 * t18 + t7 * t11;
-    jac[4][5] = -(t6 * t19) - t7 * t15;
-    jac[4][6] = t7 * t14 - t6 * t20;
-    // driver drive_ry: e2 cos(s/2) − e0 sin(s/2) = 0, s = 1.047 t
-    jac[5][3] = -t9;
-    jac[5][5] = t10;
-    // body nut normalisation: e0² + e1² + e2² + e3² − 1 = 0
-    jac[6][3] = t17;
-    jac[6][4] = t18;
-    jac[6][5] = t19;
-    jac[6][6] = t20;
+    residual_jacobian_structural(q, t, phi, jac);
 }
 
 /// Φ and the 19 entries of Φ_q that depend on q or t, the others of `jac` left as they were: what the `factor_k` functions read (2 of the 21 structurally non-zero entries are constants, which they know).

@@ -245,7 +245,7 @@ pub fn jacobian(q: &[f64; N], t: f64, jac: &mut [[f64; N]; N]) {
 
 /// Φ and Φ_q at once (see [`residual`] and [`jacobian`]).
 ///
-/// 24 operations, 7 shared subexpressions.
+/// The 3 constant entries of Φ_q, then `residual_jacobian_structural` for Φ and the others.
 pub fn residual_jacobian(
     q: &[f64; N],
     t: f64,
@@ -253,39 +253,10 @@ pub fn residual_jacobian(
     jac: &mut [[f64; N]; N],
 ) {
     *jac = [[0.0; N]; N];
-    let [q0, q1, q2, q3, q4] = *q;
-    let t0 = q3 * q3;
-    let t1 = q4 * q4;
-    let t2 = f64::from_bits(4602890488355133325) * t;
-    let (t3, t4) = runtime::math::sin_cos(t2);
-    let t5 = q3 + q3;
-    let t6 = q4 + q4;
-    // joint ball row 1: (P_j − P_i)_x = 0
-    phi[0] = q0 - (t0 - t1);
-    // joint ball row 2: (P_j − P_i)_y = 0
-    phi[1] = q1;
-    // joint ball row 3: (P_j − P_i)_z = 0
-    phi[2] = 2.0 * (q3 * q4) + q2;
-    // driver drive_ry: e2 cos(s/2) − e0 sin(s/2) = 0, s = 1.047 t
-    phi[3] = q4 * t4 - q3 * t3;
-    // body bar normalisation: e0² + e1² + e2² + e3² − 1 = 0
-    phi[4] = t0 + t1 - 1.0;
-    // joint ball row 1: (P_j − P_i)_x = 0
     jac[0][0] = 1.0;
-    jac[0][3] = -t5;
-    jac[0][4] = t6;
-    // joint ball row 2: (P_j − P_i)_y = 0
     jac[1][1] = 1.0;
-    // joint ball row 3: (P_j − P_i)_z = 0
     jac[2][2] = 1.0;
-    jac[2][3] = 2.0 * q4;
-    jac[2][4] = 2.0 * q3;
-    // driver drive_ry: e2 cos(s/2) − e0 sin(s/2) = 0, s = 1.047 t
-    jac[3][3] = -t3;
-    jac[3][4] = t4;
-    // body bar normalisation: e0² + e1² + e2² + e3² − 1 = 0
-    jac[4][3] = t5;
-    jac[4][4] = t6;
+    residual_jacobian_structural(q, t, phi, jac);
 }
 
 /// Φ and the 8 entries of Φ_q that depend on q or t, the others of `jac` left as they were: what the `factor_k` functions read (3 of the 11 structurally non-zero entries are constants, which they know).

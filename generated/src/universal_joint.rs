@@ -263,7 +263,7 @@ pub fn jacobian(q: &[f64; N], t: f64, jac: &mut [[f64; N]; N]) {
 
 /// Φ and Φ_q at once (see [`residual`] and [`jacobian`]).
 ///
-/// 40 operations, 12 shared subexpressions.
+/// The 3 constant entries of Φ_q, then `residual_jacobian_structural` for Φ and the others.
 pub fn residual_jacobian(
     q: &[f64; N],
     t: f64,
@@ -271,53 +271,10 @@ pub fn residual_jacobian(
     jac: &mut [[f64; N]; N],
 ) {
     *jac = [[0.0; N]; N];
-    let [q0, q1, q2, q3, q4, q5] = *q;
-    let t0 = q3 * q3;
-    let t1 = q4 * q4;
-    let t2 = q5 * q5;
-    let t3 = f64::from_bits(4602890488355133325) * t;
-    let (t4, t5) = runtime::math::sin_cos(t3);
-    let t6 = 2.0 * q5;
-    let t7 = -(2.0 * q4);
-    let t8 = q3 + q3;
-    let t9 = q4 + q4;
-    let t10 = q5 + q5;
-    let t11 = 2.0 * q3;
-    // joint cross row 1: (P_j − P_i)_x = 0
-    phi[0] = q0 - 2.0 * (q4 * q5);
-    // joint cross row 2: (P_j − P_i)_y = 0
-    phi[1] = q1 - (t0 + t2 - t1);
-    // joint cross row 3: (P_j − P_i)_z = 0
-    phi[2] = q2 - 2.0 * (q3 * q4);
-    // joint cross row 4: a_i · a_j = 0
-    phi[3] = 2.0 * (q3 * q5);
-    // driver drive_rx: e1 cos(s/2) − e0 sin(s/2) = 0, s = 1.047 t
-    phi[4] = q4 * t5 - q3 * t4;
-    // body bar normalisation: e0² + e1² + e2² + e3² − 1 = 0
-    phi[5] = t2 + (t0 + t1) - 1.0;
-    // joint cross row 1: (P_j − P_i)_x = 0
     jac[0][0] = 1.0;
-    jac[0][4] = -t6;
-    jac[0][5] = t7;
-    // joint cross row 2: (P_j − P_i)_y = 0
     jac[1][1] = 1.0;
-    jac[1][3] = -t8;
-    jac[1][4] = t9;
-    jac[1][5] = -t10;
-    // joint cross row 3: (P_j − P_i)_z = 0
     jac[2][2] = 1.0;
-    jac[2][3] = t7;
-    jac[2][4] = -t11;
-    // joint cross row 4: a_i · a_j = 0
-    jac[3][3] = t6;
-    jac[3][5] = t11;
-    // driver drive_rx: e1 cos(s/2) − e0 sin(s/2) = 0, s = 1.047 t
-    jac[4][3] = -t4;
-    jac[4][4] = t5;
-    // body bar normalisation: e0² + e1² + e2² + e3² − 1 = 0
-    jac[5][3] = t8;
-    jac[5][4] = t9;
-    jac[5][5] = t10;
+    residual_jacobian_structural(q, t, phi, jac);
 }
 
 /// Φ and the 14 entries of Φ_q that depend on q or t, the others of `jac` left as they were: what the `factor_k` functions read (3 of the 17 structurally non-zero entries are constants, which they know).

@@ -106,6 +106,14 @@ fn check_random<M: Mechanism<N>, const N: usize>(m: &M, q0: &[f64; N], t0: f64, 
                 assert!(s.is_nan() || s == full[i][j], "Φ_q[{i}][{j}] at {q:?}");
             }
         }
+        // `residual_jacobian` (the constant entries, then the structural function) gives Φ and
+        // the whole Φ_q of the separately emitted `residual` and `jacobian`, zeros included.
+        let (mut both, mut phi_both) = (Box::new([[f64::NAN; N]; N]), [f64::NAN; N]);
+        m.residual_jacobian(&q, t, &mut phi_both, &mut both);
+        assert_eq!(phi_both.map(f64::to_bits), phi_full.map(f64::to_bits), "Φ at {q:?}");
+        for (i, (row, full_row)) in both.iter().zip(full.iter()).enumerate() {
+            assert_eq!(row.map(f64::to_bits), full_row.map(f64::to_bits), "Φ_q row {i} at {q:?}");
+        }
         for order in 0..M::PIVOT_ORDERS {
             let mut factors = structural.clone();
             let Some(pivots) = m.factor_structured(order, &mut factors) else {
