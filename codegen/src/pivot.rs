@@ -473,5 +473,87 @@ pub fn plan_motion(mech: &Mechanism, sys: &Symbolic) -> Vec<Order> {
     planner.orders
 }
 
+/// The structure and the constant entries of the diagonal block of Φ_q on `rows` and
+/// `columns`, in block coordinates: entry (i, j) is Φ_q's (rows[i], columns[j]).
+#[must_use]
+pub fn block_structure(
+    sys: &Symbolic,
+    rows: &[usize],
+    columns: &[usize],
+) -> (Vec<Vec<bool>>, Vec<Vec<Option<f64>>>) {
+    let s = rows.len();
+    let (mut structure, mut constant) = (vec![vec![false; s]; s], vec![vec![None; s]; s]);
+    for (i, &r) in rows.iter().enumerate() {
+        for &(c, e) in &sys.jac[r] {
+            if let Some(j) = columns.iter().position(|&k| k == c) {
+                structure[i][j] = true;
+                constant[i][j] = sys.pool.as_const(e);
+            }
+        }
+    }
+    (structure, constant)
+}
+
+/// Static orders for the diagonal blocks of a block-lower-triangular Φ_q, in block
+/// coordinates, one list per group of blocks (each block its rows and its columns, of one
+/// structure within a group): every order of a group serves each of its blocks.
+///
+/// Along the description's motion ([`motion`], the earlier blocks' unknowns given by it as
+/// well), a block none of whose group's orders covers it ([`COVER_THRESHOLD`]) gets a new
+/// order chosen at its own values, up to [`MAX_ORDERS`] per group; a group whose blocks are
+/// singular everywhere it was looked at gets none.
+#[must_use]
+pub fn plan_blocks(
+    mech: &Mechanism,
+    sys: &Symbolic,
+    groups: &[Vec<(Vec<usize>, Vec<usize>)>],
+) -> Vec<Vec<Order>> {
+    // Per block: its group, its structure, and where its entries sit among the roots.
+    let mut roots = Vec::new();
+    let mut blocks = Vec::new();
+    for (g, group) in groups.iter().enumerate() {
+        for (rows, columns) in group {
+            let (structure, _) = block_structure(sys, rows, columns);
+            let mut places = Vec::new();
+            for (i, &r) in rows.iter().enumerate() {
+                for &(c, e) in &sys.jac[r] {
+                    if let Some(j) = columns.iter().position(|&k| k == c) {
+                        places.push((i, j));
+                        roots.push(e);
+                    }
+                }
+            }
+            blocks.push((g, structure, places));
+        }
+    }
+    let mut orders: Vec<Vec<Order>> = vec![Vec::new(); groups.len()];
+    if blocks.is_empty() {
+        return orders;
+    }
+    motion(mech, sys, |t, q| {
+        let values = sys.pool.eval_inputs(&roots, [q, &[], &[]], t, &sys.planning_inputs(t));
+        let mut values = values.into_iter();
+        for (g, structure, places) in &blocks {
+            let s = structure.len();
+            let mut a = vec![vec![0.0; s]; s];
+            for &(i, j) in places {
+                a[i][j] = values.next().expect("one value per entry");
+            }
+            let list = &mut orders[*g];
+            let covered = list
+                .iter()
+                .any(|o| largest_multiplier(o, &a).is_some_and(|m| m <= 1.0 / COVER_THRESHOLD));
+            if !covered
+                && list.len() < MAX_ORDERS
+                && let Some(o) = choose(structure, &a)
+            {
+                list.push(o);
+            }
+        }
+        orders.iter().any(|list| list.len() < MAX_ORDERS)
+    });
+    orders
+}
+
 #[cfg(test)]
 mod tests;

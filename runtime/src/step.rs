@@ -102,6 +102,23 @@ pub fn singular_ratio<R: Real>(eps: R) -> R {
     R::from_f64(SINGULAR_RATIO / libm::sqrt(f64::EPSILON) * libm::sqrt(eps.to_f64()))
 }
 
+/// The pivot ratio above which the factors of a static pivot order of one diagonal block are
+/// kept (Newton block by block, `Mechanism::factor_block`): [`STRUCTURED_MARGIN`] times
+/// [`singular_ratio`], or `ratio` when larger. At or below it the block's dense LU with partial
+/// pivoting decides, so the pivots the step control sees near a singular configuration are
+/// those of partial pivoting, as with the whole system's static orders.
+#[must_use]
+#[inline]
+pub fn structured_bound<R: Real>(ratio: R) -> R {
+    // In double precision a constant (the comparison folds); else computed from ε.
+    let bound = if R::EPSILON.to_f64() == f64::EPSILON {
+        R::from_f64(STRUCTURED_MARGIN * SINGULAR_RATIO)
+    } else {
+        R::from_f64(STRUCTURED_MARGIN) * singular_ratio(R::EPSILON)
+    };
+    ratio.max(bound)
+}
+
 /// [`FLOOR`] for an arithmetic of machine epsilon `eps`: it grows as √eps.
 #[must_use]
 pub fn floor<R: Real>(eps: R) -> R {

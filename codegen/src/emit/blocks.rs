@@ -13,6 +13,7 @@ use super::shared::{Array, Gathers, Output, Sharing, Slice};
 use super::syntax::{ident, index};
 use crate::blocks::{Blocks, Kind};
 use crate::model::Mechanism;
+use crate::pivot::Order;
 use crate::symbolic::Symbolic;
 
 /// A system of at least this many unknowns is factored block by block when it has more than one
@@ -40,10 +41,17 @@ pub(super) struct Plan {
     pub(super) newton: bool,
     /// With Newton block by block, the rotation blocks it solves in closed form.
     pub(super) rotations: Vec<Closed>,
+    /// The static orders of the diagonal blocks.
+    pub(super) orders: Orders,
     /// With Newton block by block, the blocks whose `block_b`, `block_residual_b` and
     /// `rotation_b` are one function per structure ([`super::shared`]).
     pub(super) shared: Shared,
 }
+
+/// Per block, the static pivot orders of its diagonal block in block coordinates (rows and
+/// columns counted within the block), tried in turn before its dense LU: empty for the affine
+/// blocks, without Newton block by block, and where planning found none.
+pub(super) type Orders = Vec<Vec<Order>>;
 
 /// The block functions grouped by structure, per kind of function.
 pub(super) struct Shared {
@@ -81,6 +89,7 @@ pub(super) struct Shared {
 struct Lu<'a> {
     sys: &'a Symbolic,
     blocks: &'a Blocks,
+    orders: &'a [Vec<Order>],
     entries: &'a Entries,
     /// Where each block's rows start in the blocks' order (`perm`).
     starts: Vec<usize>,
@@ -111,10 +120,14 @@ const SOLVE_ALL_SLICES: [Slice; 4] = [
 
 type Hole<'h> = &'h mut dyn FnMut(usize, usize) -> syn::Expr;
 
+/// Entry (i, j) of a diagonal block, in block coordinates.
+type Place<'h> = &'h mut dyn FnMut(usize, usize) -> syn::Expr;
+
 impl<'a> Lu<'a> {
     fn new(
         sys: &'a Symbolic,
         blocks: &'a Blocks,
+        orders: &'a [Vec<Order>],
         entries: &'a Entries,
         lower_starts: &'a [usize],
         lower: &'a [usize],
@@ -125,7 +138,39 @@ impl<'a> Lu<'a> {
             starts.push(at);
             at += block.rows.len();
         }
-        Lu { sys, blocks, entries, starts, lower_starts, lower }
+        Lu { sys, blocks, orders, entries, starts, lower_starts, lower }
+    }
+
+    /// Static order `k` of block `b` ([`super::lu::block`]): its factorisation at the places
+    /// `hole` gives in array 0 (`jac`) unless `solving`, else its solve with the factors read
+    /// there (`lu`), the right-hand side by row from `input`, the solution by the block's
+    /// column written by `output`; a refused guard leaves the labelled block `'order_k`.
+    fn order(
+        &self,
+        b: usize,
+        k: usize,
+        solving: bool,
+        hole: Hole<'_>,
+        input: &mut dyn FnMut(usize) -> syn::Expr,
+        output: &mut dyn FnMut(usize, syn::Expr) -> syn::Stmt,
+    ) -> super::lu::BlockOrder {
+        let block = &self.blocks.blocks[b];
+        let (structure, constant) =
+            crate::pivot::block_structure(self.sys, &block.rows, &block.unknowns);
+        let entries = self.entries;
+        let mut place =
+            |i: usize, j: usize| hole(0, entries.flat(block.rows[i], block.unknowns[j]));
+        // The half not asked for is built without holes and dropped.
+        let mut unused = |_: usize, _: usize| -> syn::Expr { parse_quote!(unused) };
+        let (jac, lu): (Place<'_>, Place<'_>) =
+            if solving { (&mut unused, &mut place) } else { (&mut place, &mut unused) };
+        let label = syn::Lifetime::new(&format!("'order_{k}"), proc_macro2::Span::call_site());
+        super::lu::block(
+            &self.orders[b][k],
+            &structure,
+            &constant,
+            super::lu::BlockPlaces { jac, lu, input, output, fail: parse_quote!(break #label;) },
+        )
     }
 
     /// The diagonal block gathered from array `a` (structural zeros as literals when
@@ -159,11 +204,42 @@ impl<'a> Lu<'a> {
             .collect()
     }
 
+    /// The flag in `perm` at block b's first position that says its static order `k` holds
+    /// its factors: the block's size plus k, where the dense LU writes a row within the block.
+    fn mark(&self, b: usize, k: usize) -> syn::Expr {
+        let mark = index(self.blocks.blocks[b].rows.len() + k);
+        parse_quote!(#mark)
+    }
+
     /// Factors block b in place, its row order into `perm`: `factor_with_ratio`'s result
-    /// (`?` on its error when `ratio`, else `.ok()?`).
+    /// (`?` on its error when `ratio`, else `.ok()?`). With `ratio` (Newton's factors of one
+    /// block), the block's static orders are tried first: the first whose guard passes and
+    /// whose pivot ratio exceeds `runtime::step::structured_bound(ratio)` stores its factors,
+    /// writes its flag ([`Lu::mark`]) and returns; else the dense LU decides.
     fn factor(&self, b: usize, ratio: bool, hole: Hole<'_>) -> proc_macro2::TokenStream {
         let block = &self.blocks.blocks[b];
         let s = index(block.rows.len());
+        let mut tried = Vec::new();
+        for k in (0..self.orders[b].len()).filter(|_| ratio) {
+            let mut input = |_: usize| -> syn::Expr { parse_quote!(unused) };
+            let mut output = |_: usize, _: syn::Expr| -> syn::Stmt { parse_quote!(unused;) };
+            let code = self.order(b, k, false, hole, &mut input, &mut output);
+            let (factor, stores, extremes) = (code.factor, code.stores, code.extremes);
+            let (flag, mark) = (hole(1, self.starts[b]), self.mark(b, k));
+            let label = syn::Lifetime::new(&format!("'order_{k}"), proc_macro2::Span::call_site());
+            tried.push(quote::quote! {
+                #label: {
+                    #(#factor)*
+                    let info = #extremes;
+                    if info.smallest <= runtime::step::structured_bound(ratio) * info.largest {
+                        break #label;
+                    }
+                    #(#stores)*
+                    #flag = #mark;
+                    return Ok(info);
+                }
+            });
+        }
         let rows = self.gather(b, 0, true, hole);
         let mut scatter = Vec::new();
         for (i, &r) in block.rows.iter().enumerate() {
@@ -190,6 +266,7 @@ impl<'a> Lu<'a> {
             )
         };
         quote::quote! {
+            #(#tried)*
             let mut a = [#(#rows),*];
             let mut p = [0; #s];
             let info = #factor;
@@ -199,27 +276,71 @@ impl<'a> Lu<'a> {
         }
     }
 
+    /// The solves of block b's static orders, each selected by its flag in `perm`
+    /// ([`Lu::mark`]), with the right-hand side in `z` by the block's row, the solution written
+    /// by `output`; `dense`, the solve of the dense LU's factors, otherwise.
+    fn dispatch(
+        &self,
+        b: usize,
+        hole: Hole<'_>,
+        output: &mut dyn FnMut(usize, syn::Expr) -> syn::Stmt,
+        dense: proc_macro2::TokenStream,
+    ) -> proc_macro2::TokenStream {
+        if self.orders[b].is_empty() {
+            return dense;
+        }
+        let flag = hole(1, self.starts[b]);
+        let mut arms = Vec::new();
+        for k in 0..self.orders[b].len() {
+            let mut input = |i: usize| -> syn::Expr {
+                let i = index(i);
+                parse_quote!(z[#i])
+            };
+            let code = self.order(b, k, true, hole, &mut input, output);
+            let (solve, mark) = (code.solve, self.mark(b, k));
+            arms.push(quote::quote!(if #flag == #mark { #(#solve)* }));
+        }
+        quote::quote!(#(#arms)else* else { #dense })
+    }
+
     /// Solves block b alone (Newton's `solve_block`): the solution into `x[..s]`.
     fn solve_one(&self, b: usize, hole: Hole<'_>) -> proc_macro2::TokenStream {
         let block = &self.blocks.blocks[b];
         let s = index(block.rows.len());
+        let z: Vec<_> = block.rows.iter().map(|&r| hole(2, r)).collect();
         let rows = self.gather(b, 0, false, hole);
         let order: Vec<_> = (0..block.rows.len()).map(|i| hole(1, self.starts[b] + i)).collect();
-        let z: Vec<_> = block.rows.iter().map(|&r| hole(2, r)).collect();
-        quote::quote! {
+        if self.orders[b].is_empty() {
+            return quote::quote! {
+                let a = [#(#rows),*];
+                let p = [#(#order),*];
+                let mut z = [#(#z),*];
+                runtime::lu::solve(&a, &p, &mut z);
+                x[..#s].copy_from_slice(&z);
+            };
+        }
+        let dense = quote::quote! {
             let a = [#(#rows),*];
             let p = [#(#order),*];
-            let mut z = [#(#z),*];
+            let mut z = z;
             runtime::lu::solve(&a, &p, &mut z);
-            x[..#s].copy_from_slice(&z);
+            x.copy_from_slice(&z);
+        };
+        let mut output = |j: usize, v: syn::Expr| -> syn::Stmt {
+            let j = index(j);
+            parse_quote!(x[#j] = #v;)
+        };
+        let solve = self.dispatch(b, hole, &mut output, dense);
+        quote::quote! {
+            let x = &mut x[..#s];
+            let z = [#(#z),*];
+            #solve
         }
     }
 
     /// Solves for block b's unknowns, those of the blocks before it known (`solve_blocks`).
     fn solve_all(&self, b: usize, hole: Hole<'_>) -> proc_macro2::TokenStream {
         let block = &self.blocks.blocks[b];
-        let rows = self.gather(b, 0, false, hole);
-        let order: Vec<_> = (0..block.rows.len()).map(|i| hole(1, self.starts[b] + i)).collect();
         let z: Vec<_> = block
             .rows
             .iter()
@@ -235,6 +356,8 @@ impl<'a> Lu<'a> {
                 quote::quote!(#first #(#terms)*)
             })
             .collect();
+        let rows = self.gather(b, 0, false, hole);
+        let order: Vec<_> = (0..block.rows.len()).map(|i| hole(1, self.starts[b] + i)).collect();
         let out: Vec<_> = block
             .unknowns
             .iter()
@@ -244,19 +367,38 @@ impl<'a> Lu<'a> {
                 quote::quote!(#x = z[#i];)
             })
             .collect();
-        quote::quote! {
+        if self.orders[b].is_empty() {
+            return quote::quote! {
+                let a = [#(#rows),*];
+                let p = [#(#order),*];
+                let mut z = [#(#z),*];
+                runtime::lu::solve(&a, &p, &mut z);
+                #(#out)*
+            };
+        }
+        let dense = quote::quote! {
             let a = [#(#rows),*];
             let p = [#(#order),*];
-            let mut z = [#(#z),*];
+            let mut z = z;
             runtime::lu::solve(&a, &p, &mut z);
             #(#out)*
+        };
+        let xs: Vec<_> = block.unknowns.iter().map(|&c| hole(3, c)).collect();
+        let mut output = |j: usize, v: syn::Expr| -> syn::Stmt {
+            let x = &xs[j];
+            parse_quote!(#x = #v;)
+        };
+        let solve = self.dispatch(b, hole, &mut output, dense);
+        quote::quote! {
+            let z = [#(#z),*];
+            #solve
         }
     }
 }
 
 impl Shared {
     /// The block functions of `blocks` with the rotation blocks `rotations`, grouped.
-    fn of(sys: &Symbolic, blocks: &Blocks, rotations: &[Closed]) -> Shared {
+    fn of(sys: &Symbolic, blocks: &Blocks, orders: &[Vec<Order>], rotations: &[Closed]) -> Shared {
         let n = sys.unknowns.len();
         let (lower_starts, lower) = lower(sys, blocks);
         let entries = Entries::packed(n, blocks, &lower_starts, &lower);
@@ -274,7 +416,7 @@ impl Shared {
                 r.coefficients.iter().enumerate().map(|(i, &e)| (Array::K, i, Some(e))).collect(),
             );
         }
-        let lu = Lu::new(sys, blocks, &entries, &lower_starts, &lower);
+        let lu = Lu::new(sys, blocks, orders, &entries, &lower_starts, &lower);
         let m = blocks.blocks.len();
         let implicit: Vec<usize> =
             (0..m).filter(|&b| blocks.blocks[b].kind != Kind::ClosedForm).collect();
@@ -510,12 +652,44 @@ pub(super) fn plan(sys: &mut Symbolic, mech: &Mechanism, newton: Option<bool>) -
             }
         }
     }
+    let orders = if newton { block_orders(sys, mech, &blocks) } else { Vec::new() };
+    let orders = if orders.is_empty() { vec![Vec::new(); blocks.blocks.len()] } else { orders };
     let shared = if newton {
-        Shared::of(sys, &blocks, &rotations)
+        Shared::of(sys, &blocks, &orders, &rotations)
     } else {
         Shared::none(blocks.blocks.len())
     };
-    Some(Plan { blocks, newton, rotations, shared })
+    Some(Plan { blocks, newton, rotations, orders, shared })
+}
+
+/// The static pivot orders of the diagonal blocks Newton block by block factors (implicit and
+/// rotation blocks), planned along the motion by `pivot::plan_blocks`: blocks with the same
+/// structure and constant entries in block coordinates are planned together, so that one
+/// list of orders serves them all and their code stays one shared function
+/// ([`super::shared`]).
+fn block_orders(sys: &Symbolic, mech: &Mechanism, blocks: &Blocks) -> Orders {
+    type Key = (Vec<Vec<bool>>, Vec<Vec<Option<u64>>>);
+    let mut keys: Vec<Key> = Vec::new();
+    let mut groups: Vec<Vec<(Vec<usize>, Vec<usize>)>> = Vec::new();
+    let mut group_of = vec![None; blocks.blocks.len()];
+    for (b, block) in blocks.blocks.iter().enumerate() {
+        if block.kind == Kind::ClosedForm {
+            continue;
+        }
+        let (structure, constant) =
+            crate::pivot::block_structure(sys, &block.rows, &block.unknowns);
+        let constant = constant.iter().map(|row| row.iter().map(|c| c.map(f64::to_bits)).collect()).collect();
+        let key = (structure, constant);
+        let g = keys.iter().position(|k| *k == key).unwrap_or_else(|| {
+            keys.push(key);
+            groups.push(Vec::new());
+            groups.len() - 1
+        });
+        group_of[b] = Some(g);
+        groups[g].push((block.rows.clone(), block.unknowns.clone()));
+    }
+    let planned = crate::pivot::plan_blocks(mech, sys, &groups);
+    group_of.into_iter().map(|g| g.map(|g| planned[g].clone()).unwrap_or_default()).collect()
 }
 
 /// `static BLOCKS: runtime::blocks::Layout` and, for Newton block by block, the `block_k`
@@ -576,7 +750,7 @@ pub(super) fn items(rows: &Rows<'_>, plan: &Plan) -> Vec<syn::Item> {
         items.extend(unpack(&entries));
         items.extend(block_functions(rows, blocks, &entries, &plan.shared));
         items.extend(rotation_functions(rows, &plan.rotations, &plan.shared.rotations));
-        let lu = Lu::new(sys, blocks, &entries, &lower_starts, &lower);
+        let lu = Lu::new(sys, blocks, &plan.orders, &entries, &lower_starts, &lower);
         let shared = &plan.shared;
         items.extend(shared.factor.items(
             "factor_block",
@@ -610,8 +784,8 @@ pub(super) fn items(rows: &Rows<'_>, plan: &Plan) -> Vec<syn::Item> {
             "Solves for the block's unknowns, those of the blocks before it known (see `solve_blocks`)",
             &|b, hole| lu.solve_all(b, hole),
         ));
-        items.extend(straight_line(sys, blocks, &lower_starts, &lower, &entries, shared));
-        items.extend(block_factor_solve(sys, blocks, &entries, shared));
+        items.extend(straight_line(sys, blocks, &lower_starts, &lower, &entries, shared, Some(&lu)));
+        items.extend(block_factor_solve(sys, blocks, &entries, shared, &lu));
         return items;
     }
     let vec_ty = quote::quote!(&mut [f64; N]);
@@ -630,7 +804,7 @@ pub(super) fn items(rows: &Rows<'_>, plan: &Plan) -> Vec<syn::Item> {
     let what = "Φ and the structural non-zeros of Φ_q, the others of `jac` left as they were: what `factor_blocks_k` and `solve_blocks_k` read (the structural zeros of a diagonal block are literals there).";
     items.extend(rows.emit(&sig, what, Vec::new(), &outputs));
     let entries = Entries { n, packed: None, starts: Vec::new() };
-    items.extend(straight_line(sys, blocks, &lower_starts, &lower, &entries, &plan.shared));
+    items.extend(straight_line(sys, blocks, &lower_starts, &lower, &entries, &plan.shared, None));
     items
 }
 
@@ -643,7 +817,9 @@ fn straight_line(
     lower: &[usize],
     entries: &Entries,
     shared: &Shared,
+    lu: Option<&Lu<'_>>,
 ) -> Vec<syn::Item> {
+    let n = sys.unknowns.len();
     let mut chunks: Vec<Vec<usize>> = vec![Vec::new()];
     let mut size = 0;
     for (b, block) in blocks.blocks.iter().enumerate() {
@@ -695,6 +871,9 @@ fn straight_line(
                     shared.solve_all.call("solve_blocks", b, &quote::quote!(lu, perm, rhs, x))
                 {
                     solve = parse_quote!(#call;);
+                } else if let Some(lu) = lu.filter(|lu| !lu.orders[b].is_empty()) {
+                    let code = lu.solve_all(b, &mut direct(&SOLVE_ALL_SLICES, n));
+                    solve = parse_quote!({ #code });
                 }
                 (factor, solve)
             })
@@ -1222,7 +1401,9 @@ fn block_factor_solve(
     blocks: &Blocks,
     entries: &Entries,
     shared: &Shared,
+    lu: &Lu<'_>,
 ) -> Vec<syn::Item> {
+    let n = sys.unknowns.len();
     let mut starts = Vec::with_capacity(blocks.blocks.len());
     let mut at = 0;
     for block in &blocks.blocks {
@@ -1237,6 +1418,13 @@ fn block_factor_solve(
             let block = &blocks.blocks[b];
             let s = index(block.rows.len());
             let lit = index(b);
+            if !lu.orders[b].is_empty() {
+                let factor = lu.factor(b, true, &mut direct(&FACTOR_SLICES, n));
+                factor_arms.push(quote::quote!(#lit => { #factor }));
+                let solve = lu.solve_one(b, &mut direct(&SOLVE_ONE_SLICES, n));
+                solve_arms.push((quote::quote!(#lit), quote::quote!({ #solve })));
+                continue;
+            }
             let rows_in = gather(sys, block, "jac", true, entries);
             let scatter = scatter(block, entries);
             let keep = (0..block.rows.len()).map(|i| {
@@ -1302,6 +1490,21 @@ fn block_factor_solve(
         });
     }
     items
+}
+
+/// The hole of [`Lu`]'s code that names its place directly, for a block whose LU code is not
+/// shared: element k of array `slices[a]` (`[k / n][k % n]` of a square one).
+fn direct(slices: &[Slice], n: usize) -> impl FnMut(usize, usize) -> syn::Expr + '_ {
+    move |a, k| {
+        let name = ident(slices[a].name);
+        if slices[a].square {
+            let (i, j) = (index(k / n), index(k % n));
+            parse_quote!(#name[#i][#j])
+        } else {
+            let k = index(k);
+            parse_quote!(#name[#k])
+        }
+    }
 }
 
 /// A dispatch on the block index `b` to calls that return nothing: `if let` for one arm (what

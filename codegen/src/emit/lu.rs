@@ -185,7 +185,15 @@ struct Part {
 
 impl Part {
     /// The statements, ending with `Some(PivotInfo { … })`.
-    fn finish(mut self) -> Vec<syn::Stmt> {
+    fn finish(self) -> Vec<syn::Stmt> {
+        let (mut stmts, extremes) = self.extremes();
+        stmts.push(syn::Stmt::Expr(parse_quote!(Some(#extremes)), None));
+        stmts
+    }
+
+    /// The statements, with `smallest` and `largest` bound when a pivot is computed at run
+    /// time, and the `PivotInfo { … }` of the part's pivots.
+    fn extremes(mut self) -> (Vec<syn::Stmt>, Expr) {
         if let Some((at, e)) = &self.first_run {
             let mutable = if self.run_pivots > 1 { quote::quote!(mut) } else { quote::quote!() };
             let (lo, hi) = match self.known_pivots {
@@ -205,8 +213,7 @@ impl Part {
             }
             _ => parse_quote!(runtime::lu::PivotInfo { smallest, largest }),
         };
-        self.stmts.push(syn::Stmt::Expr(parse_quote!(Some(#extremes)), None));
-        self.stmts
+        (self.stmts, extremes)
     }
 }
 
@@ -227,45 +234,66 @@ pub fn emit(
     constant: &[Vec<Option<f64>>],
     which: usize,
 ) -> Vec<syn::Item> {
-    let n = order.rows.len();
-    // The steps i > k whose row has an entry in column k.
-    let mut below: Vec<Vec<usize>> = vec![Vec::new(); n];
-    for (i, p) in order.pattern.iter().enumerate() {
-        for &k in p.iter().filter(|&&k| k < i) {
-            below[k].push(i);
-        }
-    }
-    let mut z = Factorizer {
-        order,
-        s,
-        constant,
-        which,
-        f: Factored { order, vals: order.pattern.iter().map(|p| vec![None; p.len()]).collect() },
-        fill: 0,
-        stored: 0,
-        parts: Vec::new(),
-        part: Part::default(),
-        part_ops: 0,
-        total_ops: 0,
-        run_entries: Vec::new(),
-    };
-    for (k, below_k) in below.iter().enumerate() {
-        let first = z.part.stmts.len();
-        z.row_of_u(k);
-        let (p, d) = z.pivot(k);
-        let mut checks = Vec::new();
-        if matches!(p, Val::Run(..)) {
-            let pn = ident(&format!("p{k}"));
-            checks.push(parse_quote!(#pn.is_finite()));
-        }
-        z.column_of_l(k, below_k, &d, &mut checks);
-        z.guard(checks);
-        z.track_pivot(k, &p);
-        z.close_step(k, n, first);
-    }
+    let mut jac = |r: usize, c: usize| entry("jac", r, c);
+    let mut z = Factorizer::new(order, s, constant, which, &mut jac, parse_quote!(return None;));
+    z.steps(true);
     let mut items = z.functions();
     items.extend(emit_solve(&z.f, which));
     items
+}
+
+/// The places a block's static order reads and writes ([`block`]), by row and column of
+/// Φ_q (those of the order), and the statement that leaves its factorisation.
+pub(super) struct BlockPlaces<'p> {
+    /// Entry (r, c) of Φ_q where the factorisation reads it and stores its factors.
+    pub(super) jac: &'p mut dyn FnMut(usize, usize) -> Expr,
+    /// Entry (r, c) of the factors where the solve reads them.
+    pub(super) lu: &'p mut dyn FnMut(usize, usize) -> Expr,
+    /// The right-hand side of row r.
+    pub(super) input: &'p mut dyn FnMut(usize) -> Expr,
+    /// The statement that writes `value`, the solution's unknown c.
+    pub(super) output: &'p mut dyn FnMut(usize, Expr) -> syn::Stmt,
+    /// What a refused guard runs (`break 'label;`).
+    pub(super) fail: syn::Stmt,
+}
+
+/// A static order of one diagonal block as statements to place in a function of
+/// `emit::blocks`.
+pub(super) struct BlockOrder {
+    /// The factorisation into locals, its guards running [`BlockPlaces::fail`], `smallest`
+    /// and `largest` bound when a pivot is computed at run time.
+    pub(super) factor: Vec<syn::Stmt>,
+    /// The stores of the factors into their places, which the guards leave untouched: after
+    /// a refusal the block still holds Φ_q for the dense fallback.
+    pub(super) stores: Vec<syn::Stmt>,
+    /// The `runtime::lu::PivotInfo` of the pivots.
+    pub(super) extremes: Expr,
+    /// The solve: y = L⁻¹ P b, then x = Q U⁻¹ y, with the factors known when generated as
+    /// literals.
+    pub(super) solve: Vec<syn::Stmt>,
+}
+
+/// `order` of a diagonal block (rows and columns of Φ_q with structure `s` and constant
+/// entries `constant`, of at least one step) at the places `places`: the same arithmetic as
+/// [`emit`]'s, in one part, with its stores deferred until every guard passed.
+///
+/// # Panics
+///
+/// As [`emit`].
+pub(super) fn block(
+    order: &Order,
+    s: &[Vec<bool>],
+    constant: &[Vec<Option<f64>>],
+    places: BlockPlaces<'_>,
+) -> BlockOrder {
+    let BlockPlaces { jac, lu, input, output, fail } = places;
+    let mut z = Factorizer::new(order, s, constant, 0, jac, fail);
+    z.deferred = Some(Vec::new());
+    z.steps(false);
+    let stores = z.deferred.take().unwrap_or_default();
+    let (factor, extremes) = std::mem::take(&mut z.part).extremes();
+    let solve = solve_steps(&z.f, false, lu, input, output).into_iter().flat_map(|(s, _)| s);
+    BlockOrder { factor, stores, extremes, solve: solve.collect() }
 }
 
 /// The state of one order's factorisation while its statements are written: the values of L
@@ -275,6 +303,12 @@ struct Factorizer<'a> {
     s: &'a [Vec<bool>],
     constant: &'a [Vec<Option<f64>>],
     which: usize,
+    /// Entry (r, c) of Φ_q, read and stored.
+    jac: &'a mut dyn FnMut(usize, usize) -> Expr,
+    /// What a refused guard runs.
+    fail: syn::Stmt,
+    /// When set, the stores wait here instead of following their values.
+    deferred: Option<Vec<syn::Stmt>>,
     f: Factored<'a>,
     /// Fill-in entries met.
     fill: usize,
@@ -288,13 +322,74 @@ struct Factorizer<'a> {
     run_entries: Vec<(usize, usize)>,
 }
 
-impl Factorizer<'_> {
+impl<'a> Factorizer<'a> {
+    fn new(
+        order: &'a Order,
+        s: &'a [Vec<bool>],
+        constant: &'a [Vec<Option<f64>>],
+        which: usize,
+        jac: &'a mut dyn FnMut(usize, usize) -> Expr,
+        fail: syn::Stmt,
+    ) -> Self {
+        Factorizer {
+            order,
+            s,
+            constant,
+            which,
+            jac,
+            fail,
+            deferred: None,
+            f: Factored {
+                order,
+                vals: order.pattern.iter().map(|p| vec![None; p.len()]).collect(),
+            },
+            fill: 0,
+            stored: 0,
+            parts: Vec::new(),
+            part: Part::default(),
+            part_ops: 0,
+            total_ops: 0,
+            run_entries: Vec::new(),
+        }
+    }
+
+    /// Every step of the elimination, in parts when `split` (see [`emit`]).
+    fn steps(&mut self, split: bool) {
+        let n = self.order.rows.len();
+        // The steps i > k whose row has an entry in column k.
+        let mut below: Vec<Vec<usize>> = vec![Vec::new(); n];
+        for (i, p) in self.order.pattern.iter().enumerate() {
+            for &k in p.iter().filter(|&&k| k < i) {
+                below[k].push(i);
+            }
+        }
+        for (k, below_k) in below.iter().enumerate() {
+            let first = self.part.stmts.len();
+            self.row_of_u(k);
+            let (p, d) = self.pivot(k);
+            let mut checks = Vec::new();
+            if matches!(p, Val::Run(..)) {
+                let pn = ident(&format!("p{k}"));
+                checks.push(parse_quote!(#pn.is_finite()));
+            }
+            self.column_of_l(k, below_k, &d, &mut checks);
+            self.guard(checks);
+            self.track_pivot(k, &p);
+            if split {
+                self.close_step(k, n, first);
+            }
+        }
+    }
+
     /// Entry (k, l) of the permuted Φ_q: a constant, a read of `jac`, or absent.
-    fn original(&self, k: usize, l: usize) -> Option<Val> {
+    fn original(&mut self, k: usize, l: usize) -> Option<Val> {
         let (r, c) = (self.order.rows[k], self.order.cols[l]);
-        self.s[r][c].then(|| match self.constant[r][c] {
+        if !self.s[r][c] {
+            return None;
+        }
+        Some(match self.constant[r][c] {
             Some(v) => Val::Const(v),
-            None => Val::Run(entry("jac", r, c), Prec::Atom),
+            None => Val::Run((self.jac)(r, c), Prec::Atom),
         })
     }
 
@@ -334,8 +429,12 @@ impl Factorizer<'_> {
     /// its own place has been written.
     fn store(&mut self, k: usize, l: usize, v: &Val) {
         if let Val::Run(e, _) = v {
-            let target = entry("jac", self.order.rows[k], self.order.cols[l]);
-            self.part.stmts.push(assign(target, e.clone()));
+            let target = (self.jac)(self.order.rows[k], self.order.cols[l]);
+            let stmt = assign(target, e.clone());
+            match &mut self.deferred {
+                Some(stores) => stores.push(stmt),
+                None => self.part.stmts.push(stmt),
+            }
             self.stored += 1;
         }
     }
@@ -415,8 +514,9 @@ impl Factorizer<'_> {
     }
 
     /// `if !(checks…) { return None; }` when there is anything to check (a lone comparison
-    /// `a <= b` as `if a > b || a.is_nan()`).
+    /// `a <= b` as `if a > b || a.is_nan()`), with [`Factorizer::fail`] for `return None`.
     fn guard(&mut self, checks: Vec<Expr>) {
+        let fail = &self.fail;
         if let Some(ok) =
             checks.into_iter().reduce(|a, b| binary(a, syn::BinOp::And(Default::default()), b))
         {
@@ -428,7 +528,7 @@ impl Factorizer<'_> {
                     let (a, b) = (&b.left, &b.right);
                     parse_quote! {
                         if #a > #b || #a.is_nan() {
-                            return None;
+                            #fail
                         }
                     }
                 }
@@ -436,7 +536,7 @@ impl Factorizer<'_> {
                     let ok = if matches!(ok, Expr::Binary(_)) { paren(ok) } else { ok };
                     parse_quote! {
                         if !#ok {
-                            return None;
+                            #fail
                         }
                     }
                 }
@@ -478,10 +578,8 @@ impl Factorizer<'_> {
             self.part_ops = 0;
             for &(a, b) in &self.run_entries {
                 let p = self.f.slot(a, b);
-                self.f.vals[a][p] = Some(Val::Run(
-                    entry("jac", self.order.rows[a], self.order.cols[b]),
-                    Prec::Atom,
-                ));
+                let place = (self.jac)(self.order.rows[a], self.order.cols[b]);
+                self.f.vals[a][p] = Some(Val::Run(place, Prec::Atom));
             }
         }
     }
@@ -556,7 +654,10 @@ fn extremes(names: &[Ident]) -> Expr {
 /// when generated as literals; split into helpers sharing a scratch array when long.
 fn emit_solve(f: &Factored<'_>, which: usize) -> Vec<syn::Item> {
     let name = ident(&format!("solve_{which}"));
-    let split = solve_steps(f, true);
+    let mut lu = |r: usize, c: usize| entry("lu", r, c);
+    let mut input = |r: usize| element("b", &[r]);
+    let mut output = |c: usize, v: Expr| assign(element("b", &[c]), v);
+    let split = solve_steps(f, true, &mut lu, &mut input, &mut output);
     let counts: Vec<usize> =
         split.iter().map(|(s, _)| s.iter().map(assigned_operations).sum()).collect();
     let ops: usize = counts.iter().sum();
@@ -568,7 +669,8 @@ fn emit_solve(f: &Factored<'_>, which: usize) -> Vec<syn::Item> {
             #[doc = #doc]
             fn #name(lu: &[[f64; N]; N], b: &mut [f64; N]) {}
         };
-        let unsplit = solve_steps(f, false).into_iter().flat_map(|(s, _)| s).collect();
+        let unsplit = solve_steps(f, false, &mut lu, &mut input, &mut output);
+        let unsplit = unsplit.into_iter().flat_map(|(s, _)| s).collect();
         return vec![item_fn(item, unsplit)];
     }
     let mut parts: Vec<(Vec<syn::Stmt>, bool)> = vec![(Vec::new(), false)];
@@ -587,14 +689,22 @@ fn emit_solve(f: &Factored<'_>, which: usize) -> Vec<syn::Item> {
 }
 
 /// The statements of each step of the solve with the factors `f` (forward, backward, then
-/// the writes) and whether they use `b`, with y_k and x_k in locals, or in `y[k]` when `split`.
-fn solve_steps(f: &Factored<'_>, split: bool) -> Vec<(Vec<syn::Stmt>, bool)> {
+/// the writes) and whether they use `b`, with y_k and x_k in locals, or in `y[k]` when `split`:
+/// the factors read at `lu(r, c)`, the right-hand side of row r at `input(r)`, unknown c
+/// written by `output(c, value)`.
+fn solve_steps(
+    f: &Factored<'_>,
+    split: bool,
+    lu: &mut dyn FnMut(usize, usize) -> Expr,
+    input: &mut dyn FnMut(usize) -> Expr,
+    output: &mut dyn FnMut(usize, Expr) -> syn::Stmt,
+) -> Vec<(Vec<syn::Stmt>, bool)> {
     let order = f.order;
     let n = order.rows.len();
-    let stored_val = |k: usize, l: usize| -> Val {
+    let mut stored_val = |k: usize, l: usize| -> Val {
         match f.get(k, l).expect("in the pattern") {
             Val::Const(c) => Val::Const(*c),
-            Val::Run(..) => Val::Run(entry("lu", order.rows[k], order.cols[l]), Prec::Atom),
+            Val::Run(..) => Val::Run(lu(order.rows[k], order.cols[l]), Prec::Atom),
         }
     };
     let named = |prefix: &str, k: usize| -> Val {
@@ -620,7 +730,7 @@ fn solve_steps(f: &Factored<'_>, split: bool) -> Vec<(Vec<syn::Stmt>, bool)> {
     };
     let mut out = Vec::with_capacity(2 * n + 1);
     for k in 0..n {
-        let mut v = Val::Run(element("b", &[order.rows[k]]), Prec::Atom);
+        let mut v = Val::Run(input(order.rows[k]), Prec::Sum);
         for &l in order.pattern[k].iter().filter(|&&l| l < k) {
             v = v.minus(&stored_val(k, l).mul(&named("y", l)));
         }
@@ -634,9 +744,7 @@ fn solve_steps(f: &Factored<'_>, split: bool) -> Vec<(Vec<syn::Stmt>, bool)> {
         let v = v.mul(&stored_val(k, k));
         out.push((define("x", k, v.into_expr(Prec::Sum)), false));
     }
-    let writes = (0..n)
-        .map(|k| assign(element("b", &[order.cols[k]]), named("x", k).expr(Prec::Atom)))
-        .collect();
+    let writes = (0..n).map(|k| output(order.cols[k], named("x", k).expr(Prec::Atom))).collect();
     out.push((writes, true));
     out
 }
