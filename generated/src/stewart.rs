@@ -7673,6 +7673,138 @@ fn factor_block_shared_0(
     let at = &FACTOR_BLOCK_SHARED_0_AT[m];
     let jac = jac.as_flattened_mut();
     let perm = &mut perm[at[3]..at[3] + 4];
+    'order_0: {
+        let p0 = jac[at[0] + 24];
+        let d0 = 1.0 / p0;
+        let l1_0 = jac[at[1]] * d0;
+        let l2_0 = jac[at[2]] * d0;
+        let l3_0 = jac[at[0]] * d0;
+        if !(p0.is_finite() && l1_0.abs() <= runtime::lu::MAX_MULTIPLIER
+            && l2_0.abs() <= runtime::lu::MAX_MULTIPLIER
+            && l3_0.abs() <= runtime::lu::MAX_MULTIPLIER)
+        {
+            break 'order_0;
+        }
+        let mut smallest = p0.abs();
+        let mut largest = p0.abs();
+        let u1_2 = jac[at[1] + 2] - l1_0 * jac[at[0] + 26];
+        let u1_3 = jac[at[1] + 3] - l1_0 * jac[at[0] + 27];
+        let p1 = jac[at[1] + 1] - l1_0 * jac[at[0] + 25];
+        let d1 = 1.0 / p1;
+        let l2_1 = (jac[at[2] + 1] - l2_0 * jac[at[0] + 25]) * d1;
+        let l3_1 = (jac[at[0] + 1] - l3_0 * jac[at[0] + 25]) * d1;
+        if !(p1.is_finite() && l2_1.abs() <= runtime::lu::MAX_MULTIPLIER
+            && l3_1.abs() <= runtime::lu::MAX_MULTIPLIER)
+        {
+            break 'order_0;
+        }
+        smallest = smallest.min(p1.abs());
+        largest = largest.max(p1.abs());
+        let u2_3 = jac[at[2] + 3] - l2_0 * jac[at[0] + 27] - l2_1 * u1_3;
+        let p2 = jac[at[2] + 2] - l2_0 * jac[at[0] + 26] - l2_1 * u1_2;
+        let d2 = 1.0 / p2;
+        let l3_2 = (jac[at[0] + 2] - l3_0 * jac[at[0] + 26] - l3_1 * u1_2) * d2;
+        if !(p2.is_finite() && l3_2.abs() <= runtime::lu::MAX_MULTIPLIER) {
+            break 'order_0;
+        }
+        smallest = smallest.min(p2.abs());
+        largest = largest.max(p2.abs());
+        let p3 = jac[at[0] + 3] - l3_0 * jac[at[0] + 27] - l3_1 * u1_3 - l3_2 * u2_3;
+        let d3 = 1.0 / p3;
+        if !p3.is_finite() {
+            break 'order_0;
+        }
+        smallest = smallest.min(p3.abs());
+        largest = largest.max(p3.abs());
+        let info = runtime::lu::PivotInfo {
+            smallest,
+            largest,
+        };
+        if info.smallest <= runtime::step::structured_bound(ratio) * info.largest {
+            break 'order_0;
+        }
+        jac[at[0] + 24] = d0;
+        jac[at[1]] = l1_0;
+        jac[at[2]] = l2_0;
+        jac[at[0]] = l3_0;
+        jac[at[1] + 2] = u1_2;
+        jac[at[1] + 3] = u1_3;
+        jac[at[1] + 1] = d1;
+        jac[at[2] + 1] = l2_1;
+        jac[at[0] + 1] = l3_1;
+        jac[at[2] + 3] = u2_3;
+        jac[at[2] + 2] = d2;
+        jac[at[0] + 2] = l3_2;
+        jac[at[0] + 3] = d3;
+        perm[0] = 4;
+        return Ok(info);
+    }
+    'order_1: {
+        let p0 = jac[at[0] + 24];
+        let d0 = 1.0 / p0;
+        let l1_0 = jac[at[0]] * d0;
+        let l2_0 = jac[at[1]] * d0;
+        let l3_0 = jac[at[2]] * d0;
+        if !(p0.is_finite() && l1_0.abs() <= runtime::lu::MAX_MULTIPLIER
+            && l2_0.abs() <= runtime::lu::MAX_MULTIPLIER
+            && l3_0.abs() <= runtime::lu::MAX_MULTIPLIER)
+        {
+            break 'order_1;
+        }
+        let mut smallest = p0.abs();
+        let mut largest = p0.abs();
+        let u1_2 = jac[at[0] + 2] - l1_0 * jac[at[0] + 26];
+        let u1_3 = jac[at[0] + 3] - l1_0 * jac[at[0] + 27];
+        let p1 = jac[at[0] + 1] - l1_0 * jac[at[0] + 25];
+        let d1 = 1.0 / p1;
+        let l2_1 = (jac[at[1] + 1] - l2_0 * jac[at[0] + 25]) * d1;
+        let l3_1 = (jac[at[2] + 1] - l3_0 * jac[at[0] + 25]) * d1;
+        if !(p1.is_finite() && l2_1.abs() <= runtime::lu::MAX_MULTIPLIER
+            && l3_1.abs() <= runtime::lu::MAX_MULTIPLIER)
+        {
+            break 'order_1;
+        }
+        smallest = smallest.min(p1.abs());
+        largest = largest.max(p1.abs());
+        let u2_3 = jac[at[1] + 3] - l2_0 * jac[at[0] + 27] - l2_1 * u1_3;
+        let p2 = jac[at[1] + 2] - l2_0 * jac[at[0] + 26] - l2_1 * u1_2;
+        let d2 = 1.0 / p2;
+        let l3_2 = (jac[at[2] + 2] - l3_0 * jac[at[0] + 26] - l3_1 * u1_2) * d2;
+        if !(p2.is_finite() && l3_2.abs() <= runtime::lu::MAX_MULTIPLIER) {
+            break 'order_1;
+        }
+        smallest = smallest.min(p2.abs());
+        largest = largest.max(p2.abs());
+        let p3 = jac[at[2] + 3] - l3_0 * jac[at[0] + 27] - l3_1 * u1_3 - l3_2 * u2_3;
+        let d3 = 1.0 / p3;
+        if !p3.is_finite() {
+            break 'order_1;
+        }
+        smallest = smallest.min(p3.abs());
+        largest = largest.max(p3.abs());
+        let info = runtime::lu::PivotInfo {
+            smallest,
+            largest,
+        };
+        if info.smallest <= runtime::step::structured_bound(ratio) * info.largest {
+            break 'order_1;
+        }
+        jac[at[0] + 24] = d0;
+        jac[at[0]] = l1_0;
+        jac[at[1]] = l2_0;
+        jac[at[2]] = l3_0;
+        jac[at[0] + 2] = u1_2;
+        jac[at[0] + 3] = u1_3;
+        jac[at[0] + 1] = d1;
+        jac[at[1] + 1] = l2_1;
+        jac[at[2] + 1] = l3_1;
+        jac[at[1] + 3] = u2_3;
+        jac[at[1] + 2] = d2;
+        jac[at[2] + 2] = l3_2;
+        jac[at[2] + 3] = d3;
+        perm[0] = 5;
+        return Ok(info);
+    }
     let mut a = [
         [jac[at[0]], jac[at[0] + 1], jac[at[0] + 2], jac[at[0] + 3]],
         [jac[at[1]], jac[at[1] + 1], jac[at[1] + 2], jac[at[1] + 3]],
@@ -7732,16 +7864,48 @@ fn solve_block_shared_0(
     let at = &SOLVE_BLOCK_SHARED_0_AT[m];
     let lu = lu.as_flattened();
     let perm = &perm[at[3]..at[3] + 4];
-    let a = [
-        [lu[at[0]], lu[at[0] + 1], lu[at[0] + 2], lu[at[0] + 3]],
-        [lu[at[1]], lu[at[1] + 1], lu[at[1] + 2], lu[at[1] + 3]],
-        [lu[at[2]], lu[at[2] + 1], lu[at[2] + 2], lu[at[2] + 3]],
-        [lu[at[0] + 24], lu[at[0] + 25], lu[at[0] + 26], lu[at[0] + 27]],
-    ];
-    let p = [perm[0], perm[1], perm[2], perm[3]];
-    let mut z = [rhs[at[4]], rhs[at[5]], rhs[at[4] + 4], rhs[at[6]]];
-    runtime::lu::solve(&a, &p, &mut z);
-    x[..4].copy_from_slice(&z);
+    let x = &mut x[..4];
+    let z = [rhs[at[4]], rhs[at[5]], rhs[at[4] + 4], rhs[at[6]]];
+    if perm[0] == 4 {
+        let y0 = z[3];
+        let y1 = z[1] - lu[at[1]] * y0;
+        let y2 = z[2] - lu[at[2]] * y0 - lu[at[2] + 1] * y1;
+        let y3 = z[0] - lu[at[0]] * y0 - lu[at[0] + 1] * y1 - lu[at[0] + 2] * y2;
+        let x3 = y3 * lu[at[0] + 3];
+        let x2 = (y2 - lu[at[2] + 3] * x3) * lu[at[2] + 2];
+        let x1 = (y1 - lu[at[1] + 2] * x2 - lu[at[1] + 3] * x3) * lu[at[1] + 1];
+        let x0 = (y0 - lu[at[0] + 25] * x1 - lu[at[0] + 26] * x2 - lu[at[0] + 27] * x3)
+            * lu[at[0] + 24];
+        x[0] = x0;
+        x[1] = x1;
+        x[2] = x2;
+        x[3] = x3;
+    } else if perm[0] == 5 {
+        let y0 = z[3];
+        let y1 = z[0] - lu[at[0]] * y0;
+        let y2 = z[1] - lu[at[1]] * y0 - lu[at[1] + 1] * y1;
+        let y3 = z[2] - lu[at[2]] * y0 - lu[at[2] + 1] * y1 - lu[at[2] + 2] * y2;
+        let x3 = y3 * lu[at[2] + 3];
+        let x2 = (y2 - lu[at[1] + 3] * x3) * lu[at[1] + 2];
+        let x1 = (y1 - lu[at[0] + 2] * x2 - lu[at[0] + 3] * x3) * lu[at[0] + 1];
+        let x0 = (y0 - lu[at[0] + 25] * x1 - lu[at[0] + 26] * x2 - lu[at[0] + 27] * x3)
+            * lu[at[0] + 24];
+        x[0] = x0;
+        x[1] = x1;
+        x[2] = x2;
+        x[3] = x3;
+    } else {
+        let a = [
+            [lu[at[0]], lu[at[0] + 1], lu[at[0] + 2], lu[at[0] + 3]],
+            [lu[at[1]], lu[at[1] + 1], lu[at[1] + 2], lu[at[1] + 3]],
+            [lu[at[2]], lu[at[2] + 1], lu[at[2] + 2], lu[at[2] + 3]],
+            [lu[at[0] + 24], lu[at[0] + 25], lu[at[0] + 26], lu[at[0] + 27]],
+        ];
+        let p = [perm[0], perm[1], perm[2], perm[3]];
+        let mut z = z;
+        runtime::lu::solve(&a, &p, &mut z);
+        x.copy_from_slice(&z);
+    }
 }
 
 /// Where `factor_blocks_shared_0` reads and writes for each of its blocks: the starts of its windows and the indices that do not move with them, one row per block.
@@ -7824,14 +7988,7 @@ fn solve_blocks_shared_0(
     let lu = &lu.as_flattened()[at[0]..at[0] + 28];
     let perm = &perm[at[1]..at[1] + 4];
     let x = &mut x[at[4]..at[4] + 10];
-    let a = [
-        [lu[0], lu[1], lu[2], lu[3]],
-        [lu[4], lu[5], lu[6], lu[7]],
-        [lu[14], lu[15], lu[16], lu[17]],
-        [lu[24], lu[25], lu[26], lu[27]],
-    ];
-    let p = [perm[0], perm[1], perm[2], perm[3]];
-    let mut z = [
+    let z = [
         rhs[at[2]],
         rhs[at[2] + 3] - lu[8] * x[0] - lu[9] * x[1] - lu[10] * x[2] - lu[11] * x[7]
             - lu[12] * x[8] - lu[13] * x[9],
@@ -7839,11 +7996,47 @@ fn solve_blocks_shared_0(
             - lu[22] * x[8] - lu[23] * x[9],
         rhs[at[3]],
     ];
-    runtime::lu::solve(&a, &p, &mut z);
-    x[3] = z[0];
-    x[4] = z[1];
-    x[5] = z[2];
-    x[6] = z[3];
+    if perm[0] == 4 {
+        let y0 = z[3];
+        let y1 = z[1] - lu[4] * y0;
+        let y2 = z[2] - lu[14] * y0 - lu[15] * y1;
+        let y3 = z[0] - lu[0] * y0 - lu[1] * y1 - lu[2] * y2;
+        let x3 = y3 * lu[3];
+        let x2 = (y2 - lu[17] * x3) * lu[16];
+        let x1 = (y1 - lu[6] * x2 - lu[7] * x3) * lu[5];
+        let x0 = (y0 - lu[25] * x1 - lu[26] * x2 - lu[27] * x3) * lu[24];
+        x[3] = x0;
+        x[4] = x1;
+        x[5] = x2;
+        x[6] = x3;
+    } else if perm[0] == 5 {
+        let y0 = z[3];
+        let y1 = z[0] - lu[0] * y0;
+        let y2 = z[1] - lu[4] * y0 - lu[5] * y1;
+        let y3 = z[2] - lu[14] * y0 - lu[15] * y1 - lu[16] * y2;
+        let x3 = y3 * lu[17];
+        let x2 = (y2 - lu[7] * x3) * lu[6];
+        let x1 = (y1 - lu[2] * x2 - lu[3] * x3) * lu[1];
+        let x0 = (y0 - lu[25] * x1 - lu[26] * x2 - lu[27] * x3) * lu[24];
+        x[3] = x0;
+        x[4] = x1;
+        x[5] = x2;
+        x[6] = x3;
+    } else {
+        let a = [
+            [lu[0], lu[1], lu[2], lu[3]],
+            [lu[4], lu[5], lu[6], lu[7]],
+            [lu[14], lu[15], lu[16], lu[17]],
+            [lu[24], lu[25], lu[26], lu[27]],
+        ];
+        let p = [perm[0], perm[1], perm[2], perm[3]];
+        let mut z = z;
+        runtime::lu::solve(&a, &p, &mut z);
+        x[3] = z[0];
+        x[4] = z[1];
+        x[5] = z[2];
+        x[6] = z[3];
+    }
 }
 
 /// Where `solve_blocks_shared_1` reads and writes for each of its blocks: the starts of its windows and the indices that do not move with them, one row per block.
@@ -7869,24 +8062,53 @@ fn solve_blocks_shared_1(
     let lu = &lu.as_flattened()[at[0]..at[0] + 28];
     let perm = &perm[at[1]..at[1] + 4];
     let x = &mut x[at[4]..at[4] + 11];
-    let a = [
-        [lu[0], lu[1], lu[2], lu[3]],
-        [lu[8], lu[9], lu[10], lu[11]],
-        [lu[16], lu[17], lu[18], lu[19]],
-        [lu[24], lu[25], lu[26], lu[27]],
-    ];
-    let p = [perm[0], perm[1], perm[2], perm[3]];
-    let mut z = [
+    let z = [
         rhs[at[2]] - lu[4] * x[0] - lu[5] * x[1] - lu[6] * x[2] - lu[7] * x[3],
         rhs[at[2] + 1] - lu[12] * x[0] - lu[13] * x[1] - lu[14] * x[2] - lu[15] * x[3],
         rhs[at[2] + 4] - lu[20] * x[0] - lu[21] * x[1] - lu[22] * x[2] - lu[23] * x[3],
         rhs[at[3]],
     ];
-    runtime::lu::solve(&a, &p, &mut z);
-    x[7] = z[0];
-    x[8] = z[1];
-    x[9] = z[2];
-    x[10] = z[3];
+    if perm[0] == 4 {
+        let y0 = z[3];
+        let y1 = z[1] - lu[8] * y0;
+        let y2 = z[2] - lu[16] * y0 - lu[17] * y1;
+        let y3 = z[0] - lu[0] * y0 - lu[1] * y1 - lu[2] * y2;
+        let x3 = y3 * lu[3];
+        let x2 = (y2 - lu[19] * x3) * lu[18];
+        let x1 = (y1 - lu[10] * x2 - lu[11] * x3) * lu[9];
+        let x0 = (y0 - lu[25] * x1 - lu[26] * x2 - lu[27] * x3) * lu[24];
+        x[7] = x0;
+        x[8] = x1;
+        x[9] = x2;
+        x[10] = x3;
+    } else if perm[0] == 5 {
+        let y0 = z[3];
+        let y1 = z[0] - lu[0] * y0;
+        let y2 = z[1] - lu[8] * y0 - lu[9] * y1;
+        let y3 = z[2] - lu[16] * y0 - lu[17] * y1 - lu[18] * y2;
+        let x3 = y3 * lu[19];
+        let x2 = (y2 - lu[11] * x3) * lu[10];
+        let x1 = (y1 - lu[2] * x2 - lu[3] * x3) * lu[1];
+        let x0 = (y0 - lu[25] * x1 - lu[26] * x2 - lu[27] * x3) * lu[24];
+        x[7] = x0;
+        x[8] = x1;
+        x[9] = x2;
+        x[10] = x3;
+    } else {
+        let a = [
+            [lu[0], lu[1], lu[2], lu[3]],
+            [lu[8], lu[9], lu[10], lu[11]],
+            [lu[16], lu[17], lu[18], lu[19]],
+            [lu[24], lu[25], lu[26], lu[27]],
+        ];
+        let p = [perm[0], perm[1], perm[2], perm[3]];
+        let mut z = z;
+        runtime::lu::solve(&a, &p, &mut z);
+        x[7] = z[0];
+        x[8] = z[1];
+        x[9] = z[2];
+        x[10] = z[3];
+    }
 }
 
 /// Factors blocks 0 to 48 in place (see `factor_blocks`); false when a pivot is 0 or an entry not finite.
@@ -8398,57 +8620,103 @@ fn solve_blocks_0(
     x: &mut [f64; N],
 ) {
     {
-        let a = [
-            [lu[0][0], lu[0][1], lu[0][2], lu[0][3], lu[0][4], lu[0][5], lu[0][6]],
-            [lu[0][7], lu[0][8], lu[0][9], lu[0][10], lu[0][11], lu[0][12], lu[0][13]],
-            [
-                lu[0][14],
-                lu[0][15],
-                lu[0][16],
-                lu[0][17],
-                lu[0][18],
-                lu[0][19],
-                lu[0][20],
-            ],
-            [
-                lu[0][21],
-                lu[0][22],
-                lu[0][23],
-                lu[0][24],
-                lu[0][25],
-                lu[0][26],
-                lu[0][27],
-            ],
-            [
-                lu[0][28],
-                lu[0][29],
-                lu[0][30],
-                lu[0][31],
-                lu[0][32],
-                lu[0][33],
-                lu[0][34],
-            ],
-            [
-                lu[0][35],
-                lu[0][36],
-                lu[0][37],
-                lu[0][38],
-                lu[0][39],
-                lu[0][40],
-                lu[0][41],
-            ],
-            [lu[0][42], lu[0][43], lu[0][44], lu[0][45], lu[0][46], lu[0][47], lu[0][48]],
-        ];
-        let p = [perm[0], perm[1], perm[2], perm[3], perm[4], perm[5], perm[6]];
-        let mut z = [rhs[72], rhs[73], rhs[74], rhs[75], rhs[76], rhs[77], rhs[78]];
-        runtime::lu::solve(&a, &p, &mut z);
-        x[0] = z[0];
-        x[1] = z[1];
-        x[2] = z[2];
-        x[3] = z[3];
-        x[4] = z[4];
-        x[5] = z[5];
-        x[6] = z[6];
+        let z = [rhs[72], rhs[73], rhs[74], rhs[75], rhs[76], rhs[77], rhs[78]];
+        if perm[0] == 7 {
+            let y0 = z[6];
+            let y1 = z[0] - lu[0][3] * y0;
+            let y2 = z[3] - lu[0][24] * y0 - lu[0][21] * y1;
+            let y3 = z[4] - lu[0][31] * y0 - lu[0][28] * y1 - lu[0][29] * y2;
+            let y4 = z[1] - lu[0][10] * y0 - lu[0][7] * y1 - lu[0][8] * y2
+                - lu[0][9] * y3;
+            let y5 = z[2] - lu[0][17] * y0 - lu[0][14] * y1 - lu[0][15] * y2
+                - lu[0][16] * y3 - lu[0][18] * y4;
+            let y6 = z[5] - lu[0][38] * y0 - lu[0][35] * y1 - lu[0][36] * y2
+                - lu[0][37] * y3 - lu[0][39] * y4 - lu[0][40] * y5;
+            let x6 = y6 * lu[0][41];
+            let x5 = (y5 - lu[0][20] * x6) * lu[0][19];
+            let x4 = (y4 - lu[0][12] * x5 - lu[0][13] * x6) * lu[0][11];
+            let x3 = (y3 - lu[0][32] * x4 - lu[0][33] * x5 - lu[0][34] * x6) * lu[0][30];
+            let x2 = (y2 - lu[0][23] * x3 - lu[0][25] * x4 - lu[0][26] * x5
+                - lu[0][27] * x6) * lu[0][22];
+            let x1 = (y1 - lu[0][1] * x2 - lu[0][2] * x3 - lu[0][4] * x4 - lu[0][5] * x5
+                - lu[0][6] * x6) * lu[0][0];
+            let x0 = (y0 - lu[0][46] * x4 - lu[0][47] * x5 - lu[0][48] * x6) * lu[0][45];
+            x[3] = x0;
+            x[0] = x1;
+            x[1] = x2;
+            x[2] = x3;
+            x[4] = x4;
+            x[5] = x5;
+            x[6] = x6;
+        } else {
+            let a = [
+                [lu[0][0], lu[0][1], lu[0][2], lu[0][3], lu[0][4], lu[0][5], lu[0][6]],
+                [
+                    lu[0][7],
+                    lu[0][8],
+                    lu[0][9],
+                    lu[0][10],
+                    lu[0][11],
+                    lu[0][12],
+                    lu[0][13],
+                ],
+                [
+                    lu[0][14],
+                    lu[0][15],
+                    lu[0][16],
+                    lu[0][17],
+                    lu[0][18],
+                    lu[0][19],
+                    lu[0][20],
+                ],
+                [
+                    lu[0][21],
+                    lu[0][22],
+                    lu[0][23],
+                    lu[0][24],
+                    lu[0][25],
+                    lu[0][26],
+                    lu[0][27],
+                ],
+                [
+                    lu[0][28],
+                    lu[0][29],
+                    lu[0][30],
+                    lu[0][31],
+                    lu[0][32],
+                    lu[0][33],
+                    lu[0][34],
+                ],
+                [
+                    lu[0][35],
+                    lu[0][36],
+                    lu[0][37],
+                    lu[0][38],
+                    lu[0][39],
+                    lu[0][40],
+                    lu[0][41],
+                ],
+                [
+                    lu[0][42],
+                    lu[0][43],
+                    lu[0][44],
+                    lu[0][45],
+                    lu[0][46],
+                    lu[0][47],
+                    lu[0][48],
+                ],
+            ];
+            let p = [perm[0], perm[1], perm[2], perm[3], perm[4], perm[5], perm[6]];
+            let mut z = z;
+            runtime::lu::solve(&a, &p, &mut z);
+            x[0] = z[0];
+            x[1] = z[1];
+            x[2] = z[2];
+            x[3] = z[3];
+            x[4] = z[4];
+            x[5] = z[5];
+            x[6] = z[6];
+        }
     }
     x[7] = (rhs[0]) / lu[0][49];
     x[8] = (rhs[1]) / lu[0][50];
@@ -8548,6 +8816,171 @@ fn factor_block_0(
 ) -> Result<runtime::lu::PivotInfo, runtime::lu::Singular> {
     match b {
         0 => {
+            'order_0: {
+                let p0 = jac[0][45];
+                let d0 = 1.0 / p0;
+                let l1_0 = jac[0][3] * d0;
+                let l2_0 = jac[0][24] * d0;
+                let l3_0 = jac[0][31] * d0;
+                let l4_0 = jac[0][10] * d0;
+                let l5_0 = jac[0][17] * d0;
+                let l6_0 = jac[0][38] * d0;
+                if !(p0.is_finite() && l1_0.abs() <= runtime::lu::MAX_MULTIPLIER
+                    && l2_0.abs() <= runtime::lu::MAX_MULTIPLIER
+                    && l3_0.abs() <= runtime::lu::MAX_MULTIPLIER
+                    && l4_0.abs() <= runtime::lu::MAX_MULTIPLIER
+                    && l5_0.abs() <= runtime::lu::MAX_MULTIPLIER
+                    && l6_0.abs() <= runtime::lu::MAX_MULTIPLIER)
+                {
+                    break 'order_0;
+                }
+                let mut smallest = p0.abs();
+                let mut largest = p0.abs();
+                let u1_4 = jac[0][4] - l1_0 * jac[0][46];
+                let u1_5 = jac[0][5] - l1_0 * jac[0][47];
+                let u1_6 = jac[0][6] - l1_0 * jac[0][48];
+                let p1 = jac[0][0];
+                let d1 = 1.0 / p1;
+                let l2_1 = jac[0][21] * d1;
+                let l3_1 = jac[0][28] * d1;
+                let l4_1 = jac[0][7] * d1;
+                let l5_1 = jac[0][14] * d1;
+                let l6_1 = jac[0][35] * d1;
+                if !(p1.is_finite() && l2_1.abs() <= runtime::lu::MAX_MULTIPLIER
+                    && l3_1.abs() <= runtime::lu::MAX_MULTIPLIER
+                    && l4_1.abs() <= runtime::lu::MAX_MULTIPLIER
+                    && l5_1.abs() <= runtime::lu::MAX_MULTIPLIER
+                    && l6_1.abs() <= runtime::lu::MAX_MULTIPLIER)
+                {
+                    break 'order_0;
+                }
+                smallest = smallest.min(p1.abs());
+                largest = largest.max(p1.abs());
+                let u2_3 = jac[0][23] - l2_1 * jac[0][2];
+                let u2_4 = jac[0][25] - l2_0 * jac[0][46] - l2_1 * u1_4;
+                let u2_5 = jac[0][26] - l2_0 * jac[0][47] - l2_1 * u1_5;
+                let u2_6 = jac[0][27] - l2_0 * jac[0][48] - l2_1 * u1_6;
+                let p2 = jac[0][22] - l2_1 * jac[0][1];
+                let d2 = 1.0 / p2;
+                let l3_2 = (jac[0][29] - l3_1 * jac[0][1]) * d2;
+                let l4_2 = (jac[0][8] - l4_1 * jac[0][1]) * d2;
+                let l5_2 = (jac[0][15] - l5_1 * jac[0][1]) * d2;
+                let l6_2 = (jac[0][36] - l6_1 * jac[0][1]) * d2;
+                if !(p2.is_finite() && l3_2.abs() <= runtime::lu::MAX_MULTIPLIER
+                    && l4_2.abs() <= runtime::lu::MAX_MULTIPLIER
+                    && l5_2.abs() <= runtime::lu::MAX_MULTIPLIER
+                    && l6_2.abs() <= runtime::lu::MAX_MULTIPLIER)
+                {
+                    break 'order_0;
+                }
+                smallest = smallest.min(p2.abs());
+                largest = largest.max(p2.abs());
+                let u3_4 = jac[0][32] - l3_0 * jac[0][46] - l3_1 * u1_4 - l3_2 * u2_4;
+                let u3_5 = jac[0][33] - l3_0 * jac[0][47] - l3_1 * u1_5 - l3_2 * u2_5;
+                let u3_6 = jac[0][34] - l3_0 * jac[0][48] - l3_1 * u1_6 - l3_2 * u2_6;
+                let p3 = jac[0][30] - l3_1 * jac[0][2] - l3_2 * u2_3;
+                let d3 = 1.0 / p3;
+                let l4_3 = (jac[0][9] - l4_1 * jac[0][2] - l4_2 * u2_3) * d3;
+                let l5_3 = (jac[0][16] - l5_1 * jac[0][2] - l5_2 * u2_3) * d3;
+                let l6_3 = (jac[0][37] - l6_1 * jac[0][2] - l6_2 * u2_3) * d3;
+                if !(p3.is_finite() && l4_3.abs() <= runtime::lu::MAX_MULTIPLIER
+                    && l5_3.abs() <= runtime::lu::MAX_MULTIPLIER
+                    && l6_3.abs() <= runtime::lu::MAX_MULTIPLIER)
+                {
+                    break 'order_0;
+                }
+                smallest = smallest.min(p3.abs());
+                largest = largest.max(p3.abs());
+                let u4_5 = jac[0][12] - l4_0 * jac[0][47] - l4_1 * u1_5 - l4_2 * u2_5
+                    - l4_3 * u3_5;
+                let u4_6 = jac[0][13] - l4_0 * jac[0][48] - l4_1 * u1_6 - l4_2 * u2_6
+                    - l4_3 * u3_6;
+                let p4 = jac[0][11] - l4_0 * jac[0][46] - l4_1 * u1_4 - l4_2 * u2_4
+                    - l4_3 * u3_4;
+                let d4 = 1.0 / p4;
+                let l5_4 = (jac[0][18] - l5_0 * jac[0][46] - l5_1 * u1_4 - l5_2 * u2_4
+                    - l5_3 * u3_4) * d4;
+                let l6_4 = (jac[0][39] - l6_0 * jac[0][46] - l6_1 * u1_4 - l6_2 * u2_4
+                    - l6_3 * u3_4) * d4;
+                if !(p4.is_finite() && l5_4.abs() <= runtime::lu::MAX_MULTIPLIER
+                    && l6_4.abs() <= runtime::lu::MAX_MULTIPLIER)
+                {
+                    break 'order_0;
+                }
+                smallest = smallest.min(p4.abs());
+                largest = largest.max(p4.abs());
+                let u5_6 = jac[0][20] - l5_0 * jac[0][48] - l5_1 * u1_6 - l5_2 * u2_6
+                    - l5_3 * u3_6 - l5_4 * u4_6;
+                let p5 = jac[0][19] - l5_0 * jac[0][47] - l5_1 * u1_5 - l5_2 * u2_5
+                    - l5_3 * u3_5 - l5_4 * u4_5;
+                let d5 = 1.0 / p5;
+                let l6_5 = (jac[0][40] - l6_0 * jac[0][47] - l6_1 * u1_5 - l6_2 * u2_5
+                    - l6_3 * u3_5 - l6_4 * u4_5) * d5;
+                if !(p5.is_finite() && l6_5.abs() <= runtime::lu::MAX_MULTIPLIER) {
+                    break 'order_0;
+                }
+                smallest = smallest.min(p5.abs());
+                largest = largest.max(p5.abs());
+                let p6 = jac[0][41] - l6_0 * jac[0][48] - l6_1 * u1_6 - l6_2 * u2_6
+                    - l6_3 * u3_6 - l6_4 * u4_6 - l6_5 * u5_6;
+                let d6 = 1.0 / p6;
+                if !p6.is_finite() {
+                    break 'order_0;
+                }
+                smallest = smallest.min(p6.abs());
+                largest = largest.max(p6.abs());
+                let info = runtime::lu::PivotInfo {
+                    smallest,
+                    largest,
+                };
+                if info.smallest <= runtime::step::structured_bound(ratio) * info.largest
+                {
+                    break 'order_0;
+                }
+                jac[0][45] = d0;
+                jac[0][3] = l1_0;
+                jac[0][24] = l2_0;
+                jac[0][31] = l3_0;
+                jac[0][10] = l4_0;
+                jac[0][17] = l5_0;
+                jac[0][38] = l6_0;
+                jac[0][4] = u1_4;
+                jac[0][5] = u1_5;
+                jac[0][6] = u1_6;
+                jac[0][0] = d1;
+                jac[0][21] = l2_1;
+                jac[0][28] = l3_1;
+                jac[0][7] = l4_1;
+                jac[0][14] = l5_1;
+                jac[0][35] = l6_1;
+                jac[0][23] = u2_3;
+                jac[0][25] = u2_4;
+                jac[0][26] = u2_5;
+                jac[0][27] = u2_6;
+                jac[0][22] = d2;
+                jac[0][29] = l3_2;
+                jac[0][8] = l4_2;
+                jac[0][15] = l5_2;
+                jac[0][36] = l6_2;
+                jac[0][32] = u3_4;
+                jac[0][33] = u3_5;
+                jac[0][34] = u3_6;
+                jac[0][30] = d3;
+                jac[0][9] = l4_3;
+                jac[0][16] = l5_3;
+                jac[0][37] = l6_3;
+                jac[0][12] = u4_5;
+                jac[0][13] = u4_6;
+                jac[0][11] = d4;
+                jac[0][18] = l5_4;
+                jac[0][39] = l6_4;
+                jac[0][20] = u5_6;
+                jac[0][19] = d5;
+                jac[0][40] = l6_5;
+                jac[0][41] = d6;
+                perm[0] = 7;
+                return Ok(info);
+            }
             let mut a = [
                 [
                     jac[0][0],
@@ -8683,67 +9116,108 @@ fn solve_block_0(
 ) {
     if let 0 = b {
         {
-            let a = [
-                [lu[0][0], lu[0][1], lu[0][2], lu[0][3], lu[0][4], lu[0][5], lu[0][6]],
-                [
-                    lu[0][7],
-                    lu[0][8],
-                    lu[0][9],
-                    lu[0][10],
-                    lu[0][11],
-                    lu[0][12],
-                    lu[0][13],
-                ],
-                [
-                    lu[0][14],
-                    lu[0][15],
-                    lu[0][16],
-                    lu[0][17],
-                    lu[0][18],
-                    lu[0][19],
-                    lu[0][20],
-                ],
-                [
-                    lu[0][21],
-                    lu[0][22],
-                    lu[0][23],
-                    lu[0][24],
-                    lu[0][25],
-                    lu[0][26],
-                    lu[0][27],
-                ],
-                [
-                    lu[0][28],
-                    lu[0][29],
-                    lu[0][30],
-                    lu[0][31],
-                    lu[0][32],
-                    lu[0][33],
-                    lu[0][34],
-                ],
-                [
-                    lu[0][35],
-                    lu[0][36],
-                    lu[0][37],
-                    lu[0][38],
-                    lu[0][39],
-                    lu[0][40],
-                    lu[0][41],
-                ],
-                [
-                    lu[0][42],
-                    lu[0][43],
-                    lu[0][44],
-                    lu[0][45],
-                    lu[0][46],
-                    lu[0][47],
-                    lu[0][48],
-                ],
-            ];
-            let p = [perm[0], perm[1], perm[2], perm[3], perm[4], perm[5], perm[6]];
-            let mut z = [rhs[72], rhs[73], rhs[74], rhs[75], rhs[76], rhs[77], rhs[78]];
-            runtime::lu::solve(&a, &p, &mut z);
-            x[..7].copy_from_slice(&z);
+            let x = &mut x[..7];
+            let z = [rhs[72], rhs[73], rhs[74], rhs[75], rhs[76], rhs[77], rhs[78]];
+            if perm[0] == 7 {
+                let y0 = z[6];
+                let y1 = z[0] - lu[0][3] * y0;
+                let y2 = z[3] - lu[0][24] * y0 - lu[0][21] * y1;
+                let y3 = z[4] - lu[0][31] * y0 - lu[0][28] * y1 - lu[0][29] * y2;
+                let y4 = z[1] - lu[0][10] * y0 - lu[0][7] * y1 - lu[0][8] * y2
+                    - lu[0][9] * y3;
+                let y5 = z[2] - lu[0][17] * y0 - lu[0][14] * y1 - lu[0][15] * y2
+                    - lu[0][16] * y3 - lu[0][18] * y4;
+                let y6 = z[5] - lu[0][38] * y0 - lu[0][35] * y1 - lu[0][36] * y2
+                    - lu[0][37] * y3 - lu[0][39] * y4 - lu[0][40] * y5;
+                let x6 = y6 * lu[0][41];
+                let x5 = (y5 - lu[0][20] * x6) * lu[0][19];
+                let x4 = (y4 - lu[0][12] * x5 - lu[0][13] * x6) * lu[0][11];
+                let x3 = (y3 - lu[0][32] * x4 - lu[0][33] * x5 - lu[0][34] * x6)
+                    * lu[0][30];
+                let x2 = (y2 - lu[0][23] * x3 - lu[0][25] * x4 - lu[0][26] * x5
+                    - lu[0][27] * x6) * lu[0][22];
+                let x1 = (y1 - lu[0][1] * x2 - lu[0][2] * x3 - lu[0][4] * x4
+                    - lu[0][5] * x5 - lu[0][6] * x6) * lu[0][0];
+                let x0 = (y0 - lu[0][46] * x4 - lu[0][47] * x5 - lu[0][48] * x6)
+                    * lu[0][45];
+                x[3] = x0;
+                x[0] = x1;
+                x[1] = x2;
+                x[2] = x3;
+                x[4] = x4;
+                x[5] = x5;
+                x[6] = x6;
+            } else {
+                let a = [
+                    [
+                        lu[0][0],
+                        lu[0][1],
+                        lu[0][2],
+                        lu[0][3],
+                        lu[0][4],
+                        lu[0][5],
+                        lu[0][6],
+                    ],
+                    [
+                        lu[0][7],
+                        lu[0][8],
+                        lu[0][9],
+                        lu[0][10],
+                        lu[0][11],
+                        lu[0][12],
+                        lu[0][13],
+                    ],
+                    [
+                        lu[0][14],
+                        lu[0][15],
+                        lu[0][16],
+                        lu[0][17],
+                        lu[0][18],
+                        lu[0][19],
+                        lu[0][20],
+                    ],
+                    [
+                        lu[0][21],
+                        lu[0][22],
+                        lu[0][23],
+                        lu[0][24],
+                        lu[0][25],
+                        lu[0][26],
+                        lu[0][27],
+                    ],
+                    [
+                        lu[0][28],
+                        lu[0][29],
+                        lu[0][30],
+                        lu[0][31],
+                        lu[0][32],
+                        lu[0][33],
+                        lu[0][34],
+                    ],
+                    [
+                        lu[0][35],
+                        lu[0][36],
+                        lu[0][37],
+                        lu[0][38],
+                        lu[0][39],
+                        lu[0][40],
+                        lu[0][41],
+                    ],
+                    [
+                        lu[0][42],
+                        lu[0][43],
+                        lu[0][44],
+                        lu[0][45],
+                        lu[0][46],
+                        lu[0][47],
+                        lu[0][48],
+                    ],
+                ];
+                let p = [perm[0], perm[1], perm[2], perm[3], perm[4], perm[5], perm[6]];
+                let mut z = z;
+                runtime::lu::solve(&a, &p, &mut z);
+                x.copy_from_slice(&z);
+            }
         }
     }
 }
