@@ -8,6 +8,8 @@
 #[cfg(test)]
 mod arm_ik;
 #[cfg(test)]
+mod block_orders;
+#[cfg(test)]
 mod block_solver;
 #[cfg(test)]
 mod digits;

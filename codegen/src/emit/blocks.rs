@@ -678,7 +678,8 @@ fn block_orders(sys: &Symbolic, mech: &Mechanism, blocks: &Blocks) -> Orders {
         }
         let (structure, constant) =
             crate::pivot::block_structure(sys, &block.rows, &block.unknowns);
-        let constant = constant.iter().map(|row| row.iter().map(|c| c.map(f64::to_bits)).collect()).collect();
+        let constant =
+            constant.iter().map(|row| row.iter().map(|c| c.map(f64::to_bits)).collect()).collect();
         let key = (structure, constant);
         let g = keys.iter().position(|k| *k == key).unwrap_or_else(|| {
             keys.push(key);
@@ -784,7 +785,15 @@ pub(super) fn items(rows: &Rows<'_>, plan: &Plan) -> Vec<syn::Item> {
             "Solves for the block's unknowns, those of the blocks before it known (see `solve_blocks`)",
             &|b, hole| lu.solve_all(b, hole),
         ));
-        items.extend(straight_line(sys, blocks, &lower_starts, &lower, &entries, shared, Some(&lu)));
+        items.extend(straight_line(
+            sys,
+            blocks,
+            &lower_starts,
+            &lower,
+            &entries,
+            shared,
+            Some(&lu),
+        ));
         items.extend(block_factor_solve(sys, blocks, &entries, shared, &lu));
         return items;
     }
