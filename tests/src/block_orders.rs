@@ -73,10 +73,10 @@ fn static_block_orders_solve_as_nalgebra_on_random_values() {
         {
             let flat = jac.as_flattened_mut();
             let mut at = 0;
-            for b in 0..layout.starts.len() - 1 {
+            for (b, bounds) in layout.starts.windows(2).enumerate() {
                 assert_eq!(at, packed[b], "block {b} starts where the module says");
-                let cols = &layout.columns[layout.starts[b]..layout.starts[b + 1]];
-                for &r in &layout.rows[layout.starts[b]..layout.starts[b + 1]] {
+                let cols = &layout.columns[bounds[0]..bounds[1]];
+                for &r in &layout.rows[bounds[0]..bounds[1]] {
                     let below = &layout.lower[layout.lower_starts[r]..layout.lower_starts[r + 1]];
                     for &c in cols.iter().chain(below) {
                         let v = if structural(r, c) {
