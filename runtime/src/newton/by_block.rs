@@ -61,7 +61,9 @@ pub(super) fn solve<R: Real, M: Mechanism<N, R>, const N: usize>(
     for b in 0..layout.starts.len() - 1 {
         let (start, end) = (layout.starts[b], layout.starts[b + 1]);
         let solve = layout.solve.get(b).copied().unwrap_or(Solve::Newton);
-        let mut block = Block {
+        // Built only for the blocks that iterate or factor: the affine ones, most of the
+        // blocks of a chain or a row of loops, need none of it.
+        let block = || Block {
             mechanism,
             b,
             rows: &layout.rows[start..end],
@@ -80,11 +82,11 @@ pub(super) fn solve<R: Real, M: Mechanism<N, R>, const N: usize>(
                 // acceleration solves.
                 counts.closed_form += 1;
                 mechanism.block_residual(b, true, q, t, phi, jac);
-                block.factor(jac, perm, 0)?
+                block().factor(jac, perm, 0)?
             }
             Solve::Newton | Solve::Explicit => {
                 counts.implicit += 1;
-                let (iterations, pivots) = block.newton(q, t, phi, jac, perm, chord)?;
+                let (iterations, pivots) = block().newton(q, t, phi, jac, perm, chord)?;
                 counts.iterations += u64::from(iterations);
                 most = most.max(iterations);
                 pivots
