@@ -151,7 +151,11 @@ pub trait Mechanism<const N: usize, R: Real = f64> {
     /// [`Mechanism::solve_blocks`] read), refusing it when its smallest |pivot| ≤ `ratio` ·
     /// its largest.
     /// The default runs [`blocks::factor_block`](crate::blocks::factor_block); generated code
-    /// overrides it with straight-line code per block.
+    /// overrides it with straight-line code per block, which first tries the block's static
+    /// pivot orders (planned along the description's motion, guarded by
+    /// [`MAX_MULTIPLIER`](crate::lu::MAX_MULTIPLIER) and kept only when their pivot ratio
+    /// exceeds [`structured_bound`](crate::step::structured_bound)`(ratio)`) and otherwise
+    /// factors by partial pivoting, whose verdict on a singular block is final.
     ///
     /// # Errors
     ///

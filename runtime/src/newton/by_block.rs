@@ -15,7 +15,8 @@
 //! - Any other block follows [`super::solve_with_chord`] on its own rows: a prediction that
 //!   meets the tolerance is corrected by one chord step with the block's factors kept from
 //!   the last position, then Newton steps until max |Φ_i| over its rows ≤ tolerance, and its
-//!   diagonal block is factored (partial pivoting inside it) at the final q.
+//!   diagonal block is factored at the final q ([`Mechanism::factor_block`]: a generated
+//!   module's static pivot orders for the block, else partial pivoting inside it).
 //!
 //! The factors of all blocks, with the entries below them evaluated at the final q, are then
 //! those of Φ_q at the solution, for the velocity and acceleration solves by block forward
