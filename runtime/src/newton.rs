@@ -167,16 +167,40 @@ pub fn status<R: Real>(residual: R, iterations: u32, options: &NewtonOptions<R>)
 /// max |x_i|, or NaN if some x_i is NaN (a plain `f64::max` fold would drop it).
 ///
 /// Branch-free and inlined, so that the compiler can unroll and vectorise it: it runs several
-/// times per time step.
+/// times per time step, over all N unknowns or rows. On long slices four independent running
+/// maxima (lanes) let it do so: one running maximum is a chain of dependent selects the
+/// compiler keeps scalar (on 34 R-S-S-R loops, 680 unknowns, the lanes save 1.6 % of a step's
+/// instructions; below 64 entries they cost more than they save: 2 % on one loop). The
+/// maximum does not depend on the order it is taken in, so the result is the same.
 #[inline]
 pub(crate) fn max_abs<R: Real>(x: &[R]) -> R {
-    let (mut m, mut nan) = (R::ZERO, false);
-    for &v in x {
-        let a = v.abs();
-        nan |= a.is_nan();
-        m = if a > m { a } else { m };
+    const LANES: usize = 4;
+    if x.len() < 64 {
+        let (mut m, mut nan) = (R::ZERO, false);
+        for &v in x {
+            let a = v.abs();
+            nan |= a.is_nan();
+            m = if a > m { a } else { m };
+        }
+        return if nan { R::NAN } else { m };
     }
-    if nan { R::NAN } else { m }
+    let (mut m, mut nan) = ([R::ZERO; LANES], [false; LANES]);
+    let chunks = x.chunks_exact(LANES);
+    let rest = chunks.remainder();
+    for c in chunks {
+        for i in 0..LANES {
+            let a = c[i].abs();
+            nan[i] |= a.is_nan();
+            m[i] = if a > m[i] { a } else { m[i] };
+        }
+    }
+    for (i, &v) in rest.iter().enumerate() {
+        let a = v.abs();
+        nan[i] |= a.is_nan();
+        m[i] = if a > m[i] { a } else { m[i] };
+    }
+    let top = m[0].max(m[1]).max(m[2].max(m[3]));
+    if nan.iter().any(|&n| n) { R::NAN } else { top }
 }
 
 /// Whether every x_i is finite.
