@@ -689,8 +689,27 @@ fn block_orders(sys: &Symbolic, mech: &Mechanism, blocks: &Blocks) -> Orders {
         group_of[b] = Some(g);
         groups[g].push((block.rows.clone(), block.unknowns.clone()));
     }
-    let planned = crate::pivot::plan_blocks(mech, sys, &groups);
+    let mut planned = crate::pivot::plan_blocks(mech, sys, &groups);
+    // A large block's order is a long function per order; its dense LU is a call.
+    for orders in &mut planned {
+        orders.retain(|o| elimination_ops(o) <= super::CHUNK_OPS);
+    }
     group_of.into_iter().map(|g| g.map(|g| planned[g].clone()).unwrap_or_default()).collect()
+}
+
+/// The multiplications and subtractions of the elimination with `order`: per step, a
+/// multiplier for each row below the pivot, and an update of each of its entries right of the
+/// pivot's column.
+fn elimination_ops(order: &Order) -> usize {
+    let n = order.rows.len();
+    let mut below = vec![0; n];
+    for (i, p) in order.pattern.iter().enumerate() {
+        for &k in p.iter().filter(|&&k| k < i) {
+            below[k] += 1;
+        }
+    }
+    let right = |k: usize| order.pattern[k].iter().filter(|&&l| l > k).count();
+    (0..n).map(|k| below[k] * (1 + 2 * right(k))).sum()
 }
 
 /// `static BLOCKS: runtime::blocks::Layout` and, for Newton block by block, the `block_k`
