@@ -213,3 +213,43 @@ fn blocks_whose_static_orders_are_refused_fall_back_to_their_dense_lu() {
         assert!(diff <= AGREEMENT, "{at}");
     }
 }
+
+/// The crank-rocker of `tests/stability/crank_rocker_toggle.toml` driven by its rocker into the
+/// folded toggle, solved by Newton block by block (the rocker's orientation in closed form,
+/// the crank and coupler an implicit block with static orders planned along the motion up to
+/// the toggle): the generated engine stops `singular` at the same time and names the same
+/// equations as the generic engine, the toggle's time coming from the closed form (as in
+/// `stability`), and every step before it agrees with the generic engine's.
+#[test]
+fn a_singular_block_stops_with_the_generic_engines_time_and_equations() {
+    let path =
+        concat!(env!("CARGO_MANIFEST_DIR"), "/stability/crank_rocker_toggle.toml").to_owned();
+    let mech = codegen::testing::load(std::path::Path::new(&path)).mechanism;
+    let sys = codegen::symbolic::Symbolic::build(&mech).expect("the system builds");
+    let module = codegen::emit::module_with_block_newton(&mech, &sys, "toggle", Scalar::F64);
+    assert!(module.contains("const BLOCK_NEWTON: bool = true;"), "Newton block by block");
+    assert!(module.contains("'order_0: {"), "static orders in the blocks");
+    let built = codegen::engine::build_module(&mech, &module, &sys, Scalar::F64).expect("builds");
+    let generic = run_generic(&mech);
+    let generated = run_generated(&mech, &built);
+    // The toggle (see `stability`): |O2 B| = b − a, the rocker at φ* from 120° at 0.5 rad/s;
+    // both engines stop at the first grid time (0.05 apart) at or past it.
+    let b = (2.25_f64.powi(2) + (2.1650635094610964_f64 - 1.0).powi(2)).sqrt();
+    let phi_star =
+        (((b - 1.0).powi(2) - 3.5_f64.powi(2) - 2.5_f64.powi(2)) / (2.0 * 3.5 * 2.5)).acos();
+    let t_star = (phi_star - 2.0 * std::f64::consts::FRAC_PI_3) / 0.5;
+    let t_fail = (t_star / 0.05).ceil() * 0.05;
+    let [g, s] = [&generic, &generated].map(|r| r.failure.clone().expect("a failure"));
+    for f in [&g, &s] {
+        assert_eq!(f.kind, codegen::generic::FailureKind::Singular, "{f:?}");
+        // Grid times are start + k·step: equal to round-off.
+        assert!((f.t - t_fail).abs() < 1e-12, "stopped at {} not {t_fail}", f.t);
+    }
+    assert_eq!((g.t, &g.constraints), (s.t, &s.constraints), "the engines agree");
+    assert_eq!(generic.frames.len(), generated.frames.len(), "the same steps before it");
+    // The file keeps the default tolerance 1e-10 (not the 1e-12 of `AGREEMENT`), so 1e-8
+    // leaves the same factor of 100 for the conditioning, which grows towards the toggle.
+    for (diff, at) in relative_differences(&generic.frames, &generated.frames) {
+        assert!(diff <= 1e-8, "{at}");
+    }
+}
