@@ -4,6 +4,14 @@
 //! fixed-size array and factored by `runtime::lu` with partial pivoting inside the block, the
 //! entries below the blocks moved to the right-hand side), and the `runtime::Mechanism` items
 //! that select them instead of static pivot orders.
+//!
+//! With Newton block by block, each block factored alone (implicit and rotation blocks) first
+//! tries static pivot orders of its own (`pivot::plan_blocks`, printed by
+//! [`super::lu::block`]): the first whose guard passes and whose pivot ratio exceeds
+//! `runtime::step::structured_bound` stores its factors and flags itself in `perm` at the
+//! block's first position (the block's size plus the order's number, where the dense LU
+//! writes a row within the block); otherwise the block's dense LU decides, as before. The
+//! solves read the flag.
 
 use syn::parse_quote;
 
