@@ -474,7 +474,7 @@ pub fn plan_motion(mech: &Mechanism, sys: &Symbolic) -> Vec<Order> {
 }
 
 /// The structure and the constant entries of the diagonal block of Φ_q on `rows` and
-/// `columns`, in block coordinates: entry (i, j) is Φ_q's (rows[i], columns[j]).
+/// `columns`, in block coordinates: entry (i, j) is Φ_q's (`rows[i]`, `columns[j]`).
 #[must_use]
 pub fn block_structure(
     sys: &Symbolic,

@@ -1,7 +1,7 @@
 //! The structured LU of Φ_q printed as code: for each static pivot order that
 //! [`crate::pivot`] plans, straight-line `factor_k` and `solve_k` functions that touch only the
 //! entries of L and U, with the entries known at generation time folded in; and, for the
-//! diagonal blocks of Newton block by block ([`block`]), the same arithmetic as statements
+//! diagonal blocks of Newton block by block (`block`), the same arithmetic as statements
 //! at places `emit::blocks` chooses, its stores deferred until every guard passed.
 
 use syn::{Expr, Ident, parse_quote};
