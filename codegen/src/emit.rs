@@ -625,6 +625,12 @@ fn expand(sys: &Symbolic, moving: &[usize]) -> syn::Item {
                         outputs.push((parse_quote!(out[#sl][#d][#il]), *e, None));
                     }
                 }
+                Source::Derived(k) => {
+                    for (d, e) in sys.derived[k].value.iter().enumerate() {
+                        let d = index(d);
+                        outputs.push((parse_quote!(out[#sl][#d][#il]), *e, None));
+                    }
+                }
             }
         }
     }
