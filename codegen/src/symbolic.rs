@@ -620,7 +620,9 @@ impl Symbolic {
     /// (an undriven degree of freedom, or a coordinate fixed twice).
     pub fn build(mech: &Mechanism) -> Result<Self, GenerateError> {
         let (full, q) = Self::build_with(mech, ExprPool::new(), &[])?;
-        if full.unknowns.len() >= SUBSTITUTE_BELOW {
+        // Rows left out as dependent are checked and re-selected at run time against the whole
+        // system's (`Symbolic::dropped`): such a system is left whole.
+        if full.unknowns.len() >= SUBSTITUTE_BELOW || !full.dropped.is_empty() {
             return Ok(full);
         }
         Ok(full.substituted(mech, &q))
