@@ -380,7 +380,11 @@ impl ExprPool {
 
     /// `e` with the variables of `map` replaced by their expressions, rebuilt through the
     /// folding constructors (so a replacement by a constant folds away what it zeroes).
-    pub fn substitute(&mut self, e: ExprId, map: &std::collections::BTreeMap<Var, ExprId>) -> ExprId {
+    pub fn substitute(
+        &mut self,
+        e: ExprId,
+        map: &std::collections::BTreeMap<Var, ExprId>,
+    ) -> ExprId {
         // The nodes `e` reaches, children before parents (the arena is in topological order).
         let mut reached = std::collections::BTreeSet::new();
         let mut stack = vec![e];

@@ -315,9 +315,7 @@ impl<'e> Reference<'e> {
                     Source::Unknown(k) => [reduced[0][k], reduced[1][k], reduced[2][k]],
                     Source::Fixed(v) => [v.into(), Dd::default(), Dd::default()],
                     Source::Driven(l) => [laws[3 * l], laws[3 * l + 1], laws[3 * l + 2]],
-                    Source::Derived(k) => {
-                        [derived[3 * k], derived[3 * k + 1], derived[3 * k + 2]]
-                    }
+                    Source::Derived(k) => [derived[3 * k], derived[3 * k + 1], derived[3 * k + 2]],
                 };
                 for (d, x) in out.iter_mut().zip(v) {
                     d[o + i] = x;

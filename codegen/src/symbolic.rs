@@ -676,7 +676,11 @@ impl Symbolic {
             .map(|d| {
                 let rate = builder.pool.rate(d.value);
                 let acceleration = outputs::acceleration(&mut builder.pool, rate);
-                Derived { body: d.body, coordinate: d.coordinate, value: [d.value, rate, acceleration] }
+                Derived {
+                    body: d.body,
+                    coordinate: d.coordinate,
+                    value: [d.value, rate, acceleration],
+                }
             })
             .collect();
         let mut sys = Self {
@@ -1097,9 +1101,9 @@ mod legs;
 mod outputs;
 mod substitute;
 pub use legs::ReducedLeg;
-pub use substitute::{Derived, SUBSTITUTE_BELOW};
-use substitute::Substitution;
 pub use outputs::{JointCoordinate, Outputs, Rates};
+use substitute::Substitution;
+pub use substitute::{Derived, SUBSTITUTE_BELOW};
 
 #[cfg(test)]
 mod tests;

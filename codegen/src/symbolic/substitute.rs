@@ -239,7 +239,8 @@ impl Symbolic {
         let t = mech.time.start;
         let inputs = self.planning_inputs(t);
         let values = self.pool.eval_inputs(&k[..8], [q, &[], &[]], t, &inputs);
-        let (u, w) = (Vector4::from_column_slice(&values[0..4]), Vector4::from_column_slice(&values[4..8]));
+        let (u, w) =
+            (Vector4::from_column_slice(&values[0..4]), Vector4::from_column_slice(&values[4..8]));
         let first = r.first_unknown(self);
         // The joint's angle (x, y) along the family, x = α + β cos φ + γ sin φ and y alike.
         let at = |phi: f64| -> [f64; 2] {
@@ -262,7 +263,8 @@ impl Symbolic {
         let sigma = (bx * cy - cx * by) / (kappa * kappa);
         let tolerance = CONSTANT_FORM * kappa;
         let check = at(1.0);
-        let predicted = [bx * 1.0_f64.cos() + cx * 1.0_f64.sin(), by * 1.0_f64.cos() + cy * 1.0_f64.sin()];
+        let predicted =
+            [bx * 1.0_f64.cos() + cx * 1.0_f64.sin(), by * 1.0_f64.cos() + cy * 1.0_f64.sin()];
         let exact = kappa > 0.0
             && ax.abs() <= tolerance
             && ay.abs() <= tolerance
