@@ -23,8 +23,17 @@
 //!   smooth function of s which changes sign over every full turn, as the continuation the
 //!   generic engine's Newton follows does.
 //!
-//! Joint-angle drivers (quadratic rows), rotations about a moving body and affine blocks with a
-//! coefficient that varies stay unknowns. The substituted coordinates become
+//! - a rotation block driven by its joint's angle, where that angle is ±s plus a constant
+//!   (references perpendicular to the axes, checked along the family at generation time: the
+//!   joint angle's x and y are κ cos(φ − ψ) and σ κ sin(φ − ψ), σ = ±1): the driver's row
+//!   x sin s − y cos s = κ sin(s − σ (φ − ψ)) is zero at φ = σ s + ψ + kπ, k chosen with the
+//!   assembled configuration, so e_j = cos(φ/2) u + sin(φ/2) w with u and w expressions of
+//!   the known body's Euler parameters, whatever moves that body (the angle is relative).
+//!
+//! Other joint-angle rows, absolute rotations about a moving body (κ then varies) and affine
+//! blocks with a coefficient that varies stay unknowns, as does every block when the system
+//! has [`SUBSTITUTE_BELOW`] unknowns or more, or rows dropped as dependent (their run-time
+//! checks and re-selection belong to the whole system). The substituted coordinates become
 //! [`Source::Derived`] and their rows [`Symbolic::eliminated`] (they hold exactly by
 //! construction); the system is then built again on the remaining unknowns, so Φ, Φ_q, ν, γ,
 //! the dropped rows and everything emitted from them follow unchanged.
