@@ -74,8 +74,9 @@ pub(super) struct Substitution {
     pub(super) rows: Vec<RowLabel>,
 }
 
-/// The largest round-off tolerated in κ² = A² + B² for it to count as a constant: sums of
-/// products of unit quaternions' entries, each within a few ulps.
+/// The largest round-off tolerated, relative to 1 or to κ, where a form must be exact (κ² =
+/// A² + B² a constant; a joint angle's x and y of the form κ cos(φ − ψ), σ κ sin(φ − ψ)): sums
+/// of products of unit quaternions' entries, each within a few ulps.
 const CONSTANT_FORM: f64 = 1e-12;
 
 impl Symbolic {
@@ -124,7 +125,11 @@ impl Symbolic {
             })
             .collect();
         match Self::build_with(mech, self.pool.clone(), &derived) {
-            Ok((sys, _)) => sys,
+            Ok((sys, _)) => {
+                let remaining = self.unknowns.iter().enumerate().filter(|(k, _)| !gone.contains(k));
+                debug_assert!(sys.unknowns.iter().eq(remaining.map(|(_, u)| u)), "renumbered");
+                sys
+            }
             Err(e) => {
                 log::debug!("{}: closed forms not substituted: {}", mech.name, e.message);
                 self
