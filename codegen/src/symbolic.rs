@@ -943,7 +943,8 @@ impl Symbolic {
                 match *s {
                     Source::Unknown(k) => free += q[k] * q[k],
                     Source::Fixed(v) => fixed += v * v,
-                    // A body's substituted Euler parameters are all four of them.
+                    // A body's substituted Euler parameters are all four of them, or two that
+                    // vanish beside unknown ones (`substitute`): either way they add nothing.
                     Source::Driven(_) | Source::Derived(_) => {}
                 }
             }

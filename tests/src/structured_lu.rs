@@ -231,8 +231,8 @@ fn rssr_revolution_matches_dense_lu_with_and_without_the_fallback() {
     let (dense, dense_counts) = revolution(DenseOnly(Rssr), Q0);
     assert_eq!(dense_counts.structured, 0);
     let (all, all_counts) = revolution(Rssr, Q0);
-    // With its closed-form blocks substituted the R-S-S-R solves the 7 unknowns of its S-S
-    // loop, and its one static order serves the whole revolution without the fallback (the
+    // With its closed-form blocks substituted the R-S-S-R solves 5 unknowns of its S-S loop,
+    // and its one static order serves the whole revolution without the fallback (the
     // 20-unknown system needed a second order, or the fallback, around half a turn).
     let (only, only_counts) = revolution(Only::<Rssr, 0>(Rssr), Q0);
     eprintln!("dense {dense_counts:?}\nall orders {all_counts:?}\norder 0 only {only_counts:?}");

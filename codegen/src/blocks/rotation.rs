@@ -56,6 +56,12 @@ fn product(a: Vector4<f64>, b: Vector4<f64>) -> Vector4<f64> {
     parameters(quaternion(a) * quaternion(b))
 }
 
+/// e ⊗ (0, a): Euler parameters times a pure vector.
+#[must_use]
+pub(crate) fn product_with_vector(e: Vector4<f64>, a: &Vector3<f64>) -> Vector4<f64> {
+    product(e, Vector4::new(0.0, a.x, a.y, a.z))
+}
+
 fn quaternion(p: Vector4<f64>) -> Quaternion<f64> {
     Quaternion::new(p[0], p[1], p[2], p[3])
 }

@@ -44,7 +44,7 @@ use nalgebra::Vector4;
 
 use crate::blocks::{Block, Blocks, Kind, Rotation};
 use crate::expr::{ExprId, Var};
-use crate::model::{BodyId, DriverTarget, Mechanism, RowLabel};
+use crate::model::{BodyId, DriverTarget, JointKind, Mechanism, RowLabel};
 
 use super::{Source, Symbolic};
 
@@ -104,6 +104,17 @@ impl Symbolic {
                     Vec::new()
                 };
                 found.push((k, e, rows));
+            }
+        }
+        for joint in 0..mech.joints.len() {
+            for side in [true, false] {
+                let Some((values, rows)) = self.off_axis(mech, joint, side, q, &map) else {
+                    continue;
+                };
+                for (n, (k, e)) in values.into_iter().enumerate() {
+                    map.insert(Var::Q(small(k)), e);
+                    found.push((k, e, if n == 0 { rows.clone() } else { Vec::new() }));
+                }
             }
         }
         if found.is_empty() {
@@ -318,6 +329,77 @@ impl Symbolic {
                 })
                 .collect(),
         )
+    }
+}
+
+impl Symbolic {
+    /// The two Euler parameters of a body that vanish on the family its revolute or
+    /// cylindrical joint `joint` to a body of constant orientation leaves it, with the joint's
+    /// two parallel-axis rows, which then vanish identically: the body turning about a global
+    /// axis its Euler parameters' frame shares (the R-S-S-R's rocker about x: e2 = e3 = 0).
+    /// The family through the assembled e is e(θ) = cos(θ/2) e + sin(θ/2) e ⊗ (0, â) with â the
+    /// joint's axis in the body's frame; `side` picks the joint's body j (else i) as the body.
+    #[allow(clippy::type_complexity)]
+    fn off_axis(
+        &mut self,
+        mech: &Mechanism,
+        joint: usize,
+        side: bool,
+        q: &[f64],
+        map: &BTreeMap<Var, ExprId>,
+    ) -> Option<(Vec<(usize, ExprId)>, Vec<RowLabel>)> {
+        let j = &mech.joints[joint];
+        let first_row = match j.kind {
+            JointKind::Revolute => 4,
+            JointKind::Cylindrical => 1,
+            _ => return None,
+        };
+        let (ai, aj) = j.axis?;
+        let (body, known, axis) =
+            if side { (j.body_j, j.body_i, aj) } else { (j.body_i, j.body_j, ai) };
+        if !self.coords[known.0][3..].iter().all(|s| matches!(s, Source::Fixed(_))) {
+            return None;
+        }
+        let unknowns: Vec<usize> = self.coords[body.0][3..]
+            .iter()
+            .map(|s| match *s {
+                Source::Unknown(k) if !map.contains_key(&Var::Q(small(k))) => Some(k),
+                _ => None,
+            })
+            .collect::<Option<_>>()?;
+        let e = Vector4::from_fn(|c, _| q[unknowns[c]]).normalize();
+        let a = axis.normalize();
+        let w = super::super::blocks::rotation::product_with_vector(e, &a);
+        let zero: Vec<usize> = (0..4)
+            .filter(|&c| e[c].abs() <= CONSTANT_FORM && w[c].abs() <= CONSTANT_FORM)
+            .collect();
+        if zero.len() != 2 {
+            return None;
+        }
+        let rows: Vec<usize> = (0..self.rows.len())
+            .filter(|&r| {
+                let l = &self.rows[r];
+                l.kind == RowLabel::JOINT
+                    && l.name == j.name
+                    && (l.row == first_row || l.row == first_row + 1)
+            })
+            .collect();
+        if rows.len() != 2 {
+            return None;
+        }
+        let zero_value = self.pool.constant(0.0);
+        let mut with_zeros = map.clone();
+        for &c in &zero {
+            with_zeros.insert(Var::Q(small(unknowns[c])), zero_value);
+        }
+        for &r in &rows {
+            let phi = self.pool.substitute(self.phi[r], &with_zeros);
+            if self.pool.as_const(phi) != Some(0.0) {
+                return None;
+            }
+        }
+        let labels = rows.iter().map(|&r| self.rows[r].clone()).collect();
+        Some((zero.iter().map(|&c| (unknowns[c], zero_value)).collect(), labels))
     }
 }
 
