@@ -120,6 +120,17 @@ impl Symbolic {
         if found.is_empty() {
             return self;
         }
+        // A block's value may use a coordinate substituted after it (the vanishing Euler
+        // parameters come last): substitute until only remaining unknowns are left.
+        for entry in &mut found {
+            loop {
+                let e = self.pool.substitute(entry.1, &map);
+                if e == entry.1 {
+                    break;
+                }
+                entry.1 = e;
+            }
+        }
         // The remaining unknowns keep their order: number_unknowns numbers them body by body.
         let gone: BTreeSet<usize> = found.iter().map(|&(k, _, _)| k).collect();
         let mut renumber = BTreeMap::new();
