@@ -1,7 +1,7 @@
 //! Closed-form blocks substituted at generation time: "model no more than the scene needs".
 //!
 //! The block-lower-triangular form of the reduced system (`blocks`) shows which of its
-//! unknowns follow from the earlier ones without iteration. Two kinds of closed-form block
+//! unknowns follow from the earlier ones without iteration. Three kinds of closed-form block
 //! have an exact expression as their solution and are substituted, in solve order, so that a
 //! block's expression may use the coordinates substituted before it:
 //!
@@ -21,14 +21,20 @@
 //!   a polynomial in sin(s/2) and cos(s/2), finite for every s, with no division at run time.
 //!   σ = ±1 is chosen at generation time to match the assembled configuration; e_j is then a
 //!   smooth function of s which changes sign over every full turn, as the continuation the
-//!   generic engine's Newton follows does.
-//!
+//!   generic engine's Newton follows does;
 //! - a rotation block driven by its joint's angle, where that angle is ±s plus a constant
 //!   (references perpendicular to the axes, checked along the family at generation time: the
 //!   joint angle's x and y are κ cos(φ − ψ) and σ κ sin(φ − ψ), σ = ±1): the driver's row
 //!   x sin s − y cos s = κ sin(s − σ (φ − ψ)) is zero at φ = σ s + ψ + kπ, k chosen with the
 //!   assembled configuration, so e_j = cos(φ/2) u + sin(φ/2) w with u and w expressions of
 //!   the known body's Euler parameters, whatever moves that body (the angle is relative).
+//!
+//! Beyond the blocks, a body that a revolute or cylindrical joint turns about a global axis
+//! its Euler parameters' frame shares, relative to a body of constant orientation (the
+//! R-S-S-R's rocker about x), has two Euler parameters that vanish on the joint's family: they
+//! become the constant 0 and the joint's two parallel-axis rows, which then vanish identically,
+//! join the eliminated ones (`off_axis`). The family is taken through the assembled
+//! configuration, so it is the branch the generic engine follows.
 //!
 //! Other joint-angle rows, absolute rotations about a moving body (κ then varies) and affine
 //! blocks with a coefficient that varies stay unknowns, as does every block when the system
