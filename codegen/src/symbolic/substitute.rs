@@ -167,11 +167,7 @@ impl Symbolic {
 
     /// The closed form of an affine block, with the coordinates of `map` substituted: q_k =
     /// −ρ/a (see the module docs), for a translational coordinate with a constant coefficient.
-    fn affine(
-        &mut self,
-        block: &Block,
-        map: &BTreeMap<Var, ExprId>,
-    ) -> Option<Vec<(usize, ExprId)>> {
+    fn affine(&mut self, block: &Block, map: &BTreeMap<Var, ExprId>) -> Option<Values> {
         let (&[r], &[k]) = (block.rows.as_slice(), block.unknowns.as_slice()) else {
             return None;
         };
@@ -192,12 +188,7 @@ impl Symbolic {
     /// The closed form e_j = σ (B u − A w)/κ of a rotation block driven by an absolute
     /// rotation about a body of constant Euler parameters (see the module docs), σ from the
     /// assembled configuration `q`.
-    fn turned(
-        &mut self,
-        mech: &Mechanism,
-        r: &Rotation,
-        q: &[f64],
-    ) -> Option<Vec<(usize, ExprId)>> {
+    fn turned(&mut self, mech: &Mechanism, r: &Rotation, q: &[f64]) -> Option<Values> {
         let constant = |s: &Source| matches!(s, Source::Fixed(_));
         if !self.coords[r.known.0][3..].iter().all(constant) {
             return None;
@@ -259,7 +250,7 @@ impl Symbolic {
         r: &Rotation,
         q: &[f64],
         map: &BTreeMap<Var, ExprId>,
-    ) -> Option<Vec<(usize, ExprId)>> {
+    ) -> Option<Values> {
         let label = &self.rows[r.driver_row];
         let d = mech.drivers.iter().position(|d| d.name == label.name)?;
         let joint = &mech.joints[r.joint];
@@ -356,7 +347,6 @@ impl Symbolic {
     /// axis its Euler parameters' frame shares (the R-S-S-R's rocker about x: e2 = e3 = 0).
     /// The family through the assembled e is e(θ) = cos(θ/2) e + sin(θ/2) e ⊗ (0, â) with â the
     /// joint's axis in the body's frame; `side` picks the joint's body j (else i) as the body.
-    #[allow(clippy::type_complexity)]
     fn off_axis(
         &mut self,
         mech: &Mechanism,
@@ -364,7 +354,7 @@ impl Symbolic {
         side: bool,
         q: &[f64],
         map: &BTreeMap<Var, ExprId>,
-    ) -> Option<(Vec<(usize, ExprId)>, Vec<RowLabel>)> {
+    ) -> Option<(Values, Vec<RowLabel>)> {
         let j = &mech.joints[joint];
         let first_row = match j.kind {
             JointKind::Revolute => 4,
@@ -419,6 +409,9 @@ impl Symbolic {
         Some((zero.iter().map(|&c| (unknowns[c], zero_value)).collect(), labels))
     }
 }
+
+/// Substituted unknowns (indices before renumbering) with their values.
+type Values = Vec<(usize, ExprId)>;
 
 /// An unknown's index as the pool's variable index.
 fn small(k: usize) -> u32 {
