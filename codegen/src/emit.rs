@@ -625,6 +625,12 @@ fn expand(sys: &Symbolic, moving: &[usize]) -> syn::Item {
                         outputs.push((parse_quote!(out[#sl][#d][#il]), *e, None));
                     }
                 }
+                Source::Derived(k) => {
+                    for (d, e) in sys.derived[k].value.iter().enumerate() {
+                        let d = index(d);
+                        outputs.push((parse_quote!(out[#sl][#d][#il]), *e, None));
+                    }
+                }
             }
         }
     }
@@ -639,7 +645,8 @@ fn expand(sys: &Symbolic, moving: &[usize]) -> syn::Item {
         return parse_quote! {
             /// Full coordinates of every moving body (in [`BODY_NAMES`] order) at the inputs
             /// `inputs`: `out[b][0]` is `[x, y, z, e0, e1, e2, e3]`, `out[b][1]` its rates and
-            /// `out[b][2]` its accelerations, with fixed and driven coordinates filled in.
+            /// `out[b][2]` its accelerations, with fixed, driven and substituted coordinates
+            /// filled in.
             pub fn expand(#qn: &[f64; N], #qdn: &[f64; N], #qddn: &[f64; N], #tn: f64, #un: &Inputs, out: &mut [[[f64; 7]; 3]; BODIES]) {
                 #(#direct)*
                 #read
@@ -650,7 +657,7 @@ fn expand(sys: &Symbolic, moving: &[usize]) -> syn::Item {
     parse_quote! {
         /// Full coordinates of every moving body (in [`BODY_NAMES`] order): `out[b][0]` is
         /// `[x, y, z, e0, e1, e2, e3]`, `out[b][1]` its rates and `out[b][2]` its
-        /// accelerations, with fixed and driven coordinates filled in.
+        /// accelerations, with fixed, driven and substituted coordinates filled in.
         pub fn expand(#qn: &[f64; N], #qdn: &[f64; N], #qddn: &[f64; N], #tn: f64, out: &mut [[[f64; 7]; 3]; BODIES]) {
             #(#direct)*
             #(#stmts)*

@@ -378,6 +378,37 @@ impl ExprPool {
         d
     }
 
+    /// `e` with the variables of `map` replaced by their expressions, rebuilt through the
+    /// folding constructors (so a replacement by a constant folds away what it zeroes).
+    pub fn substitute(
+        &mut self,
+        e: ExprId,
+        map: &std::collections::BTreeMap<Var, ExprId>,
+    ) -> ExprId {
+        // The nodes `e` reaches, children before parents (the arena is in topological order).
+        let mut reached = std::collections::BTreeSet::new();
+        let mut stack = vec![e];
+        while let Some(x) = stack.pop() {
+            if reached.insert(x) {
+                stack.extend(self[x].children());
+            }
+        }
+        let mut new: HashMap<ExprId, ExprId> = HashMap::with_capacity(reached.len());
+        for x in reached {
+            let y = match self[x] {
+                Node::Var(v) => map.get(&v).copied().unwrap_or(x),
+                Node::Const(_) => x,
+                Node::Neg(a) => self.neg(new[&a]),
+                Node::Add(a, b) => self.add(new[&a], new[&b]),
+                Node::Mul(a, b) => self.mul(new[&a], new[&b]),
+                Node::Sin(a) => self.sin(new[&a]),
+                Node::Cos(a) => self.cos(new[&a]),
+            };
+            new.insert(x, y);
+        }
+        new[&e]
+    }
+
     /// Whether `e` depends on `v` (a cheap structural test used to skip zero derivatives).
     #[must_use]
     pub fn depends_on(&self, e: ExprId, v: Var) -> bool {

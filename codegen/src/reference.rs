@@ -197,7 +197,10 @@ impl<'e> Reference<'e> {
     /// When the symbolic system cannot be built.
     pub fn new(eq: &'e Equations<'e>) -> Result<Self, ReferenceError> {
         let sym =
-            Symbolic::build(eq.mechanism()).map_err(|e| ReferenceError::Symbolic(e.message))?;
+            // Every equation solved in double-double: no closed form substituted with
+            // constants rounded to double precision.
+            Symbolic::build_full(eq.mechanism())
+                .map_err(|e| ReferenceError::Symbolic(e.message))?;
         let mut jac_roots = Vec::new();
         let mut jac_places = Vec::new();
         for (i, row) in sym.jac.iter().enumerate() {
@@ -303,6 +306,8 @@ impl<'e> Reference<'e> {
         let mut out = [vec![Dd::default(); n], vec![Dd::default(); n], vec![Dd::default(); n]];
         let roots: Vec<ExprId> = sym.laws.iter().flatten().copied().collect();
         let laws = sym.pool.eval_in(&roots, [&[], &[], &[]], t, inputs);
+        let roots: Vec<ExprId> = sym.derived.iter().flat_map(|d| d.value).collect();
+        let derived = sym.pool.eval_in(&roots, reduced, t, inputs);
         for (b, c) in sym.coords.iter().enumerate() {
             let Some(o) = self.eq.offset(BodyId(b)) else { continue };
             for (i, s) in c.iter().enumerate() {
@@ -310,6 +315,7 @@ impl<'e> Reference<'e> {
                     Source::Unknown(k) => [reduced[0][k], reduced[1][k], reduced[2][k]],
                     Source::Fixed(v) => [v.into(), Dd::default(), Dd::default()],
                     Source::Driven(l) => [laws[3 * l], laws[3 * l + 1], laws[3 * l + 2]],
+                    Source::Derived(k) => [derived[3 * k], derived[3 * k + 1], derived[3 * k + 2]],
                 };
                 for (d, x) in out.iter_mut().zip(v) {
                     d[o + i] = x;

@@ -34,6 +34,9 @@ pub enum Source {
     Fixed(f64),
     /// A driven coordinate: index into [`Symbolic::laws`].
     Driven(usize),
+    /// A coordinate of a closed-form block substituted at generation time, an explicit
+    /// expression of the remaining unknowns and t: index into [`Symbolic::derived`].
+    Derived(usize),
 }
 
 /// The reduced symbolic system of one mechanism.
@@ -78,6 +81,9 @@ pub struct Symbolic {
     /// The U-P-S legs whose driver row was replaced by the distance row of the bodies they
     /// join (`legs`), in driver order.
     pub legs: Vec<ReducedLeg>,
+    /// The coordinates substituted by the closed forms of their blocks (`substitute`), in
+    /// solve order: each an expression of the earlier ones, the remaining unknowns and t.
+    pub derived: Vec<Derived>,
 }
 
 /// A row of the reduced system left out as dependent on the kept ones.
@@ -127,6 +133,8 @@ struct Builder {
     laws: Vec<[ExprId; 3]>,
     /// For every driver, its input index when it is an input driver.
     input_of: Vec<Option<u32>>,
+    /// The value of every substituted coordinate ([`Source::Derived`]).
+    derived: Vec<ExprId>,
 }
 
 impl Builder {
@@ -135,6 +143,7 @@ impl Builder {
             Source::Unknown(k) => self.pool.var(Var::Q(u32::try_from(k).expect("small"))),
             Source::Fixed(v) => self.pool.constant(v),
             Source::Driven(l) => self.laws[l][0],
+            Source::Derived(i) => self.derived[i],
         }
     }
 
@@ -602,27 +611,78 @@ impl std::fmt::Display for GenerateError {
 impl std::error::Error for GenerateError {}
 
 impl Symbolic {
-    /// Builds the reduced system of `mech`.
+    /// Builds the reduced system of `mech`: [`Symbolic::build_full`], then, below
+    /// [`SUBSTITUTE_BELOW`] unknowns, with the closed-form blocks substituted (`substitute`):
+    /// Newton runs on the remaining unknowns only.
     ///
     /// # Errors
     /// When the reduced system is not square with full rank at the initial configuration
     /// (an undriven degree of freedom, or a coordinate fixed twice).
     pub fn build(mech: &Mechanism) -> Result<Self, GenerateError> {
+        let (full, q) = Self::build_with(mech, ExprPool::new(), &[])?;
+        // Rows left out as dependent are checked and re-selected at run time against the whole
+        // system's (`Symbolic::dropped`): such a system is left whole.
+        if full.unknowns.len() >= SUBSTITUTE_BELOW || !full.dropped.is_empty() {
+            return Ok(full);
+        }
+        Ok(full.substituted(mech, &q))
+    }
+
+    /// Builds the reduced system of `mech` with every closed-form block left to Newton (the
+    /// block structure `check` reports, and the system a block-by-block solver runs).
+    ///
+    /// # Errors
+    /// As [`Symbolic::build`].
+    pub fn build_full(mech: &Mechanism) -> Result<Self, GenerateError> {
+        Self::build_with(mech, ExprPool::new(), &[]).map(|(sys, _)| sys)
+    }
+
+    /// Builds the reduced system of `mech` in `pool` with the coordinates of `derived`
+    /// substituted (their values in the numbering of the unknowns that remain, their rows
+    /// eliminated); returns it with the assembled initial configuration.
+    fn build_with(
+        mech: &Mechanism,
+        pool: ExprPool,
+        derived: &[Substitution],
+    ) -> Result<(Self, Vec<f64>), GenerateError> {
         let labels = mech.row_labels();
         let inputs = input_drivers(mech);
         let mut input_of = vec![None; mech.drivers.len()];
         for (i, d) in inputs.iter().enumerate() {
             input_of[d.driver] = Some(u32::try_from(i).expect("fewer than 2³² drivers"));
         }
-        let mut builder =
-            Builder { pool: ExprPool::new(), coords: Vec::new(), laws: Vec::new(), input_of };
-        let (mut coords, eliminated) = builder.eliminate(mech);
+        let mut builder = Builder {
+            pool,
+            coords: Vec::new(),
+            laws: Vec::new(),
+            input_of,
+            derived: derived.iter().map(|d| d.value).collect(),
+        };
+        let (mut coords, mut eliminated) = builder.eliminate(mech);
+        for (i, d) in derived.iter().enumerate() {
+            coords[d.body.0][d.coordinate] = Source::Derived(i);
+            for label in &d.rows {
+                eliminated.insert(labels.iter().position(|l| l == label).expect("a row of mech"));
+            }
+        }
         let unknowns = number_unknowns(&mut coords);
         builder.coords = coords;
         // Φ for every row, eliminated ones included, in the generic engine's order.
         let phi_all = builder.phi(mech);
         debug_assert_eq!(phi_all.len(), labels.len());
         let kept: Vec<usize> = (0..labels.len()).filter(|k| !eliminated.contains(k)).collect();
+        let derived = derived
+            .iter()
+            .map(|d| {
+                let rate = builder.pool.rate(d.value);
+                let acceleration = outputs::acceleration(&mut builder.pool, rate);
+                Derived {
+                    body: d.body,
+                    coordinate: d.coordinate,
+                    value: [d.value, rate, acceleration],
+                }
+            })
+            .collect();
         let mut sys = Self {
             pool: builder.pool,
             coords: builder.coords,
@@ -639,6 +699,7 @@ impl Symbolic {
             laws: builder.laws,
             inputs,
             legs: Vec::new(),
+            derived,
         };
         let q = sys.keep_independent(mech, &labels, &kept, &phi_all);
         let n = sys.unknowns.len();
@@ -654,7 +715,7 @@ impl Symbolic {
         }
         sys.reduce_legs(mech, &q, builder.input_of);
         sys.derive_rates();
-        Ok(sys)
+        Ok((sys, q))
     }
 
     /// Keeps the rows `kept` (indices into `labels` and `phi_all`) that do not depend on the
@@ -882,7 +943,9 @@ impl Symbolic {
                 match *s {
                     Source::Unknown(k) => free += q[k] * q[k],
                     Source::Fixed(v) => fixed += v * v,
-                    Source::Driven(_) => {}
+                    // A body's substituted Euler parameters are all four of them, or two that
+                    // vanish beside unknown ones (`substitute`): either way they add nothing.
+                    Source::Driven(_) | Source::Derived(_) => {}
                 }
             }
             if free > 0.0 && fixed < 1.0 && c[3..].iter().any(|s| matches!(s, Source::Unknown(_))) {
@@ -919,6 +982,8 @@ impl Symbolic {
             })
             .collect();
         let laws = self.pool.eval_inputs(&roots, [&[], &[], &[]], t, &inputs);
+        let roots: Vec<ExprId> = self.derived.iter().flat_map(|d| d.value).collect();
+        let derived = self.pool.eval_inputs(&roots, [q, qd, qdd], t, &inputs);
         for (b, c) in self.coords.iter().enumerate() {
             let Some(o) = eq.offset(BodyId(b)) else { continue };
             for (i, s) in c.iter().enumerate() {
@@ -926,6 +991,7 @@ impl Symbolic {
                     Source::Unknown(k) => [q[k], qd[k], qdd[k]],
                     Source::Fixed(v) => [v, 0.0, 0.0],
                     Source::Driven(l) => [laws[3 * l], laws[3 * l + 1], laws[3 * l + 2]],
+                    Source::Derived(k) => [derived[3 * k], derived[3 * k + 1], derived[3 * k + 2]],
                 };
                 for (d, x) in out.iter_mut().zip(v) {
                     d[o + i] = x;
@@ -1034,8 +1100,11 @@ fn vars_of(pool: &ExprPool, e: ExprId, pick: impl Fn(Var) -> Option<u32>) -> BTr
 
 mod legs;
 mod outputs;
+mod substitute;
 pub use legs::ReducedLeg;
 pub use outputs::{JointCoordinate, Outputs, Rates};
+use substitute::Substitution;
+pub use substitute::{Derived, SUBSTITUTE_BELOW};
 
 #[cfg(test)]
 mod tests;

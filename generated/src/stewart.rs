@@ -9601,7 +9601,8 @@ pub fn normalize_moved(q: &mut [f64; N]) -> bool {
 
 /// Full coordinates of every moving body (in [`BODY_NAMES`] order) at the inputs
 /// `inputs`: `out[b][0]` is `[x, y, z, e0, e1, e2, e3]`, `out[b][1]` its rates and
-/// `out[b][2]` its accelerations, with fixed and driven coordinates filled in.
+/// `out[b][2]` its accelerations, with fixed, driven and substituted coordinates
+/// filled in.
 pub fn expand(
     q: &[f64; N],
     qd: &[f64; N],
@@ -10049,7 +10050,7 @@ pub fn angular_accelerations(
     out[12][2] = 2.0 * (q88 * qdd89 - q89 * qdd88 + (q87 * qdd90 - q90 * qdd87));
 }
 
-/// Coordinates `[x, y, z, e0, e1, e2, e3]` (r and p) of every moving body, fixed and driven ones included.
+/// Coordinates `[x, y, z, e0, e1, e2, e3]` (r and p) of every moving body, fixed, driven and substituted ones included.
 ///
 /// 0 operations, 0 shared subexpressions.
 pub fn poses(q: &[f64; N], _t: f64, _inputs: &Inputs, out: &mut [[f64; 7]; BODIES]) {

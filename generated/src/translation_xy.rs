@@ -315,7 +315,7 @@ pub fn normalize_moved(q: &mut [f64; N]) -> bool {
 
 /// Full coordinates of every moving body (in [`BODY_NAMES`] order): `out[b][0]` is
 /// `[x, y, z, e0, e1, e2, e3]`, `out[b][1]` its rates and `out[b][2]` its
-/// accelerations, with fixed and driven coordinates filled in.
+/// accelerations, with fixed, driven and substituted coordinates filled in.
 pub fn expand(
     q: &[f64; N],
     qd: &[f64; N],
@@ -427,7 +427,7 @@ pub fn angular_accelerations(
     out[0][2] = 0.0;
 }
 
-/// Coordinates `[x, y, z, e0, e1, e2, e3]` (r and p) of every moving body, fixed and driven ones included.
+/// Coordinates `[x, y, z, e0, e1, e2, e3]` (r and p) of every moving body, fixed, driven and substituted ones included.
 ///
 /// 1 operations, 1 shared subexpressions.
 pub fn poses(q: &[f64; N], t: f64, out: &mut [[f64; 7]; BODIES]) {

@@ -26,7 +26,7 @@ fn check(text: &str) {
 /// Newton iteration over the whole system factored block by block.
 fn check_with(text: &str, block_newton: bool) {
     let mech = load_toml(&format!("{text}\n[solver]\ntolerance = 1e-12\n"));
-    let sys = codegen::symbolic::Symbolic::build(&mech).expect("the system builds");
+    let sys = codegen::symbolic::Symbolic::build_full(&mech).expect("the system builds");
     let module = if block_newton {
         codegen::emit::module(&mech, &sys, "block_solver")
     } else {
@@ -78,7 +78,7 @@ fn agrees_with_generic(
 /// closed form, against the generic engine; the generic run, for further checks.
 fn check_closed_form(text: &str, rotations: usize) -> codegen::testing::Run {
     let mech = load_toml(&format!("{text}\n[solver]\ntolerance = 1e-12\n"));
-    let sys = codegen::symbolic::Symbolic::build(&mech).expect("the system builds");
+    let sys = codegen::symbolic::Symbolic::build_full(&mech).expect("the system builds");
     let module = codegen::emit::module_with_block_newton(&mech, &sys, "closed_form", Scalar::F64);
     assert!(module.contains("const BLOCK_NEWTON: bool = true;"), "{}", mech.name);
     assert_eq!(
@@ -287,7 +287,7 @@ fn systems_below_64_unknowns_keep_the_static_orders() {
     // `emit::blocks::MIN_UNKNOWNS`.
     for text in [codegen::scale::rssr_loops(1, 20), codegen::scale::chain(9, 20)] {
         let mech = load_toml(&text);
-        let sys = codegen::symbolic::Symbolic::build(&mech).expect("the system builds");
+        let sys = codegen::symbolic::Symbolic::build_full(&mech).expect("the system builds");
         let module = codegen::emit::module(&mech, &sys, "block_solver");
         assert!(!module.contains("static BLOCKS"), "{}: no blocks", mech.name);
         assert!(module.contains("fn factor_0"), "{}: static orders", mech.name);
@@ -319,7 +319,7 @@ fn a_module_solved_block_by_block_emits_each_jacobian_entry_once() {
     // closed-form blocks").
     for text in [codegen::scale::chain(10, 20), turning_chain(6, 20)] {
         let mech = load_toml(&text);
-        let sys = codegen::symbolic::Symbolic::build(&mech).expect("the system builds");
+        let sys = codegen::symbolic::Symbolic::build_full(&mech).expect("the system builds");
         let module = codegen::emit::module_with_block_newton(&mech, &sys, "once", Scalar::F64);
         // Blocks of one structure share one function (emit::shared), so an entry's code is
         // written once for all the blocks that share it: at most once per entry.
@@ -339,7 +339,7 @@ fn the_jacobian_gathered_from_the_blocks_drives_dense_lu_as_the_generic_engine()
     // turn) by dense LU with partial pivoting instead of block by block: the whole Φ_q they
     // write must be the generic engine's, oblique, reversed and swapped axes included.
     let mech = load_toml(&format!("{}\n[solver]\ntolerance = 1e-12\n", turning_chain(6, 100)));
-    let sys = codegen::symbolic::Symbolic::build(&mech).expect("the system builds");
+    let sys = codegen::symbolic::Symbolic::build_full(&mech).expect("the system builds");
     let module = codegen::emit::module_with_block_newton(&mech, &sys, "dense", Scalar::F64);
     let built = codegen::engine::build_module(&mech, &module, &sys, Scalar::F64).expect("builds");
     let generic = run_generic(&mech);
@@ -360,7 +360,7 @@ fn a_single_precision_module_solved_block_by_block_follows_the_generic_engine() 
     // the blocks' functions and the Jacobian gathered from them), run both block by block and
     // by dense LU on that Jacobian, against the double-precision generic engine.
     let mech = load_toml(&turning_chain(6, 100));
-    let sys = codegen::symbolic::Symbolic::build(&mech).expect("the system builds");
+    let sys = codegen::symbolic::Symbolic::build_full(&mech).expect("the system builds");
     let module = codegen::emit::module_with_block_newton(&mech, &sys, "f32", Scalar::F32);
     assert!(module.contains("const BLOCK_NEWTON: bool = true;"));
     let built = codegen::engine::build_module(&mech, &module, &sys, Scalar::F32).expect("builds");
@@ -479,7 +479,7 @@ fn copies_of_one_structure_run_one_function_per_structure() {
     // per structure, its blocks' constants and places in tables (emit::shared).
     let functions = |text: &str| {
         let mech = load_toml(text);
-        let sys = codegen::symbolic::Symbolic::build(&mech).expect("the system builds");
+        let sys = codegen::symbolic::Symbolic::build_full(&mech).expect("the system builds");
         let module = codegen::emit::module_with_block_newton(&mech, &sys, "shared", Scalar::F64);
         (block_functions(&module), module)
     };
@@ -505,7 +505,7 @@ fn arms_of_distinct_geometry_through_shared_functions_match_the_generic_engine()
     // Every constant of the shared functions differs from arm to arm (lengths, oblique axes,
     // speeds): a wrong row of a table moves the wrong arm far beyond AGREEMENT.
     let mech = load_toml(&format!("{}\n[solver]\ntolerance = 1e-12\n", distinct_arms(4, 6, 50)));
-    let sys = codegen::symbolic::Symbolic::build(&mech).expect("the system builds");
+    let sys = codegen::symbolic::Symbolic::build_full(&mech).expect("the system builds");
     let module = codegen::emit::module(&mech, &sys, "distinct_arms");
     assert!(module.contains("const BLOCK_NEWTON: bool = true;"), "Newton block by block");
     assert!(module.contains("fn block_shared_0("), "shared block functions");

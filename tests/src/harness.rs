@@ -73,6 +73,21 @@ pub(crate) fn solve(example: &str, desc: &MechanismDesc) -> Run {
     Run { example: example.to_owned(), mechanism, frames, steps, failure: report.failure }
 }
 
+/// Validates `desc` and runs its generated solver over its grid (generated and built, or taken
+/// from mechgen's cache).
+pub(crate) fn solve_generated(example: &str, desc: &MechanismDesc) -> Run {
+    let loaded = codegen::validate::validate(desc).unwrap_or_else(|diags| {
+        let text: Vec<String> = diags.iter().map(ToString::to_string).collect();
+        panic!("{example}: the description does not validate:\n{}", text.join("\n"))
+    });
+    let mechanism = loaded.mechanism;
+    let built = codegen::testing::build_generated(&mechanism);
+    let run = codegen::testing::run_generated(&mechanism, &built);
+    let layout = report::layout(&mechanism);
+    let steps = run.frames.iter().map(|f| report::step_result(&mechanism, &layout, f)).collect();
+    Run { example: example.to_owned(), mechanism, frames: run.frames, steps, failure: run.failure }
+}
+
 impl Run {
     /// Requires an analysis without failure that reached every time in `times`.
     pub(crate) fn assert_covers(&self, times: impl IntoIterator<Item = f64>) {

@@ -56,4 +56,6 @@ mod stewart_legs;
 #[cfg(test)]
 mod structured_lu;
 #[cfg(test)]
+mod substitution;
+#[cfg(test)]
 mod time_terms;

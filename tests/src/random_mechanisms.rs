@@ -224,14 +224,20 @@ impl stepping::Engine for Interpreted<'_> {
             normalised = false;
             iterations += 1;
         }
-        let lu = reduced_jacobian(sys, &q, t).lu();
-        let singular = || reject(Trouble::Singular, format!("t = {t}: singular Jacobian"));
-        let nu = DVector::from_vec(sys.pool.eval(&sys.nu, &q, &[], t));
-        let qd = lu.solve(&nu).ok_or_else(singular)?;
-        let gamma = DVector::from_vec(sys.pool.eval(&sys.gamma, &q, qd.as_slice(), t));
-        let qdd = lu.solve(&gamma).ok_or_else(singular)?;
-        let diag = lu.u().diagonal().abs();
-        let pivot_ratio = diag.min() / diag.max();
+        // A system whose every block was substituted (`symbolic::substitute`) has no unknowns:
+        // its bodies' coordinates and rates are all explicit.
+        let (qd, qdd, pivot_ratio) = if n == 0 {
+            (DVector::zeros(0), DVector::zeros(0), 1.0)
+        } else {
+            let lu = reduced_jacobian(sys, &q, t).lu();
+            let singular = || reject(Trouble::Singular, format!("t = {t}: singular Jacobian"));
+            let nu = DVector::from_vec(sys.pool.eval(&sys.nu, &q, &[], t));
+            let qd = lu.solve(&nu).ok_or_else(singular)?;
+            let gamma = DVector::from_vec(sys.pool.eval(&sys.gamma, &q, qd.as_slice(), t));
+            let qdd = lu.solve(&gamma).ok_or_else(singular)?;
+            let diag = lu.u().diagonal().abs();
+            (qd, qdd, diag.min() / diag.max())
+        };
         let [fq, fqd, fqdd] = sys.expand(&self.eq, &q, qd.as_slice(), qdd.as_slice(), t);
         let residual = self.eq.evaluate(&fq, &fqd, t).phi.amax();
         self.attempted = Some((t, q, qd, qdd));

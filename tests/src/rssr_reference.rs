@@ -134,8 +134,25 @@ fn tolerance(point_b: bool, quantity: Quantity, length: f64) -> f64 {
 fn rssr_points_match_appendix_c_at_its_own_times() {
     let reference = harness::read_json("rssr-reference.json");
     let desc = appendix_c_description(&reference);
-    let run = harness::solve("rssr (Appendix C)", &desc);
-    let times: Vec<f64> = steps(&reference).iter().map(|s| num(&s["tempo"])).collect();
+    matches_appendix_c(&reference, &harness::solve("rssr (Appendix C)", &desc));
+}
+
+#[test]
+fn rssr_points_of_the_generated_solver_match_appendix_c() {
+    // The generated solver runs Newton on 5 unknowns of the S-S loop, with the crank's
+    // orientation, the bodies' positions and the rocker's e2 and e3 substituted by their
+    // closed forms (`symbolic::substitute`).
+    let reference = harness::read_json("rssr-reference.json");
+    let desc = appendix_c_description(&reference);
+    let run = harness::solve_generated("rssr (Appendix C, generated)", &desc);
+    let sys = codegen::symbolic::Symbolic::build(&run.mechanism).expect("the system builds");
+    assert_eq!((sys.unknowns.len(), sys.derived.len()), (5, 15));
+    matches_appendix_c(&reference, &run);
+}
+
+/// Points A and B of `run` against Appendix C at each of its times.
+fn matches_appendix_c(reference: &Value, run: &harness::Run) {
+    let times: Vec<f64> = steps(reference).iter().map(|s| num(&s["tempo"])).collect();
     run.assert_covers(times.iter().copied());
     assert_eq!(run.steps.len(), times.len(), "one analysed step per Appendix C time");
 
@@ -149,7 +166,7 @@ fn rssr_points_match_appendix_c_at_its_own_times() {
         ("VB", Quantity::Rd),
         ("AB", Quantity::Rdd),
     ];
-    for (entry, &t) in steps(&reference).iter().zip(&times) {
+    for (entry, &t) in steps(reference).iter().zip(&times) {
         let step = run.step_at(t).expect("covered above");
         for (key, quantity) in fields {
             let point_b = key.ends_with('B');

@@ -343,7 +343,7 @@ fn another_geometry_with_offset_legs_both_orientations_and_a_moving_base_agrees(
     let part = only(&mech, &sys, &["platform".to_owned()]).expect("the body exists");
     let bodies: Vec<&str> = part.bodies.iter().map(|b| b.name.as_str()).collect();
     assert_eq!(bodies, ["ground", "base", "platform"]);
-    assert_eq!(Symbolic::build(&part).expect("builds").unknowns.len(), 14);
+    assert_eq!(Symbolic::build_full(&part).expect("builds").unknowns.len(), 14);
 
     let whole = run_generic(&mech);
     assert!(whole.failure.is_none(), "{:?}", whole.failure);

@@ -127,6 +127,10 @@ pub fn only(
     sys: &Symbolic,
     names: &[String],
 ) -> Result<Mechanism, UnknownOutput> {
+    // What depends on what is read from the blocks before their closed forms are substituted
+    // (`symbolic::substitute`): a substituted coordinate's block is no longer among them.
+    let full = if sys.derived.is_empty() { None } else { Symbolic::build_full(mech).ok() };
+    let sys = full.as_ref().unwrap_or(sys);
     let entities = Entities::of(mech, sys);
     let mut wanted: BTreeSet<BodyId> = BTreeSet::new();
     for name in names {

@@ -56,6 +56,12 @@ fn product(a: Vector4<f64>, b: Vector4<f64>) -> Vector4<f64> {
     parameters(quaternion(a) * quaternion(b))
 }
 
+/// e ⊗ (0, a): Euler parameters times a pure vector.
+#[must_use]
+pub(crate) fn product_with_vector(e: Vector4<f64>, a: &Vector3<f64>) -> Vector4<f64> {
+    product(e, Vector4::new(0.0, a.x, a.y, a.z))
+}
+
 fn quaternion(p: Vector4<f64>) -> Quaternion<f64> {
     Quaternion::new(p[0], p[1], p[2], p[3])
 }
@@ -106,6 +112,7 @@ impl Rotation {
             Source::Unknown(k) => sys.pool.var(Var::Q(u32::try_from(k).expect("small"))),
             Source::Fixed(v) => sys.pool.constant(v),
             Source::Driven(l) => sys.laws[l][0],
+            Source::Derived(i) => sys.derived[i].value[0],
         });
         let pool = &mut sys.pool;
         let u = times(pool, &known, &g);
@@ -159,32 +166,9 @@ fn times(pool: &mut ExprPool, e: &[ExprId; 4], c: &Vector4<f64>) -> [ExprId; 4] 
     })
 }
 
-/// `e` with the variables of `map` replaced by their expressions, rebuilt through the pool's
-/// folding constructors.
+/// `e` with the variables of `map` replaced by their expressions ([`ExprPool::substitute`]).
 fn substitute(pool: &mut ExprPool, e: ExprId, map: &BTreeMap<Var, ExprId>) -> ExprId {
-    use crate::expr::Node;
-    // The nodes `e` reaches, children before parents (the arena is in topological order).
-    let mut reached = std::collections::BTreeSet::new();
-    let mut stack = vec![e];
-    while let Some(x) = stack.pop() {
-        if reached.insert(x) {
-            stack.extend(pool[x].children());
-        }
-    }
-    let mut new: BTreeMap<ExprId, ExprId> = BTreeMap::new();
-    for x in reached {
-        let y = match pool[x] {
-            Node::Var(v) => map.get(&v).copied().unwrap_or(x),
-            Node::Const(_) => x,
-            Node::Neg(a) => pool.neg(new[&a]),
-            Node::Add(a, b) => pool.add(new[&a], new[&b]),
-            Node::Mul(a, b) => pool.mul(new[&a], new[&b]),
-            Node::Sin(a) => pool.sin(new[&a]),
-            Node::Cos(a) => pool.cos(new[&a]),
-        };
-        new.insert(x, y);
-    }
-    new[&e]
+    pool.substitute(e, map)
 }
 
 /// The rotation block `rows` × `unknowns` is, if it is one (see the module docs).
@@ -237,7 +221,10 @@ pub fn recognise(
         (i, k) if i == body => k,
         _ => return None,
     };
-    if known == body || sys.coords[known.0][3..].iter().any(|s| matches!(s, Source::Driven(_))) {
+    // A known body's substituted Euler parameters are expressions of the unknowns and t that
+    // `holds` would have to evaluate along the motion: left to Newton.
+    let moved = |s: &Source| matches!(s, Source::Driven(_) | Source::Derived(_));
+    if known == body || sys.coords[known.0][3..].iter().any(moved) {
         return None;
     }
     let linear = match mech.drivers[driver].target {
@@ -271,7 +258,7 @@ impl Rotation {
         let known: Vector4<f64> = Vector4::from_fn(|c, _| match sys.coords[self.known.0][3 + c] {
             Source::Unknown(k) => q[k],
             Source::Fixed(v) => v,
-            Source::Driven(_) => f64::NAN,
+            Source::Driven(_) | Source::Derived(_) => f64::NAN,
         })
         .normalize();
         for (c, s) in sys.coords[self.known.0][3..].iter().enumerate() {

@@ -44,7 +44,7 @@ fn assert_lower_triangular(pattern: &[Vec<usize>], n: usize, blocks: &[Part]) {
 
 /// The decomposition of a description's reduced system, checked triangular.
 fn decompose(mech: &Mechanism) -> (Symbolic, Blocks) {
-    let sys = Symbolic::build(mech).expect("the system builds");
+    let sys = Symbolic::build_full(mech).expect("the system builds");
     let blocks = Blocks::of(&sys, mech);
     let pattern: Vec<Vec<usize>> =
         sys.jac.iter().map(|row| row.iter().map(|&(c, _)| c).collect()).collect();
@@ -372,7 +372,7 @@ fn a_rotation_blocks_closed_form_satisfies_its_four_rows() {
     let mut checked = 0;
     for text in texts {
         let mech = load_toml(&text);
-        let mut sys = Symbolic::build(&mech).expect("the system builds");
+        let mut sys = Symbolic::build_full(&mech).expect("the system builds");
         let blocks = Blocks::of(&sys, &mech);
         for block in &blocks.blocks {
             let Kind::Rotation(rotation) = block.kind else { continue };

@@ -68,9 +68,12 @@ pub(super) fn check(
         .filter(|f| f.kind == crate::generic::FailureKind::Inconsistent);
     // The generated system's true size and its blocks; the count of eliminated coordinates
     // and no blocks when it cannot be built (its diagnostics belong to `generate`).
-    let sys = crate::symbolic::Symbolic::build(mech);
+    // The blocks are those of the system before its closed forms are substituted (what a
+    // block-by-block solver runs); the generated system's Newton runs on what remains.
+    let sys = crate::symbolic::Symbolic::build_full(mech);
     let reduced = sys.as_ref().map_or_else(|_| reduced_unknowns(mech), |s| s.unknowns.len());
     let blocks = sys.as_ref().map(|sys| Blocks::of(sys, mech));
+    let substituted = crate::symbolic::Symbolic::build(mech).map_or(0, |s| s.derived.len());
     let bodies = mech.bodies.len();
     let grounds = mech.bodies.iter().filter(|b| b.ground).count();
     if json {
@@ -79,6 +82,7 @@ pub(super) fn check(
             "unknowns": eq.unknowns(),
             "equations": eq.equations(),
             "reduced_unknowns": reduced,
+            "substituted": substituted,
             "rank": prep.rank,
             "mobility": prep.mobility,
             "drivers": mech.drivers.len(),
@@ -99,7 +103,16 @@ pub(super) fn check(
         writeln!(out, "mechanism {}: {bodies} bodies ({grounds} ground)", printable(&mech.name))?;
         writeln!(out, "unknowns:          {}", eq.unknowns())?;
         writeln!(out, "equations:         {}", eq.equations())?;
-        writeln!(out, "reduced unknowns:  {reduced} (generated system)")?;
+        if substituted == 0 {
+            writeln!(out, "reduced unknowns:  {reduced} (generated system)")?;
+        } else {
+            writeln!(
+                out,
+                "reduced unknowns:  {reduced} (generated system: {} after {substituted} \
+                 substituted by closed-form blocks)",
+                reduced - substituted
+            )?;
+        }
         let at = if prep.assembled {
             "assembled at t = start"
         } else {

@@ -457,11 +457,13 @@ fn generate_outputs_keeps_what_the_named_outputs_need_and_names_an_unknown_one()
     let file = chain.to_str().expect("UTF-8");
     let (code, out, err) = mechgen(&["generate", file, "--outputs", "link2"]);
     assert_eq!(code, EXIT_OK, "{err}");
-    assert!(out.contains("pub const N: usize = 14;"), "7 unknowns for each of two links");
+    // A driven chain is closed form throughout: every coordinate is substituted, none is left.
+    assert!(out.contains("pub const N: usize = 0;"), "no unknowns left");
+    assert!(out.contains("pub const BODIES: usize = 2;"), "two links");
     assert!(out.contains("pub const BODY_NAMES: [&str; BODIES] = [\"link1\", \"link2\"];"));
     let (code, whole, _) = mechgen(&["generate", file]);
     assert_eq!(code, EXIT_OK);
-    assert!(whole.contains("pub const N: usize = 35;"), "the whole chain without --outputs");
+    assert!(whole.contains("pub const BODIES: usize = 5;"), "the whole chain without --outputs");
     let (code, _, err) = mechgen(&["generate", file, "--outputs", "link2,link9"]);
     assert_eq!(code, EXIT_INVALID);
     assert!(err.contains("\"link9\""), "{err}");

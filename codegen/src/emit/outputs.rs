@@ -263,7 +263,7 @@ pub(super) fn accessors(rows: &Rows<'_>, outputs: &Outputs) -> Vec<syn::Item> {
     items
 }
 
-/// `poses`: r and p of every moving body, fixed and driven ones included.
+/// `poses`: r and p of every moving body, fixed, driven and substituted ones included.
 fn poses(rows: &Rows<'_>, outputs: &Outputs) -> Vec<syn::Item> {
     let poses: Vec<Output> = outputs
         .poses
@@ -288,7 +288,7 @@ fn poses(rows: &Rows<'_>, outputs: &Outputs) -> Vec<syn::Item> {
         targets: &targets,
         inputs: rows.inputs(),
     };
-    let what = "Coordinates `[x, y, z, e0, e1, e2, e3]` (r and p) of every moving body, fixed and driven ones included.";
+    let what = "Coordinates `[x, y, z, e0, e1, e2, e3]` (r and p) of every moving body, fixed, driven and substituted ones included.";
     rows.emit(&sig, what, Vec::new(), &poses)
 }
 

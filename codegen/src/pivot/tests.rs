@@ -7,7 +7,8 @@ use crate::validate::load_file;
 fn load(path: &str) -> (Mechanism, Symbolic) {
     let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
     let mech = load_file(&root.join(path)).unwrap().mechanism;
-    let sys = Symbolic::build(&mech).unwrap();
+    // The system before its closed forms are substituted: the 20 unknowns of the R-S-S-R.
+    let sys = Symbolic::build_full(&mech).unwrap();
     (mech, sys)
 }
 

@@ -184,6 +184,7 @@ impl Symbolic {
             coords: self.coords.clone(),
             laws: self.laws.clone(),
             input_of,
+            derived: self.derived.iter().map(|d| d.value[0]).collect(),
         };
         let mut replaced = Vec::new();
         for c in found {
@@ -293,6 +294,9 @@ impl Symbolic {
             Source::Unknown(k) => q[k],
             Source::Fixed(v) => v,
             Source::Driven(l) => pool.eval_inputs(&[self.laws[l][0]], [q, &[], &[]], t, &u)[0],
+            Source::Derived(k) => {
+                pool.eval_inputs(&[self.derived[k].value[0]], [q, &[], &[]], t, &u)[0]
+            }
         });
         (Vector3::new(c[0], c[1], c[2]), Vector4::new(c[3], c[4], c[5], c[6]))
     }

@@ -54,6 +54,7 @@ impl Symbolic {
             laws: self.laws.clone(),
             // Outputs read coordinates only: no driver law is written here.
             input_of: Vec::new(),
+            derived: self.derived.iter().map(|d| d.value[0]).collect(),
         };
         let points = mech
             .points

@@ -39,7 +39,8 @@ fn interpreted_symbolic_system_matches_the_generic_engine_on_every_example() {
         let n = q.len();
         for f in &frames {
             let t = f.t;
-            for _ in 0..50 {
+            // A system whose every block was substituted has nothing to solve.
+            for _ in 0..if n == 0 { 0 } else { 50 } {
                 let phi = DVector::from_vec(sys.pool.eval(&sys.phi, &q, &[], t));
                 if phi.amax() <= mech.solver.tolerance {
                     break;
@@ -50,11 +51,15 @@ fn interpreted_symbolic_system_matches_the_generic_engine_on_every_example() {
                 }
             }
             sys.normalise(&mut q);
-            let lu = jacobian(&sys, &q, t).lu();
-            let nu = DVector::from_vec(sys.pool.eval(&sys.nu, &q, &[], t));
-            let qd = lu.solve(&nu).unwrap();
-            let gamma = DVector::from_vec(sys.pool.eval(&sys.gamma, &q, qd.as_slice(), t));
-            let qdd = lu.solve(&gamma).unwrap();
+            let (qd, qdd) = if n == 0 {
+                (DVector::zeros(0), DVector::zeros(0))
+            } else {
+                let lu = jacobian(&sys, &q, t).lu();
+                let nu = DVector::from_vec(sys.pool.eval(&sys.nu, &q, &[], t));
+                let qd = lu.solve(&nu).unwrap();
+                let gamma = DVector::from_vec(sys.pool.eval(&sys.gamma, &q, qd.as_slice(), t));
+                (qd.clone(), lu.solve(&gamma).unwrap())
+            };
             let [fq, fqd, fqdd] = sys.expand(&eq, &q, qd.as_slice(), qdd.as_slice(), t);
             for (name, ours, theirs) in
                 [("q", &fq, &f.q), ("qd", &fqd, &f.qd), ("qdd", &fqdd, &f.qdd)]
@@ -76,7 +81,7 @@ fn interpreted_symbolic_system_matches_the_generic_engine_on_every_example() {
 #[test]
 fn ground_fix_and_coordinate_drivers_are_eliminated() {
     let mech = load_example("rssr.toml");
-    let sys = Symbolic::build(&mech).unwrap();
+    let sys = Symbolic::build_full(&mech).unwrap();
     // 3 moving bodies × 7 − the coupler's fixed e2.
     assert_eq!(sys.unknowns.len(), 20);
     assert_eq!(sys.rows.len(), 20);
