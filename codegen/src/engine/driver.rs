@@ -172,8 +172,10 @@ fn drive<M: Generated>(
     }
 }
 
-/// Times `repeats` whole passes of plain stepping (no step control) and prints
-/// `bench min_ns median_ns iterations_per_step`, or `error bench t kind message` and exit
+/// Times `repeats` whole passes of plain stepping (no step control), each step the position,
+/// velocity and acceleration solves and the module's `expand` (the full coordinates of every
+/// body, with those the module substituted or fixed: the state a step hands its caller), and
+/// prints `bench min_ns median_ns iterations_per_step`, or `error bench t kind message` and exit
 /// status 2 when a step fails (`kind` is the contract's `error.kind`).
 fn bench<M: Generated>(
     mut solver: Solver<M, N, Real, Jacobian>,
@@ -183,6 +185,7 @@ fn bench<M: Generated>(
 ) {
     let mut times = Vec::with_capacity(repeats);
     let mut iterations = 0u64;
+    let mut expanded = Box::new([[[0.0; 7]; 3]; mechanism::BODIES]);
     let count = series.len();
     for _ in 0..repeats.max(1) {
         solver.set_q(mechanism::Q0);
@@ -207,6 +210,15 @@ fn bench<M: Generated>(
             }
             let _ = solver.velocity();
             let _ = solver.acceleration();
+            config::expand(
+                solver.mechanism().module(),
+                solver.q(),
+                solver.qd(),
+                solver.qdd(),
+                t,
+                &mut expanded,
+            );
+            std::hint::black_box(&mut *expanded);
         }
         times.push(start.elapsed().as_nanos() as f64 / count as f64);
         std::hint::black_box(solver.qdd());
