@@ -75,6 +75,30 @@ fn max_abs_keeps_nan() {
     assert_eq!(max_abs::<f64>(&[]), 0.0);
 }
 
+/// The short path detects NaN by the sum of the |x_i|: a sum that overflows, or infinite
+/// entries of both signs, must give the largest |x_i| and not NaN, and a NaN anywhere must
+/// give NaN, in both precisions and on both sides of the 64-entry switch.
+#[test]
+fn max_abs_tells_overflow_and_infinities_from_nan() {
+    assert_eq!(max_abs(&[f64::MAX, -f64::MAX, 1.0]), f64::MAX);
+    assert_eq!(max_abs(&[f64::INFINITY, f64::NEG_INFINITY, 2.0]), f64::INFINITY);
+    assert_eq!(max_abs(&[f32::MAX, f32::MAX, -f32::MAX]), f32::MAX);
+    assert!(max_abs(&[f64::INFINITY, f64::NAN]).is_nan());
+    assert!(max_abs(&[-f32::NAN, 1.0]).is_nan());
+    let mut x = [-1.5; 100];
+    for v in x.iter_mut().step_by(2) {
+        *v = f64::MAX;
+    }
+    for n in [1, 5, 63, 64, 100] {
+        assert_eq!(max_abs(&x[..n]), f64::MAX, "{n} entries");
+        for k in [0, n / 2, n - 1] {
+            let mut y = x;
+            y[k] = f64::NAN;
+            assert!(max_abs(&y[..n]).is_nan(), "NaN at {k} of {n}");
+        }
+    }
+}
+
 #[test]
 fn converges_from_perturbed_starts_to_the_closed_form() {
     let options = NewtonOptions::default();
