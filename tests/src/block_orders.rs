@@ -154,7 +154,8 @@ fn loop_over(end: f64, steps: usize) -> String {
 fn blocks_whose_static_orders_are_refused_fall_back_to_their_dense_lu() {
     let short = load_toml(&format!("{}\n[solver]\ntolerance = 1e-12\n", loop_over(0.001, 10)));
     let long = load_toml(&format!("{}\n[solver]\ntolerance = 1e-12\n", loop_over(0.043, 200)));
-    let sys = codegen::symbolic::Symbolic::build(&short).expect("the system builds");
+    // The whole system: substituted, its closed forms would leave one block (`symbolic::substitute`).
+    let sys = codegen::symbolic::Symbolic::build_full(&short).expect("the system builds");
     let module = codegen::emit::module_with_block_newton(&short, &sys, "refused", Scalar::F64);
     assert!(module.contains("'order_0: {"), "static orders in the blocks");
     // With one loop no two blocks share a structure, so each block's orders are those planned
@@ -225,7 +226,8 @@ fn a_singular_block_stops_with_the_generic_engines_time_and_equations() {
     let path =
         concat!(env!("CARGO_MANIFEST_DIR"), "/stability/crank_rocker_toggle.toml").to_owned();
     let mech = codegen::testing::load(std::path::Path::new(&path)).mechanism;
-    let sys = codegen::symbolic::Symbolic::build(&mech).expect("the system builds");
+    // The whole system: substituted, its closed forms would leave one block (`symbolic::substitute`).
+    let sys = codegen::symbolic::Symbolic::build_full(&mech).expect("the system builds");
     let module = codegen::emit::module_with_block_newton(&mech, &sys, "toggle", Scalar::F64);
     assert!(module.contains("const BLOCK_NEWTON: bool = true;"), "Newton block by block");
     assert!(module.contains("'order_0: {"), "static orders in the blocks");

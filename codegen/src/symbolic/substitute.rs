@@ -39,7 +39,8 @@
 //! Other joint-angle rows, absolute rotations about a moving body (κ then varies) and affine
 //! blocks with a coefficient that varies stay unknowns, as does every block when the system
 //! has rows dropped as dependent (their run-time checks and re-selection belong to the whole
-//! system) or a closed form longer than [`LARGEST_VALUE`] operations (a long explicit
+//! system), U-P-S legs reduced to distance rows (`legs`; substituted, the Stewart platform's
+//! module disagreed with the generic engine), or a closed form longer than [`LARGEST_VALUE`] operations (a long explicit
 //! chain). Systems of every size are substituted: a module solved block by block
 //! (`emit::blocks`) is planned on the unknowns that remain, so its closed-form blocks cost
 //! neither a Newton block nor a place in the solver's storage. The substituted coordinates become
