@@ -12,8 +12,9 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 repeats=${1:-20}
-cargo build --release -q -p codegen --features cli
-bin=target/release/mechgen
+# BIN=PATH times another mechgen binary (say main's, for a before/after) without building.
+if [ -z "${BIN:-}" ]; then cargo build --release -q -p codegen --features cli; fi
+bin=${BIN:-target/release/mechgen}
 tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
 

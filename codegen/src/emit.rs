@@ -167,7 +167,7 @@ fn assemble(
     }
     items.push(normalize(sys));
     items.push(normalize_moved(sys));
-    items.push(expand(sys, &moving));
+    items.extend(expand(sys, &moving));
     items.extend(outputs::accessors(&rows, &named));
     items.extend(redundant::items(sys, &rows));
     let mut structured = if let Some(plan) = &layout {
@@ -598,10 +598,12 @@ fn normalize(sys: &Symbolic) -> syn::Item {
     }
 }
 
-/// `expand`: the full coordinates of the moving bodies, with their rates and accelerations.
-fn expand(sys: &Symbolic, moving: &[usize]) -> syn::Item {
+/// `expand`: the full coordinates of the moving bodies, with their rates and accelerations;
+/// split into helpers as [`emit_function`] splits when longer than [`CHUNK_OPS`] operations
+/// (the substituted coordinates of a long explicit chain).
+fn expand(sys: &Symbolic, moving: &[usize]) -> Vec<syn::Item> {
     let n = sys.unknowns.len();
-    let mut outputs: Vec<(Expr, ExprId, Option<usize>)> = Vec::new();
+    let mut outputs: Vec<Output> = Vec::new();
     let mut direct: Vec<syn::Stmt> = Vec::new();
     for (slot, &b) in moving.iter().enumerate() {
         for (i, s) in sys.coords[b].iter().enumerate() {
@@ -622,19 +624,43 @@ fn expand(sys: &Symbolic, moving: &[usize]) -> syn::Item {
                 Source::Driven(l) => {
                     for (d, e) in sys.laws[l].iter().enumerate() {
                         let d = index(d);
-                        outputs.push((parse_quote!(out[#sl][#d][#il]), *e, None));
+                        let target = parse_quote!(out[#sl][#d][#il]);
+                        outputs.push(Output { target, array: 0, value: *e, key: slot, row: None });
                     }
                 }
                 Source::Derived(k) => {
                     for (d, e) in sys.derived[k].value.iter().enumerate() {
                         let d = index(d);
-                        outputs.push((parse_quote!(out[#sl][#d][#il]), *e, None));
+                        let target = parse_quote!(out[#sl][#d][#il]);
+                        outputs.push(Output { target, array: 0, value: *e, key: slot, row: None });
                     }
                 }
             }
         }
     }
-    let f = function(&sys.pool, n, &outputs);
+    let whole: Vec<(Expr, ExprId, Option<usize>)> =
+        outputs.iter().map(|o| (o.target.clone(), o.value, o.row)).collect();
+    let f = function(&sys.pool, n, &whole);
+    if f.ops > CHUNK_OPS {
+        let targets = [("out", quote::quote!(&mut [[[f64; 7]; 3]; BODIES]))];
+        let sig = Signature {
+            name: "expand",
+            qd: true,
+            qdd: true,
+            public: true,
+            targets: &targets,
+            inputs: !sys.inputs.is_empty(),
+        };
+        let doc = |ops: usize, shared: usize| {
+            format!(
+                " Full coordinates of every moving body (in [`BODY_NAMES`] order): `out[b][0]` \
+                 is `[x, y, z, e0, e1, e2, e3]`, `out[b][1]` its rates and `out[b][2]` its \
+                 accelerations, with fixed, driven and substituted coordinates filled in \
+                 ({ops} operations, {shared} shared subexpressions)."
+            )
+        };
+        return emit_function(&sys.pool, n, &sig, &doc, direct, &outputs);
+    }
     let any = n > 0;
     let (qn, qdn, qddn) = (param("q", any), param("qd", any), param("qdd", any));
     let tn = param("t", f.uses_t);
@@ -642,7 +668,7 @@ fn expand(sys: &Symbolic, moving: &[usize]) -> syn::Item {
     if !sys.inputs.is_empty() {
         let un = param("inputs", f.uses_u);
         let read: Option<syn::Stmt> = f.uses_u.then(|| parse_quote!(let u = inputs.to_array();));
-        return parse_quote! {
+        return vec![parse_quote! {
             /// Full coordinates of every moving body (in [`BODY_NAMES`] order) at the inputs
             /// `inputs`: `out[b][0]` is `[x, y, z, e0, e1, e2, e3]`, `out[b][1]` its rates and
             /// `out[b][2]` its accelerations, with fixed, driven and substituted coordinates
@@ -652,9 +678,9 @@ fn expand(sys: &Symbolic, moving: &[usize]) -> syn::Item {
                 #read
                 #(#stmts)*
             }
-        };
+        }];
     }
-    parse_quote! {
+    vec![parse_quote! {
         /// Full coordinates of every moving body (in [`BODY_NAMES`] order): `out[b][0]` is
         /// `[x, y, z, e0, e1, e2, e3]`, `out[b][1]` its rates and `out[b][2]` its
         /// accelerations, with fixed, driven and substituted coordinates filled in.
@@ -662,7 +688,7 @@ fn expand(sys: &Symbolic, moving: &[usize]) -> syn::Item {
             #(#direct)*
             #(#stmts)*
         }
-    }
+    }]
 }
 
 /// The unit struct and its `runtime::Mechanism` impl, with the structured LU's items.

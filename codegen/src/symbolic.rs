@@ -611,9 +611,9 @@ impl std::fmt::Display for GenerateError {
 impl std::error::Error for GenerateError {}
 
 impl Symbolic {
-    /// Builds the reduced system of `mech`: [`Symbolic::build_full`], then, below
-    /// [`SUBSTITUTE_BELOW`] unknowns, with the closed-form blocks substituted (`substitute`):
-    /// Newton runs on the remaining unknowns only.
+    /// Builds the reduced system of `mech`: [`Symbolic::build_full`], then, unless rows are
+    /// dropped as dependent, with the closed-form blocks substituted (`substitute`): Newton
+    /// runs on the remaining unknowns only, whole or block by block.
     ///
     /// # Errors
     /// When the reduced system is not square with full rank at the initial configuration
@@ -621,8 +621,10 @@ impl Symbolic {
     pub fn build(mech: &Mechanism) -> Result<Self, GenerateError> {
         let (full, q) = Self::build_with(mech, ExprPool::new(), &[])?;
         // Rows left out as dependent are checked and re-selected at run time against the whole
-        // system's (`Symbolic::dropped`): such a system is left whole.
-        if full.unknowns.len() >= SUBSTITUTE_BELOW || !full.dropped.is_empty() {
+        // system's (`Symbolic::dropped`): such a system is left whole. So is one with U-P-S
+        // legs reduced to distance rows (`legs`): substituted, the Stewart platform's generated
+        // module disagreed with the generic engine (3e-2 of a leg's position at t = 0).
+        if !full.dropped.is_empty() || !full.legs.is_empty() {
             return Ok(full);
         }
         Ok(full.substituted(mech, &q))
@@ -1103,8 +1105,8 @@ mod outputs;
 mod substitute;
 pub use legs::ReducedLeg;
 pub use outputs::{JointCoordinate, Outputs, Rates};
+pub use substitute::Derived;
 use substitute::Substitution;
-pub use substitute::{Derived, SUBSTITUTE_BELOW};
 
 #[cfg(test)]
 mod tests;

@@ -154,6 +154,7 @@ fn loop_over(end: f64, steps: usize) -> String {
 fn blocks_whose_static_orders_are_refused_fall_back_to_their_dense_lu() {
     let short = load_toml(&format!("{}\n[solver]\ntolerance = 1e-12\n", loop_over(0.001, 10)));
     let long = load_toml(&format!("{}\n[solver]\ntolerance = 1e-12\n", loop_over(0.043, 200)));
+    // The whole system: substituted, its closed forms would leave one block (`symbolic::substitute`).
     let sys = codegen::symbolic::Symbolic::build_full(&short).expect("the system builds");
     let module = codegen::emit::module_with_block_newton(&short, &sys, "refused", Scalar::F64);
     assert!(module.contains("'order_0: {"), "static orders in the blocks");
@@ -225,6 +226,7 @@ fn a_singular_block_stops_with_the_generic_engines_time_and_equations() {
     let path =
         concat!(env!("CARGO_MANIFEST_DIR"), "/stability/crank_rocker_toggle.toml").to_owned();
     let mech = codegen::testing::load(std::path::Path::new(&path)).mechanism;
+    // The whole system: substituted, its closed forms would leave one block (`symbolic::substitute`).
     let sys = codegen::symbolic::Symbolic::build_full(&mech).expect("the system builds");
     let module = codegen::emit::module_with_block_newton(&mech, &sys, "toggle", Scalar::F64);
     assert!(module.contains("const BLOCK_NEWTON: bool = true;"), "Newton block by block");

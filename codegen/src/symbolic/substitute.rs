@@ -38,8 +38,12 @@
 //!
 //! Other joint-angle rows, absolute rotations about a moving body (κ then varies) and affine
 //! blocks with a coefficient that varies stay unknowns, as does every block when the system
-//! has [`SUBSTITUTE_BELOW`] unknowns or more, or rows dropped as dependent (their run-time
-//! checks and re-selection belong to the whole system). The substituted coordinates become
+//! has rows dropped as dependent (their run-time checks and re-selection belong to the whole
+//! system), U-P-S legs reduced to distance rows (`legs`; substituted, the Stewart platform's
+//! module disagreed with the generic engine), or a closed form longer than [`LARGEST_VALUE`] operations (a long explicit
+//! chain). Systems of every size are substituted: a module solved block by block
+//! (`emit::blocks`) is planned on the unknowns that remain, so its closed-form blocks cost
+//! neither a Newton block nor a place in the solver's storage. The substituted coordinates become
 //! [`Source::Derived`] and their rows [`Symbolic::eliminated`] (they hold exactly by
 //! construction); the system is then built again on the remaining unknowns, so Φ, Φ_q, ν, γ,
 //! the dropped rows and everything emitted from them follow unchanged.
@@ -54,10 +58,15 @@ use crate::model::{BodyId, DriverTarget, JointKind, Mechanism, RowLabel};
 
 use super::{Source, Symbolic};
 
-/// Systems with fewer unknowns than this have their closed-form blocks substituted. From this
-/// size on a module with more than one block is solved block by block (`emit::blocks`), where
-/// the closed-form blocks already run as straight-line code: those systems are left whole.
-pub const SUBSTITUTE_BELOW: usize = 64;
+/// The most operations a substituted coordinate's value may take; a system with a longer
+/// closed form is left whole. Down a long explicit chain each body's value holds every body's
+/// before it (about 20 operations per link), and its rate and acceleration, differentiated
+/// symbolically, several times that: measured on a driven chain of 100 links, substituting
+/// the blocks up to 256 operations took 179 µs per step (expand included) and up to 64
+/// operations 68 µs, against 36 µs left whole, where the block solver runs the closed forms
+/// and the linear solves for the rates numerically. 256 keeps one 6R arm (172) and a chain of
+/// 10 links (219) wholly explicit.
+const LARGEST_VALUE: usize = 256;
 
 /// A body coordinate substituted by the closed form of its block ([`Source::Derived`]).
 #[derive(Clone, Debug, PartialEq)]
@@ -102,6 +111,10 @@ impl Symbolic {
                 _ => None,
             };
             let Some(values) = values else { continue };
+            if values.iter().any(|&(_, e)| operations(&self.pool, e) > LARGEST_VALUE) {
+                log::debug!("{}: closed forms not substituted: a value is too long", mech.name);
+                return self;
+            }
             for (n, (k, e)) in values.into_iter().enumerate() {
                 map.insert(Var::Q(small(k)), e);
                 let rows = if n == 0 {
@@ -416,4 +429,21 @@ type Values = Vec<(usize, ExprId)>;
 /// An unknown's index as the pool's variable index.
 fn small(k: usize) -> u32 {
     u32::try_from(k).expect("fewer than 2³² unknowns")
+}
+
+/// The operations (nodes other than constants and variables) reachable from `e`.
+fn operations(pool: &crate::expr::ExprPool, e: ExprId) -> usize {
+    let mut seen = std::collections::HashSet::new();
+    let mut stack = vec![e];
+    let mut count = 0;
+    while let Some(x) = stack.pop() {
+        if !seen.insert(x.index()) {
+            continue;
+        }
+        if !matches!(pool[x], crate::expr::Node::Const(_) | crate::expr::Node::Var(_)) {
+            count += 1;
+        }
+        stack.extend(pool[x].children());
+    }
+    count
 }
