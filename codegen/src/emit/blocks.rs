@@ -319,21 +319,11 @@ impl<'a> Lu<'a> {
         let rows = self.gather(b, 0, false, hole);
         let order: Vec<_> = (0..block.rows.len()).map(|i| hole(1, self.starts[b] + i)).collect();
         if self.orders[b].is_empty() {
-            return quote::quote! {
-                let a = [#(#rows),*];
-                let p = [#(#order),*];
-                let mut z = [#(#z),*];
-                runtime::lu::solve(&a, &p, &mut z);
-                x[..#s].copy_from_slice(&z);
-            };
+            let z = quote::quote!([#(#z),*]);
+            return dense_solve(&rows, &order, &z, &quote::quote!(x[..#s].copy_from_slice(&z);));
         }
-        let dense = quote::quote! {
-            let a = [#(#rows),*];
-            let p = [#(#order),*];
-            let mut z = z;
-            runtime::lu::solve(&a, &p, &mut z);
-            x.copy_from_slice(&z);
-        };
+        let dense =
+            dense_solve(&rows, &order, &quote::quote!(z), &quote::quote!(x.copy_from_slice(&z);));
         let mut output = |j: usize, v: syn::Expr| -> syn::Stmt {
             let j = index(j);
             parse_quote!(x[#j] = #v;)
@@ -375,22 +365,11 @@ impl<'a> Lu<'a> {
                 quote::quote!(#x = z[#i];)
             })
             .collect();
+        let out = quote::quote!(#(#out)*);
         if self.orders[b].is_empty() {
-            return quote::quote! {
-                let a = [#(#rows),*];
-                let p = [#(#order),*];
-                let mut z = [#(#z),*];
-                runtime::lu::solve(&a, &p, &mut z);
-                #(#out)*
-            };
+            return dense_solve(&rows, &order, &quote::quote!([#(#z),*]), &out);
         }
-        let dense = quote::quote! {
-            let a = [#(#rows),*];
-            let p = [#(#order),*];
-            let mut z = z;
-            runtime::lu::solve(&a, &p, &mut z);
-            #(#out)*
-        };
+        let dense = dense_solve(&rows, &order, &quote::quote!(z), &out);
         let xs: Vec<_> = block.unknowns.iter().map(|&c| hole(3, c)).collect();
         let mut output = |j: usize, v: syn::Expr| -> syn::Stmt {
             let x = &xs[j];
@@ -401,6 +380,24 @@ impl<'a> Lu<'a> {
             let z = [#(#z),*];
             #solve
         }
+    }
+}
+
+/// A block's solve by its dense LU: the gathered `rows` and pivot `order`, the right-hand side
+/// `z` (an array expression, or the name of one already built), then `tail` with the solution
+/// in `z`.
+fn dense_solve(
+    rows: &[proc_macro2::TokenStream],
+    order: &[syn::Expr],
+    z: &proc_macro2::TokenStream,
+    tail: &proc_macro2::TokenStream,
+) -> proc_macro2::TokenStream {
+    quote::quote! {
+        let a = [#(#rows),*];
+        let p = [#(#order),*];
+        let mut z = #z;
+        runtime::lu::solve(&a, &p, &mut z);
+        #tail
     }
 }
 
