@@ -409,6 +409,23 @@ impl ExprPool {
         new[&e]
     }
 
+    /// Marks the nodes reachable from `root` with `stamp` in `marks` (one entry per node) and
+    /// returns how many of them are operations (not constants or variables) not marked before.
+    pub fn new_operations(&self, root: ExprId, marks: &mut [u32], stamp: u32) -> usize {
+        let mut stack = vec![root];
+        let mut count = 0;
+        while let Some(x) = stack.pop() {
+            if std::mem::replace(&mut marks[x.index()], stamp) == stamp {
+                continue;
+            }
+            if !matches!(self[x], Node::Const(_) | Node::Var(_)) {
+                count += 1;
+            }
+            stack.extend(self[x].children());
+        }
+        count
+    }
+
     /// Whether `e` depends on `v` (a cheap structural test used to skip zero derivatives).
     #[must_use]
     pub fn depends_on(&self, e: ExprId, v: Var) -> bool {

@@ -366,28 +366,11 @@ pub(super) struct Output {
     pub(super) row: Option<usize>,
 }
 
-/// Marks the nodes reachable from `root` with `stamp` and returns how many of them are
-/// operations not marked before.
-fn new_operations(pool: &ExprPool, root: ExprId, marks: &mut [u32], stamp: u32) -> usize {
-    let mut stack = vec![root];
-    let mut count = 0;
-    while let Some(x) = stack.pop() {
-        if std::mem::replace(&mut marks[x.index()], stamp) == stamp {
-            continue;
-        }
-        if !matches!(pool[x], Node::Const(_) | Node::Var(_)) {
-            count += 1;
-        }
-        stack.extend(pool[x].children());
-    }
-    count
-}
-
 /// The outputs in groups of at most about [`CHUNK_OPS`] operations: one group in the given
 /// order when they fit, else ordered by key and cut greedily.
 fn chunks(pool: &ExprPool, outputs: &[Output]) -> Vec<Vec<usize>> {
     let mut marks = vec![0u32; pool.len()];
-    let total: usize = outputs.iter().map(|o| new_operations(pool, o.value, &mut marks, 1)).sum();
+    let total: usize = outputs.iter().map(|o| pool.new_operations(o.value, &mut marks, 1)).sum();
     if total <= CHUNK_OPS {
         return vec![(0..outputs.len()).collect()];
     }
@@ -395,12 +378,12 @@ fn chunks(pool: &ExprPool, outputs: &[Output]) -> Vec<Vec<usize>> {
     order.sort_by_key(|&k| outputs[k].key);
     let (mut groups, mut current, mut ops, mut stamp) = (Vec::new(), Vec::new(), 0, 2);
     for k in order {
-        let mut more = new_operations(pool, outputs[k].value, &mut marks, stamp);
+        let mut more = pool.new_operations(outputs[k].value, &mut marks, stamp);
         if !current.is_empty() && ops + more > CHUNK_OPS {
             groups.push(std::mem::take(&mut current));
             stamp += 1;
             ops = 0;
-            more = new_operations(pool, outputs[k].value, &mut marks, stamp);
+            more = pool.new_operations(outputs[k].value, &mut marks, stamp);
         }
         current.push(k);
         ops += more;

@@ -103,6 +103,8 @@ impl Symbolic {
         let mut map: BTreeMap<Var, ExprId> = BTreeMap::new();
         // (old unknown, value in the old numbering, rows eliminated with it).
         let mut found: Vec<(usize, ExprId, Vec<RowLabel>)> = Vec::new();
+        // Node marks for counting each value's operations (a new stamp per value).
+        let (mut marks, mut stamp) = (Vec::new(), 0u32);
         for block in &blocks.blocks {
             let values = match block.kind {
                 Kind::ClosedForm => self.affine(block, &map),
@@ -111,7 +113,12 @@ impl Symbolic {
                 _ => None,
             };
             let Some(values) = values else { continue };
-            if values.iter().any(|&(_, e)| operations(&self.pool, e) > LARGEST_VALUE) {
+            marks.resize(self.pool.len(), 0);
+            let too_long = values.iter().any(|&(_, e)| {
+                stamp += 1;
+                self.pool.new_operations(e, &mut marks, stamp) > LARGEST_VALUE
+            });
+            if too_long {
                 log::debug!("{}: closed forms not substituted: a value is too long", mech.name);
                 return self;
             }
@@ -429,21 +436,4 @@ type Values = Vec<(usize, ExprId)>;
 /// An unknown's index as the pool's variable index.
 fn small(k: usize) -> u32 {
     u32::try_from(k).expect("fewer than 2³² unknowns")
-}
-
-/// The operations (nodes other than constants and variables) reachable from `e`.
-fn operations(pool: &crate::expr::ExprPool, e: ExprId) -> usize {
-    let mut seen = std::collections::HashSet::new();
-    let mut stack = vec![e];
-    let mut count = 0;
-    while let Some(x) = stack.pop() {
-        if !seen.insert(x.index()) {
-            continue;
-        }
-        if !matches!(pool[x], crate::expr::Node::Const(_) | crate::expr::Node::Var(_)) {
-            count += 1;
-        }
-        stack.extend(pool[x].children());
-    }
-    count
 }
