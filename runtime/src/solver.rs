@@ -433,7 +433,7 @@ impl<M: Mechanism<N, R>, const N: usize, R: Real, J: BorrowMut<[[R; N]; N]>> Sol
         let mut report = result?;
         if M::LEFT_OUT > 0 {
             let ratio = report.pivots.smallest / report.pivots.largest;
-            let bound = R::from_f64(step::STRUCTURED_MARGIN) * step::singular_ratio(R::EPSILON);
+            let bound = step::structured_floor::<R>();
             let fell = ratio < self.baseline * R::from_f64(rows::RESELECT_DROP);
             if fell || ratio <= bound || ratio.is_nan() {
                 // The rows in force degenerate here: the stack's own choice at the converged q,
@@ -832,7 +832,7 @@ impl<M: Mechanism<N, R>, const N: usize, R: Real, J: BorrowMut<[[R; N]; N]>> Sol
     pub fn pivot_ratio(&mut self) -> R {
         if self.factored {
             let ratio = self.pivots.smallest / self.pivots.largest;
-            let confirm = R::from_f64(step::STRUCTURED_MARGIN) * step::singular_ratio(R::EPSILON);
+            let confirm = step::structured_floor::<R>();
             if !self.factors.holds_structured() || ratio > confirm {
                 return ratio;
             }

@@ -110,13 +110,20 @@ pub fn singular_ratio<R: Real>(eps: R) -> R {
 #[must_use]
 #[inline]
 pub fn structured_bound<R: Real>(ratio: R) -> R {
+    ratio.max(structured_floor())
+}
+
+/// [`STRUCTURED_MARGIN`] times [`singular_ratio`] in the arithmetic `R`: the pivot ratio at or
+/// below which factors of a static pivot order are confirmed by dense LU with partial pivoting.
+#[must_use]
+#[inline]
+pub fn structured_floor<R: Real>() -> R {
     // In double precision a constant (the comparison folds); else computed from ε.
-    let bound = if R::EPSILON.to_f64() == f64::EPSILON {
+    if R::EPSILON.to_f64() == f64::EPSILON {
         R::from_f64(STRUCTURED_MARGIN * SINGULAR_RATIO)
     } else {
         R::from_f64(STRUCTURED_MARGIN) * singular_ratio(R::EPSILON)
-    };
-    ratio.max(bound)
+    }
 }
 
 /// [`FLOOR`] for an arithmetic of machine epsilon `eps`: it grows as √eps.
