@@ -365,7 +365,8 @@ impl<'s> Rows<'s> {
     ) -> Vec<syn::Item> {
         let doc =
             |ops, shared| format!(" {what}\n\n {ops} operations, {shared} shared subexpressions.");
-        emit_function(&self.sys.pool, self.sys.unknowns.len(), sig, &doc, prefix, outputs)
+        let kept = self.sys.derived_nodes();
+        emit_function(&self.sys.pool, self.sys.unknowns.len(), sig, &doc, prefix, outputs, &kept)
     }
 }
 
@@ -659,7 +660,7 @@ fn expand(sys: &Symbolic, moving: &[usize]) -> Vec<syn::Item> {
                  ({ops} operations, {shared} shared subexpressions)."
             )
         };
-        return emit_function(&sys.pool, n, &sig, &doc, direct, &outputs);
+        return emit_function(&sys.pool, n, &sig, &doc, direct, &outputs, &sys.derived_nodes());
     }
     let any = n > 0;
     let (qn, qdn, qddn) = (param("q", any), param("qd", any), param("qdd", any));

@@ -196,6 +196,12 @@ impl ExprPool {
         }
     }
 
+    /// Whether a node is a constant or a symbol (no operation).
+    #[must_use]
+    pub fn is_leaf(&self, id: ExprId) -> bool {
+        matches!(self[id], Node::Const(_) | Node::Var(_))
+    }
+
     /// −a.
     pub fn neg(&mut self, a: ExprId) -> ExprId {
         match self[a] {

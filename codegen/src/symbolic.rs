@@ -611,6 +611,13 @@ impl std::fmt::Display for GenerateError {
 impl std::error::Error for GenerateError {}
 
 impl Symbolic {
+    /// The substituted coordinates' values, rates and accelerations ([`Source::Derived`]), in
+    /// order: what the outputs of an explicit chain share (see `emit::function`).
+    #[must_use]
+    pub fn derived_nodes(&self) -> Vec<ExprId> {
+        self.derived.iter().flat_map(|d| d.value).collect()
+    }
+
     /// Builds the reduced system of `mech`: [`Symbolic::build_full`], then, unless rows are
     /// dropped as dependent, with the closed-form blocks substituted (`substitute`): Newton
     /// runs on the remaining unknowns only, whole or block by block.

@@ -31,11 +31,13 @@ struct Body<'p> {
 pub(super) type Given = std::collections::HashMap<usize, Expr>;
 
 impl<'p> Body<'p> {
-    /// Plans the temporaries for `roots`: every operation node reachable more than once.
+    /// Plans the temporaries for `roots`: every operation node reachable more than once, and
+    /// every node of `store`, which is also assigned to the place given for it (for a later
+    /// part of a split function to read, see [`emit_function`]).
     ///
     /// Works on the reachable nodes alone (maps, not arrays over the arena), so that the many
     /// small functions of a large system each cost what they use.
-    fn new(pool: &'p ExprPool, roots: &[ExprId], given: &'p Given) -> Self {
+    fn new(pool: &'p ExprPool, roots: &[ExprId], given: &'p Given, store: &'p Given) -> Self {
         use std::collections::{BTreeMap, HashMap};
         let mut uses: HashMap<usize, usize> = HashMap::new();
         let mut stack: Vec<ExprId> = roots.to_vec();
@@ -89,12 +91,15 @@ impl<'p> Body<'p> {
                     body.temp.insert(s, sin);
                     body.temp.insert(c, cos);
                 }
-            } else if !leaf && uses.get(&k).copied().unwrap_or(0) >= 2 {
+            } else if !leaf && (uses.get(&k).copied().unwrap_or(0) >= 2 || store.contains_key(&k)) {
                 let (e, _) = body.render(ExprId::from_index(k));
                 let name = ident(&format!("t{count}"));
                 count += 1;
                 body.stmts.push(let_stmt(name.clone(), e));
                 body.temp.insert(k, name);
+            }
+            if let (Some(place), Some(name)) = (store.get(&k), body.temp.get(&k)) {
+                body.stmts.push(assign(place.clone(), path(name.clone())));
             }
         }
         body
@@ -132,7 +137,7 @@ impl<'p> Body<'p> {
                 // x + (−y) and (−y) + x are written x − y: the same IEEE operation, since
                 // addition commutes exactly and negation is exact.
                 let negated = |e: ExprId| -> Option<Expr> {
-                    if self.temp.contains_key(&e.index()) {
+                    if self.temp.contains_key(&e.index()) || self.given.contains_key(&e.index()) {
                         return None;
                     }
                     match (self.pool[e], self.pool.as_const(e)) {
@@ -261,7 +266,7 @@ pub(super) fn function(pool: &ExprPool, n: usize, outputs: &Targets) -> Function
 /// `part`: a part of a split function uses few of them.
 pub(super) fn function_with(pool: &ExprPool, n: usize, outputs: &Targets, part: bool) -> Function {
     let reads = if part { Reads::OneByOne } else { Reads::Destructured };
-    function_reading(pool, n, outputs, &reads, &Given::new())
+    function_reading(pool, n, outputs, &reads, &Given::new(), &Given::new())
 }
 
 /// How a function reads the entries of q, q̇ and q̈ it uses, the inputs and the parameters
@@ -278,17 +283,19 @@ pub(super) enum Reads<'a> {
 
 /// [`function_with`], reading the symbols as `reads` says and the nodes of `given` as the
 /// expressions given for them (such as `terms[0]`) instead of computing them: what they alone
-/// need is neither computed nor read.
+/// need is neither computed nor read. The nodes of `store` it computes are also assigned to
+/// the places given for them.
 pub(super) fn function_reading(
     pool: &ExprPool,
     n: usize,
     outputs: &Targets,
     reads: &Reads<'_>,
     given: &Given,
+    store: &Given,
 ) -> Function {
     let roots: Vec<ExprId> = outputs.iter().map(|(_, e, _)| *e).collect();
     let ([q, qd, qdd], t, inputs) = symbols(pool, &roots, n, given);
-    let body = Body::new(pool, &roots, given);
+    let body = Body::new(pool, &roots, given, store);
     let mut stmts = Vec::new();
     let any = |v: &[bool]| v.iter().any(|&u| u);
     let (uses_q, uses_qd, uses_qdd) = (any(&q), any(&qd), any(&qdd));
@@ -367,8 +374,9 @@ pub(super) struct Output {
 }
 
 /// The outputs in groups of at most about [`CHUNK_OPS`] operations: one group in the given
-/// order when they fit, else ordered by key and cut greedily.
-fn chunks(pool: &ExprPool, outputs: &[Output]) -> Vec<Vec<usize>> {
+/// order when they fit, else ordered by key and cut greedily. A node of `kept` that an earlier
+/// group computes costs a later one nothing (it is read back, see [`emit_function`]).
+fn chunks(pool: &ExprPool, outputs: &[Output], kept: &[ExprId]) -> Vec<Vec<usize>> {
     let mut marks = vec![0u32; pool.len()];
     let total: usize = outputs.iter().map(|o| pool.new_operations(o.value, &mut marks, 1)).sum();
     if total <= CHUNK_OPS {
@@ -376,20 +384,47 @@ fn chunks(pool: &ExprPool, outputs: &[Output]) -> Vec<Vec<usize>> {
     }
     let mut order: Vec<usize> = (0..outputs.len()).collect();
     order.sort_by_key(|&k| outputs[k].key);
+    let mut available = std::collections::HashSet::new();
     let (mut groups, mut current, mut ops, mut stamp) = (Vec::new(), Vec::new(), 0, 2);
     for k in order {
-        let mut more = pool.new_operations(outputs[k].value, &mut marks, stamp);
+        let mut more = operations(pool, outputs[k].value, &mut marks, stamp, &available);
         if !current.is_empty() && ops + more > CHUNK_OPS {
             groups.push(std::mem::take(&mut current));
+            available.extend(kept.iter().map(|e| e.index()).filter(|&e| marks[e] == stamp));
             stamp += 1;
             ops = 0;
-            more = pool.new_operations(outputs[k].value, &mut marks, stamp);
+            more = operations(pool, outputs[k].value, &mut marks, stamp, &available);
         }
         current.push(k);
         ops += more;
     }
     groups.push(current);
     groups
+}
+
+/// The operations reachable from `root` and not yet marked with `stamp`, short of the nodes of
+/// `available`; marks them.
+fn operations(
+    pool: &ExprPool,
+    root: ExprId,
+    marks: &mut [u32],
+    stamp: u32,
+    available: &std::collections::HashSet<usize>,
+) -> usize {
+    let mut stack = vec![root];
+    let mut count = 0;
+    while let Some(x) = stack.pop() {
+        if available.contains(&x.index())
+            || std::mem::replace(&mut marks[x.index()], stamp) == stamp
+        {
+            continue;
+        }
+        if !pool.is_leaf(x) {
+            count += 1;
+        }
+        stack.extend(pool[x].children());
+    }
+    count
 }
 
 /// What an emitted function reads and writes.
@@ -486,6 +521,12 @@ impl Signature<'_> {
 /// The function `sig.name` writing `outputs` after `prefix`, split into `#[inline(never)]`
 /// helpers `name_0`, `name_1`, … when it would exceed [`CHUNK_OPS`] operations. `doc` gets
 /// the operations and shared subexpressions in total.
+///
+/// The nodes of `kept` (a module's substituted coordinates, with their rates and
+/// accelerations) are what the outputs of a long explicit chain share: body k's coordinates
+/// are expressions of body k − 1's. A part that computes one also stores it in the array
+/// `kept: &mut [f64; K]` of the split function, and later parts read it there instead of
+/// computing it again, so that the parts together cost what one function would.
 pub(super) fn emit_function(
     pool: &ExprPool,
     n: usize,
@@ -493,22 +534,26 @@ pub(super) fn emit_function(
     doc: &dyn Fn(usize, usize) -> String,
     prefix: Vec<syn::Stmt>,
     outputs: &[Output],
+    kept: &[ExprId],
 ) -> Vec<syn::Item> {
-    let groups = chunks(pool, outputs);
-    let body = |group: &[usize]| -> (Function, Vec<bool>) {
-        let out: Vec<(Expr, ExprId, Option<usize>)> = group
-            .iter()
-            .map(|&k| (outputs[k].target.clone(), outputs[k].value, outputs[k].row))
-            .collect();
+    let groups = chunks(pool, outputs, kept);
+    let written = |group: &[usize]| -> Vec<bool> {
         let mut written = vec![false; sig.targets.len()];
         for &k in group {
             written[outputs[k].array] = true;
         }
-        (function_with(pool, n, &out, groups.len() > 1), written)
+        written
+    };
+    let targets = |group: &[usize]| -> Vec<(Expr, ExprId, Option<usize>)> {
+        group
+            .iter()
+            .map(|&k| (outputs[k].target.clone(), outputs[k].value, outputs[k].row))
+            .collect()
     };
     let name = ident(sig.name);
     if groups.len() == 1 {
-        let (f, mut written) = body(&groups[0]);
+        let f = function_with(pool, n, &targets(&groups[0]), false);
+        let mut written = written(&groups[0]);
         // The prefix (zeroing an array) writes every target it names; assume all.
         if !prefix.is_empty() {
             written.fill(true);
@@ -521,10 +566,22 @@ pub(super) fn emit_function(
         stmts.extend(f.stmts);
         return vec![item_fn(item, stmts)];
     }
+    // The place in `kept` of each kept operation node, in the order given.
+    let mut slot: std::collections::HashMap<usize, usize> = std::collections::HashMap::new();
+    for e in kept.iter().filter(|e| !pool.is_leaf(**e)) {
+        let next = slot.len();
+        slot.entry(e.index()).or_insert(next);
+    }
+    let place = |node: usize| -> Expr { element("kept", &[slot[&node]]) };
     let mut items = Vec::new();
     let mut calls = prefix;
     if sig.inputs {
         calls.insert(0, parse_quote!(let u = inputs.to_array();));
+    }
+    let any_kept = !slot.is_empty();
+    if any_kept {
+        let size = super::syntax::index(slot.len());
+        calls.push(parse_quote!(let mut kept = [0.0; #size];));
     }
     let (mut ops, mut shared) = (0, 0);
     let args: Vec<Expr> = ["q"]
@@ -535,16 +592,38 @@ pub(super) fn emit_function(
         .map(|a| path(ident(a)))
         .chain(sig.inputs.then(|| parse_quote!(&u)))
         .chain(sig.targets.iter().map(|(a, _)| path(ident(a))))
+        .chain(any_kept.then(|| parse_quote!(&mut kept)))
         .collect();
+    // The kept nodes computed by the parts so far, read back by the next ones.
+    let mut given = Given::new();
     for (c, group) in groups.iter().enumerate() {
-        let (f, written) = body(group);
+        let out = targets(group);
+        let roots: Vec<ExprId> = out.iter().map(|(_, e, _)| *e).collect();
+        let reads_kept = reads_given(pool, &roots, &given);
+        let last = c + 1 == groups.len();
+        let store: Given = if last {
+            Given::new()
+        } else {
+            computed(pool, &roots, &given)
+                .into_iter()
+                .filter(|node| slot.contains_key(node))
+                .map(|node| (node, place(node)))
+                .collect()
+        };
+        let f = function_reading(pool, n, &out, &Reads::OneByOne, &given, &store);
         ops += f.ops;
         shared += f.shared;
         let helper = ident(&format!("{}_{c}", sig.name));
         let doc = format!(" Part {c} of [`{}`]: {} operations.", sig.name, f.ops);
-        let item = sig.item(&helper, &doc, &Used::of(&f, &written), true);
+        let mut item = sig.item(&helper, &doc, &Used::of(&f, &written(group)), true);
+        if any_kept {
+            let k = param("kept", reads_kept || !store.is_empty());
+            let size = super::syntax::index(slot.len());
+            item.sig.inputs.push(parse_quote!(#k: &mut [f64; #size]));
+        }
         items.push(item_fn(item, f.stmts));
         calls.push(parse_quote!(#helper(#(#args),*);));
+        given.extend(store);
     }
     let doc = format!(
         "{}\n\n Split into {} functions of at most about {CHUNK_OPS} operations each.",
@@ -556,6 +635,24 @@ pub(super) fn emit_function(
     let main = sig.item(&name, &doc, &used, false);
     items.insert(0, item_fn(main, calls));
     items
+}
+
+/// The operation nodes reachable from `roots` short of the nodes of `given`: what a function
+/// writing `roots` computes.
+fn computed(pool: &ExprPool, roots: &[ExprId], given: &Given) -> Vec<usize> {
+    let mut seen = std::collections::HashSet::new();
+    let mut stack = roots.to_vec();
+    let mut found = Vec::new();
+    while let Some(x) = stack.pop() {
+        if given.contains_key(&x.index()) || !seen.insert(x.index()) {
+            continue;
+        }
+        if !pool.is_leaf(x) {
+            found.push(x.index());
+        }
+        stack.extend(pool[x].children());
+    }
+    found
 }
 
 /// Whether the expressions reachable from `roots` read a node of `given`.
@@ -586,12 +683,12 @@ pub(super) fn emit_function_given(
     outputs: &[Output],
     given: &Given,
 ) -> Option<syn::Item> {
-    if sig.inputs || chunks(pool, outputs).len() > 1 {
+    if sig.inputs || chunks(pool, outputs, &[]).len() > 1 {
         return None;
     }
     let out: Vec<(Expr, ExprId, Option<usize>)> =
         outputs.iter().map(|o| (o.target.clone(), o.value, o.row)).collect();
-    let f = function_reading(pool, n, &out, &Reads::Destructured, given);
+    let f = function_reading(pool, n, &out, &Reads::Destructured, given, &Given::new());
     let mut written = vec![false; sig.targets.len()];
     for o in outputs {
         written[o.array] = true;

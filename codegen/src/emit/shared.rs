@@ -633,6 +633,7 @@ impl Group {
             &values,
             &Reads::With(&read),
             &super::function::Given::new(),
+            &super::function::Given::new(),
         );
         let zeros = self.outputs.iter().zip(&targets).filter(|((_, v), _)| v.is_none()).map(
             |(_, target)| -> syn::Stmt {

@@ -51,13 +51,48 @@ fn functions(module: &str) -> Vec<(String, String)> {
     out
 }
 
-/// A chain of 30 links (scale.rs) and its reduced system: large enough to be split.
+/// A chain of 30 links (scale.rs) and its reduced system, kept whole (210 unknowns; built
+/// with its closed forms substituted it has none): large enough to be split.
 fn chain_30() -> (crate::model::Mechanism, crate::symbolic::Symbolic) {
     let text = crate::scale::chain(30, 2);
     let mech =
         crate::validate::load_str(&text, crate::validate::Format::Toml, None).unwrap().mechanism;
-    let sys = crate::symbolic::Symbolic::build(&mech).unwrap();
+    let sys = crate::symbolic::Symbolic::build_full(&mech).unwrap();
     (mech, sys)
+}
+
+/// The operations of the parts of `name` in an emitted module.
+fn split_operations(module: &str, name: &str) -> usize {
+    let prefix = format!("{name}_");
+    functions(module)
+        .iter()
+        .filter(|(f, _)| f.strip_prefix(&prefix).is_some_and(|k| k.parse::<usize>().is_ok()))
+        .map(|(_, code)| binary_operations(code))
+        .sum()
+}
+
+#[test]
+fn an_explicit_chain_is_emitted_in_parts_whose_size_grows_linearly() {
+    // Driven chains are substituted whole: each link's coordinates are expressions of the
+    // link's before it. Split, the parts must read the earlier links' coordinates back (the
+    // array `kept`) rather than compute them again, which would make the module grow as the
+    // square of the length.
+    let ops = |links: usize| {
+        let text = crate::scale::chain(links, 2);
+        let mech = crate::validate::load_str(&text, crate::validate::Format::Toml, None)
+            .unwrap()
+            .mechanism;
+        let sys = crate::symbolic::Symbolic::build(&mech).unwrap();
+        assert!(sys.unknowns.is_empty(), "{links} links: {} unknowns", sys.unknowns.len());
+        let module = super::module(&mech, &sys, "a test");
+        assert!(module.contains("kept: &mut [f64;"), "{links} links: no part reads `kept`");
+        split_operations(&module, "expand")
+    };
+    let (short, long) = (ops(40), ops(80));
+    // Twice the links, twice the operations, up to the first link's (which reads no earlier
+    // link) and the parts' reads of `kept`: 10 % margin. Quadratic growth would give 4.
+    let ratio = long as f64 / short as f64;
+    assert!((1.8..=2.2).contains(&ratio), "{short} → {long} operations: ratio {ratio}");
 }
 
 #[test]
