@@ -38,6 +38,19 @@ fn split_modules_pass_clippy_with_warnings_denied_in_f64_and_f32() {
             }
         }
     }
+    // The same chain substituted whole (no unknowns): its output functions are split into
+    // parts that pass substituted coordinates to each other through the array `kept`.
+    let mech = load_toml(&cases[0].1);
+    let sys = Symbolic::build(&mech).expect("generates");
+    assert!(sys.unknowns.is_empty(), "the chain is explicit");
+    for scalar in [Scalar::F64, Scalar::F32] {
+        let module = module_in(&mech, &sys, "explicit", scalar);
+        assert!(module.contains("let mut kept = "), "the parts share substituted coordinates");
+        helpers += module.matches("#[inline(never)]").count();
+        let file = format!("chain_explicit_{}", scalar.name());
+        std::fs::write(dir.join(format!("src/{file}.rs")), module).expect("writable");
+        lib.push_str(&format!("pub mod {file};\n"));
+    }
     assert!(helpers >= 100, "only {helpers} split helpers: the test no longer checks splitting");
     std::fs::write(dir.join("src/lib.rs"), lib).expect("writable");
     let manifest = format!(

@@ -566,21 +566,34 @@ pub(super) fn emit_function(
         stmts.extend(f.stmts);
         return vec![item_fn(item, stmts)];
     }
-    // The place in `kept` of each kept operation node, in the order given.
-    let mut slot: std::collections::HashMap<usize, usize> = std::collections::HashMap::new();
-    for e in kept.iter().filter(|e| !pool.is_leaf(**e)) {
-        let next = slot.len();
-        slot.entry(e.index()).or_insert(next);
+    // Which kept nodes each part computes first, and which of them a later part reads: only
+    // those are stored, in the order the parts compute them.
+    let kept: std::collections::HashSet<usize> =
+        kept.iter().filter(|e| !pool.is_leaf(**e)).map(|e| e.index()).collect();
+    let roots =
+        |group: &[usize]| -> Vec<ExprId> { group.iter().map(|&k| outputs[k].value).collect() };
+    let mut available = std::collections::HashSet::new();
+    let mut first: Vec<Vec<usize>> = Vec::new();
+    let mut read = std::collections::HashSet::new();
+    for group in &groups {
+        let (computed, reads) = reach(pool, &roots(group), &available);
+        read.extend(reads);
+        let new: Vec<usize> = computed.into_iter().filter(|e| kept.contains(e)).collect();
+        available.extend(new.iter().copied());
+        first.push(new);
     }
-    let place = |node: usize| -> Expr { element("kept", &[slot[&node]]) };
+    let mut slot: std::collections::HashMap<usize, Expr> = std::collections::HashMap::new();
+    for &node in first.iter().flatten().filter(|e| read.contains(*e)) {
+        let place = element("kept", &[slot.len()]);
+        slot.insert(node, place);
+    }
     let mut items = Vec::new();
     let mut calls = prefix;
     if sig.inputs {
         calls.insert(0, parse_quote!(let u = inputs.to_array();));
     }
-    let any_kept = !slot.is_empty();
-    if any_kept {
-        let size = super::syntax::index(slot.len());
+    let size = super::syntax::index(slot.len());
+    if !slot.is_empty() {
         calls.push(parse_quote!(let mut kept = [0.0; #size];));
     }
     let (mut ops, mut shared) = (0, 0);
@@ -592,33 +605,23 @@ pub(super) fn emit_function(
         .map(|a| path(ident(a)))
         .chain(sig.inputs.then(|| parse_quote!(&u)))
         .chain(sig.targets.iter().map(|(a, _)| path(ident(a))))
-        .chain(any_kept.then(|| parse_quote!(&mut kept)))
+        .chain((!slot.is_empty()).then(|| parse_quote!(&mut kept)))
         .collect();
-    // The kept nodes computed by the parts so far, read back by the next ones.
+    // The stored nodes computed by the parts so far, read back by the next ones.
     let mut given = Given::new();
     for (c, group) in groups.iter().enumerate() {
         let out = targets(group);
-        let roots: Vec<ExprId> = out.iter().map(|(_, e, _)| *e).collect();
-        let reads_kept = reads_given(pool, &roots, &given);
-        let last = c + 1 == groups.len();
-        let store: Given = if last {
-            Given::new()
-        } else {
-            computed(pool, &roots, &given)
-                .into_iter()
-                .filter(|node| slot.contains_key(node))
-                .map(|node| (node, place(node)))
-                .collect()
-        };
+        let reads_kept = reads_given(pool, &roots(group), &given);
+        let store: Given =
+            first[c].iter().filter_map(|e| Some((*e, slot.get(e)?.clone()))).collect();
         let f = function_reading(pool, n, &out, &Reads::OneByOne, &given, &store);
         ops += f.ops;
         shared += f.shared;
         let helper = ident(&format!("{}_{c}", sig.name));
         let doc = format!(" Part {c} of [`{}`]: {} operations.", sig.name, f.ops);
         let mut item = sig.item(&helper, &doc, &Used::of(&f, &written(group)), true);
-        if any_kept {
+        if !slot.is_empty() {
             let k = param("kept", reads_kept || !store.is_empty());
-            let size = super::syntax::index(slot.len());
             item.sig.inputs.push(parse_quote!(#k: &mut [f64; #size]));
         }
         items.push(item_fn(item, f.stmts));
@@ -637,22 +640,28 @@ pub(super) fn emit_function(
     items
 }
 
-/// The operation nodes reachable from `roots` short of the nodes of `given`: what a function
-/// writing `roots` computes.
-fn computed(pool: &ExprPool, roots: &[ExprId], given: &Given) -> Vec<usize> {
+/// The operation nodes reachable from `roots` short of the nodes of `available`, and the
+/// nodes of `available` reached: what a function writing `roots` computes and what it reads.
+fn reach(
+    pool: &ExprPool,
+    roots: &[ExprId],
+    available: &std::collections::HashSet<usize>,
+) -> (Vec<usize>, Vec<usize>) {
     let mut seen = std::collections::HashSet::new();
     let mut stack = roots.to_vec();
-    let mut found = Vec::new();
+    let (mut computed, mut read) = (Vec::new(), Vec::new());
     while let Some(x) = stack.pop() {
-        if given.contains_key(&x.index()) || !seen.insert(x.index()) {
+        if !seen.insert(x.index()) {
             continue;
         }
-        if !pool.is_leaf(x) {
-            found.push(x.index());
+        if available.contains(&x.index()) {
+            read.push(x.index());
+        } else if !pool.is_leaf(x) {
+            computed.push(x.index());
+            stack.extend(pool[x].children());
         }
-        stack.extend(pool[x].children());
     }
-    found
+    (computed, read)
 }
 
 /// Whether the expressions reachable from `roots` read a node of `given`.

@@ -122,15 +122,20 @@ fn large_mechanisms_are_emitted_as_bounded_functions() {
 
 #[test]
 fn a_split_module_is_rewritten_to_single_precision_throughout() {
-    // The f32 rewrite works item by item, so the split helpers must come out in f32 too.
+    // The f32 rewrite works item by item, so the split helpers must come out in f32 too,
+    // with the array `kept` of an explicit chain's parts.
     let (mech, sys) = chain_30();
-    let module = super::module_in(&mech, &sys, "a test", super::Scalar::F32);
-    assert!(module.matches("#[inline(never)]").count() >= 10);
-    // Code lines only: doc comments may name f64 in prose.
-    let code: Vec<&str> = module.lines().filter(|l| !l.trim_start().starts_with("//")).collect();
-    let leaks: Vec<&&str> = code.iter().filter(|l| l.contains("f64")).collect();
-    assert!(leaks.is_empty(), "{} lines keep f64, e.g. {:?}", leaks.len(), leaks.first());
-    assert!(code.iter().any(|l| l.contains("[f32; N]")));
+    let explicit = crate::symbolic::Symbolic::build(&mech).unwrap();
+    for (sys, marker) in [(sys, "[f32; N]"), (explicit, "kept: &mut [f32;")] {
+        let module = super::module_in(&mech, &sys, "a test", super::Scalar::F32);
+        assert!(module.matches("#[inline(never)]").count() >= 3);
+        // Code lines only: doc comments may name f64 in prose.
+        let code: Vec<&str> =
+            module.lines().filter(|l| !l.trim_start().starts_with("//")).collect();
+        let leaks: Vec<&&str> = code.iter().filter(|l| l.contains("f64")).collect();
+        assert!(leaks.is_empty(), "{} lines keep f64, e.g. {:?}", leaks.len(), leaks.first());
+        assert!(code.iter().any(|l| l.contains(marker)), "{marker}");
+    }
 }
 
 #[test]
