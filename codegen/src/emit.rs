@@ -605,6 +605,8 @@ fn normalize(sys: &Symbolic) -> syn::Item {
 fn expand(sys: &Symbolic, moving: &[usize]) -> Vec<syn::Item> {
     let n = sys.unknowns.len();
     let mut outputs: Vec<Output> = Vec::new();
+    // Each output's place in `out` flattened: 21 b + 7 d + i.
+    let mut places: Vec<usize> = Vec::new();
     let mut direct: Vec<syn::Stmt> = Vec::new();
     for (slot, &b) in moving.iter().enumerate() {
         for (i, s) in sys.coords[b].iter().enumerate() {
@@ -624,6 +626,7 @@ fn expand(sys: &Symbolic, moving: &[usize]) -> Vec<syn::Item> {
                 }
                 Source::Driven(l) => {
                     for (d, e) in sys.laws[l].iter().enumerate() {
+                        places.push(21 * slot + 7 * d + i);
                         let d = index(d);
                         let target = parse_quote!(out[#sl][#d][#il]);
                         outputs.push(Output { target, array: 0, value: *e, key: slot, row: None });
@@ -631,6 +634,7 @@ fn expand(sys: &Symbolic, moving: &[usize]) -> Vec<syn::Item> {
                 }
                 Source::Derived(k) => {
                     for (d, e) in sys.derived[k].value.iter().enumerate() {
+                        places.push(21 * slot + 7 * d + i);
                         let d = index(d);
                         let target = parse_quote!(out[#sl][#d][#il]);
                         outputs.push(Output { target, array: 0, value: *e, key: slot, row: None });
@@ -638,6 +642,9 @@ fn expand(sys: &Symbolic, moving: &[usize]) -> Vec<syn::Item> {
                 }
             }
         }
+    }
+    if let Some(items) = expand_shared(sys, moving.len(), &outputs, &places, &direct) {
+        return items;
     }
     let whole: Vec<(Expr, ExprId, Option<usize>)> =
         outputs.iter().map(|o| (o.target.clone(), o.value, o.row)).collect();
@@ -690,6 +697,163 @@ fn expand(sys: &Symbolic, moving: &[usize]) -> Vec<syn::Item> {
             #(#stmts)*
         }
     }]
+}
+
+/// `expand` when groups of bodies alike run one shared function (`emit::shared`): the bodies
+/// whose coordinates are expressions of each other's form a group (ten independent arms, ten
+/// groups); groups whose expressions are the same up to their constants and places share one
+/// function `expand_shared_s(m, …)`, called for each of them in a loop, so that every copy
+/// runs the same machine code and stays in the instruction cache. The other outputs go to
+/// `expand_rest`. `None` when no two groups are alike.
+fn expand_shared(
+    sys: &Symbolic,
+    bodies: usize,
+    outputs: &[Output],
+    places: &[usize],
+    direct: &[syn::Stmt],
+) -> Option<Vec<syn::Item>> {
+    use std::collections::HashMap;
+    // The groups: union of the bodies an output's expression reaches through another body's
+    // output (which it then reads rather than repeats).
+    let owner: HashMap<usize, usize> = outputs
+        .iter()
+        .filter(|o| !sys.pool.is_leaf(o.value))
+        .map(|o| (o.value.index(), o.key))
+        .collect();
+    let mut parent: Vec<usize> = (0..bodies).collect();
+    fn root(parent: &mut [usize], mut x: usize) -> usize {
+        while parent[x] != x {
+            parent[x] = parent[parent[x]];
+            x = parent[x];
+        }
+        x
+    }
+    for body in 0..bodies {
+        let mut stack: Vec<ExprId> = outputs
+            .iter()
+            .filter(|o| o.key == body)
+            .flat_map(|o| sys.pool[o.value].children())
+            .collect();
+        let mut seen = std::collections::HashSet::new();
+        while let Some(x) = stack.pop() {
+            if !seen.insert(x.index()) {
+                continue;
+            }
+            match owner.get(&x.index()) {
+                Some(&other) if other != body => {
+                    let (a, b) = (root(&mut parent, body), root(&mut parent, other));
+                    parent[a.max(b)] = a.min(b);
+                }
+                _ => stack.extend(sys.pool[x].children()),
+            }
+        }
+    }
+    let mut group_of: HashMap<usize, usize> = HashMap::new();
+    let mut functions: Vec<Option<Vec<shared::Output>>> = Vec::new();
+    let mut member: Vec<usize> = Vec::with_capacity(outputs.len());
+    for (o, &place) in outputs.iter().zip(places) {
+        let r = root(&mut parent, o.key);
+        let next = functions.len();
+        let g = *group_of.entry(r).or_insert(next);
+        if g == functions.len() {
+            functions.push(Some(Vec::new()));
+        }
+        functions[g].as_mut().expect("a group").push((shared::Array::Out, place, Some(o.value)));
+        member.push(g);
+    }
+    let sharing = shared::Sharing::of(&sys.pool, &functions);
+    if !sharing.any() {
+        return None;
+    }
+    let inputs = !sys.inputs.is_empty();
+    let ty = quote::quote!(&mut [[[f64; 7]; 3]; BODIES]);
+    let targets = [("out", ty)];
+    let mut items = sharing.items(
+        "expand",
+        &Signature {
+            name: "expand",
+            qd: true,
+            qdd: true,
+            public: false,
+            targets: &targets,
+            inputs,
+        },
+        "Full coordinates",
+    );
+    let args = if inputs {
+        quote::quote!(q, qd, qdd, t, &u, out)
+    } else {
+        quote::quote!(q, qd, qdd, t, out)
+    };
+    let loops = sharing.calls_shared("expand", &args);
+    let rest: Vec<Output> = outputs
+        .iter()
+        .zip(&member)
+        .filter(|(_, g)| sharing.shared(**g).is_none())
+        .map(|(o, _)| Output {
+            target: o.target.clone(),
+            array: 0,
+            value: o.value,
+            key: o.key,
+            row: None,
+        })
+        .collect();
+    let mut calls: Vec<syn::Stmt> = direct.to_vec();
+    if inputs {
+        calls.push(parse_quote!(let u = inputs.to_array();));
+    }
+    calls.extend(loops.into_iter().map(|l| -> syn::Stmt { parse_quote!(#l) }));
+    if !rest.is_empty() {
+        let sig = Signature {
+            name: "expand_rest",
+            qd: true,
+            qdd: true,
+            public: false,
+            targets: &targets,
+            inputs,
+        };
+        let doc = |ops: usize, shared: usize| {
+            format!(
+                " The full coordinates of the bodies [`expand`] does not compute in a shared \
+                 function ({ops} operations, {shared} shared subexpressions)."
+            )
+        };
+        items.extend(emit_function(
+            &sys.pool,
+            sys.unknowns.len(),
+            &sig,
+            &doc,
+            Vec::new(),
+            &rest,
+            &sys.derived_nodes(),
+        ));
+        calls.push(if inputs {
+            parse_quote!(expand_rest(q, qd, qdd, t, inputs, out);)
+        } else {
+            parse_quote!(expand_rest(q, qd, qdd, t, out);)
+        });
+    }
+    let what = " Full coordinates of every moving body (in [`BODY_NAMES`] order): `out[b][0]` is \
+                `[x, y, z, e0, e1, e2, e3]`, `out[b][1]` its rates and `out[b][2]` its \
+                accelerations, with fixed, driven and substituted coordinates filled in; groups \
+                of bodies alike share one function.";
+    let item: syn::Item = if inputs {
+        parse_quote! {
+            #[doc = #what]
+            pub fn expand(q: &[f64; N], qd: &[f64; N], qdd: &[f64; N], t: f64, inputs: &Inputs, out: &mut [[[f64; 7]; 3]; BODIES]) {
+                #(#calls)*
+            }
+        }
+    } else {
+        parse_quote! {
+            #[doc = #what]
+            pub fn expand(q: &[f64; N], qd: &[f64; N], qdd: &[f64; N], t: f64, out: &mut [[[f64; 7]; 3]; BODIES]) {
+                #(#calls)*
+            }
+        }
+    };
+    items.insert(0, item);
+    Some(items)
 }
 
 /// The unit struct and its `runtime::Mechanism` impl, with the structured LU's items.

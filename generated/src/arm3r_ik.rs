@@ -2059,7 +2059,7 @@ impl Default for Arm3rIk {
     }
 }
 
-impl runtime::input::Driven<INPUTS> for Arm3rIk {
+impl runtime::input::Driven<INPUTS, f64> for Arm3rIk {
     fn segment(&self) -> &runtime::input::Segment<f64, INPUTS> {
         &self.segment
     }

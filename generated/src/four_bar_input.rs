@@ -1339,7 +1339,7 @@ impl Default for FourBarInput {
     }
 }
 
-impl runtime::input::Driven<INPUTS> for FourBarInput {
+impl runtime::input::Driven<INPUTS, f64> for FourBarInput {
     fn segment(&self) -> &runtime::input::Segment<f64, INPUTS> {
         &self.segment
     }

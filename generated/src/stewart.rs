@@ -11207,7 +11207,7 @@ impl Default for Stewart {
     }
 }
 
-impl runtime::input::Driven<INPUTS> for Stewart {
+impl runtime::input::Driven<INPUTS, f64> for Stewart {
     fn segment(&self) -> &runtime::input::Segment<f64, INPUTS> {
         &self.segment
     }

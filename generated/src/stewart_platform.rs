@@ -1520,7 +1520,7 @@ impl Default for StewartPlatform {
     }
 }
 
-impl runtime::input::Driven<INPUTS> for StewartPlatform {
+impl runtime::input::Driven<INPUTS, f64> for StewartPlatform {
     fn segment(&self) -> &runtime::input::Segment<f64, INPUTS> {
         &self.segment
     }

@@ -42,6 +42,8 @@ mod scale_invariance;
 #[cfg(test)]
 mod seed_examples;
 #[cfg(test)]
+mod shared_expand;
+#[cfg(test)]
 mod single_precision;
 #[cfg(test)]
 mod sparse_engine;

@@ -39,17 +39,32 @@ fn split_modules_pass_clippy_with_warnings_denied_in_f64_and_f32() {
         }
     }
     // The same chain substituted whole (no unknowns): its output functions are split into
-    // parts that pass substituted coordinates to each other through the array `kept`.
-    let mech = load_toml(&cases[0].1);
-    let sys = Symbolic::build(&mech).expect("generates");
-    assert!(sys.unknowns.is_empty(), "the chain is explicit");
-    for scalar in [Scalar::F64, Scalar::F32] {
-        let module = module_in(&mech, &sys, "explicit", scalar);
-        assert!(module.contains("let mut kept = "), "the parts share substituted coordinates");
-        helpers += module.matches("#[inline(never)]").count();
-        let file = format!("chain_explicit_{}", scalar.name());
-        std::fs::write(dir.join(format!("src/{file}.rs")), module).expect("writable");
-        lib.push_str(&format!("pub mod {file};\n"));
+    // parts that pass substituted coordinates to each other through the array `kept`. And
+    // three explicit arms, with laws and with inputs, whose alike arms share one `expand`.
+    let arms = codegen::scale::arms(3, 4, 2);
+    let arms_inputs: String = arms
+        .lines()
+        .map(|l| {
+            if l.starts_with("law = {") { "law = \"input\"\n".to_owned() } else { format!("{l}\n") }
+        })
+        .collect();
+    let explicit = [
+        ("chain_explicit", cases[0].1.as_str(), "let mut kept = "),
+        ("arms", arms.as_str(), "fn expand_shared_0("),
+        ("arms_inputs", arms_inputs.as_str(), "fn expand_shared_0("),
+    ];
+    for (name, text, marker) in explicit {
+        let mech = load_toml(text);
+        let sys = Symbolic::build(&mech).expect("generates");
+        assert!(sys.unknowns.is_empty(), "{name} is explicit");
+        for scalar in [Scalar::F64, Scalar::F32] {
+            let module = module_in(&mech, &sys, name, scalar);
+            assert!(module.contains(marker), "{name}: {marker}");
+            helpers += module.matches("#[inline(never)]").count();
+            let file = format!("{name}_{}", scalar.name());
+            std::fs::write(dir.join(format!("src/{file}.rs")), module).expect("writable");
+            lib.push_str(&format!("pub mod {file};\n"));
+        }
     }
     assert!(helpers >= 100, "only {helpers} split helpers: the test no longer checks splitting");
     std::fs::write(dir.join("src/lib.rs"), lib).expect("writable");

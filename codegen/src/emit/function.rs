@@ -623,6 +623,11 @@ pub(super) fn emit_function(
         if !slot.is_empty() {
             let k = param("kept", reads_kept || !store.is_empty());
             item.sig.inputs.push(parse_quote!(#k: &mut [f64; #size]));
+            // A part of a function over q, q̇, q̈, t, the inputs and two arrays takes `kept`
+            // as an eighth argument: it is private, and called from one place.
+            if item.sig.inputs.len() > 7 {
+                item.attrs.push(parse_quote!(#[allow(clippy::too_many_arguments)]));
+            }
         }
         items.push(item_fn(item, f.stmts));
         calls.push(parse_quote!(#helper(#(#args),*);));

@@ -105,7 +105,7 @@ pub(super) fn mechanism_type(mech: &Mechanism, structured: Vec<syn::ImplItem>) -
             }
         },
         parse_quote! {
-            impl runtime::input::Driven<INPUTS> for #ty {
+            impl runtime::input::Driven<INPUTS, f64> for #ty {
                 fn segment(&self) -> &runtime::input::Segment<f64, INPUTS> {
                     &self.segment
                 }

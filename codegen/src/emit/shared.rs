@@ -63,6 +63,9 @@ pub(super) enum Array {
     Nu,
     /// γ, `gamma[r]`.
     Gamma,
+    /// The full coordinates of `expand`, `out.as_flattened_mut().as_flattened_mut()[k]` (k =
+    /// 21 b + 7 d + i for body b's coordinate i, d = 0, 1, 2 its value, rate, acceleration).
+    Out,
 }
 
 impl Array {
@@ -73,6 +76,7 @@ impl Array {
             Array::K => "k",
             Array::Nu => "nu",
             Array::Gamma => "gamma",
+            Array::Out => "out",
         }
     }
 }
@@ -372,6 +376,23 @@ impl Sharing {
         calls
     }
 
+    /// The calls of the shared functions alone, each `for m in 0..M` (see [`Sharing::calls_all`]).
+    pub(super) fn calls_shared(
+        &self,
+        name: &str,
+        args: &proc_macro2::TokenStream,
+    ) -> Vec<proc_macro2::TokenStream> {
+        let mut calls = Vec::new();
+        for (g, group) in self.groups.iter().enumerate() {
+            if let Some(s) = self.number[g] {
+                let f = ident(&format!("{name}_shared_{s}"));
+                let count = index(group.members.len());
+                calls.push(quote::quote!(for m in 0..#count { #f(m, #args); }));
+            }
+        }
+        calls
+    }
+
     /// The shared functions `name_shared_s` with their tables, for the signature `sig` (its
     /// targets among "phi", "jac" and "k"), each documented as doing `what` for its blocks.
     pub(super) fn items(&self, name: &str, sig: &Signature<'_>, what: &str) -> Vec<syn::Item> {
@@ -502,7 +523,7 @@ impl Group {
         let u_values: Vec<&[usize]> = self.instances.iter().map(|x| x.inputs.as_slice()).collect();
         let u = indexing(&u_values, &mut table);
         let mut outputs = Vec::new();
-        for array in [Array::Phi, Array::Jac, Array::K, Array::Nu, Array::Gamma] {
+        for array in [Array::Phi, Array::Jac, Array::K, Array::Nu, Array::Gamma, Array::Out] {
             let slots: Vec<usize> =
                 (0..self.outputs.len()).filter(|&o| self.outputs[o].0 == array).collect();
             if slots.is_empty() {
@@ -542,20 +563,24 @@ impl Group {
         let mut targets: Vec<Option<Expr>> = vec![None; self.outputs.len()];
         for (array, slots, indexing) in &outputs {
             let a = ident(array.name());
-            let whole = *array == Array::Jac;
+            // Φ_q's packed rows and `expand`'s bodies are written through their flat storage.
+            let flat: Option<Expr> = match array {
+                Array::Jac => Some(parse_quote!(#a.as_flattened_mut())),
+                Array::Out => Some(parse_quote!(#a.as_flattened_mut().as_flattened_mut())),
+                _ => None,
+            };
             let windowed = indexing.windows.len() == 1
                 && indexing.places.iter().all(|p| matches!(p, Place::Window { .. }));
-            match (windowed, indexing.windows.first()) {
-                (true, Some(&(c, w))) => {
+            match (windowed, indexing.windows.first(), &flat) {
+                (true, Some(&(c, w)), Some(flat)) => {
                     let (start, end) = (at(c, 0), at(c, w));
-                    if whole {
-                        stmts
-                            .push(parse_quote!(let #a = &mut #a.as_flattened_mut()[#start..#end];));
-                    } else {
-                        stmts.push(parse_quote!(let #a = &mut #a[#start..#end];));
-                    }
+                    stmts.push(parse_quote!(let #a = &mut #flat[#start..#end];));
                 }
-                _ if whole => stmts.push(parse_quote!(let #a = #a.as_flattened_mut();)),
+                (true, Some(&(c, w)), None) => {
+                    let (start, end) = (at(c, 0), at(c, w));
+                    stmts.push(parse_quote!(let #a = &mut #a[#start..#end];));
+                }
+                (_, _, Some(flat)) => stmts.push(parse_quote!(let #a = #flat;)),
                 _ => {}
             }
             for (&o, place) in slots.iter().zip(&indexing.places) {

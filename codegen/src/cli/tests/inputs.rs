@@ -28,7 +28,7 @@ fn input_drivers_without_inputs_are_invalid_input_naming_them_and_the_option() {
         out.contains("pub struct Inputs {")
             && out.contains("pub crank: runtime::input::Input<f64>,")
     );
-    assert!(out.contains("impl runtime::input::Driven<INPUTS> for FourBarInput"));
+    assert!(out.contains("impl runtime::input::Driven<INPUTS, f64> for FourBarInput"));
 }
 
 /// B of the four-bar at crank angle θ, closed form: A = (cos θ, sin θ) on the unit crank, B
