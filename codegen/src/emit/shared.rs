@@ -361,11 +361,7 @@ impl Sharing {
         let mut calls = Vec::new();
         for (b, of) in self.of.iter().enumerate() {
             match (self.shared(b), of) {
-                (Some((s, 0)), Some((g, _))) => {
-                    let f = ident(&format!("{name}_shared_{s}"));
-                    let count = index(self.groups[*g].members.len());
-                    calls.push(quote::quote!(for m in 0..#count { #f(m, #args); }));
-                }
+                (Some((s, 0)), Some((g, _))) => calls.push(self.loop_call(name, *g, s, args)),
                 (Some(_), _) => {}
                 (None, _) => {
                     let f = ident(&format!("{name}_{b}"));
@@ -382,15 +378,22 @@ impl Sharing {
         name: &str,
         args: &proc_macro2::TokenStream,
     ) -> Vec<proc_macro2::TokenStream> {
-        let mut calls = Vec::new();
-        for (g, group) in self.groups.iter().enumerate() {
-            if let Some(s) = self.number[g] {
-                let f = ident(&format!("{name}_shared_{s}"));
-                let count = index(group.members.len());
-                calls.push(quote::quote!(for m in 0..#count { #f(m, #args); }));
-            }
-        }
-        calls
+        (0..self.groups.len())
+            .filter_map(|g| Some(self.loop_call(name, g, self.number[g]?, args)))
+            .collect()
+    }
+
+    /// `for m in 0..M { name_shared_s(m, args); }` for group `g`, shared function `s`.
+    fn loop_call(
+        &self,
+        name: &str,
+        g: usize,
+        s: usize,
+        args: &proc_macro2::TokenStream,
+    ) -> proc_macro2::TokenStream {
+        let f = ident(&format!("{name}_shared_{s}"));
+        let count = index(self.groups[g].members.len());
+        quote::quote!(for m in 0..#count { #f(m, #args); })
     }
 
     /// The shared functions `name_shared_s` with their tables, for the signature `sig` (its
