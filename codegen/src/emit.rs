@@ -160,7 +160,7 @@ fn assemble(
         items.extend(right_hand_sides(&rows));
     }
     // The time terms, for static orders over the whole system (`time`).
-    let timed = if orders.is_empty() { None } else { time::items(&rows) };
+    let timed = if orders.is_empty() { None } else { time::items(&rows, &moving) };
     if let Some((functions, _)) = &timed {
         time::delegate(&mut items, functions);
         items.extend(functions.iter().cloned());
@@ -598,11 +598,9 @@ fn normalize(sys: &Symbolic) -> syn::Item {
     }
 }
 
-/// `expand`: the full coordinates of the moving bodies, with their rates and accelerations;
-/// split into helpers as [`emit_function`] splits when longer than [`CHUNK_OPS`] operations
-/// (the substituted coordinates of a long explicit chain).
-fn expand(sys: &Symbolic, moving: &[usize]) -> Vec<syn::Item> {
-    let n = sys.unknowns.len();
+/// What `expand` writes: the statements that copy unknowns and fixed values, and the outputs
+/// computed from driver laws and substituted coordinates (also `time::items`' `expand_at`).
+fn expand_outputs(sys: &Symbolic, moving: &[usize]) -> (Vec<syn::Stmt>, Vec<Output>) {
     let mut outputs: Vec<Output> = Vec::new();
     let mut direct: Vec<syn::Stmt> = Vec::new();
     for (slot, &b) in moving.iter().enumerate() {
@@ -638,6 +636,15 @@ fn expand(sys: &Symbolic, moving: &[usize]) -> Vec<syn::Item> {
             }
         }
     }
+    (direct, outputs)
+}
+
+/// `expand`: the full coordinates of the moving bodies, with their rates and accelerations;
+/// split into helpers as [`emit_function`] splits when longer than [`CHUNK_OPS`] operations
+/// (the substituted coordinates of a long explicit chain).
+fn expand(sys: &Symbolic, moving: &[usize]) -> Vec<syn::Item> {
+    let n = sys.unknowns.len();
+    let (direct, outputs) = expand_outputs(sys, moving);
     let whole: Vec<(Expr, ExprId, Option<usize>)> =
         outputs.iter().map(|o| (o.target.clone(), o.value, o.row)).collect();
     let f = function(&sys.pool, n, &whole);

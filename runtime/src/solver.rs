@@ -500,6 +500,15 @@ impl<M: Mechanism<N, R>, const N: usize, R: Real, J: BorrowMut<[[R; N]; N]>> Sol
         })
     }
 
+    /// The mechanism's time terms at `t` ([`Mechanism::TIME_TERMS`] values, see
+    /// [`Mechanism::time_terms`]) when the solver holds them: computed by the last
+    /// [`Solver::position`] at `t` (converged or not), for the mechanism as it is. A caller
+    /// passes them to [`Mechanism::expand_at`] rather than computing them again.
+    pub fn time_terms(&self, t: R) -> Option<&[R]> {
+        let held = M::TIME_TERMS > 0 && M::TIME_TERMS <= MAX_TIME_TERMS;
+        (held && self.terms_valid && self.terms_t == t).then(|| &self.terms[..M::TIME_TERMS])
+    }
+
     /// Chooses the rows to solve with at (q, t) from the whole stack ([`rows::select`]),
     /// forgetting the factors (the choice uses their storage); whether the choice changed.
     /// A stack that loses column rank keeps the rows in force.
