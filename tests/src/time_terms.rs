@@ -121,6 +121,10 @@ fn every_at_function_matches_its_plain_function_bit_for_bit() {
     same_as_plain("rotation_about_x", &rotation_about_x::RotationAboutX, &rotation_about_x::Q0);
 }
 
+/// A module's `expand` with N unknowns and B moving bodies.
+type Expand<const N: usize, const B: usize> =
+    fn(&[f64; N], &[f64; N], &[f64; N], f64, &mut [[[f64; 7]; 3]; B]);
+
 /// `expand_at` of `m` (through `runtime::Mechanism`, with the terms, without them, and into
 /// too short an array) against the module's `expand` at configurations and times spread
 /// around `q0`: the same values, bit for bit.
@@ -128,7 +132,7 @@ fn expand_same_as_plain<M: Mechanism<N>, const N: usize, const B: usize>(
     name: &str,
     m: &M,
     q0: &[f64; N],
-    expand: fn(&[f64; N], &[f64; N], &[f64; N], f64, &mut [[[f64; 7]; 3]; B]),
+    expand: Expand<N, B>,
 ) {
     assert!(B > 0, "{name}");
     for k in 0..50 {
