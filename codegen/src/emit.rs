@@ -160,7 +160,7 @@ fn assemble(
         items.extend(right_hand_sides(&rows));
     }
     // The time terms, for static orders over the whole system (`time`).
-    let timed = if orders.is_empty() { None } else { time::items(&rows) };
+    let timed = if orders.is_empty() { None } else { time::items(&rows, &moving) };
     if let Some((functions, _)) = &timed {
         time::delegate(&mut items, functions);
         items.extend(functions.iter().cloned());
@@ -599,11 +599,10 @@ fn normalize(sys: &Symbolic) -> syn::Item {
     }
 }
 
-/// `expand`: the full coordinates of the moving bodies, with their rates and accelerations;
-/// split into helpers as [`emit_function`] splits when longer than [`CHUNK_OPS`] operations
-/// (the substituted coordinates of a long explicit chain).
-fn expand(sys: &Symbolic, moving: &[usize]) -> Vec<syn::Item> {
-    let n = sys.unknowns.len();
+/// What `expand` writes: the statements that copy unknowns and fixed values, and the outputs
+/// computed from driver laws and substituted coordinates with their places in `out` flattened
+/// (also `time::items`' `expand_at`).
+fn expand_outputs(sys: &Symbolic, moving: &[usize]) -> (Vec<syn::Stmt>, Vec<Output>, Vec<usize>) {
     let mut outputs: Vec<Output> = Vec::new();
     // Each output's place in `out` flattened: 21 b + 7 d + i.
     let mut places: Vec<usize> = Vec::new();
@@ -643,6 +642,16 @@ fn expand(sys: &Symbolic, moving: &[usize]) -> Vec<syn::Item> {
             }
         }
     }
+    (direct, outputs, places)
+}
+
+/// `expand`: the full coordinates of the moving bodies, with their rates and accelerations;
+/// split into helpers as [`emit_function`] splits when longer than [`CHUNK_OPS`] operations
+/// (the substituted coordinates of a long explicit chain), or shared between groups of bodies
+/// alike ([`expand_shared`]).
+fn expand(sys: &Symbolic, moving: &[usize]) -> Vec<syn::Item> {
+    let n = sys.unknowns.len();
+    let (direct, outputs, places) = expand_outputs(sys, moving);
     if let Some(items) = expand_shared(sys, moving.len(), &outputs, &places, &direct) {
         return items;
     }

@@ -919,8 +919,8 @@ fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     {
         return None;
     }
-    let mut smallest = p0.abs().min(1.0);
-    let mut largest = p0.abs().max(1.0);
+    let mut smallest = if p0.abs() < 1.0 { p0.abs() } else { 1.0 };
+    let mut largest = if p0.abs() > 1.0 { p0.abs() } else { 1.0 };
     let u6_7 = jac[2][1] - l6_0 * jac[13][1];
     jac[2][1] = u6_7;
     let p7 = jac[3][1] - l7_0 * jac[13][1];
@@ -935,8 +935,8 @@ fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     {
         return None;
     }
-    smallest = smallest.min(p7.abs());
-    largest = largest.max(p7.abs());
+    smallest = if p7.abs() < smallest { p7.abs() } else { smallest };
+    largest = if p7.abs() > largest { p7.abs() } else { largest };
     let p8 = jac[15][12];
     let d8 = 1.0 / p8;
     jac[15][12] = d8;
@@ -958,8 +958,8 @@ fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     {
         return None;
     }
-    smallest = smallest.min(p8.abs());
-    largest = largest.max(p8.abs());
+    smallest = if p8.abs() < smallest { p8.abs() } else { smallest };
+    largest = if p8.abs() > largest { p8.abs() } else { largest };
     let p9 = jac[14][5];
     let d9 = 1.0 / p9;
     jac[14][5] = d9;
@@ -984,8 +984,8 @@ fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     {
         return None;
     }
-    smallest = smallest.min(p9.abs());
-    largest = largest.max(p9.abs());
+    smallest = if p9.abs() < smallest { p9.abs() } else { smallest };
+    largest = if p9.abs() > largest { p9.abs() } else { largest };
     let u10_11 = jac[4][7] - l10_7 * jac[3][7] - l10_9 * jac[14][7];
     jac[4][7] = u10_11;
     let u10_12 = jac[4][8] - l10_7 * jac[3][8] - l10_9 * jac[14][8];
@@ -1011,8 +1011,8 @@ fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     {
         return None;
     }
-    smallest = smallest.min(p10.abs());
-    largest = largest.max(p10.abs());
+    smallest = if p10.abs() < smallest { p10.abs() } else { smallest };
+    largest = if p10.abs() > largest { p10.abs() } else { largest };
     let u11_12 = jac[7][8] + jac[2][8] - l11_7 * jac[3][8] - l11_9 * jac[14][8]
         - l11_10 * u10_12;
     jac[7][8] = u11_12;
@@ -1041,8 +1041,8 @@ fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     {
         return None;
     }
-    smallest = smallest.min(p11.abs());
-    largest = largest.max(p11.abs());
+    smallest = if p11.abs() < smallest { p11.abs() } else { smallest };
+    largest = if p11.abs() > largest { p11.abs() } else { largest };
     let u12_13 = jac[6][13] - jac[11][13] - l12_8 * jac[15][13] - l12_11 * u11_13;
     jac[6][13] = u12_13;
     let u12_14 = jac[6][14] - jac[11][14] - l12_8 * jac[15][14] - l12_11 * u11_14;
@@ -1068,8 +1068,8 @@ fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     {
         return None;
     }
-    smallest = smallest.min(p12.abs());
-    largest = largest.max(p12.abs());
+    smallest = if p12.abs() < smallest { p12.abs() } else { smallest };
+    largest = if p12.abs() > largest { p12.abs() } else { largest };
     let u13_14 = jac[9][14] - l13_8 * jac[15][14] - l13_11 * u11_14 - l13_12 * u12_14;
     jac[9][14] = u13_14;
     let u13_15 = jac[9][15] - l13_8 * jac[15][15] - l13_11 * u11_15 - l13_12 * u12_15;
@@ -1088,8 +1088,8 @@ fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     {
         return None;
     }
-    smallest = smallest.min(p13.abs());
-    largest = largest.max(p13.abs());
+    smallest = if p13.abs() < smallest { p13.abs() } else { smallest };
+    largest = if p13.abs() > largest { p13.abs() } else { largest };
     let u14_15 = jac[5][15] - jac[10][15] - l14_8 * jac[15][15] - l14_11 * u11_15
         - l14_12 * u12_15 - l14_13 * u13_15;
     jac[5][15] = u14_15;
@@ -1103,8 +1103,8 @@ fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     if !(p14.is_finite() && l15_14.abs() <= runtime::lu::MAX_MULTIPLIER) {
         return None;
     }
-    smallest = smallest.min(p14.abs());
-    largest = largest.max(p14.abs());
+    smallest = if p14.abs() < smallest { p14.abs() } else { smallest };
+    largest = if p14.abs() > largest { p14.abs() } else { largest };
     let p15 = jac[8][15] - l15_8 * jac[15][15] - l15_11 * u11_15 - l15_12 * u12_15
         - l15_13 * u13_15 - l15_14 * u14_15;
     let d15 = 1.0 / p15;
@@ -1112,8 +1112,8 @@ fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     if !p15.is_finite() {
         return None;
     }
-    smallest = smallest.min(p15.abs());
-    largest = largest.max(p15.abs());
+    smallest = if p15.abs() < smallest { p15.abs() } else { smallest };
+    largest = if p15.abs() > largest { p15.abs() } else { largest };
     Some(runtime::lu::PivotInfo {
         smallest,
         largest,

@@ -299,16 +299,16 @@ fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     if !(p1.is_finite() && l2_1.abs() <= runtime::lu::MAX_MULTIPLIER) {
         return None;
     }
-    smallest = smallest.min(p1.abs());
-    largest = largest.max(p1.abs());
+    smallest = if p1.abs() < smallest { p1.abs() } else { smallest };
+    largest = if p1.abs() > largest { p1.abs() } else { largest };
     let p2 = jac[0][2] - l2_1 * jac[2][2];
     let d2 = 1.0 / p2;
     jac[0][2] = d2;
     if !p2.is_finite() {
         return None;
     }
-    smallest = smallest.min(p2.abs());
-    largest = largest.max(p2.abs());
+    smallest = if p2.abs() < smallest { p2.abs() } else { smallest };
+    largest = if p2.abs() > largest { p2.abs() } else { largest };
     Some(runtime::lu::PivotInfo {
         smallest,
         largest,

@@ -652,8 +652,8 @@ fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     {
         return None;
     }
-    let mut smallest = p6.abs().min(1.0);
-    let mut largest = p6.abs().max(1.0);
+    let mut smallest = if p6.abs() < 1.0 { p6.abs() } else { 1.0 };
+    let mut largest = if p6.abs() > 1.0 { p6.abs() } else { 1.0 };
     let u7_8 = jac[4][3] + jac[0][3] - l7_6 * u6_8;
     jac[4][3] = u7_8;
     let u7_9 = jac[4][4] + jac[0][4] - l7_6 * u6_9;
@@ -670,8 +670,8 @@ fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     if !(p7.is_finite() && l11_7.abs() <= runtime::lu::MAX_MULTIPLIER) {
         return None;
     }
-    smallest = smallest.min(p7.abs());
-    largest = largest.max(p7.abs());
+    smallest = if p7.abs() < smallest { p7.abs() } else { smallest };
+    largest = if p7.abs() > largest { p7.abs() } else { largest };
     let p8 = jac[10][3];
     let d8 = 1.0 / p8;
     jac[10][3] = d8;
@@ -687,8 +687,8 @@ fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     {
         return None;
     }
-    smallest = smallest.min(p8.abs());
-    largest = largest.max(p8.abs());
+    smallest = if p8.abs() < smallest { p8.abs() } else { smallest };
+    largest = if p8.abs() > largest { p8.abs() } else { largest };
     let u9_10 = jac[6][5] + jac[2][5] - l9_8 * jac[10][5];
     jac[6][5] = u9_10;
     let u9_11 = jac[6][6] + jac[2][6] - l9_8 * jac[10][6];
@@ -705,8 +705,8 @@ fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     {
         return None;
     }
-    smallest = smallest.min(p9.abs());
-    largest = largest.max(p9.abs());
+    smallest = if p9.abs() < smallest { p9.abs() } else { smallest };
+    largest = if p9.abs() > largest { p9.abs() } else { largest };
     let u10_11 = jac[3][6] - l10_8 * jac[10][6] - l10_9 * u9_11;
     jac[3][6] = u10_11;
     let p10 = jac[3][5] - l10_8 * jac[10][5] - l10_9 * u9_10;
@@ -718,8 +718,8 @@ fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     if !(p10.is_finite() && l11_10.abs() <= runtime::lu::MAX_MULTIPLIER) {
         return None;
     }
-    smallest = smallest.min(p10.abs());
-    largest = largest.max(p10.abs());
+    smallest = if p10.abs() < smallest { p10.abs() } else { smallest };
+    largest = if p10.abs() > largest { p10.abs() } else { largest };
     let p11 = -(l11_6 * u6_11) - l11_7 * u7_11 - l11_8 * jac[10][6] - l11_9 * u9_11
         - l11_10 * u10_11;
     let d11 = 1.0 / p11;
@@ -727,8 +727,8 @@ fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     if !p11.is_finite() {
         return None;
     }
-    smallest = smallest.min(p11.abs());
-    largest = largest.max(p11.abs());
+    smallest = if p11.abs() < smallest { p11.abs() } else { smallest };
+    largest = if p11.abs() > largest { p11.abs() } else { largest };
     Some(runtime::lu::PivotInfo {
         smallest,
         largest,

@@ -351,8 +351,8 @@ fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     {
         return None;
     }
-    smallest = smallest.min(p1.abs());
-    largest = largest.max(p1.abs());
+    smallest = if p1.abs() < smallest { p1.abs() } else { smallest };
+    largest = if p1.abs() > largest { p1.abs() } else { largest };
     let u2_3 = jac[2][3] - l2_0 * jac[3][3] - l2_1 * u1_3;
     jac[2][3] = u2_3;
     let p2 = jac[2][2] - l2_0 * jac[3][2] - l2_1 * u1_2;
@@ -363,16 +363,16 @@ fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     if !(p2.is_finite() && l3_2.abs() <= runtime::lu::MAX_MULTIPLIER) {
         return None;
     }
-    smallest = smallest.min(p2.abs());
-    largest = largest.max(p2.abs());
+    smallest = if p2.abs() < smallest { p2.abs() } else { smallest };
+    largest = if p2.abs() > largest { p2.abs() } else { largest };
     let p3 = jac[0][3] - l3_0 * jac[3][3] - l3_1 * u1_3 - l3_2 * u2_3;
     let d3 = 1.0 / p3;
     jac[0][3] = d3;
     if !p3.is_finite() {
         return None;
     }
-    smallest = smallest.min(p3.abs());
-    largest = largest.max(p3.abs());
+    smallest = if p3.abs() < smallest { p3.abs() } else { smallest };
+    largest = if p3.abs() > largest { p3.abs() } else { largest };
     Some(runtime::lu::PivotInfo {
         smallest,
         largest,

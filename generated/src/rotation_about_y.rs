@@ -266,8 +266,8 @@ fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     if !p1.is_finite() {
         return None;
     }
-    smallest = smallest.min(p1.abs());
-    largest = largest.max(p1.abs());
+    smallest = if p1.abs() < smallest { p1.abs() } else { smallest };
+    largest = if p1.abs() > largest { p1.abs() } else { largest };
     Some(runtime::lu::PivotInfo {
         smallest,
         largest,
@@ -309,8 +309,8 @@ fn factor_1(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     if !p1.is_finite() {
         return None;
     }
-    smallest = smallest.min(p1.abs());
-    largest = largest.max(p1.abs());
+    smallest = if p1.abs() < smallest { p1.abs() } else { smallest };
+    largest = if p1.abs() > largest { p1.abs() } else { largest };
     Some(runtime::lu::PivotInfo {
         smallest,
         largest,

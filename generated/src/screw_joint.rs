@@ -327,8 +327,8 @@ fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     {
         return None;
     }
-    smallest = smallest.min(p1.abs());
-    largest = largest.max(p1.abs());
+    smallest = if p1.abs() < smallest { p1.abs() } else { smallest };
+    largest = if p1.abs() > largest { p1.abs() } else { largest };
     let p2 = jac[4][1] - l2_1 * jac[3][1];
     let d2 = 1.0 / p2;
     jac[4][1] = d2;
@@ -341,8 +341,8 @@ fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     {
         return None;
     }
-    smallest = smallest.min(p2.abs());
-    largest = largest.max(p2.abs());
+    smallest = if p2.abs() < smallest { p2.abs() } else { smallest };
+    largest = if p2.abs() > largest { p2.abs() } else { largest };
     let u3_4 = jac[1][4] - l3_2 * jac[4][4];
     jac[1][4] = u3_4;
     let p3 = jac[1][2] - l3_2 * jac[4][2];
@@ -353,16 +353,16 @@ fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     if !(p3.is_finite() && l4_3.abs() <= runtime::lu::MAX_MULTIPLIER) {
         return None;
     }
-    smallest = smallest.min(p3.abs());
-    largest = largest.max(p3.abs());
+    smallest = if p3.abs() < smallest { p3.abs() } else { smallest };
+    largest = if p3.abs() > largest { p3.abs() } else { largest };
     let p4 = jac[0][4] - l4_2 * jac[4][4] - l4_3 * u3_4;
     let d4 = 1.0 / p4;
     jac[0][4] = d4;
     if !p4.is_finite() {
         return None;
     }
-    smallest = smallest.min(p4.abs());
-    largest = largest.max(p4.abs());
+    smallest = if p4.abs() < smallest { p4.abs() } else { smallest };
+    largest = if p4.abs() > largest { p4.abs() } else { largest };
     Some(runtime::lu::PivotInfo {
         smallest,
         largest,
@@ -421,8 +421,8 @@ fn factor_1(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     {
         return None;
     }
-    smallest = smallest.min(p1.abs());
-    largest = largest.max(p1.abs());
+    smallest = if p1.abs() < smallest { p1.abs() } else { smallest };
+    largest = if p1.abs() > largest { p1.abs() } else { largest };
     let u2_3 = jac[0][3] - l2_1 * jac[3][3];
     jac[0][3] = u2_3;
     let p2 = jac[0][2];
@@ -437,8 +437,8 @@ fn factor_1(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     {
         return None;
     }
-    smallest = smallest.min(p2.abs());
-    largest = largest.max(p2.abs());
+    smallest = if p2.abs() < smallest { p2.abs() } else { smallest };
+    largest = if p2.abs() > largest { p2.abs() } else { largest };
     let u3_4 = jac[4][4] - l3_2 * jac[0][4];
     jac[4][4] = u3_4;
     let p3 = jac[4][3] - l3_1 * jac[3][3] - l3_2 * u2_3;
@@ -449,16 +449,16 @@ fn factor_1(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     if !(p3.is_finite() && l4_3.abs() <= runtime::lu::MAX_MULTIPLIER) {
         return None;
     }
-    smallest = smallest.min(p3.abs());
-    largest = largest.max(p3.abs());
+    smallest = if p3.abs() < smallest { p3.abs() } else { smallest };
+    largest = if p3.abs() > largest { p3.abs() } else { largest };
     let p4 = jac[1][4] - l4_2 * jac[0][4] - l4_3 * u3_4;
     let d4 = 1.0 / p4;
     jac[1][4] = d4;
     if !p4.is_finite() {
         return None;
     }
-    smallest = smallest.min(p4.abs());
-    largest = largest.max(p4.abs());
+    smallest = if p4.abs() < smallest { p4.abs() } else { smallest };
+    largest = if p4.abs() > largest { p4.abs() } else { largest };
     Some(runtime::lu::PivotInfo {
         smallest,
         largest,

@@ -741,8 +741,8 @@ fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     {
         return None;
     }
-    let mut smallest = p6.abs().min(1.0);
-    let mut largest = p6.abs().max(1.0);
+    let mut smallest = if p6.abs() < 1.0 { p6.abs() } else { 1.0 };
+    let mut largest = if p6.abs() > 1.0 { p6.abs() } else { 1.0 };
     let u7_8 = jac[3][4] + jac[0][4] - l7_6 * jac[18][4];
     jac[3][4] = u7_8;
     let u7_9 = jac[3][6] + jac[0][6] - l7_6 * jac[18][6];
@@ -765,8 +765,8 @@ fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     {
         return None;
     }
-    smallest = smallest.min(p7.abs());
-    largest = largest.max(p7.abs());
+    smallest = if p7.abs() < smallest { p7.abs() } else { smallest };
+    largest = if p7.abs() > largest { p7.abs() } else { largest };
     let u8_9 = jac[7][6] - l8_6 * jac[18][6] - l8_7 * u7_9;
     jac[7][6] = u8_9;
     let u8_14 = -l8_7;
@@ -788,8 +788,8 @@ fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     {
         return None;
     }
-    smallest = smallest.min(p8.abs());
-    largest = largest.max(p8.abs());
+    smallest = if p8.abs() < smallest { p8.abs() } else { smallest };
+    largest = if p8.abs() > largest { p8.abs() } else { largest };
     let u9_10 = jac[6][10] - l9_8 * jac[7][10];
     jac[6][10] = u9_10;
     let u9_11 = jac[6][12] - l9_8 * jac[7][12];
@@ -814,8 +814,8 @@ fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     {
         return None;
     }
-    smallest = smallest.min(p9.abs());
-    largest = largest.max(p9.abs());
+    smallest = if p9.abs() < smallest { p9.abs() } else { smallest };
+    largest = if p9.abs() > largest { p9.abs() } else { largest };
     let p10 = jac[19][10];
     let d10 = 1.0 / p10;
     jac[19][10] = d10;
@@ -834,8 +834,8 @@ fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     {
         return None;
     }
-    smallest = smallest.min(p10.abs());
-    largest = largest.max(p10.abs());
+    smallest = if p10.abs() < smallest { p10.abs() } else { smallest };
+    largest = if p10.abs() > largest { p10.abs() } else { largest };
     let u11_12 = jac[9][13] - l11_10 * jac[19][13];
     jac[9][13] = u11_12;
     let u11_13 = jac[9][11] - l11_10 * jac[19][11];
@@ -857,8 +857,8 @@ fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     {
         return None;
     }
-    smallest = smallest.min(p11.abs());
-    largest = largest.max(p11.abs());
+    smallest = if p11.abs() < smallest { p11.abs() } else { smallest };
+    largest = if p11.abs() > largest { p11.abs() } else { largest };
     let u12_13 = jac[8][11] - l12_10 * jac[19][11] - l12_11 * u11_13;
     jac[8][11] = u12_13;
     let u12_17 = jac[8][17] - l12_11 * jac[9][17];
@@ -883,8 +883,8 @@ fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     {
         return None;
     }
-    smallest = smallest.min(p12.abs());
-    largest = largest.max(p12.abs());
+    smallest = if p12.abs() < smallest { p12.abs() } else { smallest };
+    largest = if p12.abs() > largest { p12.abs() } else { largest };
     let u13_14 = jac[10][14] + jac[10][7] - l13_7 - l13_8 * u8_14 - l13_9 * u9_14;
     jac[10][14] = u13_14;
     let u13_17 = jac[10][17] - l13_11 * jac[9][17] - l13_12 * u12_17;
@@ -905,8 +905,8 @@ fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     if !(p13.is_finite() && l14_13.abs() <= runtime::lu::MAX_MULTIPLIER) {
         return None;
     }
-    smallest = smallest.min(p13.abs());
-    largest = largest.max(p13.abs());
+    smallest = if p13.abs() < smallest { p13.abs() } else { smallest };
+    largest = if p13.abs() > largest { p13.abs() } else { largest };
     let u14_15 = jac[11][15] - l14_13 * jac[10][15];
     jac[11][15] = u14_15;
     let u14_16 = jac[11][16] - l14_13 * jac[10][16];
@@ -932,8 +932,8 @@ fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     {
         return None;
     }
-    smallest = smallest.min(p14.abs());
-    largest = largest.max(p14.abs());
+    smallest = if p14.abs() < smallest { p14.abs() } else { smallest };
+    largest = if p14.abs() > largest { p14.abs() } else { largest };
     let u15_16 = jac[14][16] - l15_14 * u14_16;
     jac[14][16] = u15_16;
     let u15_17 = jac[14][17] - l15_14 * u14_17;
@@ -952,8 +952,8 @@ fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     if !(p15.is_finite() && l16_15.abs() <= runtime::lu::MAX_MULTIPLIER) {
         return None;
     }
-    smallest = smallest.min(p15.abs());
-    largest = largest.max(p15.abs());
+    smallest = if p15.abs() < smallest { p15.abs() } else { smallest };
+    largest = if p15.abs() > largest { p15.abs() } else { largest };
     let u16_17 = jac[15][17] - l16_14 * u14_17 - l16_15 * u15_17;
     jac[15][17] = u16_17;
     let u16_18 = jac[15][18] - l16_14 * u14_18 - l16_15 * u15_18;
@@ -968,8 +968,8 @@ fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     if !p16.is_finite() {
         return None;
     }
-    smallest = smallest.min(p16.abs());
-    largest = largest.max(p16.abs());
+    smallest = if p16.abs() < smallest { p16.abs() } else { smallest };
+    largest = if p16.abs() > largest { p16.abs() } else { largest };
     let p17 = jac[20][17];
     let d17 = 1.0 / p17;
     jac[20][17] = d17;
@@ -985,8 +985,8 @@ fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     {
         return None;
     }
-    smallest = smallest.min(p17.abs());
-    largest = largest.max(p17.abs());
+    smallest = if p17.abs() < smallest { p17.abs() } else { smallest };
+    largest = if p17.abs() > largest { p17.abs() } else { largest };
     let u18_19 = jac[16][19] - l18_17 * jac[20][19];
     jac[16][19] = u18_19;
     let u18_20 = jac[16][20] - l18_17 * jac[20][20];
@@ -1003,8 +1003,8 @@ fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     {
         return None;
     }
-    smallest = smallest.min(p18.abs());
-    largest = largest.max(p18.abs());
+    smallest = if p18.abs() < smallest { p18.abs() } else { smallest };
+    largest = if p18.abs() > largest { p18.abs() } else { largest };
     let u19_20 = jac[13][20] - l19_17 * jac[20][20] - l19_18 * u18_20;
     jac[13][20] = u19_20;
     let p19 = jac[13][19] - l19_17 * jac[20][19] - l19_18 * u18_19;
@@ -1015,16 +1015,16 @@ fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     if !(p19.is_finite() && l20_19.abs() <= runtime::lu::MAX_MULTIPLIER) {
         return None;
     }
-    smallest = smallest.min(p19.abs());
-    largest = largest.max(p19.abs());
+    smallest = if p19.abs() < smallest { p19.abs() } else { smallest };
+    largest = if p19.abs() > largest { p19.abs() } else { largest };
     let p20 = jac[12][20] - l20_17 * jac[20][20] - l20_18 * u18_20 - l20_19 * u19_20;
     let d20 = 1.0 / p20;
     jac[12][20] = d20;
     if !p20.is_finite() {
         return None;
     }
-    smallest = smallest.min(p20.abs());
-    largest = largest.max(p20.abs());
+    smallest = if p20.abs() < smallest { p20.abs() } else { smallest };
+    largest = if p20.abs() > largest { p20.abs() } else { largest };
     Some(runtime::lu::PivotInfo {
         smallest,
         largest,
@@ -1174,8 +1174,8 @@ fn factor_1(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     {
         return None;
     }
-    let mut smallest = p6.abs().min(1.0);
-    let mut largest = p6.abs().max(1.0);
+    let mut smallest = if p6.abs() < 1.0 { p6.abs() } else { 1.0 };
+    let mut largest = if p6.abs() > 1.0 { p6.abs() } else { 1.0 };
     let u7_11 = jac[3][4] + jac[0][4] - l7_6 * jac[18][4];
     jac[3][4] = u7_11;
     let u7_12 = jac[3][5] + jac[0][5] - l7_6 * jac[18][5];
@@ -1217,8 +1217,8 @@ fn factor_1(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     {
         return None;
     }
-    smallest = smallest.min(p8.abs());
-    largest = largest.max(p8.abs());
+    smallest = if p8.abs() < smallest { p8.abs() } else { smallest };
+    largest = if p8.abs() > largest { p8.abs() } else { largest };
     let u9_11 = -(jac[14][14] * u7_11);
     jac[14][4] = u9_11;
     let u9_12 = -(jac[14][14] * u7_12);
@@ -1240,8 +1240,8 @@ fn factor_1(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     {
         return None;
     }
-    smallest = smallest.min(p9.abs());
-    largest = largest.max(p9.abs());
+    smallest = if p9.abs() < smallest { p9.abs() } else { smallest };
+    largest = if p9.abs() > largest { p9.abs() } else { largest };
     let u10_11 = -(jac[15][14] * u7_11) - l10_9 * u9_11;
     jac[15][4] = u10_11;
     let u10_12 = -(jac[15][14] * u7_12) - l10_9 * u9_12;
@@ -1268,8 +1268,8 @@ fn factor_1(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     {
         return None;
     }
-    smallest = smallest.min(p10.abs());
-    largest = largest.max(p10.abs());
+    smallest = if p10.abs() < smallest { p10.abs() } else { smallest };
+    largest = if p10.abs() > largest { p10.abs() } else { largest };
     let u11_12 = jac[7][5] - l11_6 * jac[18][5];
     jac[7][5] = u11_12;
     let u11_13 = jac[7][6] - l11_6 * jac[18][6];
@@ -1297,8 +1297,8 @@ fn factor_1(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     {
         return None;
     }
-    smallest = smallest.min(p11.abs());
-    largest = largest.max(p11.abs());
+    smallest = if p11.abs() < smallest { p11.abs() } else { smallest };
+    largest = if p11.abs() > largest { p11.abs() } else { largest };
     let u12_13 = jac[6][6] - l12_6 * jac[18][6] - l12_11 * u11_13;
     jac[6][6] = u12_13;
     let u12_14 = jac[6][11] - l12_8 * jac[19][11] - l12_11 * u11_14;
@@ -1321,8 +1321,8 @@ fn factor_1(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     {
         return None;
     }
-    smallest = smallest.min(p12.abs());
-    largest = largest.max(p12.abs());
+    smallest = if p12.abs() < smallest { p12.abs() } else { smallest };
+    largest = if p12.abs() > largest { p12.abs() } else { largest };
     let u13_14 = jac[11][11] - l13_8 * jac[19][11] - l13_11 * u11_14 - l13_12 * u12_14;
     jac[11][11] = u13_14;
     let u13_15 = jac[11][12] - l13_8 * jac[19][12] - l13_11 * u11_15 - l13_12 * u12_15;
@@ -1349,8 +1349,8 @@ fn factor_1(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     if !(p13.is_finite() && l14_13.abs() <= runtime::lu::MAX_MULTIPLIER) {
         return None;
     }
-    smallest = smallest.min(p13.abs());
-    largest = largest.max(p13.abs());
+    smallest = if p13.abs() < smallest { p13.abs() } else { smallest };
+    largest = if p13.abs() > largest { p13.abs() } else { largest };
     let u14_15 = jac[10][12] - l14_8 * jac[19][12] - l14_11 * u11_15 - l14_12 * u12_15
         - l14_13 * u13_15;
     jac[10][12] = u14_15;
@@ -1378,8 +1378,8 @@ fn factor_1(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     {
         return None;
     }
-    smallest = smallest.min(p14.abs());
-    largest = largest.max(p14.abs());
+    smallest = if p14.abs() < smallest { p14.abs() } else { smallest };
+    largest = if p14.abs() > largest { p14.abs() } else { largest };
     let u15_16 = jac[9][13] - l15_8 * jac[19][13] - l15_14 * u14_16;
     jac[9][13] = u15_16;
     let u15_17 = jac[9][17] - l15_14 * u14_17;
@@ -1398,8 +1398,8 @@ fn factor_1(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     if !(p15.is_finite() && l16_15.abs() <= runtime::lu::MAX_MULTIPLIER) {
         return None;
     }
-    smallest = smallest.min(p15.abs());
-    largest = largest.max(p15.abs());
+    smallest = if p15.abs() < smallest { p15.abs() } else { smallest };
+    largest = if p15.abs() > largest { p15.abs() } else { largest };
     let u16_17 = jac[8][17] - l16_14 * u14_17 - l16_15 * u15_17;
     jac[8][17] = u16_17;
     let u16_18 = jac[8][18] - l16_14 * u14_18 - l16_15 * u15_18;
@@ -1414,8 +1414,8 @@ fn factor_1(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     if !p16.is_finite() {
         return None;
     }
-    smallest = smallest.min(p16.abs());
-    largest = largest.max(p16.abs());
+    smallest = if p16.abs() < smallest { p16.abs() } else { smallest };
+    largest = if p16.abs() > largest { p16.abs() } else { largest };
     let p17 = jac[20][17];
     let d17 = 1.0 / p17;
     jac[20][17] = d17;
@@ -1431,8 +1431,8 @@ fn factor_1(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     {
         return None;
     }
-    smallest = smallest.min(p17.abs());
-    largest = largest.max(p17.abs());
+    smallest = if p17.abs() < smallest { p17.abs() } else { smallest };
+    largest = if p17.abs() > largest { p17.abs() } else { largest };
     let u18_19 = jac[16][19] - l18_17 * jac[20][19];
     jac[16][19] = u18_19;
     let u18_20 = jac[16][20] - l18_17 * jac[20][20];
@@ -1449,8 +1449,8 @@ fn factor_1(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     {
         return None;
     }
-    smallest = smallest.min(p18.abs());
-    largest = largest.max(p18.abs());
+    smallest = if p18.abs() < smallest { p18.abs() } else { smallest };
+    largest = if p18.abs() > largest { p18.abs() } else { largest };
     let u19_20 = jac[13][20] - l19_17 * jac[20][20] - l19_18 * u18_20;
     jac[13][20] = u19_20;
     let p19 = jac[13][19] - l19_17 * jac[20][19] - l19_18 * u18_19;
@@ -1461,16 +1461,16 @@ fn factor_1(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     if !(p19.is_finite() && l20_19.abs() <= runtime::lu::MAX_MULTIPLIER) {
         return None;
     }
-    smallest = smallest.min(p19.abs());
-    largest = largest.max(p19.abs());
+    smallest = if p19.abs() < smallest { p19.abs() } else { smallest };
+    largest = if p19.abs() > largest { p19.abs() } else { largest };
     let p20 = jac[12][20] - l20_17 * jac[20][20] - l20_18 * u18_20 - l20_19 * u19_20;
     let d20 = 1.0 / p20;
     jac[12][20] = d20;
     if !p20.is_finite() {
         return None;
     }
-    smallest = smallest.min(p20.abs());
-    largest = largest.max(p20.abs());
+    smallest = if p20.abs() < smallest { p20.abs() } else { smallest };
+    largest = if p20.abs() > largest { p20.abs() } else { largest };
     Some(runtime::lu::PivotInfo {
         smallest,
         largest,
@@ -2412,6 +2412,103 @@ pub fn acceleration_rhs_at(
     gamma[20] = -(t107 + (t111 + t143));
 }
 
+/// [`expand`] reading the time terms at t from `terms` ([`time_terms`]): the same values, bit for bit.
+///
+/// 7 operations, 0 shared subexpressions.
+pub fn expand_at(
+    q: &[f64; N],
+    qd: &[f64; N],
+    qdd: &[f64; N],
+    _t: f64,
+    terms: &[f64; TIME_TERMS],
+    out: &mut [[[f64; 7]; 3]; BODIES],
+) {
+    out[1][0][0] = q[0];
+    out[1][1][0] = qd[0];
+    out[1][2][0] = qdd[0];
+    out[1][0][1] = q[1];
+    out[1][1][1] = qd[1];
+    out[1][2][1] = qdd[1];
+    out[1][0][2] = q[2];
+    out[1][1][2] = qd[2];
+    out[1][2][2] = qdd[2];
+    out[1][0][3] = q[3];
+    out[1][1][3] = qd[3];
+    out[1][2][3] = qdd[3];
+    out[1][0][4] = q[4];
+    out[1][1][4] = qd[4];
+    out[1][2][4] = qdd[4];
+    out[1][0][5] = q[5];
+    out[1][1][5] = qd[5];
+    out[1][2][5] = qdd[5];
+    out[1][0][6] = q[6];
+    out[1][1][6] = qd[6];
+    out[1][2][6] = qdd[6];
+    out[2][0][0] = q[7];
+    out[2][1][0] = qd[7];
+    out[2][2][0] = qdd[7];
+    out[2][0][1] = q[8];
+    out[2][1][1] = qd[8];
+    out[2][2][1] = qdd[8];
+    out[2][0][2] = q[9];
+    out[2][1][2] = qd[9];
+    out[2][2][2] = qdd[9];
+    out[2][0][3] = q[10];
+    out[2][1][3] = qd[10];
+    out[2][2][3] = qdd[10];
+    out[2][0][4] = q[11];
+    out[2][1][4] = qd[11];
+    out[2][2][4] = qdd[11];
+    out[2][0][5] = q[12];
+    out[2][1][5] = qd[12];
+    out[2][2][5] = qdd[12];
+    out[2][0][6] = q[13];
+    out[2][1][6] = qd[13];
+    out[2][2][6] = qdd[13];
+    out[3][0][0] = q[14];
+    out[3][1][0] = qd[14];
+    out[3][2][0] = qdd[14];
+    out[3][0][1] = q[15];
+    out[3][1][1] = qd[15];
+    out[3][2][1] = qdd[15];
+    out[3][0][2] = q[16];
+    out[3][1][2] = qd[16];
+    out[3][2][2] = qdd[16];
+    out[3][0][3] = q[17];
+    out[3][1][3] = qd[17];
+    out[3][2][3] = qdd[17];
+    out[3][0][4] = q[18];
+    out[3][1][4] = qd[18];
+    out[3][2][4] = qdd[18];
+    out[3][0][5] = q[19];
+    out[3][1][5] = qd[19];
+    out[3][2][5] = qdd[19];
+    out[3][0][6] = q[20];
+    out[3][1][6] = qd[20];
+    out[3][2][6] = qdd[20];
+    out[0][0][0] = 0.0;
+    out[0][1][0] = 0.0;
+    out[0][2][0] = 0.0;
+    out[0][0][1] = 0.1;
+    out[0][1][1] = 0.0;
+    out[0][2][1] = 0.0;
+    out[0][0][2] = 0.12;
+    out[0][1][2] = 0.0;
+    out[0][2][2] = 0.0;
+    out[0][0][3] = terms[1];
+    out[0][1][3] = -(-f64::from_bits(4614256656431372362) * terms[0]);
+    out[0][2][3] = -(9.86960406437476 * terms[1]);
+    out[0][0][4] = terms[0];
+    out[0][1][4] = -f64::from_bits(4614256656431372362) * terms[1];
+    out[0][2][4] = -(9.86960406437476 * terms[0]);
+    out[0][0][5] = 0.0;
+    out[0][1][5] = 0.0;
+    out[0][2][5] = 0.0;
+    out[0][0][6] = 0.0;
+    out[0][1][6] = 0.0;
+    out[0][2][6] = 0.0;
+}
+
 /// Rescales the unknown Euler parameters of each body so that |p| = 1 (the fixed
 /// ones keep their values).
 pub fn normalize(q: &mut [f64; N]) {
@@ -3008,6 +3105,24 @@ impl runtime::Mechanism<N> for SliderCrank5body {
             Some(terms) => acceleration_rhs_at(q, qd, t, terms, gamma),
             None => acceleration_rhs(q, qd, t, gamma),
         }
+    }
+    fn expand_at(
+        &self,
+        q: &[f64; N],
+        qd: &[f64; N],
+        qdd: &[f64; N],
+        t: f64,
+        terms: &[f64],
+        out: &mut [[[f64; 7]; 3]],
+    ) -> bool {
+        let Some(out) = out.first_chunk_mut() else {
+            return false;
+        };
+        match terms.first_chunk() {
+            Some(terms) => expand_at(q, qd, qdd, t, terms, out),
+            None => expand(q, qd, qdd, t, out),
+        }
+        true
     }
     fn normalize_moved(&self, q: &mut [f64; N]) -> bool {
         normalize_moved(q)

@@ -7698,8 +7698,8 @@ fn factor_block_shared_0(
         {
             break 'order_0;
         }
-        smallest = smallest.min(p1.abs());
-        largest = largest.max(p1.abs());
+        smallest = if p1.abs() < smallest { p1.abs() } else { smallest };
+        largest = if p1.abs() > largest { p1.abs() } else { largest };
         let u2_3 = jac[at[2] + 3] - l2_0 * jac[at[0] + 27] - l2_1 * u1_3;
         let p2 = jac[at[2] + 2] - l2_0 * jac[at[0] + 26] - l2_1 * u1_2;
         let d2 = 1.0 / p2;
@@ -7707,15 +7707,15 @@ fn factor_block_shared_0(
         if !(p2.is_finite() && l3_2.abs() <= runtime::lu::MAX_MULTIPLIER) {
             break 'order_0;
         }
-        smallest = smallest.min(p2.abs());
-        largest = largest.max(p2.abs());
+        smallest = if p2.abs() < smallest { p2.abs() } else { smallest };
+        largest = if p2.abs() > largest { p2.abs() } else { largest };
         let p3 = jac[at[0] + 3] - l3_0 * jac[at[0] + 27] - l3_1 * u1_3 - l3_2 * u2_3;
         let d3 = 1.0 / p3;
         if !p3.is_finite() {
             break 'order_0;
         }
-        smallest = smallest.min(p3.abs());
-        largest = largest.max(p3.abs());
+        smallest = if p3.abs() < smallest { p3.abs() } else { smallest };
+        largest = if p3.abs() > largest { p3.abs() } else { largest };
         let info = runtime::lu::PivotInfo {
             smallest,
             largest,
@@ -7764,8 +7764,8 @@ fn factor_block_shared_0(
         {
             break 'order_1;
         }
-        smallest = smallest.min(p1.abs());
-        largest = largest.max(p1.abs());
+        smallest = if p1.abs() < smallest { p1.abs() } else { smallest };
+        largest = if p1.abs() > largest { p1.abs() } else { largest };
         let u2_3 = jac[at[1] + 3] - l2_0 * jac[at[0] + 27] - l2_1 * u1_3;
         let p2 = jac[at[1] + 2] - l2_0 * jac[at[0] + 26] - l2_1 * u1_2;
         let d2 = 1.0 / p2;
@@ -7773,15 +7773,15 @@ fn factor_block_shared_0(
         if !(p2.is_finite() && l3_2.abs() <= runtime::lu::MAX_MULTIPLIER) {
             break 'order_1;
         }
-        smallest = smallest.min(p2.abs());
-        largest = largest.max(p2.abs());
+        smallest = if p2.abs() < smallest { p2.abs() } else { smallest };
+        largest = if p2.abs() > largest { p2.abs() } else { largest };
         let p3 = jac[at[2] + 3] - l3_0 * jac[at[0] + 27] - l3_1 * u1_3 - l3_2 * u2_3;
         let d3 = 1.0 / p3;
         if !p3.is_finite() {
             break 'order_1;
         }
-        smallest = smallest.min(p3.abs());
-        largest = largest.max(p3.abs());
+        smallest = if p3.abs() < smallest { p3.abs() } else { smallest };
+        largest = if p3.abs() > largest { p3.abs() } else { largest };
         let info = runtime::lu::PivotInfo {
             smallest,
             largest,
@@ -8854,8 +8854,8 @@ fn factor_block_0(
                 {
                     break 'order_0;
                 }
-                smallest = smallest.min(p1.abs());
-                largest = largest.max(p1.abs());
+                smallest = if p1.abs() < smallest { p1.abs() } else { smallest };
+                largest = if p1.abs() > largest { p1.abs() } else { largest };
                 let u2_3 = jac[0][23] - l2_1 * jac[0][2];
                 let u2_4 = jac[0][25] - l2_0 * jac[0][46] - l2_1 * u1_4;
                 let u2_5 = jac[0][26] - l2_0 * jac[0][47] - l2_1 * u1_5;
@@ -8873,8 +8873,8 @@ fn factor_block_0(
                 {
                     break 'order_0;
                 }
-                smallest = smallest.min(p2.abs());
-                largest = largest.max(p2.abs());
+                smallest = if p2.abs() < smallest { p2.abs() } else { smallest };
+                largest = if p2.abs() > largest { p2.abs() } else { largest };
                 let u3_4 = jac[0][32] - l3_0 * jac[0][46] - l3_1 * u1_4 - l3_2 * u2_4;
                 let u3_5 = jac[0][33] - l3_0 * jac[0][47] - l3_1 * u1_5 - l3_2 * u2_5;
                 let u3_6 = jac[0][34] - l3_0 * jac[0][48] - l3_1 * u1_6 - l3_2 * u2_6;
@@ -8889,8 +8889,8 @@ fn factor_block_0(
                 {
                     break 'order_0;
                 }
-                smallest = smallest.min(p3.abs());
-                largest = largest.max(p3.abs());
+                smallest = if p3.abs() < smallest { p3.abs() } else { smallest };
+                largest = if p3.abs() > largest { p3.abs() } else { largest };
                 let u4_5 = jac[0][12] - l4_0 * jac[0][47] - l4_1 * u1_5 - l4_2 * u2_5
                     - l4_3 * u3_5;
                 let u4_6 = jac[0][13] - l4_0 * jac[0][48] - l4_1 * u1_6 - l4_2 * u2_6
@@ -8907,8 +8907,8 @@ fn factor_block_0(
                 {
                     break 'order_0;
                 }
-                smallest = smallest.min(p4.abs());
-                largest = largest.max(p4.abs());
+                smallest = if p4.abs() < smallest { p4.abs() } else { smallest };
+                largest = if p4.abs() > largest { p4.abs() } else { largest };
                 let u5_6 = jac[0][20] - l5_0 * jac[0][48] - l5_1 * u1_6 - l5_2 * u2_6
                     - l5_3 * u3_6 - l5_4 * u4_6;
                 let p5 = jac[0][19] - l5_0 * jac[0][47] - l5_1 * u1_5 - l5_2 * u2_5
@@ -8919,16 +8919,16 @@ fn factor_block_0(
                 if !(p5.is_finite() && l6_5.abs() <= runtime::lu::MAX_MULTIPLIER) {
                     break 'order_0;
                 }
-                smallest = smallest.min(p5.abs());
-                largest = largest.max(p5.abs());
+                smallest = if p5.abs() < smallest { p5.abs() } else { smallest };
+                largest = if p5.abs() > largest { p5.abs() } else { largest };
                 let p6 = jac[0][41] - l6_0 * jac[0][48] - l6_1 * u1_6 - l6_2 * u2_6
                     - l6_3 * u3_6 - l6_4 * u4_6 - l6_5 * u5_6;
                 let d6 = 1.0 / p6;
                 if !p6.is_finite() {
                     break 'order_0;
                 }
-                smallest = smallest.min(p6.abs());
-                largest = largest.max(p6.abs());
+                smallest = if p6.abs() < smallest { p6.abs() } else { smallest };
+                largest = if p6.abs() > largest { p6.abs() } else { largest };
                 let info = runtime::lu::PivotInfo {
                     smallest,
                     largest,

@@ -957,8 +957,8 @@ fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     {
         return None;
     }
-    smallest = smallest.min(p1.abs());
-    largest = largest.max(p1.abs());
+    smallest = if p1.abs() < smallest { p1.abs() } else { smallest };
+    largest = if p1.abs() > largest { p1.abs() } else { largest };
     let u2_3 = jac[3][2] - l2_1 * jac[0][2];
     jac[3][2] = u2_3;
     let u2_4 = jac[3][4] - l2_0 * jac[6][4] - l2_1 * u1_4;
@@ -985,8 +985,8 @@ fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     {
         return None;
     }
-    smallest = smallest.min(p2.abs());
-    largest = largest.max(p2.abs());
+    smallest = if p2.abs() < smallest { p2.abs() } else { smallest };
+    largest = if p2.abs() > largest { p2.abs() } else { largest };
     let u3_4 = jac[4][4] - l3_0 * jac[6][4] - l3_1 * u1_4 - l3_2 * u2_4;
     jac[4][4] = u3_4;
     let u3_5 = jac[4][5] - l3_0 * jac[6][5] - l3_1 * u1_5 - l3_2 * u2_5;
@@ -1008,8 +1008,8 @@ fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     {
         return None;
     }
-    smallest = smallest.min(p3.abs());
-    largest = largest.max(p3.abs());
+    smallest = if p3.abs() < smallest { p3.abs() } else { smallest };
+    largest = if p3.abs() > largest { p3.abs() } else { largest };
     let u4_5 = jac[1][5] - l4_0 * jac[6][5] - l4_1 * u1_5 - l4_2 * u2_5 - l4_3 * u3_5;
     jac[1][5] = u4_5;
     let u4_6 = jac[1][6] - l4_0 * jac[6][6] - l4_1 * u1_6 - l4_2 * u2_6 - l4_3 * u3_6;
@@ -1028,8 +1028,8 @@ fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     {
         return None;
     }
-    smallest = smallest.min(p4.abs());
-    largest = largest.max(p4.abs());
+    smallest = if p4.abs() < smallest { p4.abs() } else { smallest };
+    largest = if p4.abs() > largest { p4.abs() } else { largest };
     let u5_6 = jac[2][6] - l5_0 * jac[6][6] - l5_1 * u1_6 - l5_2 * u2_6 - l5_3 * u3_6
         - l5_4 * u4_6;
     jac[2][6] = u5_6;
@@ -1043,8 +1043,8 @@ fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     if !(p5.is_finite() && l6_5.abs() <= runtime::lu::MAX_MULTIPLIER) {
         return None;
     }
-    smallest = smallest.min(p5.abs());
-    largest = largest.max(p5.abs());
+    smallest = if p5.abs() < smallest { p5.abs() } else { smallest };
+    largest = if p5.abs() > largest { p5.abs() } else { largest };
     let p6 = jac[5][6] - l6_0 * jac[6][6] - l6_1 * u1_6 - l6_2 * u2_6 - l6_3 * u3_6
         - l6_4 * u4_6 - l6_5 * u5_6;
     let d6 = 1.0 / p6;
@@ -1052,8 +1052,8 @@ fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     if !p6.is_finite() {
         return None;
     }
-    smallest = smallest.min(p6.abs());
-    largest = largest.max(p6.abs());
+    smallest = if p6.abs() < smallest { p6.abs() } else { smallest };
+    largest = if p6.abs() > largest { p6.abs() } else { largest };
     Some(runtime::lu::PivotInfo {
         smallest,
         largest,

@@ -336,6 +336,28 @@ pub trait Mechanism<const N: usize, R: Real = f64> {
         let _ = terms;
         self.acceleration_rhs(q, qd, t, gamma);
     }
+
+    /// The generated module's `expand` (the full coordinates of its moving bodies at q, q̇, q̈
+    /// and t: `out[b][0]` is `[x, y, z, e0, e1, e2, e3]` of body b, `out[b][1]` their rates,
+    /// `out[b][2]` their accelerations) written into `out`, reading the time terms at the same t
+    /// from `terms` ([`Mechanism::time_terms`], as [`Solver::time_terms`](crate::Solver::time_terms)
+    /// holds them) instead of computing them again, or computing them when `terms` is empty;
+    /// the same values as `expand`, bit for bit. Returns whether it wrote `out`.
+    /// The default writes nothing and returns false, as does generated code whose `expand`
+    /// reads no time terms, or when `out` has fewer entries than the module has moving bodies:
+    /// the caller then calls the module's `expand`.
+    fn expand_at(
+        &self,
+        q: &[R; N],
+        qd: &[R; N],
+        qdd: &[R; N],
+        t: R,
+        terms: &[R],
+        out: &mut [[[R; 7]; 3]],
+    ) -> bool {
+        let _ = (q, qd, qdd, t, terms, out);
+        false
+    }
 }
 
 /// The most time terms ([`Mechanism::TIME_TERMS`]) the solvers keep; a mechanism with more is

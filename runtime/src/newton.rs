@@ -166,25 +166,34 @@ pub fn status<R: Real>(residual: R, iterations: u32, options: &NewtonOptions<R>)
 
 /// max |x_i|, or NaN if some x_i is NaN (a plain `f64::max` fold would drop it).
 ///
-/// Branch-free and inlined, so that the compiler can unroll and vectorise it: it runs several
-/// times per time step, over all N unknowns or rows. On long slices four independent running
-/// maxima (lanes) let it do so: one running maximum is a chain of dependent selects the
-/// compiler keeps scalar (on 34 R-S-S-R loops, 680 unknowns, the lanes save 1.6 % of a step's
-/// instructions; below 64 entries they cost more than they save: 2 % on one loop). The
-/// maximum does not depend on the order it is taken in, so the result is the same.
+/// Inlined: it runs several times per time step, over all N unknowns or rows. On long slices
+/// four independent running maxima (lanes) let the compiler vectorise it: one running maximum
+/// is a chain of dependent selects the compiler keeps scalar (on 34 R-S-S-R loops, 680
+/// unknowns, the lanes save 1.6 % of a step's instructions; below 64 entries they cost more
+/// than they save: 2 % on one loop). The maximum does not depend on the order it is taken in,
+/// so the result is the same.
+///
+/// Below 64 entries each entry is read on its own, behind a test for NaN (a branch that is
+/// always taken the same way): x was usually written entry by entry just before (Φ by the
+/// generated code, a solution by its substitutions), and a 16-byte load of two entries, which
+/// branch-free code invites the compiler to use, cannot take them from the processor's store
+/// buffer (store-to-load forwarding needs one store to cover the load) and waits until both
+/// stores reach the cache, on the step's critical path. Reading entry by entry saved about 8 ns
+/// of the R-S-S-R's 176 ns step (BENCHMARKS.md, "R-S-S-R step"), more than the branch-free sum
+/// test for NaN it replaces saved in instructions.
 #[inline]
 pub(crate) fn max_abs<R: Real>(x: &[R]) -> R {
     const LANES: usize = 4;
     if x.len() < 64 {
-        // The sum of the |x_i| is NaN exactly when some x_i is (no term is −∞, so no ∞ − ∞):
-        // one addition per entry where testing each one costs three instructions.
-        let (mut m, mut sum) = (R::ZERO, R::ZERO);
+        let mut m = R::ZERO;
         for &v in x {
             let a = v.abs();
-            sum += a;
+            if a.is_nan() {
+                return R::NAN;
+            }
             m = if a > m { a } else { m };
         }
-        return if sum.is_nan() { R::NAN } else { m };
+        return m;
     }
     let (mut m, mut nan) = ([R::ZERO; LANES], [false; LANES]);
     let chunks = x.chunks_exact(LANES);
@@ -207,8 +216,9 @@ pub(crate) fn max_abs<R: Real>(x: &[R]) -> R {
 
 /// Whether every x_i is finite.
 ///
-/// Branch-free and inlined, so that the compiler can vectorise it: it runs after each of the
-/// velocity and acceleration solves.
+/// Branch-free and inlined, so that the compiler can vectorise it: it runs after the step
+/// control's velocity and acceleration solves (`Solver::solve_derivatives`; a plain
+/// [`Solver::velocity`](crate::Solver::velocity) tests entry by entry as it copies).
 #[inline]
 pub(crate) fn all_finite<R: Real>(x: &[R]) -> bool {
     let mut finite = true;

@@ -500,6 +500,15 @@ impl<M: Mechanism<N, R>, const N: usize, R: Real, J: BorrowMut<[[R; N]; N]>> Sol
         })
     }
 
+    /// The mechanism's time terms at `t` ([`Mechanism::TIME_TERMS`] values, see
+    /// [`Mechanism::time_terms`]) when the solver holds them: computed by the last
+    /// [`Solver::position`] at `t` (converged or not), for the mechanism as it is. A caller
+    /// passes them to [`Mechanism::expand_at`] rather than computing them again.
+    pub fn time_terms(&self, t: R) -> Option<&[R]> {
+        let held = M::TIME_TERMS > 0 && M::TIME_TERMS <= MAX_TIME_TERMS;
+        (held && self.terms_valid && self.terms_t == t).then(|| &self.terms[..M::TIME_TERMS])
+    }
+
     /// Chooses the rows to solve with at (q, t) from the whole stack ([`rows::select`]),
     /// forgetting the factors (the choice uses their storage); whether the choice changed.
     /// A stack that loses column rank keeps the rows in force.
@@ -565,8 +574,10 @@ impl<M: Mechanism<N, R>, const N: usize, R: Real, J: BorrowMut<[[R; N]; N]>> Sol
         }
         self.accepted.current = false;
         in_force!(self, m => m.velocity_rhs(&self.q, self.t, &mut self.scratch));
-        self.solve_scratch()?;
-        self.qd = self.scratch;
+        self.solve_scratch();
+        if !accept_finite(&mut self.qd, &self.scratch) {
+            return Err(SolveError::NonFinite);
+        }
         self.known = Known::Velocity;
         Ok(())
     }
@@ -590,8 +601,10 @@ impl<M: Mechanism<N, R>, const N: usize, R: Real, J: BorrowMut<[[R; N]; N]>> Sol
         }
         self.accepted.current = false;
         in_force!(self, m => m.acceleration_rhs(&self.q, &self.qd, self.t, &mut self.scratch));
-        self.solve_scratch()?;
-        self.qdd = self.scratch;
+        self.solve_scratch();
+        if !accept_finite(&mut self.qdd, &self.scratch) {
+            return Err(SolveError::NonFinite);
+        }
         self.known = Known::Acceleration;
         Ok(())
     }
@@ -623,14 +636,33 @@ impl<M: Mechanism<N, R>, const N: usize, R: Real, J: BorrowMut<[[R; N]; N]>> Sol
     /// Overwrites the right-hand side in `scratch` with the solution of Φ_q x = scratch.
     ///
     /// A NaN or an infinity in the right-hand side reaches the solution (substitution carries
-    /// it through the row that holds it), so checking the solution alone catches both.
-    fn solve_scratch(&mut self) -> Result<(), SolveError> {
+    /// it through the row that holds it), so checking the solution alone catches both
+    /// ([`accept_finite`]).
+    fn solve_scratch(&mut self) {
         in_force!(self, m => self.factors.solve(m, self.jac.borrow(), &mut self.scratch));
-        if !newton::all_finite(&self.scratch) {
-            return Err(SolveError::NonFinite);
-        }
-        Ok(())
     }
+}
+
+/// Copies the solution `x` into `dst` and returns true when every entry is finite; otherwise
+/// leaves `dst` as it was and returns false.
+///
+/// Entry by entry, each behind its test (a branch always taken the same way): `x` was just
+/// written entry by entry by the solve, and the 16-byte loads of two entries that a copy or a
+/// branch-free test of the whole array compiles to cannot take them from the processor's store
+/// buffer (store-to-load forwarding needs one store to cover the load), so they wait until the
+/// stores reach the cache, on the step's critical path (about 6 ns of the R-S-S-R's 183 ns
+/// step; BENCHMARKS.md, "R-S-S-R step").
+fn accept_finite<R: Real, const N: usize>(dst: &mut [R; N], x: &[R; N]) -> bool {
+    let before = *dst;
+    for i in 0..N {
+        let v = x[i];
+        if !v.is_finite() {
+            *dst = before;
+            return false;
+        }
+        dst[i] = v;
+    }
+    true
 }
 
 /// The weights [c₀, c₁, c₂] of the accelerations q̈ at τ = 0 (the current position), τ₁ and

@@ -1,8 +1,9 @@
 //! The time terms of generated modules (`runtime::Mechanism::TIME_TERMS`): the R-S-S-R's
 //! against its driver law's closed form, every module's `_at` functions against the plain ones
 //! they stand in for, and a solver that reads them against one that does not, over the
-//! R-S-S-R's revolution; and the generated `normalize_moved` against `normalize` and the
-//! runtime's round-off test.
+//! R-S-S-R's revolution; `expand_at` against `expand` and the R-S-S-R's crank against its
+//! closed form; and the generated `normalize_moved` against `normalize` and the runtime's
+//! round-off test.
 
 use runtime::lu::PivotInfo;
 use runtime::{Mechanism, NewtonOptions, Solver};
@@ -118,6 +119,102 @@ fn every_at_function_matches_its_plain_function_bit_for_bit() {
     same_as_plain("universal_joint", &universal_joint::UniversalJoint, &universal_joint::Q0);
     same_as_plain("spherical_joint", &spherical_joint::SphericalJoint, &spherical_joint::Q0);
     same_as_plain("rotation_about_x", &rotation_about_x::RotationAboutX, &rotation_about_x::Q0);
+}
+
+/// A module's `expand` with N unknowns and B moving bodies.
+type Expand<const N: usize, const B: usize> =
+    fn(&[f64; N], &[f64; N], &[f64; N], f64, &mut [[[f64; 7]; 3]; B]);
+
+/// `expand_at` of `m` (through `runtime::Mechanism`, with the terms, without them, and into
+/// too short an array) against the module's `expand` at configurations and times spread
+/// around `q0`: the same values, bit for bit.
+fn expand_same_as_plain<M: Mechanism<N>, const N: usize, const B: usize>(
+    name: &str,
+    m: &M,
+    q0: &[f64; N],
+    expand: Expand<N, B>,
+) {
+    assert!(B > 0, "{name}");
+    for k in 0..50 {
+        let x = f64::from(k);
+        let t = 0.37 * x - 3.0;
+        let q: [f64; N] = std::array::from_fn(|i| q0[i] + 0.1 * (x + 1.7 * i as f64).sin());
+        let qd: [f64; N] = std::array::from_fn(|i| (0.3 * x - i as f64).cos());
+        let qdd: [f64; N] = std::array::from_fn(|i| (0.7 * x + i as f64).sin());
+        let mut terms = [f64::NAN; runtime::MAX_TIME_TERMS];
+        m.time_terms(t, &mut terms);
+        let mut plain = [[[f64::NAN; 7]; 3]; B];
+        expand(&q, &qd, &qdd, t, &mut plain);
+        let bits = |out: &[[[f64; 7]; 3]; B]| out.map(|b| b.map(|d| d.map(f64::to_bits)));
+        for terms in [&terms[..M::TIME_TERMS], &[]] {
+            let mut at = [[[f64::NAN; 7]; 3]; B];
+            assert!(m.expand_at(&q, &qd, &qdd, t, terms, &mut at), "{name}");
+            assert!(bits(&at) == bits(&plain), "{name} expand_at, t = {t}, {} terms", terms.len());
+        }
+        // Too short an array is refused untouched.
+        let mut short = vec![[[1.0; 7]; 3]; B - 1];
+        assert!(!m.expand_at(&q, &qd, &qdd, t, &terms[..M::TIME_TERMS], &mut short), "{name}");
+        assert!(short.iter().flatten().flatten().all(|&v| v == 1.0), "{name}");
+    }
+}
+
+#[test]
+fn every_expand_at_matches_expand_bit_for_bit() {
+    use generated::*;
+    expand_same_as_plain("rssr", &rssr::Rssr, &rssr::Q0, rssr::expand);
+    expand_same_as_plain("four_bar", &four_bar::FourBar, &four_bar::Q0, four_bar::expand);
+    expand_same_as_plain(
+        "slider_crank_5body",
+        &slider_crank_5body::SliderCrank5body,
+        &slider_crank_5body::Q0,
+        slider_crank_5body::expand,
+    );
+    // A mechanism that does not override it, the runtime's default: nothing written.
+    let mut out = [[[1.0; 7]; 3]; rssr::BODIES];
+    let q = rssr::Q0;
+    assert!(!Plain(rssr::Rssr).expand_at(&q, &q, &q, 0.0, &[], &mut out));
+    assert_eq!(out, [[[1.0; 7]; 3]; rssr::BODIES]);
+}
+
+#[test]
+fn rssr_expand_at_with_the_solvers_terms_gives_the_crank_closed_form() {
+    use generated::rssr::{BODIES, BODY_NAMES, Q0, Rssr, expand};
+    assert_eq!(BODY_NAMES[0], "crank");
+    let mut solver = Solver::new(Rssr, Q0);
+    solver.set_options(NewtonOptions { tolerance: 1e-12, ..NewtonOptions::DEFAULT });
+    let end = 2.0 * std::f64::consts::PI / 146.6;
+    for k in 0..=100 {
+        let t = end * f64::from(k) / 100.0;
+        assert!(solver.time_terms(t).is_none() || k == 0, "no position at t = {t} yet");
+        solver.position(t).unwrap_or_else(|e| panic!("t = {t}: {e}"));
+        solver.velocity().unwrap();
+        solver.acceleration().unwrap();
+        let terms = solver.time_terms(t).expect("computed by the position at t");
+        assert_eq!(terms.len(), 2);
+        assert!(solver.time_terms(t + 1e-9).is_none(), "terms of another time");
+        let (q, qd, qdd) = (solver.q(), solver.qd(), solver.qdd());
+        let mut at = [[[0.0; 7]; 3]; BODIES];
+        assert!(Rssr.expand_at(q, qd, qdd, t, terms, &mut at));
+        let mut plain = [[[0.0; 7]; 3]; BODIES];
+        expand(q, qd, qdd, t, &mut plain);
+        assert!(
+            at.map(|b| b.map(|d| d.map(f64::to_bits)))
+                == plain.map(|b| b.map(|d| d.map(f64::to_bits)))
+        );
+        // The crank turns about y at s = 146.6 t: e0 = cos(s/2), e2 = sin(s/2), and their
+        // rates and accelerations by the chain rule. Values up to 73.3² ≈ 5373; the runtime's
+        // libm and the platform's sine may differ by an ulp, scaled by the rates' factors.
+        let (h, w) = (73.3 * t, 73.3);
+        let crank = at[0];
+        let expected =
+            [[h.cos(), h.sin()], [-w * h.sin(), w * h.cos()], [-w * w * h.cos(), -w * w * h.sin()]];
+        for d in 0..3 {
+            let tol = 1e-15 * [1.0, w, w * w][d];
+            assert!((crank[d][3] - expected[d][0]).abs() <= tol, "t = {t}, e0 d{d}");
+            assert!((crank[d][5] - expected[d][1]).abs() <= tol, "t = {t}, e2 d{d}");
+            assert_eq!([crank[d][4], crank[d][6]], [0.0, 0.0], "t = {t}, e1 e3 d{d}");
+        }
+    }
 }
 
 /// q, q̇ and q̈ at each of the 1001 points of the R-S-S-R's revolution, as bits.

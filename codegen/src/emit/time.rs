@@ -5,6 +5,11 @@
 //! the terms. The plain functions compute the terms and call their variant ([`delegate`]), so
 //! each function's arithmetic is emitted once.
 //!
+//! `expand_at` is `expand` reading the same terms where it has them (the driven and
+//! substituted coordinates of the bodies turned by a driver law), so that a caller who has the
+//! solver's terms at t ([`runtime::Solver::time_terms`]) does not compute them again
+//! (`runtime::Mechanism::expand_at`).
+//!
 //! The terms are the very nodes the plain functions would compute, so the variants give the
 //! same values bit for bit. Emitted for modules with static pivot orders and without inputs
 //! (whose terms would depend on the inputs as well), when no function would be split into
@@ -60,10 +65,14 @@ fn terms(pool: &ExprPool, roots: &[ExprId]) -> Vec<ExprId> {
     found.into_iter().collect()
 }
 
-/// The module's time-term items (`TIME_TERMS`, `time_terms` and the four `_at` functions) and
-/// the `runtime::Mechanism` impl items that call them, or `None` when the module has no time
+/// The module's time-term items (`TIME_TERMS`, `time_terms`, the four `_at` functions and
+/// `expand_at` when `expand` of the bodies `moving` reads a term and is not split) and the
+/// `runtime::Mechanism` impl items that call them, or `None` when the module has no time
 /// terms or is not covered (see the module docs).
-pub(super) fn items(rows: &Rows<'_>) -> Option<(Vec<syn::Item>, Vec<syn::ImplItem>)> {
+pub(super) fn items(
+    rows: &Rows<'_>,
+    moving: &[usize],
+) -> Option<(Vec<syn::Item>, Vec<syn::ImplItem>)> {
     let sys = rows.sys;
     if rows.inputs() {
         return None;
@@ -137,8 +146,11 @@ pub(super) fn items(rows: &Rows<'_>) -> Option<(Vec<syn::Item>, Vec<syn::ImplIte
             |ops, shared| format!("{what}\n\n {ops} operations, {shared} shared subexpressions.");
         items.push(emit_function_given(pool, n, sig, &doc, Vec::new(), outputs, &given)?);
     }
+    let expand = expand_at(rows, moving, &found, &given);
+    let timed_expand = expand.is_some();
+    items.extend(expand);
 
-    let impls: Vec<syn::ImplItem> = vec![
+    let mut impls: Vec<syn::ImplItem> = vec![
         parse_quote!(
             const TIME_TERMS: usize = TIME_TERMS;
         ),
@@ -182,7 +194,68 @@ pub(super) fn items(rows: &Rows<'_>) -> Option<(Vec<syn::Item>, Vec<syn::ImplIte
             }
         },
     ];
+    if timed_expand {
+        impls.push(parse_quote! {
+            fn expand_at(&self, q: &[f64; N], qd: &[f64; N], qdd: &[f64; N], t: f64, terms: &[f64], out: &mut [[[f64; 7]; 3]]) -> bool {
+                let Some(out) = out.first_chunk_mut() else {
+                    return false;
+                };
+                match terms.first_chunk() {
+                    Some(terms) => expand_at(q, qd, qdd, t, terms, out),
+                    None => expand(q, qd, qdd, t, out),
+                }
+                true
+            }
+        });
+    }
     Some((items, impls))
+}
+
+/// `expand_at`: `expand` (`super::expand`, the same outputs after the same copies) reading
+/// the time terms `found` at t where `given` names them, or `None` when `expand` reads none of
+/// them or would be split into helpers.
+fn expand_at(
+    rows: &Rows<'_>,
+    moving: &[usize],
+    found: &[ExprId],
+    given: &Given,
+) -> Option<syn::Item> {
+    let sys = rows.sys;
+    let (direct, outputs, _) = super::expand_outputs(sys, moving);
+    let roots: Vec<ExprId> = outputs.iter().map(|o| o.value).collect();
+    if !terms(&sys.pool, &roots).iter().any(|id| found.contains(id)) {
+        return None;
+    }
+    let targets = [("out", quote::quote!(&mut [[[f64; 7]; 3]; BODIES]))];
+    let sig = Signature {
+        name: "expand_at",
+        qd: true,
+        qdd: true,
+        public: true,
+        targets: &targets,
+        inputs: false,
+    };
+    let doc = |ops, shared| {
+        format!(
+            " [`expand`] reading the time terms at t from `terms` ([`time_terms`]): the same values, bit for bit.\n\n {ops} operations, {shared} shared subexpressions."
+        )
+    };
+    let n = sys.unknowns.len();
+    let mut item = emit_function_given(&sys.pool, n, &sig, &doc, direct, &outputs, given)?;
+    // The copies of the unknowns read q, q̇ and q̈ whenever there are unknowns, as in `expand`.
+    if let syn::Item::Fn(f) = &mut item
+        && n > 0
+    {
+        for input in &mut f.sig.inputs {
+            if let syn::FnArg::Typed(typed) = input
+                && let syn::Pat::Ident(pat) = typed.pat.as_mut()
+                && ["_q", "_qd", "_qdd"].contains(&pat.ident.to_string().as_str())
+            {
+                pat.ident = ident(pat.ident.to_string().trim_start_matches('_'));
+            }
+        }
+    }
+    Some(item)
 }
 
 /// The plain functions that have an `_at` variant.

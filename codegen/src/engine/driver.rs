@@ -210,14 +210,7 @@ fn bench<M: Generated>(
             }
             let _ = solver.velocity();
             let _ = solver.acceleration();
-            config::expand(
-                solver.mechanism().module(),
-                solver.q(),
-                solver.qd(),
-                solver.qdd(),
-                t,
-                &mut expanded,
-            );
+            expand(&solver, t, &mut expanded);
             std::hint::black_box(&mut *expanded);
         }
         times.push(start.elapsed().as_nanos() as f64 / count as f64);
@@ -231,6 +224,21 @@ fn bench<M: Generated>(
         times[times.len() / 2],
         iterations as f64 / count as f64
     ));
+}
+
+/// The module's `expand` of the solver's q, q̇ and q̈ at `t` into `out`, reading the time
+/// terms the solver computed at t where the module can (`Mechanism::expand_at`, the same values
+/// bit for bit), else computing them again (`config::expand`).
+fn expand<M: Generated>(
+    solver: &Solver<M, N, Real, Jacobian>,
+    t: Real,
+    out: &mut [[[Real; 7]; 3]; mechanism::BODIES],
+) {
+    let (q, qd, qdd) = (solver.q(), solver.qd(), solver.qdd());
+    let terms = solver.time_terms(t).unwrap_or_default();
+    if !solver.mechanism().expand_at(q, qd, qdd, t, terms, out) {
+        config::expand(solver.mechanism().module(), q, qd, qdd, t, out);
+    }
 }
 
 /// Steps over the grid under the step control, writing a step record per time point, or
@@ -378,14 +386,7 @@ impl<M: Generated> Stepper<f64> for Engine<M> {
         }
         // The pivots of the factorisation the solve kept, dense only near the singularity bound.
         let pivot_ratio = wide(self.solver.pivot_ratio());
-        config::expand(
-            self.solver.mechanism().module(),
-            self.solver.q(),
-            self.solver.qd(),
-            self.solver.qdd(),
-            t,
-            &mut self.expanded,
-        );
+        expand(&self.solver, t, &mut self.expanded);
         let c = &mut self.candidate;
         for (d, v) in [&mut c.q, &mut c.qd, &mut c.qdd].into_iter().enumerate() {
             v.clear();

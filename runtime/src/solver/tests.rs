@@ -392,6 +392,60 @@ impl Mechanism<2> for Diagonal {
     }
 }
 
+/// [`Diagonal`] with d = 0.5 whose velocity (`velocity`) or acceleration right-hand side turns
+/// non-finite in its last row after t = 1, so that a solve there gives a finite first entry,
+/// other than before, and a non-finite last one.
+struct LastRowBlowsUp {
+    velocity: bool,
+}
+
+impl Mechanism<2> for LastRowBlowsUp {
+    const PIVOT_ORDERS: usize = 1;
+
+    fn residual(&self, q: &[f64; 2], t: f64, phi: &mut [f64; 2]) {
+        Diagonal { d: 0.5 }.residual(q, t, phi);
+    }
+    fn jacobian(&self, q: &[f64; 2], t: f64, jac: &mut [[f64; 2]; 2]) {
+        Diagonal { d: 0.5 }.jacobian(q, t, jac);
+    }
+    fn velocity_rhs(&self, _q: &[f64; 2], t: f64, nu: &mut [f64; 2]) {
+        let blown = self.velocity && t > 1.0;
+        *nu = if blown { [4.0, f64::INFINITY] } else { [1.0; 2] };
+    }
+    fn acceleration_rhs(&self, _q: &[f64; 2], _qd: &[f64; 2], t: f64, gamma: &mut [f64; 2]) {
+        let blown = !self.velocity && t > 1.0;
+        *gamma = if blown { [5.0, f64::NAN] } else { [2.0, 3.0] };
+    }
+    fn factor_structured(&self, order: usize, jac: &mut [[f64; 2]; 2]) -> Option<PivotInfo> {
+        Diagonal { d: 0.5 }.factor_structured(order, jac)
+    }
+    fn solve_structured(&self, order: usize, lu: &[[f64; 2]; 2], b: &mut [f64; 2]) {
+        Diagonal { d: 0.5 }.solve_structured(order, lu, b);
+    }
+}
+
+#[test]
+fn a_solution_non_finite_in_its_last_entry_leaves_every_entry_of_qd_and_qdd_as_it_was() {
+    for velocity in [true, false] {
+        let mut solver = Solver::new(LastRowBlowsUp { velocity }, [0.0; 2]);
+        solver.position(0.5).unwrap();
+        solver.velocity().unwrap();
+        solver.acceleration().unwrap();
+        // Φ_q = diag(1, 0.5): q̇ = (1, 2), q̈ = (2, 6).
+        assert_eq!((solver.qd(), solver.qdd()), (&[1.0, 2.0], &[2.0, 6.0]));
+        solver.position(1.5).unwrap();
+        // The first entry of the solution, (4, ∞) or (5, NaN), is finite and copied before the
+        // second is found non-finite: the copy is undone.
+        if velocity {
+            assert_eq!(solver.velocity(), Err(SolveError::NonFinite));
+        } else {
+            solver.velocity().unwrap();
+            assert_eq!(solver.acceleration(), Err(SolveError::NonFinite));
+        }
+        assert_eq!((solver.qd(), solver.qdd()), (&[1.0, 2.0], &[2.0, 6.0]), "{velocity}");
+    }
+}
+
 /// Steps `Diagonal { d }` under the step control and returns the last report and the counts.
 fn diagonal_steps(d: f64) -> (StepReport, FactorCounts) {
     let mut solver = Solver::new(Diagonal { d }, [0.0; 2]);
