@@ -9978,6 +9978,7 @@ fn joint_terms(
 
 /// Part 0 of [`joint_terms`]: 1422 operations.
 #[inline(never)]
+#[allow(clippy::too_many_arguments)]
 fn joint_terms_0(
     q: &[f64; N],
     qd: &[f64; N],
@@ -10607,6 +10608,7 @@ fn joint_terms_0(
 
 /// Part 1 of [`joint_terms`]: 1253 operations.
 #[inline(never)]
+#[allow(clippy::too_many_arguments)]
 fn joint_terms_1(
     q: &[f64; N],
     qd: &[f64; N],

@@ -624,6 +624,11 @@ pub(super) fn emit_function(
             let k = param("kept", reads_kept || !store.is_empty());
             item.sig.inputs.push(parse_quote!(#k: &mut [f64; #size]));
         }
+        // A part takes its function's parameters and `kept`: 8 with q̇, q̈, the inputs and two
+        // arrays (the Stewart platform's joint terms), one over clippy's `too_many_arguments`.
+        if item.sig.inputs.len() > 7 {
+            item.attrs.push(parse_quote!(#[allow(clippy::too_many_arguments)]));
+        }
         items.push(item_fn(item, f.stmts));
         calls.push(parse_quote!(#helper(#(#args),*);));
         given.extend(store);
