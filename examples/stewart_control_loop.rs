@@ -46,7 +46,7 @@ fn main() {
     };
     let periods = (seconds / PERIOD).round() as usize + 1;
     let trajectory = Trajectory::SHIPPED;
-    // The solver holds Φ_q (91 × 91) and its factors: 66 KiB, kept in a box.
+    // The solver holds Φ_q (55 × 55) and its factors: 24 KiB, kept in a box.
     let mut solver = Box::new(control::solver(&trajectory, 0.0));
     let allocations = ALLOCATIONS.load(Ordering::Relaxed);
     let start = Instant::now();

@@ -628,10 +628,10 @@ impl Symbolic {
     pub fn build(mech: &Mechanism) -> Result<Self, GenerateError> {
         let (full, q) = Self::build_with(mech, ExprPool::new(), &[])?;
         // Rows left out as dependent are checked and re-selected at run time against the whole
-        // system's (`Symbolic::dropped`): such a system is left whole. So is one with U-P-S
-        // legs reduced to distance rows (`legs`): substituted, the Stewart platform's generated
-        // module disagreed with the generic engine (3e-2 of a leg's position at t = 0).
-        if !full.dropped.is_empty() || !full.legs.is_empty() {
+        // system's (`Symbolic::dropped`): such a system is left whole. Systems with U-P-S legs
+        // reduced to distance rows (`legs`) are substituted too: the rebuilt system reduces its
+        // legs again, on the substituted coordinates (see `substitute`).
+        if !full.dropped.is_empty() {
             return Ok(full);
         }
         Ok(full.substituted(mech, &q))

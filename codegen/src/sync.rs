@@ -100,6 +100,30 @@ pub fn render(file: &Path, source: &str) -> Result<String, SyncError> {
 const RESTRICTED: &[(&str, &str, &[&str])] =
     &[("stewart_platform", "examples/inputs/stewart.toml", &["platform"])];
 
+/// The modules of shipped descriptions built whole (`Symbolic::build_full`: no closed form
+/// substituted), as (module, description). Substituted, the Stewart platform keeps 55 unknowns
+/// and is emitted with whole static orders (below `emit::blocks::MIN_UNKNOWNS`); whole, its 91
+/// unknowns are solved block by block, the module the block storage's tests
+/// (`tests/src/block_solver.rs`, `tests/src/block_orders.rs`) step.
+const WHOLE: &[(&str, &str)] = &[("stewart_whole", "examples/inputs/stewart.toml")];
+
+/// The generated module of one description built whole, named `module`.
+///
+/// # Errors
+/// When the description is invalid or cannot be generated.
+fn render_whole(file: &Path, source: &str, module: &str) -> Result<String, SyncError> {
+    let mut loaded = load_file(file)
+        .map_err(|diagnostics| SyncError::Invalid { file: file.to_path_buf(), diagnostics })?;
+    module.clone_into(&mut loaded.mechanism.name);
+    let sys = Symbolic::build_full(&loaded.mechanism)
+        .map_err(|source| SyncError::Generate { file: file.to_path_buf(), source })?;
+    Ok(emit::module(
+        &loaded.mechanism,
+        &sys,
+        &format!("{source}, whole (no closed form substituted)"),
+    ))
+}
+
 /// The generated module of one description restricted to `outputs`, named `module`.
 ///
 /// # Errors
@@ -157,6 +181,14 @@ pub fn expected(root: &Path) -> Result<BTreeMap<String, String>, SyncError> {
             return Err(SyncError::FileName { path: root.join(description) });
         }
         let text = render_restricted(&root.join(description), description, module, outputs)?;
+        files.insert(format!("{module}.rs"), text);
+        modules.push(module.to_owned());
+    }
+    for &(module, description) in WHOLE {
+        if modules.iter().any(|m| m == module) {
+            return Err(SyncError::FileName { path: root.join(description) });
+        }
+        let text = render_whole(&root.join(description), description, module)?;
         files.insert(format!("{module}.rs"), text);
         modules.push(module.to_owned());
     }

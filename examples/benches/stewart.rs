@@ -2,6 +2,8 @@
 //! position (to max |Φ| or max |Δl| ≤ 1e-12), velocity and acceleration from the six leg
 //! lengths, rates and accelerations of the shipped trajectory, over 201 periods (0.2 s). Side by
 //! side: the generated solver under its step control (`advance_with`) and with plain calls,
+//! the whole system without its closed forms substituted (`generated::stewart_whole`, 91
+//! unknowns against 55) with plain calls,
 //! the generated solver of the platform alone (`generated::stewart_platform`, the legs reduced
 //! to distance rows) with plain calls, the generic engine straight from point to point (as
 //! `mechgen bench` times it) and under its step control (as `solve` runs), and the
@@ -50,6 +52,23 @@ fn benches(c: &mut Criterion) {
         let mut solver = Box::new(control::solver(&Trajectory::SHIPPED, 0.0));
         b.iter(|| {
             solver.set_q(generated::stewart::Q0);
+            for (t, u) in &samples {
+                control::plain_step(&mut solver, *t, u).expect("the platform follows");
+            }
+            black_box(solver.qdd()[0])
+        });
+    });
+    group.bench_function("generated whole (no substitution), plain calls", |b| {
+        use generated::stewart_whole::{self as sw, Inputs, StewartWhole};
+        let start = Inputs::from_array(leg_lengths(&Trajectory::SHIPPED.at(0.0)));
+        let mut solver = Box::new(runtime::Solver::new(StewartWhole::new(0.0, &start), sw::Q0));
+        solver.set_options(runtime::NewtonOptions {
+            tolerance: sw::TOLERANCE,
+            ..runtime::NewtonOptions::DEFAULT
+        });
+        solver.set_predictor(true);
+        b.iter(|| {
+            solver.set_q(sw::Q0);
             for (t, u) in &samples {
                 control::plain_step(&mut solver, *t, u).expect("the platform follows");
             }

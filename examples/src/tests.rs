@@ -62,7 +62,7 @@ fn the_control_loop_follows_one_crank_turn_without_allocating() {
 fn the_stewart_control_loop_recovers_the_platform_at_1_khz_without_allocating() {
     use crate::stewart::{Trajectory, control};
     let trajectory = Trajectory::SHIPPED;
-    // The solver holds Φ_q (91 × 91) and its factors: 66 KiB, kept off the test thread's stack.
+    // The solver holds Φ_q (55 × 55) and its factors: 24 KiB, kept off the test thread's stack.
     let mut solver = Box::new(control::solver(&trajectory, 0.0));
     let before = thread_allocations();
     let tracking = control::control_loop(&mut solver, &trajectory, 2001, 1e-3)

@@ -25,6 +25,7 @@ pub mod static_body;
 pub mod static_body_offset;
 pub mod stewart;
 pub mod stewart_platform;
+pub mod stewart_whole;
 pub mod translation_x;
 pub mod translation_xy;
 pub mod translation_xyz;

@@ -28,7 +28,8 @@ fn condition(a: &DMatrix<f64>) -> f64 {
     a.clone().try_inverse().map_or(f64::INFINITY, |inv| norm(a) * norm(&inv))
 }
 
-/// The committed Stewart module (91 unknowns, Newton block by block, its rotation blocks and
+/// The committed whole Stewart module (`generated::stewart_whole`: no closed form substituted,
+/// 91 unknowns, Newton block by block, its rotation blocks and
 /// its loop block with static orders): every diagonal block it factors alone, filled with
 /// random values on Φ_q's structure (structural zeros 0), is factored by `factor_block` and
 /// solved by `solve_block`, and then the whole block-triangular system by `solve_blocks`, each
@@ -38,13 +39,13 @@ fn condition(a: &DMatrix<f64>) -> f64 {
 /// factors a block holds.
 #[test]
 fn static_block_orders_solve_as_nalgebra_on_random_values() {
-    use generated::stewart::{self as gs, Stewart};
+    use generated::stewart_whole::{self as gs, StewartWhole};
     const N: usize = gs::N;
-    type M = Stewart;
+    type M = StewartWhole;
 
     let path = codegen::testing::example("inputs/stewart.toml");
     let mech = codegen::testing::load(&path).mechanism;
-    let sys = codegen::symbolic::Symbolic::build(&mech).expect("the system builds");
+    let sys = codegen::symbolic::Symbolic::build_full(&mech).expect("the system builds");
     let layout = <M as Mechanism<N>>::BLOCKS.expect("factored by blocks");
     let packed = <M as Mechanism<N>>::PACKED_BLOCKS.expect("packed");
     // The module's layout is the one the generator finds for the description, so the
@@ -57,12 +58,12 @@ fn static_block_orders_solve_as_nalgebra_on_random_values() {
 
     let module = std::fs::read_to_string(concat!(
         env!("CARGO_MANIFEST_DIR"),
-        "/../generated/src/stewart.rs"
+        "/../generated/src/stewart_whole.rs"
     ))
     .expect("the committed module");
     assert!(module.contains("'order_0: {"), "the module has static orders in its blocks");
 
-    let mechanism = M::new(0.0, &examples::stewart::control::inputs(&[[0.6, 0.0, 0.0]; 6]));
+    let mechanism = M::new(0.0, &gs::Inputs::from_array([[0.6, 0.0, 0.0]; 6]));
     let mut rng = StdRng::seed_from_u64(16);
     let (mut static_solves, mut dense_solves, mut worst) = (0, 0, 0.0_f64);
     for _ in 0..200 {

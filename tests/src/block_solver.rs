@@ -222,16 +222,15 @@ fn six_revolute_arms_through_packed_storage_match_the_generic_engine() {
 
 /// A module factored block by block keeps Φ_q in [`runtime::blocks::packed_len`] entries at the
 /// front of the solver's `N × N` storage (`runtime::Mechanism::PACKED_BLOCKS`): stepping the
-/// committed Stewart module (91 unknowns, Newton block by block) along its shipped trajectory
+/// committed whole Stewart module (`generated::stewart_whole`, 91 unknowns, Newton block by block) along its shipped trajectory
 /// leaves every other entry of a storage filled with NaN as it was, while the solutions satisfy
 /// Φ = 0 and Φ_q q̇ = ν with Φ_q evaluated in full apart from the solver. Fails when a
 /// block-factored module goes back to touching N rows of N (the memory traffic that made ten
 /// arms cost 13× one arm, BENCHMARKS.md "Block-only Jacobian storage").
 #[test]
 fn a_block_factored_module_touches_only_its_packed_blocks() {
-    use examples::stewart::control::inputs;
     use examples::stewart::{Trajectory, leg_lengths};
-    use generated::stewart::{self as gs, Stewart};
+    use generated::stewart_whole::{self as gs, StewartWhole as Stewart};
     use runtime::input::Driven;
     use runtime::{Mechanism, NewtonOptions, Solver};
     const N: usize = gs::N;
@@ -250,8 +249,11 @@ fn a_block_factored_module_touches_only_its_packed_blocks() {
 
     let mut storage = Box::new([[f64::NAN; N]; N]);
     let legs = |t: f64| leg_lengths(&Trajectory::SHIPPED.at(t));
-    let mut solver =
-        Solver::with_storage(Stewart::new(0.0, &inputs(&legs(0.0))), gs::Q0, &mut *storage);
+    let mut solver = Solver::with_storage(
+        Stewart::new(0.0, &gs::Inputs::from_array(legs(0.0))),
+        gs::Q0,
+        &mut *storage,
+    );
     solver.set_options(NewtonOptions { tolerance: gs::TOLERANCE, ..NewtonOptions::DEFAULT });
     solver.set_predictor(true);
     let (mut phi, mut nu, mut jac) = ([0.0; N], [0.0; N], Box::new([[0.0; N]; N]));

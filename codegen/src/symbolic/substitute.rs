@@ -39,9 +39,15 @@
 //! Other joint-angle rows, absolute rotations about a moving body (κ then varies) and affine
 //! blocks with a coefficient that varies stay unknowns, as does every block when the system
 //! has rows dropped as dependent (their run-time checks and re-selection belong to the whole
-//! system), U-P-S legs reduced to distance rows (`legs`; substituted, the Stewart platform's
-//! module disagreed with the generic engine), or a closed form that adds more than
-//! [`LARGEST_VALUE`] operations to those substituted before it. Systems of every size are
+//! system), or a closed form that adds more than [`LARGEST_VALUE`] operations to those
+//! substituted before it. U-P-S legs reduced to distance rows (`legs`) do not stand in the
+//! way: the blocks are found with the distance rows, the rebuilt system writes the legs'
+//! driver rows again and `legs` replaces them on it (its check reads the legs' bodies'
+//! substituted coordinates through their expressions), so the Stewart platform keeps 55 of
+//! its 91 unknowns: the cylinders' and rods' positions are closed forms given the platform.
+//! (It was once excluded for a disagreement of 3e-2 with the generic engine; that was a test
+//! reading the module's reduced q as the generic layout of all 91 coordinates, where a module
+//! with substituted coordinates gives them through `expand`.) Systems of every size are
 //! substituted: a module solved block by block
 //! (`emit::blocks`) is planned on the unknowns that remain, so its closed-form blocks cost
 //! neither a Newton block nor a place in the solver's storage. The substituted coordinates become
