@@ -302,7 +302,9 @@ pub fn solve_with_chord<R: Real, M: Mechanism<N, R>, const N: usize>(
         return by_block::solve(mechanism, layout, q, t, options, phi, jac, factors, true);
     }
     let mut chord = None;
-    if factors.holds_factors() && options.max_iterations > 0 {
+    // A module with no unknowns left (every coordinate explicit) has nothing to step: no chord
+    // step is taken or counted.
+    if N > 0 && factors.holds_factors() && options.max_iterations > 0 {
         mechanism.residual(q, t, phi);
         let before = max_abs(phi);
         if before <= options.tolerance {
