@@ -194,6 +194,13 @@ fn bench<M: Generated>(
         for k in 0..count {
             series.aim(solver.mechanism_mut(), k);
             let t = series.time(k);
+            let stop = |kind: Trouble, message: String, out: &mut dyn Write| -> ! {
+                let message = message.replace('\n', " ");
+                check(writeln!(out, "error bench {:?} {} {message}", wide(t), kind.as_str()));
+                // `exit` runs no destructor: the buffered line must leave now.
+                check(out.flush());
+                std::process::exit(2);
+            };
             match solver.position(t) {
                 Ok(r) => iterations += u64::from(r.iterations),
                 Err(e) => {
@@ -201,15 +208,14 @@ fn bench<M: Generated>(
                         NewtonError::Singular { .. } => Trouble::Singular,
                         _ => Trouble::NoConvergence,
                     };
-                    let message = e.to_string().replace('\n', " ");
-                    check(writeln!(out, "error bench {:?} {} {message}", wide(t), kind.as_str()));
-                    // `exit` runs no destructor: the buffered line must leave now.
-                    check(out.flush());
-                    std::process::exit(2);
+                    stop(kind, e.to_string(), out);
                 }
             }
-            let _ = solver.velocity();
-            let _ = solver.acceleration();
+            // A non-finite rate or acceleration is reported as the step control reports it
+            // (`Engine::attempt`), not timed on.
+            if let Err(e) = solver.velocity().and_then(|()| solver.acceleration()) {
+                stop(Trouble::Singular, e.to_string(), out);
+            }
             expand(&solver, t, &mut expanded);
             std::hint::black_box(&mut *expanded);
         }
