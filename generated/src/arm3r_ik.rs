@@ -899,7 +899,7 @@ fn residual_jacobian_structural(
 
 /// Factors Φ_q in place with static pivot order 0: step k pivots on row `[13, 0, 1, 10, 11, 12, 2, 3, 15, 14, 4, 7, 6, 9, 5, 8][k]` and column `[0, 2, 3, 9, 10, 11, 4, 1, 12, 5, 6, 7, 8, 13, 14, 15][k]`.
 ///
-/// L and U have 101 entries (1 of them fill-in, 12 known when generated); 233 operations. The others are in `jac`: 54 stored there, with the reciprocals of the pivots on the diagonal, and 35 left as Φ_q had them.
+/// L and U have 101 entries (1 of them fill-in, 12 known when generated); 256 operations. The others are in `jac`: 54 stored there, with the reciprocals of the pivots on the diagonal, and 35 left as Φ_q had them; then 23 entries of U are stored scaled by their row's reciprocal pivot, for [`solve_0`].
 ///
 /// Returns the smallest and largest |pivot|, or `None` when a pivot is not finite or a multiplier exceeds [`runtime::lu::MAX_MULTIPLIER`] in magnitude; `jac` is then partly factored and must be evaluated again.
 #[must_use]
@@ -1114,6 +1114,29 @@ fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     }
     smallest = if p15.abs() < smallest { p15.abs() } else { smallest };
     largest = if p15.abs() > largest { p15.abs() } else { largest };
+    jac[13][1] *= d0;
+    jac[3][5] *= d7;
+    jac[3][6] *= d7;
+    jac[3][7] *= d7;
+    jac[3][8] *= d7;
+    jac[15][13] *= d8;
+    jac[15][14] *= d8;
+    jac[15][15] *= d8;
+    jac[14][6] *= d9;
+    jac[14][7] *= d9;
+    jac[14][8] *= d9;
+    jac[4][7] = u10_11 * d10;
+    jac[4][8] = u10_12 * d10;
+    jac[7][8] = u11_12 * d11;
+    jac[7][13] = u11_13 * d11;
+    jac[7][14] = u11_14 * d11;
+    jac[7][15] = u11_15 * d11;
+    jac[6][13] = u12_13 * d12;
+    jac[6][14] = u12_14 * d12;
+    jac[6][15] = u12_15 * d12;
+    jac[9][14] = u13_14 * d13;
+    jac[9][15] = u13_15 * d13;
+    jac[5][15] = u14_15 * d14;
     Some(runtime::lu::PivotInfo {
         smallest,
         largest,
@@ -1146,27 +1169,27 @@ fn solve_0(lu: &[[f64; N]; N], b: &mut [f64; N]) {
     let y15 = b[8] - lu[8][12] * y8 - lu[8][5] * y9 - lu[8][6] * y10 - lu[8][7] * y11
         - lu[8][8] * y12 - lu[8][13] * y13 - lu[8][14] * y14;
     let x15 = y15 * lu[8][15];
-    let x14 = (y14 - lu[5][15] * x15) * lu[5][14];
-    let x13 = (y13 - lu[9][14] * x14 - lu[9][15] * x15) * lu[9][13];
-    let x12 = (y12 - lu[6][13] * x13 - lu[6][14] * x14 - lu[6][15] * x15) * lu[6][8];
-    let x11 = (y11 - lu[7][8] * x12 - lu[7][13] * x13 - lu[7][14] * x14
-        - lu[7][15] * x15) * lu[7][7];
-    let x10 = (y10 - lu[4][7] * x11 - lu[4][8] * x12) * lu[4][6];
-    let x9 = (y9 - lu[14][6] * x10 - lu[14][7] * x11 - lu[14][8] * x12) * lu[14][5];
-    let x8 = (y8 - lu[15][13] * x13 - lu[15][14] * x14 - lu[15][15] * x15) * lu[15][12];
-    let x7 = (y7 - lu[3][5] * x9 - lu[3][6] * x10 - lu[3][7] * x11 - lu[3][8] * x12)
-        * lu[3][1];
-    let x6 = y6 - lu[2][1] * x7 - lu[2][5] * x9 - lu[2][6] * x10 - lu[2][7] * x11
-        - lu[2][8] * x12;
-    let x5 = y5 - lu[12][12] * x8 - lu[12][13] * x13 - lu[12][14] * x14
-        - lu[12][15] * x15;
-    let x4 = y4 - lu[11][12] * x8 - lu[11][13] * x13 - lu[11][14] * x14
-        - lu[11][15] * x15;
-    let x3 = y3 - lu[10][12] * x8 - lu[10][13] * x13 - lu[10][14] * x14
-        - lu[10][15] * x15;
-    let x2 = y2 - lu[1][5] * x9 - lu[1][6] * x10 - lu[1][7] * x11 - lu[1][8] * x12;
-    let x1 = y1 - lu[0][5] * x9 - lu[0][6] * x10 - lu[0][7] * x11 - lu[0][8] * x12;
-    let x0 = (y0 - lu[13][1] * x7) * lu[13][0];
+    let x14 = y14 * lu[5][14] - lu[5][15] * x15;
+    let x13 = y13 * lu[9][13] - lu[9][15] * x15 - lu[9][14] * x14;
+    let x12 = y12 * lu[6][8] - lu[6][15] * x15 - lu[6][14] * x14 - lu[6][13] * x13;
+    let x11 = y11 * lu[7][7] - lu[7][15] * x15 - lu[7][14] * x14 - lu[7][13] * x13
+        - lu[7][8] * x12;
+    let x10 = y10 * lu[4][6] - lu[4][8] * x12 - lu[4][7] * x11;
+    let x9 = y9 * lu[14][5] - lu[14][8] * x12 - lu[14][7] * x11 - lu[14][6] * x10;
+    let x8 = y8 * lu[15][12] - lu[15][15] * x15 - lu[15][14] * x14 - lu[15][13] * x13;
+    let x7 = y7 * lu[3][1] - lu[3][8] * x12 - lu[3][7] * x11 - lu[3][6] * x10
+        - lu[3][5] * x9;
+    let x6 = y6 - lu[2][8] * x12 - lu[2][7] * x11 - lu[2][6] * x10 - lu[2][5] * x9
+        - lu[2][1] * x7;
+    let x5 = y5 - lu[12][15] * x15 - lu[12][14] * x14 - lu[12][13] * x13
+        - lu[12][12] * x8;
+    let x4 = y4 - lu[11][15] * x15 - lu[11][14] * x14 - lu[11][13] * x13
+        - lu[11][12] * x8;
+    let x3 = y3 - lu[10][15] * x15 - lu[10][14] * x14 - lu[10][13] * x13
+        - lu[10][12] * x8;
+    let x2 = y2 - lu[1][8] * x12 - lu[1][7] * x11 - lu[1][6] * x10 - lu[1][5] * x9;
+    let x1 = y1 - lu[0][8] * x12 - lu[0][7] * x11 - lu[0][6] * x10 - lu[0][5] * x9;
+    let x0 = y0 * lu[13][0] - lu[13][1] * x7;
     b[0] = x0;
     b[2] = x1;
     b[3] = x2;

@@ -460,7 +460,7 @@ fn residual_jacobian_structural(
 
 /// Factors Φ_q in place with static pivot order 0: step k pivots on row `[3, 4, 5, 7, 8, 9, 1, 2, 0, 6, 10, 11, 13, 12][k]` and column `[0, 1, 2, 7, 8, 9, 3, 4, 5, 6, 10, 11, 12, 13][k]`.
 ///
-/// L and U have 88 entries (8 of them fill-in, 12 known when generated); 196 operations. The others are in `jac`: 49 stored there, with the reciprocals of the pivots on the diagonal, and 27 left as Φ_q had them.
+/// L and U have 88 entries (8 of them fill-in, 12 known when generated); 236 operations. The others are in `jac`: 49 stored there, with the reciprocals of the pivots on the diagonal, and 27 left as Φ_q had them; then 40 entries of U are stored scaled by their row's reciprocal pivot, for [`solve_0`].
 ///
 /// Returns the smallest and largest |pivot|, or `None` when a pivot is not finite or a multiplier exceeds [`runtime::lu::MAX_MULTIPLIER`] in magnitude; `jac` is then partly factored and must be evaluated again.
 #[must_use]
@@ -629,6 +629,46 @@ fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     }
     smallest = if p13.abs() < smallest { p13.abs() } else { smallest };
     largest = if p13.abs() > largest { p13.abs() } else { largest };
+    jac[7][10] = -jac[7][10];
+    jac[7][11] = -jac[7][11];
+    jac[7][12] = -jac[7][12];
+    jac[7][13] = -jac[7][13];
+    jac[8][10] = -jac[8][10];
+    jac[8][11] = -jac[8][11];
+    jac[8][12] = -jac[8][12];
+    jac[8][13] = -jac[8][13];
+    jac[9][10] = -jac[9][10];
+    jac[9][11] = -jac[9][11];
+    jac[9][12] = -jac[9][12];
+    jac[9][13] = -jac[9][13];
+    jac[1][4] = u6_7 * d6;
+    jac[1][5] = u6_8 * d6;
+    jac[1][6] = u6_9 * d6;
+    jac[1][10] = u6_10 * d6;
+    jac[1][11] = u6_11 * d6;
+    jac[1][12] = u6_12 * d6;
+    jac[1][13] = u6_13 * d6;
+    jac[2][5] = u7_8 * d7;
+    jac[2][6] = u7_9 * d7;
+    jac[2][10] = u7_10 * d7;
+    jac[2][11] = u7_11 * d7;
+    jac[2][12] = u7_12 * d7;
+    jac[2][13] = u7_13 * d7;
+    jac[0][6] = u8_9 * d8;
+    jac[0][10] = u8_10 * d8;
+    jac[0][11] = u8_11 * d8;
+    jac[0][12] = u8_12 * d8;
+    jac[0][13] = u8_13 * d8;
+    jac[6][10] = u9_10 * d9;
+    jac[6][11] = u9_11 * d9;
+    jac[6][12] = u9_12 * d9;
+    jac[6][13] = u9_13 * d9;
+    jac[10][11] *= d10;
+    jac[10][12] *= d10;
+    jac[10][13] *= d10;
+    jac[11][12] = u11_12 * d11;
+    jac[11][13] = u11_13 * d11;
+    jac[13][13] = u12_13 * d12;
     Some(runtime::lu::PivotInfo {
         smallest,
         largest,
@@ -655,27 +695,23 @@ fn solve_0(lu: &[[f64; N]; N], b: &mut [f64; N]) {
     let y13 = b[12] - lu[12][3] * y6 - lu[12][4] * y7 - lu[12][5] * y8 - lu[12][6] * y9
         - lu[12][10] * y10 - lu[12][11] * y11 - lu[12][12] * y12;
     let x13 = y13 * lu[12][13];
-    let x12 = (y12 - lu[13][13] * x13) * lu[13][12];
-    let x11 = (y11 - lu[11][12] * x12 - lu[11][13] * x13) * lu[11][11];
-    let x10 = (y10 - lu[10][11] * x11 - lu[10][12] * x12 - lu[10][13] * x13)
-        * lu[10][10];
-    let x9 = (y9 - lu[6][10] * x10 - lu[6][11] * x11 - lu[6][12] * x12 - lu[6][13] * x13)
-        * lu[6][6];
-    let x8 = (y8 - lu[0][6] * x9 - lu[0][10] * x10 - lu[0][11] * x11 - lu[0][12] * x12
-        - lu[0][13] * x13) * lu[0][5];
-    let x7 = (y7 - lu[2][5] * x8 - lu[2][6] * x9 - lu[2][10] * x10 - lu[2][11] * x11
-        - lu[2][12] * x12 - lu[2][13] * x13) * lu[2][4];
-    let x6 = (y6 - lu[1][4] * x7 - lu[1][5] * x8 - lu[1][6] * x9 - lu[1][10] * x10
-        - lu[1][11] * x11 - lu[1][12] * x12 - lu[1][13] * x13) * lu[1][3];
-    let x5 = -(y5 - lu[9][10] * x10 - lu[9][11] * x11 - lu[9][12] * x12
-        - lu[9][13] * x13);
-    let x4 = -(y4 - lu[8][10] * x10 - lu[8][11] * x11 - lu[8][12] * x12
-        - lu[8][13] * x13);
-    let x3 = -(y3 - lu[7][10] * x10 - lu[7][11] * x11 - lu[7][12] * x12
-        - lu[7][13] * x13);
-    let x2 = y2 - lu[5][3] * x6 - lu[5][4] * x7 - lu[5][5] * x8 - lu[5][6] * x9;
-    let x1 = y1 - lu[4][3] * x6 - lu[4][4] * x7 - lu[4][5] * x8 - lu[4][6] * x9;
-    let x0 = y0 - lu[3][3] * x6 - lu[3][4] * x7 - lu[3][5] * x8 - lu[3][6] * x9;
+    let x12 = y12 * lu[13][12] - lu[13][13] * x13;
+    let x11 = y11 * lu[11][11] - lu[11][13] * x13 - lu[11][12] * x12;
+    let x10 = y10 * lu[10][10] - lu[10][13] * x13 - lu[10][12] * x12 - lu[10][11] * x11;
+    let x9 = y9 * lu[6][6] - lu[6][13] * x13 - lu[6][12] * x12 - lu[6][11] * x11
+        - lu[6][10] * x10;
+    let x8 = y8 * lu[0][5] - lu[0][13] * x13 - lu[0][12] * x12 - lu[0][11] * x11
+        - lu[0][10] * x10 - lu[0][6] * x9;
+    let x7 = y7 * lu[2][4] - lu[2][13] * x13 - lu[2][12] * x12 - lu[2][11] * x11
+        - lu[2][10] * x10 - lu[2][6] * x9 - lu[2][5] * x8;
+    let x6 = y6 * lu[1][3] - lu[1][13] * x13 - lu[1][12] * x12 - lu[1][11] * x11
+        - lu[1][10] * x10 - lu[1][6] * x9 - lu[1][5] * x8 - lu[1][4] * x7;
+    let x5 = -y5 - lu[9][13] * x13 - lu[9][12] * x12 - lu[9][11] * x11 - lu[9][10] * x10;
+    let x4 = -y4 - lu[8][13] * x13 - lu[8][12] * x12 - lu[8][11] * x11 - lu[8][10] * x10;
+    let x3 = -y3 - lu[7][13] * x13 - lu[7][12] * x12 - lu[7][11] * x11 - lu[7][10] * x10;
+    let x2 = y2 - lu[5][6] * x9 - lu[5][5] * x8 - lu[5][4] * x7 - lu[5][3] * x6;
+    let x1 = y1 - lu[4][6] * x9 - lu[4][5] * x8 - lu[4][4] * x7 - lu[4][3] * x6;
+    let x0 = y0 - lu[3][6] * x9 - lu[3][5] * x8 - lu[3][4] * x7 - lu[3][3] * x6;
     b[0] = x0;
     b[1] = x1;
     b[2] = x2;

@@ -625,7 +625,7 @@ fn residual_jacobian_structural(
 
 /// Factors Φ_q in place with static pivot order 0: step k pivots on row `[9, 7, 8, 0, 1, 2, 5, 4, 10, 6, 3, 11][k]` and column `[9, 7, 8, 0, 1, 2, 10, 11, 3, 4, 5, 6][k]`.
 ///
-/// L and U have 58 entries (4 of them fill-in, 12 known when generated); 87 operations. The others are in `jac`: 27 stored there, with the reciprocals of the pivots on the diagonal, and 19 left as Φ_q had them.
+/// L and U have 58 entries (4 of them fill-in, 12 known when generated); 102 operations. The others are in `jac`: 27 stored there, with the reciprocals of the pivots on the diagonal, and 19 left as Φ_q had them; then 15 entries of U are stored scaled by their row's reciprocal pivot, for [`solve_0`].
 ///
 /// Returns the smallest and largest |pivot|, or `None` when a pivot is not finite or a multiplier exceeds [`runtime::lu::MAX_MULTIPLIER`] in magnitude; `jac` is then partly factored and must be evaluated again.
 #[must_use]
@@ -729,6 +729,21 @@ fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     }
     smallest = if p11.abs() < smallest { p11.abs() } else { smallest };
     largest = if p11.abs() > largest { p11.abs() } else { largest };
+    jac[5][11] = u6_7 * d6;
+    jac[5][3] = u6_8 * d6;
+    jac[5][4] = u6_9 * d6;
+    jac[5][5] = u6_10 * d6;
+    jac[5][6] = u6_11 * d6;
+    jac[4][3] = u7_8 * d7;
+    jac[4][4] = u7_9 * d7;
+    jac[4][5] = u7_10 * d7;
+    jac[4][6] = u7_11 * d7;
+    jac[10][4] *= d8;
+    jac[10][5] *= d8;
+    jac[10][6] *= d8;
+    jac[6][5] = u9_10 * d9;
+    jac[6][6] = u9_11 * d9;
+    jac[3][6] = u10_11 * d10;
     Some(runtime::lu::PivotInfo {
         smallest,
         largest,
@@ -753,18 +768,18 @@ fn solve_0(lu: &[[f64; N]; N], b: &mut [f64; N]) {
     let y11 = b[11] - lu[11][10] * y6 - lu[11][11] * y7 - lu[11][3] * y8 - lu[11][4] * y9
         - lu[11][5] * y10;
     let x11 = y11 * lu[11][6];
-    let x10 = (y10 - lu[3][6] * x11) * lu[3][5];
-    let x9 = (y9 - lu[6][5] * x10 - lu[6][6] * x11) * lu[6][4];
-    let x8 = (y8 - lu[10][4] * x9 - lu[10][5] * x10 - lu[10][6] * x11) * lu[10][3];
-    let x7 = (y7 - lu[4][3] * x8 - lu[4][4] * x9 - lu[4][5] * x10 - lu[4][6] * x11)
-        * lu[4][11];
-    let x6 = (y6 - lu[5][11] * x7 - lu[5][3] * x8 - lu[5][4] * x9 - lu[5][5] * x10
-        - lu[5][6] * x11) * lu[5][10];
-    let x5 = y5 - lu[2][3] * x8 - lu[2][4] * x9 - lu[2][5] * x10 - lu[2][6] * x11;
-    let x4 = y4 - lu[1][3] * x8 - lu[1][4] * x9 - lu[1][5] * x10 - lu[1][6] * x11;
-    let x3 = y3 - lu[0][3] * x8 - lu[0][4] * x9 - lu[0][5] * x10 - lu[0][6] * x11;
-    let x2 = y2 - lu[8][10] * x6 - lu[8][11] * x7;
-    let x1 = y1 - lu[7][10] * x6 - lu[7][11] * x7;
+    let x10 = y10 * lu[3][5] - lu[3][6] * x11;
+    let x9 = y9 * lu[6][4] - lu[6][6] * x11 - lu[6][5] * x10;
+    let x8 = y8 * lu[10][3] - lu[10][6] * x11 - lu[10][5] * x10 - lu[10][4] * x9;
+    let x7 = y7 * lu[4][11] - lu[4][6] * x11 - lu[4][5] * x10 - lu[4][4] * x9
+        - lu[4][3] * x8;
+    let x6 = y6 * lu[5][10] - lu[5][6] * x11 - lu[5][5] * x10 - lu[5][4] * x9
+        - lu[5][3] * x8 - lu[5][11] * x7;
+    let x5 = y5 - lu[2][6] * x11 - lu[2][5] * x10 - lu[2][4] * x9 - lu[2][3] * x8;
+    let x4 = y4 - lu[1][6] * x11 - lu[1][5] * x10 - lu[1][4] * x9 - lu[1][3] * x8;
+    let x3 = y3 - lu[0][6] * x11 - lu[0][5] * x10 - lu[0][4] * x9 - lu[0][3] * x8;
+    let x2 = y2 - lu[8][11] * x7 - lu[8][10] * x6;
+    let x1 = y1 - lu[7][11] * x7 - lu[7][10] * x6;
     let x0 = y0;
     b[9] = x0;
     b[7] = x1;

@@ -313,7 +313,7 @@ fn residual_jacobian_structural(
 
 /// Factors Φ_q in place with static pivot order 0: step k pivots on row `[3, 1, 2, 0][k]` and column `[0, 1, 2, 3][k]`.
 ///
-/// L and U have 16 entries (0 of them fill-in, 0 known when generated); 38 operations. The others are in `jac`: 13 stored there, with the reciprocals of the pivots on the diagonal, and 3 left as Φ_q had them.
+/// L and U have 16 entries (0 of them fill-in, 0 known when generated); 44 operations. The others are in `jac`: 13 stored there, with the reciprocals of the pivots on the diagonal, and 3 left as Φ_q had them; then 6 entries of U are stored scaled by their row's reciprocal pivot, for [`solve_0`].
 ///
 /// Returns the smallest and largest |pivot|, or `None` when a pivot is not finite or a multiplier exceeds [`runtime::lu::MAX_MULTIPLIER`] in magnitude; `jac` is then partly factored and must be evaluated again.
 #[must_use]
@@ -373,6 +373,12 @@ fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     }
     smallest = if p3.abs() < smallest { p3.abs() } else { smallest };
     largest = if p3.abs() > largest { p3.abs() } else { largest };
+    jac[3][1] *= d0;
+    jac[3][2] *= d0;
+    jac[3][3] *= d0;
+    jac[1][2] = u1_2 * d1;
+    jac[1][3] = u1_3 * d1;
+    jac[2][3] = u2_3 * d2;
     Some(runtime::lu::PivotInfo {
         smallest,
         largest,
@@ -388,9 +394,9 @@ fn solve_0(lu: &[[f64; N]; N], b: &mut [f64; N]) {
     let y2 = b[2] - lu[2][0] * y0 - lu[2][1] * y1;
     let y3 = b[0] - lu[0][0] * y0 - lu[0][1] * y1 - lu[0][2] * y2;
     let x3 = y3 * lu[0][3];
-    let x2 = (y2 - lu[2][3] * x3) * lu[2][2];
-    let x1 = (y1 - lu[1][2] * x2 - lu[1][3] * x3) * lu[1][1];
-    let x0 = (y0 - lu[3][1] * x1 - lu[3][2] * x2 - lu[3][3] * x3) * lu[3][0];
+    let x2 = y2 * lu[2][2] - lu[2][3] * x3;
+    let x1 = y1 * lu[1][1] - lu[1][3] * x3 - lu[1][2] * x2;
+    let x0 = y0 * lu[3][0] - lu[3][3] * x3 - lu[3][2] * x2 - lu[3][1] * x1;
     b[0] = x0;
     b[1] = x1;
     b[2] = x2;

@@ -245,7 +245,7 @@ fn residual_jacobian_structural(
 
 /// Factors Φ_q in place with static pivot order 0: step k pivots on row `[1, 0][k]` and column `[0, 1][k]`.
 ///
-/// L and U have 4 entries (0 of them fill-in, 0 known when generated); 5 operations. The others are in `jac`: 3 stored there, with the reciprocals of the pivots on the diagonal, and 1 left as Φ_q had them.
+/// L and U have 4 entries (0 of them fill-in, 0 known when generated); 6 operations. The others are in `jac`: 3 stored there, with the reciprocals of the pivots on the diagonal, and 1 left as Φ_q had them; then 1 entries of U are stored scaled by their row's reciprocal pivot, for [`solve_0`].
 ///
 /// Returns the smallest and largest |pivot|, or `None` when a pivot is not finite or a multiplier exceeds [`runtime::lu::MAX_MULTIPLIER`] in magnitude; `jac` is then partly factored and must be evaluated again.
 #[must_use]
@@ -268,6 +268,7 @@ fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     }
     smallest = if p1.abs() < smallest { p1.abs() } else { smallest };
     largest = if p1.abs() > largest { p1.abs() } else { largest };
+    jac[1][1] *= d0;
     Some(runtime::lu::PivotInfo {
         smallest,
         largest,
@@ -281,14 +282,14 @@ fn solve_0(lu: &[[f64; N]; N], b: &mut [f64; N]) {
     let y0 = b[1];
     let y1 = b[0] - lu[0][0] * y0;
     let x1 = y1 * lu[0][1];
-    let x0 = (y0 - lu[1][1] * x1) * lu[1][0];
+    let x0 = y0 * lu[1][0] - lu[1][1] * x1;
     b[0] = x0;
     b[1] = x1;
 }
 
 /// Factors Φ_q in place with static pivot order 1: step k pivots on row `[0, 1][k]` and column `[0, 1][k]`.
 ///
-/// L and U have 4 entries (0 of them fill-in, 0 known when generated); 5 operations. The others are in `jac`: 3 stored there, with the reciprocals of the pivots on the diagonal, and 1 left as Φ_q had them.
+/// L and U have 4 entries (0 of them fill-in, 0 known when generated); 6 operations. The others are in `jac`: 3 stored there, with the reciprocals of the pivots on the diagonal, and 1 left as Φ_q had them; then 1 entries of U are stored scaled by their row's reciprocal pivot, for [`solve_1`].
 ///
 /// Returns the smallest and largest |pivot|, or `None` when a pivot is not finite or a multiplier exceeds [`runtime::lu::MAX_MULTIPLIER`] in magnitude; `jac` is then partly factored and must be evaluated again.
 #[must_use]
@@ -311,6 +312,7 @@ fn factor_1(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     }
     smallest = if p1.abs() < smallest { p1.abs() } else { smallest };
     largest = if p1.abs() > largest { p1.abs() } else { largest };
+    jac[0][1] *= d0;
     Some(runtime::lu::PivotInfo {
         smallest,
         largest,
@@ -324,7 +326,7 @@ fn solve_1(lu: &[[f64; N]; N], b: &mut [f64; N]) {
     let y0 = b[0];
     let y1 = b[1] - lu[1][0] * y0;
     let x1 = y1 * lu[1][1];
-    let x0 = (y0 - lu[0][1] * x1) * lu[0][0];
+    let x0 = y0 * lu[0][0] - lu[0][1] * x1;
     b[0] = x0;
     b[1] = x1;
 }

@@ -299,7 +299,7 @@ fn residual_jacobian_structural(
 
 /// Factors Φ_q in place with static pivot order 0: step k pivots on row `[4, 2, 3, 0, 1][k]` and column `[3, 1, 0, 2, 4][k]`.
 ///
-/// L and U have 19 entries (1 of them fill-in, 0 known when generated); 37 operations. The others are in `jac`: 16 stored there, with the reciprocals of the pivots on the diagonal, and 3 left as Φ_q had them.
+/// L and U have 19 entries (1 of them fill-in, 0 known when generated); 43 operations. The others are in `jac`: 16 stored there, with the reciprocals of the pivots on the diagonal, and 3 left as Φ_q had them; then 6 entries of U are stored scaled by their row's reciprocal pivot, for [`solve_0`].
 ///
 /// Returns the smallest and largest |pivot|, or `None` when a pivot is not finite or a multiplier exceeds [`runtime::lu::MAX_MULTIPLIER`] in magnitude; `jac` is then partly factored and must be evaluated again.
 #[must_use]
@@ -373,6 +373,12 @@ fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     }
     smallest = if p4.abs() < smallest { p4.abs() } else { smallest };
     largest = if p4.abs() > largest { p4.abs() } else { largest };
+    jac[4][4] *= d0;
+    jac[2][0] *= d1;
+    jac[2][4] = u1_4 * d1;
+    jac[3][2] *= d2;
+    jac[3][4] = u2_4 * d2;
+    jac[0][4] = u3_4 * d3;
     Some(runtime::lu::PivotInfo {
         smallest,
         largest,
@@ -389,10 +395,10 @@ fn solve_0(lu: &[[f64; N]; N], b: &mut [f64; N]) {
     let y3 = b[0] - lu[0][3] * y0 - lu[0][0] * y2;
     let y4 = b[1] - lu[1][3] * y0 - lu[1][1] * y1 - lu[1][0] * y2 - lu[1][2] * y3;
     let x4 = y4 * lu[1][4];
-    let x3 = (y3 - lu[0][4] * x4) * lu[0][2];
-    let x2 = (y2 - lu[3][2] * x3 - lu[3][4] * x4) * lu[3][0];
-    let x1 = (y1 - lu[2][0] * x2 - lu[2][4] * x4) * lu[2][1];
-    let x0 = (y0 - lu[4][4] * x4) * lu[4][3];
+    let x3 = y3 * lu[0][2] - lu[0][4] * x4;
+    let x2 = y2 * lu[3][0] - lu[3][4] * x4 - lu[3][2] * x3;
+    let x1 = y1 * lu[2][1] - lu[2][4] * x4 - lu[2][0] * x2;
+    let x0 = y0 * lu[4][3] - lu[4][4] * x4;
     b[3] = x0;
     b[1] = x1;
     b[0] = x2;

@@ -299,7 +299,7 @@ fn residual_jacobian_structural(
 
 /// Factors Φ_q in place with static pivot order 0: step k pivots on row `[2, 3, 4, 1, 0][k]` and column `[0, 3, 1, 2, 4][k]`.
 ///
-/// L and U have 19 entries (0 of them fill-in, 0 known when generated); 27 operations. The others are in `jac`: 12 stored there, with the reciprocals of the pivots on the diagonal, and 7 left as Φ_q had them.
+/// L and U have 19 entries (0 of them fill-in, 0 known when generated); 35 operations. The others are in `jac`: 12 stored there, with the reciprocals of the pivots on the diagonal, and 7 left as Φ_q had them; then 8 entries of U are stored scaled by their row's reciprocal pivot, for [`solve_0`].
 ///
 /// Returns the smallest and largest |pivot|, or `None` when a pivot is not finite or a multiplier exceeds [`runtime::lu::MAX_MULTIPLIER`] in magnitude; `jac` is then partly factored and must be evaluated again.
 #[must_use]
@@ -363,6 +363,14 @@ fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     }
     smallest = if p4.abs() < smallest { p4.abs() } else { smallest };
     largest = if p4.abs() > largest { p4.abs() } else { largest };
+    jac[2][3] *= d0;
+    jac[2][1] *= d0;
+    jac[2][2] *= d0;
+    jac[2][4] *= d0;
+    jac[3][1] *= d1;
+    jac[4][2] *= d2;
+    jac[4][4] *= d2;
+    jac[1][4] = u3_4 * d3;
     Some(runtime::lu::PivotInfo {
         smallest,
         largest,
@@ -379,11 +387,11 @@ fn solve_0(lu: &[[f64; N]; N], b: &mut [f64; N]) {
     let y3 = b[1] - lu[1][3] * y1 - lu[1][1] * y2;
     let y4 = b[0] - lu[0][3] * y1 - lu[0][1] * y2 - lu[0][2] * y3;
     let x4 = y4 * lu[0][4];
-    let x3 = (y3 - lu[1][4] * x4) * lu[1][2];
-    let x2 = (y2 - lu[4][2] * x3 - lu[4][4] * x4) * lu[4][1];
-    let x1 = (y1 - lu[3][1] * x2) * lu[3][3];
-    let x0 = (y0 - lu[2][3] * x1 - lu[2][1] * x2 - lu[2][2] * x3 - lu[2][4] * x4)
-        * lu[2][0];
+    let x3 = y3 * lu[1][2] - lu[1][4] * x4;
+    let x2 = y2 * lu[4][1] - lu[4][4] * x4 - lu[4][2] * x3;
+    let x1 = y1 * lu[3][3] - lu[3][1] * x2;
+    let x0 = y0 * lu[2][0] - lu[2][4] * x4 - lu[2][2] * x3 - lu[2][1] * x2
+        - lu[2][3] * x1;
     b[0] = x0;
     b[3] = x1;
     b[1] = x2;
@@ -393,7 +401,7 @@ fn solve_0(lu: &[[f64; N]; N], b: &mut [f64; N]) {
 
 /// Factors Φ_q in place with static pivot order 1: step k pivots on row `[2, 3, 0, 4, 1][k]` and column `[0, 1, 2, 3, 4][k]`.
 ///
-/// L and U have 19 entries (0 of them fill-in, 0 known when generated); 27 operations. The others are in `jac`: 13 stored there, with the reciprocals of the pivots on the diagonal, and 6 left as Φ_q had them.
+/// L and U have 19 entries (0 of them fill-in, 0 known when generated); 35 operations. The others are in `jac`: 13 stored there, with the reciprocals of the pivots on the diagonal, and 6 left as Φ_q had them; then 8 entries of U are stored scaled by their row's reciprocal pivot, for [`solve_1`].
 ///
 /// Returns the smallest and largest |pivot|, or `None` when a pivot is not finite or a multiplier exceeds [`runtime::lu::MAX_MULTIPLIER`] in magnitude; `jac` is then partly factored and must be evaluated again.
 #[must_use]
@@ -459,6 +467,14 @@ fn factor_1(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     }
     smallest = if p4.abs() < smallest { p4.abs() } else { smallest };
     largest = if p4.abs() > largest { p4.abs() } else { largest };
+    jac[2][1] *= d0;
+    jac[2][2] *= d0;
+    jac[2][3] *= d0;
+    jac[2][4] *= d0;
+    jac[3][3] *= d1;
+    jac[0][3] = u2_3 * d2;
+    jac[0][4] *= d2;
+    jac[4][4] = u3_4 * d3;
     Some(runtime::lu::PivotInfo {
         smallest,
         largest,
@@ -475,11 +491,11 @@ fn solve_1(lu: &[[f64; N]; N], b: &mut [f64; N]) {
     let y3 = b[4] - lu[4][1] * y1 - lu[4][2] * y2;
     let y4 = b[1] - lu[1][1] * y1 - lu[1][2] * y2 - lu[1][3] * y3;
     let x4 = y4 * lu[1][4];
-    let x3 = (y3 - lu[4][4] * x4) * lu[4][3];
-    let x2 = (y2 - lu[0][3] * x3 - lu[0][4] * x4) * lu[0][2];
-    let x1 = (y1 - lu[3][3] * x3) * lu[3][1];
-    let x0 = (y0 - lu[2][1] * x1 - lu[2][2] * x2 - lu[2][3] * x3 - lu[2][4] * x4)
-        * lu[2][0];
+    let x3 = y3 * lu[4][3] - lu[4][4] * x4;
+    let x2 = y2 * lu[0][2] - lu[0][4] * x4 - lu[0][3] * x3;
+    let x1 = y1 * lu[3][1] - lu[3][3] * x3;
+    let x0 = y0 * lu[2][0] - lu[2][4] * x4 - lu[2][3] * x3 - lu[2][2] * x2
+        - lu[2][1] * x1;
     b[0] = x0;
     b[1] = x1;
     b[2] = x2;

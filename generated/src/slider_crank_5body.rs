@@ -684,7 +684,7 @@ fn residual_jacobian_structural(
 
 /// Factors Φ_q in place with static pivot order 0: step k pivots on row `[17, 0, 1, 2, 4, 5, 18, 3, 7, 6, 19, 9, 8, 10, 11, 14, 15, 20, 16, 13, 12][k]` and column `[7, 0, 1, 2, 8, 9, 3, 5, 4, 6, 10, 12, 13, 11, 14, 15, 16, 17, 18, 19, 20][k]`.
 ///
-/// L and U have 144 entries (11 of them fill-in, 12 known when generated); 356 operations. The others are in `jac`: 95 stored there, with the reciprocals of the pivots on the diagonal, and 37 left as Φ_q had them.
+/// L and U have 144 entries (11 of them fill-in, 12 known when generated); 415 operations. The others are in `jac`: 95 stored there, with the reciprocals of the pivots on the diagonal, and 37 left as Φ_q had them; then 59 entries of U are stored scaled by their row's reciprocal pivot, for [`solve_0`].
 ///
 /// Returns the smallest and largest |pivot|, or `None` when a pivot is not finite or a multiplier exceeds [`runtime::lu::MAX_MULTIPLIER`] in magnitude; `jac` is then partly factored and must be evaluated again.
 #[must_use]
@@ -1025,6 +1025,65 @@ fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     }
     smallest = if p20.abs() < smallest { p20.abs() } else { smallest };
     largest = if p20.abs() > largest { p20.abs() } else { largest };
+    jac[18][5] *= d6;
+    jac[18][4] *= d6;
+    jac[18][6] *= d6;
+    jac[3][4] = u7_8 * d7;
+    jac[3][6] = u7_9 * d7;
+    jac[3][14] = d7;
+    jac[7][6] = u8_9 * d8;
+    jac[7][10] *= d8;
+    jac[7][12] *= d8;
+    jac[7][13] *= d8;
+    jac[7][11] *= d8;
+    jac[7][14] = u8_14 * d8;
+    jac[6][10] = u9_10 * d9;
+    jac[6][12] = u9_11 * d9;
+    jac[6][13] = u9_12 * d9;
+    jac[6][11] = u9_13 * d9;
+    jac[6][14] = u9_14 * d9;
+    jac[19][12] *= d10;
+    jac[19][13] *= d10;
+    jac[19][11] *= d10;
+    jac[9][13] = u11_12 * d11;
+    jac[9][11] = u11_13 * d11;
+    jac[9][17] *= d11;
+    jac[9][18] *= d11;
+    jac[9][19] *= d11;
+    jac[9][20] *= d11;
+    jac[8][11] = u12_13 * d12;
+    jac[8][17] = u12_17 * d12;
+    jac[8][18] = u12_18 * d12;
+    jac[8][19] = u12_19 * d12;
+    jac[8][20] = u12_20 * d12;
+    jac[10][14] = u13_14 * d13;
+    jac[10][15] *= d13;
+    jac[10][16] *= d13;
+    jac[10][17] = u13_17 * d13;
+    jac[10][18] = u13_18 * d13;
+    jac[10][19] = u13_19 * d13;
+    jac[10][20] = u13_20 * d13;
+    jac[11][15] = u14_15 * d14;
+    jac[11][16] = u14_16 * d14;
+    jac[11][17] = u14_17 * d14;
+    jac[11][18] = u14_18 * d14;
+    jac[11][19] = u14_19 * d14;
+    jac[11][20] = u14_20 * d14;
+    jac[14][16] = u15_16 * d15;
+    jac[14][17] = u15_17 * d15;
+    jac[14][18] = u15_18 * d15;
+    jac[14][19] = u15_19 * d15;
+    jac[14][20] = u15_20 * d15;
+    jac[15][17] = u16_17 * d16;
+    jac[15][18] = u16_18 * d16;
+    jac[15][19] = u16_19 * d16;
+    jac[15][20] = u16_20 * d16;
+    jac[20][18] *= d17;
+    jac[20][19] *= d17;
+    jac[20][20] *= d17;
+    jac[16][19] = u18_19 * d18;
+    jac[16][20] = u18_20 * d18;
+    jac[13][20] = u19_20 * d19;
     Some(runtime::lu::PivotInfo {
         smallest,
         largest,
@@ -1033,7 +1092,7 @@ fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
 
 /// Solves Φ_q x = b in place with the factors [`factor_0`] left in `lu`.
 ///
-/// 255 operations.
+/// 256 operations.
 fn solve_0(lu: &[[f64; N]; N], b: &mut [f64; N]) {
     let y0 = b[17];
     let y1 = b[0];
@@ -1061,36 +1120,33 @@ fn solve_0(lu: &[[f64; N]; N], b: &mut [f64; N]) {
     let y19 = b[13] - lu[13][17] * y17 - lu[13][18] * y18;
     let y20 = b[12] - lu[12][17] * y17 - lu[12][18] * y18 - lu[12][19] * y19;
     let x20 = y20 * lu[12][20];
-    let x19 = (y19 - lu[13][20] * x20) * lu[13][19];
-    let x18 = (y18 - lu[16][19] * x19 - lu[16][20] * x20) * lu[16][18];
-    let x17 = (y17 - lu[20][18] * x18 - lu[20][19] * x19 - lu[20][20] * x20)
-        * lu[20][17];
-    let x16 = (y16 - lu[15][17] * x17 - lu[15][18] * x18 - lu[15][19] * x19
-        - lu[15][20] * x20) * lu[15][16];
-    let x15 = (y15 - lu[14][16] * x16 - lu[14][17] * x17 - lu[14][18] * x18
-        - lu[14][19] * x19 - lu[14][20] * x20) * lu[14][15];
-    let x14 = (y14 - lu[11][15] * x15 - lu[11][16] * x16 - lu[11][17] * x17
-        - lu[11][18] * x18 - lu[11][19] * x19 - lu[11][20] * x20) * lu[11][14];
-    let x13 = (y13 - lu[10][14] * x14 - lu[10][15] * x15 - lu[10][16] * x16
-        - lu[10][17] * x17 - lu[10][18] * x18 - lu[10][19] * x19 - lu[10][20] * x20)
-        * lu[10][11];
-    let x12 = (y12 - lu[8][11] * x13 - lu[8][17] * x17 - lu[8][18] * x18
-        - lu[8][19] * x19 - lu[8][20] * x20) * lu[8][13];
-    let x11 = (y11 - lu[9][13] * x12 - lu[9][11] * x13 - lu[9][17] * x17
-        - lu[9][18] * x18 - lu[9][19] * x19 - lu[9][20] * x20) * lu[9][12];
-    let x10 = (y10 - lu[19][12] * x11 - lu[19][13] * x12 - lu[19][11] * x13)
-        * lu[19][10];
-    let x9 = (y9 - lu[6][10] * x10 - lu[6][12] * x11 - lu[6][13] * x12 - lu[6][11] * x13
-        - lu[6][14] * x14) * lu[6][6];
-    let x8 = (y8 - lu[7][6] * x9 - lu[7][10] * x10 - lu[7][12] * x11 - lu[7][13] * x12
-        - lu[7][11] * x13 - lu[7][14] * x14) * lu[7][4];
-    let x7 = (y7 - lu[3][4] * x8 - lu[3][6] * x9 - x14) * lu[3][5];
-    let x6 = (y6 - lu[18][5] * x7 - lu[18][4] * x8 - lu[18][6] * x9) * lu[18][3];
-    let x5 = y5 - lu[5][3] * x6 - lu[5][5] * x7 - lu[5][4] * x8 - lu[5][6] * x9;
-    let x4 = y4 - lu[4][3] * x6 - lu[4][5] * x7 - lu[4][4] * x8 - lu[4][6] * x9;
-    let x3 = y3 - lu[2][3] * x6 - lu[2][5] * x7 - lu[2][4] * x8 - lu[2][6] * x9;
-    let x2 = y2 - lu[1][3] * x6 - lu[1][5] * x7 - lu[1][4] * x8 - lu[1][6] * x9;
-    let x1 = y1 - lu[0][3] * x6 - lu[0][5] * x7 - lu[0][4] * x8 - lu[0][6] * x9;
+    let x19 = y19 * lu[13][19] - lu[13][20] * x20;
+    let x18 = y18 * lu[16][18] - lu[16][20] * x20 - lu[16][19] * x19;
+    let x17 = y17 * lu[20][17] - lu[20][20] * x20 - lu[20][19] * x19 - lu[20][18] * x18;
+    let x16 = y16 * lu[15][16] - lu[15][20] * x20 - lu[15][19] * x19 - lu[15][18] * x18
+        - lu[15][17] * x17;
+    let x15 = y15 * lu[14][15] - lu[14][20] * x20 - lu[14][19] * x19 - lu[14][18] * x18
+        - lu[14][17] * x17 - lu[14][16] * x16;
+    let x14 = y14 * lu[11][14] - lu[11][20] * x20 - lu[11][19] * x19 - lu[11][18] * x18
+        - lu[11][17] * x17 - lu[11][16] * x16 - lu[11][15] * x15;
+    let x13 = y13 * lu[10][11] - lu[10][20] * x20 - lu[10][19] * x19 - lu[10][18] * x18
+        - lu[10][17] * x17 - lu[10][16] * x16 - lu[10][15] * x15 - lu[10][14] * x14;
+    let x12 = y12 * lu[8][13] - lu[8][20] * x20 - lu[8][19] * x19 - lu[8][18] * x18
+        - lu[8][17] * x17 - lu[8][11] * x13;
+    let x11 = y11 * lu[9][12] - lu[9][20] * x20 - lu[9][19] * x19 - lu[9][18] * x18
+        - lu[9][17] * x17 - lu[9][11] * x13 - lu[9][13] * x12;
+    let x10 = y10 * lu[19][10] - lu[19][11] * x13 - lu[19][13] * x12 - lu[19][12] * x11;
+    let x9 = y9 * lu[6][6] - lu[6][14] * x14 - lu[6][11] * x13 - lu[6][13] * x12
+        - lu[6][12] * x11 - lu[6][10] * x10;
+    let x8 = y8 * lu[7][4] - lu[7][14] * x14 - lu[7][11] * x13 - lu[7][13] * x12
+        - lu[7][12] * x11 - lu[7][10] * x10 - lu[7][6] * x9;
+    let x7 = y7 * lu[3][5] - lu[3][14] * x14 - lu[3][6] * x9 - lu[3][4] * x8;
+    let x6 = y6 * lu[18][3] - lu[18][6] * x9 - lu[18][4] * x8 - lu[18][5] * x7;
+    let x5 = y5 - lu[5][6] * x9 - lu[5][4] * x8 - lu[5][5] * x7 - lu[5][3] * x6;
+    let x4 = y4 - lu[4][6] * x9 - lu[4][4] * x8 - lu[4][5] * x7 - lu[4][3] * x6;
+    let x3 = y3 - lu[2][6] * x9 - lu[2][4] * x8 - lu[2][5] * x7 - lu[2][3] * x6;
+    let x2 = y2 - lu[1][6] * x9 - lu[1][4] * x8 - lu[1][5] * x7 - lu[1][3] * x6;
+    let x1 = y1 - lu[0][6] * x9 - lu[0][4] * x8 - lu[0][5] * x7 - lu[0][3] * x6;
     let x0 = y0 + x14;
     b[7] = x0;
     b[0] = x1;
@@ -1117,7 +1173,7 @@ fn solve_0(lu: &[[f64; N]; N], b: &mut [f64; N]) {
 
 /// Factors Φ_q in place with static pivot order 1: step k pivots on row `[17, 0, 1, 2, 4, 5, 18, 3, 19, 14, 15, 7, 6, 11, 10, 9, 8, 20, 16, 13, 12][k]` and column `[7, 0, 1, 2, 8, 9, 3, 14, 10, 15, 16, 4, 5, 6, 11, 12, 13, 17, 18, 19, 20][k]`.
 ///
-/// L and U have 148 entries (15 of them fill-in, 12 known when generated); 379 operations. The others are in `jac`: 102 stored there, with the reciprocals of the pivots on the diagonal, and 34 left as Φ_q had them.
+/// L and U have 148 entries (15 of them fill-in, 12 known when generated); 437 operations. The others are in `jac`: 102 stored there, with the reciprocals of the pivots on the diagonal, and 34 left as Φ_q had them; then 58 entries of U are stored scaled by their row's reciprocal pivot, for [`solve_1`].
 ///
 /// Returns the smallest and largest |pivot|, or `None` when a pivot is not finite or a multiplier exceeds [`runtime::lu::MAX_MULTIPLIER`] in magnitude; `jac` is then partly factored and must be evaluated again.
 #[must_use]
@@ -1471,6 +1527,64 @@ fn factor_1(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     }
     smallest = if p20.abs() < smallest { p20.abs() } else { smallest };
     largest = if p20.abs() > largest { p20.abs() } else { largest };
+    jac[18][4] *= d6;
+    jac[18][5] *= d6;
+    jac[18][6] *= d6;
+    jac[19][11] *= d8;
+    jac[19][12] *= d8;
+    jac[19][13] *= d8;
+    jac[14][16] *= d9;
+    jac[14][4] = u9_11 * d9;
+    jac[14][5] = u9_12 * d9;
+    jac[14][6] = u9_13 * d9;
+    jac[14][17] *= d9;
+    jac[14][18] *= d9;
+    jac[14][19] *= d9;
+    jac[14][20] *= d9;
+    jac[15][4] = u10_11 * d10;
+    jac[15][5] = u10_12 * d10;
+    jac[15][6] = u10_13 * d10;
+    jac[15][17] = u10_17 * d10;
+    jac[15][18] = u10_18 * d10;
+    jac[15][19] = u10_19 * d10;
+    jac[15][20] = u10_20 * d10;
+    jac[7][5] = u11_12 * d11;
+    jac[7][6] = u11_13 * d11;
+    jac[7][11] = u11_14 * d11;
+    jac[7][12] = u11_15 * d11;
+    jac[7][13] = u11_16 * d11;
+    jac[6][6] = u12_13 * d12;
+    jac[6][11] = u12_14 * d12;
+    jac[6][12] = u12_15 * d12;
+    jac[6][13] = u12_16 * d12;
+    jac[11][11] = u13_14 * d13;
+    jac[11][12] = u13_15 * d13;
+    jac[11][13] = u13_16 * d13;
+    jac[11][17] = u13_17 * d13;
+    jac[11][18] = u13_18 * d13;
+    jac[11][19] = u13_19 * d13;
+    jac[11][20] = u13_20 * d13;
+    jac[10][12] = u14_15 * d14;
+    jac[10][13] = u14_16 * d14;
+    jac[10][17] = u14_17 * d14;
+    jac[10][18] = u14_18 * d14;
+    jac[10][19] = u14_19 * d14;
+    jac[10][20] = u14_20 * d14;
+    jac[9][13] = u15_16 * d15;
+    jac[9][17] = u15_17 * d15;
+    jac[9][18] = u15_18 * d15;
+    jac[9][19] = u15_19 * d15;
+    jac[9][20] = u15_20 * d15;
+    jac[8][17] = u16_17 * d16;
+    jac[8][18] = u16_18 * d16;
+    jac[8][19] = u16_19 * d16;
+    jac[8][20] = u16_20 * d16;
+    jac[20][18] *= d17;
+    jac[20][19] *= d17;
+    jac[20][20] *= d17;
+    jac[16][19] = u18_19 * d18;
+    jac[16][20] = u18_20 * d18;
+    jac[13][20] = u19_20 * d19;
     Some(runtime::lu::PivotInfo {
         smallest,
         largest,
@@ -1507,37 +1621,34 @@ fn solve_1(lu: &[[f64; N]; N], b: &mut [f64; N]) {
     let y19 = b[13] - lu[13][17] * y17 - lu[13][18] * y18;
     let y20 = b[12] - lu[12][17] * y17 - lu[12][18] * y18 - lu[12][19] * y19;
     let x20 = y20 * lu[12][20];
-    let x19 = (y19 - lu[13][20] * x20) * lu[13][19];
-    let x18 = (y18 - lu[16][19] * x19 - lu[16][20] * x20) * lu[16][18];
-    let x17 = (y17 - lu[20][18] * x18 - lu[20][19] * x19 - lu[20][20] * x20)
-        * lu[20][17];
-    let x16 = (y16 - lu[8][17] * x17 - lu[8][18] * x18 - lu[8][19] * x19
-        - lu[8][20] * x20) * lu[8][13];
-    let x15 = (y15 - lu[9][13] * x16 - lu[9][17] * x17 - lu[9][18] * x18
-        - lu[9][19] * x19 - lu[9][20] * x20) * lu[9][12];
-    let x14 = (y14 - lu[10][12] * x15 - lu[10][13] * x16 - lu[10][17] * x17
-        - lu[10][18] * x18 - lu[10][19] * x19 - lu[10][20] * x20) * lu[10][11];
-    let x13 = (y13 - lu[11][11] * x14 - lu[11][12] * x15 - lu[11][13] * x16
-        - lu[11][17] * x17 - lu[11][18] * x18 - lu[11][19] * x19 - lu[11][20] * x20)
-        * lu[11][6];
-    let x12 = (y12 - lu[6][6] * x13 - lu[6][11] * x14 - lu[6][12] * x15
-        - lu[6][13] * x16) * lu[6][5];
-    let x11 = (y11 - lu[7][5] * x12 - lu[7][6] * x13 - lu[7][11] * x14 - lu[7][12] * x15
-        - lu[7][13] * x16) * lu[7][4];
-    let x10 = (y10 - lu[15][4] * x11 - lu[15][5] * x12 - lu[15][6] * x13
-        - lu[15][17] * x17 - lu[15][18] * x18 - lu[15][19] * x19 - lu[15][20] * x20)
-        * lu[15][16];
-    let x9 = (y9 - lu[14][16] * x10 - lu[14][4] * x11 - lu[14][5] * x12 - lu[14][6] * x13
-        - lu[14][17] * x17 - lu[14][18] * x18 - lu[14][19] * x19 - lu[14][20] * x20)
-        * lu[14][15];
-    let x8 = (y8 - lu[19][11] * x14 - lu[19][12] * x15 - lu[19][13] * x16) * lu[19][10];
-    let x7 = y7 - lu[3][4] * x11 - lu[3][5] * x12 - lu[3][6] * x13;
-    let x6 = (y6 - lu[18][4] * x11 - lu[18][5] * x12 - lu[18][6] * x13) * lu[18][3];
-    let x5 = y5 - lu[5][3] * x6 - lu[5][4] * x11 - lu[5][5] * x12 - lu[5][6] * x13;
-    let x4 = y4 - lu[4][3] * x6 - lu[4][4] * x11 - lu[4][5] * x12 - lu[4][6] * x13;
-    let x3 = y3 - lu[2][3] * x6 - lu[2][4] * x11 - lu[2][5] * x12 - lu[2][6] * x13;
-    let x2 = y2 - lu[1][3] * x6 - lu[1][4] * x11 - lu[1][5] * x12 - lu[1][6] * x13;
-    let x1 = y1 - lu[0][3] * x6 - lu[0][4] * x11 - lu[0][5] * x12 - lu[0][6] * x13;
+    let x19 = y19 * lu[13][19] - lu[13][20] * x20;
+    let x18 = y18 * lu[16][18] - lu[16][20] * x20 - lu[16][19] * x19;
+    let x17 = y17 * lu[20][17] - lu[20][20] * x20 - lu[20][19] * x19 - lu[20][18] * x18;
+    let x16 = y16 * lu[8][13] - lu[8][20] * x20 - lu[8][19] * x19 - lu[8][18] * x18
+        - lu[8][17] * x17;
+    let x15 = y15 * lu[9][12] - lu[9][20] * x20 - lu[9][19] * x19 - lu[9][18] * x18
+        - lu[9][17] * x17 - lu[9][13] * x16;
+    let x14 = y14 * lu[10][11] - lu[10][20] * x20 - lu[10][19] * x19 - lu[10][18] * x18
+        - lu[10][17] * x17 - lu[10][13] * x16 - lu[10][12] * x15;
+    let x13 = y13 * lu[11][6] - lu[11][20] * x20 - lu[11][19] * x19 - lu[11][18] * x18
+        - lu[11][17] * x17 - lu[11][13] * x16 - lu[11][12] * x15 - lu[11][11] * x14;
+    let x12 = y12 * lu[6][5] - lu[6][13] * x16 - lu[6][12] * x15 - lu[6][11] * x14
+        - lu[6][6] * x13;
+    let x11 = y11 * lu[7][4] - lu[7][13] * x16 - lu[7][12] * x15 - lu[7][11] * x14
+        - lu[7][6] * x13 - lu[7][5] * x12;
+    let x10 = y10 * lu[15][16] - lu[15][20] * x20 - lu[15][19] * x19 - lu[15][18] * x18
+        - lu[15][17] * x17 - lu[15][6] * x13 - lu[15][5] * x12 - lu[15][4] * x11;
+    let x9 = y9 * lu[14][15] - lu[14][20] * x20 - lu[14][19] * x19 - lu[14][18] * x18
+        - lu[14][17] * x17 - lu[14][6] * x13 - lu[14][5] * x12 - lu[14][4] * x11
+        - lu[14][16] * x10;
+    let x8 = y8 * lu[19][10] - lu[19][13] * x16 - lu[19][12] * x15 - lu[19][11] * x14;
+    let x7 = y7 - lu[3][6] * x13 - lu[3][5] * x12 - lu[3][4] * x11;
+    let x6 = y6 * lu[18][3] - lu[18][6] * x13 - lu[18][5] * x12 - lu[18][4] * x11;
+    let x5 = y5 - lu[5][6] * x13 - lu[5][5] * x12 - lu[5][4] * x11 - lu[5][3] * x6;
+    let x4 = y4 - lu[4][6] * x13 - lu[4][5] * x12 - lu[4][4] * x11 - lu[4][3] * x6;
+    let x3 = y3 - lu[2][6] * x13 - lu[2][5] * x12 - lu[2][4] * x11 - lu[2][3] * x6;
+    let x2 = y2 - lu[1][6] * x13 - lu[1][5] * x12 - lu[1][4] * x11 - lu[1][3] * x6;
+    let x1 = y1 - lu[0][6] * x13 - lu[0][5] * x12 - lu[0][4] * x11 - lu[0][3] * x6;
     let x0 = y0 + x7;
     b[7] = x0;
     b[0] = x1;

@@ -899,7 +899,7 @@ fn residual_jacobian_structural(
 
 /// Factors Φ_q in place with static pivot order 0: step k pivots on row `[6, 0, 3, 4, 1, 2, 5][k]` and column `[3, 0, 1, 2, 4, 5, 6][k]`.
 ///
-/// L and U have 46 entries (0 of them fill-in, 0 known when generated); 174 operations. The others are in `jac`: 41 stored there, with the reciprocals of the pivots on the diagonal, and 5 left as Φ_q had them.
+/// L and U have 46 entries (0 of them fill-in, 0 known when generated); 192 operations. The others are in `jac`: 41 stored there, with the reciprocals of the pivots on the diagonal, and 5 left as Φ_q had them; then 18 entries of U are stored scaled by their row's reciprocal pivot, for [`solve_0`].
 ///
 /// Returns the smallest and largest |pivot|, or `None` when a pivot is not finite or a multiplier exceeds [`runtime::lu::MAX_MULTIPLIER`] in magnitude; `jac` is then partly factored and must be evaluated again.
 #[must_use]
@@ -1054,6 +1054,24 @@ fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     }
     smallest = if p6.abs() < smallest { p6.abs() } else { smallest };
     largest = if p6.abs() > largest { p6.abs() } else { largest };
+    jac[6][4] *= d0;
+    jac[6][5] *= d0;
+    jac[6][6] *= d0;
+    jac[0][1] *= d1;
+    jac[0][2] *= d1;
+    jac[0][4] = u1_4 * d1;
+    jac[0][5] = u1_5 * d1;
+    jac[0][6] = u1_6 * d1;
+    jac[3][2] = u2_3 * d2;
+    jac[3][4] = u2_4 * d2;
+    jac[3][5] = u2_5 * d2;
+    jac[3][6] = u2_6 * d2;
+    jac[4][4] = u3_4 * d3;
+    jac[4][5] = u3_5 * d3;
+    jac[4][6] = u3_6 * d3;
+    jac[1][5] = u4_5 * d4;
+    jac[1][6] = u4_6 * d4;
+    jac[2][6] = u5_6 * d5;
     Some(runtime::lu::PivotInfo {
         smallest,
         largest,
@@ -1074,14 +1092,14 @@ fn solve_0(lu: &[[f64; N]; N], b: &mut [f64; N]) {
     let y6 = b[5] - lu[5][3] * y0 - lu[5][0] * y1 - lu[5][1] * y2 - lu[5][2] * y3
         - lu[5][4] * y4 - lu[5][5] * y5;
     let x6 = y6 * lu[5][6];
-    let x5 = (y5 - lu[2][6] * x6) * lu[2][5];
-    let x4 = (y4 - lu[1][5] * x5 - lu[1][6] * x6) * lu[1][4];
-    let x3 = (y3 - lu[4][4] * x4 - lu[4][5] * x5 - lu[4][6] * x6) * lu[4][2];
-    let x2 = (y2 - lu[3][2] * x3 - lu[3][4] * x4 - lu[3][5] * x5 - lu[3][6] * x6)
-        * lu[3][1];
-    let x1 = (y1 - lu[0][1] * x2 - lu[0][2] * x3 - lu[0][4] * x4 - lu[0][5] * x5
-        - lu[0][6] * x6) * lu[0][0];
-    let x0 = (y0 - lu[6][4] * x4 - lu[6][5] * x5 - lu[6][6] * x6) * lu[6][3];
+    let x5 = y5 * lu[2][5] - lu[2][6] * x6;
+    let x4 = y4 * lu[1][4] - lu[1][6] * x6 - lu[1][5] * x5;
+    let x3 = y3 * lu[4][2] - lu[4][6] * x6 - lu[4][5] * x5 - lu[4][4] * x4;
+    let x2 = y2 * lu[3][1] - lu[3][6] * x6 - lu[3][5] * x5 - lu[3][4] * x4
+        - lu[3][2] * x3;
+    let x1 = y1 * lu[0][0] - lu[0][6] * x6 - lu[0][5] * x5 - lu[0][4] * x4
+        - lu[0][2] * x3 - lu[0][1] * x2;
+    let x0 = y0 * lu[6][3] - lu[6][6] * x6 - lu[6][5] * x5 - lu[6][4] * x4;
     b[3] = x0;
     b[0] = x1;
     b[1] = x2;

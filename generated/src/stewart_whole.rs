@@ -7736,6 +7736,12 @@ fn factor_block_shared_0(
         jac[at[2] + 2] = d2;
         jac[at[0] + 2] = l3_2;
         jac[at[0] + 3] = d3;
+        jac[at[0] + 25] *= d0;
+        jac[at[0] + 26] *= d0;
+        jac[at[0] + 27] *= d0;
+        jac[at[1] + 2] = u1_2 * d1;
+        jac[at[1] + 3] = u1_3 * d1;
+        jac[at[2] + 3] = u2_3 * d2;
         perm[0] = 4;
         return Ok(info);
     }
@@ -7802,6 +7808,12 @@ fn factor_block_shared_0(
         jac[at[1] + 2] = d2;
         jac[at[2] + 2] = l3_2;
         jac[at[2] + 3] = d3;
+        jac[at[0] + 25] *= d0;
+        jac[at[0] + 26] *= d0;
+        jac[at[0] + 27] *= d0;
+        jac[at[0] + 2] = u1_2 * d1;
+        jac[at[0] + 3] = u1_3 * d1;
+        jac[at[1] + 3] = u2_3 * d2;
         perm[0] = 5;
         return Ok(info);
     }
@@ -7872,10 +7884,10 @@ fn solve_block_shared_0(
         let y2 = z[2] - lu[at[2]] * y0 - lu[at[2] + 1] * y1;
         let y3 = z[0] - lu[at[0]] * y0 - lu[at[0] + 1] * y1 - lu[at[0] + 2] * y2;
         let x3 = y3 * lu[at[0] + 3];
-        let x2 = (y2 - lu[at[2] + 3] * x3) * lu[at[2] + 2];
-        let x1 = (y1 - lu[at[1] + 2] * x2 - lu[at[1] + 3] * x3) * lu[at[1] + 1];
-        let x0 = (y0 - lu[at[0] + 25] * x1 - lu[at[0] + 26] * x2 - lu[at[0] + 27] * x3)
-            * lu[at[0] + 24];
+        let x2 = y2 * lu[at[2] + 2] - lu[at[2] + 3] * x3;
+        let x1 = y1 * lu[at[1] + 1] - lu[at[1] + 3] * x3 - lu[at[1] + 2] * x2;
+        let x0 = y0 * lu[at[0] + 24] - lu[at[0] + 27] * x3 - lu[at[0] + 26] * x2
+            - lu[at[0] + 25] * x1;
         x[0] = x0;
         x[1] = x1;
         x[2] = x2;
@@ -7886,10 +7898,10 @@ fn solve_block_shared_0(
         let y2 = z[1] - lu[at[1]] * y0 - lu[at[1] + 1] * y1;
         let y3 = z[2] - lu[at[2]] * y0 - lu[at[2] + 1] * y1 - lu[at[2] + 2] * y2;
         let x3 = y3 * lu[at[2] + 3];
-        let x2 = (y2 - lu[at[1] + 3] * x3) * lu[at[1] + 2];
-        let x1 = (y1 - lu[at[0] + 2] * x2 - lu[at[0] + 3] * x3) * lu[at[0] + 1];
-        let x0 = (y0 - lu[at[0] + 25] * x1 - lu[at[0] + 26] * x2 - lu[at[0] + 27] * x3)
-            * lu[at[0] + 24];
+        let x2 = y2 * lu[at[1] + 2] - lu[at[1] + 3] * x3;
+        let x1 = y1 * lu[at[0] + 1] - lu[at[0] + 3] * x3 - lu[at[0] + 2] * x2;
+        let x0 = y0 * lu[at[0] + 24] - lu[at[0] + 27] * x3 - lu[at[0] + 26] * x2
+            - lu[at[0] + 25] * x1;
         x[0] = x0;
         x[1] = x1;
         x[2] = x2;
@@ -8002,9 +8014,9 @@ fn solve_blocks_shared_0(
         let y2 = z[2] - lu[14] * y0 - lu[15] * y1;
         let y3 = z[0] - lu[0] * y0 - lu[1] * y1 - lu[2] * y2;
         let x3 = y3 * lu[3];
-        let x2 = (y2 - lu[17] * x3) * lu[16];
-        let x1 = (y1 - lu[6] * x2 - lu[7] * x3) * lu[5];
-        let x0 = (y0 - lu[25] * x1 - lu[26] * x2 - lu[27] * x3) * lu[24];
+        let x2 = y2 * lu[16] - lu[17] * x3;
+        let x1 = y1 * lu[5] - lu[7] * x3 - lu[6] * x2;
+        let x0 = y0 * lu[24] - lu[27] * x3 - lu[26] * x2 - lu[25] * x1;
         x[3] = x0;
         x[4] = x1;
         x[5] = x2;
@@ -8015,9 +8027,9 @@ fn solve_blocks_shared_0(
         let y2 = z[1] - lu[4] * y0 - lu[5] * y1;
         let y3 = z[2] - lu[14] * y0 - lu[15] * y1 - lu[16] * y2;
         let x3 = y3 * lu[17];
-        let x2 = (y2 - lu[7] * x3) * lu[6];
-        let x1 = (y1 - lu[2] * x2 - lu[3] * x3) * lu[1];
-        let x0 = (y0 - lu[25] * x1 - lu[26] * x2 - lu[27] * x3) * lu[24];
+        let x2 = y2 * lu[6] - lu[7] * x3;
+        let x1 = y1 * lu[1] - lu[3] * x3 - lu[2] * x2;
+        let x0 = y0 * lu[24] - lu[27] * x3 - lu[26] * x2 - lu[25] * x1;
         x[3] = x0;
         x[4] = x1;
         x[5] = x2;
@@ -8074,9 +8086,9 @@ fn solve_blocks_shared_1(
         let y2 = z[2] - lu[16] * y0 - lu[17] * y1;
         let y3 = z[0] - lu[0] * y0 - lu[1] * y1 - lu[2] * y2;
         let x3 = y3 * lu[3];
-        let x2 = (y2 - lu[19] * x3) * lu[18];
-        let x1 = (y1 - lu[10] * x2 - lu[11] * x3) * lu[9];
-        let x0 = (y0 - lu[25] * x1 - lu[26] * x2 - lu[27] * x3) * lu[24];
+        let x2 = y2 * lu[18] - lu[19] * x3;
+        let x1 = y1 * lu[9] - lu[11] * x3 - lu[10] * x2;
+        let x0 = y0 * lu[24] - lu[27] * x3 - lu[26] * x2 - lu[25] * x1;
         x[7] = x0;
         x[8] = x1;
         x[9] = x2;
@@ -8087,9 +8099,9 @@ fn solve_blocks_shared_1(
         let y2 = z[1] - lu[8] * y0 - lu[9] * y1;
         let y3 = z[2] - lu[16] * y0 - lu[17] * y1 - lu[18] * y2;
         let x3 = y3 * lu[19];
-        let x2 = (y2 - lu[11] * x3) * lu[10];
-        let x1 = (y1 - lu[2] * x2 - lu[3] * x3) * lu[1];
-        let x0 = (y0 - lu[25] * x1 - lu[26] * x2 - lu[27] * x3) * lu[24];
+        let x2 = y2 * lu[10] - lu[11] * x3;
+        let x1 = y1 * lu[1] - lu[3] * x3 - lu[2] * x2;
+        let x0 = y0 * lu[24] - lu[27] * x3 - lu[26] * x2 - lu[25] * x1;
         x[7] = x0;
         x[8] = x1;
         x[9] = x2;
@@ -8633,14 +8645,14 @@ fn solve_blocks_0(
             let y6 = z[5] - lu[0][38] * y0 - lu[0][35] * y1 - lu[0][36] * y2
                 - lu[0][37] * y3 - lu[0][39] * y4 - lu[0][40] * y5;
             let x6 = y6 * lu[0][41];
-            let x5 = (y5 - lu[0][20] * x6) * lu[0][19];
-            let x4 = (y4 - lu[0][12] * x5 - lu[0][13] * x6) * lu[0][11];
-            let x3 = (y3 - lu[0][32] * x4 - lu[0][33] * x5 - lu[0][34] * x6) * lu[0][30];
-            let x2 = (y2 - lu[0][23] * x3 - lu[0][25] * x4 - lu[0][26] * x5
-                - lu[0][27] * x6) * lu[0][22];
-            let x1 = (y1 - lu[0][1] * x2 - lu[0][2] * x3 - lu[0][4] * x4 - lu[0][5] * x5
-                - lu[0][6] * x6) * lu[0][0];
-            let x0 = (y0 - lu[0][46] * x4 - lu[0][47] * x5 - lu[0][48] * x6) * lu[0][45];
+            let x5 = y5 * lu[0][19] - lu[0][20] * x6;
+            let x4 = y4 * lu[0][11] - lu[0][13] * x6 - lu[0][12] * x5;
+            let x3 = y3 * lu[0][30] - lu[0][34] * x6 - lu[0][33] * x5 - lu[0][32] * x4;
+            let x2 = y2 * lu[0][22] - lu[0][27] * x6 - lu[0][26] * x5 - lu[0][25] * x4
+                - lu[0][23] * x3;
+            let x1 = y1 * lu[0][0] - lu[0][6] * x6 - lu[0][5] * x5 - lu[0][4] * x4
+                - lu[0][2] * x3 - lu[0][1] * x2;
+            let x0 = y0 * lu[0][45] - lu[0][48] * x6 - lu[0][47] * x5 - lu[0][46] * x4;
             x[3] = x0;
             x[0] = x1;
             x[1] = x2;
@@ -8978,6 +8990,24 @@ fn factor_block_0(
                 jac[0][19] = d5;
                 jac[0][40] = l6_5;
                 jac[0][41] = d6;
+                jac[0][46] *= d0;
+                jac[0][47] *= d0;
+                jac[0][48] *= d0;
+                jac[0][1] *= d1;
+                jac[0][2] *= d1;
+                jac[0][4] = u1_4 * d1;
+                jac[0][5] = u1_5 * d1;
+                jac[0][6] = u1_6 * d1;
+                jac[0][23] = u2_3 * d2;
+                jac[0][25] = u2_4 * d2;
+                jac[0][26] = u2_5 * d2;
+                jac[0][27] = u2_6 * d2;
+                jac[0][32] = u3_4 * d3;
+                jac[0][33] = u3_5 * d3;
+                jac[0][34] = u3_6 * d3;
+                jac[0][12] = u4_5 * d4;
+                jac[0][13] = u4_6 * d4;
+                jac[0][20] = u5_6 * d5;
                 perm[0] = 7;
                 return Ok(info);
             }
@@ -9130,16 +9160,16 @@ fn solve_block_0(
                 let y6 = z[5] - lu[0][38] * y0 - lu[0][35] * y1 - lu[0][36] * y2
                     - lu[0][37] * y3 - lu[0][39] * y4 - lu[0][40] * y5;
                 let x6 = y6 * lu[0][41];
-                let x5 = (y5 - lu[0][20] * x6) * lu[0][19];
-                let x4 = (y4 - lu[0][12] * x5 - lu[0][13] * x6) * lu[0][11];
-                let x3 = (y3 - lu[0][32] * x4 - lu[0][33] * x5 - lu[0][34] * x6)
-                    * lu[0][30];
-                let x2 = (y2 - lu[0][23] * x3 - lu[0][25] * x4 - lu[0][26] * x5
-                    - lu[0][27] * x6) * lu[0][22];
-                let x1 = (y1 - lu[0][1] * x2 - lu[0][2] * x3 - lu[0][4] * x4
-                    - lu[0][5] * x5 - lu[0][6] * x6) * lu[0][0];
-                let x0 = (y0 - lu[0][46] * x4 - lu[0][47] * x5 - lu[0][48] * x6)
-                    * lu[0][45];
+                let x5 = y5 * lu[0][19] - lu[0][20] * x6;
+                let x4 = y4 * lu[0][11] - lu[0][13] * x6 - lu[0][12] * x5;
+                let x3 = y3 * lu[0][30] - lu[0][34] * x6 - lu[0][33] * x5
+                    - lu[0][32] * x4;
+                let x2 = y2 * lu[0][22] - lu[0][27] * x6 - lu[0][26] * x5
+                    - lu[0][25] * x4 - lu[0][23] * x3;
+                let x1 = y1 * lu[0][0] - lu[0][6] * x6 - lu[0][5] * x5 - lu[0][4] * x4
+                    - lu[0][2] * x3 - lu[0][1] * x2;
+                let x0 = y0 * lu[0][45] - lu[0][48] * x6 - lu[0][47] * x5
+                    - lu[0][46] * x4;
                 x[3] = x0;
                 x[0] = x1;
                 x[1] = x2;

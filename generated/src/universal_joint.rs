@@ -255,7 +255,7 @@ fn residual_jacobian_structural(
 
 /// Factors Φ_q in place with static pivot order 0: step k pivots on row `[1, 2, 0][k]` and column `[1, 0, 2][k]`.
 ///
-/// L and U have 7 entries (0 of them fill-in, 0 known when generated); 9 operations. The others are in `jac`: 5 stored there, with the reciprocals of the pivots on the diagonal, and 2 left as Φ_q had them.
+/// L and U have 7 entries (0 of them fill-in, 0 known when generated); 11 operations. The others are in `jac`: 5 stored there, with the reciprocals of the pivots on the diagonal, and 2 left as Φ_q had them; then 2 entries of U are stored scaled by their row's reciprocal pivot, for [`solve_0`].
 ///
 /// Returns the smallest and largest |pivot|, or `None` when a pivot is not finite or a multiplier exceeds [`runtime::lu::MAX_MULTIPLIER`] in magnitude; `jac` is then partly factored and must be evaluated again.
 #[must_use]
@@ -288,6 +288,8 @@ fn factor_0(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     }
     smallest = if p2.abs() < smallest { p2.abs() } else { smallest };
     largest = if p2.abs() > largest { p2.abs() } else { largest };
+    jac[1][0] *= d0;
+    jac[2][2] *= d1;
     Some(runtime::lu::PivotInfo {
         smallest,
         largest,
@@ -302,8 +304,8 @@ fn solve_0(lu: &[[f64; N]; N], b: &mut [f64; N]) {
     let y1 = b[2] - lu[2][1] * y0;
     let y2 = b[0] - lu[0][0] * y1;
     let x2 = y2 * lu[0][2];
-    let x1 = (y1 - lu[2][2] * x2) * lu[2][0];
-    let x0 = (y0 - lu[1][0] * x1) * lu[1][1];
+    let x1 = y1 * lu[2][0] - lu[2][2] * x2;
+    let x0 = y0 * lu[1][1] - lu[1][0] * x1;
     b[1] = x0;
     b[0] = x1;
     b[2] = x2;
@@ -311,7 +313,7 @@ fn solve_0(lu: &[[f64; N]; N], b: &mut [f64; N]) {
 
 /// Factors Φ_q in place with static pivot order 1: step k pivots on row `[0, 1, 2][k]` and column `[2, 0, 1][k]`.
 ///
-/// L and U have 7 entries (0 of them fill-in, 0 known when generated); 9 operations. The others are in `jac`: 5 stored there, with the reciprocals of the pivots on the diagonal, and 2 left as Φ_q had them.
+/// L and U have 7 entries (0 of them fill-in, 0 known when generated); 11 operations. The others are in `jac`: 5 stored there, with the reciprocals of the pivots on the diagonal, and 2 left as Φ_q had them; then 2 entries of U are stored scaled by their row's reciprocal pivot, for [`solve_1`].
 ///
 /// Returns the smallest and largest |pivot|, or `None` when a pivot is not finite or a multiplier exceeds [`runtime::lu::MAX_MULTIPLIER`] in magnitude; `jac` is then partly factored and must be evaluated again.
 #[must_use]
@@ -344,6 +346,8 @@ fn factor_1(jac: &mut [[f64; N]; N]) -> Option<runtime::lu::PivotInfo> {
     }
     smallest = if p2.abs() < smallest { p2.abs() } else { smallest };
     largest = if p2.abs() > largest { p2.abs() } else { largest };
+    jac[0][0] *= d0;
+    jac[1][1] *= d1;
     Some(runtime::lu::PivotInfo {
         smallest,
         largest,
@@ -358,8 +362,8 @@ fn solve_1(lu: &[[f64; N]; N], b: &mut [f64; N]) {
     let y1 = b[1];
     let y2 = b[2] - lu[2][2] * y0 - lu[2][0] * y1;
     let x2 = y2 * lu[2][1];
-    let x1 = (y1 - lu[1][1] * x2) * lu[1][0];
-    let x0 = (y0 - lu[0][0] * x1) * lu[0][2];
+    let x1 = y1 * lu[1][0] - lu[1][1] * x2;
+    let x0 = y0 * lu[0][2] - lu[0][0] * x1;
     b[2] = x0;
     b[0] = x1;
     b[1] = x2;

@@ -320,6 +320,8 @@ struct Factorizer<'a> {
     fill: usize,
     /// Values stored into `jac`.
     stored: usize,
+    /// Entries of U stored scaled by their pivot's reciprocal ([`Factorizer::scale_rows_of_u`]).
+    scaled: usize,
     parts: Vec<Vec<syn::Stmt>>,
     part: Part,
     part_ops: usize,
@@ -351,6 +353,7 @@ impl<'a> Factorizer<'a> {
             },
             fill: 0,
             stored: 0,
+            scaled: 0,
             parts: Vec::new(),
             part: Part::default(),
             part_ops: 0,
@@ -383,6 +386,31 @@ impl<'a> Factorizer<'a> {
             self.track_pivot(k, &p);
             if split {
                 self.close_step(k, n, first);
+            }
+        }
+        self.scale_rows_of_u();
+    }
+
+    /// Stores each row of U scaled by the reciprocal of its pivot, û_kl = d_k u_kl, over u_kl
+    /// once every step is done (the elimination reads u_kl unscaled), so that the back
+    /// substitution reads x_k = d_k y_k − Σ_l û_kl x_l: one operation less on the chain of
+    /// dependent operations from x_(k+1) to x_k than (y_k − Σ_l u_kl x_l) d_k, in each of a
+    /// time step's three solves (chord, velocity, acceleration). An entry whose û is known
+    /// when generated is folded into the solve, and one whose pivot is 1 is already in place.
+    fn scale_rows_of_u(&mut self) {
+        for k in 0..self.order.rows.len() {
+            let d = self.f.get(k, k).expect("the pivot").clone();
+            if matches!(d, Val::Const(c) if c == 1.0) {
+                continue;
+            }
+            for &l in self.order.pattern[k].iter().filter(|&&l| l > k) {
+                let scaled = self.f.get(k, l).expect("in the pattern").mul(&d);
+                if let Val::Run(..) = scaled {
+                    self.total_ops += 1;
+                    self.scaled += 1;
+                    self.store(k, l, &scaled);
+                    self.stored -= 1;
+                }
             }
         }
     }
@@ -607,12 +635,13 @@ impl<'a> Factorizer<'a> {
         let nnz = self.order.entries();
         let run_time =
             self.f.vals.iter().flatten().filter(|v| matches!(v, Some(Val::Run(..)))).count();
-        let (fill, stored, total_ops) = (self.fill, self.stored, self.total_ops);
+        let (fill, stored, scaled, total_ops) =
+            (self.fill, self.stored, self.scaled, self.total_ops);
         let known = nnz - run_time;
         let rows = list(&self.order.rows);
         let cols = list(&self.order.cols);
         let mut doc = format!(
-            " Factors Φ_q in place with static pivot order {which}: step k pivots on row `[{rows}][k]` and column `[{cols}][k]`.\n\n L and U have {nnz} entries ({fill} of them fill-in, {known} known when generated); {total_ops} operations. The others are in `jac`: {stored} stored there, with the reciprocals of the pivots on the diagonal, and {} left as Φ_q had them.\n\n Returns the smallest and largest |pivot|, or `None` when a pivot is not finite or a multiplier exceeds [`runtime::lu::MAX_MULTIPLIER`] in magnitude; `jac` is then partly factored and must be evaluated again.",
+            " Factors Φ_q in place with static pivot order {which}: step k pivots on row `[{rows}][k]` and column `[{cols}][k]`.\n\n L and U have {nnz} entries ({fill} of them fill-in, {known} known when generated); {total_ops} operations. The others are in `jac`: {stored} stored there, with the reciprocals of the pivots on the diagonal, and {} left as Φ_q had them; then {scaled} entries of U are stored scaled by their row's reciprocal pivot, for [`solve_{which}`].\n\n Returns the smallest and largest |pivot|, or `None` when a pivot is not finite or a multiplier exceeds [`runtime::lu::MAX_MULTIPLIER`] in magnitude; `jac` is then partly factored and must be evaluated again.",
             run_time - stored
         );
         let mut parts = std::mem::take(&mut self.parts);
@@ -716,12 +745,14 @@ fn solve_steps(
 ) -> Vec<(Vec<syn::Stmt>, bool)> {
     let order = f.order;
     let n = order.rows.len();
-    let mut stored_val = |k: usize, l: usize| -> Val {
-        match f.get(k, l).expect("in the pattern") {
+    // The value `v` of entry (k, l): a constant, or read where the factorisation stored it.
+    let mut stored = |k: usize, l: usize, v: &Val| -> Val {
+        match v {
             Val::Const(c) => Val::Const(*c),
             Val::Run(..) => Val::Run(lu(order.rows[k], order.cols[l]), Prec::Atom),
         }
     };
+    let entry = |k: usize, l: usize| f.get(k, l).expect("in the pattern");
     let named = |prefix: &str, k: usize| -> Val {
         if split {
             Val::Run(element("y", &[k]), Prec::Atom)
@@ -747,16 +778,22 @@ fn solve_steps(
     for k in 0..n {
         let mut v = Val::Run(input(order.rows[k]), Prec::Sum);
         for &l in order.pattern[k].iter().filter(|&&l| l < k) {
-            v = v.minus(&stored_val(k, l).mul(&named("y", l)));
+            v = v.minus(&stored(k, l, entry(k, l)).mul(&named("y", l)));
         }
         out.push((define("y", k, v.into_expr(Prec::Sum)), true));
     }
+    // x_k = d_k y_k − Σ_l û_kl x_l with U's rows stored scaled (`Factorizer::scale_rows_of_u`),
+    // the x_l subtracted in the order they were computed, so that x_(k+1), the last one
+    // known, enters last.
     for k in (0..n).rev() {
-        let mut v = named("y", k);
-        for &l in order.pattern[k].iter().filter(|&&l| l > k) {
-            v = v.minus(&stored_val(k, l).mul(&named("x", l)));
+        let d = entry(k, k);
+        let mut v = named("y", k).mul(&stored(k, k, d));
+        for &l in order.pattern[k].iter().filter(|&&l| l > k).rev() {
+            // û_kl: folded when known, else where `scale_rows_of_u` stored it (u_kl itself,
+            // in its place already, when d_k = 1).
+            let scaled = stored(k, l, &entry(k, l).mul(d));
+            v = v.minus(&scaled.mul(&named("x", l)));
         }
-        let v = v.mul(&stored_val(k, k));
         out.push((define("x", k, v.into_expr(Prec::Sum)), false));
     }
     let writes = (0..n).map(|k| output(order.cols[k], named("x", k).expr(Prec::Atom))).collect();
