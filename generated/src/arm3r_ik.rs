@@ -899,7 +899,7 @@ fn residual_jacobian_structural(
 
 /// Factors Φ_q in place with static pivot order 0: step k pivots on row `[13, 0, 1, 10, 11, 12, 2, 3, 15, 14, 4, 7, 6, 9, 5, 8][k]` and column `[0, 2, 3, 9, 10, 11, 4, 1, 12, 5, 6, 7, 8, 13, 14, 15][k]`.
 ///
-/// L and U have 101 entries (1 of them fill-in, 12 known when generated); 256 operations. The others are in `jac`: 54 stored there, with the reciprocals of the pivots on the diagonal, and 35 left as Φ_q had them; then 23 entries of U are stored scaled by their row's reciprocal pivot, for [`solve_0`].
+/// L and U have 101 entries (1 of them fill-in, 12 known when generated); 256 operations. The others are in `jac`: 54 stored there, with the reciprocals of the pivots on the diagonal, and 35 left as Φ_q had them. Entries of U then stored times their row's reciprocal pivot, for [`solve_0`]: 23.
 ///
 /// Returns the smallest and largest |pivot|, or `None` when a pivot is not finite or a multiplier exceeds [`runtime::lu::MAX_MULTIPLIER`] in magnitude; `jac` is then partly factored and must be evaluated again.
 #[must_use]

@@ -276,7 +276,7 @@ fn residual_jacobian_structural(
 
 /// Factors Φ_q in place with static pivot order 0: step k pivots on row `[1, 2, 0][k]` and column `[1, 0, 2][k]`.
 ///
-/// L and U have 7 entries (0 of them fill-in, 0 known when generated); 11 operations. The others are in `jac`: 5 stored there, with the reciprocals of the pivots on the diagonal, and 2 left as Φ_q had them; then 2 entries of U are stored scaled by their row's reciprocal pivot, for [`solve_0`].
+/// L and U have 7 entries (0 of them fill-in, 0 known when generated); 11 operations. The others are in `jac`: 5 stored there, with the reciprocals of the pivots on the diagonal, and 2 left as Φ_q had them. Entries of U then stored times their row's reciprocal pivot, for [`solve_0`]: 2.
 ///
 /// Returns the smallest and largest |pivot|, or `None` when a pivot is not finite or a multiplier exceeds [`runtime::lu::MAX_MULTIPLIER`] in magnitude; `jac` is then partly factored and must be evaluated again.
 #[must_use]

@@ -460,7 +460,7 @@ fn residual_jacobian_structural(
 
 /// Factors Φ_q in place with static pivot order 0: step k pivots on row `[3, 4, 5, 7, 8, 9, 1, 2, 0, 6, 10, 11, 13, 12][k]` and column `[0, 1, 2, 7, 8, 9, 3, 4, 5, 6, 10, 11, 12, 13][k]`.
 ///
-/// L and U have 88 entries (8 of them fill-in, 12 known when generated); 236 operations. The others are in `jac`: 49 stored there, with the reciprocals of the pivots on the diagonal, and 27 left as Φ_q had them; then 40 entries of U are stored scaled by their row's reciprocal pivot, for [`solve_0`].
+/// L and U have 88 entries (8 of them fill-in, 12 known when generated); 236 operations. The others are in `jac`: 49 stored there, with the reciprocals of the pivots on the diagonal, and 27 left as Φ_q had them. Entries of U then stored times their row's reciprocal pivot, for [`solve_0`]: 40.
 ///
 /// Returns the smallest and largest |pivot|, or `None` when a pivot is not finite or a multiplier exceeds [`runtime::lu::MAX_MULTIPLIER`] in magnitude; `jac` is then partly factored and must be evaluated again.
 #[must_use]

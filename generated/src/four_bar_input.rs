@@ -625,7 +625,7 @@ fn residual_jacobian_structural(
 
 /// Factors Φ_q in place with static pivot order 0: step k pivots on row `[9, 7, 8, 0, 1, 2, 5, 4, 10, 6, 3, 11][k]` and column `[9, 7, 8, 0, 1, 2, 10, 11, 3, 4, 5, 6][k]`.
 ///
-/// L and U have 58 entries (4 of them fill-in, 12 known when generated); 102 operations. The others are in `jac`: 27 stored there, with the reciprocals of the pivots on the diagonal, and 19 left as Φ_q had them; then 15 entries of U are stored scaled by their row's reciprocal pivot, for [`solve_0`].
+/// L and U have 58 entries (4 of them fill-in, 12 known when generated); 102 operations. The others are in `jac`: 27 stored there, with the reciprocals of the pivots on the diagonal, and 19 left as Φ_q had them. Entries of U then stored times their row's reciprocal pivot, for [`solve_0`]: 15.
 ///
 /// Returns the smallest and largest |pivot|, or `None` when a pivot is not finite or a multiplier exceeds [`runtime::lu::MAX_MULTIPLIER`] in magnitude; `jac` is then partly factored and must be evaluated again.
 #[must_use]

@@ -299,7 +299,7 @@ fn residual_jacobian_structural(
 
 /// Factors Φ_q in place with static pivot order 0: step k pivots on row `[4, 2, 3, 0, 1][k]` and column `[3, 1, 0, 2, 4][k]`.
 ///
-/// L and U have 19 entries (1 of them fill-in, 0 known when generated); 43 operations. The others are in `jac`: 16 stored there, with the reciprocals of the pivots on the diagonal, and 3 left as Φ_q had them; then 6 entries of U are stored scaled by their row's reciprocal pivot, for [`solve_0`].
+/// L and U have 19 entries (1 of them fill-in, 0 known when generated); 43 operations. The others are in `jac`: 16 stored there, with the reciprocals of the pivots on the diagonal, and 3 left as Φ_q had them. Entries of U then stored times their row's reciprocal pivot, for [`solve_0`]: 6.
 ///
 /// Returns the smallest and largest |pivot|, or `None` when a pivot is not finite or a multiplier exceeds [`runtime::lu::MAX_MULTIPLIER`] in magnitude; `jac` is then partly factored and must be evaluated again.
 #[must_use]

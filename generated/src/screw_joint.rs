@@ -299,7 +299,7 @@ fn residual_jacobian_structural(
 
 /// Factors Φ_q in place with static pivot order 0: step k pivots on row `[2, 3, 4, 1, 0][k]` and column `[0, 3, 1, 2, 4][k]`.
 ///
-/// L and U have 19 entries (0 of them fill-in, 0 known when generated); 35 operations. The others are in `jac`: 12 stored there, with the reciprocals of the pivots on the diagonal, and 7 left as Φ_q had them; then 8 entries of U are stored scaled by their row's reciprocal pivot, for [`solve_0`].
+/// L and U have 19 entries (0 of them fill-in, 0 known when generated); 35 operations. The others are in `jac`: 12 stored there, with the reciprocals of the pivots on the diagonal, and 7 left as Φ_q had them. Entries of U then stored times their row's reciprocal pivot, for [`solve_0`]: 8.
 ///
 /// Returns the smallest and largest |pivot|, or `None` when a pivot is not finite or a multiplier exceeds [`runtime::lu::MAX_MULTIPLIER`] in magnitude; `jac` is then partly factored and must be evaluated again.
 #[must_use]
@@ -401,7 +401,7 @@ fn solve_0(lu: &[[f64; N]; N], b: &mut [f64; N]) {
 
 /// Factors Φ_q in place with static pivot order 1: step k pivots on row `[2, 3, 0, 4, 1][k]` and column `[0, 1, 2, 3, 4][k]`.
 ///
-/// L and U have 19 entries (0 of them fill-in, 0 known when generated); 35 operations. The others are in `jac`: 13 stored there, with the reciprocals of the pivots on the diagonal, and 6 left as Φ_q had them; then 8 entries of U are stored scaled by their row's reciprocal pivot, for [`solve_1`].
+/// L and U have 19 entries (0 of them fill-in, 0 known when generated); 35 operations. The others are in `jac`: 13 stored there, with the reciprocals of the pivots on the diagonal, and 6 left as Φ_q had them. Entries of U then stored times their row's reciprocal pivot, for [`solve_1`]: 8.
 ///
 /// Returns the smallest and largest |pivot|, or `None` when a pivot is not finite or a multiplier exceeds [`runtime::lu::MAX_MULTIPLIER`] in magnitude; `jac` is then partly factored and must be evaluated again.
 #[must_use]

@@ -684,7 +684,7 @@ fn residual_jacobian_structural(
 
 /// Factors Φ_q in place with static pivot order 0: step k pivots on row `[17, 0, 1, 2, 4, 5, 18, 3, 7, 6, 19, 9, 8, 10, 11, 14, 15, 20, 16, 13, 12][k]` and column `[7, 0, 1, 2, 8, 9, 3, 5, 4, 6, 10, 12, 13, 11, 14, 15, 16, 17, 18, 19, 20][k]`.
 ///
-/// L and U have 144 entries (11 of them fill-in, 12 known when generated); 415 operations. The others are in `jac`: 95 stored there, with the reciprocals of the pivots on the diagonal, and 37 left as Φ_q had them; then 59 entries of U are stored scaled by their row's reciprocal pivot, for [`solve_0`].
+/// L and U have 144 entries (11 of them fill-in, 12 known when generated); 415 operations. The others are in `jac`: 95 stored there, with the reciprocals of the pivots on the diagonal, and 37 left as Φ_q had them. Entries of U then stored times their row's reciprocal pivot, for [`solve_0`]: 59.
 ///
 /// Returns the smallest and largest |pivot|, or `None` when a pivot is not finite or a multiplier exceeds [`runtime::lu::MAX_MULTIPLIER`] in magnitude; `jac` is then partly factored and must be evaluated again.
 #[must_use]
@@ -1173,7 +1173,7 @@ fn solve_0(lu: &[[f64; N]; N], b: &mut [f64; N]) {
 
 /// Factors Φ_q in place with static pivot order 1: step k pivots on row `[17, 0, 1, 2, 4, 5, 18, 3, 19, 14, 15, 7, 6, 11, 10, 9, 8, 20, 16, 13, 12][k]` and column `[7, 0, 1, 2, 8, 9, 3, 14, 10, 15, 16, 4, 5, 6, 11, 12, 13, 17, 18, 19, 20][k]`.
 ///
-/// L and U have 148 entries (15 of them fill-in, 12 known when generated); 437 operations. The others are in `jac`: 102 stored there, with the reciprocals of the pivots on the diagonal, and 34 left as Φ_q had them; then 58 entries of U are stored scaled by their row's reciprocal pivot, for [`solve_1`].
+/// L and U have 148 entries (15 of them fill-in, 12 known when generated); 437 operations. The others are in `jac`: 102 stored there, with the reciprocals of the pivots on the diagonal, and 34 left as Φ_q had them. Entries of U then stored times their row's reciprocal pivot, for [`solve_1`]: 58.
 ///
 /// Returns the smallest and largest |pivot|, or `None` when a pivot is not finite or a multiplier exceeds [`runtime::lu::MAX_MULTIPLIER`] in magnitude; `jac` is then partly factored and must be evaluated again.
 #[must_use]

@@ -5482,7 +5482,7 @@ fn residual_jacobian_structural_3(
 
 /// Factors Φ_q in place with static pivot order 0: step k pivots on row `[44, 46, 48, 50, 52, 54, 1, 2, 5, 43, 0, 3, 4, 7, 8, 11, 45, 6, 9, 10, 14, 13, 17, 47, 12, 16, 15, 20, 19, 23, 49, 18, 22, 21, 26, 25, 29, 51, 24, 28, 27, 32, 31, 35, 53, 30, 34, 33, 42, 36, 39, 40, 37, 38, 41][k]` and column `[11, 19, 27, 35, 43, 51, 12, 13, 14, 7, 10, 8, 9, 20, 21, 22, 15, 18, 16, 17, 28, 29, 30, 23, 26, 24, 25, 36, 37, 38, 31, 34, 32, 33, 44, 45, 46, 39, 42, 40, 41, 52, 53, 54, 47, 50, 48, 49, 3, 0, 1, 2, 4, 5, 6][k]`.
 ///
-/// L and U have 394 entries (0 of them fill-in, 0 known when generated); 1104 operations. The others are in `jac`: 287 stored there, with the reciprocals of the pivots on the diagonal, and 107 left as Φ_q had them; then 246 entries of U are stored scaled by their row's reciprocal pivot, for [`solve_0`].
+/// L and U have 394 entries (0 of them fill-in, 0 known when generated); 1104 operations. The others are in `jac`: 287 stored there, with the reciprocals of the pivots on the diagonal, and 107 left as Φ_q had them. Entries of U then stored times their row's reciprocal pivot, for [`solve_0`]: 246.
 ///
 /// Returns the smallest and largest |pivot|, or `None` when a pivot is not finite or a multiplier exceeds [`runtime::lu::MAX_MULTIPLIER`] in magnitude; `jac` is then partly factored and must be evaluated again.
 #[must_use]

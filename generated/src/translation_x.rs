@@ -238,7 +238,7 @@ fn residual_jacobian_structural(
 
 /// Factors Φ_q in place with static pivot order 0: step k pivots on row `[0][k]` and column `[0][k]`.
 ///
-/// L and U have 1 entries (0 of them fill-in, 0 known when generated); 1 operations. The others are in `jac`: 1 stored there, with the reciprocals of the pivots on the diagonal, and 0 left as Φ_q had them; then 0 entries of U are stored scaled by their row's reciprocal pivot, for [`solve_0`].
+/// L and U have 1 entries (0 of them fill-in, 0 known when generated); 1 operations. The others are in `jac`: 1 stored there, with the reciprocals of the pivots on the diagonal, and 0 left as Φ_q had them. Entries of U then stored times their row's reciprocal pivot, for [`solve_0`]: 0.
 ///
 /// Returns the smallest and largest |pivot|, or `None` when a pivot is not finite or a multiplier exceeds [`runtime::lu::MAX_MULTIPLIER`] in magnitude; `jac` is then partly factored and must be evaluated again.
 #[must_use]
