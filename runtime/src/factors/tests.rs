@@ -3,8 +3,9 @@ use core::cell::Cell;
 use super::*;
 
 /// Φ = (q0²/2 + q1, q0), so Φ_q = [[q0, 1], [1, 0]] (regular whatever q0: det = −1), with
-/// hand-written static orders in the layout generated code uses (reciprocal pivots on the
-/// diagonal):
+/// hand-written static orders (reciprocal pivots on the diagonal, as generated code keeps
+/// them; U left unscaled, which generated code scales by the reciprocals: the layout is the
+/// mechanism's own):
 /// order 0 pivots on (0, 0) then (1, 1): multiplier 1/q0, refused for |q0| < 0.1;
 /// order 1 pivots on (1, 0) then (0, 1): multiplier q0, refused for |q0| > 10.
 /// `ORDERS` says how many of them the mechanism admits to.
