@@ -90,3 +90,33 @@ fn split_modules_pass_clippy_with_warnings_denied_in_f64_and_f32() {
         String::from_utf8_lossy(&output.stderr)
     );
 }
+
+/// A static order long enough to be split (`emit::lu`: `factor_0` into helpers that read the
+/// factors of earlier parts back from `jac`, then U's rows scaled by their reciprocal pivots
+/// in the last part; `solve_0` through a scratch array) factors and solves as the generic
+/// engine's LU does: the run of ten R-S-S-R loops, whole (200 unknowns), agrees with the generic
+/// engine's at every frame.
+#[test]
+fn split_static_orders_solve_as_the_generic_engine() {
+    let mech = load_toml(&format!(
+        "{}\n[solver]\ntolerance = 1e-12\n",
+        codegen::scale::rssr_loops(10, 20)
+    ));
+    let sys = Symbolic::build_full(&mech).expect("generates");
+    let module = module_with_static_orders(&mech, &sys, "split_orders", Scalar::F64);
+    for helper in ["fn factor_0_1(", "fn solve_0_1("] {
+        assert!(module.contains(helper), "the static order is split: {helper}");
+    }
+    let generic = codegen::testing::run_generic(&mech);
+    assert!(generic.failure.is_none(), "{:?}", generic.failure);
+    let built = codegen::engine::build_module(&mech, &module, &sys, Scalar::F64).expect("builds");
+    let generated = codegen::testing::run_generated(&mech, &built);
+    assert!(generated.failure.is_none(), "{:?}", generated.failure);
+    assert_eq!(generic.frames.len(), generated.frames.len(), "every frame");
+    // As `block_solver::AGREEMENT`: Newton stops at max |Φ| ≤ 1e-12 in each engine, which the
+    // conditioning of Φ_q turns into differences of about 1e-12 of a quantity's scale; 1e-10
+    // leaves a factor of 100.
+    for (diff, at) in codegen::testing::relative_differences(&generic.frames, &generated.frames) {
+        assert!(diff <= 1e-10, "{at}");
+    }
+}
