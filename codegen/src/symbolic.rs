@@ -689,6 +689,7 @@ impl Symbolic {
                     body: d.body,
                     coordinate: d.coordinate,
                     value: [d.value, rate, acceleration],
+                    torn: d.torn,
                 }
             })
             .collect();

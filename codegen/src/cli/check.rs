@@ -73,7 +73,8 @@ pub(super) fn check(
     let sys = crate::symbolic::Symbolic::build_full(mech);
     let reduced = sys.as_ref().map_or_else(|_| reduced_unknowns(mech), |s| s.unknowns.len());
     let blocks = sys.as_ref().map(|sys| Blocks::of(sys, mech));
-    let substituted = crate::symbolic::Symbolic::build(mech).map_or(0, |s| s.derived.len());
+    let (substituted, torn) = crate::symbolic::Symbolic::build(mech)
+        .map_or((0, 0), |s| (s.derived.len(), s.derived.iter().filter(|d| d.torn).count()));
     let bodies = mech.bodies.len();
     let grounds = mech.bodies.iter().filter(|b| b.ground).count();
     if json {
@@ -83,6 +84,7 @@ pub(super) fn check(
             "equations": eq.equations(),
             "reduced_unknowns": reduced,
             "substituted": substituted,
+            "torn": torn,
             "rank": prep.rank,
             "mobility": prep.mobility,
             "drivers": mech.drivers.len(),
@@ -105,11 +107,18 @@ pub(super) fn check(
         writeln!(out, "equations:         {}", eq.equations())?;
         if substituted == 0 {
             writeln!(out, "reduced unknowns:  {reduced} (generated system)")?;
-        } else {
+        } else if torn == 0 {
             writeln!(
                 out,
                 "reduced unknowns:  {reduced} (generated system: {} after {substituted} \
                  substituted by closed-form blocks)",
+                reduced - substituted
+            )?;
+        } else {
+            writeln!(
+                out,
+                "reduced unknowns:  {reduced} (generated system: {} after {substituted} \
+                 substituted by closed-form blocks, {torn} of them torn from implicit blocks)",
                 reduced - substituted
             )?;
         }

@@ -85,6 +85,9 @@ pub struct Derived {
     /// Its value f(q, t), rate ḟ = f_q q̇ + f_t and acceleration
     /// f̈ = f_q q̈ + (f_q q̇)_q q̇ + 2 f_qt q̇ + f_tt, in q, q̇, q̈, t (and the inputs).
     pub value: [ExprId; 3],
+    /// Whether it was torn from an implicit block ([`Symbolic::torn`]) rather than solved by
+    /// a closed-form block of its own.
+    pub torn: bool,
 }
 
 /// A coordinate to substitute while the system is built: its value in the remaining unknowns,
@@ -94,6 +97,7 @@ pub(super) struct Substitution {
     pub(super) coordinate: usize,
     pub(super) value: ExprId,
     pub(super) rows: Vec<RowLabel>,
+    pub(super) torn: bool,
 }
 
 /// The largest round-off tolerated, relative to 1 or to κ, where a form must be exact (κ² =
@@ -108,11 +112,19 @@ impl Symbolic {
     pub(super) fn substituted(mut self, mech: &Mechanism, q: &[f64]) -> Self {
         let blocks = Blocks::of(&self, mech);
         let mut map: BTreeMap<Var, ExprId> = BTreeMap::new();
-        // (old unknown, value in the old numbering, rows eliminated with it).
-        let mut found: Vec<(usize, ExprId, Vec<RowLabel>)> = Vec::new();
+        // (old unknown, value in the old numbering, rows eliminated with it, whether torn).
+        let mut found: Vec<(usize, ExprId, Vec<RowLabel>, bool)> = Vec::new();
         // Node marks for counting the operations each value adds to those before it.
         let mut marks = Vec::new();
         for block in &blocks.blocks {
+            if block.kind == Kind::Implicit {
+                marks.resize(self.pool.len(), 0);
+                for (k, e, r) in self.torn(block, &map, &mut marks) {
+                    map.insert(Var::Q(small(k)), e);
+                    found.push((k, e, vec![self.rows[r].clone()], true));
+                }
+                continue;
+            }
             let values = match block.kind {
                 Kind::ClosedForm => self.affine(block, &map),
                 Kind::Rotation(r) if r.linear => self.turned(mech, &r, q),
@@ -135,7 +147,7 @@ impl Symbolic {
                 } else {
                     Vec::new()
                 };
-                found.push((k, e, rows));
+                found.push((k, e, rows, false));
             }
         }
         for joint in 0..mech.joints.len() {
@@ -145,7 +157,8 @@ impl Symbolic {
                 };
                 for (n, (k, e)) in values.into_iter().enumerate() {
                     map.insert(Var::Q(small(k)), e);
-                    found.push((k, e, if n == 0 { rows.clone() } else { Vec::new() }));
+                    let rows = if n == 0 { rows.clone() } else { Vec::new() };
+                    found.push((k, e, rows, false));
                 }
             }
         }
@@ -164,18 +177,19 @@ impl Symbolic {
             }
         }
         // The remaining unknowns keep their order: number_unknowns numbers them body by body.
-        let gone: BTreeSet<usize> = found.iter().map(|&(k, _, _)| k).collect();
+        let gone: BTreeSet<usize> = found.iter().map(|&(k, ..)| k).collect();
         let mut renumber = BTreeMap::new();
         for (new, old) in (0..self.unknowns.len()).filter(|k| !gone.contains(k)).enumerate() {
             renumber.insert(Var::Q(small(old)), self.pool.var(Var::Q(small(new))));
         }
         let derived: Vec<Substitution> = found
             .into_iter()
-            .map(|(k, e, rows)| Substitution {
+            .map(|(k, e, rows, torn)| Substitution {
                 body: self.unknowns[k].0,
                 coordinate: self.unknowns[k].1,
                 value: self.pool.substitute(e, &renumber),
                 rows,
+                torn,
             })
             .collect();
         match Self::build_with(mech, self.pool.clone(), &derived) {
@@ -209,6 +223,71 @@ impl Symbolic {
         let rest = self.pool.substitute(phi, &BTreeMap::from([(qk, zero)]));
         let factor = self.pool.constant(-1.0 / a);
         Some(vec![(k, self.pool.mul(factor, rest))])
+    }
+
+    /// The unknowns torn from an implicit block: while one of its rows, with the coordinates of
+    /// `map` and those torn before substituted, is affine in one of its translational unknowns
+    /// with a constant non-zero coefficient a, that unknown is q_k = −ρ/a (ρ the row at q_k = 0,
+    /// as [`Symbolic::affine`]) and leaves the block with the row; (unknown, value, row) in the
+    /// order torn. Of the candidates, the one with the largest |a| is torn first (threshold
+    /// pivoting on constants: on the rows of a joint's coincident point a is ±1).
+    ///
+    /// This is tearing (the equation-based generators' term) restricted to where it is exact
+    /// and safe: a constant coefficient cannot vanish along the motion, so the torn value is
+    /// finite wherever the row is, and the block that remains is the Schur complement of the
+    /// torn rows, solved by Newton on fewer unknowns. A position coupled into a loop through
+    /// its body's orientation (the four-bar's coupler and rocker, whose points are pinned to
+    /// the bodies around them) follows from the orientations and leaves the loop's Newton
+    /// system; Euler parameters, which share their body's normalisation, stay, as do unknowns
+    /// whose coefficients vary (a division by an expression that may vanish on the motion).
+    /// A value that would add more than [`LARGEST_VALUE`] operations ends the tearing.
+    fn torn(
+        &mut self,
+        block: &Block,
+        map: &BTreeMap<Var, ExprId>,
+        marks: &mut Vec<u32>,
+    ) -> Vec<(usize, ExprId, usize)> {
+        let mut map = map.clone();
+        let mut rows = block.rows.clone();
+        let mut unknowns: Vec<usize> =
+            block.unknowns.iter().copied().filter(|&k| self.unknowns[k].1 < 3).collect();
+        let mut torn = Vec::new();
+        while !unknowns.is_empty() && !rows.is_empty() {
+            // (|a|, row position, unknown position, the row substituted, a).
+            let mut best: Option<(f64, usize, usize, ExprId, f64)> = None;
+            for (ri, &r) in rows.iter().enumerate() {
+                let phi = self.pool.substitute(self.phi[r], &map);
+                for (ki, &k) in unknowns.iter().enumerate() {
+                    let qk = Var::Q(small(k));
+                    if !self.pool.depends_on(phi, qk) {
+                        continue;
+                    }
+                    let d = self.pool.diff(phi, qk);
+                    let Some(a) = self.pool.as_const(d).filter(|a| *a != 0.0 && a.is_finite())
+                    else {
+                        continue;
+                    };
+                    if best.is_none_or(|b| a.abs() > b.0) {
+                        best = Some((a.abs(), ri, ki, phi, a));
+                    }
+                }
+            }
+            let Some((_, ri, ki, phi, a)) = best else { break };
+            let k = unknowns[ki];
+            let qk = Var::Q(small(k));
+            let zero = self.pool.constant(0.0);
+            let rest = self.pool.substitute(phi, &BTreeMap::from([(qk, zero)]));
+            let factor = self.pool.constant(-1.0 / a);
+            let value = self.pool.mul(factor, rest);
+            marks.resize(self.pool.len(), 0);
+            if self.pool.new_operations(value, marks, 1) > LARGEST_VALUE {
+                break;
+            }
+            map.insert(qk, value);
+            torn.push((k, value, rows.remove(ri)));
+            unknowns.remove(ki);
+        }
+        torn
     }
 
     /// The closed form e_j = σ (B u − A w)/κ of a rotation block driven by an absolute

@@ -92,3 +92,22 @@ fn ground_fix_and_coordinate_drivers_are_eliminated() {
     // Three coordinate drivers and three fixed rotations leave e0 alone.
     assert_eq!(sys.unknowns.len(), 1);
 }
+
+/// The four-bar's loop holds the coupler's and the rocker's positions through their pins
+/// (rows affine in each position with coefficient ±1, whatever the orientations): tearing
+/// writes those six positions from the orientations, and Newton runs on the eight Euler
+/// parameters alone. The R-S-S-R's loop, quadratic in every unknown it keeps, tears nothing.
+#[test]
+fn positions_pinned_inside_a_loop_are_torn_from_it() {
+    let four_bar = load_example("four_bar.toml");
+    let sys = Symbolic::build(&four_bar).unwrap();
+    let torn: Vec<_> = sys.derived.iter().filter(|d| d.torn).collect();
+    assert_eq!(torn.len(), 6, "the coupler's and the rocker's x, y and z");
+    assert!(torn.iter().all(|d| d.coordinate < 3), "positions only");
+    assert_eq!(sys.unknowns.len(), 8);
+    assert!(sys.unknowns.iter().all(|&(_, c)| c >= 3), "Newton on Euler parameters only");
+    let rssr = load_example("rssr.toml");
+    let sys = Symbolic::build(&rssr).unwrap();
+    assert!(sys.derived.iter().all(|d| !d.torn), "nothing torn from the R-S-S-R's loop");
+    assert_eq!(sys.unknowns.len(), 5);
+}
