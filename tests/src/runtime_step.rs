@@ -16,10 +16,22 @@ use generated::slider_crank_5body::{self as sc, SliderCrank5body};
 use runtime::step::{Groups, Trouble};
 use runtime::{Mechanism, Solver};
 
-/// The four-bar rocker's x and z and the slider's x among the unknowns.
-const ROCKER_X: usize = fb::unknown("rocker.x");
-const ROCKER_Z: usize = fb::unknown("rocker.z");
-const SLIDER_X: usize = sc::unknown("slider.x");
+/// The four-bar's rocker and the slider among the moving bodies: their positions are written
+/// from the loop's orientations (torn from it, `symbolic::substitute`), read through `expand`.
+const ROCKER: usize = fb::body("rocker");
+const SLIDER: usize = sc::body("slider");
+
+/// The full coordinates of the four-bar's bodies at (q, q̇, q̈, t) ([`fb::expand`]).
+fn four_bar_bodies(
+    q: &[f64; fb::N],
+    qd: &[f64; fb::N],
+    qdd: &[f64; fb::N],
+    t: f64,
+) -> [[[f64; 7]; 3]; fb::BODIES] {
+    let mut out = [[[0.0; 7]; 3]; fb::BODIES];
+    fb::expand(q, qd, qdd, t, &mut out);
+    out
+}
 
 /// The four-bar's crank law: θ = 3.14159265 t (driver `motor`, coordinate rx).
 #[expect(clippy::approx_constant, reason = "the description's law is this literal, not π")]
@@ -46,12 +58,18 @@ fn rocker_angle(theta: f64) -> f64 {
     dz.atan2(dx) - (k / dx.hypot(dz)).acos()
 }
 
-/// The rocker angle of the solver's state, with its first and second time derivatives: C − D
-/// is twice the rocker's origin (the midpoint of its pins) minus D, so φ = atan2(Z, X) with
-/// X = x_r + 4 and Z = z_r.
-fn solver_rocker_angle(q: &[f64], qd: &[f64], qdd: &[f64]) -> [f64; 3] {
-    let (x, z) = (q[ROCKER_X] + 4.0, q[ROCKER_Z]);
-    let (xd, zd, xdd, zdd) = (qd[ROCKER_X], qd[ROCKER_Z], qdd[ROCKER_X], qdd[ROCKER_Z]);
+/// The rocker angle of the solver's state at t, with its first and second time derivatives:
+/// C − D is twice the rocker's origin (the midpoint of its pins) minus D, so φ = atan2(Z, X)
+/// with X = x_r + 4 and Z = z_r.
+fn solver_rocker_angle(
+    q: &[f64; fb::N],
+    qd: &[f64; fb::N],
+    qdd: &[f64; fb::N],
+    t: f64,
+) -> [f64; 3] {
+    let [r, rd, rdd] = four_bar_bodies(q, qd, qdd, t)[ROCKER];
+    let (x, z) = (r[0] + 4.0, r[2]);
+    let (xd, zd, xdd, zdd) = (rd[0], rd[2], rdd[0], rdd[2]);
     let r2 = x * x + z * z;
     let cross = x * zd - z * xd;
     let phid = cross / r2;
@@ -120,7 +138,7 @@ fn four_bar_with_jumps(jump_deg: f64, groups: Groups<'static>) -> u32 {
             .advance_to(t)
             .unwrap_or_else(|e| panic!("four-bar, {jump_deg}° per call, t = {t}: {e}"));
         most = most.max(report.iterations);
-        let got = solver_rocker_angle(solver.q(), solver.qd(), solver.qdd());
+        let got = solver_rocker_angle(solver.q(), solver.qd(), solver.qdd(), t);
         let want = derivatives(|t| rocker_angle(FOUR_BAR_OMEGA * t), angle_difference, t, STEP);
         let context = format!("four-bar, {jump_deg}° per call, t = {t}: {got:?} against {want:?}");
         assert!(angle_difference(got[0], want[0]).abs() < POSITION, "{context}");
@@ -128,7 +146,8 @@ fn four_bar_with_jumps(jump_deg: f64, groups: Groups<'static>) -> u32 {
         assert!((got[1] - want[1]).abs() < DERIVATIVE * FOUR_BAR_OMEGA, "{context}");
         assert!((got[2] - want[2]).abs() < DERIVATIVE * FOUR_BAR_OMEGA.powi(2), "{context}");
         // The rocker's pivot stays at y = −8.5 (the rocker's origin is on its axis).
-        assert!((solver.q()[fb::unknown("rocker.y")] + 8.5).abs() < POSITION, "{context}");
+        let y = four_bar_bodies(solver.q(), solver.qd(), solver.qdd(), t)[ROCKER][0][1];
+        assert!((y + 8.5).abs() < POSITION, "{context}");
     }
     most
 }
@@ -146,7 +165,9 @@ fn slider_crank_with_jumps(jump_deg: f64, groups: Groups<'static>) -> u32 {
             .advance_to(t)
             .unwrap_or_else(|e| panic!("slider-crank, {jump_deg}° per call, t = {t}: {e}"));
         most = most.max(report.iterations);
-        let got = [solver.q()[SLIDER_X], solver.qd()[SLIDER_X], solver.qdd()[SLIDER_X]];
+        let mut bodies = [[[0.0; 7]; 3]; sc::BODIES];
+        sc::expand(solver.q(), solver.qd(), solver.qdd(), t, &mut bodies);
+        let got = bodies[SLIDER].map(|c| c[0]);
         let want =
             derivatives(|t| slider_x(SLIDER_THETA0 + SLIDER_OMEGA * t), length_difference, t, STEP);
         let context =
@@ -200,7 +221,8 @@ fn plain_position_jumps_branch_where_advance_to_does_not() {
     // `position` still returns `Ok`.
     let dt = 179.0_f64.to_radians() / FOUR_BAR_OMEGA;
     let rocker_ok = |q: &[f64; fb::N], t: f64| {
-        let phi = q[ROCKER_Z].atan2(q[ROCKER_X] + 4.0);
+        let r = four_bar_bodies(q, &[0.0; fb::N], &[0.0; fb::N], t)[ROCKER][0];
+        let phi = r[2].atan2(r[0] + 4.0);
         angle_difference(phi, rocker_angle(FOUR_BAR_OMEGA * t)).abs() < POSITION
     };
     let plain = first_branch_jump(Solver::new(FourBar, fb::Q0), dt, calls(179.0), rocker_ok);
