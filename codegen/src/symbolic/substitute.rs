@@ -36,6 +36,14 @@
 //! join the eliminated ones (`off_axis`). The family is taken through the assembled
 //! configuration, so it is the branch the generic engine follows.
 //!
+//! Inside an implicit block (a closed loop), a position on which one of the block's rows is
+//! affine with a constant coefficient (a pin of the loop's body: x_j + (A_j s'_j)_x − … = 0,
+//! coefficient ±1 whatever the orientations) is torn from it (`torn`): q_k = −ρ/a as for an
+//! affine block, substituted into the block's other rows, which leaves Newton the Schur
+//! complement on fewer unknowns (the four-bar's loop: 14 → 8, its Euler parameters). Only
+//! constant coefficients are torn: they cannot vanish on the motion, so a torn value is as
+//! finite and exact as the row it comes from.
+//!
 //! Other joint-angle rows, absolute rotations about a moving body (κ then varies) and affine
 //! blocks with a coefficient that varies stay unknowns, as does every block when the system
 //! has rows dropped as dependent (their run-time checks and re-selection belong to the whole
@@ -247,45 +255,67 @@ impl Symbolic {
         map: &BTreeMap<Var, ExprId>,
         marks: &mut Vec<u32>,
     ) -> Vec<(usize, ExprId, usize)> {
-        let mut map = map.clone();
-        let mut rows = block.rows.clone();
-        let mut unknowns: Vec<usize> =
+        // The block's rows with the coordinates substituted so far, and the block's
+        // translational unknowns each row depends on; both updated as unknowns are torn, so
+        // that no row or value holds a torn unknown.
+        let mut rows: Vec<(usize, ExprId, BTreeSet<usize>)> = block
+            .rows
+            .iter()
+            .map(|&r| {
+                let phi = self.pool.substitute(self.phi[r], map);
+                (r, phi, BTreeSet::new())
+            })
+            .collect();
+        let mut unknowns: BTreeSet<usize> =
             block.unknowns.iter().copied().filter(|&k| self.unknowns[k].1 < 3).collect();
-        let mut torn = Vec::new();
+        for row in &mut rows {
+            row.2 = unknowns
+                .iter()
+                .copied()
+                .filter(|&k| self.pool.depends_on(row.1, Var::Q(small(k))))
+                .collect();
+        }
+        let mut torn: Vec<(usize, ExprId, usize)> = Vec::new();
         while !unknowns.is_empty() && !rows.is_empty() {
-            // (|a|, row position, unknown position, the row substituted, a).
-            let mut best: Option<(f64, usize, usize, ExprId, f64)> = None;
-            for (ri, &r) in rows.iter().enumerate() {
-                let phi = self.pool.substitute(self.phi[r], &map);
-                for (ki, &k) in unknowns.iter().enumerate() {
-                    let qk = Var::Q(small(k));
-                    if !self.pool.depends_on(phi, qk) {
-                        continue;
-                    }
-                    let d = self.pool.diff(phi, qk);
+            // (|a|, row position, unknown, a).
+            let mut best: Option<(f64, usize, usize, f64)> = None;
+            for (ri, (_, phi, depends)) in rows.iter().enumerate() {
+                for &k in depends {
+                    let d = self.pool.diff(*phi, Var::Q(small(k)));
                     let Some(a) = self.pool.as_const(d).filter(|a| *a != 0.0 && a.is_finite())
                     else {
                         continue;
                     };
                     if best.is_none_or(|b| a.abs() > b.0) {
-                        best = Some((a.abs(), ri, ki, phi, a));
+                        best = Some((a.abs(), ri, k, a));
                     }
                 }
             }
-            let Some((_, ri, ki, phi, a)) = best else { break };
-            let k = unknowns[ki];
+            let Some((_, ri, k, a)) = best else { break };
             let qk = Var::Q(small(k));
             let zero = self.pool.constant(0.0);
-            let rest = self.pool.substitute(phi, &BTreeMap::from([(qk, zero)]));
+            let rest = self.pool.substitute(rows[ri].1, &BTreeMap::from([(qk, zero)]));
             let factor = self.pool.constant(-1.0 / a);
             let value = self.pool.mul(factor, rest);
             marks.resize(self.pool.len(), 0);
             if self.pool.new_operations(value, marks, 1) > LARGEST_VALUE {
                 break;
             }
-            map.insert(qk, value);
-            torn.push((k, value, rows.remove(ri)));
-            unknowns.remove(ki);
+            let (r, ..) = rows.remove(ri);
+            unknowns.remove(&k);
+            let step = BTreeMap::from([(qk, value)]);
+            for entry in &mut torn {
+                entry.1 = self.pool.substitute(entry.1, &step);
+            }
+            for row in rows.iter_mut().filter(|row| row.2.contains(&k)) {
+                row.1 = self.pool.substitute(row.1, &step);
+                row.2 = unknowns
+                    .iter()
+                    .copied()
+                    .filter(|&j| self.pool.depends_on(row.1, Var::Q(small(j))))
+                    .collect();
+            }
+            torn.push((k, value, r));
         }
         torn
     }
