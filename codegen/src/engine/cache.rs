@@ -103,21 +103,27 @@ fn build_flags() -> Option<&'static str> {
     }
     #[cfg(target_arch = "x86_64")]
     {
-        let v3 = std::arch::is_x86_feature_detected!("avx")
-            && std::arch::is_x86_feature_detected!("avx2")
-            && std::arch::is_x86_feature_detected!("bmi1")
-            && std::arch::is_x86_feature_detected!("bmi2")
-            && std::arch::is_x86_feature_detected!("f16c")
-            && std::arch::is_x86_feature_detected!("fma")
-            && std::arch::is_x86_feature_detected!("lzcnt")
-            && std::arch::is_x86_feature_detected!("movbe")
-            && std::arch::is_x86_feature_detected!("xsave")
-            && std::arch::is_x86_feature_detected!("cmpxchg16b")
-            && std::arch::is_x86_feature_detected!("popcnt")
-            && std::arch::is_x86_feature_detected!("sse3")
-            && std::arch::is_x86_feature_detected!("ssse3")
-            && std::arch::is_x86_feature_detected!("sse4.1")
-            && std::arch::is_x86_feature_detected!("sse4.2");
+        // Every feature of the level (the macro takes literal names only).
+        macro_rules! detected {
+            ($($feature:tt),*) => { true $(&& std::arch::is_x86_feature_detected!($feature))* };
+        }
+        let v3 = detected!(
+            "avx",
+            "avx2",
+            "bmi1",
+            "bmi2",
+            "f16c",
+            "fma",
+            "lzcnt",
+            "movbe",
+            "xsave",
+            "cmpxchg16b",
+            "popcnt",
+            "sse3",
+            "ssse3",
+            "sse4.1",
+            "sse4.2"
+        );
         if v3 {
             return Some("-Ctarget-cpu=x86-64-v3");
         }
