@@ -409,6 +409,7 @@ impl<'a> Factorizer<'a> {
                     self.total_ops += 1;
                     self.scaled += 1;
                     self.store(k, l, &scaled);
+                    // Counted in `scaled`, apart from the elimination's stores.
                     self.stored -= 1;
                 }
             }

@@ -93,7 +93,7 @@ pub struct Derived {
     /// Its value f(q, t), rate ḟ = f_q q̇ + f_t and acceleration
     /// f̈ = f_q q̈ + (f_q q̇)_q q̇ + 2 f_qt q̇ + f_tt, in q, q̇, q̈, t (and the inputs).
     pub value: [ExprId; 3],
-    /// Whether it was torn from an implicit block ([`Symbolic::torn`]) rather than solved by
+    /// Whether it was torn from an implicit block (see the module docs) rather than solved by
     /// a closed-form block of its own.
     pub torn: bool,
 }
