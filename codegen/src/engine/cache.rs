@@ -83,9 +83,10 @@ pub fn fingerprint() -> &'static str {
     })
 }
 
-/// The compiler flags the cache builds solvers with, unless the user set their own
-/// (`RUSTFLAGS` or `CARGO_ENCODED_RUSTFLAGS`, which then win): the instruction set of this
-/// machine's processor family where it is one of the x86-64 levels above the baseline.
+/// The compiler flags the cache builds solvers with, unless the user set their own through
+/// `RUSTFLAGS` or `CARGO_ENCODED_RUSTFLAGS` (which then win): the instruction set of this
+/// machine's processor family where it is one of the x86-64 levels above the baseline. They
+/// are passed as `build.rustflags`, added to any the user's cargo configuration sets.
 ///
 /// A solver binary is built here and run here only, so it may use every instruction this
 /// processor has. `x86-64-v3` (AVX2, FMA, BMI1/2 and the rest of the level) makes the R-S-S-R
@@ -671,7 +672,10 @@ impl Recipe {
         log::debug!("running {} {}", Path::new(&cargo).display(), args.join(" "));
         let mut command = Command::new(&cargo);
         if let Some(flags) = build_flags() {
-            command.env("RUSTFLAGS", flags);
+            // As configuration, not `RUSTFLAGS`: cargo appends it to the rustflags of the
+            // user's own configuration files (a linker choice, say) where the variable would
+            // replace them.
+            command.arg("--config").arg(format!("build.rustflags = [\"{flags}\"]"));
         }
         let output = command
             .args(args)
