@@ -671,14 +671,14 @@ impl Recipe {
         let cargo = std::env::var_os("CARGO").unwrap_or_else(|| "cargo".into());
         log::debug!("running {} {}", Path::new(&cargo).display(), args.join(" "));
         let mut command = Command::new(&cargo);
+        command.args(args);
         if let Some(flags) = build_flags() {
             // As configuration, not `RUSTFLAGS`: cargo appends it to the rustflags of the
             // user's own configuration files (a linker choice, say) where the variable would
-            // replace them.
+            // replace them. After the subcommand, which stays cargo's first argument.
             command.arg("--config").arg(format!("build.rustflags = [\"{flags}\"]"));
         }
         let output = command
-            .args(args)
             .arg("--manifest-path")
             .arg(self.dir().join("Cargo.toml"))
             .env("CARGO_TARGET_DIR", self.cache.join("target"))
