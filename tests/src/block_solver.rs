@@ -57,7 +57,7 @@ fn check_with(text: &str, block_newton: bool) {
 
 /// Builds `module` of `mech` and asserts that its run agrees with the generic engine's to
 /// [`AGREEMENT`], every frame; the generic run, for further checks.
-fn agrees_with_generic(
+pub(crate) fn agrees_with_generic(
     mech: &codegen::model::Mechanism,
     sys: &codegen::symbolic::Symbolic,
     module: &str,

@@ -107,16 +107,6 @@ fn split_static_orders_solve_as_the_generic_engine() {
     for helper in ["fn factor_0_1(", "fn solve_0_1("] {
         assert!(module.contains(helper), "the static order is split: {helper}");
     }
-    let generic = codegen::testing::run_generic(&mech);
-    assert!(generic.failure.is_none(), "{:?}", generic.failure);
-    let built = codegen::engine::build_module(&mech, &module, &sys, Scalar::F64).expect("builds");
-    let generated = codegen::testing::run_generated(&mech, &built);
-    assert!(generated.failure.is_none(), "{:?}", generated.failure);
-    assert_eq!(generic.frames.len(), generated.frames.len(), "every frame");
-    // As `block_solver::AGREEMENT`: Newton stops at max |Φ| ≤ 1e-12 in each engine, which the
-    // conditioning of Φ_q turns into differences of about 1e-12 of a quantity's scale; 1e-10
-    // leaves a factor of 100.
-    for (diff, at) in codegen::testing::relative_differences(&generic.frames, &generated.frames) {
-        assert!(diff <= 1e-10, "{at}");
-    }
+    // Every frame, to `block_solver::AGREEMENT` (1e-10 of each quantity's scale).
+    crate::block_solver::agrees_with_generic(&mech, &sys, &module);
 }

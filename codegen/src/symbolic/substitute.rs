@@ -126,7 +126,6 @@ impl Symbolic {
         let mut marks = Vec::new();
         for block in &blocks.blocks {
             if block.kind == Kind::Implicit {
-                marks.resize(self.pool.len(), 0);
                 for (k, e, r) in self.torn(block, &map, &mut marks) {
                     map.insert(Var::Q(small(k)), e);
                     found.push((k, e, vec![self.rows[r].clone()], true));
